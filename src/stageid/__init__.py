@@ -1,0 +1,43 @@
+"""stageid: identification and compensation of precision positioning stages.
+
+Sub-packages, one capability each:
+
+==============  =====================================================================
+``data``        the :class:`~stageid.data.Experiment` container, readers, preprocessing
+``signals``     excitation signals (chirps, PRBS, multisines, hysteresis staircases)
+``models``      LTI models (state space, transfer matrix), the ``stageid.lti/1`` format
+``subspace``    Hankel-Toeplitz regression, recursive MAP, ERA realisation (Cao & Chen)
+``closedloop``  prediction-error methods, plant deduction, order reduction (Shakir & Kim)
+``hysteresis``  play / coupled-play operators, PI and modified PI models, inverses
+``validation``  fit metrics and residual tests
+``plants``      the reference stages of the papers
+``cli``         the ``stageid`` command (the only place that prints or exits)
+==============  =====================================================================
+"""
+
+from ._errors import (
+    DataError,
+    ExcitationWarning,
+    IdentificationError,
+    ModelError,
+    ModelFormatError,
+    SignalError,
+    StabilityWarning,
+    StageIdError,
+    StageIdWarning,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "StageIdError",
+    "DataError",
+    "ModelError",
+    "ModelFormatError",
+    "SignalError",
+    "IdentificationError",
+    "StageIdWarning",
+    "ExcitationWarning",
+    "StabilityWarning",
+    "__version__",
+]

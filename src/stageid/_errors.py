@@ -1,0 +1,57 @@
+"""Exceptions and warnings shared by every part of stageid.
+
+Every error raised on purpose derives from :class:`StageIdError` and also from the
+built-in exception it refines, so ``except ValueError`` keeps working for callers
+that do not know stageid.  Messages say what was expected and what came, e.g.
+"`B` must have shape (15, 3); got (5, 3)."
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "StageIdError",
+    "DataError",
+    "ModelError",
+    "ModelFormatError",
+    "SignalError",
+    "IdentificationError",
+    "StageIdWarning",
+    "ExcitationWarning",
+    "StabilityWarning",
+]
+
+
+class StageIdError(Exception):
+    """Base class of every error stageid raises on purpose."""
+
+
+class DataError(StageIdError, ValueError):
+    """Measured data are unusable: NaN/inf, ragged columns, bad time axis, unknown names."""
+
+
+class ModelError(StageIdError, ValueError):
+    """A model is inconsistent or an operation on it is undefined (e.g. no real logarithm)."""
+
+
+class ModelFormatError(ModelError):
+    """A model file (``stageid.lti/1`` or a hysteresis JSON) is malformed."""
+
+
+class SignalError(StageIdError, ValueError):
+    """An excitation signal was asked for with impossible or out-of-limit parameters."""
+
+
+class IdentificationError(StageIdError, RuntimeError):
+    """Identification could not produce a model (singular problem, no convergence, ...)."""
+
+
+class StageIdWarning(UserWarning):
+    """Base class of every warning stageid issues; filter on it to silence them all."""
+
+
+class ExcitationWarning(StageIdWarning):
+    """The data are not persistently exciting for the requested model."""
+
+
+class StabilityWarning(StageIdWarning):
+    """An identified or requested model is unstable where stability was expected."""
