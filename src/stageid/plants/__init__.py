@@ -1,1 +1,34 @@
-"""stageid.plants"""
+"""Reference stages from the papers, used as ground truth in simulation.
+
+Each module describes one stage and cites its equations. A plant module exposes
+
+- ``model()`` returning the reference model (LTI or hysteresis model object), and
+- ``EXPERIMENTS``: a dict mapping an experiment name to a function ``f(seed: int = 0)``
+  returning a :class:`~stageid.data.Experiment` (or a :class:`~stageid.data.io.Table` for
+  closed-loop records holding references, plant inputs and outputs).
+
+``PLANTS`` maps the names used by ``stageid plants NAME`` to their modules.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+from .._errors import StageIdError
+
+PLANTS: dict[str, str] = {
+    "p558": "stageid.plants.piezo_stage",
+    "maglev": "stageid.plants.maglev",
+    "piezo-actuator": "stageid.plants.piezo_actuator",
+}
+
+
+def plant_module(name: str) -> ModuleType:
+    """The module of reference stage ``name`` (one of ``PLANTS``)."""
+    if name not in PLANTS:
+        raise StageIdError(f"unknown plant {name!r}; expected one of {', '.join(PLANTS)}.")
+    return importlib.import_module(PLANTS[name])
+
+
+__all__ = ["PLANTS", "plant_module"]
