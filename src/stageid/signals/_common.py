@@ -1,0 +1,275 @@
+"""Shared helpers of :mod:`stageid.signals`: the time grid, parameter checks, limits.
+
+Sampling convention used by every generator
+-------------------------------------------
+A signal of ``duration`` seconds sampled every ``dt`` seconds has
+``n_samples = round(duration / dt)`` samples at ``t_k = k * dt`` for
+``k = 0, ..., n_samples - 1`` (the end point ``t = duration`` is *not* included, as in
+``np.arange(0, duration, dt)``).  A whole number of periods therefore gives an exactly
+periodic record, which is what FFT-based analysis wants.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+
+from .._errors import SignalError
+
+__all__ = ["time_vector", "crest_factor", "check_limits"]
+
+# Relative slack when comparing a generated signal with its limits: sin() may return
+# 1 + 1 ulp, and offset + amplitude may round; a few ulps must not raise.
+_LIMIT_RTOL = 1e-12
+
+
+def time_vector(n_samples: int, dt: float) -> np.ndarray:
+    """Sample instants ``t_k = k * dt`` of a record of ``n_samples`` samples.
+
+    Parameters
+    ----------
+    n_samples : int
+        Number of samples, at least 2.
+    dt : float
+        Sample time in seconds, > 0.
+
+    Returns
+    -------
+    t : ndarray of shape (n_samples,)
+        Time in seconds, starting at 0.
+
+    Raises
+    ------
+    SignalError
+        If ``n_samples`` < 2 or ``dt`` <= 0.
+
+    Examples
+    --------
+    >>> from stageid.signals import time_vector
+    >>> time_vector(4, 0.5)
+    array([0. , 0.5, 1. , 1.5])
+    """
+    n = check_n_samples(n_samples, "time_vector")
+    step = check_dt(dt, "time_vector")
+    return np.arange(n, dtype=float) * step
+
+
+def crest_factor(signal: np.ndarray) -> float:
+    """Peak-to-RMS ratio of the zero-mean part of a signal, ``max|x - mean| / rms``.
+
+    Parameters
+    ----------
+    signal : array_like of shape (n_samples,)
+        The signal.
+
+    Returns
+    -------
+    float
+        Crest factor (sqrt(2) for a sine, 1 for a binary sequence).
+
+    Raises
+    ------
+    SignalError
+        If the signal is not 1-D with at least 2 samples or is constant.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.signals import crest_factor
+    >>> round(crest_factor(np.sin(2 * np.pi * np.arange(100) / 100)), 6)
+    1.414214
+    """
+    x = np.asarray(signal, dtype=float)
+    if x.ndim != 1 or x.size < 2:
+        raise SignalError(
+            f"crest_factor expects a 1-D signal with at least 2 samples; got shape {x.shape}."
+        )
+    x = x - x.mean()
+    rms = float(np.sqrt(np.mean(x**2)))
+    if rms == 0.0:
+        raise SignalError("crest_factor of a constant signal is undefined; got a constant signal.")
+    return float(np.max(np.abs(x)) / rms)
+
+
+def check_limits(
+    signal: np.ndarray, limits: tuple[float, float] | None, name: str, unit: str = ""
+) -> None:
+    """Raise :class:`SignalError` if ``signal`` leaves ``limits = (lo, hi)``.
+
+    Signals are never clipped silently: a generator asked for a signal that would leave
+    the actuator's range raises instead, naming the range it would span.
+
+    Parameters
+    ----------
+    signal : ndarray of shape (n_samples,) or (n_samples, n_channels)
+        The generated signal.
+    limits : (float, float) or None
+        Allowed closed range ``[lo, hi]``; ``None`` checks nothing.
+    name : str
+        Name of the generator, used in the message.
+    unit : str, optional
+        Unit appended to the numbers in the message, e.g. ``"um"``.
+
+    Raises
+    ------
+    SignalError
+        If ``limits`` is malformed or the signal spans beyond it, e.g.
+        "chirp spans [-1, 41] um but limits are [0, 40] um."
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.signals import check_limits
+    >>> check_limits(np.array([0.0, 40.0]), (0, 40), "chirp")  # inside: no error
+    >>> check_limits(np.array([-1.0, 41.0]), (0, 40), "chirp", "um")
+    Traceback (most recent call last):
+    ...
+    stageid._errors.SignalError: chirp spans [-1, 41] um but limits are [0, 40] um.
+    """
+    if limits is None:
+        return
+    lo, hi = _parse_limits(limits, name)
+    x = np.asarray(signal, dtype=float)
+    x_lo, x_hi = float(np.min(x)), float(np.max(x))
+    slack = _LIMIT_RTOL * max(abs(lo), abs(hi), hi - lo, 1.0)
+    if x_lo < lo - slack or x_hi > hi + slack:
+        u = f" {unit}" if unit else ""
+        raise SignalError(
+            f"{name} spans [{x_lo:.6g}, {x_hi:.6g}]{u} but limits are [{lo:.6g}, {hi:.6g}]{u}."
+        )
+
+
+def _parse_limits(limits: Any, name: str) -> tuple[float, float]:
+    try:
+        lo, hi = limits
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        raise SignalError(
+            f"`limits` of {name} must be a pair (lo, hi) of numbers; got {limits!r}."
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+        raise SignalError(
+            f"`limits` of {name} must be finite with lo < hi; got ({lo:g}, {hi:g})."
+        )
+    return lo, hi
+
+
+# --------------------------------------------------------------------------------------
+# Parameter checks (private; each raises SignalError naming expected vs got)
+# --------------------------------------------------------------------------------------
+
+
+def _real(value: Any, param: str, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise SignalError(f"`{param}` of {name} must be a real number; got {value!r}.")
+    v = float(value)
+    if not math.isfinite(v):
+        raise SignalError(f"`{param}` of {name} must be finite; got {v!r}.")
+    return v
+
+
+def check_positive(value: Any, param: str, name: str) -> float:
+    """Return ``value`` as float if it is finite and > 0, else raise SignalError."""
+    v = _real(value, param, name)
+    if v <= 0:
+        raise SignalError(f"`{param}` of {name} must be > 0; got {v:g}.")
+    return v
+
+
+def check_nonnegative(value: Any, param: str, name: str) -> float:
+    """Return ``value`` as float if it is finite and >= 0, else raise SignalError."""
+    v = _real(value, param, name)
+    if v < 0:
+        raise SignalError(f"`{param}` of {name} must be >= 0; got {v:g}.")
+    return v
+
+
+def check_finite(value: Any, param: str, name: str) -> float:
+    """Return ``value`` as float if it is a finite real number, else raise SignalError."""
+    return _real(value, param, name)
+
+
+def check_int(value: Any, param: str, name: str, minimum: int) -> int:
+    """Return ``value`` as int if it is an integer >= ``minimum``, else raise SignalError."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise SignalError(
+            f"`{param}` of {name} must be an integer >= {minimum}; got {value!r}."
+        )
+    v = int(value)
+    if v < minimum:
+        raise SignalError(f"`{param}` of {name} must be an integer >= {minimum}; got {v}.")
+    return v
+
+
+def check_dt(dt: Any, name: str) -> float:
+    """Return the sample time if it is finite and > 0, else raise SignalError."""
+    return check_positive(dt, "dt", name)
+
+
+def check_n_samples(n_samples: Any, name: str) -> int:
+    """Return ``n_samples`` if it is an integer >= 2, else raise SignalError."""
+    return check_int(n_samples, "n_samples", name, 2)
+
+
+def n_from_duration(duration: Any, dt: float, name: str) -> int:
+    """Number of samples ``round(duration / dt)`` of a record; at least 2."""
+    d = check_positive(duration, "duration", name)
+    n = int(round(d / dt))
+    if n < 2:
+        raise SignalError(
+            f"{name} needs at least 2 samples (duration / dt >= 2); "
+            f"got duration {d:g} s with dt {dt:g} s ({d / dt:.3g} samples)."
+        )
+    return n
+
+
+def check_nyquist(freq: float, param: str, dt: float, name: str) -> None:
+    """Raise SignalError if ``freq`` (Hz) exceeds the Nyquist frequency ``1 / (2 dt)``."""
+    nyquist = 0.5 / dt
+    # equality is allowed (Shakir & Kim sweep up to exactly 2500 Hz at 5 kHz)
+    if freq > nyquist * (1 + 1e-12):
+        raise SignalError(
+            f"`{param}` of {name} must be at most the Nyquist frequency 1/(2 dt) = "
+            f"{nyquist:g} Hz; got {freq:g} Hz."
+        )
+
+
+def check_choice(value: Any, param: str, name: str, choices: tuple[str, ...]) -> str:
+    """Return ``value`` if it is one of ``choices``, else raise SignalError listing them."""
+    if not isinstance(value, str) or value not in choices:
+        listed = ", ".join(repr(c) for c in choices)
+        raise SignalError(f"`{param}` of {name} must be one of {listed}; got {value!r}.")
+    return value
+
+
+def check_n_channels(n_channels: Any, name: str) -> int | None:
+    """``None`` (one channel, 1-D output) or an integer >= 1 (2-D output)."""
+    if n_channels is None:
+        return None
+    return check_int(n_channels, "n_channels", name, 1)
+
+
+def scale_to(
+    x: np.ndarray, rms: Any, amplitude: Any, name: str
+) -> np.ndarray:
+    """Scale zero-mean ``x`` (per column) to the requested RMS or peak value.
+
+    Exactly one of ``rms`` / ``amplitude`` may be given; neither means peak amplitude 1.
+    """
+    if rms is not None and amplitude is not None:
+        raise SignalError(
+            f"{name} takes either `rms` or `amplitude`, not both; got rms={rms!r}, "
+            f"amplitude={amplitude!r}."
+        )
+    if rms is not None:
+        target = check_positive(rms, "rms", name)
+        current = np.sqrt(np.mean(x**2, axis=0))
+    else:
+        target = 1.0 if amplitude is None else check_positive(amplitude, "amplitude", name)
+        current = np.max(np.abs(x), axis=0)
+    if np.any(current == 0):
+        raise SignalError(f"{name} produced an all-zero signal; got no excited frequency.")
+    return x * (target / current)
