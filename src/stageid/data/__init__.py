@@ -4,9 +4,35 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 =====================  ==========================================================
 ``Experiment``         one sampled input/output record, time-first arrays
 ``as_experiments``     normalise one or several experiments into a checked tuple
+``Table``              named columns read from a file; ``.experiment(inputs, outputs)``
+``read_table``         read ``.csv`` / ``.npz`` / ``.mat`` into a Table (by extension)
+``write_csv``          write columns, a Table or an Experiment to CSV (atomic, exact)
+``write_npz``          the same as a NumPy ``.npz`` archive
+``remove_offset``      subtract means or linear trends; returns ``(experiment, Offsets)``
+``Offsets``            the removed trend, to re-apply or restore
+``split``              identification / validation split in time
+``merge``              several records of one system as a checked tuple
+``decimate``           anti-aliased down-sampling
 =====================  ==========================================================
+
+Loaders for the real records in ``../shared/data`` live in :mod:`stageid.data.datasets`;
+the per-format readers (``read_csv``, ``read_npz``, ``read_mat``) in :mod:`stageid.data.io`.
 """
 
 from .experiment import Experiment, as_experiments
+from .io import Table, read_table, write_csv, write_npz
+from .preprocess import Offsets, decimate, merge, remove_offset, split
 
-__all__ = ["Experiment", "as_experiments"]
+__all__ = [
+    "Experiment",
+    "as_experiments",
+    "Table",
+    "read_table",
+    "write_csv",
+    "write_npz",
+    "remove_offset",
+    "Offsets",
+    "split",
+    "merge",
+    "decimate",
+]
