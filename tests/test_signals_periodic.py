@@ -6,9 +6,11 @@ import re
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from stageid import SignalError
-from stageid.signals import crest_factor, multisine, multisine_lines, sine, time_vector, triangle
+from stageid.signals import band_limited_random, crest_factor, multisine, multisine_lines, sine, time_vector, triangle
 
 
 def test_sine_values_at_known_times():
@@ -129,3 +131,37 @@ def test_multisine_limits_error():
     # the peak |x - offset| = 5 is reached on one side at least
     with pytest.raises(SignalError, match=r"^multisine spans \[1[5-9][.\d]*, 2[0-5][.\d]*\] but limits are \[16, 30\]\.$"):
         multisine(1000, 1e-3, 1.0, 100.0, kind="schroeder", amplitude=5.0, offset=20.0, limits=(16, 30))
+
+
+# ------------------------------------------------------------- property-based checks
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(min_value=16, max_value=3000),
+    n_periods=st.integers(min_value=1, max_value=3),
+    lo_frac=st.floats(min_value=0.0, max_value=0.9),
+    width_frac=st.floats(min_value=0.05, max_value=1.0),
+    seed=st.integers(min_value=0, max_value=2**32 - 1),
+)
+def test_band_confinement_property(n, n_periods, lo_frac, width_frac, seed):
+    """Random sizes and bands (edges on or between lines): nothing leaks out of the band."""
+    dt = 1e-3
+    n -= n % n_periods
+    nyq = 0.5 / dt
+    lo = lo_frac * nyq
+    hi = min(nyq, lo + width_frac * (nyq - lo) + 1e-9)
+    assume(hi > lo)
+    period = n // n_periods
+    df = 1.0 / (period * dt)
+    assume(np.floor(hi / df) >= max(1.0, np.ceil(lo / df)) and np.floor(hi / df) < period / 2)
+
+    x = multisine(n, dt, lo, hi, n_periods=n_periods, seed=seed)
+    spec = np.abs(np.fft.rfft(x)) ** 2
+    f = np.fft.rfftfreq(n, dt)
+    assert spec[(f < lo - 1e-9) | (f > hi + 1e-9)].sum() / spec.sum() < 1e-10
+    assert np.max(np.abs(x)) == pytest.approx(1.0, rel=1e-12)
+
+    y = band_limited_random(n, dt, lo, hi, rms=1.0, seed=seed)
+    spec = np.abs(np.fft.rfft(y)) ** 2
+    assert spec[(f < lo) | (f > hi)].sum() / spec.sum() < 1e-10

@@ -74,8 +74,17 @@ def test_generate_unknown_and_missing_parameters():
         generate("sine", freq=1.0, duration=1.0)
 
 
+def test_generate_passes_a_generators_own_kind_parameter():
+    params = dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0)
+    x = generate("multisine", **params, kind="schroeder")
+    assert np.array_equal(x, SIGNAL_KINDS["multisine"](**params, kind="schroeder"))
+    assert not np.allclose(x, generate("multisine", **params, kind="random-phase", seed=0))
+
+
 def test_signal_parameters_lists_required_first():
     params = signal_parameters("chirp")
+    assert params["f0"].annotation is float and params["method"].default == "linear"
+    assert params["limits"].annotation == (tuple[float, float] | None)
     required = [n for n, p in params.items() if p.default is inspect.Parameter.empty]
     assert required == ["f0", "f1", "duration", "dt"]
     with pytest.raises(SignalError, match="signal kind must be one of"):

@@ -16,6 +16,8 @@ threshold are exercised:
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from .._errors import SignalError
@@ -105,7 +107,7 @@ def decay_envelope(
 
 def _decaying(
     name: str,
-    wave,
+    wave: Callable[[np.ndarray], np.ndarray],
     freq: float,
     n_cycles: int,
     dt: float,

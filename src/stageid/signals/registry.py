@@ -8,6 +8,7 @@ parameter names first so that a command line gets one clear error line.
 from __future__ import annotations
 
 import inspect
+import typing
 from typing import Any, Callable
 
 import numpy as np
@@ -56,7 +57,8 @@ def signal_parameters(kind: str) -> dict[str, inspect.Parameter]:
     Returns
     -------
     dict of str to inspect.Parameter
-        Parameter name -> parameter (with ``default`` and ``annotation``).
+        Parameter name -> parameter with its ``default`` and its ``annotation`` resolved
+        to a type object (``float``, ``int | None``, ``tuple[float, float] | None``...).
 
     Raises
     ------
@@ -66,13 +68,21 @@ def signal_parameters(kind: str) -> dict[str, inspect.Parameter]:
     Examples
     --------
     >>> from stageid.signals import signal_parameters
-    >>> list(signal_parameters("sine"))
+    >>> params = signal_parameters("sine")
+    >>> list(params)
     ['freq', 'duration', 'dt', 'amplitude', 'offset', 'phase', 'limits']
+    >>> params["freq"].annotation, params["amplitude"].default
+    (<class 'float'>, 1.0)
     """
-    return dict(inspect.signature(_lookup(kind)).parameters)
+    func = _lookup(kind)
+    hints = typing.get_type_hints(func)
+    return {
+        name: p.replace(annotation=hints.get(name, p.annotation))
+        for name, p in inspect.signature(func).parameters.items()
+    }
 
 
-def generate(kind: str, **params: Any) -> np.ndarray:
+def generate(kind: str, /, **params: Any) -> np.ndarray:
     """Generate a signal of the named ``kind`` with keyword ``params``.
 
     Parameters
@@ -82,7 +92,9 @@ def generate(kind: str, **params: Any) -> np.ndarray:
         ``"multisine"``, ``"sine"``, ``"triangle"``, ``"decaying-sine"``,
         ``"decaying-triangle"``, ``"forc"`` (the keys of :data:`SIGNAL_KINDS`).
     **params
-        Keyword arguments of the generator (see its docstring).
+        Keyword arguments of the generator (see its docstring); ``kind`` is
+        positional-only, so ``generate("multisine", ..., kind="schroeder")`` passes the
+        multisine's own ``kind``.
 
     Returns
     -------
@@ -101,10 +113,10 @@ def generate(kind: str, **params: Any) -> np.ndarray:
     >>> from stageid.signals import generate
     >>> generate("sine", freq=1.0, duration=1.0, dt=0.25).round(6).tolist()
     [0.0, 1.0, 0.0, -1.0]
-    >>> generate("square", freq=1.0)
+    >>> generate("square", freq=1.0)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    stageid._errors.SignalError: signal kind must be one of chirp, log-chirp, prbs, random, multisine, sine, triangle, decaying-sine, decaying-triangle, forc; got 'square'.
+    stageid._errors.SignalError: signal kind must be one of chirp, log-chirp, ..., forc; got 'square'.
     """
     func = _lookup(kind)
     sig = inspect.signature(func)
