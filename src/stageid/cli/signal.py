@@ -1,0 +1,120 @@
+"""``stageid signal KIND [options] -o FILE``: write an excitation signal to CSV or NPZ.
+
+One sub-command per kind of :data:`stageid.signals.SIGNAL_KINDS`; its options are built
+from the generator's signature, so ``stageid signal chirp --help`` lists exactly what
+:func:`stageid.signals.chirp` accepts.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import click
+
+from .._errors import SignalError
+from ..signals import SIGNAL_KINDS, generate, signal_parameters
+
+_EXAMPLES = {
+    "chirp": "stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 --amplitude 20 --offset 20 --name Z -o z_chirp.csv",
+    "prbs": "stageid signal prbs --n-samples 5000 --dt 0.002 --n-channels 3 --names Z,Rx,Ry -o prbs.csv",
+    "decaying-triangle": "stageid signal decaying-triangle --freq 1 --n-cycles 10 --dt 0.001 --amplitude 500 --name V -o drive.csv",
+}
+
+
+def _limits(value: str | None) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(s) for s in value.split(":"))
+    except ValueError:
+        raise click.BadParameter(f"must be LO:HI, e.g. -500:500; got {value!r}.", param_hint="--limits") from None
+    return lo, hi
+
+
+def _click_type(param: inspect.Parameter) -> Any:
+    ann = param.annotation if isinstance(param.annotation, str) else getattr(param.annotation, "__name__", str(param.annotation))
+    ann = ann.replace("typing.", "").strip()
+    if ann.startswith("int"):
+        return int
+    if ann.startswith("float"):
+        return float
+    return str
+
+
+def _param_help(func: Any) -> dict[str, str]:
+    """First description line of each parameter in a numpydoc ``Parameters`` section."""
+    doc = inspect.getdoc(func) or ""
+    lines = doc.splitlines()
+    helps: dict[str, str] = {}
+    try:
+        start = lines.index("Parameters") + 2
+    except ValueError:
+        return helps
+    current: list[str] = []
+    for i in range(start, len(lines)):
+        line = lines[i]
+        if i + 1 < len(lines) and lines[i + 1].strip() and set(lines[i + 1].strip()) == {"-"}:
+            break  # the next numpydoc section begins
+        if line and not line.startswith(" "):
+            current = [n.strip() for n in line.split(" : ")[0].split(",")]
+        elif line.strip() and current:
+            for name in current:
+                helps.setdefault(name, line.strip())
+            current = []
+    return helps
+
+
+def _make_command(kind: str) -> click.Command:
+    params = signal_parameters(kind)
+    helps = _param_help(SIGNAL_KINDS[kind])
+    options: list[click.Parameter] = []
+    for name, p in params.items():
+        flag = "--" + name.replace("_", "-")
+        if name == "limits":
+            options.append(click.Option([flag], type=str, default=None, help="Allowed range LO:HI; exceeding it is an error (never clipped)."))
+            continue
+        required = p.default is inspect.Parameter.empty
+        default = None if required else p.default
+        options.append(click.Option([flag, name], type=_click_type(p), required=required, default=default,
+                                    show_default=not required and default is not None, help=helps.get(name)))
+    if "dt" not in params:
+        options.append(click.Option(["--dt", "dt"], type=float, default=None, help="Sample time [s] for the `t` column (omitted when not given)."))
+    options.append(click.Option(["--name", "--names", "names"], type=str, default="u", show_default=True,
+                                help="Column name(s), comma-separated for several channels."))
+    options.append(click.Option(["-o", "--output", "output"], required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz."))
+
+    def callback(**kwargs: Any) -> None:
+        import numpy as np
+
+        from ..data.io import write_csv, write_npz
+
+        output = kwargs.pop("output")
+        names = [s.strip() for s in kwargs.pop("names").split(",")]
+        dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
+        if "limits" in kwargs:
+            kwargs["limits"] = _limits(kwargs["limits"])
+        kwargs = {k: v for k, v in kwargs.items() if not (v is None and params[k].default is None)}
+        x = np.asarray(generate(kind, **kwargs))
+        x2 = x[:, None] if x.ndim == 1 else x
+        if len(names) == 1 and x2.shape[1] > 1:
+            names = [f"{names[0]}{i + 1}" for i in range(x2.shape[1])]
+        if len(names) != x2.shape[1]:
+            raise SignalError(f"--names must give {x2.shape[1]} column names; got {len(names)}.")
+        columns = {n: x2[:, i] for i, n in enumerate(names)}
+        writer = write_npz if str(output).lower().endswith(".npz") else write_csv
+        writer(output, columns, dt=dt_for_file)
+
+    func = SIGNAL_KINDS[kind]
+    summary = (inspect.getdoc(func) or kind).splitlines()[0]
+    epilog = f"\b\nExample:\n  {_EXAMPLES[kind]}" if kind in _EXAMPLES else None
+    return click.Command(kind, params=options, callback=callback, help=summary, short_help=summary, epilog=epilog)
+
+
+@click.group("signal", epilog="\b\nExamples:\n  " + "\n  ".join(_EXAMPLES.values()))
+def signal_command() -> None:
+    """Write an excitation signal (one column per channel, plus `t` when dt is known)."""
+
+
+for _kind in SIGNAL_KINDS:
+    signal_command.add_command(_make_command(_kind))
