@@ -20,7 +20,8 @@ the per-format readers (``read_csv``, ``read_npz``, ``read_mat``) in :mod:`stage
 """
 
 from .experiment import Experiment, as_experiments
-from .io import Table, read_table, write_csv, write_npz
+from .io import read_table, write_csv, write_npz
+from .table import Table
 from .preprocess import Offsets, decimate, merge, remove_offset, split
 
 __all__ = [

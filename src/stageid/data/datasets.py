@@ -23,7 +23,8 @@ import numpy as np
 
 from .._errors import DataError
 from .experiment import Experiment
-from .io import PathLike, Table, _time_axis
+from .io import PathLike
+from .table import Table, _time_axis
 
 __all__ = [
     "SHARED_DATA",

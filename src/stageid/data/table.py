@@ -1,0 +1,345 @@
+"""The :class:`Table`: named float columns on a uniform time grid, as read from a file.
+
+Shared conventions (used by every reader in :mod:`stageid.data.io`):
+
+* **Rows are data rows counted from 0**: row 0 is the first sample.
+* The column named ``t`` (seconds) is the time axis, not a data column: it must be strictly
+  increasing and uniform and becomes ``Table.t0`` and ``Table.dt``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .._errors import DataError
+from .experiment import Experiment
+
+__all__ = ["Table"]
+
+TIME_COLUMN = "t"
+DEFAULT_TIME_RTOL = 1e-6
+
+
+# ====================================================================== Table
+@dataclass(frozen=True, eq=False)
+class Table:
+    """Named float columns sampled on a uniform time grid (what a file reader returns).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Column names, unique, non-empty, without surrounding whitespace.  The name ``t``
+        is reserved for the time axis (use ``dt``/``t0``).
+    values : array_like of shape (n_samples, n_columns)
+        Finite samples, time first.  Copied and made read-only.
+    dt : float or None
+        Sample time in seconds, > 0; ``None`` when unknown (such a table can be written
+        but not turned into an :class:`Experiment`).
+    t0 : float
+        Time of the first sample in seconds.
+    units : sequence of str, optional
+        One unit string per column (``""`` = unknown); default all empty.
+    source : str
+        Where the table came from (the file name for tables read from disk).
+
+    Raises
+    ------
+    DataError
+        Duplicate/empty/reserved names, a name count that does not match the columns,
+        no samples, NaN/inf values, or a non-positive ``dt``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data import Table
+    >>> table = Table(["V", "y"], np.ones((4, 2)), dt=0.001, units=["V", "um"])
+    >>> exp = table.experiment(inputs=["V"], outputs=["y"])
+    >>> exp.n_samples, exp.input_names, exp.output_units
+    (4, ('V',), ('um',))
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    dt: float | None = None
+    t0: float = 0.0
+    units: tuple[str, ...] = ()
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        where = _where(str(self.source))
+        names = tuple(self.names) if not isinstance(self.names, str) else (self.names,)
+        for i, n in enumerate(names):
+            if not isinstance(n, str) or not n or n != n.strip() or "\n" in n or "\r" in n:
+                raise DataError(
+                    f"{where}column {i} must have a non-empty name without surrounding whitespace or newlines; got {n!r}."
+                )
+        _check_unique(names, where)
+        if TIME_COLUMN in names:
+            raise DataError(f"{where}the column name '{TIME_COLUMN}' is reserved for the time axis; pass dt and t0 instead.")
+        try:
+            values = np.array(self.values, dtype=float, copy=True)
+        except (TypeError, ValueError) as exc:
+            raise DataError(f"{where}`values` must be numeric; got {type(self.values).__name__} ({exc}).") from None
+        if values.ndim == 1 and len(names) == 1:
+            values = values[:, None]
+        if values.ndim != 2 or values.shape[1] != len(names):
+            raise DataError(
+                f"{where}`values` must have shape (n_samples, {len(names)}) (one column per name); got {values.shape}."
+            )
+        if values.shape[0] == 0:
+            raise DataError(f"{where}the table has no data rows; expected at least one sample.")
+        _check_finite(values, names, where)
+        dt = self.dt
+        if dt is not None:
+            dt = _positive_seconds("dt", dt, where)
+        try:
+            t0 = float(self.t0)
+        except (TypeError, ValueError):
+            raise DataError(f"{where}`t0` must be a finite number of seconds; got {self.t0!r}.") from None
+        if not math.isfinite(t0):
+            raise DataError(f"{where}`t0` must be a finite number of seconds; got {self.t0!r}.")
+        units = tuple(str(u) for u in self.units) or ("",) * len(names)
+        if len(units) != len(names):
+            raise DataError(f"{where}`units` must have {len(names)} entries (one per column); got {len(units)}.")
+        values.setflags(write=False)
+        set_ = object.__setattr__
+        set_(self, "names", names)
+        set_(self, "values", values)
+        set_(self, "dt", dt)
+        set_(self, "t0", t0)
+        set_(self, "units", units)
+        set_(self, "source", str(self.source))
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples (rows)."""
+        return int(self.values.shape[0])
+
+    @property
+    def n_columns(self) -> int:
+        """Number of data columns (the time axis is not a column)."""
+        return int(self.values.shape[1])
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times ``t0 + dt * k`` in seconds, ndarray of shape (n_samples,).
+
+        Raises
+        ------
+        DataError
+            When the sample time is unknown (``dt is None``).
+        """
+        return self.t0 + self._require_dt("the time axis") * np.arange(self.n_samples)
+
+    def column(self, name: str) -> np.ndarray:
+        """Return one column as a read-only ndarray of shape (n_samples,).
+
+        Raises
+        ------
+        DataError
+            ``"unknown column 'X'; expected one of a, b, c"`` when ``name`` is not a column.
+        """
+        return self.values[:, self._index(name)]
+
+    def experiment(
+        self,
+        inputs: Sequence[str] | str,
+        outputs: Sequence[str] | str,
+        name: str | None = None,
+    ) -> Experiment:
+        """Build an :class:`Experiment` from named input and output columns.
+
+        Parameters
+        ----------
+        inputs, outputs : sequence of str (or one str)
+            Column names, in the order wanted; each list non-empty, no column in both.
+        name : str, optional
+            Experiment label; default the table's ``source``.
+
+        Returns
+        -------
+        Experiment
+            ``u`` of shape (n_samples, len(inputs)), ``y`` of shape (n_samples, len(outputs)),
+            with the table's ``dt``, ``t0`` and units.
+
+        Raises
+        ------
+        DataError
+            Unknown column (``"unknown column 'X'; expected one of a, b, c"``), an empty
+            list, a column used twice, or an unknown sample time.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from stageid.data import Table
+        >>> t = Table(["u", "y1", "y2"], np.zeros((10, 3)), dt=0.5)
+        >>> t.experiment(inputs=["u"], outputs=["y2", "y1"]).output_names
+        ('y2', 'y1')
+        """
+        ins = (inputs,) if isinstance(inputs, str) else tuple(inputs)
+        outs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
+        for kind, chosen in (("inputs", ins), ("outputs", outs)):
+            if not chosen:
+                raise DataError(f"{kind} must name at least one column; expected some of {', '.join(self.names)}.")
+        in_idx = [self._index(n) for n in ins]
+        out_idx = [self._index(n) for n in outs]
+        seen: dict[str, str] = {}
+        for kind, chosen in (("input", ins), ("output", outs)):
+            for n in chosen:
+                if n in seen:
+                    raise DataError(f"column '{n}' is listed twice (as {seen[n]} and as {kind}); use each column once.")
+                seen[n] = kind
+        dt = self._require_dt("an Experiment")
+        return Experiment(
+            u=self.values[:, in_idx],
+            y=self.values[:, out_idx],
+            dt=dt,
+            input_names=ins,
+            output_names=outs,
+            input_units=tuple(self.units[i] for i in in_idx),
+            output_units=tuple(self.units[i] for i in out_idx),
+            t0=self.t0,
+            name=self.source if name is None else name,
+        )
+
+    @classmethod
+    def from_experiment(cls, exp: Experiment) -> "Table":
+        """The table of an experiment's columns: inputs first, then outputs.
+
+        Raises
+        ------
+        DataError
+            When an input and an output share a name (a table needs unique names).
+        """
+        return cls(
+            names=exp.input_names + exp.output_names,
+            values=np.hstack([exp.u, exp.y]),
+            dt=exp.dt,
+            t0=exp.t0,
+            units=exp.input_units + exp.output_units,
+            source=exp.name,
+        )
+
+    def _index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise DataError(f"unknown column '{name}'; expected one of {', '.join(self.names)}") from None
+
+    def _require_dt(self, purpose: str) -> float:
+        if self.dt is None:
+            raise DataError(f"{_where(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading).")
+        return self.dt
+
+    def __repr__(self) -> str:
+        dt = "None" if self.dt is None else f"{self.dt:g}"
+        return f"Table(source={self.source!r}, n_samples={self.n_samples}, dt={dt}, columns={list(self.names)})"
+
+
+# ====================================================================== helpers
+def _where(source: str) -> str:
+    return f"file '{source}': " if source else ""
+
+
+def _positive_seconds(label: str, value: object, where: str = "") -> float:
+    try:
+        out = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise DataError(f"{where}`{label}` must be a positive number of seconds; got {value!r}.") from None
+    if not math.isfinite(out) or out <= 0:
+        raise DataError(f"{where}`{label}` must be a positive number of seconds; got {value!r}.")
+    return out
+
+
+def _check_unique(names: Sequence[str], where: str) -> None:
+    first: dict[str, int] = {}
+    for i, n in enumerate(names):
+        if n in first:
+            raise DataError(f"{where}duplicate column name '{n}' (columns {first[n]} and {i}); names must be unique.")
+        first[n] = i
+
+
+def _check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row, col = (int(i) for i in np.argwhere(bad)[0])
+        what = "NaN" if np.isnan(values[row, col]) else "inf"
+        raise DataError(f"{where}column '{names[col]}' has {what} at row {row} (data rows counted from 0); every sample must be finite.")
+
+
+def _time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
+    """Check a time column (finite already) and return ``(t0, dt)``."""
+    n = t.shape[0]
+    if n < 2:
+        if ts is None:
+            raise DataError(f"{where}the time column '{TIME_COLUMN}' has a single sample, so dt is unknown; pass ts=.")
+        return float(t[0]), ts
+    steps = np.diff(t)
+    nonpos = np.flatnonzero(steps <= 0)
+    if nonpos.size:
+        k = int(nonpos[0])
+        raise DataError(
+            f"{where}time column '{TIME_COLUMN}' must be strictly increasing; row {k + 1} has t={float(t[k + 1])!r} "
+            f"after t={float(t[k])!r} at row {k} (data rows counted from 0)."
+        )
+    dt = float(t[-1] - t[0]) / (n - 1)
+    uneven = np.flatnonzero(np.abs(steps - dt) > rtol * dt)
+    if uneven.size:
+        k = int(uneven[0])
+        raise DataError(
+            f"{where}time column '{TIME_COLUMN}' is not uniform: the step from row {k} to row {k + 1} is {float(steps[k])!r} s, "
+            f"expected dt={dt!r} s within relative tolerance {rtol:g} (pass time_rtol= to accept clock jitter)."
+        )
+    if ts is not None:
+        if abs(ts - dt) > rtol * dt:
+            raise DataError(f"{where}ts={ts!r} s disagrees with the time column '{TIME_COLUMN}', whose step is {dt!r} s.")
+        dt = ts
+    return float(t[0]), dt
+
+
+def _assemble(
+    source: str,
+    names: Sequence[str],
+    values: np.ndarray,
+    units: Sequence[str],
+    ts: float | None,
+    time_rtol: float,
+) -> Table:
+    """Validate columns (names, finiteness, time axis) and build the Table."""
+    where = _where(source)
+    _check_unique(names, where)
+    if values.shape[0] == 0:
+        raise DataError(f"{where}no data rows; expected at least one sample.")
+    _check_finite(values, names, where)
+    names = list(names)
+    units = list(units)
+    if TIME_COLUMN in names:
+        i = names.index(TIME_COLUMN)
+        if units[i] not in ("", "s"):
+            raise DataError(f"{where}the time column '{TIME_COLUMN}' must be in seconds; got unit '{units[i]}'.")
+        t0, dt = _time_axis(values[:, i], where, ts, time_rtol)
+        keep = [j for j in range(len(names)) if j != i]
+        values = values[:, keep]
+        names = [names[j] for j in keep]
+        units = [units[j] for j in keep]
+    else:
+        if ts is None:
+            raise DataError(f"{where}no time column '{TIME_COLUMN}'; pass ts= (the sample time in seconds).")
+        t0, dt = 0.0, ts
+    if not names:
+        raise DataError(f"{where}only a time column '{TIME_COLUMN}' was found; expected at least one data column.")
+    return Table(names=tuple(names), values=values, dt=dt, t0=t0, units=tuple(units), source=source)
+
+
+def _stack_equal_length(names: Sequence[str], columns: Sequence[np.ndarray], where: str) -> np.ndarray:
+    n0 = columns[0].shape[0]
+    for name, col in zip(names, columns):
+        if col.shape[0] != n0:
+            raise DataError(
+                f"{where}columns have unequal lengths: '{names[0]}' has {n0} rows and '{name}' has {col.shape[0]}; expected one length."
+            )
+    return np.column_stack(columns) if n0 else np.empty((0, len(columns)))
