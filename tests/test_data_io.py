@@ -264,6 +264,9 @@ def test_time_jitter_tolerance(tmp_path):
     with pytest.raises(DataError, match=r"not uniform: the step from row 39 to row 40 .* tolerance 1e-06"):
         read_table(path)
     assert read_table(path, time_rtol=1e-3).n_samples == 100
+    for bad in (-1e-3, 1.0, float("nan"), "1e-3"):
+        with pytest.raises(DataError, match=r"`time_rtol` must be a number in \[0, 1\)"):
+            read_table(path, time_rtol=bad)
 
 
 @pytest.mark.parametrize(

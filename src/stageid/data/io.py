@@ -80,7 +80,10 @@ def _looks_like(head: bytes) -> str:
     return ""
 
 
-def _resolve_ts(ts: float | None, where: str) -> float | None:
+def _resolve_ts(ts: float | None, time_rtol: float, where: str) -> float | None:
+    """Check the ``ts`` and ``time_rtol`` arguments of the readers."""
+    if not isinstance(time_rtol, (int, float)) or not 0.0 <= time_rtol < 1.0:
+        raise DataError(f"`time_rtol` must be a number in [0, 1); got {time_rtol!r}.")
     return None if ts is None else _positive_seconds("ts", ts, where)
 
 
@@ -154,7 +157,7 @@ def read_csv(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     """
     p, head = _open_checked(path)
     where = _where(p.name)
-    ts = _resolve_ts(ts, where)
+    ts = _resolve_ts(ts, time_rtol, where)
     if b"\x00" in head:
         raise DataError(f"file '{p.name}' is not a text CSV file: it contains binary data{_looks_like(head)}.")
     try:
@@ -274,7 +277,7 @@ def read_npz(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     """
     p, head = _open_checked(path)
     where = _where(p.name)
-    ts = _resolve_ts(ts, where)
+    ts = _resolve_ts(ts, time_rtol, where)
     if not head.startswith(_ZIP_SIGNATURES):
         raise DataError(f"file '{p.name}' is not a NumPy .npz archive{_looks_like(head)}.")
     names: list[str] = []
@@ -347,7 +350,7 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     """
     p, head = _open_checked(path)
     where = _where(p.name)
-    ts = _resolve_ts(ts, where)
+    ts = _resolve_ts(ts, time_rtol, where)
     if head[512:520] == _HDF5_SIGNATURE or head.startswith(_HDF5_SIGNATURE):
         variables, skipped = _mat73_variables(p, where)
     else:
