@@ -31,6 +31,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.lti", "freqresp_command", "cli"),
     ("stageid.cli.signal", "signal_command", "cli"),
     ("stageid.cli.plants", "plants_command", "cli"),
+    ("stageid.cli.report", "report_command", "cli"),
 ]
 
 

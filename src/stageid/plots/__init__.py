@@ -1,1 +1,15 @@
-"""stageid.plots"""
+"""Figures (matplotlib, Agg backend; nothing here opens a window).
+
+=========================  ==============================================================
+``bode_figure``            Bode magnitude/phase grid of several MIMO responses, with bands
+``pzmap_figure``           pole-zero map of one or more models
+``time_overlay_figure``    measured vs predicted outputs with error traces
+=========================  ==============================================================
+
+Method-specific figures live beside these: ``plots.subspace``, ``plots.closedloop``,
+``plots.hysteresis``.
+"""
+
+from .lti import bode_figure, pzmap_figure, time_overlay_figure
+
+__all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]

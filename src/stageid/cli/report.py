@@ -1,0 +1,51 @@
+"""``stageid report``: an HTML report (figures embedded) of a model on the user's own data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ._common import read_experiments, split_names
+
+
+def write_report(model, experiments, out_dir: str, title: str | None = None) -> Path:
+    """Build the model report and write ``index.html`` and ``metrics.json`` into ``out_dir``."""
+    from ..report import model_report, write_metrics
+
+    report, metrics = model_report(model, experiments, title)
+    path = report.write(out_dir)
+    write_metrics(out_dir, metrics)
+    return path
+
+
+@click.command("report", epilog="""
+\b
+Examples:
+  stageid report model.json val.csv --inputs Z,Rx,Ry --outputs z,rx,ry --out report/
+  stageid report hyst.json tri.csv --inputs V --outputs y --out hyst-report/
+""")
+@click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
+@click.argument("data", nargs=-1, type=click.Path(dir_okay=False))
+@click.option("--inputs", default=None, help="Input columns (default: the model's input names).")
+@click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
+@click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
+@click.option("--title", default=None, help="Report title.")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for index.html and metrics.json.")
+def report_command(model_path: str, data: tuple[str, ...], inputs: str | None, outputs: str | None, ts: float | None, title: str | None, out_dir: str) -> None:
+    """Report on MODEL.json: frequency response, poles and zeros, and simulation against DATA files."""
+    from ..models import load_model
+
+    model = load_model(model_path)
+    ins = split_names(inputs, "--inputs") or tuple(model.inputs)
+    outs = split_names(outputs, "--outputs") or tuple(model.outputs)
+    if ts is None and getattr(model, "dt", None) is not None:
+        ts_used = None
+    else:
+        ts_used = ts
+    experiments = read_experiments(data, ins, outs, ts_used) if data else ()
+    if experiments:
+        renamed = [e.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs)) for e in experiments]
+        experiments = tuple(renamed)
+    path = write_report(model, experiments, out_dir, title)
+    click.echo(f"report written to {path}")

@@ -1,0 +1,13 @@
+"""Identification reports: self-contained HTML with embedded figures, and metrics JSON.
+
+==================  ================================================================
+``Report``          build an HTML report from sections, tables and figures
+``write_metrics``   write the figures of a report's tables as ``metrics.json``
+``model_report``    Bode, pole-zero and simulation report of any model on data
+==================  ================================================================
+"""
+
+from .html import Report, write_metrics
+from .model_report import hysteresis_model_report, lti_model_report, model_report
+
+__all__ = ["Report", "write_metrics", "model_report", "lti_model_report", "hysteresis_model_report"]

@@ -1,0 +1,102 @@
+"""Reports for a user's own identified model: how it looks and how well it predicts data."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from .html import Report
+
+__all__ = ["lti_model_report", "hysteresis_model_report", "model_report"]
+
+
+def _band(model: Any, experiments: Sequence[Any]) -> np.ndarray:
+    dt = model.dt if model.dt is not None else (experiments[0].dt if experiments else None)
+    fmax = 0.45 / dt if dt else 1000.0
+    fmin = fmax / 1e4 if not experiments else max(1.0 / experiments[0].duration, fmax / 1e4)
+    return np.geomspace(fmin, fmax, 400)
+
+
+def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "Identified model", notes: Sequence[str] = ()) -> tuple[Report, dict[str, Any]]:
+    """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
+
+    Returns the report and a metrics dictionary (fit % per experiment and output).
+    """
+    from ..plots import bode_figure, pzmap_figure, time_overlay_figure
+    from ..validation import fit_percent
+
+    report = Report(title)
+    metrics: dict[str, Any] = {}
+    report.section("Model")
+    kind = "continuous" if model.dt is None else f"discrete, Ts = {model.dt:g} s"
+    n_states = getattr(model, "n_states", None)
+    report.paragraph(f"{type(model).__name__}, {kind}; inputs {', '.join(model.inputs)}; outputs {', '.join(model.outputs)}"
+                     + (f"; {n_states} states." if n_states is not None else "."))
+    for note in notes:
+        report.paragraph(note)
+    f = _band(model, experiments)
+    report.figure(bode_figure(f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"),
+                  "Bode magnitude and phase of the identified model.")
+    poles, zeros = model.poles(), model.zeros()
+    report.figure(pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
+                  "Pole-zero map (x poles, o zeros).")
+    report.table(["pole", "|pole|" if model.dt is not None else "frequency [Hz]", "damping"],
+                 [[f"{p:.5g}", float(abs(p)) if model.dt is not None else float(abs(p) / (2 * np.pi)), _damping(p, model.dt)] for p in poles[:40]],
+                 caption="Poles (first 40)")
+    rows = []
+    for k, exp in enumerate(experiments):
+        exp = exp.select(inputs=list(model.inputs), outputs=list(model.outputs))
+        y_hat = model.simulate(exp.u, dt=exp.dt)
+        fit = fit_percent(exp.y, y_hat)
+        for name, value in zip(model.outputs, fit):
+            metrics[f"fit_percent/{exp.name or k}/{name}"] = float(value)
+            rows.append([exp.name or f"experiment {k}", name, float(value)])
+        report.figure(time_overlay_figure(exp.time, exp.y, {"simulated": y_hat}, exp.output_names, exp.output_units,
+                                          title=f"Simulation on {exp.name or f'experiment {k}'}"),
+                      f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.")
+    if rows:
+        report.section("Validation")
+        report.table(["experiment", "output", "fit [%]"], rows, caption="Simulation fit, 100 (1 - |y - y_sim| / |y - mean y|)")
+    return report, metrics
+
+
+def _damping(p: complex, dt: float | None) -> float:
+    s = p if dt is None else (np.log(p) / dt if p != 0 else -np.inf)
+    mag = abs(s)
+    return float(-s.real / mag) if np.isfinite(mag) and mag > 0 else float("nan")
+
+
+def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model") -> tuple[Report, dict[str, Any]]:
+    """Measured versus modelled input-output loops and the modelling error in % of range."""
+    from ..plots._style import pyplot
+
+    report = Report(title)
+    metrics: dict[str, Any] = {}
+    report.section("Model")
+    report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
+    plt = pyplot()
+    for k, exp in enumerate(records):
+        u = exp.u[:, 0]
+        y = exp.y[:, 0]
+        y_hat = model.simulate(exp.u)[:, 0]
+        err = 100.0 * np.max(np.abs(y - y_hat)) / np.ptp(y)
+        metrics[f"max_error_percent_range/{exp.name or k}"] = float(err)
+        fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+        a.plot(u, y, color="0.2", lw=1.2, label="measured")
+        a.plot(u, y_hat, "--", lw=1.0, label="model")
+        a.set_xlabel(f"{model.inputs[0]} [{exp.input_units[0] or '-'}]")
+        a.set_ylabel(f"{model.outputs[0]} [{exp.output_units[0] or '-'}]")
+        a.legend()
+        b.plot(exp.time, 100 * (y - y_hat) / np.ptp(y), color="C3", lw=0.9)
+        b.set_xlabel("time [s]")
+        b.set_ylabel("error [% of range]")
+        report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error (max {err:.2f} % of range).")
+    return report, metrics
+
+
+def model_report(model: Any, experiments: Sequence[Any] = (), title: str | None = None) -> tuple[Report, dict[str, Any]]:
+    """A report for any stageid model: LTI models get Bode/pole-zero/simulation, hysteresis models loops."""
+    if hasattr(model, "frequency_response"):
+        return lti_model_report(model, experiments, title or "Identified LTI model")
+    return hysteresis_model_report(model, experiments, title or "Identified hysteresis model")
