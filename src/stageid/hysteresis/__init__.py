@@ -1,1 +1,50 @@
-"""stageid.hysteresis"""
+"""Hysteresis: play and coupled-play operators, classical and modified PI models, inverse, compensation.
+
+Implements the modified Prandtl-Ishlinskii letter (``shared/papers``): eq. 1-2 (play),
+eq. 3 (coupled play, consistent reading documented in :mod:`.operators`), eq. 4 (modified PI),
+eq. 5 (inverse) and the feedforward scheme of Fig. 9.
+
+=========================  ==================================================================
+``OperatorState``          last input and operator outputs (resume a model where it stopped)
+``play``                   bank of play operators (eq. 1-2)
+``coupled_play``           bank of coupled-play operators (eq. 3)
+``PIModel``                classical PI: weighted plays plus a linear term
+``ModifiedPIModel``        modified PI of eq. 4
+``PIIdentifier``           thresholds equally spaced, constrained LS weights, CP thresholds by
+                           nonlinear optimisation; ``fit`` returns ``HysteresisFit``
+``pi_inverse``             closed-form inverse of a classical PI model (a PI model)
+``invert``                 per-sample monotone inversion of any (modified) PI model
+``Compensator``            streaming feedforward compensator with state and drive limits
+``compensate``             batch feedforward
+``max_error_percent``      metrics as the letter uses them (see :mod:`.metrics`)
+``rms_error_percent``
+``tracking_error_percent``
+``hysteresis_percent``
+=========================  ==================================================================
+"""
+
+from .compensator import Compensator, compensate
+from .identification import HysteresisFit, PIIdentifier, align_record
+from .inverse import invert, pi_inverse
+from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
+from .operators import OperatorState, coupled_play, play
+from .pi import ModifiedPIModel, PIModel
+
+__all__ = [
+    "OperatorState",
+    "play",
+    "coupled_play",
+    "PIModel",
+    "ModifiedPIModel",
+    "PIIdentifier",
+    "HysteresisFit",
+    "align_record",
+    "pi_inverse",
+    "invert",
+    "Compensator",
+    "compensate",
+    "max_error_percent",
+    "rms_error_percent",
+    "tracking_error_percent",
+    "hysteresis_percent",
+]

@@ -1,0 +1,520 @@
+"""Identification of classical and modified PI models from input/output records.
+
+Procedure (the letter's, made explicit):
+
+1. **Thresholds** ``r_i = i R / n`` (``i = 0 .. n-1``), equally spaced over the half range
+   ``R = (max u - min u) / 2`` of the identification input (20 operators over -500...500 V
+   give 0, 25, ..., 475 V); ``r_0 = 0`` is the linear term.  The operators act on the input
+   measured from the range centre ``xc``.
+2. **Weights** by constrained linear least squares (the model is linear in the weights once
+   the thresholds are fixed), with one output offset per record (sensor zeros differ between
+   records):
+
+   * classical PI: every initial-loading slope ``W_j = sum_{i<=j} w_i >= eps`` -- exactly the
+     condition for the closed-form inverse to exist (solved as bounds on ``W``);
+   * modified PI: ``w_0 + sum_{i>=1} min(w_i, 0) >= eps`` -- the slope of the output with
+     respect to the input is at least that in every state, so the per-sample inversion always
+     has a unique solution (solved as bounds after writing ``w_i = p_i - q_i``,
+     ``w_0 = eps + s + sum q_i`` with ``s, p, q >= 0``, an exact reformulation).
+
+   ``eps`` is ``min_slope_fraction`` times the mean slope ``range(y) / range(u)``.
+3. **CP thresholds** (modified PI) by nonlinear optimisation on top (bounded Nelder-Mead on
+   the weighted-least-squares residual, started from the classical model):
+   ``rc_i = c_i r_i``, ``ra_i = a_i r_i``, ``rb_i = b_i ra_i`` with ratios linear in the
+   operator index (``c_i = c0 + c1 t_i``, ``t_i = i/(n-1) - 1/2``, likewise ``a_i``, ``b_i``),
+   clipped to ``0 <= c_i <= 1``, ``a_i >= 0``, ``0 <= b_i <= 1`` (the orderings eq. 3 needs),
+   and the centre ``xc``: seven parameters, searched on a coarse grid of the mean ratios and
+   refined by Nelder-Mead; the classical model (all ratios 1) is among the candidates, so the
+   modified fit is never worse than the classical one under the same constraint.
+4. **Starting state** of every record: ``"zero"`` (the letter's ``x0 = z0 = 0``, then the
+   first sample), ``"ascending"`` or ``"descending"`` (arrived at the first sample from far
+   below / above, e.g. after an idle period at the minimum); ``"auto"`` takes ``"zero"`` for a
+   record that starts at 0 input (within 1 % of the range: at rest, the letter's condition) and
+   otherwise the kind with the smallest residual.
+
+The fitted model starts, like the letter's, from the zero state at 0 input (or at the nearest
+end of the identified range), with the output offset of the first record; use
+:func:`align_record` to compare it with another record (own offset and starting state).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from .._errors import DataError, IdentificationError, ModelError
+from .operators import OperatorState
+from .pi import STATE_KINDS, ModifiedPIModel, PIModel
+
+__all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
+
+MODEL_KINDS = ("pi", "modified-pi")
+_STATE_CHOICES = ("auto",) + STATE_KINDS
+
+
+@dataclass(frozen=True)
+class HysteresisFit:
+    """Result of :meth:`PIIdentifier.fit` (no training data kept).
+
+    Attributes
+    ----------
+    model : PIModel or ModifiedPIModel
+        The identified model.
+    max_error_percent, rms_error_percent : tuple of float
+        Per identification record, in % of that record's output range.
+    output_offsets : tuple of float
+        Fitted output offset of each record.
+    initial_states : tuple of str
+        Starting-state kind of each record.
+    n_evaluations : int
+        Weight fits done by the nonlinear search (0 for the classical model).
+    success : bool
+        False when the nonlinear search stopped on its evaluation limit (the model is still the
+        best found and never worse than the classical fit it started from).
+    message : str
+    """
+
+    model: Any
+    max_error_percent: tuple[float, ...]
+    rms_error_percent: tuple[float, ...]
+    output_offsets: tuple[float, ...]
+    initial_states: tuple[str, ...]
+    n_evaluations: int
+    success: bool
+    message: str
+
+    def summary(self) -> str:
+        """A short text report."""
+        kind = self.model.kind
+        lines = [f"{kind} model, {self.model.n_operators} operators; fit on {len(self.max_error_percent)} record(s)"]
+        for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
+            lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
+        if kind == "modified-pi":
+            lines.append(f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
+                         f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}")
+        lines.append(f"  {self.message}")
+        return "\n".join(lines)
+
+
+def _ratio(a: np.ndarray, b: np.ndarray) -> float:
+    k = b > 0
+    return float(np.median(a[k] / b[k])) if np.any(k) else float("nan")
+
+
+def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[tuple[np.ndarray, np.ndarray]], str, str]:
+    from ..data import Experiment
+
+    if isinstance(data, Experiment):
+        data = [data]
+    if isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], Experiment):
+        data = [data]
+    recs = []
+    in_name, out_name = inputs or "V", outputs or "y"
+    for k, item in enumerate(data):
+        if isinstance(item, Experiment):
+            if item.n_inputs != 1 or item.n_outputs != 1:
+                raise DataError(f"hysteresis identification needs one input and one output; record {k} has {item.n_inputs} and {item.n_outputs}.")
+            u, y = item.u[:, 0], item.y[:, 0]
+            if k == 0:
+                in_name = inputs or item.input_names[0]
+                out_name = outputs or item.output_names[0]
+        else:
+            u = np.asarray(item[0], dtype=float).reshape(-1)
+            y = np.asarray(item[1], dtype=float).reshape(-1)
+            if u.shape != y.shape:
+                raise DataError(f"record {k}: input and output must have equal length; got {u.size} and {y.size}.")
+        if u.size < 10:
+            raise DataError(f"record {k} has {u.size} samples; hysteresis identification needs at least 10.")
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+            raise DataError(f"record {k} has NaN or inf samples.")
+        recs.append((np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)))
+    if not recs:
+        raise DataError("no records given; expected at least one Experiment.")
+    return recs, in_name, out_name
+
+
+class PIIdentifier:
+    """Identify a classical (``"pi"``) or modified (``"modified-pi"``) PI model.
+
+    Parameters
+    ----------
+    model : {"pi", "modified-pi"}, default "pi"
+    n_operators : int, default 20
+        Number of operators, including the linear term (``r_0 = 0``).
+    input_range : (float, float), optional
+        Range the thresholds cover; default the range of the identification input.
+    initial_state : {"auto", "zero", "ascending", "descending"}, default "auto"
+        Starting state of each record (see module notes).
+    min_slope_fraction : float, default 0.02
+        ``eps`` of the invertibility constraint relative to the mean slope.
+    max_rows : int, default 20000
+        The least-squares problems use at most this many (evenly strided) samples; the
+        operators always run over every sample.
+    max_evaluations : int, default 400
+        Limit of the nonlinear search (modified PI).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis import PIModel, PIIdentifier
+    >>> from stageid.signals import decaying_triangle
+    >>> u = decaying_triangle(1.0, 8, 1e-3, amplitude=10.0)
+    >>> true = PIModel(r=[0.0, 2.5, 5.0, 7.5], weights=[1.0, 0.4, 0.2, 0.1])
+    >>> fit = PIIdentifier("pi", n_operators=4).fit((u, true.simulate(u)))
+    >>> bool(fit.max_error_percent[0] < 1e-6)
+    True
+    """
+
+    def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
+                 initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
+                 max_evaluations: int = 400) -> None:
+        self.model = model
+        self.n_operators = n_operators
+        self.input_range = input_range
+        self.initial_state = initial_state
+        self.min_slope_fraction = min_slope_fraction
+        self.max_rows = max_rows
+        self.max_evaluations = max_evaluations
+
+    # ------------------------------------------------------------------ checks
+    def _check(self) -> None:
+        if self.model not in MODEL_KINDS:
+            raise IdentificationError(f"`model` of PIIdentifier must be one of {', '.join(MODEL_KINDS)}; got {self.model!r}.")
+        if not isinstance(self.n_operators, (int, np.integer)) or isinstance(self.n_operators, bool) or self.n_operators < 2:
+            raise IdentificationError(f"`n_operators` of PIIdentifier must be an integer >= 2; got {self.n_operators!r}.")
+        if self.initial_state not in _STATE_CHOICES:
+            raise IdentificationError(f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}.")
+        if not (0 < float(self.min_slope_fraction) < 1):
+            raise IdentificationError(f"`min_slope_fraction` must be in (0, 1); got {self.min_slope_fraction!r}.")
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
+        """Identify the model from one or several records.
+
+        Parameters
+        ----------
+        data : Experiment, sequence of Experiment, or (u, y) tuple(s)
+            Single-input single-output records, arrays of shape (n_samples,) or (n_samples, 1).
+        inputs, outputs : str, optional
+            Channel names for the model (default: the first Experiment's, else "V", "y").
+
+        Returns
+        -------
+        HysteresisFit
+
+        Raises
+        ------
+        DataError
+            Malformed records, or an input that does not move.
+        IdentificationError
+            Bad hyper-parameters or a singular least-squares problem.
+        """
+        self._check()
+        recs, in_name, out_name = _records(data, inputs, outputs)
+        if self.input_range is not None:
+            lo, hi = (float(v) for v in self.input_range)
+        else:
+            lo = min(float(u.min()) for u, _ in recs)
+            hi = max(float(u.max()) for u, _ in recs)
+        if not hi > lo:
+            raise DataError(f"the identification input must vary; got a constant {lo:g}.")
+        n = int(self.n_operators)
+        R = 0.5 * (hi - lo)
+        r = np.arange(n) * R / n
+        yr = max(float(np.ptp(y)) for _, y in recs)
+        if yr <= 0:
+            raise DataError("the identification output is constant; nothing to identify.")
+        eps = float(self.min_slope_fraction) * yr / (hi - lo)
+        stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
+        ctx = _Context(recs, r, eps, stride, self.model)
+
+        # classical fit and starting-state choice
+        theta0 = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi)])
+        kinds = ["zero"] * len(recs) if self.initial_state == "auto" else [self.initial_state] * len(recs)
+        at_rest = [abs(u[0]) <= 0.01 * (hi - lo) for u, _ in recs]
+        if self.initial_state == "auto":
+            for j in range(len(recs)):
+                if at_rest[j]:
+                    continue  # starts at 0 input: the letter's x0 = z0 = 0
+                best = None
+                for kind in STATE_KINDS:
+                    trial = kinds.copy()
+                    trial[j] = kind
+                    sse = ctx.solve(theta0, trial, classical=self.model == "pi")[0]
+                    if best is None or sse < best[0]:
+                        best = (sse, kind)
+                kinds[j] = best[1]
+        n_eval = 0
+        success, message = True, "classical PI: constrained least squares."
+        theta = theta0
+        if self.model == "modified-pi":
+            theta, n_eval, success, message = self._search(ctx, theta0, kinds, R, lo, hi)
+            if self.initial_state == "auto":  # re-check the starting states with the final thresholds
+                for j in range(len(recs)):
+                    if at_rest[j]:
+                        continue
+                    best = None
+                    for kind in STATE_KINDS:
+                        trial = kinds.copy()
+                        trial[j] = kind
+                        sse = ctx.solve(theta, trial, classical=False)[0]
+                        if best is None or sse < best[0]:
+                            best = (sse, kind)
+                    kinds[j] = best[1]
+        sse, w, offsets = ctx.solve(theta, kinds, classical=self.model == "pi")
+        model = ctx.build(theta, w, offsets[0], in_name, out_name, lo, hi)
+        max_e, rms_e = [], []
+        for j, (u, y) in enumerate(recs):
+            m_j = model.with_state(model.consistent_state(u[0], kinds[j]))
+            m_j = _replace_offset(m_j, offsets[j])
+            yh = m_j.simulate(u)[:, 0]
+            e = y - yh
+            max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
+            rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
+        return HysteresisFit(model=model, max_error_percent=tuple(max_e), rms_error_percent=tuple(rms_e),
+                             output_offsets=tuple(float(v) for v in offsets), initial_states=tuple(kinds),
+                             n_evaluations=n_eval, success=success, message=message)
+
+    def _search(self, ctx: "_Context", theta0: np.ndarray, kinds: list[str], R: float, lo: float, hi: float):
+        from scipy.optimize import minimize
+
+        centre = 0.5 * (lo + hi)
+        lower = np.array([0.0, -1.0, 0.05, -2.0, 0.0, -1.0, centre - 0.25 * (hi - lo)])
+        upper = np.array([1.0, 1.0, 3.0, 2.0, 1.0, 1.0, centre + 0.25 * (hi - lo)])
+        scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, R])
+        count = [0]
+        cache: dict[tuple, float] = {}
+        budget = int(self.max_evaluations)
+
+        def objective(v: np.ndarray) -> float:
+            th = np.clip(np.asarray(v) * scale, lower, upper)
+            key = tuple(np.round(th, 12))
+            if key not in cache:
+                count[0] += 1
+                cache[key] = ctx.solve(th, kinds, classical=False)[0]
+            return cache[key]
+
+        classical = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, centre])
+        f_classical = objective(classical / scale)
+        # coarse grid over the mean ratios (thresholds proportional to r), then Nelder-Mead on all 7
+        grid = []
+        for c0 in (0.2, 0.4, 0.6, 0.8, 1.0):
+            for a0 in (0.6, 0.8, 1.0, 1.3, 1.6, 2.0):
+                for b0 in (0.3, 0.5, 0.7, 0.85, 1.0):
+                    th = np.array([c0, 0.0, a0, 0.0, b0, 0.0, centre])
+                    grid.append((objective(th / scale), th))
+        grid.sort(key=lambda item: item[0])
+        best_f, best_th = grid[0]
+        if f_classical < best_f:
+            best_f, best_th = f_classical, classical
+        success = True
+        for f_start, th_start in grid[:2]:
+            remaining = budget - count[0]
+            if remaining <= 20:
+                success = False
+                break
+            x0 = th_start / scale
+            steps = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05])
+            simplex = np.vstack([x0] + [x0 + np.eye(7)[i] * steps[i] * (1 if x0[i] + steps[i] <= upper[i] / scale[i] else -1) for i in range(7)])
+            res = minimize(objective, x0, method="Nelder-Mead",
+                           bounds=list(zip(lower / scale, upper / scale)),
+                           options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start})
+            if res.fun < best_f:
+                best_f, best_th = res.fun, np.clip(res.x * scale, lower, upper)
+            if res.nfev >= remaining:
+                success = False
+        msg = (f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
+               f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's.")
+        return best_th, count[0], success, msg
+
+def _replace_offset(model, offset: float):
+    from dataclasses import replace
+
+    return replace(model, output_offset=float(offset))
+
+
+class _Context:
+    """Operator matrices and the constrained least-squares weight fit for fixed thresholds."""
+
+    def __init__(self, recs, r, eps, stride, kind):
+        self.recs = recs
+        self.r = r
+        self.eps = eps
+        self.stride = stride
+        self.kind = kind
+        self.y = np.concatenate([y[::stride] for _, y in recs])
+        self.rows = [np.arange(0, u.size, stride) for u, _ in recs]
+
+    def thresholds(self, theta: np.ndarray, classical: bool):
+        r = self.r
+        if classical:
+            return r, r, r, r, float(theta[-1])
+        t = np.arange(r.size) / max(r.size - 1, 1) - 0.5
+        c = np.clip(theta[0] + theta[1] * t, 0.0, 1.0)
+        a = np.clip(theta[2] + theta[3] * t, 0.0, None)
+        b = np.clip(theta[4] + theta[5] * t, 0.0, 1.0)
+        ra = a * r
+        return r, c * r, ra, b * ra, float(theta[6])
+
+    def matrix(self, theta, kinds, classical):
+        from . import _kernels
+
+        r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        blocks = []
+        for (u, _), kind, rows in zip(self.recs, kinds, self.rows):
+            x = u - xc
+            up = np.maximum(x[0] - r, np.minimum(x[0] - rc, 0.0))
+            down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
+            z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
+            # the state before the first sample: z0 is already consistent with x[0]
+            Z, _ = _kernels.cp_bank(np.ascontiguousarray(x), r, rc, ra, rb, np.ascontiguousarray(z0))
+            blocks.append(Z[rows])
+        return blocks
+
+    def solve(self, theta, kinds, classical):
+        """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based)."""
+        blocks = self.matrix(theta, kinds, classical)
+        n = self.r.size
+        J = len(blocks)
+        Z = np.vstack(blocks)
+        y = self.y
+        # operators that (almost) never move get no weight: their weight would be unbounded
+        motion = np.ptp(Z, axis=0)
+        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
+        live[0] = True
+        idx = np.flatnonzero(live)
+        Zl = Z[:, idx]
+        m = idx.size
+        E_sums = np.zeros((m, J))
+        sizes = np.zeros(J)
+        ey = np.zeros(J)
+        start = 0
+        for j, b in enumerate(blocks):
+            rows = slice(start, start + b.shape[0])
+            E_sums[:, j] = Zl[rows].sum(axis=0)
+            sizes[j] = b.shape[0]
+            ey[j] = y[rows].sum()
+            start += b.shape[0]
+        G = np.zeros((m + J, m + J))
+        G[:m, :m] = Zl.T @ Zl
+        G[:m, m:] = E_sums
+        G[m:, :m] = E_sums.T
+        G[m:, m:] = np.diag(sizes)
+        g = np.concatenate([Zl.T @ y, ey])
+        yy = float(y @ y)
+        if classical:
+            # w = D W with W the cumulative sums (over the live operators), bounds W >= eps
+            T = np.eye(m + J)
+            for i in range(m - 1):
+                T[i + 1, i] = -1.0
+            lb = np.concatenate([np.full(m, self.eps), np.full(J, -np.inf)])
+            v = _bounded_gram_lsq(T.T @ G @ T, T.T @ g, lb)
+            sol = T @ v
+        else:
+            sol = _gram_solve(G, g)
+            wl = sol[:m]
+            if not (wl[0] + np.sum(np.minimum(wl[1:], 0.0)) >= self.eps):
+                # w0 = eps + s + sum q, w_i = p_i - q_i (i >= 1), s, p, q >= 0: v = (s, p, q, offsets)
+                k = m - 1
+                T = np.zeros((m + J, 1 + 2 * k + J))
+                T[0, 0] = 1.0
+                T[0, 1 + k : 1 + 2 * k] = 1.0
+                T[1:m, 1 : 1 + k] = np.eye(k)
+                T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
+                T[m:, 1 + 2 * k :] = np.eye(J)
+                shift = np.zeros(m + J)
+                shift[0] = self.eps
+                g2 = T.T @ (g - G @ shift)
+                lb = np.concatenate([np.zeros(1 + 2 * k), np.full(J, -np.inf)])
+                v = _bounded_gram_lsq(T.T @ G @ T, g2, lb)
+                sol = T @ v + shift
+        w = np.zeros(n)
+        w[idx] = sol[:m]
+        offs = sol[m:]
+        sse = yy - 2.0 * float(sol @ g) + float(sol @ G @ sol)
+        return max(sse, 0.0), w, offs
+
+    def build(self, theta, w, offset, in_name, out_name, lo, hi):
+        classical = self.kind == "pi"
+        r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        common = dict(weights=w, input_offset=xc, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,),
+                      input_limits=None)
+        model = PIModel(r=r, **common) if classical else ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, **common)
+        u_rest = min(max(0.0, lo), hi)
+        return model.with_state(model.consistent_state(u_rest, "zero"))
+
+
+def _gram_solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+    Gs = G / np.outer(d, d)
+    try:
+        v = np.linalg.solve(Gs + 1e-12 * np.eye(G.shape[0]), g / d)
+    except np.linalg.LinAlgError:
+        v = np.linalg.lstsq(Gs, g / d, rcond=None)[0]
+    return v / d
+
+
+def _bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray:
+    """min v'Gv - 2 g'v subject to v >= lb, as a bounded least-squares problem on chol(G)."""
+    from scipy.optimize import lsq_linear
+
+    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+    Gs = G / np.outer(d, d)
+    Rm = np.linalg.cholesky(Gs + 1e-10 * np.eye(G.shape[0])).T
+    qy = np.linalg.solve(Rm.T, g / d)
+    lbs = np.where(np.isfinite(lb), lb * d, -np.inf)
+    res = lsq_linear(Rm, qy, bounds=(lbs, np.full_like(lbs, np.inf)), method="bvls", tol=1e-12, max_iter=2000)
+    if not np.all(np.isfinite(res.x)):
+        raise IdentificationError("the constrained least-squares weight fit failed (non-finite solution).")
+    return res.x / d
+
+
+def align_record(model: PIModel | ModifiedPIModel, u: object, y: object, initial_state: str = "auto",
+                 fit_offset: bool = True) -> tuple[Any, np.ndarray]:
+    """Fit a record's own output offset and starting state, then simulate the model on it.
+
+    Records taken at other times have other sensor zeros and start from unknown hysteretic
+    states; this estimates only those two nuisance quantities (the mean residual and the best
+    of the starting-state kinds) -- the model's thresholds and weights are untouched.
+
+    Parameters
+    ----------
+    model : PIModel or ModifiedPIModel
+    u, y : array_like of shape (n_samples,) or (n_samples, 1)
+    initial_state : {"auto", "zero", "ascending", "descending", "model"}
+        ``"model"`` keeps the model's own state.
+    fit_offset : bool, default True
+
+    Returns
+    -------
+    model : the model with that record's state and offset
+    y_model : ndarray of shape (n_samples, 1)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis import PIModel, align_record
+    >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5])
+    >>> u = np.array([0.0, 2.0, -1.0, 1.0])
+    >>> _, yh = align_record(m, u, m.simulate(u) + 3.0)
+    >>> bool(np.allclose(yh, m.simulate(u) + 3.0))
+    True
+    """
+    uu = np.asarray(u, dtype=float).reshape(-1)
+    yy = np.asarray(y, dtype=float).reshape(-1)
+    if uu.shape != yy.shape:
+        raise DataError(f"input and output must have equal length; got {uu.size} and {yy.size}.")
+    choices = STATE_KINDS if initial_state == "auto" else (initial_state,)
+    if initial_state not in _STATE_CHOICES + ("model",):
+        raise ModelError(f"`initial_state` must be one of auto, zero, ascending, descending, model; got {initial_state!r}.")
+    best = None
+    for kind in choices:
+        m = model if kind == "model" else model.with_state(model.consistent_state(uu[0], kind))
+        yh = m.simulate(uu)[:, 0]
+        off = float(np.mean(yy - yh)) if fit_offset else 0.0
+        sse = float(np.sum((yy - yh - off) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, _replace_offset(m, m.output_offset + off), (yh + off)[:, None])
+    return best[1], best[2]
