@@ -29,6 +29,8 @@ Examples:
 _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.lti", "simulate_command", "cli"),
     ("stageid.cli.lti", "freqresp_command", "cli"),
+    ("stageid.cli.identify_hysteresis", "identify", "identify"),
+    ("stageid.cli.compensate", "cli", "cli"),
     ("stageid.cli.signal", "signal_command", "cli"),
     ("stageid.cli.plants", "plants_command", "cli"),
     ("stageid.cli.report", "report_command", "cli"),
