@@ -1,0 +1,97 @@
+"""Inverses and the feedforward compensator: round trips, state duality, limits."""
+
+import numpy as np
+import pytest
+
+from stageid import ModelError
+from stageid.hysteresis import Compensator, ModifiedPIModel, PIModel, compensate, invert, pi_inverse
+from stageid.hysteresis.inverse import forward_state, inverse_state
+
+
+def _pi(rng, n=10):
+    r = np.arange(n) * 40.0
+    w = np.r_[1.0, rng.uniform(-0.05, 0.4, n - 1)]
+    return PIModel(r=r, weights=w, input_offset=5.0, output_offset=0.3)
+
+
+def _mpi(rng, n=10):
+    r = np.arange(n) * 40.0
+    c, a, b = rng.uniform(0.2, 1, n), rng.uniform(0.5, 2, n), rng.uniform(0, 1, n)
+    w = np.r_[1.0, rng.uniform(-0.05, 0.4, n - 1)]
+    return ModifiedPIModel(r=r, rc=c * r, ra=a * r, rb=b * a * r, weights=w, output_offset=-0.4)
+
+
+def _drive(rng, n=3000):
+    return 350 * np.sin(np.linspace(0, 12, n)) * np.linspace(1, 0.3, n) + np.cumsum(rng.normal(0, 2, n))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_closed_form_pi_inverse_round_trips(seed):
+    rng = np.random.default_rng(seed)
+    m = _pi(rng)
+    u = _drive(rng)
+    m = m.with_state(m.run(u[:500])[1])  # start from a non-trivial state
+    y = m.simulate(u[500:])
+    inv = pi_inverse(m)
+    # inverse(model(u)) = u and model(inverse(y)) = y; 1e-9 V on hundreds of volts: rounding only
+    np.testing.assert_allclose(inv.simulate(y), u[500:, None], rtol=0, atol=1e-9)
+    yd = m.simulate(u[:1000])
+    np.testing.assert_allclose(m.simulate(inv.simulate(yd)), yd, rtol=0, atol=1e-9)
+    # the inverse of the inverse is the model (the duality of thresholds and weights)
+    inv2 = pi_inverse(inv)
+    np.testing.assert_allclose(inv2.r, m.r, atol=1e-9)
+    np.testing.assert_allclose(inv2.weights, m.weights, atol=1e-12)
+
+
+def test_state_duality():
+    rng = np.random.default_rng(4)
+    m = _pi(rng)
+    st = m.run(_drive(rng))[1]
+    inv = pi_inverse(m)
+    back = forward_state(inv, inverse_state(m, st))
+    np.testing.assert_allclose(back.z, st.z, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_modified_inversion_exact(seed):
+    rng = np.random.default_rng(seed)
+    m = _mpi(rng)
+    yd = m.simulate(_drive(rng))[:, 0] + rng.normal(0, 0.5, 3000)  # also targets off the model's own path
+    u, state = invert(m, yd)
+    scale = np.sum(np.abs(m.weights)) * m.r.max()
+    np.testing.assert_allclose(m.simulate(u)[:, 0], yd, rtol=0, atol=1e-11 * scale)
+    assert np.array_equal(m.run(u)[1].z, state.z)
+
+
+def test_generic_inversion_agrees_with_closed_form():
+    rng = np.random.default_rng(5)
+    m = _pi(rng)
+    yd = m.simulate(_drive(rng))
+    u1 = pi_inverse(m).simulate(yd)
+    u2, _ = invert(m, yd)
+    np.testing.assert_allclose(u1, u2, atol=1e-8)
+
+
+@pytest.mark.parametrize("make", [_pi, _mpi])
+def test_streaming_equals_batch_and_limits(make):
+    rng = np.random.default_rng(6)
+    m = make(rng)
+    yd = m.simulate(_drive(rng))[:, 0] * 1.3  # beyond what +-300 V can reach
+    comp = Compensator(m, limits=(-300.0, 300.0))
+    step = np.array([comp.step(v) for v in yd])
+    batch = compensate(m, yd, limits=(-300.0, 300.0))[:, 0]
+    np.testing.assert_allclose(step, batch, atol=1e-9)
+    assert step.min() >= -300.0 and step.max() <= 300.0 and (step == 300.0).any()
+    # the compensator's state follows the clipped drive: it equals the model run on that drive
+    np.testing.assert_allclose(comp.state.z, m.run(step)[1].z, atol=1e-8)
+    # where no limit is hit, the model follows the target
+    inside = (np.abs(step) < 299.0)
+    np.testing.assert_allclose(m.simulate(step)[inside, 0], yd[inside], atol=1e-8)
+
+
+def test_not_invertible():
+    m = PIModel(r=[0.0, 1.0], weights=[1.0, -2.0])
+    with pytest.raises(ModelError, match="not invertible"):
+        pi_inverse(m)
+    with pytest.raises(ModelError, match="not invertible"):
+        invert(m.to_modified(), [0.0, 1.0])
