@@ -1,0 +1,406 @@
+"""The simplified Hankel-Toeplitz model of Cao & Chen (2013), section 2.1, and its normal equations.
+
+For a horizon ``p`` the model (eq. 9) is
+
+    y_p(k) = [Gamma  Phi  D_p] [u_p(k-p); y_p(k-p); u_p(k)] + Delta(k)
+
+with ``u_p(k) = [u(k); u(k+1); ...; u(k+p-1)]`` (eq. 3, time ascending, channels fastest),
+``Gamma`` of shape (p q, p m), ``Phi`` of shape (p q, p q) and ``D_p`` of shape (p q, p m).
+Every regression sample is one *window* of ``2 p`` consecutive samples of
+``z(t) = [u(t); y(t)]``, so the normal equations never need the (n_windows x n_regressors)
+matrix: the Gram matrix of the windows is assembled from the lag correlations of ``z``
+(computed in blocks with FFTs, cost independent of ``p``) plus exact corrections for the
+first and last samples.  This is :class:`WindowStatistics`, the sufficient statistic of
+both the batch least-squares and the MAP estimators.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._errors import DataError
+
+__all__ = [
+    "WindowStatistics",
+    "lag_correlations",
+    "window_statistics",
+    "record_statistics",
+    "regressor_indices",
+    "dense_regression",
+    "split_theta",
+    "theta_frequency_response",
+]
+
+
+def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> np.ndarray:
+    """Lag correlations ``R[c] = sum_t z(t) z(t+c)^T`` for ``c = 0 .. max_lag``.
+
+    Computed with zero-padded FFTs of consecutive blocks (overlap-add of the cross-spectra),
+    so the cost is about ``n_samples (r^2 + r log block)`` whatever ``max_lag`` is, and the
+    memory is a few blocks.  The result is exact to rounding.
+
+    Parameters
+    ----------
+    z : ndarray of shape (n_samples, r)
+    max_lag : int
+        Largest lag, ``0 <= max_lag < n_samples``.
+    block : int, optional
+        Block length (>= max_lag); default the next power of two >= max(128, max_lag).
+
+    Returns
+    -------
+    ndarray of shape (max_lag + 1, r, r)
+        ``R[c, a, b] = sum_{t=0}^{N-1-c} z[t, a] z[t+c, b]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> z = np.arange(10.0).reshape(5, 2)
+    >>> R = lag_correlations(z, 1)
+    >>> bool(np.allclose(R[1], z[:-1].T @ z[1:]))
+    True
+    """
+    import scipy.fft as sfft
+
+    z = np.asarray(z, dtype=float)
+    n, r = z.shape
+    if not 0 <= max_lag < max(n, 1):
+        raise DataError(f"`max_lag` must satisfy 0 <= max_lag < n_samples = {n}; got {max_lag}.")
+    if block is None:
+        block = 1 << max(7, int(np.ceil(np.log2(max(max_lag, 1)))))
+    if block < max_lag:
+        raise DataError(f"`block` must be >= max_lag = {max_lag}; got {block}.")
+    n_blocks = -(-n // block)
+    nfft = 2 * block
+    sign = np.where(np.arange(block + 1) % 2 == 0, 1.0, -1.0)[:, None]  # exp(-j pi f): shift by one block
+    S = np.zeros((block + 1, r, r), dtype=complex)
+    chunk = max(1, (1 << 21) // (nfft * max(r, 1)))  # blocks per FFT batch (~32 MB of spectra)
+    start = 0
+    # Spectra are computed batch by batch; the first spectrum of the next batch is needed
+    # for the last block of the current one, so batches overlap by one block.
+    while start < n_blocks:
+        stop = min(n_blocks, start + chunk)
+        seg = np.zeros((stop - start + 1, nfft, r))
+        lo = start * block
+        hi = min(n, (stop + 1) * block)
+        data = z[lo:hi]
+        full = np.zeros(((stop - start + 1) * block, r))
+        full[: data.shape[0]] = data
+        seg[:, :block, :] = full.reshape(stop - start + 1, block, r)
+        F = sfft.rfft(seg, axis=1, workers=1)  # (nb+1, block+1, r)
+        Fa = F[:-1]
+        Fb = F[:-1] + sign[None] * F[1:]
+        # S[f] += sum_k conj(Fa[k, f])^T Fb[k, f]
+        S += np.matmul(np.conj(Fa).transpose(1, 2, 0), Fb.transpose(1, 0, 2))
+        start = stop
+    R = sfft.irfft(S, n=nfft, axis=0, workers=1)[: max_lag + 1]
+    return np.ascontiguousarray(R)
+
+
+@dataclass(frozen=True, eq=False)
+class WindowStatistics:
+    """Sufficient statistics of the Hankel-Toeplitz regression for one horizon.
+
+    ``W = sum_k w(k) w(k)^T`` over all windows ``w(k) = [z(k); ...; z(k+2p-1)]`` with
+    ``z = [u; y]`` (window positions ``0..p-1`` are the past, ``p..2p-1`` the future).
+
+    Attributes
+    ----------
+    W : ndarray of shape (2 p r, 2 p r), ``r = n_inputs + n_outputs``
+    n_windows : float
+        Number of windows (their weights' sum when forgetting is used).
+    count : int
+        Number of windows (unweighted).
+    horizon, n_inputs, n_outputs : int
+    input_power : ndarray of shape (n_freq, n_inputs) or None
+        Block-averaged input periodogram (for the excited band), from the FFT pass.
+    freqs : ndarray of shape (n_freq,) or None
+        Frequencies of ``input_power`` in cycles per sample.
+    """
+
+    W: np.ndarray
+    n_windows: float
+    horizon: int
+    n_inputs: int
+    n_outputs: int
+    input_power: np.ndarray | None = None
+    freqs: np.ndarray | None = None
+    count: int = 0
+
+    def __add__(self, other: "WindowStatistics") -> "WindowStatistics":
+        if (self.horizon, self.n_inputs, self.n_outputs) != (other.horizon, other.n_inputs, other.n_outputs):
+            raise DataError("window statistics can only be added for the same horizon and channels.")
+        power = None
+        if self.input_power is not None and other.input_power is not None and self.input_power.shape == other.input_power.shape:
+            power = self.input_power + other.input_power
+        elif self.input_power is not None:
+            power = self.input_power
+        else:
+            power = other.input_power
+        return WindowStatistics(self.W + other.W, self.n_windows + other.n_windows, self.horizon,
+                                self.n_inputs, self.n_outputs, power,
+                                self.freqs if self.freqs is not None else other.freqs, self.count + other.count)
+
+    def scaled(self, factor: float) -> "WindowStatistics":
+        """The statistics with every window's weight multiplied by ``factor`` (forgetting)."""
+        return WindowStatistics(self.W * factor, self.n_windows * factor, self.horizon, self.n_inputs,
+                                self.n_outputs, self.input_power, self.freqs, self.count)
+
+    def blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(XX, YX, YY)``: ``sum x x^T``, ``sum y_p x^T`` and ``sum y_p y_p^T`` of eq. 9."""
+        xi, yi = regressor_indices(self.horizon, self.n_inputs, self.n_outputs)
+        W = self.W
+        return W[np.ix_(xi, xi)], W[np.ix_(yi, xi)], W[np.ix_(yi, yi)]
+
+    def for_horizon(self, horizon: int) -> "WindowStatistics":
+        """Not available: statistics are per horizon (compute them with ``window_statistics``)."""
+        if horizon != self.horizon:
+            raise DataError(f"statistics were computed for horizon {self.horizon}; got {horizon}.")
+        return self
+
+
+def regressor_indices(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
+    """Positions of the regressor ``X`` and of ``y_p(k)`` (eq. 9) inside a window vector.
+
+    Returns
+    -------
+    x_index : ndarray of shape (2 p m + p q,)
+        ``[u_p(k-p); y_p(k-p); u_p(k)]`` in that order.
+    y_index : ndarray of shape (p q,)
+        ``y_p(k)``.
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    r = m + q
+    pos = np.arange(p)
+    u_past = (pos[:, None] * r + np.arange(m)[None, :]).ravel()
+    y_past = (pos[:, None] * r + m + np.arange(q)[None, :]).ravel()
+    u_fut = ((p + pos)[:, None] * r + np.arange(m)[None, :]).ravel()
+    y_fut = ((p + pos)[:, None] * r + m + np.arange(q)[None, :]).ravel()
+    return np.concatenate([u_past, y_past, u_fut]), y_fut
+
+
+def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
+    """Exact ``sum_k w(k) w(k)^T`` from the lag correlations ``R`` (lags 0 .. 2p-1)."""
+    n, r = z.shape
+    L = 2 * horizon
+    K = n - L + 1  # number of windows
+    W = np.zeros((L, L, r, r))
+    for c in range(L):
+        # W[0, c] = R[c] - tail terms t = K .. n-1-c
+        tail = z[K : n - c]
+        first = R[c] - tail.T @ z[K + c : n]
+        count = L - c  # entries W[a, a+c], a = 0 .. L-1-c
+        if count > 1:
+            a = np.arange(1, count)
+            diff = (np.einsum("ti,tj->tij", z[a - 1 + K], z[a - 1 + c + K])
+                    - np.einsum("ti,tj->tij", z[a - 1], z[a - 1 + c]))
+            vals = np.concatenate([first[None], first[None] + np.cumsum(diff, axis=0)])
+        else:
+            vals = first[None]
+        idx = np.arange(count)
+        W[idx, idx + c] = vals
+        if c:
+            W[idx + c, idx] = vals.transpose(0, 2, 1)
+    return W.transpose(0, 2, 1, 3).reshape(L * r, L * r)
+
+
+def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0,
+                      with_spectrum: bool = True) -> WindowStatistics:
+    """Normal-equation statistics of eq. 9 for one record, without forming the regressor matrix.
+
+    Parameters
+    ----------
+    u : ndarray of shape (n_samples, n_inputs)
+    y : ndarray of shape (n_samples, n_outputs)
+    horizon : int
+        ``p`` of eq. 2-9, >= 1; the record needs more than ``2 p`` samples.
+    forgetting : float, default 1.0
+        Exponential forgetting factor ``lambda`` in (0, 1]: window ``k`` of ``K`` gets the
+        weight ``lambda^(K-1-k)``, as in the recursive estimator with forgetting.
+    with_spectrum : bool
+        Also return the block periodogram of the inputs (for the excited band).
+
+    Returns
+    -------
+    WindowStatistics
+
+    Raises
+    ------
+    DataError
+        When the record is too short for the horizon.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal((200, 1)); y = np.cumsum(u, axis=0) * 0.1
+    >>> s = window_statistics(u, y, horizon=3)
+    >>> s.W.shape, s.n_windows
+    ((12, 12), 195.0)
+    """
+    return record_statistics(u, y, [horizon], forgetting, with_spectrum)[horizon]
+
+
+def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple[int, ...]", forgetting: float = 1.0,
+                      with_spectrum: bool = True) -> dict[int, WindowStatistics]:
+    """:func:`window_statistics` for several horizons from one pass over the data.
+
+    The lag correlations up to ``2 max(horizons) - 1`` are computed once; each horizon's
+    Gram matrix is then assembled from them (cost independent of the record length).
+    Horizons that need more samples than the record has are left out of the result.
+    """
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = u.shape[0]
+    if not 0.0 < forgetting <= 1.0:
+        raise DataError(f"`forgetting` must be in (0, 1]; got {forgetting}.")
+    usable = sorted({int(p) for p in horizons if 2 * int(p) + 1 <= n and int(p) >= 1})
+    if not usable:
+        raise DataError(f"horizon {min(horizons)} needs records of more than {2 * min(horizons)} samples; got {n}.")
+    z0 = np.hstack([u, y])
+    r = z0.shape[1]
+    Lmax = 2 * usable[-1]
+    if forgetting != 1.0:
+        t = np.arange(n)
+        z = z0 * (forgetting ** ((n - 1 - t) / 2.0))[:, None]
+    else:
+        z = z0
+    R = lag_correlations(z, Lmax - 1)
+    power = freqs = None
+    if with_spectrum:
+        power, freqs = _input_periodogram(u)
+    out = {}
+    for p in usable:
+        L = 2 * p
+        K = n - L + 1
+        W = _window_gram(z, R[:L], p)
+        if forgetting != 1.0:
+            # z~(t) = lam^((n-1-t)/2) z(t): the weighted window sum is the unweighted one of z~
+            # times lam^((K-1) - (n-1) + (a+b)/2) for window positions a, b.
+            pos = np.repeat(np.arange(L), r)
+            W = W * forgetting ** ((K - 1) - (n - 1) + (pos[:, None] + pos[None, :]) / 2.0)
+            n_windows = float(np.sum(forgetting ** np.arange(K)))
+        else:
+            n_windows = float(K)
+        out[p] = WindowStatistics(W, n_windows, p, u.shape[1], y.shape[1], power, freqs, K)
+    return out
+
+
+def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np.ndarray]:
+    """Periodogram of each (mean-removed) input summed into ``n_bins`` equal bins over
+    ``[0, 1/2]`` cycles per sample, so records of any length can be added.
+
+    Returns ``(power of shape (n_bins, n_inputs), bin centres in cycles per sample)``.
+    """
+    n = u.shape[0]
+    spec = np.abs(np.fft.rfft(u - u.mean(axis=0), axis=0)) ** 2
+    f = np.fft.rfftfreq(n)
+    idx = np.minimum((f * 2 * n_bins).astype(int), n_bins - 1)
+    power = np.zeros((n_bins, u.shape[1]))
+    np.add.at(power, idx, spec)
+    centres = (np.arange(n_bins) + 0.5) / (2 * n_bins)
+    return power, centres
+
+
+def dense_regression(u: np.ndarray, y: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """The explicit regression of eq. 9 (reference implementation for tests and small data).
+
+    Returns
+    -------
+    X : ndarray of shape (n_windows, 2 p m + p q)
+        Rows ``[u_p(k-p); y_p(k-p); u_p(k)]^T``.
+    Y : ndarray of shape (n_windows, p q)
+        Rows ``y_p(k)^T``.
+    """
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    p = horizon
+    n = u.shape[0]
+    if n < 2 * p + 1:
+        raise DataError(f"horizon {p} needs records of more than {2 * p} samples; got {n}.")
+    k = np.arange(p, n - p + 1)
+
+    def stack(s: np.ndarray, offset: int) -> np.ndarray:
+        return np.hstack([s[k + offset + i] for i in range(p)])
+
+    X = np.hstack([stack(u, -p), stack(y, -p), stack(u, 0)])
+    return X, stack(y, 0)
+
+
+def split_theta(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``theta = [Gamma Phi D_p]`` (eq. 16) -> ``(Gamma, Phi, D_p)``."""
+    p, m, q = horizon, n_inputs, n_outputs
+    expected = (p * q, 2 * p * m + p * q)
+    if theta.shape != expected:
+        raise DataError(f"`theta` must have shape {expected}; got {theta.shape}.")
+    return theta[:, : p * m], theta[:, p * m : p * m + p * q], theta[:, p * m + p * q :]
+
+
+def _response_system(theta: np.ndarray, horizon: int, m: int, q: int, zk: complex) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    p = horizon
+    Gam, Phi, Dp = split_theta(theta, p, m, q)
+    e_past = zk ** (np.arange(p) - p)
+    e_fut = zk ** np.arange(p)
+    rhs = (np.einsum("rim,i->rm", Gam.reshape(p * q, p, m), e_past)
+           + np.einsum("rim,i->rm", Dp.reshape(p * q, p, m), e_fut))
+    Phiw = np.einsum("riq,i->rq", Phi.reshape(p * q, p, q), e_past)
+    lhs = np.kron(e_fut[:, None], np.eye(q)) - Phiw
+    return lhs, rhs, np.concatenate([np.repeat(e_past, m), np.repeat(e_past, q), np.repeat(e_fut, m)])
+
+
+def theta_frequency_response(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int,
+                             freqs: np.ndarray, dt: float) -> np.ndarray:
+    """Frequency response implied by the identified Hankel-Toeplitz model (eq. 9).
+
+    For a sinusoid ``u(k) = U z^k``, ``y(k) = G U z^k`` (``z = exp(j 2 pi f dt)``) every
+    block row ``j`` of eq. 9 gives ``(z^j I - Phi_j(z)) G = Gamma_j(z) + D_j(z)``; the ``p q``
+    equations are solved for ``G`` by least squares.  The data determine the model's
+    predictions only where they have energy, so this response is accurate over the excited
+    band even when ``Gamma``, ``Phi`` and ``D_p`` individually are not (band-limited data).
+
+    Returns
+    -------
+    ndarray of shape (n_freqs, n_outputs, n_inputs), complex
+    """
+    m, q = n_inputs, n_outputs
+    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+    out = np.empty((zs.size, q, m), dtype=complex)
+    for i, zk in enumerate(zs):
+        lhs, rhs, _ = _response_system(theta, horizon, m, q, zk)
+        out[i] = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return out
+
+
+def theta_response_std(theta: np.ndarray, column_cov: np.ndarray, noise_cov: np.ndarray, horizon: int,
+                       n_inputs: int, n_outputs: int, freqs: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Response of :func:`theta_frequency_response` with its posterior standard deviation.
+
+    With ``Cov(vec theta) = P (x) Sigma`` (matrix-normal posterior) and the first-order
+    perturbation ``dG = L^+ dtheta V(z)`` of the block-row equations
+    (``V = [e_past (x) I_m; e_past (x) G; e_fut (x) I_m]``), the variance of entry ``(i, j)``
+    is ``(L^+ Sigma L^+H)_ii (V^H P V)_jj``.
+
+    Returns
+    -------
+    G : ndarray of shape (n_freqs, q, m), complex
+    std : ndarray of shape (n_freqs, q, m)
+        Standard deviation of ``G`` (square root of ``E|dG|^2``).
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+    G = np.empty((zs.size, q, m), dtype=complex)
+    std = np.empty((zs.size, q, m))
+    for i, zk in enumerate(zs):
+        lhs, rhs, _ = _response_system(theta, p, m, q, zk)
+        Lp = np.linalg.pinv(lhs)
+        g = Lp @ rhs
+        G[i] = g
+        e_past = zk ** (np.arange(p) - p)
+        e_fut = zk ** np.arange(p)
+        V = np.concatenate([np.kron(e_past[:, None], np.eye(m)), np.kron(e_past[:, None], g), np.kron(e_fut[:, None], np.eye(m))])
+        left = np.real(np.einsum("ir,rs,is->i", Lp, noise_cov, np.conj(Lp)))
+        right = np.real(np.einsum("cj,cd,dj->j", np.conj(V), column_cov, V))
+        std[i] = np.sqrt(np.clip(np.outer(left, right), 0.0, None))
+    return G, std

@@ -1,0 +1,416 @@
+"""Reconstruction of the system matrices, Cao & Chen (2013) sections 2.1-2.2.
+
+From the identified ``theta = [Gamma Phi D_p]`` (eq. 9):
+
+* ``H0 = Gamma + Phi D_p = C_p B_p`` (eq. 10) and ``H_i = Phi^i H0 = C_p A^(i p) B_p`` (eq. 12);
+* the Markov parameters ``Y_0 = D, Y_k = C A^(k-1) B``: ``Y_0 .. Y_(p-1)`` are the first block
+  column of ``D_p`` and ``Y_(p(t+1)+i)`` is block ``(i, 0)`` of ``H_t`` (block ``(i, j)`` of
+  ``H_t`` is ``Y_(tp+p+i-j)``: eq. 4 orders ``B_p`` from ``A^(p-1) B`` down to ``B``);
+* the Hankel matrices ``H(0)``, ``H(1)`` of eq. 14 and the realisation of Lemma 1 (eq. 15):
+  ``A = S^-1/2 U^T H(1) V S^-1/2``, ``B`` the first ``m`` columns of ``S^1/2 V^T``, ``C`` the
+  first ``q`` rows of ``U S^1/2`` (:func:`era`).
+
+Lemma 1 needs the whole impulse response, which band-limited data do not determine (inputs
+with no energy above 100 Hz leave the out-of-band part of every Markov parameter to the
+prior).  :func:`frequency_realization` therefore realises the identified model from its
+frequency response over the *excited* band (McKelvey, Akcay & Ljung 1996: the frequency-domain
+counterpart of Lemma 1, an SVD of a Hankel-structured matrix followed by the same
+shift-invariance step), then fits ``B`` and ``D`` by linear least squares on that band.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._errors import IdentificationError
+from .hankel_toeplitz import split_theta
+
+__all__ = [
+    "hankel_h0",
+    "hankel_hi",
+    "markov_from_theta",
+    "hankel_matrices",
+    "era",
+    "frequency_realization",
+    "fit_input_matrices",
+    "refine_frequency_fit",
+]
+
+
+def hankel_h0(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int) -> np.ndarray:
+    """``H0 = Gamma + Phi D_p`` (eq. 10), shape (p q, p m)."""
+    Gam, Phi, Dp = split_theta(theta, horizon, n_inputs, n_outputs)
+    return Gam + Phi @ Dp
+
+
+def hankel_hi(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, i: int) -> np.ndarray:
+    """``H_i = Phi^i H0 = C_p A^(i p) B_p`` (eq. 11-12), shape (p q, p m)."""
+    _, Phi, _ = split_theta(theta, horizon, n_inputs, n_outputs)
+    H = hankel_h0(theta, horizon, n_inputs, n_outputs)
+    for _ in range(i):
+        H = Phi @ H
+    return H
+
+
+def markov_from_theta(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, n_parameters: int) -> np.ndarray:
+    """Markov parameters ``Y_0 .. Y_(n-1)`` of the identified Hankel-Toeplitz model.
+
+    Returns
+    -------
+    ndarray of shape (n_parameters, n_outputs, n_inputs)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p, m, q = 2, 1, 1
+    >>> theta = np.zeros((p * q, 2 * p * m + p * q)); theta[1, 4] = 0.5   # Y_1 = 0.5
+    >>> markov_from_theta(theta, p, m, q, 3)[:, 0, 0].tolist()
+    [0.0, 0.5, 0.0]
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    _, Phi, Dp = split_theta(theta, p, m, q)
+    out = np.zeros((n_parameters, q, m))
+    for i in range(min(p, n_parameters)):
+        out[i] = Dp[i * q : (i + 1) * q, :m]
+    H = hankel_h0(theta, p, m, q)
+    k = p
+    while k < n_parameters:
+        for i in range(p):
+            if k + i < n_parameters:
+                out[k + i] = H[i * q : (i + 1) * q, :m]
+        H = Phi @ H
+        k += p
+    return out
+
+
+def hankel_matrices(markov: np.ndarray, n1: int, n2: int) -> tuple[np.ndarray, np.ndarray]:
+    """``H(0)`` and ``H(1)`` of eq. 14 from Markov parameters ``Y_k`` (``Y_1 = CB``).
+
+    Parameters
+    ----------
+    markov : ndarray of shape (n_parameters, q, m)
+        ``Y_0 = D, Y_1 = CB, ...``; needs ``n_parameters >= n1 + n2 + 3``.
+    n1, n2 : int
+        Block columns ``n1 + 1`` and block rows ``n2 + 1``.
+
+    Returns
+    -------
+    H0, H1 : ndarrays of shape ((n2 + 1) q, (n1 + 1) m)
+    """
+    if markov.shape[0] < n1 + n2 + 3:
+        raise IdentificationError(f"eq. 14 with n1={n1}, n2={n2} needs {n1 + n2 + 3} Markov parameters; got {markov.shape[0]}.")
+    H0 = np.block([[markov[1 + i + j] for j in range(n1 + 1)] for i in range(n2 + 1)])
+    H1 = np.block([[markov[2 + i + j] for j in range(n1 + 1)] for i in range(n2 + 1)])
+    return H0, H1
+
+
+def era(markov: np.ndarray, order: int, n1: int | None = None, n2: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Realisation of Lemma 1 (eq. 15) from Markov parameters.
+
+    Parameters
+    ----------
+    markov : ndarray of shape (n_parameters, q, m)
+    order : int
+        ``s`` of Lemma 1, ``s <= min(m (n1 + 1), q (n2 + 1))``.
+    n1, n2 : int, optional
+        Hankel size; default the largest square-ish size the Markov parameters allow.
+
+    Returns
+    -------
+    A, B, C, D, singular_values
+        ``D = Y_0``; ``singular_values`` are all singular values of ``H(0)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Y = np.array([0.0] + [0.5 * 0.8 ** (k - 1) for k in range(1, 30)])[:, None, None]
+    >>> A, B, C, D, s = era(Y, 1)
+    >>> round(float(A[0, 0]), 6)
+    0.8
+    """
+    n_par, q, m = markov.shape
+    if n1 is None or n2 is None:
+        half = (n_par - 3) // 2
+        n1 = half if n1 is None else n1
+        n2 = half if n2 is None else n2
+    limit = min(m * (n1 + 1), q * (n2 + 1))
+    if not 1 <= order <= limit:
+        raise IdentificationError(f"Lemma 1 needs 1 <= order <= min(m (n1+1), q (n2+1)) = {limit}; got {order}.")
+    H0, H1 = hankel_matrices(markov, n1, n2)
+    U, s, Vt = np.linalg.svd(H0, full_matrices=False)
+    Us, Ss, Vs = U[:, :order], s[:order], Vt[:order].T
+    if Ss[-1] <= 0:
+        raise IdentificationError(f"H(0) has rank below the requested order {order}.")
+    si = 1.0 / np.sqrt(Ss)
+    A = (si[:, None] * (Us.T @ H1 @ Vs)) * si[None, :]
+    sq = np.sqrt(Ss)
+    B = (sq[:, None] * Vs.T)[:, :m]
+    C = (Us * sq[None, :])[:q]
+    return A, B, C, markov[0].copy(), s
+
+
+def _resolvent_rows(A: np.ndarray, C: np.ndarray, zs: np.ndarray) -> np.ndarray:
+    """``C (z I - A)^-1`` for every z, shape (n_z, q, n)."""
+    n = A.shape[0]
+    lam, V = np.linalg.eig(A)
+    if np.linalg.cond(V) < 1e8:
+        CV = C @ V
+        Vi = np.linalg.inv(V)
+        return np.einsum("qn,zn,nk->zqk", CV, 1.0 / (zs[:, None] - lam[None, :]), Vi)
+    eye = np.eye(n)
+    return np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in zs])
+
+
+def fit_input_matrices(A: np.ndarray, C: np.ndarray, G: np.ndarray, zs: np.ndarray, feedthrough: bool = True,
+                       weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares ``B``, ``D`` with ``C (zI - A)^-1 B + D ~= G`` at the given points.
+
+    Parameters
+    ----------
+    A : (n, n); C : (q, n); G : (n_z, q, m) complex; zs : (n_z,) complex
+    feedthrough : bool
+        Estimate ``D`` (else ``D = 0``).
+    weights : ndarray of shape (n_z,), optional
+        Non-negative weight of each frequency point.
+
+    Returns
+    -------
+    B : ndarray of shape (n, m); D : ndarray of shape (q, m)
+    """
+    n = A.shape[0]
+    nz, q, m = G.shape
+    R = _resolvent_rows(A, C, zs)  # (nz, q, n)
+    cols = [R]
+    if feedthrough:
+        cols.append(np.broadcast_to(np.eye(q), (nz, q, q)))
+    M = np.concatenate(cols, axis=2).reshape(nz * q, -1)
+    rhs = G.reshape(nz * q, m)
+    if weights is not None:
+        w = np.repeat(np.sqrt(weights), q)[:, None]
+        M = M * w
+        rhs = rhs * w
+    Mr = np.vstack([M.real, M.imag])
+    rr = np.vstack([rhs.real, rhs.imag])
+    sol = np.linalg.lstsq(Mr, rr, rcond=None)[0]
+    B = sol[:n]
+    D = sol[n:] if feedthrough else np.zeros((q, m))
+    return B, D
+
+
+def frequency_realization(G: np.ndarray, freqs: np.ndarray, dt: float, order: int, block_rows: int | None = None,
+                          feedthrough: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """State-space realisation from frequency-response samples (McKelvey et al. 1996).
+
+    With ``W_r(z) = [1, z, ..., z^(r-1)]^T`` the data matrices ``Y = [W_r(z_k) (x) G_k]_k`` and
+    ``U = [W_r(z_k) (x) I_m]_k`` satisfy ``Y = O_r X + T_r U`` (``O_r`` the extended
+    observability matrix).  Removing ``U`` by an LQ factorisation of the real-valued data and
+    taking the dominant ``order`` left singular vectors gives ``O_r``; ``A`` and ``C`` follow by
+    shift invariance exactly as in Lemma 1, and ``B``, ``D`` by linear least squares on ``G``.
+
+    Parameters
+    ----------
+    G : ndarray of shape (n_freqs, q, m), complex
+    freqs : ndarray of shape (n_freqs,)
+        Frequencies in Hz (any subset of ``[0, 1/(2 dt)]``: the excited band).
+    dt : float
+    order : int
+    block_rows : int, optional
+        ``r > order / q``; default ``max(order + 1, 2 ceil(order / q) + 2)`` capped so the
+        problem stays overdetermined.
+    feedthrough : bool
+
+    Returns
+    -------
+    A, B, C, D, singular_values
+
+    Raises
+    ------
+    IdentificationError
+        When there are too few frequency points for the order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = np.linspace(1, 200, 100); z = np.exp(2j * np.pi * f * 0.002)
+    >>> G = (0.2 / (z - 0.8))[:, None, None]
+    >>> A, B, C, D, s = frequency_realization(G, f, 0.002, 1)
+    >>> round(float(A[0, 0]), 6)
+    0.8
+    """
+    nf, q, m = G.shape
+    if order < 1:
+        raise IdentificationError(f"the model order must be >= 1; got {order}.")
+    r = block_rows or max(order + 1, 2 * int(np.ceil(order / q)) + 2)
+    r = int(min(r, max(2, (2 * nf * m) // (m + q) - 1)))
+    if r * q < order + q or 2 * nf * m < r * (m + q):
+        raise IdentificationError(
+            f"frequency realisation of order {order} needs more frequency points than {nf} for {q} outputs and {m} inputs.")
+    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+    powers = zs[None, :] ** np.arange(r)[:, None]  # (r, nf)
+    Y = (powers[:, :, None, None] * G[None]).transpose(0, 2, 1, 3).reshape(r * q, nf * m)
+    U = np.einsum("rk,ij->rikj", powers, np.eye(m)).reshape(r * m, nf * m)
+    big = np.vstack([np.hstack([U.real, U.imag]), np.hstack([Y.real, Y.imag])])
+    Rfac = np.linalg.qr(big.T, mode="r")
+    L = Rfac.T
+    L22 = L[r * m :, r * m : r * m + r * q]
+    Us, s, _ = np.linalg.svd(L22, full_matrices=False)
+    if order > Us.shape[1]:
+        raise IdentificationError(f"order {order} exceeds the {Us.shape[1]} available singular values.")
+    O = Us[:, :order]
+    C = O[:q]
+    A = np.linalg.lstsq(O[:-q], O[q:], rcond=None)[0]
+    B, D = fit_input_matrices(A, C, G, zs, feedthrough)
+    return A, B, C, D, s
+
+
+def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, zs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``G = C R B + D`` with ``R = (zI - A)^-1``; also returns ``C R`` and ``R B``."""
+    lam, V = np.linalg.eig(A)
+    Vi = np.linalg.inv(V)
+    inv = 1.0 / (zs[:, None] - lam[None, :])  # (nz, n)
+    CV = C @ V
+    ViB = Vi @ B
+    CR = np.einsum("qk,zk,kn->zqn", CV, inv, Vi)
+    RB = np.einsum("nk,zk,km->znm", V, inv, ViB)
+    G = np.einsum("qk,zk,km->zqm", CV, inv, ViB) + D[None]
+    return G, CR, RB
+
+
+def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``J^T J`` and ``J^T r`` of the frequency fit over ``vec(A), vec(B), vec(C), vec(D)``.
+
+    Uses the product structure ``dG/dA_ij = (C R)[:, i] (R B)[j, :]`` so the Jacobian itself
+    is never formed: every block is a weighted sum over frequencies of small outer products.
+    ``a = C R`` (nz, q, n), ``b = R B`` (nz, n, m), ``e`` the residual (nz, q, m).
+    """
+    nz, q, n = a.shape
+    m = b.shape[2]
+    aw = a * w[:, None, None]
+    Ma = np.matmul(np.conj(aw).transpose(0, 2, 1), a)  # weighted a^H a
+    Mb = np.matmul(np.conj(b), b.transpose(0, 2, 1))  # conj(b) b^T
+    # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
+    AA = (Ma.reshape(nz, n * n).T @ Mb.reshape(nz, n * n)).real.reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
+    AB = np.einsum("zik,zjc->ijkc", Ma, np.conj(b), optimize=True).real.reshape(n * n, n * m)
+    AC = np.einsum("zri,zjk->ijrk", np.conj(aw), Mb, optimize=True).real.reshape(n * n, q * n)
+    BB = np.kron(Ma.sum(axis=0).real, np.eye(m))
+    BC = np.einsum("zri,zkc->icrk", np.conj(aw), b, optimize=True).real.reshape(n * m, q * n)
+    CC = np.kron(np.eye(q), np.einsum("z,zik->ik", w, Mb).real)
+    ew = e * w[:, None, None]
+    gA = np.einsum("zri,zrc,zjc->ij", np.conj(a), ew, np.conj(b), optimize=True).real.reshape(-1)
+    gB = np.einsum("zri,zrc->ic", np.conj(a), ew).real.reshape(-1)
+    gC = np.einsum("zrc,zic->ri", ew, np.conj(b)).real.reshape(-1)
+    rows = [[AA, AB, AC], [AB.T, BB, BC], [AC.T, BC.T, CC]]
+    grads = [gA, gB, gC]
+    if feedthrough:
+        AD = np.einsum("zri,zjc->ijrc", np.conj(aw), np.conj(b), optimize=True).real.reshape(n * n, q * m)
+        BD = np.einsum("zri,cd->icrd", np.conj(aw).sum(axis=0)[None], np.eye(m)).real.reshape(n * m, q * m)
+        CD = np.einsum("rs,zic->ris c".replace(" ", ""), np.eye(q), np.einsum("z,zic->zic", w, np.conj(b)).sum(axis=0)[None]).real.reshape(q * n, q * m)
+        DD = w.sum() * np.eye(q * m)
+        rows = [[AA, AB, AC, AD], [AB.T, BB, BC, BD], [AC.T, BC.T, CC, CD], [AD.T, BD.T, CD.T, DD]]
+        grads.append(ew.sum(axis=0).real.reshape(-1))
+    return np.block(rows), np.concatenate(grads)
+
+
+def _modal_form(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """Real block-diagonal (modal) form and its blocks ``(start, size)``."""
+    import scipy.linalg as sla
+
+    w, V = np.linalg.eig(A)
+    order = np.argsort(-np.abs(w))
+    w, V = w[order], V[:, order]
+    wr, Vr = sla.cdf2rdf(w, V)
+    if np.linalg.cond(Vr) > 1e10:
+        raise np.linalg.LinAlgError("A is (nearly) defective")
+    Vi = np.linalg.inv(Vr)
+    blocks = []
+    i = 0
+    n = A.shape[0]
+    while i < n:
+        if i + 1 < n and wr[i, i + 1] != 0.0:
+            blocks.append((i, 2))
+            i += 2
+        else:
+            blocks.append((i, 1))
+            i += 1
+    return wr, Vi @ B, C @ Vr, blocks
+
+
+def _block_matrix(params: np.ndarray, blocks: list[tuple[int, int]], n: int) -> np.ndarray:
+    A = np.zeros((n, n))
+    for k, (i, size) in enumerate(blocks):
+        if size == 1:
+            A[i, i] = params[i]
+        else:
+            sig, om = params[i], params[i + 1]
+            A[i, i] = A[i + 1, i + 1] = sig
+            A[i, i + 1] = om
+            A[i + 1, i] = -om
+    return A
+
+
+def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, G: np.ndarray, zs: np.ndarray,
+                         weights: np.ndarray | None = None, feedthrough: bool = True, max_iter: int = 30,
+                         tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Levenberg-Marquardt refinement of a realisation on the frequency-response fit.
+
+    Minimises ``sum_k w_k ||C (z_k I - A)^-1 B + D - G_k||_F^2`` (an output-error criterion in
+    the frequency domain) over all entries of ``A, B, C, D``.  The parameterisation is
+    redundant (similarity transforms); the damping makes the steps well defined.  Steps that
+    move a stable model's pole outside the unit circle or do not lower the cost are
+    rejected, so the result is never worse than the start.
+
+    Returns
+    -------
+    A, B, C, D, info : the refined matrices and ``{"cost0", "cost", "iterations"}``.
+    """
+    n = A.shape[0]
+    nz, q, m = G.shape
+    w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
+    was_stable = np.max(np.abs(np.linalg.eigvals(A))) < 1.0
+
+    def evaluate(A_, B_, C_, D_):
+        Gm, CR, RB = _model_response(A_, B_, C_, D_, zs)
+        return Gm - G, CR, RB
+
+    def cost_of(res):
+        return float(np.sum(w[:, None, None] * (res.real ** 2 + res.imag ** 2)))
+
+    res, CR, RB = evaluate(A, B, C, D)
+    cost0 = cost = cost_of(res)
+    mu = 1e-4
+    it = 0
+    for it in range(1, max_iter + 1):
+        JtJ, g = _normal_equations(CR, RB, res, w, feedthrough)
+        dg = np.diag(JtJ).copy()
+        dg[dg <= 0] = max(float(dg.max(initial=0.0)), 1.0) * 1e-12
+        improved = False
+        rel = 0.0
+        for _ in range(10):
+            try:
+                step = np.linalg.solve(JtJ + mu * np.diag(dg), -g)
+            except np.linalg.LinAlgError:
+                mu *= 10
+                continue
+            A1 = A + step[: n * n].reshape(n, n)
+            B1 = B + step[n * n : n * n + n * m].reshape(n, m)
+            C1 = C + step[n * n + n * m : n * n + n * m + q * n].reshape(q, n)
+            D1 = D + step[n * n + n * m + q * n :].reshape(q, m) if feedthrough else D
+            try:
+                if was_stable and np.max(np.abs(np.linalg.eigvals(A1))) >= 1.0:
+                    mu *= 10
+                    continue
+                res1, CR1, RB1 = evaluate(A1, B1, C1, D1)
+            except np.linalg.LinAlgError:
+                mu *= 10
+                continue
+            c1 = cost_of(res1)
+            if np.isfinite(c1) and c1 < cost:
+                rel = (cost - c1) / max(cost, 1e-300)
+                A, B, C, D, res, CR, RB, cost = A1, B1, C1, D1, res1, CR1, RB1, c1
+                mu = max(mu / 5, 1e-12)
+                improved = True
+                break
+            mu *= 10
+        if not improved or rel < tol:
+            break
+    return A, B, C, D, {"cost0": cost0, "cost": cost, "iterations": it}

@@ -1,0 +1,151 @@
+"""HankelMAP end to end: accuracy against known systems in basis-invariant terms, API rules."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from stageid._errors import DataError, StageIdWarning
+from stageid.data import Experiment
+from stageid.plants import piezo_stage as ps
+from stageid.subspace import HankelMAP, HankelMAPResult, Prior
+
+from _subspace_systems import band_limited, column_errors, random_stage, record
+
+
+def _p558_band_limited(seed, n=20000):
+    g = ps.model()
+    return record(g, band_limited(n, 3, g.dt, seed) * np.array([10.0, 100.0, 100.0]), 0.01, seed)
+
+
+@pytest.mark.parametrize("seed", [11])
+def test_p558_band_limited_default_horizon_given_order(seed):
+    # the acceptance case of issue 3: inputs only in 1-100 Hz, 1 % output noise, order 15
+    res = HankelMAP(order=15).fit(_p558_band_limited(seed))
+    diag, coupling = column_errors(res.model, ps.model())
+    assert diag < 0.02 and coupling < 0.01
+    assert res.model.inputs == ps.INPUTS and res.model.outputs == ps.OUTPUTS
+    assert res.diagnostics["stable"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_p558_band_limited_seed_sweep(seed):
+    res = HankelMAP(order=15).fit(_p558_band_limited(seed))
+    diag, coupling = column_errors(res.model, ps.model())
+    assert diag < 0.02 and coupling < 0.01
+
+
+@pytest.mark.parametrize("seed", [21, 22])
+def test_unseen_lightly_damped_stage(seed):
+    # random 2x2 stages with four resonances (damping 0.5-3 %) inside the band
+    g = random_stage(seed)
+    exp = record(g, band_limited(20000, 2, g.dt, seed), 0.01, seed, names=False)
+    res = HankelMAP(order=g.n_states).fit(exp)
+    diag, coupling = column_errors(res.model, g, n=4000)
+    assert diag < 0.02 and coupling < 0.01
+
+
+def test_markov_realisation_of_lemma_1_on_white_data():
+    g = random_stage(5, m=1, q=2, modes=2)
+    u = np.random.default_rng(0).standard_normal((8000, 1))
+    res = HankelMAP(horizon=30, order=4, realization="markov", method="ls").fit(record(g, u, 0.001, 0, names=False))
+    np.testing.assert_allclose(np.sort(np.abs(res.model.poles())), np.sort(np.abs(g.poles())), atol=2e-3)
+
+
+def test_per_channel_identification_stacks_single_input_models():
+    exps = [ps.EXPERIMENTS[k](0) for k in ("chirp-z", "chirp-rx", "chirp-ry")]
+    res = HankelMAP(horizon=16, order=[7, 4, 4], per_channel=True).fit(exps)
+    assert res.model.n_states == 15 and len(res.channels) == 3
+    assert [c.inputs for c in res.channels] == [("Z",), ("Rx",), ("Ry",)]
+    diag, coupling = column_errors(res.model, ps.model())
+    assert diag < 0.02 and coupling < 0.01
+    with pytest.raises(DataError, match="only that input moves"):
+        HankelMAP(order=4, per_channel=True).fit(ps.EXPERIMENTS["prbs"](0))
+
+
+@pytest.mark.slow
+def test_auto_selection_tables_and_summary():
+    res = HankelMAP(max_order=16).fit(_p558_band_limited(4, n=12000))
+    ch = res.channels[0]
+    assert ch.horizon_table is not None and ch.horizon in ch.horizon_table.values
+    assert ch.order_table is not None and ch.order == res.model.n_states
+    assert "held-out error" in res.summary()
+    diag, coupling = column_errors(res.model, ps.model())
+    assert diag < 0.03 and coupling < 0.02
+
+
+def test_update_carries_the_posterior_over():
+    exp = _p558_band_limited(5, n=16000)
+    a, b = exp.slice(0, 8000), exp.slice(8000, 16000)
+    # a fixed prior (the default one scales with the data seen): then fitting a and
+    # updating with b is exactly the fit on both records
+    est = HankelMAP(horizon=20, order=15, prior=Prior(None, np.full(20 * 9, 1e-2)))
+    both = est.fit([a, b])
+    step = est.fit(a).update(b)
+    assert isinstance(step, HankelMAPResult) and step is not both
+    # band-limited data make the normal equations ill-conditioned (~1e10): rounding of the
+    # two summation orders shows up at ~1e-5 of the largest entry
+    np.testing.assert_allclose(step.posterior.theta, both.posterior.theta, atol=1e-4 * np.abs(both.posterior.theta).max())
+    diag, coupling = column_errors(step.model, ps.model())
+    assert diag < 0.02 and coupling < 0.01
+
+
+def test_forgetting_tracks_a_drifting_stage():
+    # the stage's gain drops 10 % (e.g. temperature); forgetting follows, a batch fit averages
+    g1 = random_stage(7, m=1, q=1, modes=1)
+    g2 = g1.with_names()
+    from stageid.models import StateSpaceModel
+    g2 = StateSpaceModel(g1.A, 0.9 * g1.B, g1.C, g1.D, g1.dt)
+    u1 = band_limited(10000, 1, g1.dt, 1)
+    u2 = band_limited(10000, 1, g1.dt, 2)
+    e1, e2 = record(g1, u1, 0.01, 1, names=False), record(g2, u2, 0.01, 2, names=False)
+    batch = HankelMAP(horizon=30, order=2).fit(e1).update(e2)
+    track = HankelMAP(horizon=30, order=2, forgetting=0.999).fit(e1).update(e2)
+    err_batch = column_errors(batch.model, g2)[0]
+    err_track = column_errors(track.model, g2)[0]
+    assert err_track < 0.02 < err_batch
+
+
+def test_uncertainty_bands_cover_the_truth():
+    g = random_stage(8, m=1, q=2, modes=2)
+    exp = record(g, band_limited(6000, 1, g.dt, 3), 0.02, 3, names=False)
+    res = HankelMAP(horizon=25, order=4).fit(exp)
+    f = np.linspace(2, 98, 60)
+    G, std = res.response_bands(f)
+    assert np.all(std > 0)
+    z = np.abs(G - g.frequency_response(f)) / std
+    # a calibrated posterior: most truths within 3 std (loose: the noise model is approximate)
+    assert np.mean(z < 3) > 0.9
+    mean, sd = res.markov_parameters(10)
+    assert mean.shape == (10, 2, 1) and np.all(sd > 0)
+
+
+def test_hyper_parameters_are_checked_on_fit_not_init():
+    est = HankelMAP(horizon=-3)
+    assert est.horizon == -3  # __init__ stores only
+    exp = _p558_band_limited(0, n=2000)
+    with pytest.raises(DataError, match="`horizon` of HankelMAP must be a positive integer"):
+        est.fit(exp)
+    for bad in (dict(method="svd"), dict(realization="x"), dict(forgetting=0.0), dict(order=[1, 2])):
+        with pytest.raises(DataError):
+            HankelMAP(horizon=5, **({"order": 3} | bad)).fit(exp)
+    with pytest.raises(DataError, match="needs records of more than"):
+        HankelMAP(horizon=600, order=3).fit(exp.slice(0, 1000))
+
+
+def test_fit_does_not_modify_or_keep_the_data():
+    exp = _p558_band_limited(0, n=3000)
+    u0 = exp.u.copy()
+    res = HankelMAP(horizon=10, order=6).fit(exp)
+    assert np.array_equal(exp.u, u0)
+    for value in vars(res).values():
+        assert not (isinstance(value, np.ndarray) and value.shape[0] == exp.n_samples)
+
+
+def test_warning_for_inputs_that_do_not_excite():
+    g = random_stage(9, m=1, q=1, modes=2)
+    t = np.arange(4000) * g.dt
+    u = np.sin(2 * np.pi * 10 * t)[:, None]
+    with pytest.warns(StageIdWarning):
+        HankelMAP(horizon=10, order=4).fit(record(g, u, 0.01, 0, names=False))

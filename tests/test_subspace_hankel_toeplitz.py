@@ -1,0 +1,81 @@
+"""Hankel-Toeplitz regression (eq. 9): normal equations from lag correlations, model response."""
+
+import numpy as np
+import pytest
+
+from stageid._errors import DataError
+from stageid.subspace.hankel_toeplitz import (
+    dense_regression,
+    lag_correlations,
+    record_statistics,
+    regressor_indices,
+    theta_frequency_response,
+    window_statistics,
+)
+from stageid.subspace.map_estimator import batch_posterior
+
+from _subspace_systems import random_stage, record
+
+
+@pytest.mark.parametrize("n, r, max_lag, block", [(1000, 3, 7, None), (777, 2, 40, 64), (300, 5, 130, None), (50, 1, 0, None)])
+def test_lag_correlations_match_direct_sums(n, r, max_lag, block):
+    z = np.random.default_rng(n).standard_normal((n, r))
+    R = lag_correlations(z, max_lag, block)
+    direct = np.array([z[: n - c].T @ z[c:] for c in range(max_lag + 1)])
+    # FFT rounding: relative 1e-12 of the largest correlation is far below any data precision
+    np.testing.assert_allclose(R, direct, rtol=0, atol=1e-12 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 6])
+@pytest.mark.parametrize("forgetting", [1.0, 0.97])
+def test_window_statistics_equal_the_explicit_regression(horizon, forgetting):
+    rng = np.random.default_rng(horizon)
+    u = rng.standard_normal((400, 2))
+    y = rng.standard_normal((400, 3)) + 5.0  # an offset must not matter
+    s = window_statistics(u, y, horizon, forgetting=forgetting)
+    X, Y = dense_regression(u, y, horizon)
+    w = forgetting ** np.arange(X.shape[0])[::-1]
+    XX, YX, YY = s.blocks()
+    scale = np.abs((X * w[:, None]).T @ X).max()
+    np.testing.assert_allclose(XX, (X * w[:, None]).T @ X, atol=1e-12 * scale)
+    np.testing.assert_allclose(YX, (Y * w[:, None]).T @ X, atol=1e-12 * scale)
+    np.testing.assert_allclose(YY, (Y * w[:, None]).T @ Y, atol=1e-12 * scale)
+    assert s.count == X.shape[0]
+    assert s.n_windows == pytest.approx(w.sum())
+
+
+def test_regressor_layout_is_eq_9():
+    # X = [u_p(k-p); y_p(k-p); u_p(k)], time ascending, channels fastest (eq. 3)
+    u = np.arange(20.0)[:, None] * np.array([[1.0, 100.0]])
+    y = np.arange(20.0)[:, None] * np.array([[1000.0]]) + 0.5
+    X, Y = dense_regression(u, y, 2)
+    k = 2  # first regression sample
+    assert X[0].tolist() == [u[k - 2, 0], u[k - 2, 1], u[k - 1, 0], u[k - 1, 1], y[k - 2, 0], y[k - 1, 0],
+                             u[k, 0], u[k, 1], u[k + 1, 0], u[k + 1, 1]]
+    assert Y[0].tolist() == [y[k, 0], y[k + 1, 0]]
+    xi, yi = regressor_indices(2, 2, 1)
+    assert xi.size == 10 and yi.size == 2
+
+
+def test_record_statistics_share_one_pass_and_skip_too_long_horizons():
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal((60, 1)), rng.standard_normal((60, 1))
+    stats = record_statistics(u, y, [3, 10, 40])
+    assert sorted(stats) == [3, 10]
+    np.testing.assert_allclose(stats[10].W, window_statistics(u, y, 10).W, atol=1e-10)
+    with pytest.raises(DataError, match="needs records of more than"):
+        window_statistics(u, y, 40)
+
+
+def test_model_response_equals_truth_on_exact_data():
+    # noise-free white inputs: the regression is exact, so is the response of eq. 9
+    g = random_stage(3, m=2, q=2, modes=2)
+    u = np.random.default_rng(1).standard_normal((3000, 2))
+    exp = record(g, u, 0.0, 0)
+    p = 12
+    post = batch_posterior(window_statistics(exp.u, exp.y, p), None)
+    f = np.linspace(0.5, 240, 60)
+    G = theta_frequency_response(post.theta, p, 2, 2, f, g.dt)
+    Gt = g.frequency_response(f)
+    # lightly damped poles (|z| ~ 0.997): A^p is not small, yet the model is exact up to rounding
+    np.testing.assert_allclose(G, Gt, atol=1e-6 * np.abs(Gt).max())

@@ -1,0 +1,97 @@
+"""MAP estimation (eq. 16-18): batch information form, recursion, flat prior = least squares."""
+
+import numpy as np
+import pytest
+
+from stageid._errors import DataError
+from stageid.subspace.hankel_toeplitz import dense_regression, window_statistics
+from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, recursive_map, recursive_map_python
+
+
+def _data(seed, n=500, m=2, q=3):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((n, m))
+    y = np.zeros((n, q))
+    M = rng.standard_normal((m, q))
+    for k in range(1, n):
+        y[k] = 0.6 * y[k - 1] + u[k - 1] @ M
+    return u, y + 0.05 * rng.standard_normal((n, q))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_flat_prior_map_equals_batch_least_squares(seed):
+    u, y = _data(seed)
+    p = 3
+    post = batch_posterior(window_statistics(u, y, p), None)
+    X, Y = dense_regression(u, y, p)
+    theta_ls = np.linalg.lstsq(X, Y, rcond=None)[0].T
+    # well-conditioned white data: both are the same unique LS solution to rounding
+    np.testing.assert_allclose(post.theta, theta_ls, atol=1e-9 * np.abs(theta_ls).max())
+
+
+def test_recursion_with_vague_prior_tends_to_least_squares():
+    u, y = _data(5)
+    p = 2
+    d = 2 * p * 2 + p * 3
+    theta, _ = recursive_map(u, y, p, np.zeros((p * 3, d)), 1e10 * np.eye(d))
+    X, Y = dense_regression(u, y, p)
+    theta_ls = np.linalg.lstsq(X, Y, rcond=None)[0].T
+    # prior precision 1e-10 against data information ~1e2: relative difference ~1e-10
+    np.testing.assert_allclose(theta, theta_ls, atol=1e-6 * np.abs(theta_ls).max())
+
+
+@pytest.mark.parametrize("forgetting", [1.0, 0.99])
+def test_recursion_equals_batch_posterior_and_python_reference(forgetting):
+    u, y = _data(3, n=300)
+    p = 2
+    d = 2 * p * 2 + p * 3
+    rng = np.random.default_rng(9)
+    theta0 = 0.1 * rng.standard_normal((p * 3, d))
+    P0 = 10.0 * np.eye(d)
+    th_c, P_c = recursive_map(u, y, p, theta0, P0, forgetting)
+    th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
+    stats = window_statistics(u, y, p, forgetting=forgetting)
+    # batch form: prior information discounted by lambda^N like the recursion's P_0 / lambda^N
+    post = batch_posterior(stats, Prior(theta0, np.linalg.inv(P0) * forgetting ** stats.count))
+    np.testing.assert_allclose(th_c, th_py, atol=1e-10)
+    np.testing.assert_allclose(P_c, P_py, atol=1e-12)
+    np.testing.assert_allclose(th_c, post.theta, atol=1e-9)
+    np.testing.assert_allclose(P_c, post.covariance, atol=1e-10 * np.abs(P_c).max())
+
+
+def test_recursion_does_not_modify_its_inputs():
+    u, y = _data(4, n=100)
+    p = 2
+    d = 14
+    theta0 = np.zeros((6, d))
+    P0 = np.eye(d)
+    recursive_map(u, y, p, theta0, P0)
+    assert not theta0.any() and np.array_equal(P0, np.eye(d))
+
+
+def test_posterior_update_equals_fit_on_all_records():
+    u, y = _data(6, n=800)
+    p = 3
+    s1 = window_statistics(u[:400], y[:400], p)
+    s2 = window_statistics(u[400:], y[400:], p)
+    prior = default_prior(s1, 1e-6)
+    both = batch_posterior(s1 + s2, prior)
+    step = batch_posterior(s1, prior).updated(s2)
+    np.testing.assert_allclose(step.theta, both.theta, atol=1e-10)
+    np.testing.assert_allclose(step.noise_cov, both.noise_cov, rtol=1e-8)
+
+
+def test_posterior_std_shrinks_with_data():
+    u, y = _data(7, n=2000)
+    p = 2
+    small = batch_posterior(window_statistics(u[:300], y[:300], p), None)
+    large = batch_posterior(window_statistics(u, y, p), None)
+    assert np.median(large.theta_std() / small.theta_std()) < 0.6  # ~ sqrt(300 / 2000) = 0.39
+
+
+def test_bad_shapes_and_forgetting_are_rejected():
+    u, y = _data(0, n=50)
+    with pytest.raises(DataError, match="`theta` must have shape"):
+        recursive_map(u, y, 2, np.zeros((3, 3)), np.eye(3))
+    with pytest.raises(DataError, match="forgetting"):
+        recursive_map(u, y, 2, np.zeros((6, 14)), np.eye(14), forgetting=1.5)

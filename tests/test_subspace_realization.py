@@ -1,0 +1,87 @@
+"""Reconstruction of the system matrices: eq. 10-15 and the frequency-domain realisation."""
+
+import numpy as np
+import pytest
+
+from stageid._errors import IdentificationError
+from stageid.models import StateSpaceModel
+from stageid.subspace.hankel_toeplitz import window_statistics
+from stageid.subspace.map_estimator import batch_posterior
+from stageid.subspace.realization import (
+    era,
+    frequency_realization,
+    hankel_h0,
+    hankel_hi,
+    hankel_matrices,
+    markov_from_theta,
+    refine_frequency_fit,
+)
+
+from _subspace_systems import random_stage, record
+
+
+def _exact_theta(g, p, n=2500, seed=0):
+    u = np.random.default_rng(seed).standard_normal((n, g.n_inputs))
+    exp = record(g, u, 0.0, seed)
+    return batch_posterior(window_statistics(exp.u, exp.y, p), None).theta
+
+
+def test_markov_parameters_from_eq_10_to_12_match_the_system():
+    # a well damped system (|pole| <= 0.9) so that Phi is a deadbeat-like observer for p = 6
+    rng = np.random.default_rng(2)
+    A = np.diag([0.9, -0.5, 0.3]) + 0.05 * rng.standard_normal((3, 3))
+    g = StateSpaceModel(A, rng.standard_normal((3, 2)), rng.standard_normal((2, 3)), np.zeros((2, 2)), dt=0.01)
+    p = 6
+    theta = _exact_theta(g, p)
+    Y = markov_from_theta(theta, p, 2, 2, 4 * p)
+    np.testing.assert_allclose(Y, g.markov_parameters(4 * p), atol=1e-8)
+    # H0 = C_p B_p: block (i, j) = Y_(p + i - j) (B_p ordered A^(p-1) B ... B, eq. 4)
+    H0 = hankel_h0(theta, p, 2, 2)
+    Yt = g.markov_parameters(3 * p)
+    for i in range(p):
+        for j in range(p):
+            np.testing.assert_allclose(H0[2 * i : 2 * i + 2, 2 * j : 2 * j + 2], Yt[p + i - j], atol=1e-8)
+    H2 = hankel_hi(theta, p, 2, 2, 2)
+    np.testing.assert_allclose(H2[:2, :2], g.markov_parameters(3 * p + 1)[3 * p], atol=1e-8)
+
+
+def test_lemma_1_recovers_poles_and_response_from_exact_markov_parameters():
+    g = random_stage(0, m=2, q=3, modes=3)
+    Y = g.markov_parameters(80)
+    A, B, C, D, s = era(Y, g.n_states, n1=20, n2=20)
+    est = StateSpaceModel(A, B, C, D, g.dt)
+    np.testing.assert_allclose(np.sort_complex(est.poles()), np.sort_complex(g.poles()), atol=1e-8)
+    f = np.linspace(1, 200, 50)
+    np.testing.assert_allclose(est.frequency_response(f), g.frequency_response(f), atol=1e-8 * np.abs(g.frequency_response(f)).max())
+    H0, H1 = hankel_matrices(Y, 3, 2)
+    assert H0.shape == (9, 8) and np.allclose(H1[:3, :2], Y[2])
+    with pytest.raises(IdentificationError, match="Lemma 1 needs"):
+        era(Y, 100, n1=3, n2=3)
+
+
+@pytest.mark.parametrize("f_high", [100.0, 250.0])
+def test_frequency_realization_is_exact_on_a_partial_band(f_high):
+    g = random_stage(1, m=2, q=2, modes=3)
+    f = np.linspace(1.0, f_high, 300)
+    G = g.frequency_response(f)
+    A, B, C, D, _ = frequency_realization(G, f, g.dt, g.n_states, feedthrough=False)
+    est = StateSpaceModel(A, B, C, D, g.dt)
+    np.testing.assert_allclose(np.sort_complex(est.poles()), np.sort_complex(g.poles()), atol=1e-7)
+    ff = np.linspace(1.0, f_high, 977)
+    scale = np.abs(g.frequency_response(ff)).max()
+    np.testing.assert_allclose(est.frequency_response(ff), g.frequency_response(ff), atol=1e-7 * scale)
+
+
+def test_refinement_never_increases_the_cost_and_recovers_a_perturbed_model():
+    g = random_stage(4, m=1, q=2, modes=2)
+    f = np.linspace(1.0, 100.0, 200)
+    zs = np.exp(2j * np.pi * f * g.dt)
+    G = g.frequency_response(f)
+    rng = np.random.default_rng(0)
+    A0 = g.A + 1e-3 * rng.standard_normal(g.A.shape)
+    B0 = g.B * (1 + 0.05 * rng.standard_normal(g.B.shape))
+    A, B, C, D, info = refine_frequency_fit(A0, B0, g.C, g.D, G, zs, feedthrough=False)
+    assert info["cost"] <= info["cost0"]
+    est = StateSpaceModel(A, B, C, D, g.dt)
+    # from a start ~5 % off, the output-error fit lands on the truth (noise-free data)
+    assert np.abs(est.frequency_response(f) - G).max() < 1e-4 * np.abs(G).max()
