@@ -1,1 +1,37 @@
-"""stageid.closedloop"""
+"""Closed-loop identification of open-loop-unstable MIMO plants with a known controller
+(Shakir & Kim, Int. J. Control Autom. Syst., 2010).
+
+==============================  ============================================================
+``ClosedLoopIdentification``    configure-then-fit estimator of the whole method (Fig. 2)
+``ClosedLoopResult``            its frozen result: plant, closed loop, poles, eps, diagnostics
+``pem``, ``arx``                prediction-error fits of eq. 12-14 (ARX, ARMAX, OE, BJ)
+``select_order``                order selection by BIC/AIC
+``PolynomialModel``             A y = B/F u(t-nk) + C/D e
+``deduce_plant``                eq. 18 as a state-space model, G = T (M - M T)^-1
+``deduce_response``             eq. 18 frequency by frequency (singularity checked)
+``deduce_siso``                 SISO eq. 18 in polynomials with the paper's spurious factors
+``unstable_plant_poles``        zeros of M (I - T) outside the unit circle
+``cancel_entries``              spurious pole-zero pairs per entry, with distances (3.2.3)
+``reduce_entry``                fixed-structure continuous fit over a band (3.3)
+``simulate_closed_loop``        sampled loop with output noise at a given SNR
+``empirical_transfer``          FFT ratio Y / R of one experiment
+``reclose_loop``                identified plant closed with the known controller (Fig. 8)
+``direct_identification``       the biased open-loop baseline from u to y
+==============================  ============================================================
+"""
+
+from .cancellation import CancelledPair, EntryPoleZero, cancel_entries, cancel_pairs
+from .deduction import deduce_plant, deduce_response, deduce_siso, unstable_plant_poles
+from .estimator import ClosedLoopIdentification, ClosedLoopResult, excited_reference
+from .pem import PolynomialModel, arx, pem, select_order
+from .reduction import ReducedEntry, paper_orders, reduce_entry
+from .validation import controller_residual, direct_identification, empirical_transfer, reclose_loop, simulate_closed_loop
+
+__all__ = [
+    "ClosedLoopIdentification", "ClosedLoopResult", "excited_reference",
+    "pem", "arx", "select_order", "PolynomialModel",
+    "deduce_plant", "deduce_response", "deduce_siso", "unstable_plant_poles",
+    "cancel_entries", "cancel_pairs", "CancelledPair", "EntryPoleZero",
+    "reduce_entry", "ReducedEntry", "paper_orders",
+    "simulate_closed_loop", "empirical_transfer", "reclose_loop", "direct_identification", "controller_residual",
+]

@@ -1,0 +1,113 @@
+"""``stageid identify closed-loop``: an unstable MIMO plant from closed-loop records and a known controller."""
+
+from __future__ import annotations
+
+import click
+
+from .._errors import DataError, IdentificationError
+from ._common import atomic_output, split_names
+
+
+def _band(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise click.UsageError(f"--band must be FMIN:FMAX in Hz, e.g. 20:300; got {text!r}.") from None
+    if not (0 < lo < hi):
+        raise click.UsageError(f"--band must satisfy 0 < FMIN < FMAX; got {text!r}.")
+    return lo, hi
+
+
+@click.command("closed-loop", epilog="""
+\b
+Examples:
+  stageid plants maglev --controller -o K.json
+  stageid plants maglev --experiment chirp-x -o ex.csv   (and chirp-y, chirp-phi)
+  stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
+      --outputs x,y,phi --controller K.json --band 20:300 -o G.json
+""")
+@click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--references", required=True, help="Reference columns R1,R2[,R3] (one excited per file).")
+@click.option("--outputs", required=True, help="Measured output columns Y1,Y2[,Y3], same order as the references.")
+@click.option("--controller", "controller_path", required=True, type=click.Path(dir_okay=False),
+              help="Known controller u = M (r - y), stageid.lti/1 (discrete or continuous).")
+@click.option("--plant-inputs", default=None, help="Plant-input columns U1,U2[,U3] to check u = M (r - y); "
+              "default: the controller's output names when the files have them.")
+@click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
+@click.option("--band", "band_text", default="20:300", show_default=True, help="Band FMIN:FMAX (Hz) of the reduction and errors.")
+@click.option("--structure", type=click.Choice(["paper", "full"]), default="paper", show_default=True,
+              help="paper: [0,2] diagonal and third-order couplings; full: the cancelled full-order deduction.")
+@click.option("--discrete", is_flag=True, help="Write the plant at the data's sample time instead of continuous.")
+@click.option("--method", type=click.Choice(["oe", "armax", "bj", "arx"]), default="oe", show_default=True,
+              help="Closed-loop model structure of eq. 12.")
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1).")
+def closedloop_command(experiments: tuple[str, ...], references: str, outputs: str, controller_path: str,
+                       plant_inputs: str | None, ts: float | None, band_text: str, structure: str, discrete: bool,
+                       method: str, output: str) -> None:
+    """Identify an open-loop-unstable plant from closed-loop experiments (Shakir & Kim).
+
+    Each EXP file excites one reference; the closed loop r -> y is identified pair by pair,
+    the plant deduced as G = T (M - M T)^-1, spurious pole-zero pairs cancelled and every
+    entry reduced over the band keeping its unstable poles.
+    """
+    import numpy as np
+
+    from ..closedloop import ClosedLoopIdentification
+    from ..closedloop.validation import controller_residual
+    from ..data import as_experiments
+    from ..models import load_model, save_model
+    from ._common import read_table_checked
+
+    refs = split_names(references, "--references")
+    outs = split_names(outputs, "--outputs")
+    assert refs is not None and outs is not None
+    if len(refs) != len(outs):
+        raise click.UsageError(f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}.")
+    band = _band(band_text)
+    K = load_model(controller_path)
+    if not hasattr(K, "n_inputs") or not hasattr(K, "frequency_response"):
+        raise IdentificationError(f"'{controller_path}' is not an LTI controller (stageid.lti/1).")
+    p = len(outs)
+    if K.n_inputs != p or K.n_outputs != p:
+        raise IdentificationError(
+            f"the controller must map {p} tracking errors to {p} plant inputs for outputs {','.join(outs)}; "
+            f"'{controller_path}' has {K.n_inputs} inputs and {K.n_outputs} outputs."
+        )
+    tables = [read_table_checked(path, ts) for path in experiments]
+    exps = as_experiments([t.experiment(inputs=list(refs), outputs=list(outs), name=str(path))
+                           for t, path in zip(tables, experiments)])
+    dt = exps[0].dt
+    u_names = split_names(plant_inputs, "--plant-inputs")
+    if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
+        u_names = tuple(K.outputs)
+    if u_names is not None:
+        if len(u_names) != K.n_outputs:
+            raise click.UsageError(f"--plant-inputs must name {K.n_outputs} columns (the controller's outputs); got {len(u_names)}.")
+        for t, e, path in zip(tables, exps, experiments):
+            for name in u_names:
+                if name not in t.names:
+                    raise DataError(f"{path}: plant-input column '{name}' is missing; expected one of {', '.join(t.names)}.")
+            U = np.column_stack([t.column(n) for n in u_names])
+            best = None
+            kinds = ("discrete",) if K.dt is not None else ("tustin", "zoh")
+            for kind in kinds:
+                Kd = K if K.dt is not None else (K.to_statespace(minimal=False) if hasattr(K, "to_statespace") else K).c2d(dt, kind)
+                res = controller_residual(Kd, e.u, e.y, U, dt)
+                if best is None or res.max() < best[0].max():
+                    best = (res, kind)
+            assert best is not None
+            if best[0].max() > 0.05:
+                worst = int(np.argmax(best[0]))
+                raise IdentificationError(
+                    f"{path}: the loop was not closed by this controller: plant input '{u_names[worst]}' differs from "
+                    f"M (r - y) by {100 * best[0][worst]:.1f} % (expected < 5 %)."
+                )
+            disc = "tustin" if best[1] == "discrete" else best[1]
+    else:
+        disc = "tustin"
+    est = ClosedLoopIdentification(K, method=method, structure=structure, band=band, continuous=not discrete,
+                                   controller_discretization=disc)
+    result = est.fit(exps)
+    with atomic_output(output) as tmp:
+        save_model(result.plant, tmp)
+    click.echo(result.summary(), err=True)

@@ -1,0 +1,231 @@
+"""Spurious pole-zero pairs of the deduced plant and their cancellation (section 3.2.3).
+
+Eq. 18 divides by ``M (I - T)``; with ``T = B/A`` the roots of ``A`` appear in numerator
+and denominator, and the controller's poles and zeros nearly cancel against roots of the
+identified ``B`` and ``A - B`` (the factors ``s^2 + 335 s + 1.275e6`` and
+``s^2 + 6102 s + 1.109e7`` of eq. 19-21).  Exact pairs cancel to rounding; the others
+cancel only up to the identification error, so each cancellation is reported with its
+distance ``|s_p - s_z| / max(|s_p|, 1 rad/s)`` in the ``s``-plane (``s = ln(z) / dt``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .._errors import IdentificationError
+from ..models import StateSpaceModel, TransferMatrix, minimal_realization
+
+__all__ = ["CancelledPair", "EntryPoleZero", "cancel_pairs", "cancel_entries", "z_to_s"]
+
+
+@dataclass(frozen=True)
+class CancelledPair:
+    """One removed pole-zero pair of entry ``(output, input)``; ``pole``/``zero`` in rad/s."""
+
+    output: int
+    input: int
+    pole: complex
+    zero: complex
+    distance: float
+
+
+@dataclass(frozen=True, eq=False)
+class EntryPoleZero:
+    """Poles and zeros (``z``-plane) of one entry before and after cancellation."""
+
+    output: int
+    input: int
+    poles: np.ndarray
+    zeros: np.ndarray
+    kept_poles: np.ndarray
+    kept_zeros: np.ndarray
+    gain: float
+    pairs: tuple[CancelledPair, ...]
+
+    def polynomials(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(num, den)`` of the cancelled entry, descending powers of ``z``."""
+        num = self.gain * np.real(np.poly(self.kept_zeros)) if self.kept_zeros.size else np.array([self.gain])
+        den = np.real(np.poly(self.kept_poles)) if self.kept_poles.size else np.array([1.0])
+        return num, den
+
+
+def z_to_s(z: np.ndarray, dt: float) -> np.ndarray:
+    """``s = ln(z) / dt`` (principal branch; ``z = 0`` maps to ``-1e12``)."""
+    z = np.asarray(z, dtype=complex)
+    out = np.full(z.shape, -1e12 + 0j)
+    nz = np.abs(z) > 1e-300
+    out[nz] = np.log(z[nz]) / dt
+    return out
+
+
+def cancel_pairs(poles: np.ndarray, zeros: np.ndarray, dt: float, tol: float = 1e-2,
+                 output: int = 0, input: int = 0, unstable_tol: float = 0.25) -> tuple[np.ndarray, np.ndarray, tuple[CancelledPair, ...]]:
+    """Remove pole-zero pairs closer than ``tol`` (relative, in the ``s``-plane).
+
+    Parameters
+    ----------
+    poles, zeros : ndarray of complex
+        ``z``-plane roots of one SISO entry.
+    dt : float
+        Sample time in seconds.
+    tol : float
+        Pairs with ``|s_p - s_z| / max(|s_p|, 1)`` below ``tol`` are cancelled, nearest first.
+    unstable_tol : float
+        Looser tolerance for a right-half-plane pole facing a right-half-plane zero.  The
+        deduction carries every unstable pole of ``G`` into every entry (through
+        ``(I - T)^-1``); in an entry that does not have it, it is met by a zero that the
+        identification error (largest at low frequency) displaces by a few percent.
+
+    Returns
+    -------
+    (kept_poles, kept_zeros, pairs)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p, z, pairs = cancel_pairs(np.array([0.9, 0.5]), np.array([0.50001]), dt=1e-3)
+    >>> p.tolist(), z.size, len(pairs)
+    ([(0.9+0j)], 0, 1)
+    """
+    P = list(np.asarray(poles, dtype=complex))
+    Z = list(np.asarray(zeros, dtype=complex))
+    pairs: list[CancelledPair] = []
+    while P and Z:
+        sp = z_to_s(np.array(P), dt)
+        sz = z_to_s(np.array(Z), dt)
+        d = np.abs(sp[:, None] - sz[None, :]) / np.maximum(np.abs(sp), 1.0)[:, None]
+        both_rhp = (sp.real[:, None] > 0) & (sz.real[None, :] > 0)
+        limit = np.where(both_rhp, unstable_tol, tol)
+        i, j = np.unravel_index(int(np.argmin(d / limit)), d.shape)
+        if d[i, j] >= limit[i, j]:
+            break
+        pairs.append(CancelledPair(output, input, complex(sp[i]), complex(sz[j]), float(d[i, j])))
+        P.pop(i)
+        Z.pop(j)
+    return np.array(P, dtype=complex), np.array(Z, dtype=complex), tuple(pairs)
+
+
+def _siso_pz(g: StateSpaceModel) -> tuple[np.ndarray, np.ndarray]:
+    if g.n_states == 0:
+        return np.zeros(0, complex), np.zeros(0, complex)
+    poles = np.linalg.eigvals(g.A)
+    zeros = g.zeros() if g.n_states else np.zeros(0, complex)
+    return poles, zeros
+
+
+def _entry(plant: StateSpaceModel, i: int, j: int) -> StateSpaceModel:
+    """SISO entry ``(i, j)``, balanced and with unit-norm ``B``/``C`` so rank tests are scale-free."""
+    A = plant.A
+    b = plant.B[:, [j]]
+    c = plant.C[[i]]
+    if A.shape[0]:
+        A, T = sla.matrix_balance(A, permute=False, separate=False)
+        b = b / T.diagonal()[:, None]
+        c = c * T.diagonal()[None, :]
+    nb = max(np.linalg.norm(b), 1e-300)
+    nc = max(np.linalg.norm(c), 1e-300)
+    d = plant.D[[i]][:, [j]] / (nb * nc)
+    return StateSpaceModel(A, b / nb, c / nc, d, plant.dt)
+
+
+def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | None = None,
+                   minimal_tol: float | None = None) -> tuple[TransferMatrix, tuple[EntryPoleZero, ...]]:
+    """Per entry of a deduced discrete plant: minimal SISO realisation, poles, zeros, cancellation.
+
+    Parameters
+    ----------
+    plant : StateSpaceModel
+        Discrete deduced plant (e.g. from :func:`~stageid.closedloop.deduction.deduce_plant`).
+    tol : float
+        Relative ``s``-plane distance below which a pole and a zero cancel.
+    f_ref_hz : float, optional
+        Frequency where the gain of the rebuilt entry is matched to the full model
+        (default a tenth of the Nyquist frequency).
+    minimal_tol : float, optional
+        Rank tolerance of the SISO minimal realisations.
+
+    Returns
+    -------
+    (TransferMatrix, tuple of EntryPoleZero)
+        The cancelled discrete transfer matrix and the per-entry report.
+
+    Raises
+    ------
+    IdentificationError
+        When the plant is continuous.
+    """
+    if plant.dt is None:
+        raise IdentificationError("cancel_entries works on the discrete deduced plant; got a continuous model.")
+    dt = plant.dt
+    f_ref = 0.1 / (2 * dt) if f_ref_hz is None else float(f_ref_hz)
+    zr = np.exp(2j * np.pi * f_ref * dt)
+    reports = []
+    num_rows, den_rows = [], []
+    for i in range(plant.n_outputs):
+        nr, dr = [], []
+        for j in range(plant.n_inputs):
+            g = _entry(plant, i, j)
+            g = minimal_realization(g, minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(g.A, 2)))
+            poles, zeros = _siso_pz(g)
+            kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
+            target = complex(_entry_response(plant, i, j, f_ref))
+            base = (np.prod(zr - kz) if kz.size else 1.0) / (np.prod(zr - kp) if kp.size else 1.0)
+            gain = float(np.real(target / base)) if abs(base) > 0 else 0.0
+            rep = EntryPoleZero(i, j, poles, zeros, kp, kz, gain, pairs)
+            reports.append(rep)
+            num, den = rep.polynomials()
+            nr.append(num)
+            dr.append(den)
+        num_rows.append(nr)
+        den_rows.append(dr)
+    return TransferMatrix(num_rows, den_rows, dt, plant.inputs, plant.outputs), tuple(reports)
+
+
+def _entry_response(plant: StateSpaceModel, i: int, j: int, f_hz: float) -> complex:
+    z = np.exp(2j * np.pi * f_hz * plant.dt)
+    n = plant.n_states
+    val = plant.D[i, j]
+    if n:
+        val = val + (plant.C[[i]] @ np.linalg.solve(z * np.eye(n) - plant.A, plant.B[:, [j]]))[0, 0]
+    return complex(val)
+
+
+def pole_contributions(plant: StateSpaceModel, poles_z: np.ndarray, freqs_hz: np.ndarray) -> np.ndarray:
+    """How much each given pole contributes to each entry of a (non-minimal) discrete plant.
+
+    For the mode ``lambda`` of ``A`` nearest to each pole, the residue of entry ``(i, j)``
+    is ``R_ij = C_i v w^T B_j`` (``v``, ``w`` right/left eigenvectors, ``w^T v = 1``); its
+    contribution is ``max_f |R_ij / (z - lambda)| / max_f |G_ij(z)|`` over ``freqs_hz``.
+    A pole that an entry really has contributes O(1); a spurious copy that the deduction
+    carries into an entry without it contributes only the identification error.
+
+    Returns
+    -------
+    ndarray of shape (n_poles, n_outputs, n_inputs)
+    """
+    poles_z = np.asarray(poles_z, dtype=complex).reshape(-1)
+    out = np.zeros((poles_z.size, plant.n_outputs, plant.n_inputs))
+    if poles_z.size == 0 or plant.n_states == 0:
+        return out
+    A, T = sla.matrix_balance(plant.A, permute=False, separate=False)
+    tdiag = T.diagonal()
+    B = plant.B / tdiag[:, None]
+    C = plant.C * tdiag[None, :]
+    lam, V = np.linalg.eig(A)
+    z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * plant.dt)
+    G = np.array([[[_entry_response(plant, i, j, f) for j in range(plant.n_inputs)] for i in range(plant.n_outputs)] for f in freqs_hz])
+    scale = np.max(np.abs(G), axis=0)
+    for k, pz in enumerate(poles_z):
+        m = int(np.argmin(np.abs(lam - pz)))
+        v = V[:, m]
+        # left eigenvector of the same eigenvalue: null vector of (A - lam I)^T
+        _, _, vh = np.linalg.svd((A - lam[m] * np.eye(A.shape[0])).T)
+        w = vh[-1].conj()
+        w = w / (w @ v)
+        R = np.outer(C @ v, w @ B)
+        contrib = np.max(np.abs(R[None, :, :] / (z[:, None, None] - lam[m])), axis=0)
+        out[k] = contrib / np.maximum(scale, 1e-300)
+    return out
