@@ -131,3 +131,23 @@ def test_bad_thresholds():
         play([0.0], [-1.0])
     with pytest.raises(ModelError, match="shape"):
         play(np.zeros((3, 2)), [1.0])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_event_driven_play_sum_equals_reference(seed):
+    rng = np.random.default_rng(seed)
+    n = 4000
+    smooth = 300 * np.sin(np.linspace(0, 25, n)) * np.linspace(1, 0.2, n)
+    x = smooth + (rng.normal(0, 2, n) if seed % 2 else 0.0)
+    x[500:520] = x[500]  # standing still
+    r = np.r_[0.0, np.sort(rng.uniform(0, 250, 11))]
+    w = rng.normal(size=12)
+    for kind_state in range(3):
+        x0 = float(rng.uniform(-100, 100))
+        up, down = x0 - r, x0 + r
+        z0 = [np.maximum(up, np.minimum(down, 0.0)), up, down][kind_state]
+        Zr, zr = play_reference(x, r, z0)
+        y, z = _kernels.play_sum_events(x, r, w, z0, x0)
+        np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
+        np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)
+        assert _kernels.lipschitz_state(r, z0)

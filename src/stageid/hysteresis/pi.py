@@ -165,7 +165,7 @@ class _PIBase:
         r, rc, ra, rb = self._params()
         z0 = np.array(self.state.z)
         if self.kind == "pi":
-            y, zf = _kernels.play_sum(x, r, self.weights, z0)
+            y, zf = _kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
         else:
             y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         return (y + self.output_offset)[:, None], OperatorState(float(x[-1]) if x.size else self.state.x, zf)
