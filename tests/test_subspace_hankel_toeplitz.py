@@ -79,3 +79,11 @@ def test_model_response_equals_truth_on_exact_data():
     Gt = g.frequency_response(f)
     # lightly damped poles (|z| ~ 0.997): A^p is not small, yet the model is exact up to rounding
     np.testing.assert_allclose(G, Gt, atol=1e-6 * np.abs(Gt).max())
+
+
+def test_compiled_window_gram_equals_reference():
+    from stageid.subspace.hankel_toeplitz import _window_gram, _window_gram_python
+
+    z = np.random.default_rng(2).standard_normal((90, 3))
+    R = lag_correlations(z, 9)
+    np.testing.assert_allclose(_window_gram(z, R, 5), _window_gram_python(z, R, 5), atol=1e-11)

@@ -466,8 +466,12 @@ class HankelMAP:
                 for a, b in ranges:
                     if b - a < 2 * min(cands) + 1:
                         continue
-                    st = record_statistics(u[a:b], y[a:b], cands, weight, with_spectrum=target is train)
-                    for p, sp in st.items():
+                    # one Gram matrix at the largest usable horizon; smaller horizons use its
+                    # leading block (exact statistics over the same, slightly smaller, window set)
+                    usable = [p for p in cands if 2 * p + 1 <= b - a]
+                    top = record_statistics(u[a:b], y[a:b], [usable[-1]], weight, with_spectrum=False)[usable[-1]]
+                    for p in usable:
+                        sp = _leading(top, p)
                         target[p] = sp if p not in target else target[p] + sp
         return train, val
 
@@ -554,6 +558,14 @@ class HankelMAP:
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
             raise IdentificationError(f"the realisation of order {order} is not finite.")
         return StateSpaceModel(A, B * scale[None, :], C, D * scale[None, :], dt), cost
+
+
+def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
+    """Statistics of horizon ``horizon`` from those of a larger one (windows of the larger one)."""
+    if horizon == stats.horizon:
+        return stats
+    k = 2 * horizon * (stats.n_inputs + stats.n_outputs)
+    return WindowStatistics(stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count)
 
 
 def _is_pos_int(v: object) -> bool:

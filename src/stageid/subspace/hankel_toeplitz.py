@@ -181,29 +181,72 @@ def regressor_indices(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.n
     return np.concatenate([u_past, y_past, u_fut]), y_fut
 
 
-def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
-    """Exact ``sum_k w(k) w(k)^T`` from the lag correlations ``R`` (lags 0 .. 2p-1)."""
+def _window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
+    """Reference of :func:`_window_gram` (plain numpy)."""
     n, r = z.shape
     L = 2 * horizon
     K = n - L + 1  # number of windows
     W = np.zeros((L, L, r, r))
     for c in range(L):
         # W[0, c] = R[c] - tail terms t = K .. n-1-c
-        tail = z[K : n - c]
-        first = R[c] - tail.T @ z[K + c : n]
+        first = R[c] - z[K : n - c].T @ z[K + c : n]
         count = L - c  # entries W[a, a+c], a = 0 .. L-1-c
-        if count > 1:
-            a = np.arange(1, count)
-            diff = (np.einsum("ti,tj->tij", z[a - 1 + K], z[a - 1 + c + K])
-                    - np.einsum("ti,tj->tij", z[a - 1], z[a - 1 + c]))
-            vals = np.concatenate([first[None], first[None] + np.cumsum(diff, axis=0)])
-        else:
-            vals = first[None]
+        vals = np.empty((count, r, r))
+        vals[0] = first
+        for a in range(1, count):
+            # W[a, a+c] = W[a-1, a-1+c] - z(a-1) z(a-1+c)^T + z(a-1+K) z(a-1+c+K)^T
+            vals[a] = vals[a - 1] - np.outer(z[a - 1], z[a - 1 + c]) + np.outer(z[a - 1 + K], z[a - 1 + c + K])
         idx = np.arange(count)
         W[idx, idx + c] = vals
         if c:
             W[idx + c, idx] = vals.transpose(0, 2, 1)
     return W.transpose(0, 2, 1, 3).reshape(L * r, L * r)
+
+
+def _window_gram_kernel(z, R, horizon):  # pragma: no cover - compiled by numba
+    n, r = z.shape
+    L = 2 * horizon
+    K = n - L + 1
+    W = np.zeros((L * r, L * r))
+    cur = np.empty((r, r))
+    for c in range(L):
+        for i in range(r):
+            for j in range(r):
+                acc = R[c, i, j]
+                for t in range(K, n - c):
+                    acc -= z[t, i] * z[t + c, j]
+                cur[i, j] = acc
+        for a in range(L - c):
+            if a > 0:
+                for i in range(r):
+                    zi0 = z[a - 1, i]
+                    zi1 = z[a - 1 + K, i]
+                    for j in range(r):
+                        cur[i, j] += zi1 * z[a - 1 + c + K, j] - zi0 * z[a - 1 + c, j]
+            b = a + c
+            for i in range(r):
+                for j in range(r):
+                    W[a * r + i, b * r + j] = cur[i, j]
+                    W[b * r + j, a * r + i] = cur[i, j]
+    return W
+
+
+_GRAM = None
+
+
+def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
+    """Exact ``sum_k w(k) w(k)^T`` from the lag correlations ``R`` (lags 0 .. 2p-1).
+
+    With ``K`` windows, ``W[0, c] = R[c] - sum_{t=K}^{n-1-c} z(t) z(t+c)^T`` and along each
+    diagonal ``W[a, a+c] = W[a-1, a-1+c] - z(a-1) z(a-1+c)^T + z(a-1+K) z(a-1+c+K)^T``
+    (the window sums lose their first and gain one last term): ``O(p^2 r^2)`` operations.
+    """
+    global _GRAM
+    if _GRAM is None:
+        import numba
+
+        _GRAM = numba.njit(cache=True, nogil=True)(_window_gram_kernel)
+    return _GRAM(np.ascontiguousarray(z), np.ascontiguousarray(R), int(horizon))
 
 
 def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0,
@@ -364,13 +407,20 @@ def theta_frequency_response(theta: np.ndarray, horizon: int, n_inputs: int, n_o
     -------
     ndarray of shape (n_freqs, n_outputs, n_inputs), complex
     """
-    m, q = n_inputs, n_outputs
+    p, m, q = horizon, n_inputs, n_outputs
     zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-    out = np.empty((zs.size, q, m), dtype=complex)
-    for i, zk in enumerate(zs):
-        lhs, rhs, _ = _response_system(theta, horizon, m, q, zk)
-        out[i] = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-    return out
+    Gam, Phi, Dp = split_theta(theta, p, m, q)
+    e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
+    e_fut = zs[:, None] ** np.arange(p)[None, :]
+    # all frequencies at once: rhs (nz, pq, m), lhs (nz, pq, q)
+    rhs = (np.einsum("zi,rim->zrm", e_past, Gam.reshape(p * q, p, m), optimize=True)
+           + np.einsum("zi,rim->zrm", e_fut, Dp.reshape(p * q, p, m), optimize=True))
+    lhs = -np.einsum("zi,riq->zrq", e_past, Phi.reshape(p * q, p, q), optimize=True)
+    lhs += (e_fut[:, :, None, None] * np.eye(q)[None, None]).reshape(zs.size, p * q, q)
+    # least squares by the normal equations (q x q per frequency); lhs has full column rank
+    # because its block row for the largest power of z dominates
+    lh = np.conj(lhs).transpose(0, 2, 1)
+    return np.linalg.solve(lh @ lhs, lh @ rhs)
 
 
 def theta_response_std(theta: np.ndarray, column_cov: np.ndarray, noise_cov: np.ndarray, horizon: int,

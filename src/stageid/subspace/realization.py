@@ -268,11 +268,11 @@ def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     lam, V = np.linalg.eig(A)
     Vi = np.linalg.inv(V)
     inv = 1.0 / (zs[:, None] - lam[None, :])  # (nz, n)
-    CV = C @ V
+    CVi = (C @ V)[None, :, :] * inv[:, None, :]  # (nz, q, n)
     ViB = Vi @ B
-    CR = np.einsum("qk,zk,kn->zqn", CV, inv, Vi)
-    RB = np.einsum("nk,zk,km->znm", V, inv, ViB)
-    G = np.einsum("qk,zk,km->zqm", CV, inv, ViB) + D[None]
+    CR = CVi @ Vi
+    RB = (V[None, :, :] * inv[:, None, :]) @ ViB
+    G = CVi @ ViB + D[None]
     return G, CR, RB
 
 

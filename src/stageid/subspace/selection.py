@@ -65,7 +65,7 @@ def prediction_error(theta: np.ndarray, stats: WindowStatistics) -> float:
     """
     XX, YX, YY = stats.blocks()
     T = theta @ YX.T
-    res = np.diag(YY) - 2 * np.diag(T) + np.einsum("rd,de,re->r", theta, XX, theta)
+    res = np.diag(YY) - 2 * np.diag(T) + np.sum((theta @ XX) * theta, axis=1)
     q = stats.n_outputs
     res_c = res.reshape(stats.horizon, q).sum(axis=0)
     energy = np.diag(YY).reshape(stats.horizon, q).sum(axis=0)
