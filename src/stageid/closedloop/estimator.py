@@ -114,6 +114,20 @@ class ClosedLoopResult:
         f = np.asarray(freqs_hz, dtype=float)
         return deduce_response(self.closed_loop.frequency_response(f), self.controller.frequency_response(f), freqs_hz=f)
 
+    @property
+    def plant_unstable_poles(self) -> np.ndarray:
+        """Right-half-plane poles of the returned plant's entries (rad/s; duplicates merged)."""
+        poles: list[complex] = []
+        for row in self.plant.den:
+            for d in row:
+                r = np.roots(d)
+                if self.plant.dt is not None:
+                    r = z_to_s(r, self.plant.dt)
+                for q in r[r.real > 0]:
+                    if not any(abs(q - o) <= 1e-9 * max(1.0, abs(q)) for o in poles):
+                        poles.append(complex(q))
+        return np.array(sorted(poles, key=lambda q: (q.real, q.imag)), dtype=complex)
+
     def summary(self) -> str:
         """A plain-text summary: orders, fits, unstable poles, band errors, cancellations."""
         p = self.closed_loop.n_outputs
@@ -121,7 +135,8 @@ class ClosedLoopResult:
         for (i, j), m in sorted(self.pem_models.items()):
             lines.append(f"  T[{self.closed_loop.outputs[i]}<-{self.closed_loop.inputs[j]}]: {m.structure} order {m.F.size - 1 + m.A.size - 1}, "
                          f"fit {self.closed_loop_fit[i, j]:.2f} %")
-        lines.append("  unstable poles [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.unstable_poles))
+        lines.append("  unstable poles of M (I - T) [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.unstable_poles))
+        lines.append("  unstable poles of the plant returned [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.plant_unstable_poles))
         for i in range(p):
             for j in range(p):
                 lines.append(f"  G[{self.plant.outputs[i]}<-{self.plant.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
@@ -352,6 +367,12 @@ class ClosedLoopIdentification:
                         )
                     red = reduce_entry(P_band[:, i, j], f_band, dt, nz, n_p, keep)
                     if keep.size:
+                        # the deduced unstable poles come from the zeros of M (I - T), which the
+                        # band-limited data fix less well than the in-band response itself: also
+                        # fit them freely over the band and keep the better of the two
+                        free = reduce_entry(P_band[:, i, j], f_band, dt, nz, n_p, np.zeros(0), stable_free=False)
+                        if free.eps_complex < red.eps_complex and np.sum(free.poles.real > 0) == keep.size:
+                            red = free
                         # an unstable pole the entry only seems to carry (a displaced spurious
                         # doublet) is dropped when a stable fit of the same structure is as good
                         alt = reduce_entry(P_band[:, i, j], f_band, dt, nz, n_p, np.zeros(0))

@@ -101,6 +101,7 @@ def reduce_entry(
     n_poles: int,
     unstable_poles: np.ndarray = np.zeros(0),
     max_nfev: int = 400,
+    stable_free: bool = True,
 ) -> ReducedEntry:
     """Fit ``P_r = b(s) / (d_u(s) d_s(s))`` to the deduced discrete response over a band.
 
@@ -118,6 +119,9 @@ def reduce_entry(
         Right-half-plane poles (rad/s) kept fixed; conjugate pairs must be complete.
     max_nfev : int
         Evaluation limit of the nonlinear refinement.
+    stable_free : bool
+        Keep the free poles in the left half plane (reflect and refit); with False the
+        free poles may land anywhere, so unstable poles are fitted rather than kept.
 
     Returns
     -------
@@ -185,7 +189,7 @@ def reduce_entry(
         raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
     num, den = build(theta)
     # the free part must stay stable: reflect any right-half-plane root and refit once
-    if n_free:
+    if n_free and stable_free:
         roots = np.roots(_poly_from_params(theta[nb:]))
         if np.any(roots.real > 0):
             roots = np.where(roots.real > 0, -np.conj(roots), roots)
