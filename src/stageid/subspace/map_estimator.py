@@ -258,47 +258,83 @@ def recursive_map_python(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.n
 
 
 def _recursive_kernel(z, p, m, q, theta, P, lam):  # pragma: no cover - compiled by numba
+    """Fused eq. 17-18: one memory pass over theta and one over P per window, each pass also
+    forming ``theta x`` and ``P x`` for the next window (P stays symmetric: g is P x / s)."""
     d = 2 * p * m + p * q
     rows = p * q
     x = np.empty(d)
+    xn = np.empty(d)
     yv = np.empty(rows)
-    Px = np.empty(d)
+    yn = np.empty(rows)
+    Px = np.zeros(d)
+    Pxn = np.zeros(d)
+    tx = np.zeros(rows)
+    txn = np.zeros(rows)
     g = np.empty(d)
     n_windows = z.shape[0] - 2 * p + 1
+    if n_windows <= 0:
+        return theta, P
+    for i in range(p):
+        for j in range(m):
+            x[i * m + j] = z[i, j]
+            x[p * m + p * q + i * m + j] = z[p + i, j]
+        for j in range(q):
+            x[p * m + i * q + j] = z[i, m + j]
+            yv[i * q + j] = z[p + i, m + j]
+    for a in range(d):
+        acc = 0.0
+        for b in range(d):
+            acc += P[a, b] * x[b]
+        Px[a] = acc
+    for r in range(rows):
+        acc = 0.0
+        for b in range(d):
+            acc += theta[r, b] * x[b]
+        tx[r] = acc
+    il = 1.0 / lam
     for k in range(n_windows):
-        for i in range(p):
-            for j in range(m):
-                x[i * m + j] = z[k + i, j]
-                x[p * m + p * q + i * m + j] = z[k + p + i, j]
-            for j in range(q):
-                x[p * m + i * q + j] = z[k + i, m + j]
-                yv[i * q + j] = z[k + p + i, m + j]
-        # P x (row dot products on contiguous memory; P is kept symmetric)
-        for a in range(d):
-            acc = 0.0
-            for b in range(d):
-                acc += P[a, b] * x[b]
-            Px[a] = acc
+        last = k == n_windows - 1
+        if not last:
+            for i in range(p):
+                for j in range(m):
+                    xn[i * m + j] = z[k + 1 + i, j]
+                    xn[p * m + p * q + i * m + j] = z[k + 1 + p + i, j]
+                for j in range(q):
+                    xn[p * m + i * q + j] = z[k + 1 + i, m + j]
+                    yn[i * q + j] = z[k + 1 + p + i, m + j]
+        else:
+            for a in range(d):
+                xn[a] = 0.0
         s = lam
         for a in range(d):
             s += x[a] * Px[a]
         inv = 1.0 / s
         for a in range(d):
             g[a] = Px[a] * inv
-        # theta update row by row: e = y - theta x, theta += e g^T (one pass over theta)
+        # theta += e g^T and theta x_next, one pass
         for r in range(rows):
+            e = yv[r] - tx[r]
             acc = 0.0
             for b in range(d):
-                acc += theta[r, b] * x[b]
-            e = yv[r] - acc
-            for b in range(d):
-                theta[r, b] += e * g[b]
-        # P = (P - g Px^T) / lam, row by row (symmetric because g is proportional to Px)
-        il = 1.0 / lam
+                v = theta[r, b] + e * g[b]
+                theta[r, b] = v
+                acc += v * xn[b]
+            txn[r] = acc
+        # P = (P - g Px^T) / lam and P x_next, one pass over P (rows are contiguous)
         for a in range(d):
-            ga = g[a]
+            ga = g[a] * il
+            acc = 0.0
             for b in range(d):
-                P[a, b] = (P[a, b] - ga * Px[b]) * il
+                v = P[a, b] * il - ga * Px[b]
+                P[a, b] = v
+                acc += v * xn[b]
+            Pxn[a] = acc
+        for a in range(d):
+            x[a] = xn[a]
+            Px[a] = Pxn[a]
+        for r in range(rows):
+            yv[r] = yn[r]
+            tx[r] = txn[r]
     return theta, P
 
 
