@@ -1,0 +1,107 @@
+"""Figures for the Hankel-MAP identification: Bode plots with uncertainty bands, selection curves.
+
+Every function returns a :class:`matplotlib.figure.Figure` built on the Agg canvas (no
+pyplot state, no ``show``); save it with ``fig.savefig(path)``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+__all__ = ["bode_with_bands", "selection_plot", "error_curve"]
+
+
+def _figure(width: float, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_model: Any = None,
+                    n_std: float = 2.0, title: str = "") -> Any:
+    """Magnitude of every entry: identified model, the Hankel-Toeplitz response with +-``n_std``
+    posterior bands, and optionally the true model.
+
+    Parameters
+    ----------
+    result : HankelMAPResult
+    freqs_hz : array_like of shape (n_freqs,)
+    true_model : StateSpaceModel, optional
+    n_std : float
+        Width of the band in standard deviations.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data import Experiment
+    >>> from stageid.models import StateSpaceModel
+    >>> from stageid.subspace import HankelMAP
+    >>> g = StateSpaceModel([[0.9]], [[1.0]], [[0.1]], [[0.0]], dt=0.01)
+    >>> u = np.random.default_rng(0).standard_normal((2000, 1))
+    >>> res = HankelMAP(horizon=5, order=1).fit(Experiment(u, g.simulate(u), 0.01))
+    >>> fig = bode_with_bands(res, np.linspace(0.1, 50, 50), g)
+    >>> len(fig.axes)
+    1
+    """
+    f = np.asarray(freqs_hz, dtype=float)
+    model = result.model
+    G = model.frequency_response(f)
+    Gh, std = result.response_bands(f)
+    q, m = G.shape[1:]
+    fig = _figure(3.2 * m, 2.4 * q)
+    axes = fig.subplots(q, m, squeeze=False, sharex=True)
+    for i in range(q):
+        for j in range(m):
+            ax = axes[i, j]
+            mag = np.abs(Gh[:, i, j])
+            lo = np.clip(mag - n_std * std[:, i, j], 1e-300, None)
+            ax.fill_between(f, lo, mag + n_std * std[:, i, j], color="C0", alpha=0.25, lw=0,
+                            label=f"eq. 9 response +-{n_std:g} std")
+            ax.loglog(f, np.abs(G[:, i, j]), "C0", lw=1.2, label="identified model")
+            if true_model is not None:
+                ax.loglog(f, np.abs(true_model.frequency_response(f)[:, i, j]), "k--", lw=1, label="true")
+            ax.set_title(f"{model.inputs[j]} -> {model.outputs[i]}", fontsize=8)
+            ax.tick_params(labelsize=7)
+            if i == q - 1:
+                ax.set_xlabel("frequency [Hz]", fontsize=8)
+    axes[0, 0].legend(fontsize=6)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def selection_plot(table: Any, title: str = "") -> Any:
+    """Held-out error versus horizon or order (a :class:`~stageid.subspace.selection.SelectionTable`)."""
+    return error_curve(table.values, {"held-out error": table.errors}, xlabel=table.kind, chosen=table.chosen, title=title)
+
+
+def error_curve(x: Sequence[float], curves: dict[str, Sequence[float]], xlabel: str, ylabel: str = "error",
+                chosen: float | None = None, title: str = "", logy: bool = True) -> Any:
+    """One or several error curves against a hyper-parameter (Fig. 4 / Tables 4-6 style)."""
+    fig = _figure(4.5, 3.0)
+    ax = fig.subplots()
+    for name, y in curves.items():
+        y = np.asarray(y, dtype=float)
+        ok = np.isfinite(y)
+        ax.plot(np.asarray(x)[ok], y[ok], "o-", ms=3, label=name)
+    if chosen is not None:
+        ax.axvline(chosen, color="k", ls=":", lw=1, label=f"chosen {chosen}")
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig
