@@ -43,8 +43,9 @@ def test_resume_from_state():
     y_all, s_all = m.run(u)
     y1, s1 = m.run(u[:400])
     y2, s2 = m.with_state(s1).run(u[400:])
-    assert np.array_equal(np.vstack([y1, y2]), y_all)
-    assert np.array_equal(s2.z, s_all.z)
+    # the event-driven kernel sums along a different path after the split: rounding only
+    np.testing.assert_allclose(np.vstack([y1, y2]), y_all, rtol=0, atol=1e-12 * np.abs(y_all).max())
+    np.testing.assert_allclose(s2.z, s_all.z, rtol=0, atol=1e-12 * 400)
 
 
 def test_immutable_and_inputs_untouched():

@@ -151,3 +151,21 @@ def test_event_driven_play_sum_equals_reference(seed):
         np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
         np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)
         assert _kernels.lipschitz_state(r, z0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_event_driven_cp_sum_equals_reference(seed):
+    rng = np.random.default_rng(seed)
+    n = 4000
+    x = 300 * np.sin(np.linspace(0, 25, n)) * np.linspace(1, 0.2, n) + (rng.normal(0, 2, n) if seed % 2 else 0.0)
+    x[500:520] = x[500]
+    r, rc, ra, rb = _cp_params(rng, 10)
+    w = rng.normal(size=10)
+    x0 = float(rng.uniform(-60, 60))
+    up = np.maximum(x0 - r, np.minimum(x0 - rc, 0.0))
+    down = np.minimum(x0 + ra, np.maximum(x0 + rb, 0.0))
+    z0 = np.maximum(up, np.minimum(down, rng.uniform(-40, 40, 10)))  # any consistent state
+    Zr, zr = coupled_play_reference(x, r, rc, ra, rb, z0)
+    y, z = _kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0)
+    np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
+    np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)

@@ -167,7 +167,11 @@ class _PIBase:
         if self.kind == "pi":
             y, zf = _kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
         else:
-            y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
+            up, down = gamma_up(self.state.x, r, rc), gamma_down(self.state.x, ra, rb)
+            if np.all(up <= z0) and np.all(z0 <= down):  # a consistent state: events are exact
+                y, zf = _kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
+            else:
+                y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         return (y + self.output_offset)[:, None], OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def simulate(self, u: object, dt: float | None = None) -> np.ndarray:
