@@ -536,9 +536,12 @@ class HankelMAP:
         p, m, q = post.horizon, post.n_inputs, post.n_outputs
         refine = self.refine if refine is None else refine
         if self.realization == "markov":
-            n_par = max(4 * p, 2 * int(np.ceil(order / min(m, q))) + 4)
-            Y = markov_from_theta(post.theta, p, m, q, n_par)
-            A, B, C, D, _ = era(Y, order)
+            # the Markov parameters of D_p and H0 (eq. 10): Y_0 .. Y_(2p-1); longer sequences
+            # only when the order needs them (then H_i = Phi^i H0, eq. 12)
+            n2 = int(np.ceil(order / q))
+            n1 = max(int(np.ceil(order / m)), 2 * p - 3 - n2)
+            Y = markov_from_theta(post.theta, p, m, q, n1 + n2 + 3)
+            A, B, C, D, _ = era(Y, order, n1=n1, n2=n2)
             if not self.feedthrough:
                 D = np.zeros_like(D)
             return StateSpaceModel(A, B, C, D, dt), float("nan")
