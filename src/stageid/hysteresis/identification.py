@@ -154,7 +154,7 @@ class PIIdentifier:
         operators always run over every sample.
     max_evaluations : int, default 400
         Limit of the nonlinear search (modified PI).
-    ridge : float, default 1e-5
+    ridge : float, default 1e-6
         Tikhonov penalty on the CP weights of the modified PI, relative to the mean diagonal of
         the normal matrix (keeps barely-moving operators from getting huge weights that blow up
         outside the identified input range; changes the fit by < 0.1 % of range on the data we
@@ -174,7 +174,7 @@ class PIIdentifier:
 
     def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
                  initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
-                 max_evaluations: int = 400, ridge: float = 1e-5) -> None:
+                 max_evaluations: int = 400, ridge: float = 1e-6) -> None:
         self.model = model
         self.n_operators = n_operators
         self.input_range = input_range
