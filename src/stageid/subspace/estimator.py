@@ -37,7 +37,8 @@ import numpy as np
 from .._errors import DataError, ExcitationWarning, IdentificationError, StabilityWarning
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import WindowStatistics, record_statistics, theta_frequency_response, theta_response_std
+from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, theta_frequency_response,
+                              theta_response_std)
 from .map_estimator import Posterior, Prior, batch_posterior, default_prior
 from .realization import era, fit_input_matrices, frequency_realization, markov_from_theta, refine_frequency_fit
 from .selection import SelectionTable, default_horizons, prediction_error, simulation_error
@@ -396,7 +397,8 @@ class HankelMAP:
         n_total = sum(u.shape[0] for u, _ in recs)
         if prev is not None:
             horizon = prev.horizon
-        else:
+        train = val = {}
+        if prev is None:
             auto_h, auto_o = self.horizon == "auto", order == "auto"
             cands = default_horizons(m, q, n_total) if auto_h else [int(self.horizon)]
             if auto_h:
@@ -411,9 +413,21 @@ class HankelMAP:
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
         stats = None
-        for u, y in recs:
-            s = record_statistics(u, y, [horizon], lam)[horizon]
-            stats = s if stats is None else stats.scaled(lam ** s.count) + s
+        full_count = sum(u.shape[0] - 2 * horizon + 1 for u, _ in recs)
+        if (prev is None and lam == 1.0 and horizon in train and horizon in val
+                and (train[horizon].count + val[horizon].count) >= 0.99 * full_count):
+            # the held-out split already holds all but < 1 % of the windows (those straddling
+            # segment boundaries): reuse it instead of a second pass over long records
+            power = None
+            for u, _ in recs:
+                pw, fq = _input_periodogram(u)
+                power = pw if power is None else power + pw
+            s_all = train[horizon] + val[horizon]
+            stats = WindowStatistics(s_all.W, s_all.n_windows, horizon, m, q, power, fq, s_all.count)
+        else:
+            for u, y in recs:
+                s = record_statistics(u, y, [horizon], lam)[horizon]
+                stats = s if stats is None else stats.scaled(lam ** s.count) + s
         assert stats is not None
         if prev is not None:
             post = prev.posterior.updated(stats, lam)
