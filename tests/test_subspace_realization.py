@@ -85,3 +85,25 @@ def test_refinement_never_increases_the_cost_and_recovers_a_perturbed_model():
     est = StateSpaceModel(A, B, C, D, g.dt)
     # from a start ~5 % off, the output-error fit lands on the truth (noise-free data)
     assert np.abs(est.frequency_response(f) - G).max() < 1e-4 * np.abs(G).max()
+
+
+@pytest.mark.parametrize("feedthrough", [True, False])
+def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough):
+    from stageid.subspace.realization import _normal_equations
+
+    nz, q, n, m = 40, 3, 4, 2
+    rng = np.random.default_rng(1)
+    a = rng.standard_normal((nz, q, n)) + 1j * rng.standard_normal((nz, q, n))
+    b = rng.standard_normal((nz, n, m)) + 1j * rng.standard_normal((nz, n, m))
+    e = rng.standard_normal((nz, q, m)) + 1j * rng.standard_normal((nz, q, m))
+    w = rng.random(nz)
+    JA = np.einsum("zqi,zjm->zqmij", a, b).reshape(nz, q, m, n * n)
+    JB = np.einsum("zqi,jm->zqmij", a, np.eye(m)).reshape(nz, q, m, n * m)
+    JC = np.einsum("qi,zjm->zqmij", np.eye(q), b).reshape(nz, q, m, q * n)
+    JD = np.broadcast_to(np.einsum("qi,mj->qmij", np.eye(q), np.eye(m)).reshape(1, q, m, q * m), (nz, q, m, q * m))
+    J = np.concatenate([JA, JB, JC] + ([JD] if feedthrough else []), axis=3) * np.sqrt(w)[:, None, None, None]
+    J = J.reshape(nz * q * m, -1)
+    r = (e * np.sqrt(w)[:, None, None]).reshape(-1)
+    M, g = _normal_equations(a, b, e, w, feedthrough)
+    np.testing.assert_allclose(M, (J.conj().T @ J).real, atol=1e-12 * np.abs(M).max())
+    np.testing.assert_allclose(g, (J.conj().T @ r).real, atol=1e-12 * np.abs(g).max())

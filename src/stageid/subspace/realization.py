@@ -286,25 +286,31 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     nz, q, n = a.shape
     m = b.shape[2]
     aw = a * w[:, None, None]
-    Ma = np.matmul(np.conj(aw).transpose(0, 2, 1), a)  # weighted a^H a
-    Mb = np.matmul(np.conj(b), b.transpose(0, 2, 1))  # conj(b) b^T
+    caw = np.conj(aw).reshape(nz, q * n)  # (z, (r, i))
+    cb = np.conj(b)
+    Ma = np.matmul(np.conj(aw).transpose(0, 2, 1), a)  # weighted a^H a, (z, i, k)
+    Mb = np.matmul(cb, b.transpose(0, 2, 1))  # conj(b) b^T, (z, j, l)
+    Ma2 = Ma.reshape(nz, n * n)
+    Mb2 = Mb.reshape(nz, n * n)
     # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
-    AA = (Ma.reshape(nz, n * n).T @ Mb.reshape(nz, n * n)).real.reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
-    AB = np.einsum("zik,zjc->ijkc", Ma, np.conj(b), optimize=True).real.reshape(n * n, n * m)
-    AC = np.einsum("zri,zjk->ijrk", np.conj(aw), Mb, optimize=True).real.reshape(n * n, q * n)
+    AA = (Ma2.T @ Mb2).real.reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
+    AB = (Ma2.T @ cb.reshape(nz, n * m)).real.reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(n * n, n * m)
+    AC = (caw.T @ Mb2).real.reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(n * n, q * n)
     BB = np.kron(Ma.sum(axis=0).real, np.eye(m))
-    BC = np.einsum("zri,zkc->icrk", np.conj(aw), b, optimize=True).real.reshape(n * m, q * n)
-    CC = np.kron(np.eye(q), np.einsum("z,zik->ik", w, Mb).real)
+    BC = (caw.T @ b.reshape(nz, n * m)).real.reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(n * m, q * n)
+    CC = np.kron(np.eye(q), (w @ Mb2).real.reshape(n, n))
     ew = e * w[:, None, None]
-    gA = np.einsum("zri,zrc,zjc->ij", np.conj(a), ew, np.conj(b), optimize=True).real.reshape(-1)
-    gB = np.einsum("zri,zrc->ic", np.conj(a), ew).real.reshape(-1)
-    gC = np.einsum("zrc,zic->ri", ew, np.conj(b)).real.reshape(-1)
+    gA = np.matmul(np.matmul(np.conj(a).transpose(0, 2, 1), ew), cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
+    gB = np.matmul(np.conj(a).transpose(0, 2, 1), ew).sum(axis=0).real.reshape(-1)
+    gC = np.matmul(ew, cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
     rows = [[AA, AB, AC], [AB.T, BB, BC], [AC.T, BC.T, CC]]
     grads = [gA, gB, gC]
     if feedthrough:
-        AD = np.einsum("zri,zjc->ijrc", np.conj(aw), np.conj(b), optimize=True).real.reshape(n * n, q * m)
-        BD = np.einsum("zri,cd->icrd", np.conj(aw).sum(axis=0)[None], np.eye(m)).real.reshape(n * m, q * m)
-        CD = np.einsum("rs,zic->ris c".replace(" ", ""), np.eye(q), np.einsum("z,zic->zic", w, np.conj(b)).sum(axis=0)[None]).real.reshape(q * n, q * m)
+        AD = (caw.T @ cb.reshape(nz, n * m)).real.reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(n * n, q * m)
+        sa = np.conj(aw).sum(axis=0).real  # (r, i)
+        BD = np.einsum("ri,cd->icrd", sa, np.eye(m)).reshape(n * m, q * m)
+        sb = (w[:, None, None] * cb).sum(axis=0).real  # (i, c)
+        CD = np.einsum("rs,ic->risc", np.eye(q), sb).reshape(q * n, q * m)
         DD = w.sum() * np.eye(q * m)
         rows = [[AA, AB, AC, AD], [AB.T, BB, BC, BD], [AC.T, BC.T, CC, CD], [AD.T, BD.T, CD.T, DD]]
         grads.append(ew.sum(axis=0).real.reshape(-1))
