@@ -48,8 +48,11 @@ def test_recursion_equals_batch_posterior_and_python_reference(forgetting):
     rng = np.random.default_rng(9)
     theta0 = 0.1 * rng.standard_normal((p * 3, d))
     P0 = 10.0 * np.eye(d)
-    th_c, P_c = recursive_map(u, y, p, theta0, P0, forgetting)
+    th_c, P_c = recursive_map(u, y, p, theta0, P0, forgetting, block=1)
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
+    th_b, P_b = recursive_map(u, y, p, theta0, P0, forgetting, block=7)  # exact block form
+    np.testing.assert_allclose(th_b, th_py, atol=1e-9)
+    np.testing.assert_allclose(P_b, P_py, atol=1e-11)
     stats = window_statistics(u, y, p, forgetting=forgetting)
     # batch form: prior information discounted by lambda^N like the recursion's P_0 / lambda^N
     post = batch_posterior(stats, Prior(theta0, np.linalg.inv(P0) * forgetting ** stats.count))

@@ -351,8 +351,17 @@ def _kernel():
 
 
 def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray, P: np.ndarray,
-                  forgetting: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Recursive MAP estimation (eq. 17-18), one window per sample, fused compiled update.
+                  forgetting: float = 1.0, block: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Recursive MAP estimation (eq. 17-18) over the windows of a record.
+
+    ``block=1`` runs eq. 17-18 window by window in a fused compiled kernel (one memory pass
+    over ``theta`` and one over ``P`` per window).  ``block=B > 1`` applies the same recursion
+    ``B`` windows at a time in its exact block form (Woodbury identity):
+    ``K = P X (W^-1 + X^T P X)^-1``, ``theta += (Y - theta X) K^T``,
+    ``P = (P - K (P X)^T) / lambda^B`` with ``W = diag(lambda^-(1+i))`` -- the same
+    estimate after every block (to rounding), computed with matrix products, which is
+    as fast per window on this machine (both reach ~9 GFMA/s).  The first ``d`` windows are always processed one at a
+    time (with a vague prior the block system is ill-conditioned until data dominate ``P``).
 
     Parameters
     ----------
@@ -366,6 +375,8 @@ def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray,
         Current covariance in units of the noise covariance (``P_0`` at the start).
     forgetting : float, default 1.0
         Exponential forgetting factor in (0, 1].
+    block : int, default 1
+        Windows per update (1: strictly one window at a time).
 
     Returns
     -------
@@ -390,8 +401,50 @@ def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray,
         raise DataError(f"`theta` must have shape {(horizon * q, d)} and `P` {(d, d)}; got {theta.shape} and {P.shape}.")
     if not 0.0 < forgetting <= 1.0:
         raise DataError(f"`forgetting` must be in (0, 1]; got {forgetting}.")
+    if not (isinstance(block, (int, np.integer)) and block >= 1):
+        raise DataError(f"`block` must be a positive integer; got {block!r}.")
     z = np.ascontiguousarray(np.hstack([u, y]))
     th = np.array(theta, dtype=float, order="C")
     PP = np.array(P, dtype=float, order="C")
     PP = 0.5 * (PP + PP.T)
-    return _kernel()(z, horizon, m, q, th, PP, float(forgetting))
+    n_windows = z.shape[0] - 2 * horizon + 1
+    if block == 1 or n_windows <= 0:
+        return _kernel()(z, horizon, m, q, th, PP, float(forgetting))
+    # the first d windows one at a time: a vague prior (huge P_0) makes the block system
+    # I + X^T P X ill-conditioned until the data dominate P
+    n0 = min(n_windows, d)
+    th, PP = _kernel()(np.ascontiguousarray(z[: n0 + 2 * horizon - 1]), horizon, m, q, th, PP, float(forgetting))
+    if n0 == n_windows:
+        return th, PP
+    return _blocked(z[n0:], horizon, m, q, th, PP, float(forgetting), int(block))
+
+
+def _window_offsets(p: int, m: int, q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Time offsets and channels of every entry of x and y_p inside a window (eq. 9 order)."""
+    pos = np.arange(p)
+    t_x = np.concatenate([np.repeat(pos, m), np.repeat(pos, q), np.repeat(p + pos, m)])
+    c_x = np.concatenate([np.tile(np.arange(m), p), m + np.tile(np.arange(q), p), np.tile(np.arange(m), p)])
+    return t_x, c_x, np.repeat(p + pos, q), m + np.tile(np.arange(q), p)
+
+
+def _blocked(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.ndarray, lam: float,
+             block: int) -> tuple[np.ndarray, np.ndarray]:
+    import scipy.linalg as sla
+
+    t_x, c_x, t_y, c_y = _window_offsets(p, m, q)
+    n_windows = z.shape[0] - 2 * p + 1
+    for k0 in range(0, n_windows, block):
+        B = min(block, n_windows - k0)
+        ks = k0 + np.arange(B)
+        X = z[t_x[:, None] + ks[None, :], c_x[:, None]]  # (d, B)
+        Y = z[t_y[:, None] + ks[None, :], c_y[:, None]]  # (p q, B)
+        PX = P @ X
+        S = X.T @ PX
+        S[np.diag_indices(B)] += lam ** (np.arange(B) + 1.0)
+        K = sla.cho_solve(sla.cho_factor(S, lower=True, check_finite=False), PX.T, check_finite=False).T
+        theta += (Y - theta @ X) @ K.T
+        P -= K @ PX.T
+        if lam != 1.0:
+            P /= lam ** B
+        P = 0.5 * (P + P.T)
+    return theta, P
