@@ -359,9 +359,10 @@ def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray,
     ``B`` windows at a time in its exact block form (Woodbury identity):
     ``K = P X (W^-1 + X^T P X)^-1``, ``theta += (Y - theta X) K^T``,
     ``P = (P - K (P X)^T) / lambda^B`` with ``W = diag(lambda^-(1+i))`` -- the same
-    estimate after every block (to rounding), computed with matrix products, which is
-    as fast per window on this machine (both reach ~9 GFMA/s).  The first ``d`` windows are always processed one at a
-    time (with a vague prior the block system is ill-conditioned until data dominate ``P``).
+    estimate after every block (to rounding), computed with matrix products (about as fast
+    per window as the fused kernel on the development machine).  The first ``d`` windows are
+    always processed one at a time (with a vague prior the block system is ill-conditioned
+    until the data dominate ``P``).
 
     Parameters
     ----------
