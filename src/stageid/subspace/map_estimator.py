@@ -12,7 +12,8 @@ matrix-normal with mean ``theta_i`` and column covariance ``P_i``, and eq. 17-18
     P_{i+1}     = (P_i - g_{i+1} x_{i+1}^T P_i) / lambda
 
 (``lambda`` = 1: no forgetting; ``P`` is measured in units of ``Sigma`` so the mean update
-does not depend on ``Sigma``; ``noise_variance`` converts an absolute prior covariance).
+does not depend on ``Sigma``; :meth:`Prior.from_covariance` converts an absolute prior
+covariance and a measurement-error variance into these units).
 The OCR of eq. 17 writes ``P X^T sigma^-1 E`` for a row-vector ``X``; with our column
 vectors the consistent reading is the update above.
 
@@ -54,6 +55,33 @@ class Prior:
 
     theta0: np.ndarray | None
     precision: np.ndarray
+
+    @classmethod
+    def from_covariance(cls, theta0: np.ndarray | None, covariance: np.ndarray, noise_variance: float) -> "Prior":
+        """The prior from an absolute parameter covariance and the measurement-error variance.
+
+        Eq. 17 weighs the prior covariance ``P_0`` against the measurement-error variance
+        ``sigma``: with ``Cov(vec theta) = P_0' (x) Sigma`` and ``Sigma = sigma I`` the column
+        covariance in noise units is ``P_0' = covariance / sigma``.
+
+        Parameters
+        ----------
+        theta0 : ndarray of shape (p q, d) or None
+        covariance : ndarray of shape (d, d) or (d,)
+            Prior covariance of each row of ``theta`` (a vector: diagonal).
+        noise_variance : float
+            Variance ``sigma`` of the model error ``Delta(k)`` of eq. 9, > 0.
+
+        Examples
+        --------
+        >>> Prior.from_covariance(None, [4.0, 4.0], 0.01).precision.tolist()
+        [0.0025, 0.0025]
+        """
+        if not noise_variance > 0:
+            raise DataError(f"`noise_variance` must be positive; got {noise_variance!r}.")
+        cov = np.asarray(covariance, dtype=float)
+        prec = noise_variance / cov if cov.ndim == 1 else noise_variance * np.linalg.inv(cov)
+        return cls(None if theta0 is None else np.asarray(theta0, dtype=float), prec)
 
     def matrix(self, d: int) -> np.ndarray:
         """The precision as a (d, d) matrix."""
