@@ -29,9 +29,10 @@ def test_p558_band_limited_default_horizon_given_order(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 2, 3])
-def test_p558_band_limited_seed_sweep(seed):
-    res = HankelMAP(order=15).fit(_p558_band_limited(seed))
+@pytest.mark.parametrize("seed, n", [(1, 20000), (2, 20000), (3, 20000), (1, 10000), (2, 5000)])
+def test_p558_band_limited_seed_sweep(seed, n):
+    # (1, 10000) reached 1.2 % coupling error with a 1e-8 default prior: see HankelMAP `prior`
+    res = HankelMAP(order=15).fit(_p558_band_limited(seed, n=n))
     diag, coupling = column_errors(res.model, ps.model())
     assert diag < 0.02 and coupling < 0.01
 

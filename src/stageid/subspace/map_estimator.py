@@ -102,13 +102,14 @@ class Prior:
         return t0
 
 
-def default_prior(stats: WindowStatistics, strength: float = 1e-8) -> Prior:
+def default_prior(stats: WindowStatistics, strength: float = 1e-5) -> Prior:
     """The weak default prior: ``theta0 = 0`` and ``P_0^-1 = strength * diag(sum x x^T)``.
 
     Scaling by the regressors' own energy makes the prior independent of units; with
-    ``strength`` = 1e-8 the prior only acts on directions the data do not determine
-    (out-of-band directions of band-limited records), which keeps the normal equations
-    solvable without moving the in-band predictions (see ``theta_frequency_response``).
+    ``strength`` = 1e-5 the prior mainly acts on directions the data hardly determine
+    (out-of-band and band-edge directions of band-limited records), which keeps the normal
+    equations well conditioned without moving the in-band predictions noticeably (see
+    ``theta_frequency_response`` and the choice documented in ``HankelMAP``).
     """
     XX, _, _ = stats.blocks()
     diag = np.clip(np.diag(XX), 0.0, None)
