@@ -154,12 +154,6 @@ class WindowStatistics:
         W = self.W
         return W[np.ix_(xi, xi)], W[np.ix_(yi, xi)], W[np.ix_(yi, yi)]
 
-    def for_horizon(self, horizon: int) -> "WindowStatistics":
-        """Not available: statistics are per horizon (compute them with ``window_statistics``)."""
-        if horizon != self.horizon:
-            raise DataError(f"statistics were computed for horizon {self.horizon}; got {horizon}.")
-        return self
-
 
 def regressor_indices(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
     """Positions of the regressor ``X`` and of ``y_p(k)`` (eq. 9) inside a window vector.
