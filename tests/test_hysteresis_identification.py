@@ -25,14 +25,27 @@ def test_recovers_classical_pi_exactly():
 def test_recovers_modified_pi_on_the_search_grid():
     u = _input()
     r = np.arange(8) * 50.0
-    true = ModifiedPIModel(r=r, rc=0.6 * r, ra=1.3 * r, rb=0.7 * 1.3 * r,
+    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r,
                            weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
     y = true.simulate(u)
     classical = PIIdentifier("pi", n_operators=8).fit((u, y))
-    fit = PIIdentifier("modified-pi", n_operators=8, max_evaluations=250).fit((u, y))
+    fit = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200, input_warp=False).fit((u, y))
     assert classical.max_error_percent[0] > 2.0  # the CP asymmetry is not a PI model
     assert fit.max_error_percent[0] < 0.05
-    assert fit.model.min_slope() > 0
+    assert fit.model.min_slope() > 0 and fit.model.input_warp == 0.0
+
+
+def test_recovers_input_warp():
+    u = _input()
+    r = np.arange(8) * 50.0
+    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r, input_warp=0.2, warp_scale=400.0,
+                           weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
+    y = true.simulate(u)
+    without = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200, input_warp=False).fit((u, y))
+    fit = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200).fit((u, y))
+    assert without.max_error_percent[0] > 1.0
+    assert fit.max_error_percent[0] < 0.05
+    assert abs(fit.model.input_warp - 0.2) < 1e-3
 
 
 def test_offsets_per_record_and_starting_state():

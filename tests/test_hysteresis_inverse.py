@@ -18,7 +18,8 @@ def _mpi(rng, n=10):
     r = np.arange(n) * 40.0
     c, a, b = rng.uniform(0.2, 1, n), rng.uniform(0.5, 2, n), rng.uniform(0, 1, n)
     w = np.r_[1.0, rng.uniform(-0.05, 0.4, n - 1)]
-    return ModifiedPIModel(r=r, rc=c * r, ra=a * r, rb=b * a * r, weights=w, output_offset=-0.4)
+    return ModifiedPIModel(r=r, rc=c * r, ra=a * r, rb=b * a * r, weights=w, output_offset=-0.4, input_offset=7.0,
+                           input_warp=float(rng.uniform(-0.3, 0.3)), warp_scale=300.0)
 
 
 def _drive(rng, n=3000):
@@ -60,7 +61,7 @@ def test_modified_inversion_exact(seed):
     u, state = invert(m, yd)
     scale = np.sum(np.abs(m.weights)) * m.r.max()
     np.testing.assert_allclose(m.simulate(u)[:, 0], yd, rtol=0, atol=1e-11 * scale)
-    assert np.array_equal(m.run(u)[1].z, state.z)
+    np.testing.assert_allclose(m.run(u)[1].z, state.z, rtol=0, atol=1e-9)  # u passes the warp and back: ulps
 
 
 def test_generic_inversion_agrees_with_closed_form():
@@ -95,3 +96,13 @@ def test_not_invertible():
         pi_inverse(m)
     with pytest.raises(ModelError, match="not invertible"):
         invert(m.to_modified(), [0.0, 1.0])
+
+
+def test_input_warp_round_trip():
+    from stageid.hysteresis import ModifiedPIModel
+
+    m = ModifiedPIModel(r=[0.0], weights=[1.0], input_offset=3.0, input_warp=0.3, warp_scale=100.0)
+    u = np.linspace(-400, 400, 2001)  # also far outside the warp's quadratic part
+    x = m.to_operator_input(u)
+    assert np.all(np.diff(x) > 0)
+    np.testing.assert_allclose(m.from_operator_input(x), u, rtol=0, atol=1e-9)

@@ -16,7 +16,7 @@ def _modified(rng, n=8):
     ra = r * 1.4
     rb = ra * 0.6
     w = np.r_[1.0, rng.uniform(0.0, 0.3, n - 1)]
-    return ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, weights=w, input_offset=3.0, output_offset=-0.2,
+    return ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, weights=w, input_offset=3.0, output_offset=-0.2, input_warp=0.1, warp_scale=350.0,
                            inputs=("V",), outputs=("y",), input_limits=(-500.0, 500.0))
 
 

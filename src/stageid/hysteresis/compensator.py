@@ -61,8 +61,8 @@ class Compensator:
         if lim is not None and not (len(lim) == 2 and float(lim[0]) < float(lim[1])):
             raise ModelError(f"`limits` must be (low, high) with low < high; got {lim!r}.")
         self.limits = None if lim is None else (float(lim[0]), float(lim[1]))
-        self._lo = -np.inf if lim is None else self.limits[0] - model.input_offset
-        self._hi = np.inf if lim is None else self.limits[1] - model.input_offset
+        self._lo = -np.inf if lim is None else float(model.to_operator_input(self.limits[0]))
+        self._hi = np.inf if lim is None else float(model.to_operator_input(self.limits[1]))
         if isinstance(model, PIModel):
             self._inverse = pi_inverse(model)
             self._P = np.ascontiguousarray(np.vstack([self._inverse.r, self._inverse.weights]))
@@ -111,6 +111,8 @@ class Compensator:
         else:
             x = self._k.cp_invert_step(self._P, self._z, self._x, target, self._lo, self._hi, self._smin, self._tol)
             self._x = x
+            if self.model.input_warp != 0.0:
+                return self._clip(float(self.model.from_operator_input(x)))
         return x + self.model.input_offset
 
     def run(self, y_ref: object) -> np.ndarray:
@@ -127,7 +129,13 @@ class Compensator:
             x, z, xf = self._k.cp_invert(target, self._P, self._z, self._x, self._lo, self._hi, self._smin, self._tol)
             self._z = z
             self._x = float(xf)
+            if self.model.input_warp != 0.0:
+                u = self.model.from_operator_input(x)
+                return (u if self.limits is None else np.clip(u, *self.limits))[:, None]
         return (x + self.model.input_offset)[:, None]
+
+    def _clip(self, u: float) -> float:
+        return u if self.limits is None else min(max(u, self.limits[0]), self.limits[1])
 
 
 def compensate(model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None) -> np.ndarray:

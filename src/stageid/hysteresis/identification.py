@@ -23,9 +23,11 @@ Procedure (the letter's, made explicit):
    ``rc_i = c_i r_i``, ``ra_i = a_i r_i``, ``rb_i = b_i ra_i`` with ratios linear in the
    operator index (``c_i = c0 + c1 t_i``, ``t_i = i/(n-1) - 1/2``, likewise ``a_i``, ``b_i``),
    clipped to ``0 <= c_i <= 1``, ``a_i >= 0``, ``0 <= b_i <= 1`` (the orderings eq. 3 needs),
-   and the centre ``xc``: seven parameters, searched on a coarse grid of the mean ratios and
-   refined by Nelder-Mead; the classical model (all ratios 1) is among the candidates, so the
-   modified fit is never worse than the classical one under the same constraint.
+   the centre ``xc`` and (our extension, ``input_warp=True``) the monotone quadratic input
+   warp ``q`` of :class:`ModifiedPIModel`: eight parameters, searched on a coarse grid of the
+   mean ratios and the warp and refined by Nelder-Mead; the classical model (all ratios 1, no
+   warp) is among the candidates, so the modified fit is never worse than the classical one
+   under the same constraint.
 4. **Starting state** of every record: ``"zero"`` (the letter's ``x0 = z0 = 0``, then the
    first sample), ``"ascending"`` or ``"descending"`` (arrived at the first sample from far
    below / above, e.g. after an idle period at the minimum); ``"auto"`` takes ``"zero"`` for a
@@ -93,7 +95,8 @@ class HysteresisFit:
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
         if kind == "modified-pi":
             lines.append(f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
-                         f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}")
+                         f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}, "
+                         f"input warp = {self.model.input_warp:.4f}")
         lines.append(f"  {self.message}")
         return "\n".join(lines)
 
@@ -152,8 +155,11 @@ class PIIdentifier:
     max_rows : int, default 20000
         The least-squares problems use at most this many (evenly strided) samples; the
         operators always run over every sample.
-    max_evaluations : int, default 400
+    max_evaluations : int, default 500
         Limit of the nonlinear search (modified PI).
+    input_warp : bool, default True
+        Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
+        extension; ``False`` gives the letter's model exactly).
     ridge : float, default 1e-6
         Tikhonov penalty on the CP weights of the modified PI, relative to the mean diagonal of
         the normal matrix (keeps barely-moving operators from getting huge weights that blow up
@@ -174,7 +180,7 @@ class PIIdentifier:
 
     def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
                  initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
-                 max_evaluations: int = 400, ridge: float = 1e-6) -> None:
+                 max_evaluations: int = 500, ridge: float = 1e-6, input_warp: bool = True) -> None:
         self.model = model
         self.n_operators = n_operators
         self.input_range = input_range
@@ -183,6 +189,7 @@ class PIIdentifier:
         self.max_rows = max_rows
         self.max_evaluations = max_evaluations
         self.ridge = ridge
+        self.input_warp = input_warp
 
     # ------------------------------------------------------------------ checks
     def _check(self) -> None:
@@ -234,10 +241,10 @@ class PIIdentifier:
             raise DataError("the identification output is constant; nothing to identify.")
         eps = float(self.min_slope_fraction) * yr / (hi - lo)
         stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
-        ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge))
+        ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge), R)
 
         # classical fit and starting-state choice
-        theta0 = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi)])
+        theta0 = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi), 0.0])
         kinds = ["zero"] * len(recs) if self.initial_state == "auto" else [self.initial_state] * len(recs)
         at_rest = [abs(u[0]) <= 0.01 * (hi - lo) for u, _ in recs]
         if self.initial_state == "auto":
@@ -287,48 +294,60 @@ class PIIdentifier:
         from scipy.optimize import minimize
 
         centre = 0.5 * (lo + hi)
-        lower = np.array([0.0, -1.0, 0.05, -2.0, 0.0, -1.0, centre - 0.25 * (hi - lo)])
-        upper = np.array([1.0, 1.0, 3.0, 2.0, 1.0, 1.0, centre + 0.25 * (hi - lo)])
-        scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, R])
+        qmax = 0.4 if self.input_warp else 0.0
+        lower = np.array([0.0, -1.0, 0.05, -2.0, 0.0, -1.0, centre - 0.25 * (hi - lo), -qmax])
+        upper = np.array([1.0, 1.0, 3.0, 2.0, 1.0, 1.0, centre + 0.25 * (hi - lo), qmax])
+        scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, R, 1.0])
+        active = np.flatnonzero(upper > lower)
         count = [0]
         cache: dict[tuple, float] = {}
         budget = int(self.max_evaluations)
 
+        def full(v: np.ndarray) -> np.ndarray:
+            th = np.array(theta0, dtype=float)
+            th[active] = np.asarray(v) * scale[active]
+            return np.clip(th, lower, upper)
+
         def objective(v: np.ndarray) -> float:
-            th = np.clip(np.asarray(v) * scale, lower, upper)
+            th = full(v)
             key = tuple(np.round(th, 12))
             if key not in cache:
                 count[0] += 1
                 cache[key] = ctx.solve(th, kinds, classical=False)[0]
             return cache[key]
 
-        classical = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, centre])
-        f_classical = objective(classical / scale)
-        # coarse grid over the mean ratios (thresholds proportional to r), then Nelder-Mead on all 7
+        classical = np.array(theta0, dtype=float)
+        f_classical = objective(classical[active] / scale[active])
+        # coarse grid over the mean ratios (thresholds proportional to r) and the warp,
+        # then Nelder-Mead on all parameters from the two best grid points
         grid = []
-        for c0 in (0.2, 0.4, 0.6, 0.8, 1.0):
-            for a0 in (0.6, 0.8, 1.0, 1.3, 1.6, 2.0):
-                for b0 in (0.3, 0.5, 0.7, 0.85, 1.0):
-                    th = np.array([c0, 0.0, a0, 0.0, b0, 0.0, centre])
-                    grid.append((objective(th / scale), th))
+        for q in ((-0.2, 0.0, 0.2) if self.input_warp else (0.0,)):
+            for c0 in (0.2, 0.5, 0.8, 1.0):
+                for a0 in (0.7, 1.0, 1.4, 2.0):
+                    for b0 in (0.4, 0.7, 1.0):
+                        th = np.array([c0, 0.0, a0, 0.0, b0, 0.0, centre, q])
+                        grid.append((objective(th[active] / scale[active]), th))
         grid.sort(key=lambda item: item[0])
         best_f, best_th = grid[0]
         if f_classical < best_f:
             best_f, best_th = f_classical, classical
         success = True
+        steps_all = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
         for f_start, th_start in grid[:2]:
             remaining = budget - count[0]
             if remaining <= 20:
                 success = False
                 break
-            x0 = th_start / scale
-            steps = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05])
-            simplex = np.vstack([x0] + [x0 + np.eye(7)[i] * steps[i] * (1 if x0[i] + steps[i] <= upper[i] / scale[i] else -1) for i in range(7)])
+            x0 = th_start[active] / scale[active]
+            steps = steps_all[active]
+            ub = upper[active] / scale[active]
+            k = active.size
+            simplex = np.vstack([x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)])
             res = minimize(objective, x0, method="Nelder-Mead",
-                           bounds=list(zip(lower / scale, upper / scale)),
+                           bounds=list(zip(lower[active] / scale[active], ub)),
                            options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start})
             if res.fun < best_f:
-                best_f, best_th = res.fun, np.clip(res.x * scale, lower, upper)
+                best_f, best_th = res.fun, full(res.x)
             if res.nfev >= remaining:
                 success = False
         msg = (f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
@@ -344,8 +363,9 @@ def _replace_offset(model, offset: float):
 class _Context:
     """Operator matrices and the constrained least-squares weight fit for fixed thresholds."""
 
-    def __init__(self, recs, r, eps, stride, kind, ridge=0.0):
+    def __init__(self, recs, r, eps, stride, kind, ridge=0.0, R=1.0):
         self.ridge = ridge
+        self.R = R
         self.recs = recs
         self.r = r
         self.eps = eps
@@ -357,7 +377,7 @@ class _Context:
     def thresholds(self, theta: np.ndarray, classical: bool):
         r = self.r
         if classical:
-            return r, r, r, r, float(theta[-1])
+            return r, r, r, r, float(theta[6])
         t = np.arange(r.size) / max(r.size - 1, 1) - 0.5
         c = np.clip(theta[0] + theta[1] * t, 0.0, 1.0)
         a = np.clip(theta[2] + theta[3] * t, 0.0, None)
@@ -365,13 +385,20 @@ class _Context:
         ra = a * r
         return r, c * r, ra, b * ra, float(theta[6])
 
+    def warp(self, theta, classical):
+        return 0.0 if classical or len(theta) < 8 else float(theta[7])
+
     def matrix(self, theta, kinds, classical):
         from . import _kernels
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        q = self.warp(theta, classical)
         blocks = []
         for (u, _), kind, rows in zip(self.recs, kinds, self.rows):
             x = u - xc
+            if q != 0.0:
+                t = np.abs(x) / self.R
+                x = x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
             up = np.maximum(x[0] - r, np.minimum(x[0] - rc, 0.0))
             down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
             z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
@@ -458,7 +485,10 @@ class _Context:
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         common = dict(weights=w, input_offset=xc, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,),
                       input_limits=None)
-        model = PIModel(r=r, **common) if classical else ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, **common)
+        if classical:
+            model = PIModel(r=r, **common)
+        else:
+            model = ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, input_warp=self.warp(theta, False), warp_scale=self.R, **common)
         u_rest = min(max(0.0, lo), hi)
         return model.with_state(model.consistent_state(u_rest, "zero"))
 

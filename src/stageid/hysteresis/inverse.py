@@ -162,6 +162,9 @@ def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, flo
         raise ModelError(f"model is not invertible: its minimum slope w0 + sum(min(w_i, 0)) is {smin:g}; expected > 0.")
     target = np.ascontiguousarray(_as_input(y, model.outputs[0]) - model.output_offset)
     lim = limits if limits is not None else model.input_limits
-    lo, hi = (-np.inf, np.inf) if lim is None else (float(lim[0]) - model.input_offset, float(lim[1]) - model.input_offset)
+    lo, hi = (-np.inf, np.inf) if lim is None else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
     x, zf, xf = _kernels.cp_invert(target, _packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, _tolerance(model))
-    return (x + model.input_offset)[:, None], OperatorState(float(xf), zf)
+    u = model.from_operator_input(x)
+    if lim is not None:  # the warp's inverse may round a clipped value a hair outside
+        u = np.clip(u, float(lim[0]), float(lim[1]))
+    return u[:, None], OperatorState(float(xf), zf)

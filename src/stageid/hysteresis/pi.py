@@ -12,7 +12,8 @@ Modified PI model (eq. 4)
 
 Both models are immutable and carry their operator state (last input, operator outputs),
 so :meth:`run` returns the final state and :meth:`with_state` resumes from it.  The state's
-``x`` is in operator coordinates (input minus ``input_offset``).
+``x`` is in operator coordinates (input minus ``input_offset``, warped for a modified PI model
+with ``input_warp``: :meth:`to_operator_input`).
 
 Monotonicity (invertibility): the model output is a nondecreasing function of the current
 input for every state when ``w_0 + sum_{i>=1} min(w_i, 0) > 0`` (the slope of the output with
@@ -117,6 +118,18 @@ class _PIBase:
     def _params(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
+    def to_operator_input(self, u: np.ndarray | float) -> np.ndarray:
+        """Operator coordinates of model inputs: ``u - input_offset`` (warped for a modified PI
+        model with ``input_warp``, see :class:`ModifiedPIModel`)."""
+        return np.asarray(u, dtype=float) - self.input_offset
+
+    def from_operator_input(self, x: np.ndarray | float) -> np.ndarray:
+        """Model inputs from operator coordinates (inverse of :meth:`to_operator_input`)."""
+        return np.asarray(x, dtype=float) + self.input_offset
+
+    def _warp_slope(self) -> float:
+        return 1.0
+
     def boundaries(self, x: float) -> tuple[np.ndarray, np.ndarray]:
         """Ascending and descending boundary values of every operator at operator input ``x``."""
         r, rc, ra, rb = self._params()
@@ -131,7 +144,7 @@ class _PIBase:
         """
         if kind not in STATE_KINDS:
             raise ModelError(f"state kind must be one of {', '.join(STATE_KINDS)}; got {kind!r}.")
-        x = float(u0) - self.input_offset
+        x = float(self.to_operator_input(float(u0)))
         up, down = self.boundaries(x)
         if kind == "ascending":
             z = up
@@ -149,7 +162,7 @@ class _PIBase:
         """Outputs of every operator, shape (n_samples, n_operators), and the final state."""
         from . import _kernels
 
-        x = np.ascontiguousarray(_as_input(u, self.inputs[0]) - self.input_offset)
+        x = np.ascontiguousarray(self.to_operator_input(_as_input(u, self.inputs[0])))
         r, rc, ra, rb = self._params()
         if self.kind == "pi":
             z, zf = _kernels.play_bank(x, r, np.array(self.state.z))
@@ -161,7 +174,7 @@ class _PIBase:
         """Simulate from the model's state; returns y of shape (n_samples, 1) and the final state."""
         from . import _kernels
 
-        x = np.ascontiguousarray(_as_input(u, self.inputs[0]) - self.input_offset)
+        x = np.ascontiguousarray(self.to_operator_input(_as_input(u, self.inputs[0])))
         r, rc, ra, rb = self._params()
         z0 = np.array(self.state.z)
         if self.kind == "pi":
@@ -209,6 +222,10 @@ class _PIBase:
         order = np.argsort(self.r, kind="stable")
         w = self.weights[order]
         return float(w[0] + np.sum(np.minimum(w[1:], 0.0))) if self.r[order][0] == 0.0 else float(np.sum(np.minimum(w, 0.0)))
+
+    def min_input_slope(self) -> float:
+        """A lower bound of dy/du (model input units): :meth:`min_slope` times the warp's least slope."""
+        return self.min_slope() * self._warp_slope()
 
     def _base_dict(self) -> dict[str, Any]:
         return {"format": HYSTERESIS_FORMAT, "kind": self.kind,
@@ -297,6 +314,14 @@ class ModifiedPIModel(_PIBase):
     weights : array_like of shape (n_operators,)
     input_offset, output_offset, state, inputs, outputs, input_limits
         As for :class:`PIModel`.
+    input_warp : float, default 0
+        ``q`` in (-0.5, 0.5) of an optional monotone quadratic warp of the input before the
+        operators (our extension, 0 = the letter's model): ``x = d + q R phi(d / R)``,
+        ``d = u - input_offset``, ``phi(t) = t^2`` for ``|t| <= 1``, ``2|t| - 1`` beyond (slope
+        ``>= 1 - 2|q| > 0`` everywhere, so the model stays invertible).  It lets the model
+        represent the asymmetry a static quadratic adds, which coupled plays alone cannot.
+    warp_scale : float, default 1
+        ``R``, the half range of the identification input.
 
     Raises
     ------
@@ -315,8 +340,38 @@ class ModifiedPIModel(_PIBase):
     rc: np.ndarray = field(default=None)  # type: ignore[assignment]
     ra: np.ndarray = field(default=None)  # type: ignore[assignment]
     rb: np.ndarray = field(default=None)  # type: ignore[assignment]
+    input_warp: float = 0.0
+    warp_scale: float = 1.0
 
     kind = "modified-pi"
+
+    def to_operator_input(self, u):
+        """``x = d + q R phi(d / R)`` with ``d = u - input_offset``, ``q = input_warp``,
+        ``R = warp_scale``, ``phi(t) = t^2`` for ``|t| <= 1`` and ``2|t| - 1`` beyond."""
+        d = np.asarray(u, dtype=float) - self.input_offset
+        q = self.input_warp
+        if q == 0.0:
+            return d
+        R = self.warp_scale
+        t = d / R
+        a = np.abs(t)
+        phi = np.where(a <= 1.0, t * t, 2.0 * a - 1.0)
+        return d + q * R * phi
+
+    def from_operator_input(self, x):
+        """Inverse of :meth:`to_operator_input` (closed form, piecewise)."""
+        x = np.asarray(x, dtype=float)
+        q = self.input_warp
+        if q == 0.0:
+            return x + self.input_offset
+        R = self.warp_scale
+        tp = x / R
+        inner = 2.0 * tp / (1.0 + np.sqrt(np.maximum(1.0 + 4.0 * q * tp, 0.0)))
+        t = np.where(tp > 1.0 + q, (tp + q) / (1.0 + 2.0 * q), np.where(tp < -1.0 + q, (tp + q) / (1.0 - 2.0 * q), inner))
+        return t * R + self.input_offset
+
+    def _warp_slope(self) -> float:
+        return 1.0 - 2.0 * abs(self.input_warp)
 
     def __post_init__(self) -> None:
         r = _vec("r", self.r)
@@ -327,6 +382,13 @@ class ModifiedPIModel(_PIBase):
         for name, v in (("r", r_), ("rc", rc_), ("ra", ra_), ("rb", rb_)):
             v.setflags(write=False)
             object.__setattr__(self, name, v)
+        q, R = float(self.input_warp), float(self.warp_scale)
+        if not (np.isfinite(q) and abs(q) < 0.5):
+            raise ModelError(f"`input_warp` must be in (-0.5, 0.5) (a monotone warp); got {self.input_warp!r}.")
+        if not (np.isfinite(R) and R > 0):
+            raise ModelError(f"`warp_scale` must be a positive number; got {self.warp_scale!r}.")
+        object.__setattr__(self, "input_warp", q)
+        object.__setattr__(self, "warp_scale", R)
         self._init_common()
 
     def _params(self):
@@ -336,5 +398,6 @@ class ModifiedPIModel(_PIBase):
         """The ``stageid.hysteresis/1`` dictionary (round-trips byte-stably through ``dumps``)."""
         d = self._base_dict()
         d.update(r=self.r.tolist(), rc=self.rc.tolist(), ra=self.ra.tolist(), rb=self.rb.tolist())
+        d.update(input_warp=self.input_warp, warp_scale=self.warp_scale)
         d.update(self._tail_dict())
         return d

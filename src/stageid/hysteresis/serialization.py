@@ -7,6 +7,7 @@
      "input_offset": 0.0, "output_offset": 0.0,
      "r": [...],                      # thresholds, one per operator
      "rc": [...], "ra": [...], "rb": [...],   # modified-pi only (eq. 3)
+     "input_warp": 0.0, "warp_scale": 1.0,    # modified-pi only: optional input warp
      "weights": [...],
      "state": {"x": 0.0, "z": [...]},         # operator state to start from
      "input_limits": [lo, hi] | null}         # drive range (compensator default)
@@ -27,7 +28,8 @@ _KEYS = {
     "pi": ("r", "weights"),
     "modified-pi": ("r", "rc", "ra", "rb", "weights"),
 }
-_OPTIONAL = ("inputs", "outputs", "input_offset", "output_offset", "state", "input_limits", "name", "description")
+_OPTIONAL = ("inputs", "outputs", "input_offset", "output_offset", "state", "input_limits", "name", "description",
+             "input_warp", "warp_scale")
 
 
 def _numbers(d: dict, key: str) -> list[float]:
@@ -116,7 +118,8 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     try:
         if kind == "pi":
             return PIModel(r=arrays["r"], **common)
-        return ModifiedPIModel(r=arrays["r"], rc=arrays["rc"], ra=arrays["ra"], rb=arrays["rb"], **common)
+        return ModifiedPIModel(r=arrays["r"], rc=arrays["rc"], ra=arrays["ra"], rb=arrays["rb"],
+                               input_warp=_number(d, "input_warp", 0.0), warp_scale=_number(d, "warp_scale", 1.0), **common)
     except ModelFormatError:
         raise
     except ModelError as exc:
