@@ -68,6 +68,20 @@ def test_identify_and_compensate_round_trip(tmp_path):
     np.testing.assert_allclose(true.simulate(drive.column("V"))[:, 0], yref, atol=1e-8)
 
 
+def test_letter_model_without_warp(tmp_path):
+    from stageid.hysteresis import ModifiedPIModel
+
+    r = np.arange(6) * 60.0
+    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.98 * r, weights=[0.01, 0.004, 0.003, 0.002, 0.001, 0.001])
+    u = decaying_triangle(1.0, 6, 2e-3, amplitude=360.0)
+    write_csv(tmp_path / "d.csv", {"V": u, "y": true.simulate(u)[:, 0]}, dt=2e-3)
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y", "--model", "modified-pi",
+                 "--operators", "6", "--no-input-warp", "--quiet", "-o", str(tmp_path / "m.json")]) == 0
+    model = load_model(tmp_path / "m.json")
+    assert model.input_warp == 0.0
+    assert max_error_percent(true.simulate(u), model.simulate(u)) < 0.05
+
+
 def test_bad_input_one_line_no_file(tmp_path, capsys):
     u = decaying_triangle(1.0, 4, 2e-3, amplitude=100.0)
     write_csv(tmp_path / "d.csv", {"V": u, "y": u * 0.01}, dt=2e-3)

@@ -23,11 +23,14 @@ Examples:
               help="Number of operators (thresholds equally spaced over the input range, the first is 0).")
 @click.option("--initial-state", type=click.Choice(["auto", "zero", "ascending", "descending"]), default="auto",
               show_default=True, help="Operator state at the first sample of each record.")
+@click.option("--input-warp/--no-input-warp", default=True, show_default=True,
+              help="Modified PI only: also fit a monotone quadratic input warp (our extension); "
+                   "--no-input-warp gives the letter's model exactly.")
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option("-o", "--output-file", "out", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.hysteresis/1 JSON).")
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
 def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str, n_operators: int,
-             initial_state: str, ts: float | None, out: str, quiet: bool) -> None:
+             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
@@ -39,7 +42,7 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
     from ._common import read_experiments
 
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state).fit(list(exps))
+    fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp).fit(list(exps))
     text = dumps(fit.model.to_dict())
     with atomic_output(out) as tmp:
         atomic_write_text(tmp, text)
