@@ -86,6 +86,25 @@ def test_loop_not_closed_by_controller_is_detected_from_plant_inputs(tmp_path: P
     assert len(err.splitlines()) == 1 and "not closed by this controller" in err
 
 
+@pytest.mark.slow
+def test_loop_not_closed_by_controller_is_detected_without_plant_inputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """No u columns: a controller of a different design (80 Hz instead of 110 Hz crossover)
+    shows as a deduced plant the [0, 2] diagonal cannot follow (measured: 15 % over the band)."""
+    from stageid.models import TransferMatrix
+    from stageid.plants.maglev import lead_lag
+
+    exps = _experiments(tmp_path)
+    m1, m2 = lead_lag(2.5, 45.0, 70.0, 80.0), lead_lag(2.0, 70.0, 60.0, 80.0)
+    other = TransferMatrix([[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2"))
+    save_model(other.to_statespace(minimal=False).c2d(DT, "tustin"), tmp_path / "Ko.json")
+    out = tmp_path / "G.json"
+    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
+               "--controller", str(tmp_path / "Ko.json"), "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "not closed by this controller" in err
+
+
 def test_right_controller_passes_the_plant_input_check(tmp_path: Path) -> None:
     from stageid.closedloop import controller_residual
     from stageid.data import read_table

@@ -108,6 +108,17 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
     est = ClosedLoopIdentification(K, method=method, structure=structure, band=band, continuous=not discrete,
                                    controller_discretization=disc)
     result = est.fit(exps)
+    if structure == "paper":
+        # without plant-input columns a wrong controller cannot be seen in u; it shows as a deduced
+        # plant that the [0, 2] diagonal cannot follow (G' = G M_true M^-1 carries controller dynamics)
+        diag = np.diag(result.band_error_complex)
+        if diag.max() > 0.05:
+            k = int(np.argmax(diag))
+            raise IdentificationError(
+                f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
+                f"misses [0, 2] by {100 * diag[k]:.1f} % over {band[0]:g}-{band[1]:g} Hz (expected < 5 %); the loop was probably "
+                "not closed by this controller (or the plant is not of this structure: try --structure full)."
+            )
     with atomic_output(output) as tmp:
         save_model(result.plant, tmp)
     click.echo(result.summary(), err=True)
