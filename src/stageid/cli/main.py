@@ -34,6 +34,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.signal", "signal_command", "cli"),
     ("stageid.cli.plants", "plants_command", "cli"),
     ("stageid.cli.report", "report_command", "cli"),
+    ("stageid.cli.demo", "demo_command", "cli"),
     ("stageid.cli.identify_statespace", "statespace_command", "identify"),
     ("stageid.cli.identify_closedloop", "closedloop_command", "identify"),
 ]

@@ -19,6 +19,10 @@ def pyplot() -> Any:
         "grid.alpha": 0.3,
         "axes.titlesize": 10,
         "legend.fontsize": 8,
-        "figure.constrained_layout.use": True,
     })
     return plt
+
+
+def new_figure(plt, *args, **kwargs):
+    """``plt.subplots`` with the constrained layout set on this figure only."""
+    return plt.subplots(*args, layout="constrained", **kwargs)

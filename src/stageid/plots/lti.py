@@ -6,7 +6,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ._style import pyplot
+from ._style import new_figure, pyplot
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 
@@ -41,14 +41,16 @@ def bode_figure(
     plt = pyplot()
     p, m = len(output_names), len(input_names)
     rows = 2 * p if phase else p
-    fig, axes = plt.subplots(rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True)
+    fig, axes = new_figure(plt, rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True)
     styles = dict(styles or {})
     for label, H in responses.items():
-        ls = styles.get(label, "-")
+        style = styles.get(label, "-")
+        color = style[0] if style[:1].isalpha() else None
+        ls = style[1:] if color else style
         for i in range(p):
             for j in range(m):
                 ax = axes[2 * i if phase else i, j]
-                line, = ax.loglog(freqs_hz, np.abs(H[:, i, j]), ls, label=label, lw=1.3)
+                line, = ax.loglog(freqs_hz, np.abs(H[:, i, j]), ls, color=color, label=label, lw=1.3)
                 if bands and label in bands:
                     lo, hi = bands[label]
                     ax.fill_between(freqs_hz, np.maximum(lo[:, i, j], 1e-300), hi[:, i, j], color=line.get_color(), alpha=0.25, lw=0)
@@ -79,7 +81,7 @@ def pzmap_figure(
     For discrete maps the unit circle is drawn; ``hz`` divides continuous values by 2 pi.
     """
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.0, 5.0))
+    fig, ax = new_figure(plt, figsize=(6.0, 5.0))
     markers = ["x", "+", "1", "2"]
     scale = 1.0 / (2 * np.pi) if (hz and continuous) else 1.0
     for k, (label, (poles, zeros)) in enumerate(models.items()):
@@ -128,7 +130,7 @@ def time_overlay_figure(
     measured = np.asarray(measured).reshape(len(t), -1)
     n = measured.shape[1]
     units = list(units) if units else [""] * n
-    fig, axes = plt.subplots(2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True,
+    fig, axes = new_figure(plt, 2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True,
                              gridspec_kw={"height_ratios": [2.2, 1.0]})
     key = error_of or next(iter(predicted), None)
     for j in range(n):

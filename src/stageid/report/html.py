@@ -77,7 +77,7 @@ class Report:
         fig.savefig(buf, format="png", dpi=dpi)
         import matplotlib.pyplot as plt
 
-        plt.close(fig)
+        plt.close(fig)  # harmless for figures pyplot does not manage
         self.n_figures += 1
         self.blocks.append(_Block("figure", (base64.b64encode(buf.getvalue()).decode("ascii"), caption, self.n_figures)))
 
