@@ -276,6 +276,11 @@ def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     return G, CR, RB
 
 
+def _re_mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``Re(X @ Y)`` with two real products instead of a complex one."""
+    return X.real @ Y.real - X.imag @ Y.imag
+
+
 def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool) -> tuple[np.ndarray, np.ndarray]:
     """``J^T J`` and ``J^T r`` of the frequency fit over ``vec(A), vec(B), vec(C), vec(D)``.
 
@@ -293,11 +298,11 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     Ma2 = Ma.reshape(nz, n * n)
     Mb2 = Mb.reshape(nz, n * n)
     # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
-    AA = (Ma2.T @ Mb2).real.reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
-    AB = (Ma2.T @ cb.reshape(nz, n * m)).real.reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(n * n, n * m)
-    AC = (caw.T @ Mb2).real.reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(n * n, q * n)
+    AA = _re_mm(Ma2.T, Mb2).reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
+    AB = _re_mm(Ma2.T, cb.reshape(nz, n * m)).reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(n * n, n * m)
+    AC = _re_mm(caw.T, Mb2).reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(n * n, q * n)
     BB = np.kron(Ma.sum(axis=0).real, np.eye(m))
-    BC = (caw.T @ b.reshape(nz, n * m)).real.reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(n * m, q * n)
+    BC = _re_mm(caw.T, b.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(n * m, q * n)
     CC = np.kron(np.eye(q), (w @ Mb2).real.reshape(n, n))
     ew = e * w[:, None, None]
     gA = np.matmul(np.matmul(np.conj(a).transpose(0, 2, 1), ew), cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
@@ -306,7 +311,7 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     rows = [[AA, AB, AC], [AB.T, BB, BC], [AC.T, BC.T, CC]]
     grads = [gA, gB, gC]
     if feedthrough:
-        AD = (caw.T @ cb.reshape(nz, n * m)).real.reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(n * n, q * m)
+        AD = _re_mm(caw.T, cb.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(n * n, q * m)
         sa = np.conj(aw).sum(axis=0).real  # (r, i)
         BD = np.einsum("ri,cd->icrd", sa, np.eye(m)).reshape(n * m, q * m)
         sb = (w[:, None, None] * cb).sum(axis=0).real  # (i, c)
