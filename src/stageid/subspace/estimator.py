@@ -479,17 +479,22 @@ class HankelMAP:
         lam = float(self.forgetting)
         train: dict[int, WindowStatistics] = {}
         val: dict[int, WindowStatistics] = {}
+        # one Gram matrix per segment at its largest usable horizon, summed per horizon; smaller
+        # horizons use the leading block (exact statistics over a slightly smaller window set)
+        tops: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
         for u, y in recs:
             tr, va = self._segments(u.shape[0])
-            for ranges, target, weight in ((tr, train, lam), (va, val, 1.0)):
+            for ranges, acc, weight in ((tr, tops[0], lam), (va, tops[1], 1.0)):
                 for a, b in ranges:
-                    if b - a < 2 * min(cands) + 1:
-                        continue
-                    # one Gram matrix at the largest usable horizon; smaller horizons use its
-                    # leading block (exact statistics over the same, slightly smaller, window set)
                     usable = [p for p in cands if 2 * p + 1 <= b - a]
+                    if not usable:
+                        continue
                     top = record_statistics(u[a:b], y[a:b], [usable[-1]], weight, with_spectrum=False)[usable[-1]]
-                    for p in usable:
+                    acc[top.horizon] = top if top.horizon not in acc else acc[top.horizon] + top
+        for acc, target in zip(tops, (train, val)):
+            for p in cands:
+                for ph, top in acc.items():
+                    if ph >= p:
                         sp = _leading(top, p)
                         target[p] = sp if p not in target else target[p] + sp
         return train, val

@@ -221,8 +221,7 @@ def _window_gram_kernel(z, R, horizon):  # pragma: no cover - compiled by numba
             for i in range(r):
                 for j in range(r):
                     W[a * r + i, b * r + j] = cur[i, j]
-                    W[b * r + j, a * r + i] = cur[i, j]
-    return W
+    return W  # upper block triangle; the caller mirrors it
 
 
 _GRAM = None
@@ -240,7 +239,14 @@ def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
         import numba
 
         _GRAM = numba.njit(cache=True, nogil=True)(_window_gram_kernel)
-    return _GRAM(np.ascontiguousarray(z), np.ascontiguousarray(R), int(horizon))
+    W = _GRAM(np.ascontiguousarray(z), np.ascontiguousarray(R), int(horizon))
+    # mirror the upper block triangle; the diagonal blocks were written whole
+    L, r = 2 * int(horizon), z.shape[1]
+    full = W + W.T
+    idx = np.arange(L)
+    F = full.reshape(L, r, L, r)
+    F[idx, :, idx, :] -= W.reshape(L, r, L, r)[idx, :, idx, :]
+    return full
 
 
 def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0,
