@@ -374,6 +374,8 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
     -------
     A, B, C, D, info : the refined matrices and ``{"cost0", "cost", "iterations"}``.
     """
+    import scipy.linalg as sla
+
     n = A.shape[0]
     nz, q, m = G.shape
     w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
@@ -398,7 +400,7 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
         rel = 0.0
         for _ in range(10):
             try:
-                step = np.linalg.solve(JtJ + mu * np.diag(dg), -g)
+                step = sla.cho_solve(sla.cho_factor(JtJ + mu * np.diag(dg), check_finite=False), -g, check_finite=False)
             except np.linalg.LinAlgError:
                 mu *= 10
                 continue
