@@ -409,34 +409,31 @@ class _Context:
 
     def solve(self, theta, kinds, classical):
         """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based)."""
+        from . import _kernels
+
         blocks = self.matrix(theta, kinds, classical)
         n = self.r.size
         J = len(blocks)
-        Z = np.vstack(blocks)
         y = self.y
         # operators that (almost) never move get no weight: their weight would be unbounded
-        motion = np.ptp(Z, axis=0)
+        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
         live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
         live[0] = True
         idx = np.flatnonzero(live)
-        Zl = Z[:, idx]
         m = idx.size
-        E_sums = np.zeros((m, J))
-        sizes = np.zeros(J)
-        ey = np.zeros(J)
+        G = np.zeros((m + J, m + J))
+        g = np.zeros(m + J)
         start = 0
         for j, b in enumerate(blocks):
-            rows = slice(start, start + b.shape[0])
-            E_sums[:, j] = Zl[rows].sum(axis=0)
-            sizes[j] = b.shape[0]
-            ey[j] = y[rows].sum()
+            yb = np.ascontiguousarray(y[start : start + b.shape[0]])
+            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(b[:, idx]), yb)
+            G[:m, :m] += Gb
+            G[:m, m + j] = sb
+            G[m + j, :m] = sb
+            G[m + j, m + j] = b.shape[0]
+            g[:m] += gb
+            g[m + j] = yb.sum()
             start += b.shape[0]
-        G = np.zeros((m + J, m + J))
-        G[:m, :m] = Zl.T @ Zl
-        G[:m, m:] = E_sums
-        G[m:, :m] = E_sums.T
-        G[m:, m:] = np.diag(sizes)
-        g = np.concatenate([Zl.T @ y, ey])
         yy = float(y @ y)
         Gfit = G
         if self.ridge > 0 and not classical:
