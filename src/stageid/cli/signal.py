@@ -13,7 +13,6 @@ from typing import Any
 import click
 
 from .._errors import SignalError
-from ..signals import SIGNAL_KINDS, generate, signal_parameters
 
 _EXAMPLES = {
     "chirp": "stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 --amplitude 20 --offset 20 --name Z -o z_chirp.csv",
@@ -66,6 +65,8 @@ def _param_help(func: Any) -> dict[str, str]:
 
 
 def _make_command(kind: str) -> click.Command:
+    from ..signals import SIGNAL_KINDS, signal_parameters
+
     params = signal_parameters(kind)
     helps = _param_help(SIGNAL_KINDS[kind])
     options: list[click.Parameter] = []
@@ -88,6 +89,7 @@ def _make_command(kind: str) -> click.Command:
         import numpy as np
 
         from ..data.io import write_csv, write_npz
+        from ..signals import generate
 
         output = kwargs.pop("output")
         names = [s.strip() for s in kwargs.pop("names").split(",")]
@@ -111,10 +113,20 @@ def _make_command(kind: str) -> click.Command:
     return click.Command(kind, params=options, callback=callback, help=summary, short_help=summary, epilog=epilog)
 
 
-@click.group("signal", epilog="\b\nExamples:\n  " + "\n  ".join(_EXAMPLES.values()))
+class _SignalGroup(click.Group):
+    """Builds the per-kind sub-commands on first use, so other commands start fast."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        from ..signals import SIGNAL_KINDS
+
+        return list(SIGNAL_KINDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        from ..signals import SIGNAL_KINDS
+
+        return _make_command(name) if name in SIGNAL_KINDS else None
+
+
+@click.group("signal", cls=_SignalGroup, epilog="\b\nExamples:\n  " + "\n  ".join(_EXAMPLES.values()))
 def signal_command() -> None:
     """Write an excitation signal (one column per channel, plus `t` when dt is known)."""
-
-
-for _kind in SIGNAL_KINDS:
-    signal_command.add_command(_make_command(_kind))

@@ -6,7 +6,6 @@ from dataclasses import dataclass, replace
 from typing import Any, Callable, Sequence
 
 import numpy as np
-import scipy.signal as ss
 
 from .._errors import ModelError
 from ._validate import as_dt, as_names, frequency_variable
@@ -200,7 +199,7 @@ class TransferMatrix:
                 den = _strip(np.asarray(self.den[i][j]))
                 num = _strip(np.asarray(self.num[i][j]))
                 num = np.concatenate([np.zeros(den.size - num.size), num])
-                y[:, i] += ss.lfilter(num, den, uu[:, j])
+                y[:, i] += _signal().lfilter(num, den, uu[:, j])
         return y
 
     # ------------------------------------------------------------ conversion
@@ -239,7 +238,7 @@ class TransferMatrix:
                     nrow.append(np.array([siso.D[0, 0]]))
                     drow.append(np.array([1.0]))
                     continue
-                b, a = ss.ss2tf(siso.A, siso.B, siso.C, siso.D)
+                b, a = _signal().ss2tf(siso.A, siso.B, siso.C, siso.D)
                 nrow.append(np.real_if_close(b[0]).astype(float))
                 drow.append(np.real_if_close(a).astype(float))
             num.append(nrow)
@@ -305,6 +304,13 @@ class TransferMatrix:
         return dumps(self.to_dict())
 
 
+def _signal():
+    """scipy.signal, imported on first use (it costs about a second at start-up)."""
+    import scipy.signal
+
+    return scipy.signal
+
+
 def _siso_ss(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     d = _strip(np.asarray(den, dtype=float))
     n = _strip(np.asarray(num, dtype=float))
@@ -312,5 +318,5 @@ def _siso_ss(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[n[-1] / d[0] if n.size == 1 else 0.0]])
     if not np.any(n):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.zeros((1, 1))
-    a, b, c, dd = ss.tf2ss(n, d)
+    a, b, c, dd = _signal().tf2ss(n, d)
     return a, b, c, dd

@@ -7,7 +7,6 @@ the same signal comes back; they draw from ``np.random.default_rng(seed)`` only.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import max_len_seq
 
 from .._errors import SignalError
 from ._common import (
@@ -245,6 +244,8 @@ def prbs(
                 f"bits (limit {_MAX_GENERATED_BITS}); got too large an `order` for "
                 f"n_samples={n} (use a smaller order or the default)."
             )
+        from scipy.signal import max_len_seq  # imported here: scipy.signal is slow to import
+
         base, _ = max_len_seq(m, state=state, length=length)
         idx = np.arange(n_bits)
         bits = np.stack([base[(idx + j * shift) % period] for j in range(n_ch)], axis=1)
