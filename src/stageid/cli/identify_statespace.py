@@ -44,9 +44,11 @@ Examples:
               help="frequency: in-band realisation (robust to band-limited data); markov: Lemma 1 on Markov parameters.")
 @click.option("--band", "band_text", default=None, help="Band FMIN:FMAX in Hz for the realisation (default: the excited band).")
 @click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.lti/1).")
+@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
+              help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.")
 def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: float | None, order_text: str,
                        horizon_text: str, method: str, per_channel: bool, forgetting: float, realization: str,
-                       band_text: str | None, output: str) -> None:
+                       band_text: str | None, output: str, report_dir: str | None) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
 
     Several DATA files are several records of the same stage (e.g. one per excited input).
@@ -84,3 +86,24 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
     for w in caught:
         click.echo(f"stageid: warning: {w.message}", err=True)
     click.echo(result.summary(), err=True)
+    if report_dir is not None:
+        from .report import write_report
+
+        def extra(report, metrics):
+            import numpy as np
+
+            from ..plots.subspace import bode_with_bands, selection_plot
+
+            lo, hi = result.diagnostics.get("band_hz") or (0.01 / result.model.dt, 0.45 / result.model.dt)
+            f = np.geomspace(max(lo, 1e-3), hi, 300)
+            report.section("Hankel-MAP diagnostics")
+            report.paragraph(result.summary())
+            report.figure(bode_with_bands(result, f), "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.")
+            for ch in result.channels:
+                for table in (ch.horizon_table, ch.order_table):
+                    if table is not None:
+                        report.figure(selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
+                                      f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.")
+
+        path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra)
+        click.echo(f"report written to {path}", err=True)

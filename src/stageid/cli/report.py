@@ -9,11 +9,17 @@ import click
 from ._common import read_experiments, split_names
 
 
-def write_report(model, experiments, out_dir: str, title: str | None = None) -> Path:
-    """Build the model report and write ``index.html`` and ``metrics.json`` into ``out_dir``."""
+def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None) -> Path:
+    """Build the model report and write ``index.html`` and ``metrics.json`` into ``out_dir``.
+
+    ``extra(report, metrics)``, when given, adds method-specific sections (the ``identify``
+    verbs' ``--report`` uses it for uncertainty bands, selection plots, ...).
+    """
     from ..report import model_report, write_metrics
 
     report, metrics = model_report(model, experiments, title)
+    if extra is not None:
+        extra(report, metrics)
     path = report.write(out_dir)
     write_metrics(out_dir, metrics)
     return path
