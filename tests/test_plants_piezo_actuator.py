@@ -69,3 +69,15 @@ def test_dynamics_option_keeps_dc_gain():
     static = model().simulate(u)[:, 0]
     assert y[-1] == pytest.approx(static[-1], rel=1e-6)
     assert not np.allclose(y[:150], static[:150])
+
+
+def test_model_file_round_trip(tmp_path):
+    from stageid.models import load_model
+    from stageid.models.serialization import dumps, save_model
+
+    act = PiezoActuator(quad=0.03, c=(0.3, 0.1), f_n=None)
+    save_model(act, tmp_path / "act.json")
+    back = load_model(tmp_path / "act.json")
+    assert dumps(back.to_dict()) == (tmp_path / "act.json").read_text()
+    u = triangle(1.0, 1.0, 1e-3, amplitude=400.0)
+    np.testing.assert_array_equal(back.simulate(u), act.simulate(u))

@@ -105,9 +105,8 @@ def pi_inverse(model: PIModel) -> PIModel:
     w_inv = np.empty_like(w)
     w_inv[0] = 1.0 / W[0]
     w_inv[1:] = 1.0 / W[1:] - 1.0 / W[:-1]
-    limits = None
     return PIModel(r=r_inv, weights=w_inv, input_offset=model.output_offset, output_offset=model.input_offset,
-                   state=inverse_state(model), inputs=model.outputs, outputs=model.inputs, input_limits=limits)
+                   state=inverse_state(model), inputs=model.outputs, outputs=model.inputs)
 
 
 def _packed(model: ModifiedPIModel | PIModel) -> np.ndarray:

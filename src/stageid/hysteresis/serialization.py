@@ -79,6 +79,10 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     if d.get("format") != HYSTERESIS_FORMAT:
         raise ModelFormatError(f"`format` must be {HYSTERESIS_FORMAT!r}; got {d.get('format')!r}.")
     kind = d.get("kind")
+    if kind == "piezo-actuator":  # the reference actuator of stageid.plants (not a PI model)
+        from ..plants.piezo_actuator import PiezoActuator
+
+        return PiezoActuator.from_dict(d)
     if kind not in _KEYS:
         raise ModelFormatError(f"`kind` must be \"pi\" or \"modified-pi\"; got {kind!r}.")
     for key in _KEYS[kind]:

@@ -118,6 +118,31 @@ class PiezoActuator:
                                weights=np.r_[self.lin, w])
         object.__setattr__(self, "_bank", bank)
 
+    _PARAMS = ("n_fine", "density", "hysteresis_weight", "lin", "c", "a", "b", "gain", "quad", "cubic", "noise", "f_n", "zeta")
+
+    def to_dict(self) -> dict:
+        """The ``stageid.hysteresis/1`` dictionary (kind ``"piezo-actuator"``: the parameters)."""
+        params = {}
+        for name in self._PARAMS:
+            v = getattr(self, name)
+            params[name] = list(v) if isinstance(v, tuple) else v
+        return {"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs": list(self.inputs),
+                "outputs": list(self.outputs), "parameters": params}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PiezoActuator":
+        """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field."""
+        from .._errors import ModelFormatError
+
+        params = d.get("parameters")
+        if not isinstance(params, dict) or set(params) - set(cls._PARAMS):
+            raise ModelFormatError(f"`parameters` of a piezo-actuator model must be an object with keys among {', '.join(cls._PARAMS)}.")
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
+        try:
+            return cls(**kw, inputs=tuple(d.get("inputs", ["V"])), outputs=tuple(d.get("outputs", ["y"])))
+        except (TypeError, ValueError) as exc:
+            raise ModelFormatError(f"bad piezo-actuator parameters: {exc}") from None
+
     def hysteresis(self, u: object) -> np.ndarray:
         """The normalised hysteresis ``s`` (before the static polynomial), shape (n_samples,)."""
         return self._bank.simulate(u)[:, 0] / V_MAX
