@@ -1,4 +1,4 @@
-"""The ``stageid.hysteresis/1`` JSON format of PI and modified-PI models.
+"""The ``stageid.hysteresis/1`` JSON format of PI and modified-PI models (and the reference actuator).
 
 ::
 
@@ -11,6 +11,10 @@
      "weights": [...],
      "state": {"x": 0.0, "z": [...]},         # operator state to start from
      "input_limits": [lo, hi] | null}         # drive range (compensator default)
+
+The reference actuator of :mod:`stageid.plants.piezo_actuator` (not a PI model) is stored as
+``{"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs", "outputs",
+"parameters": {...}}``.
 
 Written by :func:`stageid.models.serialization.dumps`, which is byte-stable:
 ``dumps(model_from_dict(json.loads(text)).to_dict()) == text``.
