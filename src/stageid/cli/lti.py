@@ -31,28 +31,35 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
 
     model = load_model(model_path)
     model_dt = getattr(model, "dt", None)
-    table = read_table(input_path, ts=ts if ts is not None else _default_ts(input_path, model_dt))
+    rate_independent = not hasattr(model, "frequency_response")  # hysteresis models need no sample time
+    file_ts = ts if ts is not None else _default_ts(input_path, model_dt, rate_independent)
+    table = read_table(input_path, ts=file_ts)
     u = np.column_stack([table.column(name) for name in model.inputs])
-    if model_dt is not None and table.dt is not None and not np.isclose(table.dt, model_dt, rtol=1e-6):
+    if model_dt is not None and not np.isclose(table.dt, model_dt, rtol=1e-6):
         raise DataError(f"the input's sample time {table.dt:g} s differs from the model's {model_dt:g} s.")
-    if table.dt is None:
-        raise DataError(f"'{input_path}' has no `t` column; give its sample time with --ts.")
     y = model.simulate(u, dt=table.dt)
     columns = {name: y[:, k] for k, name in enumerate(model.outputs)}
-    write_csv(output, columns, dt=table.dt, t0=table.t0)
+    if rate_independent and ts is None and file_ts is not None:
+        write_csv(output, columns)  # the input had no time axis: none is invented for the output
+    else:
+        write_csv(output, columns, dt=table.dt, t0=table.t0)
 
 
-def _default_ts(path: str, model_dt: float | None) -> float | None:
-    """The model's dt when the file has no time column (read_table rejects ts that disagrees with `t`)."""
-    if model_dt is None:
-        return None
+def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> float | None:
+    """A sample time for a file without a `t` column: the model's dt, or 1 for a rate-independent model.
+
+    None when the file has its own time axis (read_table rejects a ts that disagrees with `t`).
+    """
     from ..data.io import read_table
 
+    fallback = model_dt if model_dt is not None else (1.0 if rate_independent else None)
+    if fallback is None:
+        return None
     try:
         read_table(path, ts=None)
     except DataError as exc:
-        if "sample time" in str(exc) or "ts" in str(exc):
-            return model_dt
+        if "time column" in str(exc) or "sample time" in str(exc):
+            return fallback
         raise
     return None
 
