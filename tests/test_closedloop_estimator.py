@@ -97,3 +97,12 @@ def test_fit_errors() -> None:
     flat = Experiment(np.zeros((500, 1)), np.zeros((500, 1)), DT)
     with pytest.raises(DataError, match="no excited reference"):
         ClosedLoopIdentification(_siso_controller()).fit(flat)
+
+
+def test_full_structure_siso_matches_the_plant_in_band() -> None:
+    res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 8), structure="full",
+                                   continuous=False).fit(_siso_experiment(6))
+    f = np.geomspace(20.0, 300.0, 60)
+    Gt = G_SISO.c2d(DT).frequency_response(f)
+    assert np.max(np.abs(res.plant.frequency_response(f) - Gt) / np.abs(Gt)) < 0.01
+    assert res.plant.dt == DT and res.structure == "full"

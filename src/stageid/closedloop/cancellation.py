@@ -161,7 +161,7 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
         raise IdentificationError("cancel_entries works on the discrete deduced plant; got a continuous model.")
     dt = plant.dt
     f_ref = 0.1 / (2 * dt) if f_ref_hz is None else float(f_ref_hz)
-    zr = np.exp(2j * np.pi * f_ref * dt)
+    f_grid = np.geomspace(max(f_ref / 100, 1e-3 / dt), 0.45 / dt, 400)
     reports = []
     num_rows, den_rows = [], []
     for i in range(plant.n_outputs):
@@ -171,9 +171,9 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
             g = minimal_realization(g, minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(g.A, 2)))
             poles, zeros = _siso_pz(g)
             kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
-            target = complex(_entry_response(plant, i, j, f_ref))
-            base = (np.prod(zr - kz) if kz.size else 1.0) / (np.prod(zr - kp) if kp.size else 1.0)
-            gain = float(np.real(target / base)) if abs(base) > 0 else 0.0
+            # rebuild the numerator over a wide grid with the kept poles fixed (linear least squares on
+            # the entry's own response): robust when a pencil zero of a large entry is inaccurate
+            kz, gain = _refit_numerator(plant, i, j, kp, kz.size, f_grid)
             rep = EntryPoleZero(i, j, poles, zeros, kp, kz, gain, pairs)
             reports.append(rep)
             num, den = rep.polynomials()
@@ -182,6 +182,30 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
         num_rows.append(nr)
         den_rows.append(dr)
     return TransferMatrix(num_rows, den_rows, dt, plant.inputs, plant.outputs), tuple(reports)
+
+
+def _refit_numerator(plant: StateSpaceModel, i: int, j: int, kept_poles: np.ndarray, n_zeros: int,
+                     f_grid: np.ndarray) -> tuple[np.ndarray, float]:
+    """Zeros and gain of entry ``(i, j)`` given its kept poles: ``N(z) = G(z) D(z)`` fitted in the
+    relative sense over ``f_grid``; the numerator degree is ``n_zeros``, raised if needed up
+    to ``n_poles - 1`` (strictly proper) until the fit stops improving by 10x."""
+    z = np.exp(2j * np.pi * f_grid * plant.dt)
+    G = np.array([_entry_response(plant, i, j, f) for f in f_grid])
+    den = np.real(np.poly(kept_poles)) if kept_poles.size else np.array([1.0])
+    target = G * np.polyval(den, z)
+    w = 1.0 / np.maximum(np.abs(target), 1e-300)
+    best = None
+    for deg in range(min(n_zeros, max(kept_poles.size - 1, 0)), max(kept_poles.size - 1, 0) + 1):
+        V = np.vander(z, deg + 1) * w[:, None]
+        b, *_ = np.linalg.lstsq(np.vstack([V.real, V.imag]), np.concatenate([(target * w).real, (target * w).imag]), rcond=None)
+        err = float(np.max(np.abs(np.polyval(b, z) - target) * w))
+        if best is None or err < 0.1 * best[0]:
+            best = (err, b)
+    b = best[1] if best is not None else np.array([0.0])
+    nz = np.flatnonzero(np.abs(b) > 1e-14 * np.max(np.abs(b))) if np.any(b) else np.array([0])
+    b = b[nz[0]:] if nz.size else b
+    zeros = np.roots(b) if b.size > 1 else np.zeros(0, complex)
+    return zeros, float(b[0])
 
 
 def _entry_response(plant: StateSpaceModel, i: int, j: int, f_hz: float) -> complex:

@@ -282,7 +282,14 @@ class ClosedLoopIdentification:
         with np.errstate(all="ignore"):
             M_pre = (M if Mr is None else Mr).frequency_response(f_pre)
         ok = np.all(np.isfinite(M_pre), axis=(1, 2))
-        deduce_response(np.zeros_like(M_pre[ok]), M_pre[ok], None, f_pre[ok])
+        sv = np.linalg.svd(M_pre[ok], compute_uv=False)
+        bad = np.flatnonzero(sv[:, -1] <= 1e-6 * sv[:, 0].max())
+        if bad.size:
+            k = int(bad[0])
+            raise IdentificationError(
+                f"the plant deduction G = T (M - M T)^-1 is singular at {f_pre[ok][k]:.6g} Hz: the controller itself is singular "
+                f"there (smallest singular value {sv[k, -1]:.3g}, {sv[k, -1] / sv[:, 0].max():.2g} of its peak gain)."
+            )
         groups: dict[int, list[Experiment]] = {}
         for e in exps:
             groups.setdefault(excited_reference(e), []).append(e)
@@ -351,6 +358,12 @@ class ClosedLoopIdentification:
                     _zoh_matrix(plant, dt, f_band))
             eps = np.max(np.abs(np.abs(P_band) - np.abs(resp)) / np.abs(P_band), axis=0)
             eps_c = np.max(np.abs(P_band - resp) / np.abs(P_band), axis=0)
+            if eps_c.max() > 0.05:
+                i, j = np.unravel_index(int(np.argmax(eps_c)), eps_c.shape)
+                raise IdentificationError(
+                    f"the cancelled full-order model of entry ({i}, {j}) misses the deduced response by {100 * eps_c[i, j]:.1f} % "
+                    f"over {lo:g}-{hi:g} Hz (expected < 5 %): its pole-zero cancellation is unreliable; use a reduced structure."
+                )
         else:
             orders = paper_orders(p) if self.structure == "paper" else dict(self.structure)  # type: ignore[arg-type]
             nums, dens = [[None] * p for _ in range(p)], [[None] * p for _ in range(p)]
