@@ -27,7 +27,7 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
     from ._common import is_interactive
 
     workflows = only or WORKFLOWS
-    stages = {"piezo_stage": 5, "maglev": 2, "hysteresis": 3}
+    stages = {"piezo_stage": 5, "maglev": 2, "hysteresis": 4}
     bar = tqdm(total=sum(stages[w] for w in workflows), desc="stageid demo", unit="step", file=click.get_text_stream("stderr"),
                bar_format="{desc}: {n_fmt}/{total_fmt} [{elapsed}] {postfix}", disable=not is_interactive())
     first = [True]
