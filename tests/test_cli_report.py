@@ -36,3 +36,17 @@ def test_identify_statespace_report(tmp_path):
     html = (tmp_path / "rep" / "index.html").read_text()
     assert "Hankel-MAP diagnostics" in html
     assert html.count("<img src='data:image/png;base64,") >= 4  # Bode, pole-zero, simulation, posterior bands
+
+
+def test_identify_hysteresis_report(tmp_path):
+    from stageid.data.io import write_csv as write
+    from stageid.plants.piezo_actuator import EXPERIMENTS
+
+    write(tmp_path / "ident.csv", EXPERIMENTS["decaying-triangle"](seed=0))
+    rc = main(["identify", "hysteresis", str(tmp_path / "ident.csv"), "--input", "V", "--output", "y", "--model", "pi",
+               "--operators", "10", "-o", str(tmp_path / "h.json"), "--report", str(tmp_path / "rep"), "--quiet"])
+    assert rc == 0
+    html = (tmp_path / "rep" / "index.html").read_text()
+    assert html.count("<img src='data:image/png;base64,") == 1 and "Identification" in html
+    metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert 0.0 < metrics["max_error_percent_range/ident.csv"] < 15.0  # classical PI on a non-PI actuator: a few %

@@ -29,8 +29,10 @@ Examples:
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option("-o", "--output-file", "out", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.hysteresis/1 JSON).")
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
+@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
+              help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.")
 def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str, n_operators: int,
-             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool) -> None:
+             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool, report_dir: str | None) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
@@ -48,3 +50,16 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
         atomic_write_text(tmp, text)
     if not quiet:
         click.echo(fit.summary())
+    if report_dir is not None:
+        from .report import write_report
+
+        def extra(report, metrics):
+            report.section("Identification")
+            report.paragraph(fit.summary())
+
+        # the model starts from the zero state at 0 input with the first record's offset; other
+        # records' sensor zeros differ, so each is shown against the model shifted to its fitted offset
+        records = [e.with_(y=e.y - (off - fit.output_offsets[0]), input_names=tuple(fit.model.inputs),
+                           output_names=tuple(fit.model.outputs)) for e, off in zip(exps, fit.output_offsets)]
+        path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra)
+        click.echo(f"report written to {path}", err=True)
