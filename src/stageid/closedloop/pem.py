@@ -506,7 +506,7 @@ def select_order(
     best_score = np.inf
     last_error: Exception | None = None
     orders = [int(n) for n in orders]
-    if screen and structure == "oe" and len(orders) > 3:
+    if screen and structure in ("oe", "bj") and len(orders) > 3:
         segs = _segments(u, y)
         N = sum(s_[0].size for s_ in segs)
         screen_scores = {}
