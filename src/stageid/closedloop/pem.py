@@ -476,8 +476,8 @@ def select_order(
     criterion : {"bic", "aic"}
         ``N log(V) + k log(N)`` (BIC) or ``N log(V) + 2 k`` (AIC), ``k`` the number of parameters.
     screen : bool
-        For OE: rank the orders by the criterion of cheap Steiglitz-McBride estimates and
-        run the prediction-error optimisation only for the winner (and its neighbours);
+        For OE and BJ: rank the orders by the criterion of cheap Steiglitz-McBride estimates and
+        run the prediction-error optimisation only for the winner;
         otherwise every order is optimised.
 
     Returns
