@@ -41,9 +41,11 @@ Examples:
 @click.option("--method", type=click.Choice(["oe", "armax", "bj", "arx"]), default="oe", show_default=True,
               help="Closed-loop model structure of eq. 12.")
 @click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1).")
+@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
+              help="Also write an HTML report (plant Bode and pole-zero maps, closed loop vs FFT estimate, re-closed loop).")
 def closedloop_command(experiments: tuple[str, ...], references: str, outputs: str, controller_path: str,
                        plant_inputs: str | None, ts: float | None, band_text: str, structure: str, discrete: bool,
-                       method: str, output: str) -> None:
+                       method: str, output: str, report_dir: str | None) -> None:
     """Identify an open-loop-unstable plant from closed-loop experiments (Shakir & Kim).
 
     Each EXP file excites one reference; the closed loop r -> y is identified pair by pair,
@@ -122,3 +124,44 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
     with atomic_output(output) as tmp:
         save_model(result.plant, tmp)
     click.echo(result.summary(), err=True)
+    if report_dir is not None:
+        _write_report(result, exps, result.controller, report_dir)
+
+
+def _write_report(result, exps, controller, report_dir: str) -> None:
+    """Closed-loop identification report: the figures of the paper's Figs. 4, 6, 7 and 8."""
+    import numpy as np
+
+    from ..closedloop import empirical_transfer, reclose_loop
+    from ..plots import time_overlay_figure
+    from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero
+    from ..report import Report, write_metrics
+    from ..validation import fit_percent
+
+    dt = result.dt
+    report = Report("Closed-loop identification")
+    metrics = {"band_error_percent": (100 * np.asarray(result.band_error)).tolist(),
+               "unstable_poles_rad_s": [float(p.real) for p in np.asarray(result.plant_unstable_poles)]}
+    report.section("Identified plant")
+    report.paragraph(result.summary())
+    report.figure(plot_plant_bode(result, np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300)),
+                  "Identified plant: reduced fit and full-order deduction (eq. 18).")
+    report.figure(plot_pole_zero(result, (0, 0)), "Pole-zero map of the first diagonal entry before and after cancellation.")
+    report.section("Validation against the data")
+    for e in exps:
+        j = int(np.argmax(np.std(e.u, axis=0)))
+        ff = np.geomspace(max(1.0 / e.duration, 0.1), 0.45 / dt, 300)
+        fe, etfe = empirical_transfer(e.u[:, j], e.y, dt, band=(ff[0], ff[-1]))
+        report.figure(plot_closed_loop_bode(ff, result.closed_loop.frequency_response(ff)[:, j, j], (fe, etfe[:, j]),
+                                            title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}"),
+                      f"{e.name}: identified closed loop beside the empirical transfer function of the record.")
+        ysim, _ = reclose_loop(result.plant, controller, e.u, dt)
+        fit = fit_percent(e.y, ysim)
+        for name, v in zip(e.output_names, fit):
+            metrics[f"reclosed_fit_percent/{e.name}/{name}"] = float(v)
+        report.figure(time_overlay_figure(e.time, e.y, {"re-closed loop": ysim}, e.output_names, e.output_units,
+                                          title=f"{e.name}: identified plant re-closed with the known controller"),
+                      f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).")
+    path = report.write(report_dir)
+    write_metrics(report_dir, metrics)
+    click.echo(f"report written to {path}", err=True)
