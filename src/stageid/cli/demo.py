@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 import click
@@ -28,7 +29,7 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
 
     workflows = only or WORKFLOWS
     stages = {"piezo_stage": 5, "maglev": 2, "hysteresis": 4}
-    bar = tqdm(total=sum(stages[w] for w in workflows), desc="stageid demo", unit="step", file=click.get_text_stream("stderr"),
+    bar = tqdm(total=sum(stages[w] for w in workflows), desc="stageid demo", unit="step", file=sys.stderr,
                bar_format="{desc}: {n_fmt}/{total_fmt} [{elapsed}] {postfix}", disable=not is_interactive())
     first = [True]
     start = time.perf_counter()
