@@ -151,3 +151,20 @@ def test_signal_writes_chirp_of_the_paper(tmp_path):
 def test_help_shows_examples():
     rc, out, err = run_cli("--help")
     assert rc == 0 and "Examples:" in out and "identify" in out
+
+
+def test_logger_time_jitter_is_accepted_but_a_missing_sample_is_not(tmp_path, discrete_model):
+    # single-precision time stamps scatter by ~1e-4 of dt (real dSPACE/EMPS records); a dropped sample is a 100 % step
+    g, model_path = discrete_model
+    n = 200
+    t = (np.arange(n) * 0.002).astype(np.float32).astype(float) + 0.002 * 1e-4 * np.sin(np.arange(n))
+    u = np.random.default_rng(15).standard_normal((n, 2))
+    rows = ["t,Z,Rx"] + [f"{float(t[k])!r},{float(u[k, 0])!r},{float(u[k, 1])!r}" for k in range(n)]
+    (tmp_path / "jitter.csv").write_text("\n".join(rows) + "\n")
+    assert main(["simulate", str(model_path), str(tmp_path / "jitter.csv"), "-o", str(tmp_path / "y.csv")]) == 0
+    np.testing.assert_allclose(read_table(tmp_path / "y.csv").values, g.simulate(u), atol=1e-12)
+    del rows[51]  # drop data row 50
+    (tmp_path / "gap.csv").write_text("\n".join(rows) + "\n")
+    rc, out, err = run_cli("simulate", model_path, tmp_path / "gap.csv", "-o", tmp_path / "y2.csv")
+    assert_one_line_error(rc, err)
+    assert not (tmp_path / "y2.csv").exists()

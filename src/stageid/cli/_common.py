@@ -30,11 +30,20 @@ def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
     return names
 
 
+# Data loggers often store time stamps in single precision: their steps scatter by ~1e-4 of dt
+# (the dSPACE and EMPS records in shared/data). A missing or repeated sample is still a
+# deviation of 100 % and is rejected.
+CLI_TIME_RTOL = 1e-3
+
+
 def read_table_checked(path: str | os.PathLike[str], ts: float | None):
-    """Read a CSV/NPZ/MAT file into a :class:`~stageid.data.io.Table` (``ts`` when no ``t`` column)."""
+    """Read a CSV/NPZ/MAT file into a :class:`~stageid.data.io.Table` (``ts`` when no ``t`` column).
+
+    The time axis must be uniform to ``CLI_TIME_RTOL`` of the sample time.
+    """
     from ..data.io import read_table
 
-    return read_table(path, ts=ts)
+    return read_table(path, ts=ts, time_rtol=CLI_TIME_RTOL)
 
 
 def read_experiments(paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str], ts: float | None):

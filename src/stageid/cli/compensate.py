@@ -26,11 +26,11 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     Classical PI models use their closed-form inverse; modified PI models are inverted sample
     by sample (exact to 1e-12). The drive starts from the model's stored state.
     """
-    from ..data.io import read_table, write_csv
+    from ..data.io import write_csv
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
     from ..models import load_model
-    from ._common import split_names
+    from ._common import read_table_checked, split_names
 
     model = load_model(model_path)
     if not isinstance(model, (PIModel, ModifiedPIModel)):
@@ -44,7 +44,7 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
             raise click.UsageError(f"--limits must be two numbers LOW,HIGH; got {limits!r}.") from None
         if len(lim) != 2 or not lim[0] < lim[1]:
             raise click.UsageError(f"--limits must be two numbers LOW,HIGH with LOW < HIGH; got {limits!r}.")
-    table = read_table(ref_path, ts=ts)
+    table = read_table_checked(ref_path, ts=ts)
     yref = table.column(column)
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")

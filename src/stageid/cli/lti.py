@@ -26,14 +26,15 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     """
     import numpy as np
 
-    from ..data.io import read_table, write_csv
+    from ..data.io import write_csv
+    from ._common import read_table_checked
     from ..models import load_model
 
     model = load_model(model_path)
     model_dt = getattr(model, "dt", None)
     rate_independent = not hasattr(model, "frequency_response")  # hysteresis models need no sample time
     file_ts = ts if ts is not None else _default_ts(input_path, model_dt, rate_independent)
-    table = read_table(input_path, ts=file_ts)
+    table = read_table_checked(input_path, ts=file_ts)
     u = np.column_stack([table.column(name) for name in model.inputs])
     if model_dt is not None and not np.isclose(table.dt, model_dt, rtol=1e-6):
         raise DataError(f"the input's sample time {table.dt:g} s differs from the model's {model_dt:g} s.")
@@ -50,13 +51,13 @@ def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> fl
 
     None when the file has its own time axis (read_table rejects a ts that disagrees with `t`).
     """
-    from ..data.io import read_table
+    from ._common import read_table_checked
 
     fallback = model_dt if model_dt is not None else (1.0 if rate_independent else None)
     if fallback is None:
         return None
     try:
-        read_table(path, ts=None)
+        read_table_checked(path, ts=None)
     except DataError as exc:
         if "time column" in str(exc) or "sample time" in str(exc):
             return fallback
