@@ -68,13 +68,13 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     u = ident.u[:, 0]
     report.figure(loop_figure(u, {"actuator": ident.y[:, 0], "classical PI": fits["pi"].model.simulate(ident.u)[:, 0],
                                   "modified PI": fits["modified-pi"].model.simulate(ident.u)[:, 0]},
-                              title="Identification record: measured and modelled loops (Figs. 5-7)"),
+                              title="Loops on the identification record (Figs. 5-7)"),
                   "Hysteresis loops of the actuator and both models on the decaying-triangle identification record; input V [V], output [um].")
     report.figure(model_errors_figure(valid.time, {k: valid.y[:, 0] - preds[k] for k in fits}, title="Modelling error on the validation triangle (Fig. 8)"),
                   "Modelling error [um] of the classical PI, the letter's modified PI and the modified PI with input warp on the 1 Hz validation triangle.")
     t = np.arange(y_ref.size) * dt
     report.figure(loop_figure(y_ref, outputs, xlabel="desired output [um]", ylabel="actual output [um]",
-                              title="Tracking loops before and after compensation (Figs. 10-12)"),
+                              title="Tracking loops (Figs. 10-12)"),
                   "Actual versus desired displacement without compensation and with the two inverse-model feedforwards.")
     report.figure(tracking_figure(t, y_ref, outputs["modified-PI inverse"], title="Modified-PI inverse feedforward"),
                   "Desired and actual output with the modified-PI inverse compensator, tracking error and hysteresis curve.")

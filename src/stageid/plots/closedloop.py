@@ -10,15 +10,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ._style import subplots
+
 __all__ = ["plot_plant_bode", "plot_closed_loop_bode", "plot_pole_zero", "plot_reclosed_loop"]
 
 
 def _figure(nrows: int, ncols: int, size: tuple[float, float]):
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=size, layout="constrained")
-    axes = np.atleast_2d(fig.subplots(nrows, ncols, squeeze=False))
-    return fig, axes
+    return subplots(nrows, ncols, figsize=size, squeeze=False)
 
 
 def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant: Any = None) -> Any:

@@ -10,15 +10,13 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ._style import subplots
+
 __all__ = ["loop_figure", "model_errors_figure", "tracking_figure"]
 
 
 def _figure(nrows: int, ncols: int, size: tuple[float, float]):
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=size, layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    return fig, axes
+    return subplots(nrows, ncols, figsize=size, squeeze=False)
 
 
 def _flat(a: Any) -> np.ndarray:

@@ -6,7 +6,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ._style import new_figure, pyplot
+from ._style import subplots
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 
@@ -38,10 +38,9 @@ def bode_figure(
     -------
     matplotlib.figure.Figure
     """
-    plt = pyplot()
     p, m = len(output_names), len(input_names)
     rows = 2 * p if phase else p
-    fig, axes = new_figure(plt, rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True)
+    fig, axes = subplots(rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True)
     styles = dict(styles or {})
     for label, H in responses.items():
         style = styles.get(label, "-")
@@ -80,8 +79,7 @@ def pzmap_figure(
 
     For discrete maps the unit circle is drawn; ``hz`` divides continuous values by 2 pi.
     """
-    plt = pyplot()
-    fig, ax = new_figure(plt, figsize=(6.0, 5.0))
+    fig, ax = subplots(figsize=(6.0, 5.0))
     markers = ["x", "+", "1", "2"]
     scale = 1.0 / (2 * np.pi) if (hz and continuous) else 1.0
     for k, (label, (poles, zeros)) in enumerate(models.items()):
@@ -126,11 +124,10 @@ def time_overlay_figure(
     predicted : mapping label -> ndarray of shape (n_samples, n_outputs)
     error_of : label whose error trace is drawn (default: the first)
     """
-    plt = pyplot()
     measured = np.asarray(measured).reshape(len(t), -1)
     n = measured.shape[1]
     units = list(units) if units else [""] * n
-    fig, axes = new_figure(plt, 2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True,
+    fig, axes = subplots(2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True,
                              gridspec_kw={"height_ratios": [2.2, 1.0]})
     key = error_of or next(iter(predicted), None)
     for j in range(n):

@@ -10,16 +10,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ._style import figure
+
 __all__ = ["bode_with_bands", "selection_plot", "error_curve"]
 
 
 def _figure(width: float, height: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height))
-    FigureCanvasAgg(fig)
-    return fig
+    return figure((width, height))
 
 
 def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_model: Any = None,

@@ -72,12 +72,9 @@ class Report:
         self.blocks.append(_Block("table", (list(header), [list(r) for r in rows], caption)))
 
     def figure(self, fig: Any, caption: str, dpi: int = 110) -> None:
-        """Embed a matplotlib figure (closed afterwards) with a caption."""
+        """Embed a matplotlib figure (rendered to PNG now) with a caption."""
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
-        import matplotlib.pyplot as plt
-
-        plt.close(fig)  # harmless for figures pyplot does not manage
         self.n_figures += 1
         self.blocks.append(_Block("figure", (base64.b64encode(buf.getvalue()).decode("ascii"), caption, self.n_figures)))
 

@@ -69,20 +69,19 @@ def _damping(p: complex, dt: float | None) -> float:
 
 def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model") -> tuple[Report, dict[str, Any]]:
     """Measured versus modelled input-output loops and the modelling error in % of range."""
-    from ..plots._style import new_figure, pyplot
+    from ..plots._style import subplots
 
     report = Report(title)
     metrics: dict[str, Any] = {}
     report.section("Model")
     report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
-    plt = pyplot()
     for k, exp in enumerate(records):
         u = exp.u[:, 0]
         y = exp.y[:, 0]
         y_hat = model.simulate(exp.u)[:, 0]
         err = 100.0 * np.max(np.abs(y - y_hat)) / np.ptp(y)
         metrics[f"max_error_percent_range/{exp.name or k}"] = float(err)
-        fig, (a, b) = new_figure(plt, 1, 2, figsize=(11, 4.2))
+        fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
         a.plot(u, y, color="0.2", lw=1.2, label="measured")
         a.plot(u, y_hat, "--", lw=1.0, label="model")
         a.set_xlabel(f"{model.inputs[0]} [{exp.input_units[0] or '-'}]")
