@@ -7,6 +7,7 @@
 
 import dataclasses
 import inspect
+import json
 
 import numpy as np
 import pytest
@@ -75,8 +76,10 @@ def test_fit_keeps_caller_data_and_returns_frozen_result(name):
     field = dataclasses.fields(result)[0].name
     with pytest.raises(dataclasses.FrozenInstanceError):
         setattr(result, field, None)
+    before = json.dumps(result.model.to_dict())
     second = est.fit(data(1))
-    assert second is not result
+    assert json.dumps(result.model.to_dict()) == before  # the first result is untouched by a second fit
+    assert json.dumps(second.model.to_dict()) != before  # and the second fit really used the new data
 
 
 def test_closed_loop_estimator_contract():
