@@ -81,9 +81,41 @@ def test_model_response_equals_truth_on_exact_data():
     np.testing.assert_allclose(G, Gt, atol=1e-6 * np.abs(Gt).max())
 
 
-def test_compiled_window_gram_equals_reference():
+def test_window_gram_from_lags_equals_reference():
     from stageid.subspace.hankel_toeplitz import _window_gram, _window_gram_python
 
     z = np.random.default_rng(2).standard_normal((90, 3))
     R = lag_correlations(z, 9)
     np.testing.assert_allclose(_window_gram(z, R, 5), _window_gram_python(z, R, 5), atol=1e-11)
+
+
+@pytest.mark.parametrize("horizon", [1, 4, 9])
+def test_segments_statistics_equal_the_sum_over_ranges_and_the_dense_regression(horizon):
+    from stageid.subspace.hankel_toeplitz import dense_regression, segments_statistics, window_statistics
+
+    rng = np.random.default_rng(horizon)
+    u, y = rng.standard_normal((700, 2)), rng.standard_normal((700, 3))
+    # adjacent, separated and minimal-length ranges (2 p + 1 samples: two windows)
+    ranges = [(0, 120), (120, 121 + 2 * horizon), (300, 430), (431, 700)]
+    s = segments_statistics(u, y, ranges, horizon)
+    total = None
+    XX = YX = 0.0
+    for a, b in ranges:
+        w = window_statistics(u[a:b], y[a:b], horizon)
+        total = w if total is None else total + w
+        X, Y = dense_regression(u[a:b], y[a:b], horizon)
+        XX, YX = XX + X.T @ X, YX + Y.T @ X
+    assert s.count == total.count == sum(b - a - 2 * horizon + 1 for a, b in ranges)
+    np.testing.assert_allclose(s.W, total.W, atol=1e-10 * np.abs(total.W).max())
+    np.testing.assert_allclose(s.blocks()[0], XX, atol=1e-10 * np.abs(XX).max())
+    np.testing.assert_allclose(s.blocks()[1], YX, atol=1e-10 * np.abs(YX).max())
+
+
+def test_segments_statistics_reject_short_ranges():
+    from stageid.subspace.hankel_toeplitz import segments_statistics
+
+    u, y = np.zeros((100, 1)), np.zeros((100, 1))
+    with pytest.raises(DataError, match="more than 10 samples; got 10"):
+        segments_statistics(u, y, [(0, 50), (60, 70)], 5)
+    with pytest.raises(DataError, match="at least one"):
+        segments_statistics(u, y, [], 5)

@@ -37,9 +37,9 @@ import numpy as np
 from .._errors import DataError, ExcitationWarning, IdentificationError, StabilityWarning
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, theta_frequency_response,
+from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, segments_statistics, theta_frequency_response,
                               theta_response_std)
-from .map_estimator import Posterior, Prior, batch_posterior, default_prior
+from .map_estimator import Posterior, Prior, _solve, batch_posterior, default_prior
 from .realization import era, fit_input_matrices, frequency_realization, markov_from_theta, refine_frequency_fit
 from .selection import SelectionTable, default_horizons, prediction_error, simulation_error
 
@@ -392,6 +392,21 @@ class HankelMAP:
         strength = DEFAULT_PRIOR_STRENGTH if self.prior is None else float(self.prior)
         return default_prior(stats, strength)
 
+    def _theta(self, stats: WindowStatistics) -> np.ndarray:
+        """The MAP (or least-squares) estimate alone, as :func:`batch_posterior` computes it
+        but without the posterior's residual and covariance (candidate horizons)."""
+        XX, YX, _ = stats.blocks()
+        prior = self._prior_for(stats)
+        if prior is None:
+            return _solve(XX, YX)
+        d = XX.shape[0]
+        if prior.theta0 is None and np.ndim(prior.precision) == 1:
+            info = XX.copy()
+            info[np.diag_indices(d)] += np.asarray(prior.precision, dtype=float)
+            return _solve(info, YX)
+        prec = prior.matrix(d)
+        return _solve(XX + prec, YX + prior.mean(YX.shape[0], d) @ prec)
+
     def _fit_group(self, recs, cols, order, dt, first: Experiment, prev: ChannelFit | None, notes: list[str]) -> ChannelFit:
         m = len(cols)
         q = first.n_outputs
@@ -485,12 +500,18 @@ class HankelMAP:
         for u, y in recs:
             tr, va = self._segments(u.shape[0])
             for ranges, acc, weight in ((tr, tops[0], lam), (va, tops[1], 1.0)):
+                groups: dict[int, list[tuple[int, int]]] = {}
                 for a, b in ranges:
                     usable = [p for p in cands if 2 * p + 1 <= b - a]
-                    if not usable:
-                        continue
-                    top = record_statistics(u[a:b], y[a:b], [usable[-1]], weight, with_spectrum=False)[usable[-1]]
-                    acc[top.horizon] = top if top.horizon not in acc else acc[top.horizon] + top
+                    if usable:
+                        groups.setdefault(usable[-1], []).append((a, b))
+                for ph, rngs in groups.items():
+                    if weight == 1.0:
+                        tops_ = [segments_statistics(u, y, rngs, ph)]
+                    else:  # forgetting: each range weighted on its own, as a record of its own
+                        tops_ = [record_statistics(u[a:b], y[a:b], [ph], weight, with_spectrum=False)[ph] for a, b in rngs]
+                    for top in tops_:
+                        acc[ph] = top if ph not in acc else acc[ph] + top
         for acc, target in zip(tops, (train, val)):
             for p in cands:
                 for ph, top in acc.items():
@@ -505,8 +526,7 @@ class HankelMAP:
             if p not in train or p not in val:
                 errors.append(float("inf"))
                 continue
-            post = batch_posterior(train[p], self._prior_for(train[p]))
-            errors.append(prediction_error(post.theta, val[p]))
+            errors.append(prediction_error(self._theta(train[p]), val[p]))
         if not np.isfinite(np.min(errors)):
             raise DataError("the records are too short to hold out data for choosing the horizon; give `horizon` explicitly.")
         best = cands[int(np.argmin(errors))]
@@ -580,7 +600,7 @@ class HankelMAP:
             B, D = fit_input_matrices(A, C, Gs, zs, self.feedthrough)
         cost = float("nan")
         if refine:
-            A, B, C, D, info = refine_frequency_fit(A, B, C, D, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter)
+            A, B, C, D, info = refine_frequency_fit(A, B, C, D, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=1e-3)
             cost = info["cost"] / max(float(np.sum(np.abs(Gs) ** 2)), 1e-300)
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
             raise IdentificationError(f"the realisation of order {order} is not finite.")

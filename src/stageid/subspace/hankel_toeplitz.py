@@ -17,6 +17,7 @@ both the batch least-squares and the MAP estimators.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -27,6 +28,7 @@ __all__ = [
     "lag_correlations",
     "window_statistics",
     "record_statistics",
+    "segments_statistics",
     "regressor_indices",
     "dense_regression",
     "split_theta",
@@ -149,10 +151,18 @@ class WindowStatistics:
                                 self.n_outputs, self.input_power, self.freqs, self.count)
 
     def blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(XX, YX, YY)``: ``sum x x^T``, ``sum y_p x^T`` and ``sum y_p y_p^T`` of eq. 9."""
+        """``(XX, YX, YY)``: ``sum x x^T``, ``sum y_p x^T`` and ``sum y_p y_p^T`` of eq. 9
+        (computed once per statistics object; read-only views)."""
+        return self._blocks
+
+    @cached_property
+    def _blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xi, yi = regressor_indices(self.horizon, self.n_inputs, self.n_outputs)
         W = self.W
-        return W[np.ix_(xi, xi)], W[np.ix_(yi, xi)], W[np.ix_(yi, yi)]
+        out = (W[np.ix_(xi, xi)], W[np.ix_(yi, xi)], W[np.ix_(yi, yi)])
+        for a in out:
+            a.flags.writeable = False
+        return out
 
 
 def regressor_indices(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
@@ -197,56 +207,63 @@ def _window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarra
     return W.transpose(0, 2, 1, 3).reshape(L * r, L * r)
 
 
-def _window_gram_kernel(z, R, horizon):  # pragma: no cover - compiled by numba
-    n, r = z.shape
-    L = 2 * horizon
-    K = n - L + 1
-    W = np.zeros((L * r, L * r))
-    cur = np.empty((r, r))
-    for c in range(L):
-        for i in range(r):
-            for j in range(r):
-                acc = R[c, i, j]
-                for t in range(K, n - c):
-                    acc -= z[t, i] * z[t + c, j]
-                cur[i, j] = acc
-        for a in range(L - c):
-            if a > 0:
-                for i in range(r):
-                    zi0 = z[a - 1, i]
-                    zi1 = z[a - 1 + K, i]
-                    for j in range(r):
-                        cur[i, j] += zi1 * z[a - 1 + c + K, j] - zi0 * z[a - 1 + c, j]
-            b = a + c
-            for i in range(r):
-                for j in range(r):
-                    W[a * r + i, b * r + j] = cur[i, j]
-    return W  # upper block triangle; the caller mirrors it
+def _diagonal_sums(M: np.ndarray, forward: bool) -> np.ndarray:
+    """Block-diagonal running sums of ``M`` (shape (L, L, r, r)).
+
+    ``forward``: ``S[a, b] = sum_{k=1}^{min(a, b)} M[a-k, b-k]``;
+    otherwise ``S[a, b] = sum_{k=1}^{L-1-max(a, b)} M[a+k, b+k]``.
+    """
+    L = M.shape[0]
+    S = np.zeros_like(M)
+    if forward:
+        for a in range(1, L):
+            S[a, 1:] = S[a - 1, :-1] + M[a - 1, :-1]
+    else:
+        for a in range(L - 2, -1, -1):
+            S[a, :-1] = S[a + 1, 1:] + M[a + 1, 1:]
+    return S
 
 
-_GRAM = None
+def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.ndarray:
+    """Exact window Gram matrix summed over segments, from their summed lag correlations.
+
+    For one segment ``s`` of ``n_s`` samples with ``K = n_s - L + 1`` windows of length
+    ``L``, block ``(a, b)`` (``b >= a``, ``c = b - a``) of ``sum_k w(k) w(k)^T`` is
+
+        R[c] - sum_{t < a} s(t) s(t+c)^T - sum_{t = K+a}^{n_s-1-c} s(t) s(t+c)^T,
+
+    i.e. the lag correlation minus products of the first and of the last ``L`` samples
+    only.  Both corrections are running sums along the block diagonals of
+    ``sum_segments h h^T`` (heads) and ``f f^T`` (tails), so any number of segments costs one
+    ``(L r) x (L r)`` product each plus ``O(L^2 r^2)``.
+
+    Parameters
+    ----------
+    R : ndarray of shape (L, r, r)
+        Lag correlations (lags 0 .. L-1) summed over the segments.
+    heads, tails : ndarray of shape (n_segments, L, r)
+        The first and the last ``L`` samples of each segment.
+
+    Returns
+    -------
+    ndarray of shape (L r, L r)
+    """
+    L, r, _ = R.shape
+    S = heads.shape[0]
+    lag = np.arange(L)[None, :] - np.arange(L)[:, None]  # b - a
+    Rext = np.concatenate([R[:0:-1].transpose(0, 2, 1), R])  # lags -(L-1) .. L-1
+    W = Rext[lag + L - 1]  # (L, L, r, r)
+    for block, forward in ((heads, True), (tails, False)):
+        H = block.reshape(S, L * r)
+        M = (H.T @ H).reshape(L, r, L, r).transpose(0, 2, 1, 3)
+        W -= _diagonal_sums(M, forward)
+    return np.ascontiguousarray(W.transpose(0, 2, 1, 3)).reshape(L * r, L * r)
 
 
 def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
-    """Exact ``sum_k w(k) w(k)^T`` from the lag correlations ``R`` (lags 0 .. 2p-1).
-
-    With ``K`` windows, ``W[0, c] = R[c] - sum_{t=K}^{n-1-c} z(t) z(t+c)^T`` and along each
-    diagonal ``W[a, a+c] = W[a-1, a-1+c] - z(a-1) z(a-1+c)^T + z(a-1+K) z(a-1+c+K)^T``
-    (the window sums lose their first and gain one last term): ``O(p^2 r^2)`` operations.
-    """
-    global _GRAM
-    if _GRAM is None:
-        import numba
-
-        _GRAM = numba.njit(cache=True, nogil=True)(_window_gram_kernel)
-    W = _GRAM(np.ascontiguousarray(z), np.ascontiguousarray(R), int(horizon))
-    # mirror the upper block triangle; the diagonal blocks were written whole
-    L, r = 2 * int(horizon), z.shape[1]
-    full = W + W.T
-    idx = np.arange(L)
-    F = full.reshape(L, r, L, r)
-    F[idx, :, idx, :] -= W.reshape(L, r, L, r)[idx, :, idx, :]
-    return full
+    """Exact ``sum_k w(k) w(k)^T`` of one record from its lag correlations ``R`` (lags 0 .. 2p-1)."""
+    L = 2 * int(horizon)
+    return _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L:])
 
 
 def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0,
@@ -331,6 +348,63 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
     return out
 
 
+def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: "list[tuple[int, int]]", horizon: int) -> WindowStatistics:
+    """Statistics of eq. 9 summed over the windows lying inside sample ranges of one record.
+
+    Equal to the sum of :func:`window_statistics` over ``u[a:b], y[a:b]`` for every range, but
+    with one FFT pass over all ranges (joined with zero gaps longer than the largest lag) and
+    one correction for all range ends, whatever their number (held-out splits).
+
+    Parameters
+    ----------
+    u : ndarray of shape (n_samples, n_inputs)
+    y : ndarray of shape (n_samples, n_outputs)
+    ranges : list of (start, stop)
+        Sample ranges, each longer than ``2 horizon`` samples.
+    horizon : int
+
+    Returns
+    -------
+    WindowStatistics
+        Without the input spectrum.
+
+    Raises
+    ------
+    DataError
+        When a range is too short for the horizon or no range is given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal((300, 1)); y = rng.standard_normal((300, 1))
+    >>> s = segments_statistics(u, y, [(0, 100), (150, 300)], 3)
+    >>> t = window_statistics(u[:100], y[:100], 3) + window_statistics(u[150:], y[150:], 3)
+    >>> bool(np.allclose(s.W, t.W)), s.count
+    (True, 240)
+    """
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    p = int(horizon)
+    L = 2 * p
+    if not ranges:
+        raise DataError("segments_statistics needs at least one sample range; got none.")
+    short = [(a, b) for a, b in ranges if b - a <= L]
+    if short:
+        raise DataError(f"horizon {p} needs ranges of more than {L} samples; got {short[0][1] - short[0][0]}.")
+    z = np.hstack([u, y])
+    r = z.shape[1]
+    gap = np.zeros((L, r))
+    parts: list[np.ndarray] = []
+    for a, b in ranges:
+        parts += [z[a:b], gap]
+    R = lag_correlations(np.concatenate(parts[:-1]), L - 1)
+    heads = np.stack([z[a:a + L] for a, _ in ranges])
+    tails = np.stack([z[b - L:b] for _, b in ranges])
+    count = int(sum(b - a - L + 1 for a, b in ranges))
+    return WindowStatistics(_gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count)
+
+
 def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np.ndarray]:
     """Periodogram of each (mean-removed) input summed into ``n_bins`` equal bins over
     ``[0, 1/2]`` cycles per sample, so records of any length can be added.
@@ -341,8 +415,7 @@ def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np
     spec = np.abs(np.fft.rfft(u - u.mean(axis=0), axis=0)) ** 2
     f = np.fft.rfftfreq(n)
     idx = np.minimum((f * 2 * n_bins).astype(int), n_bins - 1)
-    power = np.zeros((n_bins, u.shape[1]))
-    np.add.at(power, idx, spec)
+    power = np.column_stack([np.bincount(idx, weights=spec[:, j], minlength=n_bins) for j in range(u.shape[1])])
     centres = (np.arange(n_bins) + 0.5) / (2 * n_bins)
     return power, centres
 
