@@ -6,7 +6,6 @@ from dataclasses import replace
 from typing import TypeVar
 
 import numpy as np
-import scipy.linalg as sla
 
 from .._errors import ModelError
 from .statespace import StateSpaceModel
@@ -64,6 +63,8 @@ def c2d(model: M, dt: float, method: str = "zoh") -> M:
         block = np.zeros((n + m, n + m))
         block[:n, :n] = A * dt
         block[:n, n:] = B * dt
+        import scipy.linalg as sla
+
         E = sla.expm(block)
         Ad, Bd, Cd, Dd = E[:n, :n], E[:n, n:], C, D
     else:
@@ -121,6 +122,8 @@ def d2c(model: M, method: str = "zoh") -> M:
         block[:n, :n] = A
         block[:n, n:] = B
         block[n:, n:] = np.eye(m)
+        import scipy.linalg as sla
+
         L = sla.logm(block) / dt
         if np.iscomplexobj(L):
             if np.max(np.abs(L.imag)) > 1e-8 * max(1.0, np.max(np.abs(L.real))):

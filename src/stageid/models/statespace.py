@@ -10,7 +10,6 @@ from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
-import scipy.linalg as sla
 
 from .._errors import ModelError
 from ._kernels import simulate_discrete
@@ -166,6 +165,8 @@ class StateSpaceModel:
         if n == 0:
             return np.broadcast_to(self.D.astype(complex), (v.size, self.n_outputs, self.n_inputs)).copy()
         # Hessenberg form keeps each solve cheap and well conditioned.
+        import scipy.linalg as sla
+
         H, Q = sla.hessenberg(self.A, calc_q=True)
         Bq = Q.T @ self.B
         Cq = self.C @ Q
@@ -304,6 +305,8 @@ def _pencil_zeros(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) ->
     M = np.block([[A, B], [C, D]])
     N = np.zeros_like(M)
     N[:n, :n] = np.eye(n)
+    import scipy.linalg as sla
+
     vals = sla.eigvals(M, N)
     finite = vals[np.isfinite(vals)]
     return finite[np.abs(finite) < 1e12]

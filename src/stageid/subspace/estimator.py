@@ -400,10 +400,11 @@ class HankelMAP:
         if prior is None:
             return _solve(XX, YX)
         d = XX.shape[0]
-        if prior.theta0 is None and np.ndim(prior.precision) == 1:
+        if prior.theta0 is None and np.ndim(prior.precision) == 1 and np.size(prior.precision) == d:
+            diag = np.asarray(prior.precision, dtype=float)
             info = XX.copy()
-            info[np.diag_indices(d)] += np.asarray(prior.precision, dtype=float)
-            return _solve(info, YX)
+            info[np.diag_indices(d)] += diag
+            return _solve(info, YX, definite=bool(np.all(diag > 0)))
         prec = prior.matrix(d)
         return _solve(XX + prec, YX + prior.mean(YX.shape[0], d) @ prec)
 

@@ -64,8 +64,6 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     >>> bool(np.allclose(R[1], z[:-1].T @ z[1:]))
     True
     """
-    import scipy.fft as sfft
-
     z = np.asarray(z, dtype=float)
     n, r = z.shape
     if not 0 <= max_lag < max(n, 1):
@@ -91,13 +89,13 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
         full = np.zeros(((stop - start + 1) * block, r))
         full[: data.shape[0]] = data
         seg[:, :block, :] = full.reshape(stop - start + 1, block, r)
-        F = sfft.rfft(seg, axis=1, workers=1)  # (nb+1, block+1, r)
+        F = np.fft.rfft(seg, axis=1)  # (nb+1, block+1, r)
         Fa = F[:-1]
         Fb = F[:-1] + sign[None] * F[1:]
         # S[f] += sum_k conj(Fa[k, f])^T Fb[k, f]
         S += np.matmul(np.conj(Fa).transpose(1, 2, 0), Fb.transpose(1, 0, 2))
         start = stop
-    R = sfft.irfft(S, n=nfft, axis=0, workers=1)[: max_lag + 1]
+    R = np.fft.irfft(S, n=nfft, axis=0)[: max_lag + 1]
     return np.ascontiguousarray(R)
 
 
