@@ -7,12 +7,25 @@ import click
 from ._common import atomic_output
 
 
+def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | None:
+    if value is None:
+        return None
+    try:
+        taus = tuple(float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}.") from None
+    if not taus or not all(t > 0 and t < float("inf") for t in taus):
+        raise click.BadParameter(f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}.")
+    return taus
+
+
 @click.command("hysteresis", epilog="""
 \b
 Examples:
   stageid identify hysteresis decay.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify hysteresis forc.csv --input V --output y --model pi --operators 20 -o pi.json
   stageid identify hysteresis a.csv b.csv --input V --output y --model modified-pi -o hyst.json
+  stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
 """)
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
 @click.option("--input", "input_name", required=True, help="Input column (drive, e.g. V).")
@@ -26,13 +39,17 @@ Examples:
 @click.option("--input-warp/--no-input-warp", default=True, show_default=True,
               help="Modified PI only: also fit a monotone quadratic input warp (our extension); "
                    "--no-input-warp gives the letter's model exactly.")
+@click.option("--creep", "creep", default=None, callback=_time_constants, metavar="TAU1,TAU2,...",
+              help="Also fit a linear creep term: first-order lags of the input with these time constants "
+                   "[s], weights >= 0 (our extension; the records' time column gives dt).")
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option("-o", "--output-file", "out", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.hysteresis/1 JSON).")
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
 @click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
               help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.")
 def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str, n_operators: int,
-             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool, report_dir: str | None) -> None:
+             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool, report_dir: str | None,
+             creep: tuple[float, ...] | None = None) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
@@ -44,7 +61,8 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
     from ._common import read_experiments
 
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp).fit(list(exps))
+    fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp,
+                       creep_time_constants=creep).fit(list(exps))
     text = dumps(fit.model.to_dict())
     with atomic_output(out) as tmp:
         atomic_write_text(tmp, text)

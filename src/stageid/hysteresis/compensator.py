@@ -6,7 +6,9 @@ model says produces it, so the cascade compensator -> actuator is close to the i
 * classical :class:`~stageid.hysteresis.PIModel`: the closed-form inverse PI model
   (:func:`~stageid.hysteresis.pi_inverse`), one play-operator update per threshold and sample;
 * :class:`~stageid.hysteresis.ModifiedPIModel`: the per-sample monotone inversion of
-  :func:`~stageid.hysteresis.invert`.
+  :func:`~stageid.hysteresis.invert`;
+* either with a ``creep`` term: per-sample inversion with the creep state
+  (:class:`~stageid.hysteresis.creep.CreepInverse`).
 
 The compensator is the one mutable object of the package: it holds the operator state between
 calls, as a real-time loop needs (``step`` per sample; ``run`` for a block, continuing the
@@ -57,6 +59,13 @@ class Compensator:
 
         self._k = _kernels
         self.model = model
+        self._creep = None
+        if getattr(model, "creep", None) is not None:  # rate dependent: delegate (see creep.py)
+            from .creep import CreepInverse
+
+            self._creep = CreepInverse(model, limits)
+            self.limits = self._creep.limits
+            return
         lim = limits if limits is not None else model.input_limits
         if lim is not None and not (len(lim) == 2 and float(lim[0]) < float(lim[1])):
             raise ModelError(f"`limits` must be (low, high) with low < high; got {lim!r}.")
@@ -78,6 +87,9 @@ class Compensator:
 
     def reset(self, state: OperatorState | None = None) -> None:
         """Restart from ``state`` (forward-model state; default the model's own state)."""
+        if self._creep is not None:
+            self._creep.reset(state)
+            return
         st = self.model.state if state is None else state
         if st.z.size != self.model.n_operators:
             raise ModelError(f"state must hold {self.model.n_operators} operator outputs; got {st.z.size}.")
@@ -92,12 +104,16 @@ class Compensator:
     @property
     def state(self) -> OperatorState:
         """The forward model's operator state after the last sample."""
+        if self._creep is not None:
+            return self._creep.state
         if self._inverse is not None:
             return forward_state(self._inverse, OperatorState(self._z[0], self._z))
         return OperatorState(self._x, self._z)
 
     def step(self, y_ref: float) -> float:
         """Drive for one desired output sample (state advances by one sample)."""
+        if self._creep is not None:
+            return self._creep.step(y_ref)
         target = float(y_ref) - self.model.output_offset
         if self._inverse is not None:
             saved = self._z.copy()
@@ -117,6 +133,8 @@ class Compensator:
 
     def run(self, y_ref: object) -> np.ndarray:
         """Drives for a block of desired outputs, shape (n_samples, 1); continues the state."""
+        if self._creep is not None:
+            return self._creep.run(y_ref)
         target = np.ascontiguousarray(_as_input(y_ref, self.model.outputs[0]) - self.model.output_offset)
         if self._inverse is not None and not np.isfinite(self._lo) and not np.isfinite(self._hi):
             x, z = self._k.play_stream(target, self._P, self._z, self._lo, self._hi)

@@ -34,6 +34,16 @@ Procedure (the letter's, made explicit):
    record that starts at 0 input (within 1 % of the range: at rest, the letter's condition) and
    otherwise the kind with the smallest residual.
 
+5. **Creep** (optional, ``creep_time_constants``; our extension): the lags
+   ``lowpass_{tau_j}(u)`` of :mod:`.creep` (at rest at each record's first input) are extra
+   columns of the same least-squares problem, with ``c_j >= 0``, so the weights, offsets and
+   creep weights are fitted jointly and the threshold search of step 3 sees the creep.  The
+   ``"auto"`` starting states are still chosen by the fit *without* creep: a lag at rest at
+   the first sample can imitate the slowly released memory of an "ascending" start, and on
+   the measured piezo records letting the creep take part in that choice picked a start and
+   creep that fit the identification record better and other records far worse
+   (``studies/hysteresis/RESULTS.md`` section 2).
+
 The fitted model starts, like the letter's, from the zero state at 0 input (or at the nearest
 end of the identified range), with the output offset of the first record; use
 :func:`align_record` to compare it with another record (own offset and starting state).
@@ -97,6 +107,9 @@ class HysteresisFit:
             lines.append(f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
                          f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}, "
                          f"input warp = {self.model.input_warp:.4f}")
+        creep = getattr(self.model, "creep", None)
+        if creep is not None:
+            lines.append("  creep: " + ", ".join(f"{c:.4g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights)))
         lines.append(f"  {self.message}")
         return "\n".join(lines)
 
@@ -160,6 +173,12 @@ class PIIdentifier:
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
+    creep_time_constants : sequence of float, optional
+        Time constants [s] of a linear creep term (:class:`~stageid.hysteresis.creep.CreepTerm`)
+        fitted jointly with the weights (``c_j >= 0``); default none (rate independent).
+    sample_time : float, optional
+        Sampling period [s] for ``(u, y)`` records when creep is fitted (Experiments carry
+        their own ``dt``; all records must share one).
     ridge : float, default 1e-6
         Tikhonov penalty on the CP weights of the modified PI, relative to the mean diagonal of
         the normal matrix (keeps barely-moving operators from getting huge weights that blow up
@@ -180,7 +199,8 @@ class PIIdentifier:
 
     def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
                  initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
-                 max_evaluations: int = 500, ridge: float = 1e-6, input_warp: bool = True) -> None:
+                 max_evaluations: int = 500, ridge: float = 1e-6, input_warp: bool = True,
+                 creep_time_constants: Sequence[float] | None = None, sample_time: float | None = None) -> None:
         self.model = model
         self.n_operators = n_operators
         self.input_range = input_range
@@ -190,6 +210,8 @@ class PIIdentifier:
         self.max_evaluations = max_evaluations
         self.ridge = ridge
         self.input_warp = input_warp
+        self.creep_time_constants = creep_time_constants
+        self.sample_time = sample_time
 
     # ------------------------------------------------------------------ checks
     def _check(self) -> None:
@@ -201,6 +223,10 @@ class PIIdentifier:
             raise IdentificationError(f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}.")
         if not (0 < float(self.min_slope_fraction) < 1):
             raise IdentificationError(f"`min_slope_fraction` must be in (0, 1); got {self.min_slope_fraction!r}.")
+        if self.creep_time_constants is not None:
+            taus = np.asarray(self.creep_time_constants, dtype=float).reshape(-1)
+            if taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
+                raise IdentificationError(f"`creep_time_constants` of PIIdentifier must be positive seconds; got {self.creep_time_constants!r}.")
 
     # ------------------------------------------------------------------ fit
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
@@ -226,6 +252,9 @@ class PIIdentifier:
         """
         self._check()
         recs, in_name, out_name = _records(data, inputs, outputs)
+        creep = None
+        if self.creep_time_constants is not None:
+            creep = (np.asarray(self.creep_time_constants, dtype=float).reshape(-1), _creep_sample_time(data, self.sample_time))
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         else:
@@ -241,7 +270,7 @@ class PIIdentifier:
             raise DataError("the identification output is constant; nothing to identify.")
         eps = float(self.min_slope_fraction) * yr / (hi - lo)
         stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
-        ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge), R)
+        ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge), R, creep)
 
         # classical fit and starting-state choice
         theta0 = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi), 0.0])
@@ -255,7 +284,7 @@ class PIIdentifier:
                 for kind in STATE_KINDS:
                     trial = kinds.copy()
                     trial[j] = kind
-                    sse = ctx.solve(theta0, trial, classical=self.model == "pi")[0]
+                    sse = ctx.solve(theta0, trial, classical=self.model == "pi", creep=False)[0]
                     if best is None or sse < best[0]:
                         best = (sse, kind)
                 kinds[j] = best[1]
@@ -272,12 +301,19 @@ class PIIdentifier:
                     for kind in STATE_KINDS:
                         trial = kinds.copy()
                         trial[j] = kind
-                        sse = ctx.solve(theta, trial, classical=False)[0]
+                        sse = ctx.solve(theta, trial, classical=False, creep=False)[0]
                         if best is None or sse < best[0]:
                             best = (sse, kind)
                     kinds[j] = best[1]
         sse, w, offsets = ctx.solve(theta, kinds, classical=self.model == "pi")
         model = ctx.build(theta, w, offsets[0], in_name, out_name, lo, hi)
+        if creep is not None:
+            from dataclasses import replace
+
+            from .creep import CreepTerm
+
+            c = ctx.solve_creep(theta, kinds, classical=self.model == "pi")[3]
+            model = replace(model, creep=CreepTerm(time_constants=creep[0], weights=np.maximum(c, 0.0), sample_time=creep[1]))
         max_e, rms_e = [], []
         for j, (u, y) in enumerate(recs):
             m_j = model.with_state(model.consistent_state(u[0], kinds[j]))
@@ -354,6 +390,27 @@ class PIIdentifier:
                f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's.")
         return best_th, count[0], success, msg
 
+def _creep_sample_time(data: Any, sample_time: float | None) -> float:
+    """The one sampling period of the records (Experiment.dt, else ``sample_time``)."""
+    from ..data import Experiment
+
+    items = [data] if isinstance(data, Experiment) else ([data] if isinstance(data, tuple) and len(data) == 2
+                                                          and not isinstance(data[0], Experiment) else list(data))
+    dts = {float(e.dt) for e in items if isinstance(e, Experiment)}
+    if any(not isinstance(e, Experiment) for e in items):
+        if sample_time is None:
+            raise IdentificationError("fitting creep needs the sampling period: pass `sample_time` for (u, y) records; got None.")
+        dts.add(float(sample_time))
+    elif sample_time is not None and dts != {float(sample_time)}:
+        raise IdentificationError(f"`sample_time` {sample_time!r} differs from the records' dt {sorted(dts)}.")
+    if len(dts) != 1:
+        raise IdentificationError(f"fitting creep needs one sampling period for all records; got {sorted(dts)}.")
+    dt = dts.pop()
+    if not (np.isfinite(dt) and dt > 0):
+        raise IdentificationError(f"the sampling period must be positive; got {dt!r}.")
+    return dt
+
+
 def _replace_offset(model, offset: float):
     from dataclasses import replace
 
@@ -363,7 +420,13 @@ def _replace_offset(model, offset: float):
 class _Context:
     """Operator matrices and the constrained least-squares weight fit for fixed thresholds."""
 
-    def __init__(self, recs, r, eps, stride, kind, ridge=0.0, R=1.0):
+    def __init__(self, recs, r, eps, stride, kind, ridge=0.0, R=1.0, creep=None):
+        self.lags = None
+        if creep is not None:  # creep lag columns (independent of the thresholds), per record
+            from .creep import CreepTerm
+
+            term = CreepTerm(time_constants=creep[0], weights=np.zeros(creep[0].size), sample_time=creep[1])
+            self.lags = [np.ascontiguousarray(term.lags(u)[np.arange(0, u.size, stride)]) for u, _ in recs]
         self.ridge = ridge
         self.R = R
         self.recs = recs
@@ -407,9 +470,13 @@ class _Context:
             blocks.append(Z[rows])
         return blocks
 
-    def solve(self, theta, kinds, classical):
-        """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based)."""
+    def solve(self, theta, kinds, classical, creep=True):
+        """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based);
+        with the creep columns when there are any and ``creep`` is true."""
         from . import _kernels
+
+        if self.lags is not None and creep:
+            return self.solve_creep(theta, kinds, classical)[:3]
 
         blocks = self.matrix(theta, kinds, classical)
         n = self.r.size
@@ -476,6 +543,76 @@ class _Context:
         if self.ridge > 0 and not classical:
             sse += float(sol @ (G - Gfit) @ sol)
         return max(sse, 0.0), w, offs
+
+    def solve_creep(self, theta, kinds, classical):
+        """As :meth:`solve` with the creep lag columns (weights ``c >= 0``); also returns c."""
+        from . import _kernels
+
+        blocks = self.matrix(theta, kinds, classical)
+        n = self.r.size
+        J = len(blocks)
+        nc = self.lags[0].shape[1]
+        y = self.y
+        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
+        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
+        live[0] = True
+        idx = np.flatnonzero(live)
+        m = idx.size
+        p = m + nc  # operator weights, creep weights, then one offset per record
+        G = np.zeros((p + J, p + J))
+        g = np.zeros(p + J)
+        start = 0
+        for j, b in enumerate(blocks):
+            yb = np.ascontiguousarray(y[start : start + b.shape[0]])
+            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(np.hstack([b[:, idx], self.lags[j]])), yb)
+            G[:p, :p] += Gb
+            G[:p, p + j] = sb
+            G[p + j, :p] = sb
+            G[p + j, p + j] = b.shape[0]
+            g[:p] += gb
+            g[p + j] = yb.sum()
+            start += b.shape[0]
+        yy = float(y @ y)
+        Gfit = G
+        if self.ridge > 0 and not classical:
+            G = G.copy()
+            lam = self.ridge * float(np.mean(np.diag(G)[:m]))
+            G[np.arange(1, m), np.arange(1, m)] += lam
+        sol = _gram_solve(G, g)
+        wl, cl = sol[:m], sol[m:p]
+        if classical:
+            ok = bool(np.all(np.cumsum(wl) >= self.eps))
+        else:
+            ok = bool(wl[0] + np.sum(np.minimum(wl[1:], 0.0)) >= self.eps)
+        if not (ok and np.all(cl >= 0)):
+            shift = np.zeros(p + J)
+            if classical:
+                # w = D W (cumulative sums, W >= eps), c >= 0, offsets free
+                T = np.eye(p + J)
+                for i in range(m - 1):
+                    T[i + 1, i] = -1.0
+                lb = np.concatenate([np.full(m, self.eps), np.zeros(nc), np.full(J, -np.inf)])
+            else:
+                # w0 = eps + s + sum q, w_i = p_i - q_i, c >= 0: v = (s, p, q, c, offsets)
+                k = m - 1
+                T = np.zeros((p + J, 1 + 2 * k + nc + J))
+                T[0, 0] = 1.0
+                T[0, 1 + k : 1 + 2 * k] = 1.0
+                T[1:m, 1 : 1 + k] = np.eye(k)
+                T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
+                T[m:, 1 + 2 * k :] = np.eye(nc + J)
+                shift[0] = self.eps
+                lb = np.concatenate([np.zeros(1 + 2 * k + nc), np.full(J, -np.inf)])
+            v = _bounded_gram_lsq(T.T @ G @ T, T.T @ (g - G @ shift), lb)
+            sol = T @ v + shift
+        w = np.zeros(n)
+        w[idx] = sol[:m]
+        c = np.maximum(sol[m:p], 0.0)
+        offs = sol[p:]
+        sse = yy - 2.0 * float(sol @ g) + float(sol @ Gfit @ sol)
+        if self.ridge > 0 and not classical:
+            sse += float(sol @ (G - Gfit) @ sol)
+        return max(sse, 0.0), w, offs, c
 
     def build(self, theta, w, offset, in_name, out_name, lo, hi):
         classical = self.kind == "pi"

@@ -100,6 +100,8 @@ def pi_inverse(model: PIModel) -> PIModel:
     True
     """
     W = _check_classical(model)
+    if getattr(model, "creep", None) is not None:
+        raise ModelError("the closed-form inverse is rate independent; got a model with a creep term (use invert or Compensator).")
     r, w = model.r, model.weights
     r_inv = np.array([np.sum(w[: j + 1] * (r[j] - r[: j + 1])) for j in range(r.size)])
     w_inv = np.empty_like(w)
@@ -131,6 +133,10 @@ def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, flo
     limits : (float, float), optional
         Drive limits; default ``model.input_limits`` (unlimited if None).
 
+    A model with a ``creep`` term is inverted sample by sample with its creep state
+    (:class:`~stageid.hysteresis.creep.CreepInverse`, creep at rest at the state's input
+    unless the term carries a state).
+
     Returns
     -------
     u : ndarray of shape (n_samples, 1)
@@ -156,6 +162,11 @@ def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, flo
     """
     from . import _kernels
 
+    if getattr(model, "creep", None) is not None:  # rate dependent: per-sample inverse with creep state
+        from .creep import CreepInverse
+
+        inv = CreepInverse(model, limits)
+        return inv.run(y), inv.state
     smin = model.min_slope()
     if not smin > 0:
         raise ModelError(f"model is not invertible: its minimum slope w0 + sum(min(w_i, 0)) is {smin:g}; expected > 0.")

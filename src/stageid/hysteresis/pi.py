@@ -15,6 +15,11 @@ so :meth:`run` returns the final state and :meth:`with_state` resumes from it.  
 ``x`` is in operator coordinates (input minus ``input_offset``, warped for a modified PI model
 with ``input_warp``: :meth:`to_operator_input`).
 
+Optional creep (our extension, :mod:`stageid.hysteresis.creep`): ``creep=CreepTerm(...)``
+adds ``sum_j c_j lowpass_{tau_j}(u)`` (first-order lags of the input, ``c_j >= 0``) to the
+output; the model is then rate dependent and ``simulate(u, dt)`` uses ``dt``.  Without it
+(the default) nothing changes.
+
 Monotonicity (invertibility): the model output is a nondecreasing function of the current
 input for every state when ``w_0 + sum_{i>=1} min(w_i, 0) > 0`` (the slope of the output with
 respect to the input is ``sum`` of the weights of the operators on a moving branch, which is
@@ -99,6 +104,12 @@ class _PIBase:
             if len(names) != 1:
                 raise ModelError(f"a hysteresis model has exactly one {name[:-1]} name; got {list(names)}.")
             set_(self, name, names)
+        creep = getattr(self, "creep", None)
+        if creep is not None:
+            from .creep import CreepTerm
+
+            if not isinstance(creep, CreepTerm):
+                raise ModelError(f"`creep` must be a CreepTerm or None; got {type(creep).__name__}.")
         if self.input_limits is not None:
             lim = tuple(float(v) for v in self.input_limits)
             if len(lim) != 2 or not (np.isfinite(lim[0]) and np.isfinite(lim[1]) and lim[0] < lim[1]):
@@ -170,11 +181,16 @@ class _PIBase:
             z, zf = _kernels.cp_bank(x, r, rc, ra, rb, np.array(self.state.z))
         return z, OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
-    def run(self, u: object) -> tuple[np.ndarray, OperatorState]:
-        """Simulate from the model's state; returns y of shape (n_samples, 1) and the final state."""
+    def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, OperatorState]:
+        """Simulate from the model's state; returns y of shape (n_samples, 1) and the final state.
+
+        ``dt`` [s] is used only by a creep term (default its ``sample_time``); the final state
+        is the operator state (a creep term's final lags: ``model.creep.run(u, dt)[1]``).
+        """
         from . import _kernels
 
-        x = np.ascontiguousarray(self.to_operator_input(_as_input(u, self.inputs[0])))
+        u_in = _as_input(u, self.inputs[0])
+        x = np.ascontiguousarray(self.to_operator_input(u_in))
         r, rc, ra, rb = self._params()
         z0 = np.array(self.state.z)
         if self.kind == "pi":
@@ -185,6 +201,9 @@ class _PIBase:
                 y, zf = _kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
             else:
                 y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
+        creep = getattr(self, "creep", None)
+        if creep is not None and u_in.size:
+            y = y + creep.run(u_in, dt)[0]
         return (y + self.output_offset)[:, None], OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def simulate(self, u: object, dt: float | None = None) -> np.ndarray:
@@ -195,8 +214,8 @@ class _PIBase:
         u : array_like of shape (n_samples, 1) or (n_samples,)
             Input samples (e.g. volts).
         dt : float, optional
-            Ignored: the model is rate independent (accepted so every stageid model has the
-            same ``simulate`` signature).
+            Sampling period [s].  Ignored by the rate-independent model; used by an optional
+            ``creep`` term (default: the creep term's ``sample_time``).
 
         Returns
         -------
@@ -214,7 +233,7 @@ class _PIBase:
         >>> m.simulate([0.0, 2.0, 1.0])[:, 0].tolist()
         [0.0, 2.5, 1.5]
         """
-        return self.run(u)[0]
+        return self.run(u, dt)[0]
 
     # ------------------------------------------------------------------ properties
     def min_slope(self) -> float:
@@ -233,9 +252,13 @@ class _PIBase:
                 "input_offset": self.input_offset, "output_offset": self.output_offset}
 
     def _tail_dict(self) -> dict[str, Any]:
-        return {"weights": self.weights.tolist(),
-                "state": {"x": self.state.x, "z": self.state.z.tolist()},
-                "input_limits": None if self.input_limits is None else list(self.input_limits)}
+        d = {"weights": self.weights.tolist(),
+             "state": {"x": self.state.x, "z": self.state.z.tolist()},
+             "input_limits": None if self.input_limits is None else list(self.input_limits)}
+        creep = getattr(self, "creep", None)
+        if creep is not None:  # optional field: models without creep write exactly the old format
+            d["creep"] = creep.to_dict()
+        return d
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,6 +281,9 @@ class PIModel(_PIBase):
         Channel names, default ``("V",)`` and ``("y",)``.
     input_limits : (float, float), optional
         Drive range, used as the default limits of the compensator.
+    creep : CreepTerm, optional
+        Linear creep added to the output (:mod:`stageid.hysteresis.creep`); default none
+        (rate independent).
 
     Raises
     ------
@@ -272,6 +298,8 @@ class PIModel(_PIBase):
     >>> y[:, 0].tolist(), state.z.tolist()
     ([0.0, 2.5, 1.5], [1.0, 1.0])
     """
+
+    creep: Any = None
 
     kind = "pi"
 
@@ -292,7 +320,7 @@ class PIModel(_PIBase):
         return ModifiedPIModel(r=self.r, rc=self.r, ra=self.r, rb=self.r, weights=self.weights,
                                input_offset=self.input_offset, output_offset=self.output_offset,
                                state=self.state, inputs=self.inputs, outputs=self.outputs,
-                               input_limits=self.input_limits)
+                               input_limits=self.input_limits, creep=self.creep)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.hysteresis/1`` dictionary (round-trips byte-stably through ``dumps``)."""
@@ -312,7 +340,7 @@ class ModifiedPIModel(_PIBase):
         CP thresholds (see :mod:`stageid.hysteresis.operators`), ``0 <= rc <= r``,
         ``0 <= rb <= ra``.
     weights : array_like of shape (n_operators,)
-    input_offset, output_offset, state, inputs, outputs, input_limits
+    input_offset, output_offset, state, inputs, outputs, input_limits, creep
         As for :class:`PIModel`.
     input_warp : float, default 0
         ``q`` in (-0.5, 0.5) of an optional monotone quadratic warp of the input before the
@@ -342,6 +370,7 @@ class ModifiedPIModel(_PIBase):
     rb: np.ndarray = field(default=None)  # type: ignore[assignment]
     input_warp: float = 0.0
     warp_scale: float = 1.0
+    creep: Any = None
 
     kind = "modified-pi"
 

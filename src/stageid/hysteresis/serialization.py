@@ -10,7 +10,9 @@
      "input_warp": 0.0, "warp_scale": 1.0,    # modified-pi only: optional input warp
      "weights": [...],
      "state": {"x": 0.0, "z": [...]},         # operator state to start from
-     "input_limits": [lo, hi] | null}         # drive range (compensator default)
+     "input_limits": [lo, hi] | null,         # drive range (compensator default)
+     "creep": {"time_constants": [...], "weights": [...],   # optional (absent: no creep),
+               "sample_time": dt, "state": null | [...]}}   # see stageid.hysteresis.creep
 
 The reference actuator of :mod:`stageid.plants.piezo_actuator` (not a PI model) is stored as
 ``{"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs", "outputs",
@@ -33,7 +35,7 @@ _KEYS = {
     "modified-pi": ("r", "rc", "ra", "rb", "weights"),
 }
 _OPTIONAL = ("inputs", "outputs", "input_offset", "output_offset", "state", "input_limits", "name", "description",
-             "input_warp", "warp_scale")
+             "input_warp", "warp_scale", "creep")
 
 
 def _numbers(d: dict, key: str) -> list[float]:
@@ -123,6 +125,10 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     common = dict(weights=arrays["weights"], input_offset=_number(d, "input_offset", 0.0),
                   output_offset=_number(d, "output_offset", 0.0), state=state,
                   inputs=names["inputs"], outputs=names["outputs"], input_limits=limits)
+    if d.get("creep") is not None:  # optional: files written before the creep option have none
+        from .creep import CreepTerm
+
+        common["creep"] = CreepTerm.from_dict(d["creep"])
     try:
         if kind == "pi":
             return PIModel(r=arrays["r"], **common)

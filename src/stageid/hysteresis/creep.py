@@ -1,0 +1,292 @@
+"""Linear creep term of a PI model: a weighted sum of first-order lags of the input.
+
+Piezo creep is the slow part of the response to an input step (displacement keeps growing for
+seconds after the voltage settled).  The standard linear description adds to the
+rate-independent hysteresis model a bank of first-order lags of the drive ``u`` (e.g. Croft,
+Shed & Devasia 2001; Kuhnen's creep operator in discrete form)::
+
+    s_j(k) = a_j s_j(k-1) + (1 - a_j) u(k),    a_j = exp(-dt / tau_j)
+    y_c(k) = sum_j c_j s_j(k)
+
+with time constants ``tau_j`` (seconds, a few log-spaced values) and weights ``c_j >= 0``.
+At rest (``u`` constant) every ``s_j = u``, so ``y_c = (sum c_j) u``: the creep adds static
+gain that builds up with the time constants.
+
+Why ``c_j >= 0``: the output of the current sample depends on the current input through
+``g = sum_j c_j (1 - a_j) >= 0`` (the rest is memory), so the model stays a nondecreasing
+function of the current input and the per-sample inverse of :mod:`.inverse` still has exactly
+one solution.
+
+State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest at the first input
+sample* of every simulation (and, for the compensator, at rest at the input of the model's
+operator state): the policy under which :class:`~stageid.hysteresis.PIIdentifier` fits it, and
+the one :func:`~stageid.hysteresis.align_record` applies to other records.
+
+Inversion with creep (:class:`CreepInverse`): per sample, the memory part
+``h = sum_j c_j a_j s_j(k-1)`` is known, and the instantaneous gain ``g`` is folded into the
+linear operator's weight (``r_0 = 0``) of the rate-independent model, which is then inverted
+by the existing :class:`~stageid.hysteresis.Compensator`.  Without an input warp this is
+exact in one pass; with the warp of :class:`~stageid.hysteresis.ModifiedPIModel` the small
+remainder ``g (u - x)`` is resolved by fixed-point iteration (a contraction with factor below
+``2 |q| g / min_slope``, ~1e-3 in practice).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .._errors import ModelError, ModelFormatError
+from .operators import OperatorState
+
+__all__ = ["CreepTerm", "CreepInverse"]
+
+
+def _positive(name: str, value: object) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ModelError(f"`{name}` must be a positive number of seconds; got {value!r}.") from None
+    if not (np.isfinite(v) and v > 0):
+        raise ModelError(f"`{name}` must be a positive number of seconds; got {value!r}.")
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class CreepTerm:
+    """Linear creep: ``y_c = sum_j c_j lowpass_{tau_j}(u)`` (first-order lags, see module notes).
+
+    Parameters
+    ----------
+    time_constants : array_like of shape (n_lags,)
+        ``tau_j`` in seconds, > 0.
+    weights : array_like of shape (n_lags,)
+        ``c_j`` (output units per input unit), >= 0.
+    sample_time : float
+        Sampling period ``dt`` [s] of the records the term was identified on (used when a
+        simulation does not pass its own ``dt``).
+    state : array_like of shape (n_lags,), optional
+        Lag outputs ``s_j`` before the first sample (input units); ``None`` = at rest at the
+        first input sample.
+
+    Raises
+    ------
+    ModelError
+        Non-positive time constants or sample time, negative or non-finite weights, shape
+        mismatches.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis.creep import CreepTerm
+    >>> c = CreepTerm(time_constants=[1.0], weights=[0.5], sample_time=0.1)
+    >>> y, s = c.run(np.r_[0.0, np.ones(3)])
+    >>> np.round(y, 4).tolist()
+    [0.0, 0.0476, 0.0906, 0.1296]
+    """
+
+    time_constants: np.ndarray
+    weights: np.ndarray
+    sample_time: float
+    state: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        tau = np.array(self.time_constants, dtype=float, copy=True).reshape(-1)
+        if tau.size == 0 or not np.all(np.isfinite(tau)) or np.any(tau <= 0):
+            raise ModelError(f"creep `time_constants` must be positive seconds (at least one); got {tau.tolist()}.")
+        c = np.array(self.weights, dtype=float, copy=True).reshape(-1)
+        if c.size != tau.size:
+            raise ModelError(f"creep `weights` must have {tau.size} entries (one per time constant); got {c.size}.")
+        if not np.all(np.isfinite(c)) or np.any(c < 0):
+            raise ModelError(f"creep `weights` must be finite and >= 0 (monotone model); got {c.tolist()}.")
+        dt = _positive("sample_time", self.sample_time)
+        st = None
+        if self.state is not None:
+            st = np.array(self.state, dtype=float, copy=True).reshape(-1)
+            if st.size != tau.size or not np.all(np.isfinite(st)):
+                raise ModelError(f"creep `state` must hold {tau.size} finite lag outputs; got {st.tolist()}.")
+            st.setflags(write=False)
+        tau.setflags(write=False)
+        c.setflags(write=False)
+        object.__setattr__(self, "time_constants", tau)
+        object.__setattr__(self, "weights", c)
+        object.__setattr__(self, "sample_time", dt)
+        object.__setattr__(self, "state", st)
+
+    @property
+    def n_lags(self) -> int:
+        """Number of first-order lags."""
+        return int(self.time_constants.size)
+
+    def poles(self, dt: float | None = None) -> np.ndarray:
+        """``a_j = exp(-dt / tau_j)``, shape (n_lags,); ``dt`` defaults to :attr:`sample_time`."""
+        step = self.sample_time if dt is None else _positive("dt", dt)
+        return np.exp(-step / self.time_constants)
+
+    def instantaneous_gain(self, dt: float | None = None) -> float:
+        """``g = sum_j c_j (1 - a_j)``: how the current sample's output depends on its input."""
+        return float(np.sum(self.weights * (1.0 - self.poles(dt))))
+
+    def lags(self, u: object, dt: float | None = None, state: np.ndarray | None = None) -> np.ndarray:
+        """Lag outputs ``s_j(k)``, shape (n_samples, n_lags), from ``state`` (default the term's;
+        ``None``: at rest at ``u[0]``)."""
+        from scipy.signal import lfilter
+
+        uu = np.asarray(u, dtype=float).reshape(-1)
+        a = self.poles(dt)
+        st = self.state if state is None else np.asarray(state, dtype=float).reshape(-1)
+        out = np.empty((uu.size, a.size))
+        if uu.size == 0:
+            return out
+        s0 = np.full(a.size, uu[0]) if st is None else st
+        for j, aj in enumerate(a):
+            out[:, j] = lfilter([1.0 - aj], [1.0, -aj], uu, zi=[aj * s0[j]])[0]
+        return out
+
+    def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Creep output, shape (n_samples,), and the final lag outputs, shape (n_lags,).
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples,)
+            Input (model units, e.g. volts).
+        dt : float, optional
+            Sampling period [s]; default :attr:`sample_time`.
+        """
+        S = self.lags(u, dt)
+        if S.shape[0] == 0:
+            final = np.array(self.state) if self.state is not None else np.zeros(self.n_lags)
+            return np.zeros(0), final
+        return S @ self.weights, S[-1].copy()
+
+    def with_state(self, state: object | None) -> "CreepTerm":
+        """A copy with lag outputs ``state`` (``None``: at rest at the first input)."""
+        return replace(self, state=state)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``creep`` object of the ``stageid.hysteresis/1`` format."""
+        return {"time_constants": self.time_constants.tolist(), "weights": self.weights.tolist(),
+                "sample_time": self.sample_time, "state": None if self.state is None else self.state.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: object) -> "CreepTerm":
+        """Inverse of :meth:`to_dict`; raises :class:`ModelFormatError` on malformed fields."""
+        if not isinstance(d, dict) or not {"time_constants", "weights", "sample_time"} <= set(d) \
+                or not set(d) <= {"time_constants", "weights", "sample_time", "state"}:
+            raise ModelFormatError(f"`creep` must be an object with time_constants, weights, sample_time[, state]; got {d!r:.80}.")
+        for key in ("time_constants", "weights") + (("state",) if d.get("state") is not None else ()):
+            v = d[key]
+            if not isinstance(v, list) or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v):
+                raise ModelFormatError(f"`creep.{key}` must be a list of numbers; got {v!r:.80}.")
+        dt = d["sample_time"]
+        if not isinstance(dt, (int, float)) or isinstance(dt, bool):
+            raise ModelFormatError(f"`creep.sample_time` must be a number; got {dt!r}.")
+        try:
+            return cls(time_constants=d["time_constants"], weights=d["weights"], sample_time=dt, state=d.get("state"))
+        except ModelError as exc:
+            raise ModelFormatError(str(exc)) from None
+
+
+class CreepInverse:
+    """Per-sample inverse of a PI / modified-PI model with a :class:`CreepTerm` (see module notes).
+
+    Used by :class:`~stageid.hysteresis.Compensator` and :func:`~stageid.hysteresis.invert`
+    when ``model.creep`` is set; not usually built directly.
+
+    Parameters
+    ----------
+    model : PIModel or ModifiedPIModel
+        With ``model.creep`` set.
+    limits : (float, float), optional
+        Drive limits (default ``model.input_limits``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis import PIModel
+    >>> from stageid.hysteresis.creep import CreepInverse, CreepTerm
+    >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
+    >>> yd = np.array([0.0, 1.0, 2.0, 1.5])
+    >>> u = CreepInverse(m).run(yd)
+    >>> bool(np.allclose(m.simulate(u)[:, 0], yd))
+    True
+    """
+
+    def __init__(self, model: Any, limits: tuple[float, float] | None = None) -> None:
+        from .compensator import Compensator
+
+        creep = getattr(model, "creep", None)
+        if creep is None:
+            raise ModelError("CreepInverse needs a model with a creep term; got model.creep = None.")
+        self.model = model
+        self.creep = creep
+        self._a = creep.poles()
+        self._ca = creep.weights * self._a
+        self._g = creep.instantaneous_gain()
+        base = replace(model, creep=None)
+        # fold the instantaneous creep gain into the linear operator (r = 0: the identity)
+        self._folded = bool(base.r[0] == 0.0)
+        if self._folded:
+            w = np.array(base.weights)
+            w[0] += self._g
+            base = replace(base, weights=w)
+        self._inner = Compensator(base, limits)
+        self.limits = self._inner.limits
+        scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)) + np.sum(creep.weights))
+        self._tol = 1e-12 * max(scale, 1e-300)
+        self.reset()
+
+    def reset(self, state: OperatorState | None = None, creep_state: object | None = None) -> None:
+        """Restart from an operator ``state`` (default the model's) and lag outputs ``creep_state``
+        (default the creep term's; ``None`` there: at rest at the state's input)."""
+        self._inner.reset(state)
+        st = self.creep.state if creep_state is None else np.asarray(creep_state, dtype=float).reshape(-1)
+        if st is None:
+            x = (self.model.state if state is None else state).x
+            st = np.full(self.creep.n_lags, float(self.model.from_operator_input(x)))
+        if st.size != self.creep.n_lags:
+            raise ModelError(f"creep state must hold {self.creep.n_lags} lag outputs; got {st.size}.")
+        self._s = np.array(st, dtype=float)
+        x = (self.model.state if state is None else state).x
+        self._u_prev = float(self.model.from_operator_input(x))
+
+    @property
+    def state(self) -> OperatorState:
+        """Operator state after the last sample."""
+        return self._inner.state
+
+    @property
+    def creep_state(self) -> np.ndarray:
+        """Lag outputs after the last sample, shape (n_lags,)."""
+        return self._s.copy()
+
+    def _excess(self, u: float) -> float:
+        # the part of g*u the folded inner model does not produce: g*(u - x(u)), or g*u unfolded
+        return u - float(self.model.to_operator_input(u)) if self._folded else u
+
+    def step(self, y_ref: float) -> float:
+        """Drive for one desired output sample; advances the operator and creep states."""
+        h = float(self._ca @ self._s)
+        g = self._g
+        saved = self._inner.state
+        e = self._excess(self._u_prev)
+        u = float("nan")
+        for _ in range(60):
+            u = float(self._inner.step(float(y_ref) - h - g * e))
+            e_new = self._excess(u)
+            if abs(g * (e_new - e)) <= self._tol:
+                break
+            self._inner.reset(saved)
+            e = e_new
+        self._s = self._a * self._s + (1.0 - self._a) * u
+        self._u_prev = u
+        return u
+
+    def run(self, y_ref: object) -> np.ndarray:
+        """Drives for a block of desired outputs, shape (n_samples, 1); continues the state."""
+        from .pi import _as_input
+
+        yr = _as_input(y_ref, self.model.outputs[0])
+        return np.array([self.step(v) for v in yr], dtype=float).reshape(-1, 1)

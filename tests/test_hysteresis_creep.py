@@ -1,0 +1,164 @@
+"""Linear creep term of PI models: simulation, identification, JSON, inverse, compensator, CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stageid._errors import IdentificationError, ModelError, ModelFormatError
+from stageid.hysteresis import Compensator, ModifiedPIModel, PIIdentifier, PIModel, invert, pi_inverse
+from stageid.hysteresis.creep import CreepTerm
+from stageid.hysteresis.serialization import model_from_dict
+from stageid.models.serialization import dumps
+from stageid.signals import decaying_triangle
+
+DT = 1e-3
+
+
+def _pi_truth(creep=None):
+    # thresholds exactly where PIIdentifier("pi", n_operators=5) puts them for a +-10 input
+    return PIModel(r=np.arange(5) * 2.0, weights=[1.0, 0.4, 0.25, 0.15, 0.1], creep=creep)
+
+
+def _drive():
+    # decaying triangle with rests: creep needs both fast reversals and slow settling to be seen
+    u = decaying_triangle(2.0, 6, DT, amplitude=10.0)
+    return np.concatenate([u, np.full(1500, u[-1]), 0.6 * u[::-1], np.full(1500, 0.6 * u[0])])
+
+
+def test_single_lag_step_response_is_the_closed_form():
+    tau, c = 0.2, 0.3
+    term = CreepTerm(time_constants=[tau], weights=[c], sample_time=DT, state=[0.0])
+    k = np.arange(1, 2001)
+    y, s = term.run(np.ones(k.size))
+    # a first-order lag of a unit step, sampled: c (1 - a^k), a = exp(-dt / tau)
+    np.testing.assert_allclose(y, c * (1.0 - np.exp(-k * DT / tau)), rtol=0, atol=1e-13)
+    assert s.shape == (1,)
+    # at rest at the first input when no state is given: no creep motion for a constant input
+    y_rest, _ = CreepTerm([tau], [c], DT).run(np.full(50, 4.0))
+    np.testing.assert_allclose(y_rest, c * 4.0, rtol=0, atol=1e-14)
+
+
+def test_zero_creep_is_exactly_the_rate_independent_model():
+    u = _drive()
+    for m in (_pi_truth(), _pi_truth().to_modified()):
+        from dataclasses import replace
+
+        zero = replace(m, creep=CreepTerm([0.05, 1.0], [0.0, 0.0], DT))
+        np.testing.assert_array_equal(zero.simulate(u), m.simulate(u))
+
+
+def test_identification_recovers_known_creep_weights():
+    taus = (0.05, 0.5)
+    truth = _pi_truth(CreepTerm(taus, [0.2, 0.1], DT))
+    u = _drive()
+    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep_time_constants=taus,
+                       sample_time=DT).fit((u, truth.simulate(u)))
+    # the truth is inside the model class and no constraint is active: least squares is exact
+    # up to the conditioning of the Gram matrix (1e-6 relative is generous)
+    np.testing.assert_allclose(fit.model.creep.weights, [0.2, 0.1], rtol=1e-6)
+    np.testing.assert_allclose(fit.model.weights, truth.weights, rtol=1e-6)
+    assert fit.max_error_percent[0] < 1e-5
+    # the creep-free identifier cannot represent it
+    plain = PIIdentifier("pi", n_operators=5, initial_state="zero").fit((u, truth.simulate(u)))
+    assert plain.max_error_percent[0] > 100 * fit.max_error_percent[0]
+
+
+def test_identification_without_creep_in_the_data_finds_none():
+    truth = _pi_truth()
+    u = _drive()
+    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep_time_constants=(0.05, 0.5),
+                       sample_time=DT).fit((u, truth.simulate(u)))
+    assert np.max(fit.model.creep.weights) < 1e-8  # 1e-8 of the unit gain: numerically zero
+    np.testing.assert_allclose(fit.model.weights, truth.weights, rtol=1e-6)
+
+
+def test_modified_pi_with_creep_fits_a_modified_actuator_with_creep():
+    truth = ModifiedPIModel(r=np.arange(4) * 2.5, rc=np.arange(4) * 1.5, ra=np.arange(4) * 3.0, rb=np.arange(4) * 2.5,
+                            weights=[1.0, 0.3, 0.2, 0.1], creep=CreepTerm([0.1], [0.25], DT))
+    u = _drive()
+    y = truth.simulate(u)
+    plain = PIIdentifier("modified-pi", n_operators=4, input_warp=False, max_evaluations=120).fit((u, y))
+    fit = PIIdentifier("modified-pi", n_operators=4, input_warp=False, max_evaluations=120,
+                       creep_time_constants=(0.1,), sample_time=DT).fit((u, y))
+    assert fit.max_error_percent[0] < 0.5 * plain.max_error_percent[0]
+    assert 0.2 < fit.model.creep.weights[0] < 0.3  # thresholds are searched (0.249 found), so only near 0.25
+
+
+def test_json_round_trip_and_old_files_without_creep():
+    m = ModifiedPIModel(r=[0.0, 1.0, 2.0], rc=[0.0, 0.5, 1.0], ra=[0.0, 1.5, 3.0], rb=[0.0, 1.0, 2.0],
+                        weights=[1.0, 0.5, 0.2], input_warp=0.2, warp_scale=3.0,
+                        creep=CreepTerm([0.05, 0.7], [0.02, 0.05], DT, state=[0.1, -0.2]))
+    text = dumps(m.to_dict())
+    back = model_from_dict(json.loads(text))
+    assert dumps(back.to_dict()) == text
+    u = 3.0 * np.sin(np.linspace(0.0, 12.0, 800))
+    np.testing.assert_array_equal(back.simulate(u), m.simulate(u))
+    old = _pi_truth().to_dict()
+    assert "creep" not in old  # models without creep write exactly the previous format
+    assert model_from_dict(json.loads(dumps(old))).creep is None
+    bad = dict(m.to_dict(), creep={"time_constants": [0.1], "weights": [-1.0], "sample_time": DT})
+    with pytest.raises(ModelFormatError, match="weights"):
+        model_from_dict(bad)
+
+
+@pytest.mark.parametrize("kind", ["pi", "modified-warp"])
+def test_compensator_tracks_a_model_with_creep(kind):
+    creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
+    if kind == "pi":
+        m = _pi_truth(creep)
+    else:
+        m = ModifiedPIModel(r=np.arange(4) * 2.5, rc=np.arange(4) * 1.5, ra=np.arange(4) * 3.0, rb=np.arange(4) * 2.5,
+                            weights=[1.0, 0.3, 0.2, 0.1], input_warp=0.25, warp_scale=10.0, creep=creep)
+    u = _drive()[:4000]
+    yref = m.simulate(u)[:, 0]  # reachable, starts at rest at 0 like the model's state
+    drive = Compensator(m).run(yref)
+    # piecewise-linear inversion is exact to the 1e-12 tolerance; 1e-9 leaves room for rounding
+    np.testing.assert_allclose(m.simulate(drive)[:, 0], yref, rtol=0, atol=1e-9)
+    comp = Compensator(m)
+    stepped = np.array([comp.step(v) for v in yref[:300]])
+    np.testing.assert_allclose(stepped, drive[:300, 0], rtol=0, atol=1e-12)
+    u_inv, _ = invert(m, yref)
+    np.testing.assert_allclose(u_inv, drive, rtol=0, atol=1e-12)
+
+
+def test_compensator_with_creep_respects_limits():
+    m = _pi_truth(CreepTerm([0.2], [0.3], DT))
+    drive = Compensator(m, limits=(-2.0, 2.0)).run(np.linspace(0.0, 20.0, 500))
+    assert drive.min() >= -2.0 and drive.max() <= 2.0 and drive[-1, 0] == 2.0
+
+
+def test_bad_creep_arguments_raise_one_line_errors():
+    with pytest.raises(ModelError, match="time_constants"):
+        CreepTerm([0.0], [1.0], DT)
+    with pytest.raises(ModelError, match=">= 0"):
+        CreepTerm([1.0], [-0.1], DT)
+    with pytest.raises(ModelError, match="sample_time"):
+        CreepTerm([1.0], [0.1], -1.0)
+    with pytest.raises(ModelError, match="closed-form"):
+        pi_inverse(_pi_truth(CreepTerm([1.0], [0.1], DT)))
+    u = _drive()[:500]
+    with pytest.raises(IdentificationError, match="sample_time"):
+        PIIdentifier("pi", n_operators=3, creep_time_constants=(0.1,)).fit((u, u))
+    with pytest.raises(IdentificationError, match="creep_time_constants"):
+        PIIdentifier("pi", n_operators=3, creep_time_constants=(-1.0,), sample_time=DT).fit((u, u))
+
+
+def test_cli_creep_flag(tmp_path, capsys):
+    from stageid.cli.main import main
+    from stageid.data.io import write_csv
+    from stageid.models import load_model
+
+    truth = _pi_truth(CreepTerm((0.05, 0.5), [0.2, 0.1], DT))
+    u = _drive()
+    write_csv(tmp_path / "d.csv", {"V": u, "y": truth.simulate(u)[:, 0]}, dt=DT)
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y", "--model", "pi",
+                 "--operators", "5", "--initial-state", "zero", "--creep", "0.05,0.5", "-o", str(tmp_path / "m.json")]) == 0
+    m = load_model(tmp_path / "m.json")
+    np.testing.assert_allclose(m.creep.time_constants, [0.05, 0.5])
+    np.testing.assert_allclose(m.creep.weights, [0.2, 0.1], rtol=1e-6)  # exact class, as above
+    assert m.creep.sample_time == pytest.approx(DT)
+    assert "creep:" in capsys.readouterr().out
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y",
+                 "--creep", "0.05,-1", "-o", str(tmp_path / "bad.json")]) != 0
+    assert not (tmp_path / "bad.json").exists()
