@@ -17,10 +17,12 @@ Why ``c_j >= 0``: the output of the current sample depends on the current input 
 function of the current input and the per-sample inverse of :mod:`.inverse` still has exactly
 one solution.
 
-State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest at the first input
-sample* of every simulation (and, for the compensator, at rest at the input of the model's
-operator state): the policy under which :class:`~stageid.hysteresis.PIIdentifier` fits it, and
-the one :func:`~stageid.hysteresis.align_record` applies to other records.
+State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest*: inside a PI model
+at rest at the input of the model's operator state (the input the operators last saw, so the
+operators and the creep agree about the history; after ``consistent_state(u[0], ...)`` that is
+the record's first input -- the policy under which :class:`~stageid.hysteresis.PIIdentifier`
+fits the creep and :func:`~stageid.hysteresis.align_record` applies it to other records); a
+bare :class:`CreepTerm` without ``rest`` is at rest at its first input sample.
 
 Inversion with creep (:class:`CreepInverse`): per sample, the memory part
 ``h = sum_j c_j a_j s_j(k-1)`` is known, and the instantaneous gain ``g`` is folded into the
@@ -129,9 +131,10 @@ class CreepTerm:
         """``g = sum_j c_j (1 - a_j)``: how the current sample's output depends on its input."""
         return float(np.sum(self.weights * (1.0 - self.poles(dt))))
 
-    def lags(self, u: object, dt: float | None = None, state: np.ndarray | None = None) -> np.ndarray:
+    def lags(self, u: object, dt: float | None = None, state: np.ndarray | None = None,
+             rest: float | None = None) -> np.ndarray:
         """Lag outputs ``s_j(k)``, shape (n_samples, n_lags), from ``state`` (default the term's;
-        ``None``: at rest at ``u[0]``)."""
+        ``None``: at rest at ``rest``, default ``u[0]``)."""
         from scipy.signal import lfilter
 
         uu = np.asarray(u, dtype=float).reshape(-1)
@@ -140,12 +143,12 @@ class CreepTerm:
         out = np.empty((uu.size, a.size))
         if uu.size == 0:
             return out
-        s0 = np.full(a.size, uu[0]) if st is None else st
+        s0 = np.full(a.size, uu[0] if rest is None else float(rest)) if st is None else st
         for j, aj in enumerate(a):
             out[:, j] = lfilter([1.0 - aj], [1.0, -aj], uu, zi=[aj * s0[j]])[0]
         return out
 
-    def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, u: object, dt: float | None = None, rest: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Creep output, shape (n_samples,), and the final lag outputs, shape (n_lags,).
 
         Parameters
@@ -154,15 +157,18 @@ class CreepTerm:
             Input (model units, e.g. volts).
         dt : float, optional
             Sampling period [s]; default :attr:`sample_time`.
+        rest : float, optional
+            Input the lags rest at before the first sample when the term has no ``state``
+            (default ``u[0]``).
         """
-        S = self.lags(u, dt)
+        S = self.lags(u, dt, rest=rest)
         if S.shape[0] == 0:
             final = np.array(self.state) if self.state is not None else np.zeros(self.n_lags)
             return np.zeros(0), final
         return S @ self.weights, S[-1].copy()
 
     def with_state(self, state: object | None) -> "CreepTerm":
-        """A copy with lag outputs ``state`` (``None``: at rest at the first input)."""
+        """A copy with lag outputs ``state`` (``None``: at rest, see the module notes)."""
         return replace(self, state=state)
 
     def to_dict(self) -> dict[str, Any]:

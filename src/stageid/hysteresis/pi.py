@@ -203,7 +203,8 @@ class _PIBase:
                 y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         creep = getattr(self, "creep", None)
         if creep is not None and u_in.size:
-            y = y + creep.run(u_in, dt)[0]
+            rest = None if creep.state is not None else float(self.from_operator_input(self.state.x))
+            y = y + creep.run(u_in, dt, rest=rest)[0]
         return (y + self.output_offset)[:, None], OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def simulate(self, u: object, dt: float | None = None) -> np.ndarray:
