@@ -120,11 +120,17 @@ def test_compensator_tracks_a_model_with_creep(kind):
     np.testing.assert_allclose(stepped, drive[:300, 0], rtol=0, atol=1e-12)
     u_inv, _ = invert(m, yref)
     np.testing.assert_allclose(u_inv, drive, rtol=0, atol=1e-12)
-    # a record that starts away from the state's input: the creep rests at the state's input in
-    # both the forward model and the compensator, so the round trip stays exact
+    # a record that starts away from the state's input: the creep rests at the first input in
+    # both the forward model and the compensator (first drive solved with the static creep gain)
     yjump = m.simulate(u + 3.0)[:, 0]
     drive_jump = Compensator(m).run(yjump)
     np.testing.assert_allclose(drive_jump[:, 0], u + 3.0, rtol=0, atol=1e-9)
+    # and with an explicit creep state (not at rest)
+    from dataclasses import replace
+
+    m_state = replace(m, creep=creep.with_state([1.0, -1.0]))
+    drive_state = Compensator(m_state).run(m_state.simulate(u))
+    np.testing.assert_allclose(drive_state[:, 0], u, rtol=0, atol=1e-9)
 
 
 def test_compensator_with_creep_respects_limits():

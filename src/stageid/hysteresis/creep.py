@@ -17,14 +17,13 @@ Why ``c_j >= 0``: the output of the current sample depends on the current input 
 function of the current input and the per-sample inverse of :mod:`.inverse` still has exactly
 one solution.
 
-State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest*: inside a PI model
-at rest at the input of the model's operator state (the input the operators last saw, so the
-operators and the creep agree about the history; after ``consistent_state(u[0], ...)`` that is
-the record's first input -- the policy under which :class:`~stageid.hysteresis.PIIdentifier`
-fits the creep and :func:`~stageid.hysteresis.align_record` applies it to other records); a
-bare :class:`CreepTerm` without ``rest`` is at rest at its first input sample.
+State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest at the first input
+sample* of every simulation (records start after an idle stretch): the policy under which
+:class:`~stageid.hysteresis.PIIdentifier` fits the creep and the one
+:func:`~stageid.hysteresis.align_record` applies to other records.  The compensator follows it:
+its first drive is solved with the creep at rest at that drive (output ``(sum_j c_j) u``).
 
-Inversion with creep (:class:`CreepInverse`): per sample, the memory part
+Inversion with creep (:class:`CreepInverse`): per sample after the first, the memory part
 ``h = sum_j c_j a_j s_j(k-1)`` is known, and the instantaneous gain ``g`` is folded into the
 linear operator's weight (``r_0 = 0``) of the rate-independent model, which is then inverted
 by the existing :class:`~stageid.hysteresis.Compensator`.  Without an input warp this is
@@ -231,14 +230,21 @@ class CreepInverse:
         self._a = creep.poles()
         self._ca = creep.weights * self._a
         self._g = creep.instantaneous_gain()
+        self._G = float(np.sum(creep.weights))
         base = replace(model, creep=None)
-        # fold the instantaneous creep gain into the linear operator (r = 0: the identity)
+        # fold the instantaneous creep gain into the linear operator (r = 0: the identity); the
+        # first sample of a creep at rest at that sample's input has the whole static gain G
         self._folded = bool(base.r[0] == 0.0)
-        if self._folded:
+
+        def folded(gain: float):
+            if not self._folded:
+                return Compensator(base, limits)
             w = np.array(base.weights)
-            w[0] += self._g
-            base = replace(base, weights=w)
-        self._inner = Compensator(base, limits)
+            w[0] += gain
+            return Compensator(replace(base, weights=w), limits)
+
+        self._inner = folded(self._g)
+        self._first = folded(self._G)
         self.limits = self._inner.limits
         scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)) + np.sum(creep.weights))
         self._tol = 1e-12 * max(scale, 1e-300)
@@ -246,17 +252,18 @@ class CreepInverse:
 
     def reset(self, state: OperatorState | None = None, creep_state: object | None = None) -> None:
         """Restart from an operator ``state`` (default the model's) and lag outputs ``creep_state``
-        (default the creep term's; ``None`` there: at rest at the state's input)."""
+        (default the creep term's; ``None`` there: at rest at the first drive, as
+        :meth:`~stageid.hysteresis.PIModel.simulate` assumes)."""
         self._inner.reset(state)
         st = self.creep.state if creep_state is None else np.asarray(creep_state, dtype=float).reshape(-1)
+        x = (self.model.state if state is None else state).x
+        self._u_prev = float(self.model.from_operator_input(x))
+        self._fresh = st is None
         if st is None:
-            x = (self.model.state if state is None else state).x
-            st = np.full(self.creep.n_lags, float(self.model.from_operator_input(x)))
+            st = np.full(self.creep.n_lags, self._u_prev)
         if st.size != self.creep.n_lags:
             raise ModelError(f"creep state must hold {self.creep.n_lags} lag outputs; got {st.size}.")
         self._s = np.array(st, dtype=float)
-        x = (self.model.state if state is None else state).x
-        self._u_prev = float(self.model.from_operator_input(x))
 
     @property
     def state(self) -> OperatorState:
@@ -274,19 +281,27 @@ class CreepInverse:
 
     def step(self, y_ref: float) -> float:
         """Drive for one desired output sample; advances the operator and creep states."""
-        h = float(self._ca @ self._s)
-        g = self._g
-        saved = self._inner.state
+        if self._fresh:  # creep at rest at this sample's (unknown) input: output G*u, no memory
+            inner, g, h = self._first, self._G, 0.0
+            inner.reset(self._inner.state)
+        else:
+            inner, g, h = self._inner, self._g, float(self._ca @ self._s)
+        saved = inner.state
         e = self._excess(self._u_prev)
         u = float("nan")
-        for _ in range(60):
-            u = float(self._inner.step(float(y_ref) - h - g * e))
+        for _ in range(100):
+            u = float(inner.step(float(y_ref) - h - g * e))
             e_new = self._excess(u)
             if abs(g * (e_new - e)) <= self._tol:
                 break
-            self._inner.reset(saved)
+            inner.reset(saved)
             e = e_new
-        self._s = self._a * self._s + (1.0 - self._a) * u
+        if self._fresh:
+            self._inner.reset(inner.state)
+            self._s = np.full(self.creep.n_lags, u)
+            self._fresh = False
+        else:
+            self._s = self._a * self._s + (1.0 - self._a) * u
         self._u_prev = u
         return u
 

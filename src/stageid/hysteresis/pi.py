@@ -203,8 +203,7 @@ class _PIBase:
                 y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         creep = getattr(self, "creep", None)
         if creep is not None and u_in.size:
-            rest = None if creep.state is not None else float(self.from_operator_input(self.state.x))
-            y = y + creep.run(u_in, dt, rest=rest)[0]
+            y = y + creep.run(u_in, dt)[0]  # no creep state: at rest at the first input
         return (y + self.output_offset)[:, None], OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def simulate(self, u: object, dt: float | None = None) -> np.ndarray:
