@@ -133,6 +133,14 @@ def test_compensator_tracks_a_model_with_creep(kind):
     np.testing.assert_allclose(drive_state[:, 0], u, rtol=0, atol=1e-9)
 
 
+def test_compensator_with_creep_at_another_sample_time():
+    m = _pi_truth(CreepTerm([0.05, 0.5], [0.2, 0.1], DT))
+    u = _drive()[::2]  # the same drive sampled at 2 ms
+    yref = m.simulate(u, dt=2 * DT)[:, 0]
+    np.testing.assert_allclose(Compensator(m, dt=2 * DT).run(yref)[:, 0], u, rtol=0, atol=1e-9)
+    assert np.max(np.abs(Compensator(m).run(yref)[:, 0] - u)) > 1e-3  # the default dt is 1 ms: wrong here
+
+
 def test_compensator_with_creep_respects_limits():
     m = _pi_truth(CreepTerm([0.2], [0.3], DT))
     drive = Compensator(m, limits=(-2.0, 2.0)).run(np.linspace(0.0, 20.0, 500))

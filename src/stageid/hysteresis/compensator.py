@@ -37,6 +37,9 @@ class Compensator:
         The identified actuator model (its state is the starting state).
     limits : (float, float), optional
         Drive limits in input units; default ``model.input_limits`` (unlimited if None).
+    dt : float, optional
+        Sampling period [s] of the reference; used only by a model's ``creep`` term (default
+        its ``sample_time``).
 
     Raises
     ------
@@ -54,7 +57,8 @@ class Compensator:
     [0.0, 2.0, 1.0]
     """
 
-    def __init__(self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None) -> None:
+    def __init__(self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None,
+                 dt: float | None = None) -> None:
         from . import _kernels
 
         self._k = _kernels
@@ -63,7 +67,7 @@ class Compensator:
         if getattr(model, "creep", None) is not None:  # rate dependent: delegate (see creep.py)
             from .creep import CreepInverse
 
-            self._creep = CreepInverse(model, limits)
+            self._creep = CreepInverse(model, limits, dt)
             self.limits = self._creep.limits
             return
         lim = limits if limits is not None else model.input_limits

@@ -206,6 +206,8 @@ class CreepInverse:
         With ``model.creep`` set.
     limits : (float, float), optional
         Drive limits (default ``model.input_limits``).
+    dt : float, optional
+        Sampling period [s] of the reference (default the creep term's ``sample_time``).
 
     Examples
     --------
@@ -219,7 +221,7 @@ class CreepInverse:
     True
     """
 
-    def __init__(self, model: Any, limits: tuple[float, float] | None = None) -> None:
+    def __init__(self, model: Any, limits: tuple[float, float] | None = None, dt: float | None = None) -> None:
         from .compensator import Compensator
 
         creep = getattr(model, "creep", None)
@@ -227,9 +229,9 @@ class CreepInverse:
             raise ModelError("CreepInverse needs a model with a creep term; got model.creep = None.")
         self.model = model
         self.creep = creep
-        self._a = creep.poles()
+        self._a = creep.poles(dt)
         self._ca = creep.weights * self._a
-        self._g = creep.instantaneous_gain()
+        self._g = creep.instantaneous_gain(dt)
         self._G = float(np.sum(creep.weights))
         base = replace(model, creep=None)
         # fold the instantaneous creep gain into the linear operator (r = 0: the identity); the
