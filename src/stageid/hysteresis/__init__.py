@@ -10,6 +10,7 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``coupled_play``           bank of coupled-play operators (eq. 3)
 ``PIModel``                classical PI: weighted plays plus a linear term
 ``ModifiedPIModel``        modified PI of eq. 4
+``CreepTerm``              optional linear creep of either model (first-order lags of the input)
 ``PIIdentifier``           thresholds equally spaced, constrained LS weights, CP thresholds by
                            nonlinear optimisation; ``fit`` returns ``HysteresisFit``
 ``pi_inverse``             closed-form inverse of a classical PI model (a PI model)
@@ -24,6 +25,7 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 """
 
 from .compensator import Compensator, compensate
+from .creep import CreepTerm
 from .identification import HysteresisFit, PIIdentifier, align_record
 from .inverse import invert, pi_inverse
 from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
@@ -36,6 +38,7 @@ __all__ = [
     "coupled_play",
     "PIModel",
     "ModifiedPIModel",
+    "CreepTerm",
     "PIIdentifier",
     "HysteresisFit",
     "align_record",
