@@ -24,7 +24,8 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
     Classical PI models use their closed-form inverse; modified PI models are inverted sample
-    by sample (exact to 1e-12). The drive starts from the model's stored state.
+    by sample (exact to 1e-12). The drive starts from the model's stored state; a model with a
+    creep term is inverted at the reference file's sampling period.
     """
     from ..data.io import write_csv
     from ..hysteresis import Compensator
@@ -48,5 +49,6 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     yref = table.column(column)
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
-    u = Compensator(model, limits=lim).run(yref)
+    # a creep term (rate dependent) runs at the reference's sampling period
+    u = Compensator(model, limits=lim, dt=table.dt).run(yref)
     write_csv(out, {model.inputs[0]: u[:, 0]}, dt=table.dt, t0=table.t0)
