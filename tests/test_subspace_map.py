@@ -98,3 +98,59 @@ def test_bad_shapes_and_forgetting_are_rejected():
         recursive_map(u, y, 2, np.zeros((3, 3)), np.eye(3))
     with pytest.raises(DataError, match="forgetting"):
         recursive_map(u, y, 2, np.zeros((6, 14)), np.eye(14), forgetting=1.5)
+
+
+def _dense_prior(rng, d, scale):
+    """A dense, well-conditioned prior covariance (eigenvalues in [scale / 10, scale])."""
+    Q, _ = np.linalg.qr(rng.standard_normal((d, d)))
+    return (Q * (scale * rng.uniform(0.1, 1.0, d))) @ Q.T
+
+
+@pytest.mark.parametrize("forgetting", [1.0, 0.99])
+@pytest.mark.parametrize("extra", [0, 1, 2, 3, 5, 8, 30])
+def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, extra):
+    # recursive_map runs the first d windows one at a time, then groups of four with delayed
+    # updates, then the last (< 4) one at a time: lengths around every switch point
+    p, m, q = 3, 1, 2
+    d = 2 * p * m + p * q
+    rng = np.random.default_rng(extra)
+    n_windows = d + 2 * 4 + extra if extra < 30 else 40 * d
+    u, y = _data(11 + extra, n=n_windows + 2 * p - 1, m=m, q=q)
+    y = y + 0.3 * rng.standard_normal(y.shape)  # both outputs well excited
+    theta0 = 0.1 * rng.standard_normal((p * q, d))
+    P0 = _dense_prior(rng, d, 5.0)
+    th_c, P_c = recursive_map(u, y, p, theta0, P0, forgetting)
+    th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
+    # the same arithmetic in another order: rounding only (relative 1e-12 leaves 1e3 eps of room;
+    # the textbook P update amplifies rounding by up to forgetting^-n, 0.99^-480 ~ 1e2, so long
+    # records with strong forgetting would test the reference's drift, not this kernel)
+    np.testing.assert_allclose(th_c, th_py, rtol=0, atol=1e-12 * np.abs(th_py).max())
+    np.testing.assert_allclose(P_c, P_py, rtol=0, atol=1e-12 * np.abs(P_py).max())
+
+
+@pytest.mark.parametrize("forgetting", [1.0, 0.97])
+def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
+    # the four-window delayed-update kernel on its own (no one-window warm-up), from a dense prior
+    from stageid.subspace import map_estimator as me
+
+    p, m, q = 2, 2, 3
+    d = 2 * p * m + p * q
+    rows = p * q
+    rng = np.random.default_rng(21)
+    u, y = _data(22, n=4 * 25 + 2 * p - 1, m=m, q=q)  # 100 windows: 25 groups, no remainder
+    theta0 = rng.standard_normal((rows, d))
+    P0 = _dense_prior(rng, d, 2.0)
+    dp = -(-d // 4) * 4
+    th = me._aligned_zeros((rows, dp))
+    th[:, :d] = theta0
+    Pw = me._aligned_zeros((d, dp))
+    Pw[:, :d] = P0
+    work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8, 9) else np.zeros((4, rows)) for k in range(11)]
+    z = np.ascontiguousarray(np.hstack([u, y]))
+    done = me._delayed()(z, p, m, q, th, Pw, forgetting, *work)
+    assert done == 100
+    th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
+    assert not th[:, d:].any() and not Pw[:, d:].any()  # the padding stays zero
+    # rounding only (relative 1e-12)
+    np.testing.assert_allclose(th[:, :d], th_py, rtol=0, atol=1e-12 * np.abs(th_py).max())
+    np.testing.assert_allclose(Pw[:, :d], P_py, rtol=0, atol=1e-12 * np.abs(P_py).max())
