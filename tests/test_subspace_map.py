@@ -146,8 +146,7 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     Pw = me._aligned_zeros((d, dp))
     Pw[:, :d] = P0
     work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8, 9) else np.zeros((4, rows)) for k in range(11)]
-    z = np.ascontiguousarray(np.hstack([u, y]))
-    done = me._delayed()(z, p, m, q, th, Pw, forgetting, *work)
+    done = me._delayed()(u.ravel(), y.ravel(), p, m, q, th, Pw, forgetting, *work)
     assert done == 100
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
     assert not th[:, d:].any() and not Pw[:, d:].any()  # the padding stays zero

@@ -398,7 +398,7 @@ def _kernel():
 _DELAY = 4  # windows per delayed update (the unrolled width of _delayed_kernel)
 
 
-def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E):  # pragma: no cover - numba
+def _delayed_kernel(uf, yf, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E):  # pragma: no cover - numba
     """Eq. 17-18 window by window with the rank-1 updates of theta and P applied 4 at a time.
 
     Within a group of four windows ``j = 0..3`` (theta_0, P_0 at the group start, A = P_0 X,
@@ -420,17 +420,18 @@ def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G,
     d = 2 * p * m + p * q
     rows = p * q
     dp = P.shape[1]
-    n_groups = (z.shape[0] - 2 * p + 1) // 4
+    pm = p * m
+    n_groups = (uf.shape[0] // m - 2 * p + 1) // 4
     if n_groups == 0:
         return 0
     for j in range(4):
-        for i in range(p):
-            for c in range(m):
-                X[j, i * m + c] = z[j + i, c]
-                X[j, p * m + p * q + i * m + c] = z[j + p + i, c]
-            for c in range(q):
-                X[j, p * m + i * q + c] = z[j + i, m + c]
-                Y[j, i * q + c] = z[j + p + i, m + c]
+        # window j in eq. 9 order: four contiguous copies from the flattened u and y
+        for t in range(pm):
+            X[j, t] = uf[j * m + t]
+            X[j, pm + rows + t] = uf[j * m + pm + t]
+        for t in range(rows):
+            X[j, pm + t] = yf[j * q + t]
+            Y[j, t] = yf[j * q + rows + t]
         for a in range(d):
             acc = 0.0
             for t in range(dp):
@@ -484,13 +485,12 @@ def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G,
         if grp + 1 < n_groups:
             for j in range(4):
                 k = 4 * (grp + 1) + j
-                for i in range(p):
-                    for c in range(m):
-                        Xn[j, i * m + c] = z[k + i, c]
-                        Xn[j, p * m + p * q + i * m + c] = z[k + p + i, c]
-                    for c in range(q):
-                        Xn[j, p * m + i * q + c] = z[k + i, m + c]
-                        Yn[j, i * q + c] = z[k + p + i, m + c]
+                for t in range(pm):
+                    Xn[j, t] = uf[k * m + t]
+                    Xn[j, pm + rows + t] = uf[k * m + pm + t]
+                for t in range(rows):
+                    Xn[j, pm + t] = yf[k * q + t]
+                    Yn[j, t] = yf[k * q + rows + t]
         else:
             Xn[:, :] = 0.0
         g0 = G[0]
@@ -523,18 +523,19 @@ def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G,
             Tn[1, r] = a1
             Tn[2, r] = a2
             Tn[3, r] = a3
-        # P = lambda^-4 (P - sum_j lambda^j v_j g_j^T) and P X' in one pass
-        for a in range(d):
-            row = P[a]
-            f0 = -V[0, a]
-            f1 = -lam * V[1, a]
-            f2 = -lam * lam * V[2, a]
-            f3 = -lam * lam * lam * V[3, a]
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            a3 = 0.0
-            if lam == 1.0:
+        # P = lambda^-4 (P - sum_j lambda^j v_j g_j^T) and P X' in one pass (two copies of the
+        # loop: a test of lambda inside it costs ~15 % on the development machine)
+        if lam == 1.0:
+            for a in range(d):
+                row = P[a]
+                f0 = -V[0, a]
+                f1 = -V[1, a]
+                f2 = -V[2, a]
+                f3 = -V[3, a]
+                a0 = 0.0
+                a1 = 0.0
+                a2 = 0.0
+                a3 = 0.0
                 for t in range(dp):
                     v = row[t] + f0 * g0[t] + f1 * g1[t] + f2 * g2[t] + f3 * g3[t]
                     row[t] = v
@@ -542,11 +543,21 @@ def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G,
                     a1 += v * x1[t]
                     a2 += v * x2[t]
                     a3 += v * x3[t]
-            else:
-                f0 *= il4
-                f1 *= il4
-                f2 *= il4
-                f3 *= il4
+                An[0, a] = a0
+                An[1, a] = a1
+                An[2, a] = a2
+                An[3, a] = a3
+        else:
+            for a in range(d):
+                row = P[a]
+                f0 = -il4 * V[0, a]
+                f1 = -il4 * lpow[1] * V[1, a]
+                f2 = -il4 * lpow[2] * V[2, a]
+                f3 = -il4 * lpow[3] * V[3, a]
+                a0 = 0.0
+                a1 = 0.0
+                a2 = 0.0
+                a3 = 0.0
                 for t in range(dp):
                     v = row[t] * il4 + f0 * g0[t] + f1 * g1[t] + f2 * g2[t] + f3 * g3[t]
                     row[t] = v
@@ -554,10 +565,10 @@ def _delayed_kernel(z, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G,
                     a1 += v * x1[t]
                     a2 += v * x2[t]
                     a3 += v * x3[t]
-            An[0, a] = a0
-            An[1, a] = a1
-            An[2, a] = a2
-            An[3, a] = a3
+                An[0, a] = a0
+                An[1, a] = a1
+                An[2, a] = a2
+                An[3, a] = a3
         X, Xn = Xn, X
         Y, Yn = Yn, Y
         A, An = An, A
@@ -610,7 +621,9 @@ def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: 
         Pw[:, :d] = P
         X, Xn, A, An, V, G = (_aligned_zeros((_DELAY, dp)) for _ in range(6))
         Y, Yn, T, Tn, E = (np.zeros((_DELAY, rows)) for _ in range(5))
-        done = _delayed()(z, p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
+        uf = np.ascontiguousarray(z[:, :m]).ravel()
+        yf = np.ascontiguousarray(z[:, m:]).ravel()
+        done = _delayed()(uf, yf, p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
         theta = np.ascontiguousarray(th[:, :d])
         P = np.ascontiguousarray(Pw[:, :d])
         if done == n_windows:
