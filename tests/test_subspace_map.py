@@ -108,10 +108,12 @@ def _dense_prior(rng, d, scale):
 
 @pytest.mark.parametrize("forgetting", [1.0, 0.99])
 @pytest.mark.parametrize("extra", [0, 1, 2, 3, 5, 8, 30])
-def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, extra):
+@pytest.mark.parametrize("m", [1, 0])
+def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, extra, m):
     # recursive_map runs the first d windows one at a time, then groups of four with delayed
     # updates, then the last (< 4) one at a time: lengths around every switch point
-    p, m, q = 3, 1, 2
+    # (m = 0: output-only data, x holds past outputs only)
+    p, q = 3, 2
     d = 2 * p * m + p * q
     rng = np.random.default_rng(extra)
     n_windows = d + 2 * 4 + extra if extra < 30 else 40 * d
@@ -146,7 +148,7 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     Pw = me._aligned_zeros((d, dp))
     Pw[:, :d] = P0
     work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8, 9) else np.zeros((4, rows)) for k in range(11)]
-    done = me._delayed()(u.ravel(), y.ravel(), p, m, q, th, Pw, forgetting, *work)
+    done = me._delayed()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
     assert done == 100
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
     assert not th[:, d:].any() and not Pw[:, d:].any()  # the padding stays zero

@@ -398,7 +398,7 @@ def _kernel():
 _DELAY = 4  # windows per delayed update (the unrolled width of _delayed_kernel)
 
 
-def _delayed_kernel(uf, yf, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E):  # pragma: no cover - numba
+def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E):  # pragma: no cover - numba
     """Eq. 17-18 window by window with the rank-1 updates of theta and P applied 4 at a time.
 
     Within a group of four windows ``j = 0..3`` (theta_0, P_0 at the group start, A = P_0 X,
@@ -421,7 +421,7 @@ def _delayed_kernel(uf, yf, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, 
     rows = p * q
     dp = P.shape[1]
     pm = p * m
-    n_groups = (uf.shape[0] // m - 2 * p + 1) // 4
+    n_groups = (n_samples - 2 * p + 1) // 4
     if n_groups == 0:
         return 0
     for j in range(4):
@@ -629,7 +629,7 @@ def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: 
         Y, Yn, T, Tn, E = (np.zeros((_DELAY, rows)) for _ in range(5))
         uf = np.ascontiguousarray(z[:, :m]).ravel()
         yf = np.ascontiguousarray(z[:, m:]).ravel()
-        done = _delayed()(uf, yf, p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
+        done = _delayed()(uf, yf, z.shape[0], p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
         theta = np.ascontiguousarray(th[:, :d])
         P = np.ascontiguousarray(Pw[:, :d])
         if done == n_windows:
