@@ -398,7 +398,8 @@ def _kernel():
 _DELAY = 4  # windows per delayed update (the unrolled width of _delayed_kernel)
 
 
-def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E):  # pragma: no cover - numba
+def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cover - numba
+                    X, Y, Xn, Yn, A, T, An, Tn, V, G, E):
     """Eq. 17-18 window by window with the rank-1 updates of theta and P applied 4 at a time.
 
     Within a group of four windows ``j = 0..3`` (theta_0, P_0 at the group start, A = P_0 X,
@@ -408,14 +409,17 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, 
         s_j = lambda + x_j . v_j,   g_j = v_j / s_j
         e_j = y_j - theta_j x_j = y_j - T_j - sum_{i<j} (v_i . x_j) / s_i e_i
 
-    (``P_j = lambda^-j (P_0 - sum_{i<j} w_i v_i v_i^T)``, ``theta_j = theta_0 + sum_{i<j} e_i g_i^T``);
-    then one pass over theta and one over P apply the four updates
+    (``P_j = lambda^-j (P_0 - sum_{i<j} w_i v_i v_i^T)``,
+    ``theta_j = theta_0 + sum_{i<j} e_i g_i^T``); then one pass over theta and one over P
+    apply the four updates
     (``theta += sum_j e_j g_j^T``, ``P = lambda^-4 (P - sum_j lambda^j v_j g_j^T)``) and form
     ``theta X'`` and ``P X'`` for the next group.  The arithmetic per window is that of the
     one-window recursion; the matrices are read and written once per four windows instead of
     once per window.  ``theta`` (p q, dp) and ``P`` (d, dp) have rows padded with zeros to
     ``dp`` (a multiple of 4) and 32-byte alignment; the work arrays are (4, dp) / (4, p q).
-    Processes ``4 * (n_windows // 4)`` windows and returns that count.
+    Processes ``4 * (n_windows // 4)`` windows of the flattened ``u`` (``uf``, n_samples m)
+    and ``y`` (``yf``, n_samples q) and returns that count.  The windows are those of
+    :func:`recursive_map_python`, so ``recursive_map`` equals it to rounding.
     """
     d = 2 * p * m + p * q
     rows = p * q
