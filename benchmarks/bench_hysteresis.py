@@ -6,16 +6,21 @@ Single thread (NUMBA_NUM_THREADS=1, BLAS threads 1), double precision.  Reports 
 ``--repeat`` runs in ns per sample per operator for 20 and 100 operators and two inputs:
 
 * ``smooth``: 10^6 samples of a decaying 100-cycle sine (a record like the letter's: few
-  reversals per sample) -- the case the event-driven play kernel is built for;
-* ``random-walk``: 10^6 samples of a Gaussian random walk (a reversal every other sample on
-  average) -- the worst case for the event-driven kernel.
+  reversals per sample) -- the case the event-driven kernels are built for;
+* ``random-walk``: 10^6 samples of a Gaussian random walk (steps of 5 V) reflected into
+  +-450 V: it turns at every other sample and never stands still -- the worst case for the
+  event-driven kernels;
+* ``clipped-walk``: the same walk clipped to +-450 V (what earlier runs called
+  ``random-walk``): it leaves the range after a few thousand samples, so 82 % of its samples
+  stand still at the clip and it turns at only 9 % of them.
 
 Kernels: ``play loop`` (vectorised loop over operators, every sample), ``play events``
 (event-driven, O(1) amortised), ``play auto`` (what ``PIModel.simulate`` uses),
-``CP loop`` / ``CP events`` / ``CP auto`` (the same for the modified PI of eq. 3-4; ``auto``
-is what ``ModifiedPIModel.simulate`` uses: events when the input reverses in < 2 % of the
-samples), ``numpy`` (a Python loop over samples with numpy over operators, timed on the
-first 10^5 samples).  Every kernel is checked against the
+``CP loop`` / ``CP events`` / ``CP banded`` / ``CP auto`` (the same for the modified PI of
+eq. 3-4; ``banded`` touches only the operator blocks whose band the input leaves; ``auto``
+is what ``ModifiedPIModel.simulate`` uses: events when the input turns in < 0.5 % of the
+samples, else banded), ``numpy`` (a Python loop over samples with numpy over operators,
+timed on the first 10^5 samples).  Every kernel is checked against the
 plain-Python reference (first 20000 samples; 1e-12 relative) and against the loop kernel on
 all samples.  The streaming compensator is timed per sample through ``Compensator.step``
 (Python call per sample) and through the compiled step called in a compiled loop.
@@ -81,12 +86,19 @@ def main(argv=None) -> int:
     n = args.samples
     rng = np.random.default_rng(0)
     t = np.linspace(0.0, 1.0, n)
+    walk = np.cumsum(rng.normal(0, 5, n))
     inputs = {
         "smooth": 400 * np.sin(2 * np.pi * 100 * t) * (1 - 0.9 * t),
-        "random-walk": np.clip(np.cumsum(rng.normal(0, 5, n)), -450, 450),
+        "random-walk": 450 - np.abs(np.mod(walk + 450, 1800) - 900),
+        "clipped-walk": np.clip(walk, -450, 450),
     }
     print(f"# {platform.processor() or platform.machine()}, Python {sys.version.split()[0]}, numpy {np.__version__}, "
-          f"{n} samples, median of {args.repeat}")
+          f"{n} samples, median of {args.repeat}; load average {os.getloadavg()[0]:.2f}")
+    for name, x in inputs.items():
+        dx = np.diff(x)
+        moving = dx[dx != 0]
+        print(f"# {name}: turns at {np.mean(moving[1:] * moving[:-1] < 0):.1%} of the moving samples, "
+              f"stands still at {np.mean(dx == 0):.1%}")
     print(f"{'input':12s} {'ops':>4s} {'kernel':14s} {'ns/sample/op':>13s} {'max rel. diff':>14s}")
     rows = []
     n_np = min(n, 100_000)
@@ -108,6 +120,7 @@ def main(argv=None) -> int:
                 ("play auto", lambda: K.play_sum_auto(x, r, w, z0, 0.0)[0], yref),
                 ("CP loop", lambda: K.cp_sum(x, r, rc, ra, rb, w, z0)[0], ycref),
                 ("CP events", lambda: K.cp_sum_events(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
+                ("CP banded", lambda: K.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
                 ("CP auto", lambda: K.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
             ]
             loops = {}
@@ -152,6 +165,7 @@ def main(argv=None) -> int:
     ypi = pi_model.simulate(inputs["smooth"])[:, 0]
     sec, u = timed(lambda: Compensator(pi_model).run(ypi), args.repeat)
     print(f"compensator, classical PI (closed-form inverse), {m} operators: {n / sec / 1e6:.2f} M samples/s")
+    print(f"# load average at the end {os.getloadavg()[0]:.2f}")
     return 0
 
 

@@ -20,7 +20,7 @@ import pytest
 
 from stageid.hysteresis import ModifiedPIModel, OperatorState
 from stageid.hysteresis import _kernels
-from stageid.hysteresis.operators import coupled_play_reference
+from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 N = 5000  # > 2 adaptation blocks of the banded kernel; the reference takes ~0.1 s
 
@@ -191,6 +191,24 @@ def test_resume_from_saved_state(kind):
             ys.append(y)
             x0 = float(part[-1])
         _check(f"{name} resumed", np.concatenate(ys), z, Zr, zr, w)
+
+
+@pytest.mark.parametrize("kind", ["random-walk", "clipped-walk", "smooth", "jumps", "on-thresholds"])
+def test_play_sum_auto_equals_reference(kind):
+    # the classical PI's kernel: events on smooth records, the banded CP kernel with
+    # rc = ra = rb = r otherwise -- the play's operator outputs bit for bit
+    rng = np.random.default_rng(31 + KINDS.index(kind))
+    r = np.r_[0.0, np.sort(rng.uniform(0, 300, 11))]
+    x = _input(kind, rng, thresholds=(r, r, r, r))
+    w = rng.normal(size=12)
+    x0 = float(x[0])
+    z0 = np.maximum(x0 - r, np.minimum(x0 + r, rng.uniform(-200, 200, 12)))
+    Zr, zr = play_reference(x, r, z0)
+    y, z = _kernels.play_sum_auto(x, r, w, z0, x0)
+    np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
+    np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 450)  # events: rebuilt at reversals
+    y, z = _kernels.cp_sum_banded(x, r, r, r, r, w, z0, x0)
+    assert np.array_equal(z, zr)
 
 
 def test_edge_cases():
