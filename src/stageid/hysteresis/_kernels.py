@@ -7,6 +7,24 @@ branches, ``min``/``max`` only); the only fast-math flags used are ``nnan``/``ni
 (the inputs are checked finite before they get here) and ``reassoc`` for the weighted sum,
 which changes its rounding by ~1e-16 relative, far inside the 1e-12 the tests ask for.
 
+Weighted sums of coupled-play operators (the modified PI model, eq. 4) have three kernels:
+
+* :func:`cp_sum` updates every operator at every sample (~0.33-0.43 ns per sample and
+  operator on the 2-core EPYC benchmark machine);
+* :func:`cp_sum_events` follows the piecewise-linear output between reversals (0.04-0.12 ns
+  on smooth records, but it sorts all slope changes at every reversal: 14-17 ns on a random
+  walk that turns at every other sample);
+* :func:`cp_sum_banded` skips the operators that cannot move: each block of 8 operators
+  (sorted by band width) knows the open interval of inputs in which none of its operators
+  moves, and only the blocks the input leaves are updated; the narrowest blocks, which move
+  at almost every sample, are simply updated every sample (0.14-0.31 ns on the random walk,
+  0.04-0.12 on a walk that stands still most of the time).
+
+:func:`cp_sum_auto` picks the event kernel for smooth records and the banded one otherwise;
+:func:`play_sum_auto` does the same for the classical PI model (a play is a CP operator with
+``rc = ra = rb = r``).  Every kernel produces the reference's operator outputs bit for bit
+(the event kernels to 1e-12 of the input range); see ``benchmarks/RESULTS-hysteresis.md``.
+
 This module imports numba; it is imported lazily by the operators and models.
 """
 
