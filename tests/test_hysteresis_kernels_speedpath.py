@@ -230,6 +230,10 @@ def test_turn_fraction():
     assert _kernels.turn_fraction(np.arange(10.0)) == 0.0
     assert _kernels.turn_fraction(np.array([0.0, 1.0, 1.0, 0.0])) == 0.0  # turns across a plateau are not seen
     assert _kernels.turn_fraction(np.empty(0)) == 0.0
+    # the dispatch: a sine is smooth; a square wave turns only across plateaus, yet reverses often
+    assert _kernels._is_smooth(np.sin(np.linspace(0, 20, 10_000)))
+    assert not _kernels._is_smooth(np.repeat((-1.0) ** np.arange(1000), 10))
+    assert not _kernels._is_smooth(np.random.default_rng(0).normal(size=10_000))
 
 
 @pytest.mark.parametrize("kind", ["random-walk", "smooth"])
