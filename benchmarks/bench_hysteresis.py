@@ -147,6 +147,7 @@ def main(argv=None) -> int:
     r = np.arange(m) * 25.0
     model = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.3 * r, rb=0.78 * r, weights=np.r_[1.0, rng.uniform(0, 0.3, m - 1)])
     yref = model.simulate(inputs["smooth"][:n])[:, 0]
+    Compensator(model).step(yref[0])  # warm-up: the first call loads the compiled step
     comp = Compensator(model)
     n_py = min(n, 200_000)
     t0 = time.perf_counter()
