@@ -102,11 +102,14 @@ def test_json_round_trip_and_old_files_without_creep():
         model_from_dict(bad)
 
 
-@pytest.mark.parametrize("kind", ["pi", "modified-warp"])
+@pytest.mark.parametrize("kind", ["pi", "modified", "modified-warp"])
 def test_compensator_tracks_a_model_with_creep(kind):
     creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
     if kind == "pi":
         m = _pi_truth(creep)
+    elif kind == "modified":  # the compiled batch path of CreepInverse.run
+        m = ModifiedPIModel(r=np.arange(4) * 2.5, rc=np.arange(4) * 1.5, ra=np.arange(4) * 3.0, rb=np.arange(4) * 2.5,
+                            weights=[1.0, 0.3, 0.2, 0.1], input_offset=0.7, output_offset=-0.3, creep=creep)
     else:
         m = ModifiedPIModel(r=np.arange(4) * 2.5, rc=np.arange(4) * 1.5, ra=np.arange(4) * 3.0, rb=np.arange(4) * 2.5,
                             weights=[1.0, 0.3, 0.2, 0.1], input_warp=0.25, warp_scale=10.0, creep=creep)
@@ -145,6 +148,32 @@ def test_compensator_with_creep_respects_limits():
     m = _pi_truth(CreepTerm([0.2], [0.3], DT))
     drive = Compensator(m, limits=(-2.0, 2.0)).run(np.linspace(0.0, 20.0, 500))
     assert drive.min() >= -2.0 and drive.max() <= 2.0 and drive[-1, 0] == 2.0
+
+
+def test_compiled_creep_inversion_equals_stepping_and_continues_its_state(monkeypatch):
+    from stageid.hysteresis.creep import CreepInverse
+
+    creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
+    m = ModifiedPIModel(r=np.arange(4) * 2.5, rc=np.arange(4) * 1.5, ra=np.arange(4) * 3.0, rb=np.arange(4) * 2.5,
+                        weights=[1.0, 0.3, 0.2, 0.1], input_offset=0.7, creep=creep)
+    yref = m.simulate(_drive()[:1500])[:, 0]
+    for limits in (None, (-3.0, 4.0)):
+        batch = Compensator(m, limits=limits)
+        # two blocks: the second continues the first one's operator, creep and input state
+        u = np.concatenate([batch.run(yref[:700])[:, 0], batch.run(yref[700:])[:, 0]])
+        stepper = Compensator(m, limits=limits)
+        fast_step = stepper.step(yref[0]), stepper.step(yref[1])  # compiled from the second sample on
+        # the plain-Python steps are the reference of the compiled loop
+        with monkeypatch.context() as mp:
+            mp.setattr(CreepInverse, "_compiled", property(lambda self: False))
+            stepper = Compensator(m, limits=limits)
+            stepped = np.array([stepper.step(v) for v in yref])
+        np.testing.assert_allclose(fast_step, stepped[:2], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(u, stepped, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch.state.z, stepper.state.z, rtol=0, atol=1e-12)
+        if limits is not None:
+            assert u.min() >= limits[0] - 1e-12 and u.max() <= limits[1] + 1e-12
+            assert np.sum(np.abs(u - limits[1]) < 1e-9) > 10  # the limit is active on part of the record
 
 
 def test_bad_creep_arguments_raise_one_line_errors():

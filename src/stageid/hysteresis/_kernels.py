@@ -278,6 +278,47 @@ def cp_invert(target, P, z0, x0, lo, hi, smin, tol):  # pragma: no cover - compi
 
 
 @_jit_exact
+def cp_invert_creep(yref, P, z0, x0, lo, hi, smin, tol, out_off, in_off, a, ca, s0, u0, g, tol_fp):  # pragma: no cover - compiled
+    """Batch inversion of a modified-PI model with a creep term (no input warp), as
+    ``creep.CreepInverse.step`` does it sample by sample: the creep memory ``h = ca . s`` is
+    subtracted from the target, ``P`` carries the instantaneous creep gain ``g`` folded into
+    the linear operator's weight, and the excess ``g (u - x(u))`` (the input offset, up to
+    rounding) is resolved by the same fixed-point loop.  Returns (drives, z, x, s)."""
+    n = yref.shape[0]
+    out = np.empty(n)
+    z = z0.copy()
+    zs = z0.copy()
+    s = s0.copy()
+    x = x0
+    up = u0
+    nl = a.shape[0]
+    for k in range(n):
+        h = 0.0
+        for j in range(nl):
+            h += ca[j] * s[j]
+        e = up - (up - in_off)
+        for i in range(z.shape[0]):
+            zs[i] = z[i]
+        xs = x
+        u = np.nan
+        for _ in range(100):
+            x = cp_invert_step(P, z, x, (yref[k] - h - g * e) - out_off, lo, hi, smin, tol)
+            u = x + in_off
+            e_new = u - (u - in_off)
+            if abs(g * (e_new - e)) <= tol_fp:
+                break
+            for i in range(z.shape[0]):
+                z[i] = zs[i]
+            x = xs
+            e = e_new
+        for j in range(nl):
+            s[j] = a[j] * s[j] + (1.0 - a[j]) * u
+        up = u
+        out[k] = u
+    return out, z, x, s
+
+
+@_jit_exact
 def play_step(P, z, x):  # pragma: no cover - compiled
     """One sample of a weighted play sum (rows of P: r, w); state z updated in place."""
     m = P.shape[1]

@@ -283,6 +283,8 @@ class CreepInverse:
 
     def step(self, y_ref: float) -> float:
         """Drive for one desired output sample; advances the operator and creep states."""
+        if not self._fresh and self._compiled:
+            return float(self._run_compiled(np.array([float(y_ref)]))[0])
         if self._fresh:  # creep at rest at this sample's (unknown) input: output G*u, no memory
             inner, g, h = self._first, self._G, 0.0
             inner.reset(self._inner.state)
@@ -308,8 +310,43 @@ class CreepInverse:
         return u
 
     def run(self, y_ref: object) -> np.ndarray:
-        """Drives for a block of desired outputs, shape (n_samples, 1); continues the state."""
+        """Drives for a block of desired outputs, shape (n_samples, 1); continues the state.
+
+        A modified-PI model without input warp runs in one compiled loop (the same arithmetic
+        as :meth:`step`); other models step sample by sample from Python.
+        """
         from .pi import _as_input
 
-        yr = _as_input(y_ref, self.model.outputs[0])
-        return np.array([self.step(v) for v in yr], dtype=float).reshape(-1, 1)
+        yr = np.ascontiguousarray(_as_input(y_ref, self.model.outputs[0]), dtype=float)
+        out = np.empty(yr.size)
+        k = 0
+        if self._fresh and yr.size:
+            out[0] = self.step(yr[0])
+            k = 1
+        if self._compiled:
+            out[k:] = self._run_compiled(yr[k:])
+        else:
+            for i in range(k, yr.size):
+                out[i] = self.step(yr[i])
+        return out.reshape(-1, 1)
+
+    @property
+    def _compiled(self) -> bool:
+        inner = self._inner
+        return (self._folded and inner._creep is None and inner._inverse is None
+                and getattr(self.model, "input_warp", 0.0) == 0.0)
+
+    def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
+        """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
+        from . import _kernels
+
+        if not yr.size:
+            return yr.copy()
+        inner = self._inner
+        u, z, x, s = _kernels.cp_invert_creep(
+            yr, inner._P, inner._z, inner._x, inner._lo, inner._hi, inner._smin, inner._tol,
+            float(self.model.output_offset), float(self.model.input_offset), self._a, self._ca, self._s,
+            float(self._u_prev), float(self._g), float(self._tol))
+        inner._z, inner._x, self._s = z, float(x), s
+        self._u_prev = float(u[-1])
+        return u
