@@ -470,46 +470,57 @@ class _Context:
             blocks.append(Z[rows])
         return blocks
 
+    def _live(self, blocks) -> np.ndarray:
+        """Columns of the operators that move: one that (almost) never moves gets no weight
+        (its weight would be unbounded); the linear term always counts."""
+        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
+        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
+        live[0] = True
+        return np.flatnonzero(live)
+
+    def _normal_equations(self, columns, m: int, classical: bool):
+        """``(G, G_fit, g, y'y)`` of the least-squares fit of ``y`` by the per-record column
+        blocks plus one offset per record; ``G`` adds the ridge on the CP weights ``1 .. m-1``
+        (not the linear term, creep weights or offsets: a CP operator whose thresholds leave it
+        almost still over the data would otherwise get a huge weight that explodes outside the
+        identified range), ``G_fit`` is without it."""
+        from . import _kernels
+
+        y = self.y
+        p = columns[0].shape[1]
+        J = len(columns)
+        G = np.zeros((p + J, p + J))
+        g = np.zeros(p + J)
+        start = 0
+        for j, c in enumerate(columns):
+            yb = np.ascontiguousarray(y[start : start + c.shape[0]])
+            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(c), yb)
+            G[:p, :p] += Gb
+            G[:p, p + j] = sb
+            G[p + j, :p] = sb
+            G[p + j, p + j] = c.shape[0]
+            g[:p] += gb
+            g[p + j] = yb.sum()
+            start += c.shape[0]
+        Gfit = G
+        if self.ridge > 0 and not classical:
+            G = G.copy()
+            lam = self.ridge * float(np.mean(np.diag(G)[:m]))
+            G[np.arange(1, m), np.arange(1, m)] += lam
+        return G, Gfit, g, float(y @ y)
+
     def solve(self, theta, kinds, classical, creep=True):
         """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based);
         with the creep columns when there are any and ``creep`` is true."""
-        from . import _kernels
-
         if self.lags is not None and creep:
             return self.solve_creep(theta, kinds, classical)[:3]
 
         blocks = self.matrix(theta, kinds, classical)
         n = self.r.size
         J = len(blocks)
-        y = self.y
-        # operators that (almost) never move get no weight: their weight would be unbounded
-        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
-        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
-        live[0] = True
-        idx = np.flatnonzero(live)
+        idx = self._live(blocks)
         m = idx.size
-        G = np.zeros((m + J, m + J))
-        g = np.zeros(m + J)
-        start = 0
-        for j, b in enumerate(blocks):
-            yb = np.ascontiguousarray(y[start : start + b.shape[0]])
-            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(b[:, idx]), yb)
-            G[:m, :m] += Gb
-            G[:m, m + j] = sb
-            G[m + j, :m] = sb
-            G[m + j, m + j] = b.shape[0]
-            g[:m] += gb
-            g[m + j] = yb.sum()
-            start += b.shape[0]
-        yy = float(y @ y)
-        Gfit = G
-        if self.ridge > 0 and not classical:
-            # Tikhonov penalty on the CP weights (not the linear term or offsets): a CP operator
-            # whose thresholds leave it almost still over the data would otherwise get a huge
-            # weight that explodes outside the identified range
-            G = G.copy()
-            lam = self.ridge * float(np.mean(np.diag(G)[:m]))
-            G[np.arange(1, m), np.arange(1, m)] += lam
+        G, Gfit, g, yy = self._normal_equations([b[:, idx] for b in blocks], m, classical)
         if classical:
             # w = D W with W the cumulative sums (over the live operators), bounds W >= eps
             T = np.eye(m + J)
@@ -546,38 +557,15 @@ class _Context:
 
     def solve_creep(self, theta, kinds, classical):
         """As :meth:`solve` with the creep lag columns (weights ``c >= 0``); also returns c."""
-        from . import _kernels
-
         blocks = self.matrix(theta, kinds, classical)
         n = self.r.size
         J = len(blocks)
         nc = self.lags[0].shape[1]
-        y = self.y
-        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
-        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
-        live[0] = True
-        idx = np.flatnonzero(live)
+        idx = self._live(blocks)
         m = idx.size
         p = m + nc  # operator weights, creep weights, then one offset per record
-        G = np.zeros((p + J, p + J))
-        g = np.zeros(p + J)
-        start = 0
-        for j, b in enumerate(blocks):
-            yb = np.ascontiguousarray(y[start : start + b.shape[0]])
-            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(np.hstack([b[:, idx], self.lags[j]])), yb)
-            G[:p, :p] += Gb
-            G[:p, p + j] = sb
-            G[p + j, :p] = sb
-            G[p + j, p + j] = b.shape[0]
-            g[:p] += gb
-            g[p + j] = yb.sum()
-            start += b.shape[0]
-        yy = float(y @ y)
-        Gfit = G
-        if self.ridge > 0 and not classical:
-            G = G.copy()
-            lam = self.ridge * float(np.mean(np.diag(G)[:m]))
-            G[np.arange(1, m), np.arange(1, m)] += lam
+        G, Gfit, g, yy = self._normal_equations([np.hstack([b[:, idx], self.lags[j]]) for j, b in enumerate(blocks)],
+                                                m, classical)
         sol = _gram_solve(G, g)
         wl, cl = sol[:m], sol[m:p]
         if classical:
