@@ -39,7 +39,7 @@ from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, segments_statistics, theta_frequency_response,
                               theta_response_std)
-from .map_estimator import Posterior, Prior, _solve, batch_posterior, default_prior
+from .map_estimator import Posterior, Prior, batch_posterior, default_prior, map_estimate
 from .realization import era, fit_input_matrices, frequency_realization, markov_from_theta, refine_frequency_fit
 from .selection import SelectionTable, default_horizons, prediction_error, simulation_error
 
@@ -393,20 +393,10 @@ class HankelMAP:
         return default_prior(stats, strength)
 
     def _theta(self, stats: WindowStatistics) -> np.ndarray:
-        """The MAP (or least-squares) estimate alone, as :func:`batch_posterior` computes it
-        but without the posterior's residual and covariance (candidate horizons)."""
+        """The MAP (or least-squares) estimate alone, without the posterior's residual and
+        covariance (candidate horizons)."""
         XX, YX, _ = stats.blocks()
-        prior = self._prior_for(stats)
-        if prior is None:
-            return _solve(XX, YX)
-        d = XX.shape[0]
-        if prior.theta0 is None and np.ndim(prior.precision) == 1 and np.size(prior.precision) == d:
-            diag = np.asarray(prior.precision, dtype=float)
-            info = XX.copy()
-            info[np.diag_indices(d)] += diag
-            return _solve(info, YX, definite=bool(np.all(diag > 0)))
-        prec = prior.matrix(d)
-        return _solve(XX + prec, YX + prior.mean(YX.shape[0], d) @ prec)
+        return map_estimate(XX, YX, self._prior_for(stats))[0]
 
     def _fit_group(self, recs, cols, order, dt, first: Experiment, prev: ChannelFit | None, notes: list[str]) -> ChannelFit:
         m = len(cols)

@@ -38,7 +38,7 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from .hankel_toeplitz import WindowStatistics
 
-__all__ = ["Prior", "Posterior", "default_prior", "batch_posterior", "recursive_map", "recursive_map_python"]
+__all__ = ["Prior", "Posterior", "default_prior", "map_estimate", "batch_posterior", "recursive_map", "recursive_map_python"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,6 +208,51 @@ def _residual(theta: np.ndarray, XX: np.ndarray, YX: np.ndarray, YY: np.ndarray)
     return YY - T - T.T + theta @ XX @ theta.T
 
 
+def map_estimate(XX: np.ndarray, YX: np.ndarray, prior: Prior | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Posterior mean of eq. 16 from ``sum x x^T`` and ``sum y x^T``, without the residual.
+
+    Returns ``(theta, information, moment)`` with ``information = XX + P_0^-1`` and
+    ``moment = YX + theta_0 P_0^-1`` (``XX``, ``YX`` themselves for the flat prior ``None``).
+
+    Parameters
+    ----------
+    XX : ndarray of shape (d, d)
+    YX : ndarray of shape (p q, d)
+    prior : Prior or None
+
+    Raises
+    ------
+    DataError
+        When the prior's shapes do not match ``d``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> theta, info, moment = map_estimate(np.eye(2), np.array([[1.0, 2.0]]), Prior(None, np.ones(2)))
+    >>> theta.tolist()
+    [[0.5, 1.0]]
+    """
+    d = XX.shape[0]
+    definite = False
+    if prior is None:
+        info = XX.copy()
+        moment = YX.copy()
+    elif prior.theta0 is None and np.ndim(prior.precision) == 1:
+        # diagonal prior around zero (the default): no (d x d) products with the precision
+        diag = np.asarray(prior.precision, dtype=float)
+        if diag.shape != (d,):
+            raise DataError(f"prior precision must have shape ({d}, {d}) or ({d},); got {diag.shape}.")
+        info = XX.copy()
+        info[np.diag_indices(d)] += diag
+        moment = YX.copy()
+        definite = bool(np.all(diag > 0))
+    else:
+        prec = prior.matrix(d)
+        info = XX + prec
+        moment = YX + prior.mean(YX.shape[0], d) @ prec
+    return _solve(info, moment, definite), info, moment
+
+
 def batch_posterior(stats: WindowStatistics, prior: Prior | None) -> Posterior:
     """MAP estimate of eq. 16 from the normal-equation statistics (equals the recursion's end).
 
@@ -241,25 +286,7 @@ def batch_posterior(stats: WindowStatistics, prior: Prior | None) -> Posterior:
     """
     XX, YX, YY = stats.blocks()
     d = XX.shape[0]
-    rows = YX.shape[0]
-    definite = False
-    if prior is None:
-        info = XX.copy()
-        moment = YX.copy()
-    elif prior.theta0 is None and np.ndim(prior.precision) == 1:
-        # diagonal prior around zero (the default): no (d x d) products with the precision
-        diag = np.asarray(prior.precision, dtype=float)
-        if diag.shape != (d,):
-            raise DataError(f"prior precision must have shape ({d}, {d}) or ({d},); got {diag.shape}.")
-        info = XX.copy()
-        info[np.diag_indices(d)] += diag
-        moment = YX.copy()
-        definite = bool(np.all(diag > 0))
-    else:
-        prec = prior.matrix(d)
-        info = XX + prec
-        moment = YX + prior.mean(rows, d) @ prec
-    theta = _solve(info, moment, definite)
+    theta, info, moment = map_estimate(XX, YX, prior)
     if not np.all(np.isfinite(theta)):
         raise IdentificationError("the Hankel-Toeplitz estimate is not finite; the data are not informative enough for this horizon.")
     residual = _residual(theta, XX, YX, YY)
