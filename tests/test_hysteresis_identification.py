@@ -80,3 +80,22 @@ def test_bad_hyperparameters():
         PIIdentifier("preisach").fit((u, u))
     with pytest.raises(IdentificationError, match="n_operators"):
         PIIdentifier("pi", n_operators=1).fit((u, u))
+
+
+@pytest.mark.parametrize("input_range", [(-270.0, 90.0), (-90.0, 270.0)])
+def test_classical_fit_with_input_range_wider_than_the_data(input_range):
+    # operators whose thresholds lie beyond the data never move: their columns are collinear
+    # with the offset, the Gram matrix of the bounded fit is singular to rounding (this raised
+    # numpy's LinAlgError "Matrix is not positive definite" before)
+    from stageid.signals import forc_staircase
+
+    u = forc_staircase(-90, 90, 50, 20, 1e-4, shape="cosine")
+    r = np.arange(8) * 90 / 8
+    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r,
+                           weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
+    y = true.simulate(u)[:, 0] + 1e-4 * np.random.default_rng(0).standard_normal(u.size)
+    narrow = PIIdentifier("pi", n_operators=20).fit((u, y))
+    fit = PIIdentifier("pi", n_operators=40, input_range=input_range).fit((u, y))
+    assert np.all(fit.model.initial_loading_slopes() > 0)
+    # 20 of the 40 operators cover the data's range: about as good as 20 over the range itself
+    assert fit.max_error_percent[0] < 1.2 * narrow.max_error_percent[0]

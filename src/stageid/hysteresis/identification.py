@@ -631,8 +631,17 @@ def _bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarra
 
     d = np.sqrt(np.maximum(np.diag(G), 1e-300))
     Gs = G / np.outer(d, d)
-    Rm = np.linalg.cholesky(Gs + 1e-10 * np.eye(G.shape[0])).T
-    qy = np.linalg.solve(Rm.T, g / d)
+    try:
+        Rm = np.linalg.cholesky(Gs + 1e-10 * np.eye(G.shape[0])).T
+        qy = np.linalg.solve(Rm.T, g / d)
+    except np.linalg.LinAlgError:
+        # collinear columns (e.g. operators that never move when ``input_range`` is wider than
+        # the data, or an operator constant like the offset): Gs is singular to rounding, so use
+        # its symmetric square root with the eigenvalues floored instead of the Cholesky factor
+        s, V = np.linalg.eigh(0.5 * (Gs + Gs.T))
+        s = np.maximum(s, 1e-10 * max(float(s.max()), 1e-300))
+        Rm = np.sqrt(s)[:, None] * V.T
+        qy = (V.T @ (g / d)) / np.sqrt(s)
     lbs = np.where(np.isfinite(lb), lb * d, -np.inf)
     res = lsq_linear(Rm, qy, bounds=(lbs, np.full_like(lbs, np.inf)), method="bvls", tol=1e-12, max_iter=2000)
     if not np.all(np.isfinite(res.x)):
