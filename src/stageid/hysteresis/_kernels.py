@@ -32,6 +32,10 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 _FM = {"nnan", "ninf", "nsz", "reassoc", "contract"}
 _jit = numba.njit(cache=True, nogil=True, fastmath=_FM)
@@ -432,7 +436,7 @@ def play_sum_auto(x, r, w, z0, x0):
     if n > 64 and _is_smooth(x) and lipschitz_state(r, z0):
         return play_sum_events(x, r, w, z0, float(x0))
     if n > 64:
-        return cp_sum_banded(x, r, r, r, r, w, z0, float(x0))
+        return play_sum_banded(x, r, w, z0, float(x0))
     return play_sum(x, r, w, z0)
 
 
@@ -566,96 +570,396 @@ def count_reversals(x):  # pragma: no cover - compiled
     return c
 
 
-# ------------------------------------------------------------------ banded CP sum
-_L = 8  # operators per block: two AVX registers of doubles
+# ------------------------------------------------------------------ banded CP / play sums
+# The banded kernels work on blocks of 4 operators (one 256-bit register of doubles).  numba
+# does not SLP-vectorise (NUMBA_SLP_VECTORIZE=0) and its loop vectoriser handles neither short
+# loops (it interleaves 2 registers, so a 4-operator loop runs scalar) nor min/max reductions,
+# so the block updates are written as LLVM vector code through ``numba.extending.intrinsic``:
+# every block update is the plain formula lane by lane (the same operations as the reference,
+# Python's ``max(a, c) = c if c > a else a``), so the operator outputs are unchanged bit for bit.
+_L = 4  # operators per block: one AVX register of doubles
 _HUGE = 1e300  # thresholds of the inert padding operators (zero weight, never move)
 _BAND_BLOCK = 2048  # samples between two choices of the number of hot blocks
+_NREG = 4  # hot blocks whose outputs stay in registers during a run of samples (5 or 6 spill)
+_CP_ROWS = 7  # block rows of the CP layout: -r, -rc, ra, rb, w, z, band tolerance
+_PLAY_ROWS = 4  # block rows of the play layout: r, w, z, band tolerance
+
+_F64 = ir.DoubleType()
+_VEC = ir.VectorType(_F64, _L)
+_I64 = ir.IntType(64)
+_EXACT = ("nnan", "ninf", "nsz")  # flags of the update's operations: no reassociation
+_SUMF = ("nnan", "ninf", "nsz", "reassoc", "contract")  # weighted sums: any association
+
+
+class _V4:
+    """Emits 4-lane double operations (a tiny helper for the intrinsics below)."""
+
+    def __init__(self, builder):
+        self.b = builder
+
+    @staticmethod
+    def _flag(ins, flags):
+        for f in flags:
+            ins.flags.append(f)  # flagged instructions are left alone by numba's fastmath pass
+        return ins
+
+    def add(self, a, c, flags=_EXACT):
+        return self._flag(self.b.fadd(a, c), flags)
+
+    def sub(self, a, c, flags=_EXACT):
+        return self._flag(self.b.fsub(a, c), flags)
+
+    def mul(self, a, c, flags=_SUMF):
+        return self._flag(self.b.fmul(a, c), flags)
+
+    def max(self, a, c):  # Python's max(a, c)
+        return self.b.select(self.b.fcmp_ordered(">", c, a, flags=_EXACT), c, a)
+
+    def min(self, a, c):  # Python's min(a, c)
+        return self.b.select(self.b.fcmp_ordered("<", c, a, flags=_EXACT), c, a)
+
+    def splat(self, s):
+        v = self.b.insert_element(ir.Constant(_VEC, ir.Undefined), s, ir.Constant(ir.IntType(32), 0))
+        mask = ir.Constant(ir.VectorType(ir.IntType(32), _L), [0] * _L)
+        return self.b.shuffle_vector(v, ir.Constant(_VEC, ir.Undefined), mask)
+
+    @staticmethod
+    def const(c):
+        return ir.Constant(_VEC, [c] * _L)
+
+    def lanes(self, v):
+        return [self.b.extract_element(v, ir.Constant(ir.IntType(32), i)) for i in range(_L)]
+
+    def hsum(self, v):
+        l0, l1, l2, l3 = self.lanes(v)
+        return self.add(self.add(l0, l1, _SUMF), self.add(l2, l3, _SUMF), _SUMF)
+
+    def hmin(self, v):
+        l0, l1, l2, l3 = self.lanes(v)
+        return self.min(self.min(l0, l1), self.min(l2, l3))
+
+    def hmax(self, v):
+        l0, l1, l2, l3 = self.lanes(v)
+        return self.max(self.max(l0, l1), self.max(l2, l3))
+
+
+def _block_rows(context, builder, aryty, ary, b, n_rows):
+    """Pointers to the rows of block b of a C-contiguous (n_blocks, n_rows, 4) array."""
+    data = context.make_array(aryty)(context, builder, ary).data
+    base = builder.mul(b, ir.Constant(b.type, _L * n_rows))
+    return [builder.bitcast(builder.gep(data, [builder.add(base, ir.Constant(b.type, _L * j))]), _VEC.as_pointer())
+            for j in range(n_rows)]
+
+
+def _load(builder, p):
+    return builder.load(p, align=8)
+
+
+def _update_lanes(vec, kind, rows, xs, t):
+    """Plain update of the 4 operators of a block; the new outputs are stored and returned.
+
+    CP (rows -r, -rc, ra, rb, w, z): ``max(x + max(-r, min(-rc, -x)), min(x + max(rb, min(ra, -x)), z))``
+    as in :func:`cp_sum`; play (rows r, w, z): ``max(x - r, min(x + r, z))`` as the reference.
+    """
+    b = vec.b
+    if kind == "cp":
+        nr, nrc, ra, rb = (_load(b, rows[j]) for j in range(4))
+        up = vec.add(xs, vec.max(nr, vec.min(nrc, t)))
+        down = vec.add(xs, vec.max(rb, vec.min(ra, t)))
+        v = vec.max(up, vec.min(down, _load(b, rows[5])))
+        b.store(v, rows[5], align=8)
+    else:
+        r = _load(b, rows[0])
+        v = vec.max(vec.sub(xs, r), vec.min(vec.add(xs, r), _load(b, rows[2])))
+        b.store(v, rows[2], align=8)
+    return v
+
+
+def _layout(kind):
+    """(rows per block, weight row, output row, tolerance row)."""
+    return (_CP_ROWS, 4, 5, 6) if kind == "cp" else (_PLAY_ROWS, 1, 2, 3)
+
+
+def _emit_memory_blocks(context, builder, aryty, P, start, stop, xs, t, kind):
+    """Update blocks start..stop-1 (outputs in memory); the vector of their weighted sums.
+
+    Two accumulators, so consecutive blocks do not wait for each other's fused multiply-add.
+    """
+    vec = _V4(builder)
+    n_rows, wrow = _layout(kind)[:2]
+    zero = vec.const(0.0)
+    acc0 = cgutils.alloca_once_value(builder, zero)
+    acc1 = cgutils.alloca_once_value(builder, zero)
+    n = builder.sub(stop, start)
+    with cgutils.for_range(builder, builder.ashr(n, ir.Constant(_I64, 1))) as loop:
+        b0 = builder.add(start, builder.shl(loop.index, ir.Constant(_I64, 1)))
+        for acc, blk in ((acc0, b0), (acc1, builder.add(b0, ir.Constant(_I64, 1)))):
+            rows = _block_rows(context, builder, aryty, P, blk, n_rows)
+            v = _update_lanes(vec, kind, rows, xs, t)
+            builder.store(vec.add(builder.load(acc), vec.mul(_load(builder, rows[wrow]), v), _SUMF), acc)
+    odd = builder.icmp_signed("!=", builder.and_(n, ir.Constant(_I64, 1)), ir.Constant(_I64, 0))
+    with builder.if_then(odd):
+        rows = _block_rows(context, builder, aryty, P, builder.sub(stop, ir.Constant(_I64, 1)), n_rows)
+        v = _update_lanes(vec, kind, rows, xs, t)
+        builder.store(vec.add(builder.load(acc0), vec.mul(_load(builder, rows[wrow]), v), _SUMF), acc0)
+    return vec.add(builder.load(acc0), builder.load(acc1), _SUMF)
+
+
+def _make_hot(kind):
+    """Intrinsic ``hot(P, n_hot, x) -> float``: update blocks 0..n_hot-1 at x, their weighted sum."""
+
+    @intrinsic
+    def hot(typingctx, P, n_hot, x):
+        sig = types.float64(P, n_hot, x)
+
+        def codegen(context, builder, signature, args):
+            Pa, nh, xk = args
+            vec = _V4(builder)
+            t = vec.splat(builder.fneg(xk))
+            nh = context.cast(builder, nh, signature.args[1], types.int64)
+            acc = _emit_memory_blocks(context, builder, signature.args[0], Pa, ir.Constant(_I64, 0), nh, vec.splat(xk), t, kind)
+            return vec.hsum(acc)
+
+        return sig, codegen
+
+    return hot
+
+
+def _make_block(kind):
+    """Intrinsic ``block(P, b, x) -> (weighted sum, lo, hi)``: update block b at x and return
+    the open band (lo, hi) of inputs at which none of its operators moves.
+
+    Rising, an operator with output v starts to move beyond ``v + rc`` (v < 0) or ``v + r``;
+    falling, beyond ``v - rb`` (v > 0) or ``v - ra``; the band is pulled inwards by
+    ``1e-15 (r + rc + ra + rb) + 1e-15 |v|`` so rounding never hides a move.
+    """
+    n_rows, wrow, zrow, tsrow = _layout(kind)
+
+    @intrinsic
+    def block(typingctx, P, b, x):
+        sig = types.UniTuple(types.float64, 3)(P, b, x)
+
+        def codegen(context, builder, signature, args):
+            Pa, bv, xk = args
+            vec = _V4(builder)
+            bv = context.cast(builder, bv, signature.args[1], types.int64)
+            rows = _block_rows(context, builder, signature.args[0], Pa, bv, n_rows)
+            zero = vec.const(0.0)
+            v = _update_lanes(vec, kind, rows, vec.splat(xk), vec.splat(builder.fneg(xk)))
+            if kind == "cp":
+                nr, nrc, ra, rb = (_load(builder, rows[j]) for j in range(4))
+                s_up = builder.select(builder.fcmp_ordered("<", v, zero, flags=_EXACT), nrc, nr)
+                s_down = builder.select(builder.fcmp_ordered(">", v, zero, flags=_EXACT), rb, ra)
+            else:
+                r = _load(builder, rows[0])
+                s_up = builder.fneg(r)
+                s_down = r
+            absv = builder.select(builder.fcmp_ordered("<", v, zero, flags=_EXACT), builder.fneg(v), v)
+            tol = vec.add(_load(builder, rows[tsrow]), vec.mul(vec.const(1e-15), absv, _EXACT))
+            hi = vec.sub(vec.sub(v, s_up), tol)
+            lo = vec.add(vec.sub(v, s_down), tol)
+            cb = vec.hsum(vec.mul(_load(builder, rows[wrow]), v))
+            return context.make_tuple(builder, signature.return_type, [cb, vec.hmax(lo), vec.hmin(hi)])
+
+        return sig, codegen
+
+    return block
+
+
+def _make_run(kind, n_reg):
+    """Intrinsic ``run(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl) -> (k, xl, yl)``.
+
+    Runs samples k.. while the input stays inside the cold blocks' band (lo, hi): the hot
+    blocks (the first ``n_hot``) are updated at every sample that moves, the first ``n_reg``
+    of them with their outputs kept in registers (no store-to-load latency from one sample
+    to the next), and ``y = C + W0 x + hot sum``.  Returns at k1 or at the first sample that
+    leaves the band (not processed), with the last input and output.
+    """
+    n_rows, wrow, zrow = _layout(kind)[:3]
+
+    @intrinsic
+    def run(typingctx, x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl):
+        ret = types.Tuple((types.int64, types.float64, types.float64))
+        sig = ret(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+
+        def codegen(context, builder, signature, args):
+            xa, ya, k0, k1v, Pa, nh, Cv, lov, hiv, W0v, xlv, ylv = args
+            k0 = context.cast(builder, k0, signature.args[2], types.int64)
+            k1v = context.cast(builder, k1v, signature.args[3], types.int64)
+            nh = context.cast(builder, nh, signature.args[5], types.int64)
+            aryty = signature.args[4]
+            vec = _V4(builder)
+            xd = context.make_array(signature.args[0])(context, builder, xa).data
+            yd = context.make_array(signature.args[1])(context, builder, ya).data
+            rows = [_block_rows(context, builder, aryty, Pa, ir.Constant(_I64, b), n_rows) for b in range(n_reg)]
+            k_slot = cgutils.alloca_once_value(builder, k0)
+            xl_slot = cgutils.alloca_once_value(builder, xlv)
+            yl_slot = cgutils.alloca_once_value(builder, ylv)
+            z_slots = [cgutils.alloca_once_value(builder, _load(builder, rows[b][zrow])) for b in range(n_reg)]
+            fn = builder.function
+            head, body, still, move, update, done = (fn.append_basic_block(f"band.{s}") for s in
+                                                     ("head", "body", "still", "move", "update", "done"))
+            one = ir.Constant(_I64, 1)
+            builder.branch(head)
+            builder.position_at_end(head)
+            kk = builder.load(k_slot)
+            builder.cbranch(builder.icmp_signed("<", kk, k1v), body, done)
+            builder.position_at_end(body)
+            xk = builder.load(builder.gep(xd, [kk]))
+            builder.cbranch(builder.fcmp_ordered("==", xk, builder.load(xl_slot), flags=_EXACT), still, move)
+            builder.position_at_end(still)  # standing still: nothing moves
+            builder.store(builder.load(yl_slot), builder.gep(yd, [kk]))
+            builder.store(builder.add(kk, one), k_slot)
+            builder.branch(head)
+            builder.position_at_end(move)
+            inside = builder.and_(builder.fcmp_ordered("<", xk, hiv, flags=_EXACT),
+                                  builder.fcmp_ordered(">", xk, lov, flags=_EXACT))
+            builder.cbranch(inside, update, done)
+            builder.position_at_end(update)
+            xs = vec.splat(xk)
+            t = vec.splat(builder.fneg(xk))
+            parts = []
+            for b in range(n_reg):
+                rb_ = list(rows[b])
+                rb_[zrow] = z_slots[b]  # the output row lives in a register slot
+                v = _update_lanes(vec, kind, rb_, xs, t)
+                parts.append(vec.mul(_load(builder, rows[b][wrow]), v))
+            parts.append(_emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind))
+            while len(parts) > 1:  # pairwise sum of the block sums
+                parts = [vec.add(parts[i], parts[i + 1], _SUMF) for i in range(0, len(parts) - 1, 2)] + (
+                    [parts[-1]] if len(parts) % 2 else [])
+            yk = vec.add(vec.add(Cv, vec.mul(W0v, xk), _SUMF), vec.hsum(parts[0]), _SUMF)
+            builder.store(yk, builder.gep(yd, [kk]))
+            builder.store(yk, yl_slot)
+            builder.store(xk, xl_slot)
+            builder.store(builder.add(kk, one), k_slot)
+            builder.branch(head)
+            builder.position_at_end(done)
+            for b in range(n_reg):
+                builder.store(builder.load(z_slots[b]), rows[b][zrow], align=8)
+            return context.make_tuple(builder, signature.return_type,
+                                      [builder.load(k_slot), builder.load(xl_slot), builder.load(yl_slot)])
+
+        return sig, codegen
+
+    return run
+
+
+_cp_hot = _make_hot("cp")
+_play_hot = _make_hot("play")
+_cp_block = _make_block("cp")
+_play_block = _make_block("play")
+_cp_run0, _cp_run1, _cp_run2, _cp_run3, _cp_run4 = (_make_run("cp", i) for i in range(_NREG + 1))
+_pl_run0, _pl_run1, _pl_run2, _pl_run3, _pl_run4 = (_make_run("play", i) for i in range(_NREG + 1))
 
 
 @_jit
-def _cp_banded_run(x, y, k0, k1, n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, W0, state, counts):  # pragma: no cover - compiled
-    """Samples ``k0 .. k1-1`` of :func:`cp_sum_banded`; ``state = [C, lo, hi, x_last, y_last]``.
+def _banded_refresh(xk, n_hot, P, Cb, lob, hib, state, play):  # pragma: no cover - compiled
+    """Exact update of every cold block (``n_hot ..``) at xk: sums, bands, state[0:3]."""
+    C = 0.0
+    hi = 1e308
+    lo = -1e308
+    for b in range(n_hot, P.shape[0]):
+        if play:
+            cb, lb, hb = _play_block(P, b, xk)
+        else:
+            cb, lb, hb = _cp_block(P, b, xk)
+        Cb[b] = cb
+        lob[b] = lb
+        hib[b] = hb
+        C += cb
+        hi = hb if hb < hi else hi
+        lo = lb if lb > lo else lo
+    state[0] = C
+    state[1] = lo
+    state[2] = hi
 
-    The first ``n_hot`` blocks are updated at every sample that moves (vectorised loop).  A
-    cold block ``b`` holds its weighted sum ``Cb[b]`` and the open band ``(lob[b], hib[b])``
-    of inputs at which none of its operators moves; ``C``/``lo``/``hi`` are the sum over the
-    cold blocks and the intersection of their bands.  Only when the input leaves that band
-    are the cold blocks it left updated (exactly, with the plain formula) and their bands
-    recomputed.  ``counts`` gets the number of band exits and of block updates.
+
+@_jit
+def _banded_run(x, y, k0, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play):  # pragma: no cover - compiled
+    """Samples ``k0 .. k1-1`` of the banded sums; ``state = [C, lo, hi, x_last, y_last]``.
+
+    The first ``n_hot`` blocks are updated at every sample that moves.  A cold block ``b``
+    holds its weighted sum ``Cb[b]`` and the open band ``(lob[b], hib[b])`` of inputs at which
+    none of its operators moves; ``C``/``lo``/``hi`` are the sum over the cold blocks and the
+    intersection of their bands.  Only when the input leaves that band are the cold blocks it
+    left updated (exactly, with the plain formula) and their bands recomputed.  ``counts`` gets
+    the number of band exits, of block updates, of exits that update a block other than the
+    first cold one and of updates of the first cold one (what one more hot block would save).
     """
     C = state[0]
     lo = state[1]
     hi = state[2]
     xl = state[3]
     yl = state[4]
-    nb = Z.shape[0]
-    K = n_hot * _L
-    nrf = NR.reshape(nb * _L)
-    nrcf = NRC.reshape(nb * _L)
-    raf = RA.reshape(nb * _L)
-    rbf = RB.reshape(nb * _L)
-    wf = W.reshape(nb * _L)
-    zf = Z.reshape(nb * _L)
-    au = np.empty(_L)
-    ad = np.empty(_L)
+    nb = P.shape[0]
+    n_reg = min(n_hot, _NREG)
     exits = 0
     updates = 0
-    for k in range(k0, k1):
+    exits_beyond = 0
+    updates_first = 0
+    k = k0
+    while k < k1:
+        if play:
+            if n_reg == 0:
+                k, xl, yl = _pl_run0(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 1:
+                k, xl, yl = _pl_run1(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 2:
+                k, xl, yl = _pl_run2(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 3:
+                k, xl, yl = _pl_run3(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            else:
+                k, xl, yl = _pl_run4(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+        else:
+            if n_reg == 0:
+                k, xl, yl = _cp_run0(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 1:
+                k, xl, yl = _cp_run1(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 2:
+                k, xl, yl = _cp_run2(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            elif n_reg == 3:
+                k, xl, yl = _cp_run3(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            else:
+                k, xl, yl = _cp_run4(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+        if k >= k1:
+            break
+        # sample k leaves the cold band: update the cold blocks it left, then the hot ones
         xk = x[k]
-        if xk == xl:  # standing still: nothing moves
-            y[k] = yl
-            continue
-        t = -xk
-        if not (xk < hi and xk > lo):
-            exits += 1
-            C = 0.0
-            hi = 1e308
-            lo = -1e308
-            for b in range(n_hot, nb):
-                if not (xk < hib[b] and xk > lob[b]):
-                    updates += 1
-                    cb = 0.0
-                    for l in range(_L):
-                        nrc = NRC[b, l]
-                        nr = NR[b, l]
-                        rb = RB[b, l]
-                        ra = RA[b, l]
-                        v = max(xk + max(nr, min(nrc, t)), min(xk + max(rb, min(ra, t)), Z[b, l]))
-                        Z[b, l] = v
-                        cb += W[b, l] * v
-                        # activation points: rising, gamma_up exceeds v beyond v + rc (v < 0)
-                        # or v + r (v >= 0); falling, gamma_down drops below v beyond v - rb
-                        # (v > 0) or v - ra (v <= 0); pulled inwards by a few ulps
-                        tol = TS[b, l] + 1e-15 * abs(v)
-                        au[l] = v - (nrc if v < 0.0 else nr) - tol
-                        ad[l] = v - (rb if v > 0.0 else ra) + tol
-                    hb = au[0]
-                    lb = ad[0]
-                    for l in range(1, _L):
-                        a = au[l]
-                        d = ad[l]
-                        hb = a if a < hb else hb
-                        lb = d if d > lb else lb
-                    Cb[b] = cb
-                    lob[b] = lb
-                    hib[b] = hb
-                C += Cb[b]
-                hb = hib[b]
-                lb = lob[b]
-                hi = hb if hb < hi else hi
-                lo = lb if lb > lo else lo
+        exits += 1
+        C = 0.0
+        hi = 1e308
+        lo = -1e308
+        beyond = False
+        for b in range(n_hot, nb):
+            if not (xk < hib[b] and xk > lob[b]):
+                updates += 1
+                if b == n_hot:
+                    updates_first += 1
+                else:
+                    beyond = True
+                if play:
+                    cb, lb, hb = _play_block(P, b, xk)
+                else:
+                    cb, lb, hb = _cp_block(P, b, xk)
+                Cb[b] = cb
+                lob[b] = lb
+                hib[b] = hb
+            C += Cb[b]
+            hb = hib[b]
+            lb = lob[b]
+            hi = hb if hb < hi else hi
+            lo = lb if lb > lo else lo
+        exits_beyond += beyond
         yl = C + W0 * xk
-        if K > 0:
-            acc = 0.0
-            for i in range(K):
-                up = xk + max(nrf[i], min(nrcf[i], t))
-                down = xk + max(rbf[i], min(raf[i], t))
-                v = max(up, min(down, zf[i]))
-                zf[i] = v
-                acc += wf[i] * v
-            yl += acc
+        if n_hot > 0:
+            if play:
+                yl += _play_hot(P, n_hot, xk)
+            else:
+                yl += _cp_hot(P, n_hot, xk)
         y[k] = yl
         xl = xk
+        k += 1
     state[0] = C
     state[1] = lo
     state[2] = hi
@@ -663,40 +967,70 @@ def _cp_banded_run(x, y, k0, k1, n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib,
     state[4] = yl
     counts[0] = exits
     counts[1] = updates
+    counts[2] = exits_beyond
+    counts[3] = updates_first
 
 
 @_jit
-def _cp_banded_refresh(xk, n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, state):  # pragma: no cover - compiled
-    """Exact update of every cold block (``n_hot ..``) at input xk: sums, bands, state[0:3]."""
-    nb = Z.shape[0]
-    t = -xk
-    C = 0.0
-    hi = 1e308
-    lo = -1e308
-    for b in range(n_hot, nb):
-        cb = 0.0
-        hb = 1e308
-        lb = -1e308
-        for l in range(_L):
-            nrc = NRC[b, l]
-            nr = NR[b, l]
-            rb = RB[b, l]
-            ra = RA[b, l]
-            v = max(xk + max(nr, min(nrc, t)), min(xk + max(rb, min(ra, t)), Z[b, l]))
-            Z[b, l] = v
-            cb += W[b, l] * v
-            tol = TS[b, l] + 1e-15 * abs(v)
-            hb = min(hb, v - (nrc if v < 0.0 else nr) - tol)
-            lb = max(lb, v - (rb if v > 0.0 else ra) + tol)
-        Cb[b] = cb
-        lob[b] = lb
-        hib[b] = hb
-        C += cb
-        hi = min(hi, hb)
-        lo = max(lo, lb)
-    state[0] = C
-    state[1] = lo
-    state[2] = hi
+def _banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
+    """Model output of the packed blocks P for the input x (n >= 1); P's outputs updated.
+
+    The first sample is the plain update of every block.  ``n_hot_blocks < 0`` re-chooses the
+    number of hot blocks every ``_BAND_BLOCK`` samples from a cost model of the measured band
+    exits and block updates (fitted to timings on the benchmark machine, ns: a hot block costs
+    ~1.5 (CP) or ~0.8 (play) at every sample, a band exit ~18-20 plus ~1.8 per cold block
+    scanned, a block update ~5 (CP) or ~3.6 (play)).  The cost with one more hot block is
+    predicted exactly from the counts; one block less is measured again every 32 choices.
+    """
+    n = x.shape[0]
+    nb = P.shape[0]
+    y = np.empty(n)
+    Cb = np.zeros(nb)
+    lob = np.zeros(nb)
+    hib = np.zeros(nb)
+    state = np.empty(5)
+    counts = np.zeros(4, np.int64)
+    xs = x[0]
+    _banded_refresh(xs, 0, P, Cb, lob, hib, state, play)
+    y[0] = state[0] + W0 * xs
+    state[3] = xs
+    state[4] = y[0]
+    adapt = n_hot_blocks < 0
+    n_hot = 1 if adapt else min(n_hot_blocks, nb)
+    if n_hot > 0:
+        _banded_refresh(xs, n_hot, P, Cb, lob, hib, state, play)
+    c_hot = 0.8 if play else 1.5
+    c_exit = 20.0 if play else 18.0
+    c_update = 3.6 if play else 5.0
+    est = np.zeros(nb + 1)  # estimated ns per sample for each number of hot blocks (0: not tried)
+    n_blocks = 0
+    k = 1
+    while k < n:
+        k1 = min(n, k + _BAND_BLOCK)
+        _banded_run(x, y, k, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play)
+        if adapt:
+            per = 1.0 / (k1 - k)
+            cost = c_hot * n_hot + (c_exit + 1.8 * (nb - n_hot)) * counts[0] * per + c_update * counts[1] * per
+            est[n_hot] = cost if est[n_hot] == 0.0 else 0.5 * (est[n_hot] + cost)
+            if n_hot < nb:
+                # one more hot block: the exits that left only the first cold block, and its
+                # updates, would not happen (the other cold blocks evolve the same either way)
+                more = (c_hot * (n_hot + 1) + (c_exit + 1.8 * (nb - n_hot - 1)) * counts[2] * per
+                        + c_update * (counts[1] - counts[3]) * per)
+                est[n_hot + 1] = more if est[n_hot + 1] == 0.0 else 0.5 * (est[n_hot + 1] + more)
+            n_blocks += 1
+            if (n_blocks & 31) == 0 and n_hot > 0:  # one hot block less: measured again now and then
+                est[n_hot - 1] = 0.0
+            best = n_hot
+            for jb in (n_hot - 1, n_hot + 1):
+                if 0 <= jb <= nb and est[jb] < est[best]:  # an untried one (0) gets tried
+                    best = jb
+            if best != n_hot:
+                n_hot = best
+                _banded_refresh(state[3], n_hot, P, Cb, lob, hib, state, play)
+                state[4] = y[k1 - 1]
+        k = k1
+    return y
 
 
 @_jit_exact
@@ -708,7 +1042,7 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
     sample is the plain update of every operator, which makes any starting state consistent.
 
     Operators whose four thresholds are zero are the identity (a linear term).  The others are
-    sorted by band width ``min(r + rb, rc + ra)`` into blocks of 8 (padded with inert
+    sorted by band width ``min(r + rb, rc + ra)`` into blocks of 4 (padded with inert
     operators).  The narrowest ``n_hot_blocks`` blocks are updated at every sample; every
     other block is skipped while the input stays inside the band where none of its operators
     moves (an operator on a rising input stays put until ``gamma_up(x)`` exceeds its output,
@@ -722,9 +1056,8 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
     n = x.shape[0]
     m = r.shape[0]
     zfinal = z0.copy()
-    y = np.empty(n)
     if n == 0:
-        return y, zfinal
+        return np.empty(0), zfinal
     ident = np.zeros(m, np.bool_)
     W0 = 0.0
     mm = 0
@@ -744,74 +1077,82 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
             j += 1
     srt = nz[np.argsort(width, kind="mergesort")]
     nb = max((mm + _L - 1) // _L, 1)
-    NR = np.full((nb, _L), -_HUGE)
-    NRC = np.full((nb, _L), -_HUGE)
-    RA = np.full((nb, _L), _HUGE)
-    RB = np.full((nb, _L), _HUGE)
-    W = np.zeros((nb, _L))
-    Z = np.zeros((nb, _L))
-    TS = np.zeros((nb, _L))
+    P = np.zeros((nb, _CP_ROWS, _L))
+    for b in range(nb):
+        for l in range(_L):
+            P[b, 0, l] = -_HUGE
+            P[b, 1, l] = -_HUGE
+            P[b, 2, l] = _HUGE
+            P[b, 3, l] = _HUGE
     for j in range(mm):
         i = srt[j]
         b = j // _L
         l = j % _L
-        NR[b, l] = -r[i]
-        NRC[b, l] = -rc[i]
-        RA[b, l] = ra[i]
-        RB[b, l] = rb[i]
-        W[b, l] = w[i]
-        Z[b, l] = z0[i]
-        TS[b, l] = 1e-15 * (r[i] + rc[i] + ra[i] + rb[i])
-    Cb = np.zeros(nb)
-    lob = np.zeros(nb)
-    hib = np.zeros(nb)
-    state = np.empty(5)
-    counts = np.zeros(2, np.int64)
-    xs = x[0]
-    _cp_banded_refresh(xs, 0, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, state)
-    y[0] = state[0] + W0 * xs
-    state[3] = xs
-    state[4] = y[0]
-    adapt = n_hot_blocks < 0
-    n_hot = 1 if adapt else min(n_hot_blocks, nb)
-    if adapt and nb == 1 and mm == 0:
-        n_hot = 0
-    if n_hot > 0:
-        _cp_banded_refresh(xs, n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, state)
-    est = np.zeros(nb + 1)  # estimated ns per sample for each number of hot blocks (0: not tried)
-    n_blocks = 0
-    k = 1
-    while k < n:
-        k1 = min(n, k + _BAND_BLOCK)
-        _cp_banded_run(x, y, k, k1, n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, W0, state, counts)
-        if adapt:
-            # cost model calibrated on the benchmark machine (ns per sample): a hot block
-            # ~3.3 every sample; a band exit ~8 plus 0.3 per cold block scanned; a cold
-            # block update ~45
-            per = 1.0 / (k1 - k)
-            cost = 3.3 * n_hot + (8.0 + 0.3 * (nb - n_hot)) * counts[0] * per + 45.0 * counts[1] * per
-            est[n_hot] = cost if est[n_hot] == 0.0 else 0.5 * (est[n_hot] + cost)
-            n_blocks += 1
-            if (n_blocks & 63) == 0:  # look at the neighbours again now and then
-                if n_hot > 0:
-                    est[n_hot - 1] = 0.0
-                if n_hot < nb:
-                    est[n_hot + 1] = 0.0
-            best = n_hot
-            for jb in (n_hot - 1, n_hot + 1):
-                if 0 <= jb <= nb and est[jb] < est[best]:  # untried neighbours (0) get tried
-                    best = jb
-            if best != n_hot:
-                n_hot = best
-                _cp_banded_refresh(state[3], n_hot, NR, NRC, RA, RB, W, Z, TS, Cb, lob, hib, state)
-                state[4] = y[k1 - 1]
-        k = k1
-    xl = state[3]
+        P[b, 0, l] = -r[i]
+        P[b, 1, l] = -rc[i]
+        P[b, 2, l] = ra[i]
+        P[b, 3, l] = rb[i]
+        P[b, 4, l] = w[i]
+        P[b, 5, l] = z0[i]
+        P[b, 6, l] = 1e-15 * (r[i] + rc[i] + ra[i] + rb[i])
+    y = _banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, False)
     for j in range(mm):
-        zfinal[srt[j]] = Z[j // _L, j % _L]
+        zfinal[srt[j]] = P[j // _L, 5, j % _L]
     for i in range(m):
         if ident[i]:
-            zfinal[i] = xl
+            zfinal[i] = x[n - 1]
+    return y, zfinal
+
+
+@_jit_exact
+def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover - compiled
+    """Weighted play sum ``sum_i w_i z_i`` by the banded scheme of :func:`cp_sum_banded`.
+
+    The play's own update ``max(x - r, min(x + r, z))`` (4 operations per operator instead of
+    the CP's 8) and band ``(z - r, z + r)``; operators with ``r = 0`` are the identity.  The
+    operator outputs equal :func:`operators.play_reference` bit for bit, for any starting
+    state; ``x0`` is ignored as in :func:`cp_sum_banded`.
+    """
+    n = x.shape[0]
+    m = r.shape[0]
+    zfinal = z0.copy()
+    if n == 0:
+        return np.empty(0), zfinal
+    W0 = 0.0
+    mm = 0
+    for i in range(m):
+        if r[i] == 0.0:
+            W0 += w[i]
+        else:
+            mm += 1
+    nz = np.empty(mm, np.int64)
+    width = np.empty(mm)
+    j = 0
+    for i in range(m):
+        if r[i] != 0.0:
+            nz[j] = i
+            width[j] = r[i]
+            j += 1
+    srt = nz[np.argsort(width, kind="mergesort")]
+    nb = max((mm + _L - 1) // _L, 1)
+    P = np.zeros((nb, _PLAY_ROWS, _L))
+    for b in range(nb):
+        for l in range(_L):
+            P[b, 0, l] = _HUGE
+    for j in range(mm):
+        i = srt[j]
+        b = j // _L
+        l = j % _L
+        P[b, 0, l] = r[i]
+        P[b, 1, l] = w[i]
+        P[b, 2, l] = z0[i]
+        P[b, 3, l] = 4e-15 * r[i]
+    y = _banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, True)
+    for j in range(mm):
+        zfinal[srt[j]] = P[j // _L, 2, j % _L]
+    for i in range(m):
+        if r[i] == 0.0:
+            zfinal[i] = x[n - 1]
     return y, zfinal
 
 
