@@ -25,7 +25,7 @@ After all windows the recursion equals the batch formula (the information form)
 which :func:`batch_posterior` evaluates from :class:`WindowStatistics` (lag correlations),
 so fitting long records never runs the per-sample loop.  :func:`recursive_map` is the
 sample-by-sample estimator for streaming use (compiled numba kernels; at dimension 190 about
-7 us per window on a 2-core AMD EPYC VM, 12.6 us with one memory pass per window);
+5.8 us per window on a 2-core AMD EPYC VM, 12.6 us with one memory pass per window);
 :func:`recursive_map_python` is its plain reference implementation.
 """
 
@@ -442,15 +442,26 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
     (``theta += sum_j e_j g_j^T``, ``P = lambda^-4 (P - sum_j lambda^j v_j g_j^T)``) and form
     ``theta X'`` and ``P X'`` for the next group.  The arithmetic per window is that of the
     one-window recursion; the matrices are read and written once per four windows instead of
-    once per window.  ``theta`` (p q, dp) and ``P`` (d, dp) have rows padded with zeros to
-    ``dp`` (a multiple of 4) and 32-byte alignment; the work arrays are (4, dp) / (4, p q).
-    Processes ``4 * (n_windows // 4)`` windows of the flattened ``u`` (``uf``, n_samples m)
-    and ``y`` (``yf``, n_samples q) and returns that count.  The windows are those of
-    :func:`recursive_map_python`, so ``recursive_map`` equals it to rounding.
+    once per window.  Both passes take rows in pairs (each gain and regressor vector loaded
+    once for two rows) and first update a row pair, then form its products while the rows are
+    in L1.  ``P`` is symmetric, so its pass updates only the upper triangle (from each row's
+    4-aligned diagonal tile on) and gets ``P X'`` from each stored element twice: in the row's
+    dot product and in an axpy into the column's accumulator; a quarter fewer multiply-adds
+    than the full matrix.  The lower triangle outside the diagonal tiles is mirrored from the
+    upper one at the end.  The vector operations are those of :mod:`._simd`.
+
+    ``theta`` (p q [+ 1], dp) and ``P`` (d [+ 1], dp) have an even number of rows (a zero row
+    pads an odd count), rows padded with zeros to ``dp`` (a multiple of 4) and 32-byte
+    alignment; the work arrays are (4, dp) and (4, rows of ``theta``), zero beyond ``d`` and
+    ``p q``.  Processes ``4 * (n_windows // 4)`` windows of the flattened ``u`` (``uf``,
+    n_samples m) and ``y`` (``yf``, n_samples q) and returns that count.  The windows are
+    those of :func:`recursive_map_python`, so ``recursive_map`` equals it to rounding.
     """
     d = 2 * p * m + p * q
     rows = p * q
     dp = P.shape[1]
+    d2 = P.shape[0]  # d or d + 1: an even number of rows (a zero row pads an odd d)
+    rows2 = theta.shape[0]
     pm = p * m
     n_groups = (n_samples - 2 * p + 1) // 4
     if n_groups == 0:
@@ -474,8 +485,10 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
                 acc += theta[r, t] * X[j, t]
             T[j, r] = acc
     il4 = 1.0 / (lam * lam * lam * lam)
+    il4v = vbcast(il4)
     s = np.empty(4)
     lpow = np.array([1.0, lam, lam * lam, lam * lam * lam])
+    lw = il4 * lpow  # weights of the four rank-1 terms of P (ones without forgetting)
     for grp in range(n_groups):
         # the four windows' gains, residuals and normalisers (eq. 18) from theta_0, P_0
         lj = 1.0
@@ -538,78 +551,174 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
         x1 = Xn[1]
         x2 = Xn[2]
         x3 = Xn[3]
-        # theta += sum_j e_j g_j^T (eq. 17) and theta X' in one pass
-        for r in range(rows):
-            row = theta[r]
-            f0 = E[0, r]
-            f1 = E[1, r]
-            f2 = E[2, r]
-            f3 = E[3, r]
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            a3 = 0.0
-            for t in range(dp):
-                v = row[t] + f0 * g0[t] + f1 * g1[t] + f2 * g2[t] + f3 * g3[t]
-                row[t] = v
-                a0 += v * x0[t]
-                a1 += v * x1[t]
-                a2 += v * x2[t]
-                a3 += v * x3[t]
-            Tn[0, r] = a0
-            Tn[1, r] = a1
-            Tn[2, r] = a2
-            Tn[3, r] = a3
-        # P = lambda^-4 (P - sum_j lambda^j v_j g_j^T) and P X' in one pass (two copies of the
-        # loop: a test of lambda inside it costs ~15 % on the development machine)
-        if lam == 1.0:
-            for a in range(d):
-                row = P[a]
-                f0 = -V[0, a]
-                f1 = -V[1, a]
-                f2 = -V[2, a]
-                f3 = -V[3, a]
-                a0 = 0.0
-                a1 = 0.0
-                a2 = 0.0
-                a3 = 0.0
-                for t in range(dp):
-                    v = row[t] + f0 * g0[t] + f1 * g1[t] + f2 * g2[t] + f3 * g3[t]
-                    row[t] = v
-                    a0 += v * x0[t]
-                    a1 += v * x1[t]
-                    a2 += v * x2[t]
-                    a3 += v * x3[t]
-                An[0, a] = a0
-                An[1, a] = a1
-                An[2, a] = a2
-                An[3, a] = a3
-        else:
-            for a in range(d):
-                row = P[a]
-                f0 = -il4 * V[0, a]
-                f1 = -il4 * lpow[1] * V[1, a]
-                f2 = -il4 * lpow[2] * V[2, a]
-                f3 = -il4 * lpow[3] * V[3, a]
-                a0 = 0.0
-                a1 = 0.0
-                a2 = 0.0
-                a3 = 0.0
-                for t in range(dp):
-                    v = row[t] * il4 + f0 * g0[t] + f1 * g1[t] + f2 * g2[t] + f3 * g3[t]
-                    row[t] = v
-                    a0 += v * x0[t]
-                    a1 += v * x1[t]
-                    a2 += v * x2[t]
-                    a3 += v * x3[t]
-                An[0, a] = a0
-                An[1, a] = a1
-                An[2, a] = a2
-                An[3, a] = a3
+        # theta += sum_j e_j g_j^T (eq. 17), then theta X', two rows at a time: the update
+        # loop loads each gain once for both rows, the product loop (rows now in L1) each x'
+        for r in range(0, rows2, 2):
+            r0 = theta[r]
+            r1 = theta[r + 1]
+            f0 = vbcast(E[0, r])
+            f1 = vbcast(E[1, r])
+            f2 = vbcast(E[2, r])
+            f3 = vbcast(E[3, r])
+            h0 = vbcast(E[0, r + 1])
+            h1 = vbcast(E[1, r + 1])
+            h2 = vbcast(E[2, r + 1])
+            h3 = vbcast(E[3, r + 1])
+            for t in range(0, dp, 4):
+                gv = vload(g0, t)
+                v = vfma(f0, gv, vload(r0, t))
+                w = vfma(h0, gv, vload(r1, t))
+                gv = vload(g1, t)
+                v = vfma(f1, gv, v)
+                w = vfma(h1, gv, w)
+                gv = vload(g2, t)
+                v = vfma(f2, gv, v)
+                w = vfma(h2, gv, w)
+                gv = vload(g3, t)
+                vstore(r0, t, vfma(f3, gv, v))
+                vstore(r1, t, vfma(h3, gv, w))
+            a0 = vzero()
+            a1 = vzero()
+            a2 = vzero()
+            a3 = vzero()
+            b0 = vzero()
+            b1 = vzero()
+            b2 = vzero()
+            b3 = vzero()
+            for t in range(0, dp, 4):
+                v = vload(r0, t)
+                w = vload(r1, t)
+                xv = vload(x0, t)
+                a0 = vfma(v, xv, a0)
+                b0 = vfma(w, xv, b0)
+                xv = vload(x1, t)
+                a1 = vfma(v, xv, a1)
+                b1 = vfma(w, xv, b1)
+                xv = vload(x2, t)
+                a2 = vfma(v, xv, a2)
+                b2 = vfma(w, xv, b2)
+                xv = vload(x3, t)
+                a3 = vfma(v, xv, a3)
+                b3 = vfma(w, xv, b3)
+            Tn[0, r] = vsum(a0)
+            Tn[1, r] = vsum(a1)
+            Tn[2, r] = vsum(a2)
+            Tn[3, r] = vsum(a3)
+            Tn[0, r + 1] = vsum(b0)
+            Tn[1, r + 1] = vsum(b1)
+            Tn[2, r + 1] = vsum(b2)
+            Tn[3, r + 1] = vsum(b3)
+        # P = lambda^-4 (P - sum_j lambda^j v_j g_j^T) and P X' on the upper triangle only (P is
+        # symmetric), rows a, a + 1 at a time from the 4-aligned column c <= a: update columns
+        # c.., then (P X')[a] += P[a, c..] . x' and, right of the diagonal 4x4 tile,
+        # (P X')[t] += P[a, t] x'[a] into the L1-resident accumulators An
+        n0 = An[0]
+        n1 = An[1]
+        n2 = An[2]
+        n3 = An[3]
+        z = vzero()
+        for t in range(0, dp, 4):
+            vstore(n0, t, z)
+            vstore(n1, t, z)
+            vstore(n2, t, z)
+            vstore(n3, t, z)
+        for a in range(0, d2, 2):
+            r0 = P[a]
+            r1 = P[a + 1]
+            c = a - a % 4
+            f0 = vbcast(V[0, a] * lw[0])
+            f1 = vbcast(V[1, a] * lw[1])
+            f2 = vbcast(V[2, a] * lw[2])
+            f3 = vbcast(V[3, a] * lw[3])
+            h0 = vbcast(V[0, a + 1] * lw[0])
+            h1 = vbcast(V[1, a + 1] * lw[1])
+            h2 = vbcast(V[2, a + 1] * lw[2])
+            h3 = vbcast(V[3, a + 1] * lw[3])
+            if lam == 1.0:
+                for t in range(c, dp, 4):
+                    gv = vload(g0, t)
+                    v = vfnma(f0, gv, vload(r0, t))
+                    w = vfnma(h0, gv, vload(r1, t))
+                    gv = vload(g1, t)
+                    v = vfnma(f1, gv, v)
+                    w = vfnma(h1, gv, w)
+                    gv = vload(g2, t)
+                    v = vfnma(f2, gv, v)
+                    w = vfnma(h2, gv, w)
+                    gv = vload(g3, t)
+                    vstore(r0, t, vfnma(f3, gv, v))
+                    vstore(r1, t, vfnma(h3, gv, w))
+            else:
+                for t in range(c, dp, 4):
+                    gv = vload(g0, t)
+                    v = vfnma(f0, gv, vmul(il4v, vload(r0, t)))
+                    w = vfnma(h0, gv, vmul(il4v, vload(r1, t)))
+                    gv = vload(g1, t)
+                    v = vfnma(f1, gv, v)
+                    w = vfnma(h1, gv, w)
+                    gv = vload(g2, t)
+                    v = vfnma(f2, gv, v)
+                    w = vfnma(h2, gv, w)
+                    gv = vload(g3, t)
+                    vstore(r0, t, vfnma(f3, gv, v))
+                    vstore(r1, t, vfnma(h3, gv, w))
+            v = vload(r0, c)
+            w = vload(r1, c)
+            xv = vload(x0, c)
+            a0 = vmul(v, xv)
+            b0 = vmul(w, xv)
+            xv = vload(x1, c)
+            a1 = vmul(v, xv)
+            b1 = vmul(w, xv)
+            xv = vload(x2, c)
+            a2 = vmul(v, xv)
+            b2 = vmul(w, xv)
+            xv = vload(x3, c)
+            a3 = vmul(v, xv)
+            b3 = vmul(w, xv)
+            f0 = vbcast(x0[a])
+            f1 = vbcast(x1[a])
+            f2 = vbcast(x2[a])
+            f3 = vbcast(x3[a])
+            h0 = vbcast(x0[a + 1])
+            h1 = vbcast(x1[a + 1])
+            h2 = vbcast(x2[a + 1])
+            h3 = vbcast(x3[a + 1])
+            for t in range(c + 4, dp, 4):
+                v = vload(r0, t)
+                w = vload(r1, t)
+                xv = vload(x0, t)
+                a0 = vfma(v, xv, a0)
+                b0 = vfma(w, xv, b0)
+                vstore(n0, t, vfma(f0, v, vfma(h0, w, vload(n0, t))))
+                xv = vload(x1, t)
+                a1 = vfma(v, xv, a1)
+                b1 = vfma(w, xv, b1)
+                vstore(n1, t, vfma(f1, v, vfma(h1, w, vload(n1, t))))
+                xv = vload(x2, t)
+                a2 = vfma(v, xv, a2)
+                b2 = vfma(w, xv, b2)
+                vstore(n2, t, vfma(f2, v, vfma(h2, w, vload(n2, t))))
+                xv = vload(x3, t)
+                a3 = vfma(v, xv, a3)
+                b3 = vfma(w, xv, b3)
+                vstore(n3, t, vfma(f3, v, vfma(h3, w, vload(n3, t))))
+            n0[a] += vsum(a0)
+            n1[a] += vsum(a1)
+            n2[a] += vsum(a2)
+            n3[a] += vsum(a3)
+            n0[a + 1] += vsum(b0)
+            n1[a + 1] += vsum(b1)
+            n2[a + 1] += vsum(b2)
+            n3[a + 1] += vsum(b3)
         X, Xn = Xn, X
         Y, Yn = Yn, Y
         A, An = An, A
         T, Tn = Tn, T
+    # the lower triangle outside the diagonal tiles was not updated: mirror the upper one
+    for a in range(d):
+        for t in range(a - a % 4):
+            P[a, t] = P[t, a]
     return 4 * n_groups
 
 
@@ -621,6 +730,10 @@ def _delayed():
     if _DELAYED is None:
         import numba
 
+        from . import _simd
+
+        # the kernel's vector operations (see _simd) resolve as module globals when it compiles
+        globals().update({name: getattr(_simd, name) for name in _simd.__all__})
         _DELAYED = numba.njit(cache=True, nogil=True, fastmath=True)(_delayed_kernel)
     return _DELAYED
 
@@ -652,17 +765,17 @@ def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: 
         z = np.ascontiguousarray(z[n0:])
         n_windows -= n0
         dp = -(-d // 4) * 4
-        th = _aligned_zeros((rows, dp))
-        th[:, :d] = theta
-        Pw = _aligned_zeros((d, dp))
-        Pw[:, :d] = P
+        th = _aligned_zeros((rows + rows % 2, dp))  # even row counts: the kernel takes rows in pairs
+        th[:rows, :d] = theta
+        Pw = _aligned_zeros((d + d % 2, dp))
+        Pw[:d, :d] = P
         X, Xn, A, An, V, G = (_aligned_zeros((_DELAY, dp)) for _ in range(6))
-        Y, Yn, T, Tn, E = (np.zeros((_DELAY, rows)) for _ in range(5))
+        Y, Yn, T, Tn, E = (np.zeros((_DELAY, th.shape[0])) for _ in range(5))
         uf = np.ascontiguousarray(z[:, :m]).ravel()
         yf = np.ascontiguousarray(z[:, m:]).ravel()
         done = _delayed()(uf, yf, z.shape[0], p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
-        theta = np.ascontiguousarray(th[:, :d])
-        P = np.ascontiguousarray(Pw[:, :d])
+        theta = np.ascontiguousarray(th[:rows, :d])
+        P = np.ascontiguousarray(Pw[:d, :d])
         if done == n_windows:
             return theta, P
         z = np.ascontiguousarray(z[done:])
