@@ -152,7 +152,8 @@ def test_every_kernel_at_the_activation_points(thresholds):
 
 @pytest.mark.parametrize("kind", ["random-walk", "jumps", "on-thresholds"])
 def test_banded_every_number_of_hot_blocks(kind):
-    # 21 operators: 3 blocks of 8 (the last padded); 0..3 hot blocks, fixed and adaptive
+    # 21 operators (one identity): 5 blocks of 4; 0..5 hot blocks (up to 4 of them in
+    # registers, the fifth in memory) and more than there are, fixed and adaptive
     rng = np.random.default_rng(7)
     r, rc, ra, rb = _random_thresholds(rng, 21)
     x = _input(kind, rng, n=3000, thresholds=(r, rc, ra, rb))
