@@ -148,7 +148,7 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     th[:, :d] = theta0
     Pw = me._aligned_zeros((d, dp))
     Pw[:, :d] = P0
-    work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8, 9) else np.zeros((4, rows)) for k in range(11)]
+    work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8) else np.zeros((4, rows)) for k in range(10)]
     done = me._delayed()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
     assert done == 100
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)

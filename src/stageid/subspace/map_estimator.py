@@ -426,7 +426,7 @@ _DELAY = 4  # windows per delayed update (the unrolled width of _delayed_kernel)
 
 
 def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cover - numba
-                    X, Y, Xn, Yn, A, T, An, Tn, V, G, E):
+                    X, Y, Xn, Yn, A, T, An, Tn, V, E):
     """Eq. 17-18 window by window with the rank-1 updates of theta and P applied 4 at a time.
 
     Within a group of four windows ``j = 0..3`` (theta_0, P_0 at the group start, A = P_0 X,
@@ -489,42 +489,63 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
     s = np.empty(4)
     lpow = np.array([1.0, lam, lam * lam, lam * lam * lam])
     lw = il4 * lpow  # weights of the four rank-1 terms of P (ones without forgetting)
+    C = np.empty((4, 4))
+    si = np.empty(4)
+    lws = np.empty(4)
+    v0 = V[0]
+    v1 = V[1]
+    v2 = V[2]
     for grp in range(n_groups):
-        # the four windows' gains, residuals and normalisers (eq. 18) from theta_0, P_0
+        # the four windows' gains, residuals and normalisers (eq. 18) from theta_0, P_0: one
+        # pass per window forms v_j (the earlier windows' terms with zero weights when i >= j)
+        # and its products with all four x_k (C[j, k]; s_j = lambda + C[j, j])
         lj = 1.0
         for j in range(4):
+            w0 = 0.0
+            w1 = 0.0
+            w2 = 0.0
+            if j > 0:
+                w0 = C[0, j] * lpow[0] / s[0]
+            if j > 1:
+                w1 = C[1, j] * lpow[1] / s[1]
+            if j > 2:
+                w2 = C[2, j] * lpow[2] / s[2]
+            q0 = vbcast(w0)
+            q1 = vbcast(w1)
+            q2 = vbcast(w2)
+            sc = vbcast(1.0 / lj)
+            aj = A[j]
             vj = V[j]
+            a0 = vzero()
+            a1 = vzero()
+            a2 = vzero()
+            a3 = vzero()
+            for t in range(0, dp, 4):
+                v = vfnma(q0, vload(v0, t), vload(aj, t))
+                v = vfnma(q1, vload(v1, t), v)
+                v = vmul(sc, vfnma(q2, vload(v2, t), v))
+                vstore(vj, t, v)
+                a0 = vfma(v, vload(X[0], t), a0)
+                a1 = vfma(v, vload(X[1], t), a1)
+                a2 = vfma(v, vload(X[2], t), a2)
+                a3 = vfma(v, vload(X[3], t), a3)
+            C[j, 0] = vsum(a0)
+            C[j, 1] = vsum(a1)
+            C[j, 2] = vsum(a2)
+            C[j, 3] = vsum(a3)
+            s[j] = lam + C[j, j]
             ej = E[j]
-            xj = X[j]
-            for t in range(dp):
-                vj[t] = A[j, t]
             for r in range(rows):
                 ej[r] = Y[j, r] - T[j, r]
             for i in range(j):
-                vi = V[i]
+                ce = C[i, j] / s[i]
                 ei = E[i]
-                c = 0.0
-                for t in range(dp):
-                    c += vi[t] * xj[t]
-                cv = c * lpow[i] / s[i]
-                ce = c / s[i]
-                for t in range(dp):
-                    vj[t] -= cv * vi[t]
                 for r in range(rows):
                     ej[r] -= ce * ei[r]
-            if j > 0:
-                ilj = 1.0 / lj
-                for t in range(dp):
-                    vj[t] *= ilj
-            sj = lam
-            for t in range(dp):
-                sj += xj[t] * vj[t]
-            s[j] = sj
-            inv = 1.0 / sj
-            gj = G[j]
-            for t in range(dp):
-                gj[t] = vj[t] * inv
             lj *= lam
+        for j in range(4):
+            si[j] = 1.0 / s[j]
+            lws[j] = lw[j] * si[j]
         # the next group's windows (zeros after the last group)
         if grp + 1 < n_groups:
             for j in range(4):
@@ -543,10 +564,10 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
                     yr[t] = ys[rows + t]
         else:
             Xn[:, :] = 0.0
-        g0 = G[0]
-        g1 = G[1]
-        g2 = G[2]
-        g3 = G[3]
+        g0 = V[0]  # g_j = v_j / s_j: the 1 / s_j go into the rows' weights
+        g1 = V[1]
+        g2 = V[2]
+        g3 = V[3]
         x0 = Xn[0]
         x1 = Xn[1]
         x2 = Xn[2]
@@ -556,14 +577,14 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
         for r in range(0, rows2, 2):
             r0 = theta[r]
             r1 = theta[r + 1]
-            f0 = vbcast(E[0, r])
-            f1 = vbcast(E[1, r])
-            f2 = vbcast(E[2, r])
-            f3 = vbcast(E[3, r])
-            h0 = vbcast(E[0, r + 1])
-            h1 = vbcast(E[1, r + 1])
-            h2 = vbcast(E[2, r + 1])
-            h3 = vbcast(E[3, r + 1])
+            f0 = vbcast(E[0, r] * si[0])
+            f1 = vbcast(E[1, r] * si[1])
+            f2 = vbcast(E[2, r] * si[2])
+            f3 = vbcast(E[3, r] * si[3])
+            h0 = vbcast(E[0, r + 1] * si[0])
+            h1 = vbcast(E[1, r + 1] * si[1])
+            h2 = vbcast(E[2, r + 1] * si[2])
+            h3 = vbcast(E[3, r + 1] * si[3])
             for t in range(0, dp, 4):
                 gv = vload(g0, t)
                 v = vfma(f0, gv, vload(r0, t))
@@ -626,14 +647,14 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
             r0 = P[a]
             r1 = P[a + 1]
             c = a - a % 4
-            f0 = vbcast(V[0, a] * lw[0])
-            f1 = vbcast(V[1, a] * lw[1])
-            f2 = vbcast(V[2, a] * lw[2])
-            f3 = vbcast(V[3, a] * lw[3])
-            h0 = vbcast(V[0, a + 1] * lw[0])
-            h1 = vbcast(V[1, a + 1] * lw[1])
-            h2 = vbcast(V[2, a + 1] * lw[2])
-            h3 = vbcast(V[3, a + 1] * lw[3])
+            f0 = vbcast(V[0, a] * lws[0])
+            f1 = vbcast(V[1, a] * lws[1])
+            f2 = vbcast(V[2, a] * lws[2])
+            f3 = vbcast(V[3, a] * lws[3])
+            h0 = vbcast(V[0, a + 1] * lws[0])
+            h1 = vbcast(V[1, a + 1] * lws[1])
+            h2 = vbcast(V[2, a + 1] * lws[2])
+            h3 = vbcast(V[3, a + 1] * lws[3])
             if lam == 1.0:
                 for t in range(c, dp, 4):
                     gv = vload(g0, t)
@@ -769,11 +790,11 @@ def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: 
         th[:rows, :d] = theta
         Pw = _aligned_zeros((d + d % 2, dp))
         Pw[:d, :d] = P
-        X, Xn, A, An, V, G = (_aligned_zeros((_DELAY, dp)) for _ in range(6))
+        X, Xn, A, An, V = (_aligned_zeros((_DELAY, dp)) for _ in range(5))
         Y, Yn, T, Tn, E = (np.zeros((_DELAY, th.shape[0])) for _ in range(5))
         uf = np.ascontiguousarray(z[:, :m]).ravel()
         yf = np.ascontiguousarray(z[:, m:]).ravel()
-        done = _delayed()(uf, yf, z.shape[0], p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, G, E)
+        done = _delayed()(uf, yf, z.shape[0], p, m, q, th, Pw, lam, X, Y, Xn, Yn, A, T, An, Tn, V, E)
         theta = np.ascontiguousarray(th[:rows, :d])
         P = np.ascontiguousarray(Pw[:d, :d])
         if done == n_windows:
