@@ -845,6 +845,38 @@ def _make_run(kind, n_reg):
     return run
 
 
+@intrinsic
+def _left4(typingctx, lob, hib, g, x):
+    """Bit j set when x is outside the band (lob[g + j], hib[g + j]), j = 0..3."""
+    sig = types.int64(lob, hib, g, x)
+
+    def codegen(context, builder, signature, args):
+        la, ha, gv, xk = args
+        gv = context.cast(builder, gv, signature.args[2], types.int64)
+        lo = _load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[0])(context, builder, la).data, [gv]), _VEC.as_pointer()))
+        hi = _load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[1])(context, builder, ha).data, [gv]), _VEC.as_pointer()))
+        xs = _V4(builder).splat(xk)
+        out = builder.or_(builder.fcmp_ordered(">=", xs, hi, flags=_EXACT), builder.fcmp_ordered("<=", xs, lo, flags=_EXACT))
+        return builder.zext(builder.bitcast(out, ir.IntType(_L)), _I64)
+
+    return sig, codegen
+
+
+@intrinsic
+def _reduce4(typingctx, Cb, lob, hib, g):
+    """(sum of Cb, max of lob, min of hib) over entries g..g+3."""
+    sig = types.UniTuple(types.float64, 3)(Cb, lob, hib, g)
+
+    def codegen(context, builder, signature, args):
+        gv = context.cast(builder, args[3], signature.args[3], types.int64)
+        vecs = [_load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[i])(context, builder, args[i]).data, [gv]),
+                                               _VEC.as_pointer())) for i in range(3)]
+        vec = _V4(builder)
+        return context.make_tuple(builder, signature.return_type, [vec.hsum(vecs[0]), vec.hmax(vecs[1]), vec.hmin(vecs[2])])
+
+    return sig, codegen
+
+
 _cp_hot = _make_hot("cp")
 _play_hot = _make_hot("play")
 _cp_block = _make_block("cp")
@@ -924,32 +956,38 @@ def _banded_run(x, y, k0, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play): 
                 k, xl, yl = _cp_run4(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
         if k >= k1:
             break
-        # sample k leaves the cold band: update the cold blocks it left, then the hot ones
+        # sample k leaves the cold band: update the cold blocks it left (found 4 at a time),
+        # then the hot ones
         xk = x[k]
         exits += 1
         C = 0.0
         hi = 1e308
         lo = -1e308
         beyond = False
-        for b in range(n_hot, nb):
-            if not (xk < hib[b] and xk > lob[b]):
-                updates += 1
-                if b == n_hot:
-                    updates_first += 1
-                else:
-                    beyond = True
-                if play:
-                    cb, lb, hb = _play_block(P, b, xk)
-                else:
-                    cb, lb, hb = _cp_block(P, b, xk)
-                Cb[b] = cb
-                lob[b] = lb
-                hib[b] = hb
-            C += Cb[b]
-            hb = hib[b]
-            lb = lob[b]
-            hi = hb if hb < hi else hi
-            lo = lb if lb > lo else lo
+        for g in range(n_hot, nb, _L):
+            left = _left4(lob, hib, g, xk)
+            if nb - g < _L:
+                left &= (1 << (nb - g)) - 1  # (the padding is never left; belt and braces)
+            if left != 0:
+                for j in range(_L):
+                    if (left >> j) & 1:
+                        b = g + j
+                        updates += 1
+                        if b == n_hot:
+                            updates_first += 1
+                        else:
+                            beyond = True
+                        if play:
+                            cb, lb, hb = _play_block(P, b, xk)
+                        else:
+                            cb, lb, hb = _cp_block(P, b, xk)
+                        Cb[b] = cb
+                        lob[b] = lb
+                        hib[b] = hb
+            cg, lg, hg = _reduce4(Cb, lob, hib, g)
+            C += cg
+            hi = hg if hg < hi else hi
+            lo = lg if lg > lo else lo
         exits_beyond += beyond
         yl = C + W0 * xk
         if n_hot > 0:
@@ -978,16 +1016,16 @@ def _banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     The first sample is the plain update of every block.  ``n_hot_blocks < 0`` re-chooses the
     number of hot blocks every ``_BAND_BLOCK`` samples from a cost model of the measured band
     exits and block updates (fitted to timings on the benchmark machine, ns: a hot block costs
-    ~1.5 (CP) or ~0.8 (play) at every sample, a band exit ~18-20 plus ~1.8 per cold block
-    scanned, a block update ~5 (CP) or ~3.6 (play)).  The cost with one more hot block is
+    ~1.35 (CP) or ~0.8 (play) at every sample, a band exit ~20 plus ~0.9 per cold block
+    scanned, a block update ~5.2 (CP) or ~4.2 (play)).  The cost with one more hot block is
     predicted exactly from the counts; one block less is measured again every 32 choices.
     """
     n = x.shape[0]
     nb = P.shape[0]
     y = np.empty(n)
-    Cb = np.zeros(nb)
-    lob = np.zeros(nb)
-    hib = np.zeros(nb)
+    Cb = np.zeros(nb + _L - 1)  # padded: the exit scan reads 4 blocks at a time
+    lob = np.full(nb + _L - 1, -1e308)
+    hib = np.full(nb + _L - 1, 1e308)
     state = np.empty(5)
     counts = np.zeros(4, np.int64)
     xs = x[0]
@@ -999,9 +1037,9 @@ def _banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     n_hot = 1 if adapt else min(n_hot_blocks, nb)
     if n_hot > 0:
         _banded_refresh(xs, n_hot, P, Cb, lob, hib, state, play)
-    c_hot = 0.8 if play else 1.5
-    c_exit = 20.0 if play else 18.0
-    c_update = 3.6 if play else 5.0
+    c_hot = 0.8 if play else 1.35
+    c_exit = 20.0
+    c_update = 4.2 if play else 5.2
     est = np.zeros(nb + 1)  # estimated ns per sample for each number of hot blocks (0: not tried)
     n_blocks = 0
     k = 1
@@ -1010,12 +1048,12 @@ def _banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
         _banded_run(x, y, k, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play)
         if adapt:
             per = 1.0 / (k1 - k)
-            cost = c_hot * n_hot + (c_exit + 1.8 * (nb - n_hot)) * counts[0] * per + c_update * counts[1] * per
+            cost = c_hot * n_hot + (c_exit + 0.9 * (nb - n_hot)) * counts[0] * per + c_update * counts[1] * per
             est[n_hot] = cost if est[n_hot] == 0.0 else 0.5 * (est[n_hot] + cost)
             if n_hot < nb:
                 # one more hot block: the exits that left only the first cold block, and its
                 # updates, would not happen (the other cold blocks evolve the same either way)
-                more = (c_hot * (n_hot + 1) + (c_exit + 1.8 * (nb - n_hot - 1)) * counts[2] * per
+                more = (c_hot * (n_hot + 1) + (c_exit + 0.9 * (nb - n_hot - 1)) * counts[2] * per
                         + c_update * (counts[1] - counts[3]) * per)
                 est[n_hot + 1] = more if est[n_hot + 1] == 0.0 else 0.5 * (est[n_hot + 1] + more)
             n_blocks += 1
