@@ -655,6 +655,12 @@ def _load(builder, p):
     return builder.load(p, align=8)
 
 
+def _load_at(context, builder, aryty, ary, i):
+    """The 4 doubles ary[i .. i+3] of a contiguous 1-d array as a vector."""
+    p = builder.gep(context.make_array(aryty)(context, builder, ary).data, [i])
+    return _load(builder, builder.bitcast(p, _VEC.as_pointer()))
+
+
 def _update_lanes(vec, kind, rows, xs, t):
     """Plain update of the 4 operators of a block; the new outputs are stored and returned.
 
@@ -717,7 +723,8 @@ def _make_hot(kind):
             vec = _V4(builder)
             t = vec.splat(builder.fneg(xk))
             nh = context.cast(builder, nh, signature.args[1], types.int64)
-            acc = _emit_memory_blocks(context, builder, signature.args[0], Pa, ir.Constant(_I64, 0), nh, vec.splat(xk), t, kind)
+            zero = ir.Constant(_I64, 0)
+            acc = _emit_memory_blocks(context, builder, signature.args[0], Pa, zero, nh, vec.splat(xk), t, kind)
             return vec.hsum(acc)
 
         return sig, codegen
@@ -853,8 +860,8 @@ def _left4(typingctx, lob, hib, g, x):
     def codegen(context, builder, signature, args):
         la, ha, gv, xk = args
         gv = context.cast(builder, gv, signature.args[2], types.int64)
-        lo = _load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[0])(context, builder, la).data, [gv]), _VEC.as_pointer()))
-        hi = _load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[1])(context, builder, ha).data, [gv]), _VEC.as_pointer()))
+        lo = _load_at(context, builder, signature.args[0], la, gv)
+        hi = _load_at(context, builder, signature.args[1], ha, gv)
         xs = _V4(builder).splat(xk)
         out = builder.or_(builder.fcmp_ordered(">=", xs, hi, flags=_EXACT), builder.fcmp_ordered("<=", xs, lo, flags=_EXACT))
         return builder.zext(builder.bitcast(out, ir.IntType(_L)), _I64)
@@ -869,8 +876,7 @@ def _reduce4(typingctx, Cb, lob, hib, g):
 
     def codegen(context, builder, signature, args):
         gv = context.cast(builder, args[3], signature.args[3], types.int64)
-        vecs = [_load(builder, builder.bitcast(builder.gep(context.make_array(signature.args[i])(context, builder, args[i]).data, [gv]),
-                                               _VEC.as_pointer())) for i in range(3)]
+        vecs = [_load_at(context, builder, signature.args[i], args[i], gv) for i in range(3)]
         vec = _V4(builder)
         return context.make_tuple(builder, signature.return_type, [vec.hsum(vecs[0]), vec.hmax(vecs[1]), vec.hmin(vecs[2])])
 
