@@ -156,3 +156,26 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     # rounding only (relative 1e-12)
     np.testing.assert_allclose(th[:, :d], th_py, rtol=0, atol=1e-12 * np.abs(th_py).max())
     np.testing.assert_allclose(Pw[:, :d], P_py, rtol=0, atol=1e-12 * np.abs(P_py).max())
+
+
+def test_vector_intrinsics_match_numpy():
+    # the 4-wide operations the delayed-update kernel is written in (stageid.subspace._simd)
+    numba = pytest.importorskip("numba")
+    from stageid.subspace._simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
+
+    @numba.njit
+    def kernel(a, b, c, out):
+        acc = vzero()
+        for t in range(0, a.shape[0], 4):
+            v = vfnma(vbcast(2.0), vload(b, t), vfma(vload(a, t), vload(b, t), vload(c, t)))
+            vstore(out, t, vmul(v, vbcast(0.5)))
+            acc = vfma(vload(a, t), vload(b, t), acc)
+        return vsum(acc)
+
+    rng = np.random.default_rng(3)
+    a, b, c = (rng.standard_normal(12) for _ in range(3))
+    out = np.zeros(12)
+    dot = kernel(a, b, c, out)
+    # fused multiply-adds round once where numpy rounds twice: a few ulps
+    np.testing.assert_allclose(out, 0.5 * (a * b + c - 2.0 * b), rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(dot, a @ b, rtol=1e-14)

@@ -8,6 +8,8 @@ intrinsics let a kernel say what it means instead: ``vload(a, i)`` is the vector
 LLVM ``<4 x double>`` operations (one ymm register and one FMA instruction each with AVX2;
 two SSE registers on older CPUs, same results).  Loads and stores assume only 8-byte
 alignment.  Arithmetic carries LLVM's ``fast`` flags, like ``fastmath=True`` kernels.
+numba's on-disk cache keys a kernel on its own source file only: after editing this module,
+delete the ``__pycache__/*.nbi``/``*.nbc`` files of the kernels that use it.
 """
 
 from __future__ import annotations
@@ -36,6 +38,12 @@ class _F64x4Model(models.PrimitiveModel):
         super().__init__(dmm, fe_type, _V)
 
 
+def _vector_array(ary, index) -> bool:
+    """Typing guard: a contiguous 1-D float64 array and an integer index."""
+    return (isinstance(ary, types.Array) and ary.dtype == types.float64 and ary.ndim == 1 and ary.layout == "C"
+            and isinstance(index, types.Integer))
+
+
 def _address(context, builder, aryty, ary, index):
     data = context.make_array(aryty)(context, builder, ary).data
     return builder.bitcast(builder.gep(data, [index]), _V.as_pointer())
@@ -44,6 +52,9 @@ def _address(context, builder, aryty, ary, index):
 @intrinsic
 def vload(typingctx, ary, index):
     """``ary[index:index + 4]`` of a contiguous 1-D float64 array (no bounds check)."""
+    if not _vector_array(ary, index):
+        return None
+
     def codegen(context, builder, sig, args):
         return builder.load(_address(context, builder, sig.args[0], args[0], args[1]), align=8)
     return f64x4(ary, index), codegen
@@ -52,6 +63,9 @@ def vload(typingctx, ary, index):
 @intrinsic
 def vstore(typingctx, ary, index, value):
     """``ary[index:index + 4] = value`` (no bounds check)."""
+    if not (_vector_array(ary, index) and value == f64x4):
+        return None
+
     def codegen(context, builder, sig, args):
         builder.store(args[2], _address(context, builder, sig.args[0], args[0], args[1]), align=8)
         return context.get_dummy_value()
