@@ -630,9 +630,13 @@ class _V4:
     def lanes(self, v):
         return [self.b.extract_element(v, ir.Constant(ir.IntType(32), i)) for i in range(_L)]
 
-    def hsum(self, v):
-        l0, l1, l2, l3 = self.lanes(v)
-        return self.add(self.add(l0, l1, _SUMF), self.add(l2, l3, _SUMF), _SUMF)
+    def hsum(self, v):  # (l0 + l2) + (l1 + l3): one 2-lane add, then one scalar add
+        i32 = ir.IntType(32)
+        undef = ir.Constant(_VEC, ir.Undefined)
+        lo = self.b.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, 2), [0, 1]))
+        hi = self.b.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, 2), [2, 3]))
+        s = self.add(lo, hi, _SUMF)
+        return self.add(self.b.extract_element(s, ir.Constant(i32, 0)), self.b.extract_element(s, ir.Constant(i32, 1)), _SUMF)
 
     def hmin(self, v):
         l0, l1, l2, l3 = self.lanes(v)
@@ -773,14 +777,15 @@ def _make_block(kind):
     return block
 
 
-def _make_run(kind, n_reg):
+def _make_run(kind, n_reg, memory):
     """Intrinsic ``run(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl) -> (k, xl, yl)``.
 
     Runs samples k.. while the input stays inside the cold blocks' band (lo, hi): the hot
     blocks (the first ``n_hot``) are updated at every sample that moves, the first ``n_reg``
     of them with their outputs kept in registers (no store-to-load latency from one sample
-    to the next), and ``y = C + W0 x + hot sum``.  Returns at k1 or at the first sample that
-    leaves the band (not processed), with the last input and output.
+    to the next), the others (``memory`` only; else ``n_hot == n_reg``) in memory, and
+    ``y = C + W0 x + hot sum``.  Returns at k1 or at the first sample that leaves the band
+    (not processed), with the last input and output.
     """
     n_rows, wrow, zrow = _layout(kind)[:3]
 
@@ -831,11 +836,14 @@ def _make_run(kind, n_reg):
                 rb_[zrow] = z_slots[b]  # the output row lives in a register slot
                 v = _update_lanes(vec, kind, rb_, xs, t)
                 parts.append(vec.mul(_load(builder, rows[b][wrow]), v))
-            parts.append(_emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind))
+            if memory:
+                parts.append(_emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind))
             while len(parts) > 1:  # pairwise sum of the block sums
                 parts = [vec.add(parts[i], parts[i + 1], _SUMF) for i in range(0, len(parts) - 1, 2)] + (
                     [parts[-1]] if len(parts) % 2 else [])
-            yk = vec.add(vec.add(Cv, vec.mul(W0v, xk), _SUMF), vec.hsum(parts[0]), _SUMF)
+            yk = vec.add(Cv, vec.mul(W0v, xk), _SUMF)
+            if parts:
+                yk = vec.add(yk, vec.hsum(parts[0]), _SUMF)
             builder.store(yk, builder.gep(yd, [kk]))
             builder.store(yk, yl_slot)
             builder.store(xk, xl_slot)
@@ -887,8 +895,10 @@ _cp_hot = _make_hot("cp")
 _play_hot = _make_hot("play")
 _cp_block = _make_block("cp")
 _play_block = _make_block("play")
-_cp_run0, _cp_run1, _cp_run2, _cp_run3, _cp_run4 = (_make_run("cp", i) for i in range(_NREG + 1))
-_pl_run0, _pl_run1, _pl_run2, _pl_run3, _pl_run4 = (_make_run("play", i) for i in range(_NREG + 1))
+_cp_run0, _cp_run1, _cp_run2, _cp_run3, _cp_run4 = (_make_run("cp", i, False) for i in range(_NREG + 1))
+_pl_run0, _pl_run1, _pl_run2, _pl_run3, _pl_run4 = (_make_run("play", i, False) for i in range(_NREG + 1))
+_cp_run_mem = _make_run("cp", _NREG, True)
+_pl_run_mem = _make_run("play", _NREG, True)
 
 
 @_jit
@@ -947,8 +957,10 @@ def _banded_run(x, y, k0, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play): 
                 k, xl, yl = _pl_run2(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
             elif n_reg == 3:
                 k, xl, yl = _pl_run3(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
-            else:
+            elif n_hot == _NREG:
                 k, xl, yl = _pl_run4(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            else:
+                k, xl, yl = _pl_run_mem(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
         else:
             if n_reg == 0:
                 k, xl, yl = _cp_run0(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
@@ -958,8 +970,10 @@ def _banded_run(x, y, k0, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play): 
                 k, xl, yl = _cp_run2(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
             elif n_reg == 3:
                 k, xl, yl = _cp_run3(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
-            else:
+            elif n_hot == _NREG:
                 k, xl, yl = _cp_run4(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
+            else:
+                k, xl, yl = _cp_run_mem(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
         if k >= k1:
             break
         # sample k leaves the cold band: update the cold blocks it left (found 4 at a time),
