@@ -186,6 +186,15 @@ def test_play_banded_edge_cases():
     x = np.array([0.0, 2.0, -1.0, -1.0, 3.5])
     y, z = _kernels.play_sum_banded(x, zero, w, zero)
     assert np.array_equal(y, 3.5 * x) and np.array_equal(z, np.full(3, 3.5))
+    # a strided input (a view) gives the same as its contiguous copy
+    x = _walk(np.random.default_rng(1), 2000)
+    r = np.linspace(0, 100, 6)
+    w6 = np.linspace(1, 2, 6)
+    for call in (lambda xx: _kernels.play_sum_banded(xx, r, w6, np.zeros(6)),
+                 lambda xx: _kernels.cp_sum_banded(xx, r, 0.5 * r, r, 0.5 * r, w6, np.zeros(6))):
+        ys, zs = call(x[::2])
+        yc, zc = call(np.ascontiguousarray(x[::2]))
+        assert np.array_equal(ys, yc) and np.array_equal(zs, zc)
     # the caller's arrays are not modified
     x = _walk(np.random.default_rng(0), 500)
     r = np.linspace(0, 100, 6)

@@ -647,6 +647,11 @@ class _V4:
         return self.max(self.max(l0, l1), self.max(l2, l3))
 
 
+def _c_float64(*tys):
+    """True when every type is a C-contiguous float64 array (the intrinsics index raw data)."""
+    return all(isinstance(t, types.Array) and t.dtype == types.float64 and t.layout == "C" for t in tys)
+
+
 def _block_rows(context, builder, aryty, ary, b, n_rows):
     """Pointers to the rows of block b of a C-contiguous (n_blocks, n_rows, 4) array."""
     data = context.make_array(aryty)(context, builder, ary).data
@@ -720,6 +725,8 @@ def _make_hot(kind):
 
     @intrinsic
     def hot(typingctx, P, n_hot, x):
+        if not _c_float64(P):
+            return None
         sig = types.float64(P, n_hot, x)
 
         def codegen(context, builder, signature, args):
@@ -748,6 +755,8 @@ def _make_block(kind):
 
     @intrinsic
     def block(typingctx, P, b, x):
+        if not _c_float64(P):
+            return None
         sig = types.UniTuple(types.float64, 3)(P, b, x)
 
         def codegen(context, builder, signature, args):
@@ -791,6 +800,8 @@ def _make_run(kind, n_reg, memory):
 
     @intrinsic
     def run(typingctx, x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl):
+        if not _c_float64(x, y, P):
+            return None
         ret = types.Tuple((types.int64, types.float64, types.float64))
         sig = ret(x, y, k, k1, P, n_hot, C, lo, hi, W0, xl, yl)
 
@@ -863,6 +874,8 @@ def _make_run(kind, n_reg, memory):
 @intrinsic
 def _left4(typingctx, lob, hib, g, x):
     """Bit j set when x is outside the band (lob[g + j], hib[g + j]), j = 0..3."""
+    if not _c_float64(lob, hib):
+        return None
     sig = types.int64(lob, hib, g, x)
 
     def codegen(context, builder, signature, args):
@@ -880,6 +893,8 @@ def _left4(typingctx, lob, hib, g, x):
 @intrinsic
 def _reduce4(typingctx, Cb, lob, hib, g):
     """(sum of Cb, max of lob, min of hib) over entries g..g+3."""
+    if not _c_float64(Cb, lob, hib):
+        return None
     sig = types.UniTuple(types.float64, 3)(Cb, lob, hib, g)
 
     def codegen(context, builder, signature, args):
@@ -1111,6 +1126,7 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
     hot blocks cost every sample, cold ones only on exits), so an input that moves every
     operator at every sample ends up with all blocks hot -- the loop kernel.
     """
+    x = np.ascontiguousarray(x)  # the vector code indexes the raw data
     n = x.shape[0]
     m = r.shape[0]
     zfinal = z0.copy()
@@ -1171,6 +1187,7 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
     operator outputs equal :func:`operators.play_reference` bit for bit, for any starting
     state; ``x0`` is ignored as in :func:`cp_sum_banded`.
     """
+    x = np.ascontiguousarray(x)  # the vector code indexes the raw data
     n = x.shape[0]
     m = r.shape[0]
     zfinal = z0.copy()
