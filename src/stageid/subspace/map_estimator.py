@@ -498,6 +498,11 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
     v0 = V[0]
     v1 = V[1]
     v2 = V[2]
+    e0 = E[0]
+    e1 = E[1]
+    e2 = E[2]
+    rows4 = rows - rows % 4
+    pm4 = pm - pm % 4
     for grp in range(n_groups):
         # the four windows' gains, residuals and normalisers (eq. 18) from theta_0, P_0: one
         # pass per window forms v_j (the earlier windows' terms with zero weights when i >= j)
@@ -537,14 +542,27 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
             C[j, 2] = vsum(a2)
             C[j, 3] = vsum(a3)
             s[j] = lam + C[j, j]
+            # e_j = y_j - T_j - sum_{i<j} (C[i, j] / s_i) e_i (zero weights again for i >= j)
+            w0 = 0.0
+            w1 = 0.0
+            w2 = 0.0
+            if j > 0:
+                w0 = C[0, j] / s[0]
+            if j > 1:
+                w1 = C[1, j] / s[1]
+            if j > 2:
+                w2 = C[2, j] / s[2]
+            q0 = vbcast(w0)
+            q1 = vbcast(w1)
+            q2 = vbcast(w2)
             ej = E[j]
-            for r in range(rows):
-                ej[r] = Y[j, r] - T[j, r]
-            for i in range(j):
-                ce = C[i, j] / s[i]
-                ei = E[i]
-                for r in range(rows):
-                    ej[r] -= ce * ei[r]
+            yj = Y[j]
+            tj = T[j]
+            for r in range(0, rows4, 4):
+                e = vfnma(q0, vload(e0, r), vfnma(vbcast(1.0), vload(tj, r), vload(yj, r)))
+                vstore(ej, r, vfnma(q2, vload(e2, r), vfnma(q1, vload(e1, r), e)))
+            for r in range(rows4, rows):
+                ej[r] = yj[r] - tj[r] - w0 * e0[r] - w1 * e1[r] - w2 * e2[r]
             lj *= lam
         for j in range(4):
             si[j] = 1.0 / s[j]
@@ -554,17 +572,21 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
             for j in range(4):
                 k = 4 * (grp + 1) + j
                 xr = Xn[j]
-                us = uf[k * m:]
-                ys = yf[k * q:]
-                for t in range(pm):
-                    xr[t] = us[t]
-                for t in range(rows):
-                    xr[pm + t] = ys[t]
-                for t in range(pm):
-                    xr[pm + rows + t] = us[pm + t]
                 yr = Yn[j]
-                for t in range(rows):
-                    yr[t] = ys[rows + t]
+                ku = k * m
+                ky = k * q
+                for t in range(0, pm4, 4):
+                    vstore(xr, t, vload(uf, ku + t))
+                    vstore(xr, pm + rows + t, vload(uf, ku + pm + t))
+                for t in range(pm4, pm):
+                    xr[t] = uf[ku + t]
+                    xr[pm + rows + t] = uf[ku + pm + t]
+                for t in range(0, rows4, 4):
+                    vstore(xr, pm + t, vload(yf, ky + t))
+                    vstore(yr, t, vload(yf, ky + rows + t))
+                for t in range(rows4, rows):
+                    xr[pm + t] = yf[ky + t]
+                    yr[t] = yf[ky + rows + t]
         else:
             Xn[:, :] = 0.0
         g0 = V[0]  # g_j = v_j / s_j: the 1 / s_j go into the rows' weights
