@@ -14,16 +14,21 @@ Weighted sums of coupled-play operators (the modified PI model, eq. 4) have thre
 * :func:`cp_sum_events` follows the piecewise-linear output between reversals (0.04-0.12 ns
   on smooth records, but it sorts all slope changes at every reversal: 14-17 ns on a random
   walk that turns at every other sample);
-* :func:`cp_sum_banded` skips the operators that cannot move: each block of 8 operators
+* :func:`cp_sum_banded` skips the operators that cannot move: each block of 4 operators
   (sorted by band width) knows the open interval of inputs in which none of its operators
   moves, and only the blocks the input leaves are updated; the narrowest blocks, which move
-  at almost every sample, are simply updated every sample (0.14-0.31 ns on the random walk,
-  0.04-0.12 on a walk that stands still most of the time).
+  at almost every sample, are simply updated every sample, with their outputs kept in
+  registers from one sample to the next (~0.17 ns at 20 operators and ~0.09 at 100 on a
+  random walk that turns at every other sample, 0.03-0.07 on a walk that mostly stands
+  still).  :func:`play_sum_banded` is the same for plays (4 operations per operator instead
+  of 8: ~0.14 / ~0.08 ns).  Their block updates are LLVM vector code written through
+  ``numba.extending.intrinsic`` (numba runs no SLP vectoriser, and its loop vectoriser
+  leaves 4-operator loops and min/max reductions scalar); each lane does the plain formula.
 
 :func:`cp_sum_auto` picks the event kernel for smooth records and the banded one otherwise;
-:func:`play_sum_auto` does the same for the classical PI model (a play is a CP operator with
-``rc = ra = rb = r``).  Every kernel produces the reference's operator outputs bit for bit
-(the event kernels to 1e-12 of the input range); see ``benchmarks/RESULTS-hysteresis.md``.
+:func:`play_sum_auto` does the same for the classical PI model.  Every kernel produces the
+reference's operator outputs bit for bit (the event kernels to 1e-12 of the input range);
+see ``benchmarks/RESULTS-hysteresis.md``.
 
 This module imports numba; it is imported lazily by the operators and models.
 """
@@ -424,13 +429,13 @@ def play_sum_events(x, r, w, z0, x0):  # pragma: no cover - compiled
 def play_sum_auto(x, r, w, z0, x0):
     """Weighted play sum: the event-driven kernel for smooth records (the input turns in
     < 0.5 % of the samples; ascending thresholds and a Lipschitz state required), else the
-    banded kernel (a play is a CP operator with ``rc = ra = rb = r``, bit for bit).  Both give
-    the reference's operator outputs; the sums agree to rounding (~1e-15 relative).
+    banded play kernel; records of up to 64 samples use the loop.  All give the reference's
+    operator outputs; the sums agree to rounding (~1e-15 relative).
 
     The event kernel's cost per reversal grows with the number of operators the last stroke
     moved: on a random walk that turns at every other sample it takes 0.2-0.7 ns per sample
-    and operator on the benchmark machine, the banded kernel 0.14-0.31; on smooth records the
-    event kernel is 3-8x faster than the banded one.
+    and operator on the benchmark machine, the banded kernel ~0.08-0.14; on smooth records the
+    event kernel is 1.5-8x faster than the banded one.
     """
     n = x.shape[0]
     if n > 64 and _is_smooth(x) and lipschitz_state(r, z0):
@@ -1269,8 +1274,9 @@ def cp_sum_auto(x, r, rc, ra, rb, w, z0, x0):
 
     The event kernel sorts the slope changes of every operator at each reversal (~0.7 us at
     20 operators, ~3 us at 100 on the benchmark machine) and is then nearly free per sample;
-    the banded kernel costs 0.1-0.4 ns per sample and operator whatever the input does: they
-    break even at about 0.5-0.8 % reversals.
+    the banded kernel costs 0.03-0.35 ns per sample and operator whatever the input does
+    (least on random walks, most when every operator moves at every sample): they break even
+    at about 0.3-0.7 % reversals.
     """
     n = x.shape[0]
     if n > 64 and _is_smooth(x):
