@@ -15,7 +15,8 @@ Single thread (NUMBA_NUM_THREADS=1, BLAS threads 1), double precision.  Reports 
   stand still at the clip and it turns at only 9 % of them.
 
 Kernels: ``play loop`` (vectorised loop over operators, every sample), ``play events``
-(event-driven, O(1) amortised), ``play auto`` (what ``PIModel.simulate`` uses),
+(event-driven, O(1) amortised), ``play banded`` (blocks of 4 operators, only the blocks whose
+band the input leaves are updated), ``play auto`` (what ``PIModel.simulate`` uses),
 ``CP loop`` / ``CP events`` / ``CP banded`` / ``CP auto`` (the same for the modified PI of
 eq. 3-4; ``banded`` touches only the operator blocks whose band the input leaves; ``auto``
 is what ``ModifiedPIModel.simulate`` uses: events when the input turns in < 0.5 % of the
@@ -73,17 +74,7 @@ def timed(f, repeat):
     return statistics.median(ts), out
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--samples", type=int, default=1_000_000)
-    ap.add_argument("--repeat", type=int, default=5)
-    args = ap.parse_args(argv)
-
-    from stageid.hysteresis import Compensator, ModifiedPIModel
-    from stageid.hysteresis import _kernels as K
-    from stageid.hysteresis.operators import coupled_play_reference, play_reference
-
-    n = args.samples
+def _inputs(n):
     rng = np.random.default_rng(0)
     t = np.linspace(0.0, 1.0, n)
     walk = np.cumsum(rng.normal(0, 5, n))
@@ -92,6 +83,66 @@ def main(argv=None) -> int:
         "random-walk": 450 - np.abs(np.mod(walk + 450, 1800) - 900),
         "clipped-walk": np.clip(walk, -450, 450),
     }
+    return rng, inputs
+
+
+def compare_with(path, n, repeat):
+    """Before/after table: the auto kernels of an older ``_kernels.py`` against the current
+    ones, in one process, same inputs, runs interleaved (old, new, old, new, ...), medians."""
+    import importlib.util
+
+    from stageid.hysteresis import _kernels as K
+
+    spec = importlib.util.spec_from_file_location("kernels_before", path)
+    old = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(old)
+    rng, inputs = _inputs(n)
+    print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{'input':12s} {'ops':>4s} {'kernel':10s} {'before':>8s} {'after':>8s}  ns/sample/op")
+    for name, x in inputs.items():
+        x = np.ascontiguousarray(x)
+        for m in (20, 100):
+            r = np.arange(m) * 450.0 / m
+            rc, ra = 0.5 * r, 1.3 * r
+            rb = 0.6 * ra
+            w = rng.uniform(0.0, 1.0, m) / m
+            z0 = np.zeros(m)
+            for label, mod_call in (("play auto", lambda M: M.play_sum_auto(x, r, w, z0, 0.0)),
+                                    ("CP auto", lambda M: M.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0))):
+                yo, zo = mod_call(old)
+                yn, zn = mod_call(K)
+                diff = np.abs(yo - yn).max() / np.abs(yo).max()
+                assert diff <= 1e-12, f"{label}: before and after differ by {diff:.3g}"
+                ts = {old: [], K: []}
+                for _ in range(repeat):
+                    for M in (old, K):
+                        t0 = time.perf_counter()
+                        mod_call(M)
+                        ts[M].append(time.perf_counter() - t0)
+                before, after = (statistics.median(ts[M]) / n / m * 1e9 for M in (old, K))
+                print(f"{name:12s} {m:4d} {label:10s} {before:8.3f} {after:8.3f}")
+    print(f"# load average at the end {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=1_000_000)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--compare-with", metavar="KERNELS_PY", default=None,
+                    help="an older copy of stageid/hysteresis/_kernels.py (e.g. from `git show`): time its "
+                         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop")
+    args = ap.parse_args(argv)
+    if args.compare_with:
+        return compare_with(args.compare_with, args.samples, args.repeat)
+
+    from stageid.hysteresis import Compensator, ModifiedPIModel
+    from stageid.hysteresis import _kernels as K
+    from stageid.hysteresis.operators import coupled_play_reference, play_reference
+
+    n = args.samples
+    rng, inputs = _inputs(n)
     print(f"# {platform.processor() or platform.machine()}, Python {sys.version.split()[0]}, numpy {np.__version__}, "
           f"{n} samples, median of {args.repeat}; load average {os.getloadavg()[0]:.2f}")
     for name, x in inputs.items():
@@ -117,6 +168,7 @@ def main(argv=None) -> int:
             cases = [
                 ("play loop", lambda: K.play_sum(x, r, w, z0)[0], yref),
                 ("play events", lambda: K.play_sum_events(x, r, w, z0, 0.0)[0], yref),
+                ("play banded", lambda: K.play_sum_banded(x, r, w, z0, 0.0)[0], yref),
                 ("play auto", lambda: K.play_sum_auto(x, r, w, z0, 0.0)[0], yref),
                 ("CP loop", lambda: K.cp_sum(x, r, rc, ra, rb, w, z0)[0], ycref),
                 ("CP events", lambda: K.cp_sum_events(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
