@@ -25,7 +25,7 @@ After all windows the recursion equals the batch formula (the information form)
 which :func:`batch_posterior` evaluates from :class:`WindowStatistics` (lag correlations),
 so fitting long records never runs the per-sample loop.  :func:`recursive_map` is the
 sample-by-sample estimator for streaming use (compiled numba kernels; at dimension 190 about
-5.8 us per window on a 2-core AMD EPYC VM, 12.6 us with one memory pass per window);
+5.6 us per window on a 2-core AMD EPYC VM, 12.6 us with one memory pass per window);
 :func:`recursive_map_python` is its plain reference implementation.
 """
 
