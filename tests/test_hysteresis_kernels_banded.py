@@ -214,3 +214,15 @@ def test_pi_model_simulate_on_a_random_walk_equals_reference():
     Zr, _ = play_reference(model.to_operator_input(u), r, np.zeros(20))
     yr = Zr @ w + model.output_offset
     _check_sum(y, yr, "PIModel.simulate")
+
+
+def test_dispatch_on_long_records():
+    # records longer than the 65536-sample head the dispatch looks at first
+    rng = np.random.default_rng(9)
+    n = 100_000
+    assert not _kernels._is_smooth(_walk(rng, n))
+    smooth = np.sin(np.linspace(0, 40, n))
+    assert _kernels._is_smooth(smooth)
+    late = smooth.copy()
+    late[80_000:] += rng.normal(0, 1e-3, n - 80_000)  # rough only after the head
+    assert not _kernels._is_smooth(late)
