@@ -95,6 +95,7 @@ def compare_with(path, n, repeat):
 
     spec = importlib.util.spec_from_file_location("kernels_before", path)
     old = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = old  # numba's cache finds the module again by name
     spec.loader.exec_module(old)
     rng, inputs = _inputs(n)
     print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; "
