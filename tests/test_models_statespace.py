@@ -160,3 +160,9 @@ def test_control_round_trip_keeps_labels_and_dt():
     t = TransferMatrix([[[1.0, 2.0]]], [[[1.0, 3.0, 5.0]]], None, ("a",), ("b",))
     t2 = TransferMatrix.from_control(t.to_control())
     np.testing.assert_allclose(t2.frequency_response([0.3, 3.0]), t.frequency_response([0.3, 3.0]), rtol=1e-12)
+
+
+def test_complex_matrices_are_refused_not_truncated():
+    # np.array(complex, dtype=float) would drop the imaginary part with only a ComplexWarning
+    with pytest.raises(ModelError, match="`A` must be a real matrix; got complex entries"):
+        StateSpaceModel(np.array([[0.5 + 0.1j]]), [[1.0]], [[1.0]], [[0.0]], dt=0.1)

@@ -16,6 +16,11 @@ def as_matrix(name: str, value: object, shape: tuple[int | None, int | None], er
     """
     if isinstance(value, str) or value is None:
         raise error(f"`{name}` must be a 2-D array of numbers; got {type(value).__name__}.")
+    if np.iscomplexobj(value):
+        cval = np.asarray(value)
+        if np.any(cval.imag != 0):
+            raise error(f"`{name}` must be a real matrix; got complex entries (a state-space model has real matrices).")
+        value = cval.real
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
