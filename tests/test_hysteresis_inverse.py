@@ -106,3 +106,30 @@ def test_input_warp_round_trip():
     x = m.to_operator_input(u)
     assert np.all(np.diff(x) > 0)
     np.testing.assert_allclose(m.from_operator_input(x), u, rtol=0, atol=1e-9)
+
+
+def _creep_pi():
+    from stageid.hysteresis.creep import CreepTerm
+
+    return PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
+
+
+@pytest.mark.parametrize("make", [lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]),
+                                  lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]).to_modified(),
+                                  lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], input_offset=0.5).to_modified(),
+                                  _creep_pi], ids=["pi", "modified-pi", "modified-pi-offset", "creep"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_step_refuses_non_finite_and_keeps_state(make, bad):
+    # regression: step(nan) used to return nan and poison every later drive (run() refused it)
+    m = make()
+    ref = [1.0, 1.0, 2.0, 0.5]
+    clean = Compensator(m)
+    expected = [clean.step(v) for v in ref]
+    comp = Compensator(m)
+    got = [comp.step(ref[0])]
+    with pytest.raises(ModelError, match="must be finite; got"):
+        comp.step(bad)
+    got += [comp.step(v) for v in ref[1:]]
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)  # state unchanged by the refused sample
+    with pytest.raises(ModelError, match="must be finite"):
+        comp.run([1.0, bad])

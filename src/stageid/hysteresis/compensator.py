@@ -18,6 +18,8 @@ the clipped drive, so the compensator stays consistent with the actuator it driv
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._errors import ModelError
@@ -26,6 +28,8 @@ from .operators import OperatorState
 from .pi import ModifiedPIModel, PIModel, _as_input
 
 __all__ = ["Compensator", "compensate"]
+
+_isfinite = math.isfinite
 
 
 class Compensator:
@@ -115,10 +119,19 @@ class Compensator:
         return OperatorState(self._x, self._z)
 
     def step(self, y_ref: float) -> float:
-        """Drive for one desired output sample (state advances by one sample)."""
+        """Drive for one desired output sample (state advances by one sample).
+
+        Raises
+        ------
+        ModelError
+            If ``y_ref`` is not a finite number; the state is then unchanged.
+        """
+        y = float(y_ref)
+        if not _isfinite(y):  # one float check keeps a NaN/inf out of the operator state
+            raise ModelError(f"desired output `y_ref` must be finite; got {y} (the compensator state is unchanged).")
         if self._creep is not None:
-            return self._creep.step(y_ref)
-        target = float(y_ref) - self.model.output_offset
+            return self._creep.step(y)
+        target = y - self.model.output_offset
         if self._inverse is not None:
             saved = self._z.copy()
             x = self._k.play_step(self._P, self._z, target)

@@ -34,6 +34,7 @@ remainder ``g (u - x)`` is resolved by fixed-point iteration (a contraction with
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -282,9 +283,15 @@ class CreepInverse:
         return u - float(self.model.to_operator_input(u)) if self._folded else u
 
     def step(self, y_ref: float) -> float:
-        """Drive for one desired output sample; advances the operator and creep states."""
+        """Drive for one desired output sample; advances the operator and creep states.
+
+        Raises :class:`ModelError` (state unchanged) if ``y_ref`` is not finite.
+        """
+        y_ref = float(y_ref)
+        if not math.isfinite(y_ref):
+            raise ModelError(f"desired output `y_ref` must be finite; got {y_ref} (the compensator state is unchanged).")
         if not self._fresh and self._compiled:
-            return float(self._run_compiled(np.array([float(y_ref)]))[0])
+            return float(self._run_compiled(np.array([y_ref]))[0])
         if self._fresh:  # creep at rest at this sample's (unknown) input: output G*u, no memory
             inner, g, h = self._first, self._G, 0.0
             inner.reset(self._inner.state)
