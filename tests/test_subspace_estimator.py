@@ -152,3 +152,109 @@ def test_warning_for_inputs_that_do_not_excite():
     u = np.sin(2 * np.pi * 10 * t)[:, None]
     with pytest.warns(StageIdWarning):
         HankelMAP(horizon=10, order=4).fit(record(g, u, 0.01, 0, names=False))
+
+
+# ------------------------------------------------------------------ regressions of the bug hunt
+def _two_pole_record(scale_u=1.0, scale_y=1.0, dt=0.01):
+    from stageid.models import StateSpaceModel
+    g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.1, 0.0]], [[0.0]], dt=0.01)
+    u = np.random.default_rng(0).standard_normal((3000, 1))
+    return g, Experiment(u * scale_u, g.simulate(u) * scale_y, dt)
+
+
+@pytest.mark.parametrize("method", ["map", "ls"])
+def test_result_does_not_depend_on_the_units_of_inputs_and_outputs(method):
+    # a record in other units must give the same poles and the same response in the new units
+    # (before: y * 1e-9 moved the MAP poles to 0.844 +- 0.232j, LS with u * 1e-9, y * 1e9 to 0.005 +- 0.926j)
+    g, ref_exp = _two_pole_record()
+    f = np.linspace(0.5, 45.0, 40)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StageIdWarning)  # LS: the noise-free problem is singular (warned)
+        ref = HankelMAP(horizon=10, order=2, method=method).fit(ref_exp)
+        poles = np.sort_complex(ref.model.poles())
+        np.testing.assert_allclose(poles, np.sort_complex(g.poles()), atol=1e-4)
+        G_ref = ref.model.frequency_response(f)
+        for su, sy in [(1e-9, 1.0), (1.0, 1e-9), (1.0, 1e9), (1e-9, 1e9)]:
+            res = HankelMAP(horizon=10, order=2, method=method).fit(_two_pole_record(su, sy)[1])
+            # 1e-6 relative: the scaled problems agree to rounding (~1e-12); the bound leaves room
+            # for the order of the floating-point sums
+            np.testing.assert_allclose(np.sort_complex(res.model.poles()), poles, rtol=1e-6, atol=1e-9)
+            np.testing.assert_allclose(res.model.frequency_response(f) * su / sy, G_ref, rtol=1e-6, atol=1e-9 * np.abs(G_ref).max())
+            Gb, Sb = res.response_bands(f)
+            Gr, Sr = ref.response_bands(f)
+            np.testing.assert_allclose(Gb * su / sy, Gr, rtol=1e-6, atol=1e-9 * np.abs(Gr).max())
+
+
+def test_least_squares_on_noise_free_mimo_data_finds_the_poles_and_warns():
+    # before: |poles| 0.736, 0.850, 0.99999 without any warning (the exact fit of the mean-removed
+    # noise-free windows needs a mode at z = 1); the ridge on the singular problem gives 0.7/0.8/0.9
+    from stageid._errors import ExcitationWarning
+    from stageid.models import StateSpaceModel
+    rng = np.random.default_rng(1)
+    g = StateSpaceModel(np.diag([0.9, 0.8, 0.7]), rng.standard_normal((3, 2)), rng.standard_normal((2, 3)), np.zeros((2, 2)), dt=0.01)
+    u = np.random.default_rng(2).standard_normal((4000, 2))
+    with pytest.warns(ExcitationWarning, match="least-squares normal equations .* singular"):
+        res = HankelMAP(horizon=10, order=3, method="ls").fit(Experiment(u, g.simulate(u), 0.01))
+    # 1e-4: the 1e-10 ridge moves the poles by ~5e-6
+    np.testing.assert_allclose(np.sort(np.abs(res.model.poles())), [0.7, 0.8, 0.9], atol=1e-4)
+
+
+def test_band_above_nyquist_is_rejected():
+    _, exp = _two_pole_record()  # Nyquist 50 Hz
+    for band in [(60.0, 100.0), (50.0, 60.0), (10.0, 60.0)]:
+        with pytest.raises(DataError, match=r"`band` must lie within 0-50 Hz .*; got"):
+            HankelMAP(horizon=10, order=2, band=band).fit(exp)
+    assert HankelMAP(horizon=10, order=2, band=(1.0, 50.0)).fit(exp).channels[0].band == (1.0, 50.0)
+
+
+def test_update_with_another_sample_time_is_rejected():
+    _, exp = _two_pole_record()
+    res = HankelMAP(horizon=10, order=2).fit(exp)
+    with pytest.raises(DataError, match=r"sample time of the fitted model, 0.01 s; got 0.02 s"):
+        res.update(Experiment(exp.u, exp.y, 0.02))
+
+
+@pytest.mark.parametrize("prior", [-1.0, 0.0, float("nan"), float("inf")])
+def test_prior_strength_must_be_positive_and_finite(prior):
+    _, exp = _two_pole_record()
+    with pytest.raises(DataError, match="prior strength must be > 0 and finite; got"):
+        HankelMAP(horizon=10, order=2, prior=prior).fit(exp)
+
+
+def test_records_without_any_moving_input_are_rejected():
+    _, exp = _two_pole_record()
+    flat = Experiment(np.full_like(exp.u, 3.0), exp.y, exp.dt)
+    with pytest.raises(DataError, match="at least one input must move in some record"):
+        HankelMAP(horizon=10, order=2).fit(flat)
+
+
+def test_held_out_error_above_one_warns():
+    # 60 samples of the Z chirp: the auto horizon/order model predicts worse than zero
+    from stageid._errors import ExcitationWarning
+    exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
+    with pytest.warns(ExcitationWarning, match=r"held-out error .* \(expected < 1\)"):
+        res = HankelMAP().fit(exp)
+    assert any("held-out error" in w for w in res.diagnostics["warnings"])
+
+
+def test_bad_arguments_are_one_line_data_errors():
+    _, exp = _two_pole_record()
+    res = HankelMAP(horizon=10, order=2).fit(exp)
+    calls = [
+        lambda: HankelMAP().fit(Experiment(np.zeros((0, 1)), np.zeros((0, 1)), 0.01)),
+        lambda: HankelMAP(max_order=0).fit(exp),
+        lambda: HankelMAP(band=5).fit(exp),
+        lambda: HankelMAP(band=(1.0, float("nan"))).fit(exp),
+        lambda: HankelMAP(validation_fraction="x").fit(exp),
+        lambda: HankelMAP().fit(None),
+        lambda: res.update(None),
+        lambda: res.response_bands([np.nan]),
+        lambda: res.response_bands(1.0),
+        lambda: res.response_bands([10.0, 80.0]),
+        lambda: res.markov_parameters(0),
+        lambda: HankelMAP(horizon=10, order=2, prior=Prior(None, np.ones(3))).fit(exp),
+    ]
+    for call in calls:
+        with pytest.raises(DataError) as info:
+            call()
+        assert "\n" not in str(info.value) and "; got" in str(info.value)

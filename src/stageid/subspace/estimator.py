@@ -47,6 +47,16 @@ __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
 _METHODS = ("map", "ls")
 DEFAULT_PRIOR_STRENGTH = 1e-5
+# method="ls" on singular normal equations (relative Cholesky pivot below LS_SINGULAR_PIVOT, e.g.
+# noise-free records: the past outputs are a function of the state and the past inputs).  The
+# minimum-norm solution is then no cure: after the mean removal the noise-free windows satisfy
+# y = O x0 + T u + c 1 with a constant offset c (the record mean of y is not exactly G(1) times
+# that of u), which an exact fit can only explain by a mode at z = 1 (on the 3-state MIMO check
+# of the tests the minimum-norm fit gave |poles| 0.73, 0.83, 0.99998 instead of 0.7, 0.8, 0.9).
+# A ridge of 1e-10 of each regressor's energy (1e-12 .. 1e-8 all give the poles to 1e-5) removes
+# that mode and leaves a full-rank LS problem untouched; the fit warns when it is used.
+LS_SINGULAR_PIVOT = 1e-12
+LS_RIDGE_STRENGTH = 1e-10
 _REALIZATIONS = ("frequency", "markov")
 
 
@@ -68,6 +78,7 @@ class ChannelFit:
     order_table: SelectionTable | None
     fit_cost: float
     offsets: tuple[np.ndarray, np.ndarray] | None = None
+    scaled_posterior: Posterior | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,17 +90,24 @@ class HankelMAPResult:
     model : StateSpaceModel
         The identified discrete-time model with the records' channel names.
     channels : tuple of ChannelFit
-        The sub-fits (one for a direct MIMO fit).
+        The sub-fits (one for a direct MIMO fit).  ``posterior`` is in the data's units;
+        ``scaled_posterior`` is the one the fit worked with (every channel divided by
+        ``input_scale`` / ``output_scale``), which :meth:`update` continues.
     estimator : HankelMAP
         The configuration that produced this result (used by :meth:`update`).
     diagnostics : dict
         ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings`` (texts).
+    input_scale, output_scale : ndarray of shape (n_inputs,) and (n_outputs,)
+        RMS of each (mean-removed) channel of the first fit's records: the fit works on
+        channels scaled to unit RMS so that its result does not depend on the units.
     """
 
     model: StateSpaceModel
     channels: tuple[ChannelFit, ...]
     estimator: "HankelMAP"
     diagnostics: dict = field(default_factory=dict)
+    input_scale: np.ndarray | None = None
+    output_scale: np.ndarray | None = None
 
     @property
     def posterior(self) -> Posterior:
@@ -108,8 +126,13 @@ class HankelMAPResult:
         the order stay those of this result; the model is realised again from the updated
         posterior.  New records are treated as separate records (no window straddles the
         boundary between the old and the new data).
+
+        Raises
+        ------
+        DataError
+            When the new records have other channels or another sample time than this result.
         """
-        return self.estimator._fit(as_experiments(data), previous=self)
+        return self.estimator._fit(_as_records(data, "HankelMAPResult.update"), previous=self)
 
     # --------------------------------------------------------- uncertainty
     def markov_parameters(self, n_parameters: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -125,6 +148,8 @@ class HankelMAPResult:
         for ch in self.channels:
             post = ch.posterior
             p, m, q = post.horizon, post.n_inputs, post.n_outputs
+            if n_parameters is not None and not _is_pos_int(n_parameters):
+                raise DataError(f"`n_parameters` must be a positive integer or None; got {n_parameters!r}.")
             k = p if n_parameters is None else min(int(n_parameters), p)
             cols = 2 * p * m + p * q - p * m + np.arange(m)  # u(k) columns of D_p
             rows = np.arange(k * q)
@@ -148,16 +173,30 @@ class HankelMAPResult:
         ``p P`` (an effective sample size of ``n_windows / p``).  They do not include the
         bias of the realisation step.
 
+        Parameters
+        ----------
+        freqs_hz : array_like of shape (n_freqs,)
+            Frequencies in Hz, finite and within ``[0, 1 / (2 dt)]``.
+
         Returns
         -------
         G, std : ndarrays of shape (n_freqs, n_outputs, n_inputs) (complex and real)
+
+        Raises
+        ------
+        DataError
+            When ``freqs_hz`` is not a 1-D array of finite frequencies up to Nyquist.
         """
-        f = np.asarray(freqs_hz, dtype=float)
+        f = _check_freqs(freqs_hz, self.model.dt)
         Gs, Ss = [], []
         for ch in self.channels:
-            post = ch.posterior
+            post = ch.posterior if ch.scaled_posterior is None else ch.scaled_posterior
             G, S = theta_response_std(post.theta, post.covariance * post.horizon, post.noise_cov, post.horizon,
                                       post.n_inputs, post.n_outputs, f, self.model.dt)
+            if ch.scaled_posterior is not None and self.input_scale is not None and self.output_scale is not None:
+                su = self.input_scale[[self.model.inputs.index(n) for n in ch.inputs]]
+                unit = self.output_scale[:, None] / su[None, :]
+                G, S = G * unit[None], S * unit[None]
             Gs.append(G)
             Ss.append(S)
         return np.concatenate(Gs, axis=2), np.concatenate(Ss, axis=2)
@@ -285,14 +324,22 @@ class HankelMAP:
             lam = float("nan")
         if not 0.0 < lam <= 1.0:
             raise DataError(f"`forgetting` of HankelMAP must be in (0, 1]; got {self.forgetting!r}.")
-        if not 0.0 < float(self.validation_fraction) < 0.9:
-            raise DataError(f"`validation_fraction` must be in (0, 0.9); got {self.validation_fraction!r}.")
-        if self.band is not None and (len(self.band) != 2 or not 0 <= self.band[0] < self.band[1]):
-            raise DataError(f"`band` must be (f_low, f_high) with 0 <= f_low < f_high; got {self.band!r}.")
+        if not (_is_real(self.validation_fraction) and 0.0 < float(self.validation_fraction) < 0.9):
+            raise DataError(f"`validation_fraction` must be a number in (0, 0.9); got {self.validation_fraction!r}.")
+        if not _is_pos_int(self.max_order):
+            raise DataError(f"`max_order` of HankelMAP must be a positive integer; got {self.max_order!r}.")
+        if self.band is not None:
+            b = self.band
+            if not (isinstance(b, (tuple, list, np.ndarray)) and len(b) == 2 and all(_is_real(v) for v in b)
+                    and 0 <= float(b[0]) < float(b[1]) < np.inf):
+                raise DataError(f"`band` must be (f_low, f_high) in Hz with 0 <= f_low < f_high finite; got {b!r}.")
         if not (isinstance(self.n_frequencies, (int, np.integer)) and self.n_frequencies >= 8):
             raise DataError(f"`n_frequencies` must be an integer >= 8; got {self.n_frequencies!r}.")
-        if self.prior is not None and not isinstance(self.prior, (Prior, float, int)):
-            raise DataError(f"`prior` must be None, a float strength or a Prior; got {type(self.prior).__name__}.")
+        if self.prior is not None and not isinstance(self.prior, Prior):
+            if not _is_real(self.prior):
+                raise DataError(f"`prior` must be None, a float strength or a Prior; got {type(self.prior).__name__}.")
+            if not (np.isfinite(float(self.prior)) and float(self.prior) > 0):
+                raise DataError(f"prior strength must be > 0 and finite; got {self.prior!r}.")
 
     # --------------------------------------------------------------------- fit
     def fit(self, data: "Experiment | Sequence[Experiment]") -> HankelMAPResult:
@@ -310,13 +357,14 @@ class HankelMAP:
         Raises
         ------
         DataError
-            Bad hyper-parameters, records too short for the horizon, or (``per_channel``) no
-            record in which only a given input moves.
+            Bad hyper-parameters, a ``band`` above the Nyquist frequency, records too short
+            for the horizon, no input moving in any record, or (``per_channel``) no record in
+            which only a given input moves.
         IdentificationError
             When no model can be realised.
         """
         self._check()
-        return self._fit(as_experiments(data), previous=None)
+        return self._fit(_as_records(data, "HankelMAP.fit"), previous=None)
 
     def _fit(self, exps: tuple[Experiment, ...], previous: HankelMAPResult | None) -> HankelMAPResult:
         first = exps[0]
@@ -326,12 +374,33 @@ class HankelMAP:
             if previous.model.inputs != first.input_names or previous.model.outputs != first.output_names:
                 raise DataError(f"new data must have inputs {list(previous.model.inputs)} and outputs "
                                 f"{list(previous.model.outputs)}; got {list(first.input_names)} and {list(first.output_names)}.")
+            if not np.isclose(dt, previous.model.dt, rtol=1e-9, atol=0.0):
+                raise DataError(f"new data must have the sample time of the fitted model, {previous.model.dt:g} s; got {dt:g} s.")
+        nyq = 0.5 / dt
+        if self.band is not None and float(self.band[1]) > nyq * (1 + 1e-12):
+            raise DataError(f"`band` must lie within 0-{nyq:g} Hz (Nyquist at dt = {dt:g} s); "
+                            f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz.")
+        empty = [e.n_samples for e in exps if e.n_samples < 2]
+        if empty:
+            raise DataError(f"every record needs at least 2 samples; got {min(empty)}.")
         groups: list[tuple[list[int], list[tuple[np.ndarray, np.ndarray]]]] = []
         records = [self._prepare(e) for e in exps]
         m_all = first.n_inputs
+        still = [bool(np.all([np.ptp(r[0][:, j]) == 0 for r in records])) for j in range(m_all)]
+        if all(still):
+            raise DataError(f"at least one input must move in some record; got every input ({', '.join(first.input_names)}) "
+                            f"constant in all {len(records)} record(s).")
         for j in range(m_all):
-            if np.all([np.ptp(r[0][:, j]) == 0 for r in records]):
+            if still[j]:
                 notes.append(f"input '{first.input_names[j]}' does not move in any record; its response cannot be identified.")
+        # every channel to unit RMS (the first fit's scales are kept for updates): thresholds,
+        # floors, the default prior and the flat prior's minimum-norm solution are then
+        # independent of the units of the inputs and of the outputs
+        if previous is not None and previous.input_scale is not None and previous.output_scale is not None:
+            su, sy = previous.input_scale, previous.output_scale
+        else:
+            su, sy = _channel_scales(records)
+        records = [(u / su, y / sy) for u, y in records]
         if self.per_channel:
             for j in range(m_all):
                 sel = []
@@ -349,7 +418,7 @@ class HankelMAP:
         fits = []
         for gi, (cols, recs) in enumerate(groups):
             prev_ch = previous.channels[gi] if previous is not None else None
-            fits.append(self._fit_group(recs, cols, orders[gi], dt, first, prev_ch, notes))
+            fits.append(self._fit_group(recs, cols, orders[gi], dt, first, prev_ch, notes, su[cols], sy))
         model = _stack([f.model for f in fits], dt, first.input_names, first.output_names)
         stable = model.is_stable()
         if not stable:
@@ -364,7 +433,7 @@ class HankelMAP:
             "stable": bool(stable),
             "warnings": notes,
         }
-        return HankelMAPResult(model, tuple(fits), self, diag)
+        return HankelMAPResult(model, tuple(fits), self, diag, su.copy(), sy.copy())
 
     # ----------------------------------------------------------------- helpers
     def _prepare(self, e: Experiment) -> tuple[np.ndarray, np.ndarray]:
@@ -384,21 +453,38 @@ class HankelMAP:
             return [int(v) for v in o]
         return [o if o == "auto" else int(o)] * n_groups
 
-    def _prior_for(self, stats: WindowStatistics) -> Prior | None:
+    def _prior_for(self, stats: WindowStatistics, su: np.ndarray, sy: np.ndarray) -> Prior | None:
+        """The prior in the scaled coordinates of the fit (channels divided by ``su``, ``sy``).
+
+        ``method="ls"`` is the flat prior, except on singular normal equations (see
+        :data:`LS_SINGULAR_PIVOT`), which get the ridge ``LS_RIDGE_STRENGTH``.
+        """
         if self.method == "ls":
-            return None
+            return default_prior(stats, LS_RIDGE_STRENGTH) if _singular_pivot(stats) is not None else None
         if isinstance(self.prior, Prior):
-            return self.prior
+            # a given prior is in the data's units: theta_s = theta diag(xs) / ys, P0s^-1 = P0^-1 / (xs xs^T)
+            xs, ys = _regressor_scales(stats.horizon, su, sy)
+            prec = np.asarray(self.prior.precision, dtype=float)
+            if prec.shape == xs.shape:
+                prec = prec / xs ** 2
+            elif prec.shape == (xs.size, xs.size):
+                prec = prec / np.outer(xs, xs)  # other shapes: map_estimate reports them
+            t0 = None if self.prior.theta0 is None else np.asarray(self.prior.theta0, dtype=float)
+            if t0 is not None and t0.shape == (ys.size, xs.size):
+                t0 = t0 * xs[None, :] / ys[:, None]
+            return Prior(t0, prec)
         strength = DEFAULT_PRIOR_STRENGTH if self.prior is None else float(self.prior)
         return default_prior(stats, strength)
 
-    def _theta(self, stats: WindowStatistics) -> np.ndarray:
+    def _theta(self, stats: WindowStatistics, su: np.ndarray, sy: np.ndarray) -> np.ndarray:
         """The MAP (or least-squares) estimate alone, without the posterior's residual and
         covariance (candidate horizons)."""
         XX, YX, _ = stats.blocks()
-        return map_estimate(XX, YX, self._prior_for(stats))[0]
+        return map_estimate(XX, YX, self._prior_for(stats, su, sy))[0]
 
-    def _fit_group(self, recs, cols, order, dt, first: Experiment, prev: ChannelFit | None, notes: list[str]) -> ChannelFit:
+    def _fit_group(self, recs, cols, order, dt, first: Experiment, prev: ChannelFit | None, notes: list[str],
+                   su: np.ndarray, sy: np.ndarray) -> ChannelFit:
+        """One (sub-)model from records already scaled to unit RMS (``su``, ``sy`` undo it)."""
         m = len(cols)
         q = first.n_outputs
         in_names = tuple(first.input_names[c] for c in cols)
@@ -417,7 +503,7 @@ class HankelMAP:
             if auto_h or auto_o:
                 train, val = self._split_statistics(recs, cands)
             if auto_h:
-                horizon, horizon_table = self._select_horizon(train, val, cands)
+                horizon, horizon_table = self._select_horizon(train, val, cands, su, sy)
             else:
                 horizon = int(self.horizon)
         short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
@@ -441,10 +527,17 @@ class HankelMAP:
                 stats = s if stats is None else stats.scaled(lam ** s.count) + s
         assert stats is not None
         if prev is not None:
-            post = prev.posterior.updated(stats, lam)
+            post = (prev.posterior if prev.scaled_posterior is None else prev.scaled_posterior).updated(stats, lam)
             band = prev.band
         else:
-            post = batch_posterior(stats, self._prior_for(stats))
+            post = batch_posterior(stats, self._prior_for(stats, su, sy))
+            pivot = _singular_pivot(stats) if self.method == "ls" else None
+            if pivot is not None:
+                msg = (f"the least-squares normal equations of horizon {horizon} are singular (smallest relative pivot "
+                       f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
+                       f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate.")
+                notes.append(msg)
+                warnings.warn(msg, ExcitationWarning, stacklevel=4)
             band = self._band(stats, dt, notes, in_names)
         freqs = np.linspace(band[0], band[1], self.n_frequencies)
         if prev is not None:
@@ -452,16 +545,29 @@ class HankelMAP:
         if order == "auto":
             if horizon not in train:
                 raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
-            post_train = batch_posterior(train[horizon], self._prior_for(train[horizon]))
+            post_train = batch_posterior(train[horizon], self._prior_for(train[horizon], su, sy))
             order, order_table = self._select_order(post_train, freqs, dt, recs)
+        for table in (horizon_table, order_table):
+            if table is not None:
+                err = table.errors[table.values.index(table.chosen)]
+                if err >= 1.0:
+                    msg = (f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1): the model "
+                           f"predicts the held-out data worse than zero (inputs {list(in_names)}); the records are too short "
+                           f"or too little excited for this model.")
+                    notes.append(msg)
+                    warnings.warn(msg, ExcitationWarning, stacklevel=4)
         model, cost = self._realize(post, int(order), freqs, dt)
+        # back to the data's units: u_s = u / su, y_s = y / sy
+        model = StateSpaceModel(model.A, model.B / su[None, :], model.C * sy[:, None],
+                                model.D * sy[:, None] / su[None, :], dt)
         if model.n_states and self._excited_lines(stats, dt, band) * m < int(order) / 2:
             msg = (f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
                    f"the data are not persistently exciting.")
             notes.append(msg)
             warnings.warn(msg, ExcitationWarning, stacklevel=4)
         model = model.with_names(in_names, first.output_names)
-        return ChannelFit(in_names, first.output_names, post, horizon, int(order), band, model, horizon_table, order_table, cost)
+        return ChannelFit(in_names, first.output_names, _unscaled_posterior(post, su, sy), horizon, int(order), band, model,
+                          horizon_table, order_table, cost, scaled_posterior=post)
 
     min_segment = 20
 
@@ -511,13 +617,13 @@ class HankelMAP:
                         target[p] = sp if p not in target else target[p] + sp
         return train, val
 
-    def _select_horizon(self, train, val, cands: list[int]) -> tuple[int, SelectionTable]:
+    def _select_horizon(self, train, val, cands: list[int], su: np.ndarray, sy: np.ndarray) -> tuple[int, SelectionTable]:
         errors = []
         for p in cands:
             if p not in train or p not in val:
                 errors.append(float("inf"))
                 continue
-            errors.append(prediction_error(self._theta(train[p]), val[p]))
+            errors.append(prediction_error(self._theta(train[p], su, sy), val[p]))
         if not np.isfinite(np.min(errors)):
             raise DataError("the records are too short to hold out data for choosing the horizon; give `horizon` explicitly.")
         best = cands[int(np.argmin(errors))]
@@ -596,6 +702,73 @@ class HankelMAP:
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
             raise IdentificationError(f"the realisation of order {order} is not finite.")
         return StateSpaceModel(A, B * scale[None, :], C, D * scale[None, :], dt), cost
+
+
+def _as_records(data: object, where: str) -> tuple[Experiment, ...]:
+    """``as_experiments`` with a one-line DataError for anything that is not records."""
+    if not isinstance(data, (Experiment, list, tuple)):
+        raise DataError(f"{where} needs an Experiment or a sequence of them; got {type(data).__name__}.")
+    return as_experiments(data)
+
+
+def _is_real(v: object) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _check_freqs(freqs_hz: object, dt: float) -> np.ndarray:
+    """Frequencies in Hz as a finite 1-D array within ``[0, 1 / (2 dt)]`` (DataError otherwise)."""
+    try:
+        f = np.asarray(freqs_hz, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError(f"`freqs_hz` must be a 1-D array of frequencies in Hz; got {type(freqs_hz).__name__}.") from None
+    if f.ndim != 1 or f.size == 0:
+        raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
+    nyq = 0.5 / dt
+    bad = ~np.isfinite(f) | (f < 0) | (f > nyq * (1 + 1e-12))
+    if bad.any():
+        raise DataError(f"`freqs_hz` must be finite and within 0-{nyq:g} Hz (Nyquist); got {float(f[bad][0])!r}.")
+    return f
+
+
+def _channel_scales(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """RMS of every input and output channel over all records (1 for a channel that is zero)."""
+    n = sum(u.shape[0] for u, _ in records)
+    su = np.sqrt(sum(np.sum(u ** 2, axis=0) for u, _ in records) / n)
+    sy = np.sqrt(sum(np.sum(y ** 2, axis=0) for _, y in records) / n)
+    ok_u = np.isfinite(su) & (su > 0)
+    ok_y = np.isfinite(sy) & (sy > 0)
+    return np.where(ok_u, su, 1.0), np.where(ok_y, sy, 1.0)
+
+
+def _regressor_scales(p: int, su: np.ndarray, sy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Scales of ``x = [u past; y past; u future]`` and of ``y_p`` (eq. 9 order: time-major)."""
+    return np.concatenate([np.tile(su, p), np.tile(sy, p), np.tile(su, p)]), np.tile(sy, p)
+
+
+def _unscaled_posterior(post: Posterior, su: np.ndarray, sy: np.ndarray) -> Posterior:
+    """The posterior of a fit on scaled channels, in the data's units (``theta = ys theta_s / xs``)."""
+    xs, ys = _regressor_scales(post.horizon, su, sy)
+    XX_ = np.outer(xs, xs)
+    YX_ = np.outer(ys, xs)
+    YY_ = np.outer(ys, ys)
+    sums = tuple(a * f for a, f in zip(post.data_sums, (XX_, YX_, YY_)))
+    return Posterior(post.information * XX_, post.moment * YX_, post.theta * (ys[:, None] / xs[None, :]),
+                     post.noise_cov * YY_, post.n_windows, post.horizon, post.n_inputs, post.n_outputs,
+                     post.residual * YY_, sums)
+
+
+def _singular_pivot(stats: WindowStatistics) -> float | None:
+    """The smallest relative Cholesky pivot of ``sum x x^T`` (unit diagonal) when it is below
+    ``LS_SINGULAR_PIVOT`` (0.0 when the factorisation fails), else None."""
+    XX = stats.blocks()[0]
+    dg = np.sqrt(np.clip(np.diag(XX), 0.0, None))
+    dg = np.where(dg > 0, dg, 1.0)
+    try:
+        L = np.linalg.cholesky(XX / np.outer(dg, dg))
+    except np.linalg.LinAlgError:
+        return 0.0
+    pivot = float(np.min(np.diag(L)) ** 2)
+    return pivot if pivot < LS_SINGULAR_PIVOT else None
 
 
 def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
