@@ -470,3 +470,51 @@ def test_table_validation():
     exp = Experiment(u=np.zeros(3), y=np.zeros(3), dt=1.0, input_names=["x"], output_names=["x"])
     with pytest.raises(DataError, match=r"duplicate column name 'x'"):
         write_csv("unused.csv", exp)
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+def test_readers_are_exported_from_stageid_data():
+    import stageid.data as data
+
+    assert data.read_csv is dio.read_csv and data.read_npz is dio.read_npz and data.read_mat is dio.read_mat
+    assert {"read_csv", "read_npz", "read_mat", "write_csv", "write_npz"} <= set(data.__all__)
+
+
+@pytest.mark.parametrize("name", ["Z;1", "a\tb"])
+def test_write_csv_refuses_names_that_would_split_the_header(tmp_path, name):
+    # one column without a time axis: the reader would take ';' / tab as the delimiter
+    path = tmp_path / "s.csv"
+    with pytest.raises(DataError, match=r"column name .* would not read back from CSV") as err:
+        write_csv(path, {name: np.arange(3.0)})
+    assert "\n" not in str(err.value)
+    assert not path.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("name", ["Z;1", "a\tb", "a,b", 'q"x'])
+def test_write_csv_names_that_read_back_are_kept(tmp_path, name):
+    path = tmp_path / "s.csv"
+    write_csv(path, {name: np.arange(3.0), "y": np.ones(3)}, dt=0.5)
+    assert read_table(path).names == (name, "y")
+
+
+def test_epoch_time_stamps_at_10_khz_read_back(tmp_path):
+    # float64 spacing at 1.7e9 s is 2.4e-7 s, 0.24 % of the 1e-4 s step: steps differ by that
+    n, dt = 20000, 1e-4
+    t = 1.7e9 + dt * np.arange(n)
+    assert np.ptp(np.diff(t)) > 1e-6 * dt  # the jitter the old check rejected
+    u = np.random.default_rng(3).standard_normal(n)
+    write_csv(tmp_path / "epoch.csv", {"t": t, "u": u})
+    table = read_table(tmp_path / "epoch.csv")
+    # the mean step inherits the stamps' rounding spread over n - 1 steps: 2.4e-7 / 2e4 = 1.2e-11 s
+    assert table.t0 == 1.7e9 and table.dt == pytest.approx(dt, rel=1e-6)
+    assert np.array_equal(table.column("u"), u)
+    write_npz(tmp_path / "epoch.npz", {"t": t, "u": u})
+    assert read_table(tmp_path / "epoch.npz").dt == pytest.approx(dt, rel=1e-6)
+
+
+def test_epoch_time_stamps_still_reject_a_real_glitch(tmp_path):
+    t = 1.7e9 + 1e-4 * np.arange(2000)
+    t[700] += 3e-6  # 3 % of a step: far above the 2.4e-7 s rounding of the stamps
+    np.savez(tmp_path / "g.npz", t=t, u=np.zeros(2000))
+    with pytest.raises(DataError, match=r"time column 't' is not uniform: the step from row 699 to row 700"):
+        read_table(tmp_path / "g.npz")

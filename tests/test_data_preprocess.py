@@ -152,3 +152,25 @@ def test_decimate_errors_and_identity():
     with pytest.raises(DataError, match=r"needs at least 101 samples; got 50"):
         decimate(exp, 5)
     assert decimate(exp, 5, antialias=False).n_samples == 10
+
+
+def test_decimate_passes_constants_unchanged_up_to_the_edges():
+    # regression: zero padding at the ends pulled a constant down to 0.667 at the first sample
+    slow = decimate(Experiment(u=np.ones(300), y=np.full(300, -4.0), dt=0.1), 3)
+    assert slow.n_samples == 100
+    # a unit-DC-gain FIR on a constant: only rounding of the convolution remains
+    np.testing.assert_allclose(slow.u[:, 0], 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(slow.y[:, 0], -4.0, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("freq", [0.5, 2.0])
+def test_decimate_slow_sine_has_no_edge_transient(freq):
+    dt, n, q = 1e-3, 3000, 5
+    x = 3.0 + np.sin(2 * np.pi * freq * dt * np.arange(n) + 0.3)  # far below the new 100 Hz Nyquist
+    slow = decimate(Experiment(u=x, y=2.0 * x, dt=dt), q)
+    err = np.abs(slow.u[:, 0] - x[::q])
+    # Hamming-window passband ripple is ~1e-3 at most; the edges must be no worse than the
+    # interior (the old zero-padded filter was off by 0.1-1 there)
+    assert np.max(err) < 1e-3
+    assert max(err[:10].max(), err[-10:].max()) <= 2 * err[10:-10].max() + 1e-9
+    np.testing.assert_allclose(slow.y[:, 0], 2.0 * slow.u[:, 0], rtol=1e-12)

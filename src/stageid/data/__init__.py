@@ -6,6 +6,9 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 ``as_experiments``     normalise one or several experiments into a checked tuple
 ``Table``              named columns read from a file; ``.experiment(inputs, outputs)``
 ``read_table``         read ``.csv`` / ``.npz`` / ``.mat`` into a Table (by extension)
+``read_csv``           read a CSV file into a Table
+``read_npz``           read a NumPy ``.npz`` archive into a Table
+``read_mat``           read a MATLAB ``.mat`` file (v5 or v7.3) into a Table
 ``write_csv``          write columns, a Table or an Experiment to CSV (atomic, exact)
 ``write_npz``          the same as a NumPy ``.npz`` archive
 ``remove_offset``      subtract means or linear trends; returns ``(experiment, Offsets)``
@@ -16,11 +19,11 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 =====================  ==========================================================
 
 Loaders for the real records in ``../shared/data`` live in :mod:`stageid.data.datasets`;
-the per-format readers (``read_csv``, ``read_npz``, ``read_mat``) in :mod:`stageid.data.io`.
+the per-format readers are implemented in :mod:`stageid.data.io`.
 """
 
 from .experiment import Experiment, as_experiments
-from .io import read_table, write_csv, write_npz
+from .io import read_csv, read_mat, read_npz, read_table, write_csv, write_npz
 from .table import Table
 from .preprocess import Offsets, decimate, merge, remove_offset, split
 
@@ -29,6 +32,9 @@ __all__ = [
     "as_experiments",
     "Table",
     "read_table",
+    "read_csv",
+    "read_npz",
+    "read_mat",
     "write_csv",
     "write_npz",
     "remove_offset",

@@ -474,7 +474,7 @@ def _table_for_writing(
         i = names.index(TIME_COLUMN)
         _check_finite(values[:, i : i + 1], [TIME_COLUMN], "")
         t0_col, dt_col = _time_axis(values[:, i], "", None if dt is None else _positive_seconds("dt", dt), DEFAULT_TIME_RTOL)
-        if t0 is not None and abs(t0 - t0_col) > DEFAULT_TIME_RTOL * dt_col:
+        if t0 is not None and abs(t0 - t0_col) > max(DEFAULT_TIME_RTOL * dt_col, 4.0 * np.finfo(float).eps * abs(t0_col)):
             raise DataError(f"t0={t0!r} disagrees with the first time stamp {t0_col!r} of column '{TIME_COLUMN}'.")
         keep = [j for j in range(len(names)) if j != i]
         return Table(tuple(names[j] for j in keep), values[:, keep], dt=dt_col, t0=t0_col)
@@ -512,6 +512,38 @@ def _write_rows(fh: io.TextIOBase, values: np.ndarray, block: int = 65536) -> No
     for start in range(0, values.shape[0], block):
         rows = values[start : start + block].tolist()
         fh.write("".join([row_format % tuple(r) for r in rows]))
+
+
+def _header_line(header: Sequence[str]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(header)
+    return buf.getvalue()
+
+
+def _check_header_reads_back(line: str, header: Sequence[str]) -> None:
+    """Parse ``line`` the way :func:`read_csv` parses a header; raise unless it gives ``header`` back.
+
+    The reader picks the delimiter from the header line (``,``, else tab, else ``;``), so a
+    name holding a tab or ``;`` in a one-column file, a quote, a line break or a leading byte
+    order mark would come back as different columns.
+    """
+    first = line.rstrip("\n")
+    delimiter = "," if "," in first else "\t" if "\t" in first else ";" if ";" in first else ","
+    problem = ""
+    if "\n" in first or "\r" in first:
+        problem = "it contains a line break"
+    elif first.startswith("\ufeff"):
+        problem = "it starts with a byte order mark"
+    else:
+        parsed = next(csv.reader([first], delimiter=delimiter))
+        if [c.strip() for c in parsed] != list(header) or (delimiter != "," and len(header) > 1):
+            problem = f"the header would be split at {delimiter!r} into {len(parsed)} column(s)"
+    if problem:
+        bad = next((h for h in header if any(c in h for c in ",;\t\"\n\r\ufeff")), header[0])
+        raise DataError(
+            f"column name {bad!r} would not read back from CSV ({problem}); expected names without "
+            f"tabs, ';', quotes or line breaks."
+        )
 
 
 def write_csv(
@@ -571,9 +603,11 @@ def write_csv(
     if table.dt is not None:
         header.insert(0, TIME_COLUMN)
         values = np.column_stack([table.time, values])
+    header_line = _header_line(header)
+    _check_header_reads_back(header_line, header)
 
     def write(fh: io.TextIOBase) -> None:
-        csv.writer(fh, lineterminator="\n").writerow(header)
+        fh.write(header_line)
         _write_rows(fh, values)
 
     return _atomic_write(path, write, binary=False)

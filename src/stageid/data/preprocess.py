@@ -252,7 +252,10 @@ def decimate(exp: Experiment, factor: int, *, antialias: bool = True) -> Experim
     factor : int
         Decimation factor >= 1; the new sample time is ``factor * dt``.
     antialias : bool
-        Filter with :func:`scipy.signal.decimate` (FIR, zero phase) before down-sampling;
+        Filter with the FIR low-pass of :func:`scipy.signal.decimate` (order ``20 factor``,
+        Hamming window, cut-off at the new Nyquist frequency) applied with zero phase, the
+        record's ends extended by odd reflection so constants and slow signals pass
+        unchanged up to the edges, before down-sampling;
         ``False`` just picks samples (only safe when the signals have no content above
         the new Nyquist frequency).
 
@@ -287,6 +290,23 @@ def decimate(exp: Experiment, factor: int, *, antialias: bool = True) -> Experim
     n_taps = 20 * factor + 1  # scipy's FIR design for decimate: order 20 * factor
     if exp.n_samples < n_taps:
         raise DataError(f"decimating by {factor} with anti-aliasing needs at least {n_taps} samples; got {exp.n_samples}.")
-    u = signal.decimate(exp.u, factor, ftype="fir", axis=0, zero_phase=True)
-    y = signal.decimate(exp.y, factor, ftype="fir", axis=0, zero_phase=True)
+    taps = signal.firwin(n_taps, 1.0 / factor, window="hamming")  # unit gain at DC
+    u = _zero_phase_fir(exp.u, taps)[::factor]
+    y = _zero_phase_fir(exp.y, taps)[::factor]
     return exp.with_(u=u, y=y, dt=exp.dt * factor)
+
+
+def _zero_phase_fir(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
+    """Apply a symmetric odd-length FIR along axis 0 without delay, padding each end by odd reflection.
+
+    The padding ``2 x[0] - x[k]`` continues the record's value and slope through its ends,
+    so constants and straight lines pass exactly and slow signals have no edge transient
+    (zero padding, as in :func:`scipy.signal.decimate`, pulls the ends towards 0).
+    """
+    from scipy import signal
+
+    half = taps.size // 2
+    head = 2.0 * x[:1] - x[half:0:-1]
+    tail = 2.0 * x[-1:] - x[-2 : -half - 2 : -1]
+    padded = np.concatenate([head, x, tail], axis=0)
+    return signal.oaconvolve(padded, taps[:, None], mode="valid", axes=0)

@@ -289,18 +289,36 @@ def _time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tupl
             f"after t={float(t[k])!r} at row {k} (data rows counted from 0)."
         )
     dt = float(t[-1] - t[0]) / (n - 1)
-    uneven = np.flatnonzero(np.abs(steps - dt) > rtol * dt)
+    tol = _step_tolerance(t, dt, rtol)
+    uneven = np.flatnonzero(np.abs(steps - dt) > tol)
     if uneven.size:
         k = int(uneven[0])
         raise DataError(
             f"{where}time column '{TIME_COLUMN}' is not uniform: the step from row {k} to row {k + 1} is {float(steps[k])!r} s, "
-            f"expected dt={dt!r} s within relative tolerance {rtol:g} (pass time_rtol= to accept clock jitter)."
+            f"expected dt={dt!r} s within {tol:.3g} s (relative tolerance {rtol:g}; pass time_rtol= to accept clock jitter)."
         )
     if ts is not None:
-        if abs(ts - dt) > rtol * dt:
+        # the mean step spreads the rounding of two stamps over n - 1 steps
+        if abs(ts - dt) > max(rtol * dt, _stamp_rounding(t) / (n - 1)):
             raise DataError(f"{where}ts={ts!r} s disagrees with the time column '{TIME_COLUMN}', whose step is {dt!r} s.")
         dt = ts
     return float(t[0]), dt
+
+
+def _step_tolerance(t: np.ndarray, dt: float, rtol: float) -> float:
+    """Allowed deviation of a time step from ``dt``: ``max(rtol * dt, 4 eps max|t|)``.
+
+    Stored time stamps are rounded to float64, whose spacing grows with their magnitude: at
+    epoch times (``t ~ 1.7e9`` s) it is 2.4e-7 s, 0.24 % of a 10 kHz sample time, so a
+    difference of two stamps carries an error of up to one such spacing whatever the clock
+    did.  The second term accepts exactly that rounding and nothing more.
+    """
+    return max(rtol * dt, _stamp_rounding(t))
+
+
+def _stamp_rounding(t: np.ndarray) -> float:
+    """A bound on the float64 rounding of a difference of two stamps of ``t``: ``4 eps max|t|``."""
+    return 4.0 * float(np.finfo(float).eps) * float(np.max(np.abs(t)))
 
 
 def _assemble(
