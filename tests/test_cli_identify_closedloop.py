@@ -142,3 +142,30 @@ def test_two_references_excited_in_one_file_is_rejected(tmp_path: Path, capsys: 
                "--controller", str(tmp_path / "K.json"), "-o", str(tmp_path / "G.json")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "one reference per experiment" in err
+
+
+def test_band_above_nyquist_is_rejected_before_fitting(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    # before: --band 20:3000 (Nyquist 2.5 kHz) was rejected only after all closed-loop fits (~100 s)
+    import stageid.closedloop.estimator as est
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("a closed-loop pair was fitted before the band was checked")
+
+    monkeypatch.setattr(est, "select_order", no_fit)
+    monkeypatch.setattr(est, "pem", no_fit)
+    r = chirp(0.0, 2500.0, duration=0.2, dt=DT, amplitude=1e-6)
+    paths = []
+    for j in range(2):
+        R = np.zeros((r.size, 2))
+        R[:, j] = r
+        y, _ = simulate_closed_loop(plant(), controller(), R, DT, 70.0, seed=10 + j)
+        write_csv(tmp_path / f"e{j}.csv", {"r1": R[:, 0], "r2": R[:, 1], "y1": y[:, 0], "y2": y[:, 1]}, dt=DT)
+        paths.append(str(tmp_path / f"e{j}.csv"))
+    save_model(controller(), tmp_path / "K.json")
+    out = tmp_path / "G.json"
+    rc = main(["identify", "closed-loop", *paths, "--references", "r1,r2", "--outputs", "y1,y2",
+               "--controller", str(tmp_path / "K.json"), "--band", "20:3000", "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "Nyquist frequency 2500 Hz" in err and "got 20-3000 Hz" in err

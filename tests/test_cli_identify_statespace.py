@@ -76,3 +76,48 @@ def test_errors_are_one_line_and_leave_no_file(p558_files, tmp_path, capsys, arg
     err = capsys.readouterr().err
     assert rc == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+# ------------------------------------------------------------------ regressions of the bug hunt
+@pytest.fixture(scope="module")
+def chirp_z_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("chirpz")
+    write_csv(d / "z.csv", ps.EXPERIMENTS["chirp-z"](0))
+    return d / "z.csv"
+
+
+def test_band_above_nyquist_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
+    # before: exit 0 with "band 300-250 Hz" and a wrong model
+    out = tmp_path / "o.json"
+    rc = main(["identify", "statespace", str(chirp_z_file), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry", "--order", "6",
+               "--horizon", "20", "--band", "300:1000", "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "0-250 Hz" in err and "got 300-1000 Hz" in err
+
+
+def test_no_moving_input_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
+    # before: exit 0, B = 0 and overflow warnings
+    from stageid.data import read_table
+    table = read_table(chirp_z_file)
+    cols = {n.split(" [")[0]: table.column(n) for n in table.names}
+    cols["Z"] = np.full_like(cols["Z"], 20.0)
+    write_csv(tmp_path / "flat.csv", cols, dt=ps.DT)
+    out = tmp_path / "o.json"
+    rc = main(["identify", "statespace", str(tmp_path / "flat.csv"), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry",
+               "--order", "6", "--horizon", "20", "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "at least one input must move" in err
+
+
+def test_model_worse_than_zero_warns_in_one_line(chirp_z_file, tmp_path, capsys):
+    # `head -61 z.csv`: 60 samples, auto horizon and order; before: held-out error 3.97 without a word
+    short = tmp_path / "short.csv"
+    short.write_text("".join(chirp_z_file.read_text().splitlines(keepends=True)[:61]))
+    out = tmp_path / "o.json"
+    rc = main(["identify", "statespace", str(short), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0
+    lines = [ln for ln in err.splitlines() if ln.startswith("stageid: warning:") and "held-out error" in ln]
+    assert len(lines) == 1 and "(expected < 1)" in lines[0] and "worse than zero" in lines[0]

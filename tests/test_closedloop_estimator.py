@@ -106,3 +106,30 @@ def test_full_structure_siso_matches_the_plant_in_band() -> None:
     Gt = G_SISO.c2d(DT).frequency_response(f)
     assert np.max(np.abs(res.plant.frequency_response(f) - Gt) / np.abs(Gt)) < 0.01
     assert res.plant.dt == DT and res.structure == "full"
+
+
+def test_bad_arguments_are_one_line_errors() -> None:
+    exp = _siso_experiment(0, duration=0.2)
+    K = _siso_controller()
+    with pytest.raises(DataError, match="needs an Experiment or a sequence of them; got NoneType"):
+        ClosedLoopIdentification(K).fit(None)
+    bad = [dict(band=(1, 2, 3)), dict(band=None), dict(band=(1.0, float("inf"))), dict(nk="a"), dict(cancel_tol=None),
+           dict(max_nfev=None), dict(structure=5), dict(order_range=[])]
+    for kwargs in bad:
+        with pytest.raises(IdentificationError) as info:
+            ClosedLoopIdentification(K, **kwargs).fit(exp)
+        assert "\n" not in str(info.value) and "; got" in str(info.value)
+
+
+def test_band_above_nyquist_is_rejected_before_any_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    # before: the band was checked after every closed-loop pair had been fitted (~100 s on the CLI)
+    import stageid.closedloop.estimator as est
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("a closed-loop pair was fitted before the band was checked")
+
+    monkeypatch.setattr(est, "select_order", no_fit)
+    monkeypatch.setattr(est, "pem", no_fit)
+    exp = _siso_experiment(0, duration=0.2)  # Nyquist 2500 Hz
+    with pytest.raises(IdentificationError, match="below the Nyquist frequency 2500 Hz .*; got 20-3000 Hz"):
+        ClosedLoopIdentification(_siso_controller(), band=(20.0, 3000.0)).fit(exp)

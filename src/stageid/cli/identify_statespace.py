@@ -83,8 +83,12 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
         result = est.fit(exps)
     with atomic_output(output) as tmp:
         save_model(result.model, tmp)
+    seen = set()
     for w in caught:
-        click.echo(f"stageid: warning: {w.message}", err=True)
+        text = " ".join(str(w.message).split())  # one line per warning, each once
+        if text not in seen:
+            seen.add(text)
+            click.echo(f"stageid: warning: {text}", err=True)
     click.echo(result.summary(), err=True)
     if report_dir is not None:
         from .report import write_report

@@ -222,11 +222,27 @@ class ClosedLoopIdentification:
     def _check_params(self) -> None:
         if self.method not in STRUCTURES:
             raise IdentificationError(f"`method` of ClosedLoopIdentification must be one of {', '.join(STRUCTURES)}; got {self.method!r}.")
-        if isinstance(self.structure, str) and self.structure not in _PLANT_STRUCTURES:
+        if not (isinstance(self.structure, Mapping) or self.structure in _PLANT_STRUCTURES):
             raise IdentificationError(f"`structure` must be 'paper', 'full' or a dict of orders; got {self.structure!r}.")
-        lo, hi = (float(b) for b in self.band)
-        if not (0 < lo < hi):
-            raise IdentificationError(f"`band` must be (f_min, f_max) with 0 < f_min < f_max; got {self.band!r}.")
+        if not (isinstance(self.nk, (int, np.integer)) and not isinstance(self.nk, bool) and self.nk >= 0):
+            raise IdentificationError(f"`nk` must be a non-negative integer (delay in samples); got {self.nk!r}.")
+        tol = self.cancel_tol
+        if not (isinstance(tol, (int, float, np.integer, np.floating)) and not isinstance(tol, bool) and 0 <= float(tol) < np.inf):
+            raise IdentificationError(f"`cancel_tol` must be a finite number >= 0; got {tol!r}.")
+        if not (isinstance(self.max_nfev, (int, np.integer)) and not isinstance(self.max_nfev, bool) and self.max_nfev >= 1):
+            raise IdentificationError(f"`max_nfev` must be a positive integer; got {self.max_nfev!r}.")
+        if self.orders == "auto":
+            try:
+                rng = [int(n) for n in self.order_range]
+            except (TypeError, ValueError):
+                rng = []
+            if not rng or min(rng) < 1:
+                raise IdentificationError(f"`order_range` must be a non-empty sequence of positive integers; got {self.order_range!r}.")
+        b = self.band
+        if not (isinstance(b, (tuple, list, np.ndarray)) and len(b) == 2
+                and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in b)
+                and 0 < float(b[0]) < float(b[1]) < np.inf):
+            raise IdentificationError(f"`band` must be (f_min, f_max) in Hz with 0 < f_min < f_max finite; got {b!r}.")
         if self.controller_discretization not in ("tustin", "zoh"):
             raise IdentificationError(f"`controller_discretization` must be 'tustin' or 'zoh'; got {self.controller_discretization!r}.")
         if not (isinstance(self.orders, (int, np.integer, Mapping)) or self.orders == "auto"):
@@ -254,18 +270,26 @@ class ClosedLoopIdentification:
         Raises
         ------
         DataError
-            Wrong channel counts, several references excited in one experiment, or a
-            reference never excited.
+            Not experiments, wrong channel counts, several references excited in one
+            experiment, or a reference never excited.
         IdentificationError
-            Controller of the wrong size, a singular deduction, or a failed fit.
+            Bad hyper-parameters (among them a ``band`` not ending below the Nyquist
+            frequency, checked before any fit), a controller of the wrong size, a singular
+            deduction, or a failed fit.
         """
         self._check_params()
+        if not isinstance(data, (Experiment, list, tuple)):
+            raise DataError(f"ClosedLoopIdentification.fit needs an Experiment or a sequence of them; got {type(data).__name__}.")
         exps = as_experiments(data)
         first = exps[0]
         p = first.n_outputs
         if first.n_inputs != p:
             raise DataError(f"closed-loop data need one reference per output; got {first.n_inputs} references and {p} outputs.")
         dt = first.dt
+        nyq = 0.5 / dt
+        if float(self.band[1]) >= nyq:  # before any fit: the pairs take minutes on long records
+            raise IdentificationError(f"`band` must end below the Nyquist frequency {nyq:g} Hz (dt = {dt:g} s); "
+                                      f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz.")
         try:
             M = as_discrete_controller(self.controller, dt, self.controller_discretization)
             Mr = None if self.reference_filter is None else as_discrete_controller(self.reference_filter, dt, self.controller_discretization)
@@ -320,10 +344,7 @@ class ClosedLoopIdentification:
 
         # 2. deduction (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
-        nyq = 0.5 / dt
         lo, hi = (float(b) for b in self.band)
-        if hi >= nyq:
-            raise IdentificationError(f"`band` must end below the Nyquist frequency {nyq:g} Hz; got {hi:g} Hz.")
         f_check = np.concatenate([[0.0], np.geomspace(min(lo / 10, 1.0), 0.95 * nyq, 400)])
         with np.errstate(all="ignore"):
             T_chk = T.frequency_response(f_check)
