@@ -155,3 +155,14 @@ def test_forc_cosine_reproduces_dspace_drive_voltage(name, freq):
     np.testing.assert_allclose(x, voltage[:-1], rtol=0, atol=1e-9)
     t = time_vector(x.size, 1e-4)
     assert t[-1] == pytest.approx(1.5 + 50 / freq - 1e-4)
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+@pytest.mark.parametrize("make", [decaying_sine, decaying_triangle])
+def test_decaying_overflow_is_refused_before_computing(make):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the old code printed an overflow RuntimeWarning first
+        with pytest.raises(SignalError, match=r"beyond the largest float"):
+            make(1.0, 3, 0.01, amplitude=1e308, offset=1e308)

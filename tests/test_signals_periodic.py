@@ -165,3 +165,35 @@ def test_band_confinement_property(n, n_periods, lo_frac, width_frac, seed):
     y = band_limited_random(n, dt, lo, hi, rms=1.0, seed=seed)
     spec = np.abs(np.fft.rfft(y)) ** 2
     assert spec[(f < lo) | (f > hi)].sum() / spec.sum() < 1e-10
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+@pytest.mark.parametrize("make", [sine, triangle])
+def test_tone_at_exactly_nyquist_is_refused(make):
+    # regression: sine(50 Hz) at dt = 0.01 s sampled sin(pi k) = 0: an all-zero "excitation"
+    with pytest.raises(SignalError, match=re.escape("must be below the Nyquist frequency 1/(2 dt) = 50 Hz; got 50 Hz")):
+        make(50.0, duration=1.0, dt=0.01)
+    x = make(49.0, duration=1.0, dt=0.01)
+    assert np.ptp(x) > 0.1
+
+
+@pytest.mark.parametrize("make", [sine, triangle])
+def test_tone_overflow_is_refused_before_computing(make):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SignalError, match=r"offset \+- amplitude = 1e\+308 \+- 1e\+308, beyond the largest float"):
+            make(1.0, duration=1.0, dt=0.01, amplitude=1e308, offset=1e308)
+    assert np.isfinite(make(1.0, duration=1.0, dt=0.01, amplitude=1e307, offset=1e307)).all()
+
+
+def test_multisine_negative_seed_and_overflow():
+    import warnings
+
+    with pytest.raises(SignalError, match=r"`seed` of multisine must be an integer >= 0"):
+        multisine(200, 0.01, 1.0, 10.0, seed=-1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SignalError, match=r"largest float"):
+            multisine(200, 0.01, 1.0, 10.0, amplitude=1e308, offset=1e308, seed=0)

@@ -177,3 +177,36 @@ def test_prbs_parameter_errors(kwargs, fragment):
 def test_prbs_limits_error():
     with pytest.raises(SignalError, match=re.escape("prbs spans [-2, 2] but limits are [-1, 1].")):
         prbs(100, amplitude=2.0, limits=(-1, 1))
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda seed: prbs(100, seed=seed),
+        lambda seed: prbs(100, method="random", seed=seed),
+        lambda seed: band_limited_random(100, 0.01, 1.0, 10.0, seed=seed),
+    ],
+)
+def test_negative_seed_is_a_signal_error(make):
+    # regression: numpy's "expected non-negative integer" ValueError leaked out
+    with pytest.raises(SignalError, match=r"`seed` of .* must be an integer >= 0 or a numpy Generator; got -1\.$"):
+        make(-1)
+    assert make(0).shape == (100,)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: prbs(100, amplitude=1e308, offset=1e308),
+        lambda: band_limited_random(100, 0.01, 1.0, 10.0, amplitude=1e308, offset=1e308, seed=0),
+        lambda: band_limited_random(100, 0.01, 1.0, 10.0, rms=1e308, seed=0),
+    ],
+)
+def test_overflowing_levels_raise_before_any_warning(make):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an overflow RuntimeWarning would fail here
+        with pytest.raises(SignalError, match=r"largest float"):
+            make()

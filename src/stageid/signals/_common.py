@@ -226,15 +226,58 @@ def n_from_duration(duration: Any, dt: float, name: str) -> int:
     return n
 
 
-def check_nyquist(freq: float, param: str, dt: float, name: str) -> None:
-    """Raise SignalError if ``freq`` (Hz) exceeds the Nyquist frequency ``1 / (2 dt)``."""
+def check_nyquist(freq: float, param: str, dt: float, name: str, strict: bool = False) -> None:
+    """Raise SignalError if ``freq`` (Hz) exceeds the Nyquist frequency ``1 / (2 dt)``.
+
+    Equality is allowed for the end of a band (Shakir & Kim sweep up to exactly 2500 Hz at
+    5 kHz); ``strict=True`` also refuses it, for a single tone, which sampled at exactly
+    Nyquist is ``sin(pi k + phase)``: all zeros at phase 0.
+    """
     nyquist = 0.5 / dt
-    # equality is allowed (Shakir & Kim sweep up to exactly 2500 Hz at 5 kHz)
+    if strict and freq >= nyquist * (1 - 1e-12):
+        raise SignalError(
+            f"`{param}` of {name} must be below the Nyquist frequency 1/(2 dt) = "
+            f"{nyquist:g} Hz; got {freq:g} Hz (a tone at Nyquist samples to a constant)."
+        )
     if freq > nyquist * (1 + 1e-12):
         raise SignalError(
             f"`{param}` of {name} must be at most the Nyquist frequency 1/(2 dt) = "
             f"{nyquist:g} Hz; got {freq:g} Hz."
         )
+
+
+def check_seed(seed: Any, name: str) -> Any:
+    """``None``, a ``numpy.random.Generator`` or an integer >= 0, else raise SignalError."""
+    if seed is None or isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise SignalError(
+            f"`seed` of {name} must be an integer >= 0 or a numpy Generator; got {seed!r}."
+        )
+    return int(seed)
+
+
+_FLOAT_MAX = float(np.finfo(float).max)
+
+
+def check_span(offset: float, amplitude: float, name: str) -> None:
+    """Raise SignalError unless ``offset +- amplitude`` is finite in float64 (checked before computing)."""
+    if amplitude > _FLOAT_MAX - abs(offset):
+        raise SignalError(
+            f"{name} would span offset +- amplitude = {offset:g} +- {amplitude:g}, beyond the "
+            f"largest float ({_FLOAT_MAX:.3g}); expected |offset| + amplitude <= {_FLOAT_MAX:.3g}."
+        )
+
+
+def add_offset(x: np.ndarray, offset: float, name: str) -> np.ndarray:
+    """``x + offset``, raising SignalError instead of overflowing to inf."""
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if not math.isfinite(peak) or peak > _FLOAT_MAX - abs(offset):
+        raise SignalError(
+            f"{name} would reach {peak:g} about offset {offset:g}, beyond the largest float "
+            f"({_FLOAT_MAX:.3g}); expected a smaller amplitude, rms or offset."
+        )
+    return x + offset
 
 
 def check_choice(value: Any, param: str, name: str, choices: tuple[str, ...]) -> str:
@@ -272,4 +315,17 @@ def scale_to(
         current = np.max(np.abs(x), axis=0)
     if np.any(current == 0):
         raise SignalError(f"{name} produced an all-zero signal; got no excited frequency.")
-    return x * (target / current)
+    # scale each column so its peak stays finite: target / current alone may overflow
+    peak = np.max(np.abs(x), axis=0)
+    ratio = peak / current
+    if np.any(target > _FLOAT_MAX / ratio):
+        what = f"rms {target:g}" if rms is not None else f"amplitude {target:g}"
+        raise SignalError(
+            f"{name} with {what} would exceed the largest float ({_FLOAT_MAX:.3g}); "
+            f"expected a smaller {'rms' if rms is not None else 'amplitude'}."
+        )
+    with np.errstate(over="ignore"):
+        gain = target / current
+    if np.all(np.isfinite(gain)):
+        return x * gain
+    return (x / peak) * (target * ratio)  # a tiny raw signal scaled to a huge target

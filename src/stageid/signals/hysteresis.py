@@ -22,6 +22,7 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import (
+    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -119,9 +120,10 @@ def _decaying(
 ) -> np.ndarray:
     step = check_dt(dt, name)
     f = check_positive(freq, "freq", name)
-    check_nyquist(f, "freq", step, name)
+    check_nyquist(f, "freq", step, name, strict=True)
     off = check_finite(offset, "offset", name)
     env = decay_envelope(n_cycles, amplitude, decay, final_fraction)
+    check_span(off, float(env[0]), name)
     n_c = env.size
     n = int(round(n_c / (f * step)))
     cycles = np.arange(n, dtype=float) * step * f
@@ -154,7 +156,7 @@ def decaying_sine(
     Parameters
     ----------
     freq : float
-        Frequency in Hz, ``0 < freq <= 1 / (2 dt)``.
+        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
     n_cycles : int
         Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
     dt : float
@@ -223,7 +225,7 @@ def decaying_triangle(
     Parameters
     ----------
     freq : float
-        Frequency in Hz, ``0 < freq <= 1 / (2 dt)``.
+        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
     n_cycles : int
         Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
     dt : float

@@ -21,6 +21,9 @@ from ._common import (
     check_nonnegative,
     check_nyquist,
     check_positive,
+    check_seed,
+    check_span,
+    add_offset,
     n_from_duration,
     scale_to,
 )
@@ -42,9 +45,10 @@ def _check_periodic(
     step = check_dt(dt, name)
     n = n_from_duration(duration, step, name)
     f = check_positive(freq, "freq", name)
-    check_nyquist(f, "freq", step, name)
+    check_nyquist(f, "freq", step, name, strict=True)
     amp = check_positive(amplitude, "amplitude", name)
     off = check_finite(offset, "offset", name)
+    check_span(off, amp, name)
     return step, n, f, amp, off
 
 
@@ -62,7 +66,7 @@ def sine(
     Parameters
     ----------
     freq : float
-        Frequency in Hz, ``0 < freq <= 1 / (2 dt)``.
+        Frequency in Hz, ``0 < freq < 1 / (2 dt)`` (at Nyquist a sine samples to a constant).
     duration : float
         Length in seconds; ``round(duration / dt)`` samples at ``t = k dt``.
     dt : float
@@ -123,7 +127,7 @@ def triangle(
     Parameters
     ----------
     freq : float
-        Frequency in Hz, ``0 < freq <= 1 / (2 dt)``.
+        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
     duration : float
         Length in seconds; ``round(duration / dt)`` samples at ``t = k dt``.
     dt : float
@@ -312,7 +316,7 @@ def multisine(
 
     n_lines = lines.size
     if kind == "random-phase":
-        phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, size=(n_lines, n_ch))
+        phases = np.random.default_rng(check_seed(seed, name)).uniform(0.0, 2.0 * np.pi, size=(n_lines, n_ch))
     else:
         j = np.arange(1, n_lines + 1)
         phases = np.repeat((-np.pi * j * (j - 1) / n_lines)[:, None], n_ch, axis=1)
@@ -325,7 +329,7 @@ def multisine(
             [np.roll(one_period[:, 0], j * shift) for j in range(n_ch)], axis=1
         )
     x = np.tile(one_period, (int(n_periods), 1))
-    x = scale_to(x, rms, amplitude, name) + off
+    x = add_offset(scale_to(x, rms, amplitude, name), off, name)
     if channels is None:
         x = x[:, 0]
     check_limits(x, limits, name)

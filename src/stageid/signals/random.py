@@ -10,6 +10,9 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import (
+    add_offset,
+    check_seed,
+    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -112,12 +115,12 @@ def band_limited_random(
             f"{name} needs at least one FFT line k/(n dt) (spacing {1 / (n * step):g} Hz) "
             f"in [{lo:g}, {hi:g}] Hz; got none (use more samples)."
         )
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed, name))
     white = rng.standard_normal((n, n_ch))
     spectrum = np.fft.rfft(white, axis=0)
     spectrum[~in_band, :] = 0.0
     x = np.fft.irfft(spectrum, n=n, axis=0)
-    x = scale_to(x, rms, amplitude, name) + off
+    x = add_offset(scale_to(x, rms, amplitude, name), off, name)
     if channels is None:
         x = x[:, 0]
     check_limits(x, limits, name)
@@ -207,6 +210,8 @@ def prbs(
     n = check_n_samples(n_samples, name)
     amp = check_positive(amplitude, "amplitude", name)
     off = check_finite(offset, "offset", name)
+    check_span(off, amp, name)
+    seed = check_seed(seed, name)
     method = check_choice(method, "method", name, _PRBS_METHODS)
     channels = check_n_channels(n_channels, name)
     n_ch = 1 if channels is None else channels

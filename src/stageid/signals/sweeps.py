@@ -11,6 +11,7 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import (
+    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -111,6 +112,7 @@ def chirp(
     check_nyquist(fb, "f1", step, name)
     amp = check_positive(amplitude, "amplitude", name)
     off = check_finite(offset, "offset", name)
+    check_span(off, amp, name)
     ph = check_finite(phase, "phase", name)
 
     t = np.arange(n, dtype=float) * step
