@@ -48,8 +48,9 @@ __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 _METHODS = ("map", "ls")
 DEFAULT_PRIOR_STRENGTH = 1e-5
 # method="ls" on singular normal equations (relative Cholesky pivot below LS_SINGULAR_PIVOT, e.g.
-# noise-free records: the past outputs are a function of the state and the past inputs).  The
-# minimum-norm solution is then no cure: after the mean removal the noise-free windows satisfy
+# noise-free records, where the past outputs are a function of the state and the past inputs, or
+# strictly band-limited inputs).  The minimum-norm (pseudo-inverse) solution of the OKID /
+# identified-Hankel family is no cure: after the mean removal the noise-free windows satisfy
 # y = O x0 + T u + c 1 with a constant offset c (the record mean of y is not exactly G(1) times
 # that of u), which an exact fit can only explain by a mode at z = 1 (on the 3-state MIMO check
 # of the tests the minimum-norm fit gave |poles| 0.73, 0.83, 0.99998 instead of 0.7, 0.8, 0.9).
@@ -232,7 +233,9 @@ class HankelMAP:
         Model order (per input channel when ``per_channel``; a sequence gives one per input).
         "auto" picks it by held-out simulation error.
     method : {"map", "ls"}, default "map"
-        MAP with ``prior`` (eq. 17) or batch least squares (flat prior).
+        MAP with ``prior`` (eq. 17) or batch least squares (flat prior; singular normal
+        equations, e.g. noise-free or strictly band-limited records, get a 1e-10 ridge and an
+        :class:`ExcitationWarning`, see ``LS_RIDGE_STRENGTH``).
     per_channel : bool, default False
         Identify one single-input model per input from the records in which only that
         input moves and stack them (eq. 19-22).  Otherwise all records are pooled into one
@@ -241,7 +244,14 @@ class HankelMAP:
         Exponential forgetting factor in (0, 1] (eq. 17 with discounting) for drifting stages.
     prior : None, float or Prior, default None
         None: ``theta_0 = 0`` and ``P_0^-1 = 1e-5 diag(sum x x^T)`` (a large covariance, as
-        in the paper); a float sets that relative strength; a :class:`Prior` is used as is.
+        in the paper); a float (> 0, finite) sets that relative strength; a :class:`Prior`
+        is taken in the data's units.
+
+    Notes
+    -----
+    The fit works on channels scaled to unit RMS (each input and output divided by its RMS
+    over the records, after the mean removal) and scales the model back: the identified
+    poles and frequency response do not depend on the units of the data.
         The strength 1e-5 was chosen on band-limited records (P-558 and random lightly damped
         stages, N = 1e4-2e4, 1 % noise): 1e-8 leaves band-edge directions of the ill-conditioned
         regression free and let a coupling error reach 1.2 %; 1e-5 keeps it at <= 0.5 % without
@@ -249,8 +259,9 @@ class HankelMAP:
     realization : {"frequency", "markov"}, default "frequency"
         See the module notes.
     band : (float, float) or None
-        Frequency band in Hz for the frequency realisation; None detects the excited band
-        from the input spectra.
+        Frequency band in Hz for the frequency realisation, within ``0 .. 1 / (2 dt)`` (a band
+        reaching above the Nyquist frequency is a DataError, not clipped); None detects the
+        excited band from the input spectra.
     n_frequencies : int, default 200
         Frequency points in the band.
     refine : bool, default True
