@@ -13,16 +13,16 @@ def write_report(model, experiments, out_dir: str, title: str | None = None, ext
     """Build the model report and write ``index.html`` and ``metrics.json`` into ``out_dir``.
 
     ``extra(report, metrics)``, when given, adds method-specific sections (the ``identify``
-    verbs' ``--report`` uses it for uncertainty bands, selection plots, ...).
+    verbs' ``--report`` uses it for uncertainty bands, selection plots, ...).  Nothing is
+    written unless the whole report could be built: both files go to a temporary folder that
+    is then moved into place (:func:`stageid.report.write_report_folder`).
     """
-    from ..report import model_report, write_metrics
+    from ..report import model_report, write_report_folder
 
     report, metrics = model_report(model, experiments, title)
     if extra is not None:
         extra(report, metrics)
-    path = report.write(out_dir)
-    write_metrics(out_dir, metrics)
-    return path
+    return write_report_folder(out_dir, report, metrics)
 
 
 @click.command("report", epilog="""

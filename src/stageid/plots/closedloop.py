@@ -10,7 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._style import subplots
+from ._style import loglog, subplots
 
 __all__ = ["plot_plant_bode", "plot_closed_loop_bode", "plot_pole_zero", "plot_reclosed_loop"]
 
@@ -44,9 +44,9 @@ def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant:
         for j in range(p):
             ax = axes[i, j]
             if tru is not None:
-                ax.loglog(f, np.abs(tru[:, i, j]), "k-", lw=0.8, label="true")
-            ax.loglog(f, np.abs(full[:, i, j]), "--", lw=1.6, label="deduced (full order)")
-            ax.loglog(f, np.abs(red[:, i, j]), "-", lw=1.6, label="reduced")
+                loglog(ax, f, np.abs(tru[:, i, j]), "k-", lw=0.8, label="true")
+            loglog(ax, f, np.abs(full[:, i, j]), "--", lw=1.6, label="deduced (full order)")
+            loglog(ax, f, np.abs(red[:, i, j]), "-", lw=1.6, label="reduced")
             ax.axvspan(*result.band, color="0.9", zorder=0)
             ax.set_title(f"{result.plant.inputs[j]} -> {result.plant.outputs[i]}", fontsize=9)
             if i == p - 1:
@@ -61,10 +61,10 @@ def plot_closed_loop_bode(freqs_hz: np.ndarray, identified: np.ndarray, empirica
     fig, axes = _figure(1, 1, (5.0, 3.4))
     ax = axes[0, 0]
     if empirical is not None:
-        ax.loglog(empirical[0], np.abs(empirical[1]), "-", lw=0.5, color="0.6", label="FFT ratio of the data")
+        loglog(ax, empirical[0], np.abs(empirical[1]), "-", lw=0.5, color="0.6", label="FFT ratio of the data")
     if true is not None:
-        ax.loglog(freqs_hz, np.abs(true), "k--", lw=1.0, label="true")
-    ax.loglog(freqs_hz, np.abs(identified), "-", lw=1.8, label="identified")
+        loglog(ax, freqs_hz, np.abs(true), "k--", lw=1.0, label="true")
+    loglog(ax, freqs_hz, np.abs(identified), "-", lw=1.8, label="identified")
     ax.set_xlabel("f [Hz]")
     ax.set_ylabel("|T|")
     ax.set_title(title, fontsize=9)

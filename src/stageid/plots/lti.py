@@ -6,7 +6,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ._style import subplots
+from ._style import loglog, positive, subplots
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 
@@ -49,16 +49,18 @@ def bode_figure(
         for i in range(p):
             for j in range(m):
                 ax = axes[2 * i if phase else i, j]
-                line, = ax.loglog(freqs_hz, np.abs(H[:, i, j]), ls, color=color, label=label, lw=1.3)
+                line = loglog(ax, freqs_hz, np.abs(H[:, i, j]), ls, color=color, label=label, lw=1.3)
                 if bands and label in bands:
                     lo, hi = bands[label]
-                    ax.fill_between(freqs_hz, np.maximum(lo[:, i, j], 1e-300), hi[:, i, j], color=line.get_color(), alpha=0.25, lw=0)
+                    upper = positive(hi[:, i, j])
+                    ax.fill_between(positive(freqs_hz), np.fmin(np.maximum(lo[:, i, j], 1e-300), upper), upper,
+                                    color=line.get_color(), alpha=0.25, lw=0)
                 ax.set_title(f"{input_names[j]} → {output_names[i]}")
                 if j == 0:
                     ax.set_ylabel(f"|G| {magnitude_unit}".strip())
                 if phase:
                     axp = axes[2 * i + 1, j]
-                    axp.semilogx(freqs_hz, np.degrees(np.unwrap(np.angle(H[:, i, j]))), ls, color=line.get_color(), lw=1.1)
+                    axp.semilogx(positive(freqs_hz), np.degrees(np.unwrap(np.angle(H[:, i, j]))), ls, color=line.get_color(), lw=1.1)
                     if j == 0:
                         axp.set_ylabel("phase [deg]")
     for ax in axes[-1]:

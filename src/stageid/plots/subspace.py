@@ -10,7 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._style import figure
+from ._style import figure, loglog, positive
 
 __all__ = ["bode_with_bands", "selection_plot", "error_curve"]
 
@@ -60,12 +60,13 @@ def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_mo
         for j in range(m):
             ax = axes[i, j]
             mag = np.abs(Gh[:, i, j])
-            lo = np.clip(mag - n_std * std[:, i, j], 1e-300, None)
-            ax.fill_between(f, lo, mag + n_std * std[:, i, j], color="C0", alpha=0.25, lw=0,
+            upper = positive(mag + n_std * std[:, i, j])
+            lo = np.fmin(np.clip(mag - n_std * std[:, i, j], 1e-300, None), upper)
+            ax.fill_between(positive(f), lo, upper, color="C0", alpha=0.25, lw=0,
                             label=f"eq. 9 response +-{n_std:g} std")
-            ax.loglog(f, np.abs(G[:, i, j]), "C0", lw=1.2, label="identified model")
+            loglog(ax, f, np.abs(G[:, i, j]), "C0", lw=1.2, label="identified model")
             if true_model is not None:
-                ax.loglog(f, np.abs(true_model.frequency_response(f)[:, i, j]), "k--", lw=1, label="true")
+                loglog(ax, f, np.abs(true_model.frequency_response(f)[:, i, j]), "k--", lw=1, label="true")
             ax.set_title(f"{model.inputs[j]} -> {model.outputs[i]}", fontsize=8)
             ax.tick_params(labelsize=7)
             if i == q - 1:
@@ -89,7 +90,7 @@ def error_curve(x: Sequence[float], curves: dict[str, Sequence[float]], xlabel: 
     ax = fig.subplots()
     for name, y in curves.items():
         y = np.asarray(y, dtype=float)
-        ok = np.isfinite(y)
+        ok = np.isfinite(y) & (y > 0) if logy else np.isfinite(y)  # a log axis shows positive errors only
         ax.plot(np.asarray(x)[ok], y[ok], "o-", ms=3, label=name)
     if chosen is not None:
         ax.axvline(chosen, color="k", ls=":", lw=1, label=f"chosen {chosen}")

@@ -3,11 +3,12 @@
 ==================  ================================================================
 ``Report``          build an HTML report from sections, tables and figures
 ``write_metrics``   write the figures of a report's tables as ``metrics.json``
+``write_report_folder``  write ``index.html`` and ``metrics.json`` atomically (all or nothing)
 ``model_report``    Bode, pole-zero and simulation report of any model on data
 ==================  ================================================================
 """
 
-from .html import Report, write_metrics
+from .html import Report, write_metrics, write_report_folder
 from .model_report import hysteresis_model_report, lti_model_report, model_report
 
-__all__ = ["Report", "write_metrics", "model_report", "lti_model_report", "hysteresis_model_report"]
+__all__ = ["Report", "write_metrics", "write_report_folder", "model_report", "lti_model_report", "hysteresis_model_report"]

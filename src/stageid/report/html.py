@@ -6,12 +6,15 @@ import base64
 import html
 import io
 import json
+import math
 import os
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-__all__ = ["Report", "write_metrics"]
+__all__ = ["Report", "write_metrics", "write_report_folder"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1180px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
@@ -68,7 +71,7 @@ class Report:
         self.blocks.append(_Block("p", text))
 
     def table(self, header: Sequence[str], rows: Sequence[Sequence[Any]], caption: str = "") -> None:
-        """A table; floats are printed with 4 significant digits."""
+        """A table; floats are printed with 4 significant digits, NaN (an undefined value) as "n/a"."""
         self.blocks.append(_Block("table", (list(header), [list(r) for r in rows], caption)))
 
     def figure(self, fig: Any, caption: str, dpi: int = 110) -> None:
@@ -124,16 +127,101 @@ def _cell(value: Any) -> str:
     if isinstance(value, bool):
         return "<span class='pass'>yes</span>" if value else "<span class='fail'>no</span>"
     if isinstance(value, float):
-        return html.escape(f"{value:.4g}")
+        return "n/a" if math.isnan(value) else html.escape(f"{value:.4g}")
     return html.escape(str(value))
 
 
+def _json_safe(value: Any) -> Any:
+    """Non-finite floats (an undefined metric, e.g. the fit of a constant channel) -> None."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):  # numpy float64 is a float too
+        return None
+    return value
+
+
+def metrics_json(metrics: dict[str, Any]) -> str:
+    """The text of ``metrics.json``: sorted keys, non-finite numbers written as ``null``."""
+    return json.dumps(_json_safe(metrics), indent=2, sort_keys=True, allow_nan=False) + "\n"
+
+
 def write_metrics(folder: str | os.PathLike[str], metrics: dict[str, Any], name: str = "metrics.json") -> Path:
-    """Write a metrics dictionary as JSON (sorted keys, finite numbers) atomically."""
+    """Write a metrics dictionary as JSON (sorted keys) atomically.
+
+    Undefined values (NaN, +-inf, e.g. the fit % of a constant channel) are written as
+    ``null``: strict JSON has no NaN.
+    """
     from ..models.serialization import atomic_write_text
 
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=True)
     target = path / name
-    atomic_write_text(target, json.dumps(metrics, indent=2, sort_keys=True, allow_nan=False) + "\n")
+    atomic_write_text(target, metrics_json(metrics))
     return target
+
+
+def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics: dict[str, Any] | None = None) -> Path:
+    """Write ``index.html`` (and ``metrics.json``) into ``folder`` all at once; returns the HTML path.
+
+    Both files are rendered in memory, written into a temporary folder next to ``folder``
+    and then moved into place (the folder is renamed when it does not exist yet), so a
+    failure leaves neither a new folder nor half a report behind.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The report folder; its parent must exist.
+    report : Report
+    metrics : dict, optional
+        Written as ``metrics.json`` (see :func:`write_metrics`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder / "index.html"``.
+
+    Raises
+    ------
+    DataError
+        When the parent folder does not exist or ``folder`` is an existing file.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from stageid.report import Report, write_report_folder
+    >>> out = os.path.join(tempfile.mkdtemp(), "rep")
+    >>> write_report_folder(out, Report("Empty"), {"fit": float("nan")}).name
+    'index.html'
+    >>> open(os.path.join(out, "metrics.json")).read()
+    '{\\n  "fit": null\\n}\\n'
+    """
+    from .._errors import DataError
+    from ..models.serialization import _default_mode
+
+    target = Path(folder)
+    parent = target.parent if str(target.parent) else Path(".")
+    if not parent.is_dir():
+        raise DataError(f"cannot write report '{target}': directory '{parent}' does not exist.")
+    if target.exists() and not target.is_dir():
+        raise DataError(f"cannot write report into '{target}': it is a file; expected a folder.")
+    files = {"index.html": report.to_html()}
+    if metrics is not None:
+        files["metrics.json"] = metrics_json(metrics)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent))
+    try:
+        for name, text in files.items():
+            (tmp / name).write_text(text, encoding="utf-8")
+            os.chmod(tmp / name, _default_mode())
+        if not target.exists():
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes the folder private
+            os.replace(tmp, target)
+        else:
+            for name in files:
+                os.replace(tmp / name, target / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return target / "index.html"

@@ -21,7 +21,9 @@ def _band(model: Any, experiments: Sequence[Any]) -> np.ndarray:
 def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "Identified model", notes: Sequence[str] = ()) -> tuple[Report, dict[str, Any]]:
     """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
 
-    Returns the report and a metrics dictionary (fit % per experiment and output).
+    Returns the report and a metrics dictionary (fit % per experiment and output).  The fit
+    of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
+    in ``metrics.json``), "n/a" in the table.
     """
     from ..plots import bode_figure, pzmap_figure, time_overlay_figure
     from ..validation import fit_percent
@@ -45,6 +47,7 @@ def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "
                  [[f"{p:.5g}", float(abs(p)) if model.dt is not None else float(abs(p) / (2 * np.pi)), _damping(p, model.dt)] for p in poles[:40]],
                  caption="Poles (first 40)")
     rows = []
+    constant: list[str] = []
     for k, exp in enumerate(experiments):
         exp = exp.select(inputs=list(model.inputs), outputs=list(model.outputs))
         y_hat = model.simulate(exp.u, dt=exp.dt)
@@ -52,12 +55,17 @@ def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "
         for name, value in zip(model.outputs, fit):
             metrics[f"fit_percent/{exp.name or k}/{name}"] = float(value)
             rows.append([exp.name or f"experiment {k}", name, float(value)])
+            if np.isnan(value):
+                constant.append(f"{name} in {exp.name or f'experiment {k}'}")
         report.figure(time_overlay_figure(exp.time, exp.y, {"simulated": y_hat}, exp.output_names, exp.output_units,
                                           title=f"Simulation on {exp.name or f'experiment {k}'}"),
                       f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.")
     if rows:
         report.section("Validation")
         report.table(["experiment", "output", "fit [%]"], rows, caption="Simulation fit, 100 (1 - |y - y_sim| / |y - mean y|)")
+        if constant:
+            report.paragraph("n/a: the fit is undefined for an output that does not move in the data ("
+                             + "; ".join(constant) + ").")
     return report, metrics
 
 
@@ -68,7 +76,12 @@ def _damping(p: complex, dt: float | None) -> float:
 
 
 def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model") -> tuple[Report, dict[str, Any]]:
-    """Measured versus modelled input-output loops and the modelling error in % of range."""
+    """Measured versus modelled input-output loops and the modelling error in % of range.
+
+    When a record's output does not move its range is zero: the error in % of range is
+    undefined (NaN in the metrics, ``null`` in ``metrics.json``) and the error is plotted in
+    the output's own unit.
+    """
     from ..plots._style import subplots
 
     report = Report(title)
@@ -79,18 +92,26 @@ def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str 
         u = exp.u[:, 0]
         y = exp.y[:, 0]
         y_hat = model.simulate(exp.u)[:, 0]
-        err = 100.0 * np.max(np.abs(y - y_hat)) / np.ptp(y)
-        metrics[f"max_error_percent_range/{exp.name or k}"] = float(err)
+        y_range = float(np.ptp(y))
+        if y_range > 0:
+            err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
+            err_trace, err_label, err_text = 100 * (y - y_hat) / y_range, "error [% of range]", f"max {err:.2f} % of range"
+        else:
+            err = float("nan")
+            unit = exp.output_units[0] or "-"
+            err_trace, err_label = y - y_hat, f"error [{unit}]"
+            err_text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
+        metrics[f"max_error_percent_range/{exp.name or k}"] = err
         fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
         a.plot(u, y, color="0.2", lw=1.2, label="measured")
         a.plot(u, y_hat, "--", lw=1.0, label="model")
         a.set_xlabel(f"{model.inputs[0]} [{exp.input_units[0] or '-'}]")
         a.set_ylabel(f"{model.outputs[0]} [{exp.output_units[0] or '-'}]")
         a.legend()
-        b.plot(exp.time, 100 * (y - y_hat) / np.ptp(y), color="C3", lw=0.9)
+        b.plot(exp.time, err_trace, color="C3", lw=0.9)
         b.set_xlabel("time [s]")
-        b.set_ylabel("error [% of range]")
-        report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error (max {err:.2f} % of range).")
+        b.set_ylabel(err_label)
+        report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).")
     return report, metrics
 
 

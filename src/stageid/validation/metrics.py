@@ -26,7 +26,23 @@ def _pair(measured: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray, np.n
 def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """Normalised fit ``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` per channel (MATLAB's ``compare``).
 
-    100 is a perfect fit, 0 is no better than the mean, negative is worse.
+    100 is a perfect fit, 0 is no better than the mean, negative is worse.  The fit of a
+    constant measured channel (``y == mean(y)``) is undefined and returned as NaN (never
+    ``-inf``): report it as "n/a", write it to JSON as ``null``.
+
+    Parameters
+    ----------
+    measured, predicted : array_like of shape (n_samples, n_channels) or (n_samples,)
+
+    Returns
+    -------
+    ndarray of shape (n_channels,)
+        Fit in percent; NaN for constant measured channels.
+
+    Raises
+    ------
+    DataError
+        When the shapes differ.
 
     Examples
     --------
@@ -35,12 +51,17 @@ def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     >>> y = np.sin(np.linspace(0, 6, 50))
     >>> float(fit_percent(y, y)[0])
     100.0
+    >>> fit_percent(np.ones(5), np.zeros(5))  # constant channel: undefined
+    array([nan])
     """
     y, yh = _pair(measured, predicted)
     den = np.linalg.norm(y - y.mean(axis=0), axis=0)
     num = np.linalg.norm(y - yh, axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return 100.0 * (1.0 - num / den)
+    out = np.full(den.shape, np.nan)
+    # a constant channel leaves only the rounding of its mean, at most n eps |y| per sample
+    moving = den > y.shape[0] * np.finfo(float).eps * np.linalg.norm(y, axis=0)
+    out[moving] = 100.0 * (1.0 - num[moving] / den[moving])
+    return out
 
 
 def nrmse(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
