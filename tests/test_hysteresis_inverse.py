@@ -133,3 +133,13 @@ def test_step_refuses_non_finite_and_keeps_state(make, bad):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)  # state unchanged by the refused sample
     with pytest.raises(ModelError, match="must be finite"):
         comp.run([1.0, bad])
+
+
+@pytest.mark.parametrize("limits", ["ab", (3.0,), 5.0, (1.0, float("nan")), (2.0, 1.0)])
+def test_malformed_limits_one_line(limits):
+    # compensate(m, y, limits="ab") raised a raw ValueError from float("a")
+    m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5])
+    with pytest.raises(ModelError, match=r"`limits` must be \(low, high\)"):
+        compensate(m, [0.0, 1.0], limits=limits)
+    with pytest.raises(ModelError, match=r"`limits` must be \(low, high\)"):
+        invert(m.to_modified(), [0.0, 1.0], limits=limits)

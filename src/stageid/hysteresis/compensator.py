@@ -74,10 +74,8 @@ class Compensator:
             self._creep = CreepInverse(model, limits, dt)
             self.limits = self._creep.limits
             return
-        lim = limits if limits is not None else model.input_limits
-        if lim is not None and not (len(lim) == 2 and float(lim[0]) < float(lim[1])):
-            raise ModelError(f"`limits` must be (low, high) with low < high; got {lim!r}.")
-        self.limits = None if lim is None else (float(lim[0]), float(lim[1]))
+        lim = _check_limits(limits if limits is not None else model.input_limits)
+        self.limits = lim
         self._lo = -np.inf if lim is None else float(model.to_operator_input(self.limits[0]))
         self._hi = np.inf if lim is None else float(model.to_operator_input(self.limits[1]))
         if isinstance(model, PIModel):
@@ -173,8 +171,40 @@ class Compensator:
         return u if self.limits is None else min(max(u, self.limits[0]), self.limits[1])
 
 
+def _check_limits(lim: object) -> tuple[float, float] | None:
+    """``(low, high)`` as floats, or None; a one-line ModelError unless two numbers with low < high."""
+    if lim is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in lim)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise ModelError(f"`limits` must be (low, high), two numbers with low < high; got {lim!r:.60}.") from None
+    if not lo < hi:  # also refuses NaN
+        raise ModelError(f"`limits` must be (low, high) with low < high; got {lim!r:.60}.")
+    return lo, hi
+
+
 def compensate(model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None) -> np.ndarray:
     """Batch feedforward: the drive of shape (n_samples, 1) for a desired output record.
+
+    Parameters
+    ----------
+    model : PIModel or ModifiedPIModel
+    y_ref : array_like of shape (n_samples, 1) or (n_samples,)
+        Desired outputs (finite).
+    limits : (float, float), optional
+        Drive limits ``(low, high)``, ``low < high``; default ``model.input_limits`` (an
+        identified model's identified input range), unlimited if None.  The drive is clipped
+        to them.
+
+    Returns
+    -------
+    ndarray of shape (n_samples, 1)
+
+    Raises
+    ------
+    ModelError
+        Non-invertible model, malformed ``limits`` or a non-finite ``y_ref``.
 
     Examples
     --------

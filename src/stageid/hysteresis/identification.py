@@ -64,6 +64,23 @@ __all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
 
 MODEL_KINDS = ("pi", "modified-pi")
 _STATE_CHOICES = ("auto",) + STATE_KINDS
+#: Largest ``n_operators`` per model kind (the modified PI refits all weights for every step of
+#: its threshold search: 100 operators on 10000 samples already take about a minute).
+MAX_OPERATORS = {"pi": 1000, "modified-pi": 100}
+#: At least this many samples (summed over the records) per operator.
+SAMPLES_PER_OPERATOR = 5
+
+
+def _real(value: object) -> float | None:
+    """``float(value)`` for a finite real number (not a bool or a string), else None."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return None
+    v = float(value)
+    return v if np.isfinite(v) else None
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 @dataclass(frozen=True)
@@ -137,14 +154,26 @@ def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[t
                 in_name = inputs or item.input_names[0]
                 out_name = outputs or item.output_names[0]
         else:
-            u = np.asarray(item[0], dtype=float).reshape(-1)
-            y = np.asarray(item[1], dtype=float).reshape(-1)
+            try:
+                pair = [np.asarray(item[0], dtype=float), np.asarray(item[1], dtype=float)]
+            except (TypeError, ValueError, IndexError, KeyError):
+                raise DataError(f"record {k} must be an Experiment or a (u, y) pair of numeric arrays; got {type(item).__name__}.") from None
+            for j, what in enumerate(("input", "output")):
+                a = pair[j]
+                if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != 1):
+                    raise DataError(f"record {k}: one {what} column expected (shape (n_samples,) or (n_samples, 1)); "
+                                    f"got shape {a.shape}.")
+            u, y = pair[0].reshape(-1), pair[1].reshape(-1)
             if u.shape != y.shape:
                 raise DataError(f"record {k}: input and output must have equal length; got {u.size} and {y.size}.")
+        label = f"record {k}" + (f" ('{item.name}')" if isinstance(item, Experiment) and item.name else "")
         if u.size < 10:
-            raise DataError(f"record {k} has {u.size} samples; hysteresis identification needs at least 10.")
+            raise DataError(f"{label} has {u.size} samples; hysteresis identification needs at least 10.")
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
-            raise DataError(f"record {k} has NaN or inf samples.")
+            raise DataError(f"{label} has NaN or inf samples.")
+        if not np.ptp(y) > 0:
+            raise DataError(f"{label}: the output is constant ({y[0]:g}); every record's output must vary "
+                            "(errors are reported in % of each record's output range).")
         recs.append((np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)))
     if not recs:
         raise DataError("no records given; expected at least one Experiment.")
@@ -158,18 +187,22 @@ class PIIdentifier:
     ----------
     model : {"pi", "modified-pi"}, default "pi"
     n_operators : int, default 20
-        Number of operators, including the linear term (``r_0 = 0``).
+        Number of operators, including the linear term (``r_0 = 0``); 2 at least and at most
+        ``MAX_OPERATORS[model]`` (1000 for ``"pi"``, 100 for ``"modified-pi"``), at most one
+        operator per ``SAMPLES_PER_OPERATOR`` (5) samples summed over the records, and at most
+        the number of distinct input values (checked by :meth:`fit`).
     input_range : (float, float), optional
-        Range the thresholds cover; default the range of the identification input.
+        Range ``(low, high)``, ``low < high``, the thresholds cover; default the range of the
+        identification input.
     initial_state : {"auto", "zero", "ascending", "descending"}, default "auto"
         Starting state of each record (see module notes).
     min_slope_fraction : float, default 0.02
-        ``eps`` of the invertibility constraint relative to the mean slope.
+        ``eps`` of the invertibility constraint relative to the mean slope, in (0, 1).
     max_rows : int, default 20000
-        The least-squares problems use at most this many (evenly strided) samples; the
+        The least-squares problems use at most this many (evenly strided) samples, >= 10; the
         operators always run over every sample.
     max_evaluations : int, default 500
-        Limit of the nonlinear search (modified PI).
+        Limit of the nonlinear search (modified PI), >= 1.
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
@@ -180,10 +213,16 @@ class PIIdentifier:
         Sampling period [s] for ``(u, y)`` records when creep is fitted (Experiments carry
         their own ``dt``; all records must share one).
     ridge : float, default 1e-6
-        Tikhonov penalty on the CP weights of the modified PI, relative to the mean diagonal of
+        Tikhonov penalty (>= 0) on the CP weights of the modified PI, relative to the mean diagonal of
         the normal matrix (keeps barely-moving operators from getting huge weights that blow up
         outside the identified input range; changes the fit by < 0.1 % of range on the data we
         tried).
+
+    Notes
+    -----
+    The identified model's ``input_limits`` are the identified input range (the least and
+    largest input sample over the records), so a :class:`~stageid.hysteresis.Compensator`
+    clips its drive to that range by default (pass ``limits`` to extrapolate).
 
     Examples
     --------
@@ -217,12 +256,38 @@ class PIIdentifier:
     def _check(self) -> None:
         if self.model not in MODEL_KINDS:
             raise IdentificationError(f"`model` of PIIdentifier must be one of {', '.join(MODEL_KINDS)}; got {self.model!r}.")
-        if not isinstance(self.n_operators, (int, np.integer)) or isinstance(self.n_operators, bool) or self.n_operators < 2:
+        if not _is_int(self.n_operators) or self.n_operators < 2:
             raise IdentificationError(f"`n_operators` of PIIdentifier must be an integer >= 2; got {self.n_operators!r}.")
+        cap = MAX_OPERATORS[self.model]
+        if self.n_operators > cap:
+            raise IdentificationError(f"`n_operators` of PIIdentifier must be at most {cap} for a {self.model} model; "
+                                      f"got {self.n_operators}.")
         if self.initial_state not in _STATE_CHOICES:
             raise IdentificationError(f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}.")
-        if not (0 < float(self.min_slope_fraction) < 1):
-            raise IdentificationError(f"`min_slope_fraction` must be in (0, 1); got {self.min_slope_fraction!r}.")
+        msf = _real(self.min_slope_fraction)
+        if msf is None or not 0 < msf < 1:
+            raise IdentificationError(f"`min_slope_fraction` of PIIdentifier must be a number in (0, 1); got {self.min_slope_fraction!r}.")
+        if not _is_int(self.max_rows) or self.max_rows < 10:
+            raise IdentificationError(f"`max_rows` of PIIdentifier must be an integer >= 10; got {self.max_rows!r}.")
+        if not _is_int(self.max_evaluations) or self.max_evaluations < 1:
+            raise IdentificationError(f"`max_evaluations` of PIIdentifier must be an integer >= 1; got {self.max_evaluations!r}.")
+        ridge = _real(self.ridge)
+        if ridge is None or ridge < 0:
+            raise IdentificationError(f"`ridge` of PIIdentifier must be a number >= 0; got {self.ridge!r}.")
+        if not isinstance(self.input_warp, (bool, np.bool_)):
+            raise IdentificationError(f"`input_warp` of PIIdentifier must be True or False; got {self.input_warp!r}.")
+        if self.input_range is not None:
+            try:
+                lo, hi = (_real(v) for v in self.input_range)
+            except (TypeError, ValueError):
+                lo = hi = None
+            if lo is None or hi is None or not lo < hi:
+                raise IdentificationError(f"`input_range` of PIIdentifier must be (low, high) with finite low < high; "
+                                          f"got {self.input_range!r}.")
+        if self.sample_time is not None:
+            ts = _real(self.sample_time)
+            if ts is None or ts <= 0:
+                raise IdentificationError(f"`sample_time` of PIIdentifier must be a positive number of seconds; got {self.sample_time!r}.")
         if self.creep_time_constants is not None:
             taus = np.asarray(self.creep_time_constants, dtype=float).reshape(-1)
             if taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
@@ -246,28 +311,37 @@ class PIIdentifier:
         Raises
         ------
         DataError
-            Malformed records, or an input that does not move.
+            Malformed records (more than one input or output column, NaN/inf, fewer than 10
+            samples), an input that does not move, or a record whose output is constant.
         IdentificationError
-            Bad hyper-parameters or a singular least-squares problem.
+            Bad hyper-parameters (also ``n_operators`` beyond the bounds the class docstring
+            gives for these records) or a singular least-squares problem.
         """
         self._check()
         recs, in_name, out_name = _records(data, inputs, outputs)
+        u_lo = min(float(u.min()) for u, _ in recs)
+        u_hi = max(float(u.max()) for u, _ in recs)
+        if not u_hi > u_lo:
+            raise DataError(f"the identification input must vary; got a constant {u_lo:g}.")
+        n_total = sum(u.size for u, _ in recs)
+        n_levels = int(np.unique(np.concatenate([u for u, _ in recs])).size)
+        bound = min(n_total // SAMPLES_PER_OPERATOR, n_levels)
+        if self.n_operators > bound:
+            raise IdentificationError(
+                f"`n_operators` of PIIdentifier must be at most {bound} for these records (one operator per "
+                f"{SAMPLES_PER_OPERATOR} of their {n_total} samples, no more than their {n_levels} distinct input "
+                f"values); got {self.n_operators}.")
         creep = None
         if self.creep_time_constants is not None:
             creep = (np.asarray(self.creep_time_constants, dtype=float).reshape(-1), _creep_sample_time(data, self.sample_time))
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         else:
-            lo = min(float(u.min()) for u, _ in recs)
-            hi = max(float(u.max()) for u, _ in recs)
-        if not hi > lo:
-            raise DataError(f"the identification input must vary; got a constant {lo:g}.")
+            lo, hi = u_lo, u_hi
         n = int(self.n_operators)
         R = 0.5 * (hi - lo)
         r = np.arange(n) * R / n
-        yr = max(float(np.ptp(y)) for _, y in recs)
-        if yr <= 0:
-            raise DataError("the identification output is constant; nothing to identify.")
+        yr = max(float(np.ptp(y)) for _, y in recs)  # > 0: _records refuses a constant output
         eps = float(self.min_slope_fraction) * yr / (hi - lo)
         stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
         ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge), R, creep)
@@ -306,7 +380,7 @@ class PIIdentifier:
                             best = (sse, kind)
                     kinds[j] = best[1]
         sse, w, offsets = ctx.solve(theta, kinds, classical=self.model == "pi")
-        model = ctx.build(theta, w, offsets[0], in_name, out_name, lo, hi)
+        model = ctx.build(theta, w, offsets[0], in_name, out_name, lo, hi, (u_lo, u_hi))
         if creep is not None:
             from dataclasses import replace
 
@@ -602,11 +676,12 @@ class _Context:
             sse += float(sol @ (G - Gfit) @ sol)
         return max(sse, 0.0), w, offs, c
 
-    def build(self, theta, w, offset, in_name, out_name, lo, hi):
+    def build(self, theta, w, offset, in_name, out_name, lo, hi, identified):
         classical = self.kind == "pi"
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        # input_limits: the identified input range (the compensator's default drive limits)
         common = dict(weights=w, input_offset=xc, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,),
-                      input_limits=None)
+                      input_limits=identified)
         if classical:
             model = PIModel(r=r, **common)
         else:

@@ -171,7 +171,9 @@ def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, flo
     if not smin > 0:
         raise ModelError(f"model is not invertible: its minimum slope w0 + sum(min(w_i, 0)) is {smin:g}; expected > 0.")
     target = np.ascontiguousarray(_as_input(y, model.outputs[0]) - model.output_offset)
-    lim = limits if limits is not None else model.input_limits
+    from .compensator import _check_limits
+
+    lim = _check_limits(limits if limits is not None else model.input_limits)
     lo, hi = (-np.inf, np.inf) if lim is None else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
     x, zf, xf = _kernels.cp_invert(target, _packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, _tolerance(model))
     u = model.from_operator_input(x)
