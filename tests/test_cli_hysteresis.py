@@ -1,5 +1,7 @@
 """`stageid identify hysteresis` and `stageid compensate`, including the issue's acceptance check."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -94,3 +96,67 @@ def test_bad_input_one_line_no_file(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "hysteresis model" in err and not (tmp_path / "u.csv").exists()
     assert main(["compensate", str(tmp_path / "lti.json"), str(tmp_path / "d.csv"), "--column", "y", "--limits", "5", "-o", str(tmp_path / "u.csv")]) == 2
+
+
+# --- regressions of the bug hunt (each failed before its fix) --------------------------------
+
+def _pi_record(tmp_path, name="d.csv", flat=False):
+    from stageid.hysteresis import PIModel
+
+    u = decaying_triangle(1.0, 4, 2e-3, amplitude=100.0)
+    y = PIModel(r=np.arange(4) * 25.0, weights=[0.01, 0.004, 0.003, 0.002]).simulate(u)[:, 0]
+    write_csv(tmp_path / name, {"V": u, "y": np.full(u.size, 1.5) if flat else y}, dt=2e-3)
+    return u, y
+
+
+def test_flat_second_record_one_line_error(tmp_path, capsys):
+    # exited 0 with "inf %" for record 1 and RuntimeWarnings on stderr
+    _pi_record(tmp_path)
+    _pi_record(tmp_path, "flat.csv", flat=True)
+    out = tmp_path / "m.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning may escape
+        code = main(["identify", "hysteresis", str(tmp_path / "d.csv"), str(tmp_path / "flat.csv"), "--input", "V",
+                     "--output", "y", "--model", "pi", "--operators", "4", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert err.count("\n") == 1 and "record 1 ('flat.csv'): the output is constant (1.5)" in err
+
+
+def test_too_many_operators_refused_at_once(tmp_path, capsys):
+    # --operators 5000 ran for minutes without output
+    _pi_record(tmp_path)
+    out = tmp_path / "m.json"
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y", "--model", "pi",
+                 "--operators", "5000", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "at most 1000 for a pi model; got 5000" in err and not out.exists()
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y", "--model", "pi",
+                 "--operators", "401", "-o", str(out)]) == 2  # 2000 samples: 400 at most
+    assert "at most 400 for these records" in capsys.readouterr().err
+
+
+def test_compensate_keeps_to_the_identified_range_and_warns(tmp_path, capsys):
+    # identified models stored input_limits null: a 100x reference gave drives of tens of kV
+    u, y = _pi_record(tmp_path)
+    assert main(["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y", "--model", "pi",
+                 "--operators", "4", "--quiet", "-o", str(tmp_path / "m.json")]) == 0
+    assert load_model(tmp_path / "m.json").input_limits == (float(u.min()), float(u.max()))
+    write_csv(tmp_path / "big.csv", {"yref": 100.0 * (y - y.mean())}, dt=2e-3)
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "m.json"), str(tmp_path / "big.csv"), "--column", "yref",
+                 "-o", str(tmp_path / "u.csv")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "warning: the reference needs drives outside the model's input_limits [-100, 100] V" in err
+    drive = read_table(tmp_path / "u.csv").column("V")
+    assert drive.min() >= -100.0 and drive.max() <= 100.0
+    # explicit wider limits: the drive leaves the identified range, with a warning
+    assert main(["compensate", str(tmp_path / "m.json"), str(tmp_path / "big.csv"), "--column", "yref",
+                 "--limits=-1e5,1e5", "-o", str(tmp_path / "u.csv")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "lie outside the model's input_limits [-100, 100] V" in err
+    # inside the range: no warning
+    write_csv(tmp_path / "small.csv", {"yref": 0.5 * (y - y.mean())}, dt=2e-3)
+    assert main(["compensate", str(tmp_path / "m.json"), str(tmp_path / "small.csv"), "--column", "yref",
+                 "-o", str(tmp_path / "u.csv")]) == 0
+    assert capsys.readouterr().err == ""

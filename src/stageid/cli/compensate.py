@@ -16,7 +16,10 @@ Examples:
 @click.argument("model_path", metavar="HYST.json", type=click.Path(dir_okay=False))
 @click.argument("ref_path", metavar="REF.(csv|npz|mat)", type=click.Path(dir_okay=False))
 @click.option("--column", required=True, help="Column of REF holding the desired output.")
-@click.option("--limits", default=None, help="Drive limits LOW,HIGH (default: the model's input_limits, else none).")
+@click.option("--limits", default=None,
+              help="Drive limits LOW,HIGH (default: the model's input_limits, i.e. the identified input range of "
+                   "a model from `stageid identify hysteresis`, else none). The drive is clipped to them; a "
+                   "warning tells when the reference needs drives outside the model's input_limits.")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when REF has no `t` column.")
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
               help="Drive CSV: columns `t` and the model's input name.")
@@ -52,3 +55,26 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     # a creep term (rate dependent) runs at the reference's sampling period
     u = Compensator(model, limits=lim, dt=table.dt).run(yref)
     write_csv(out, {model.inputs[0]: u[:, 0]}, dt=table.dt, t0=table.t0)
+    _warn_outside_range(model, lim, u[:, 0])
+
+
+def _warn_outside_range(model, limits: tuple[float, float] | None, u) -> None:
+    """One warning line when the drive leaves (or, clipped, would leave) ``model.input_limits``."""
+    import numpy as np
+
+    if model.input_limits is None or u.size == 0:
+        return
+    lo, hi = model.input_limits
+    name = model.inputs[0]
+    if limits is None:  # clipped to the model's limits: samples sitting on a limit wanted more
+        tol = 1e-9 * (hi - lo)
+        n = int(np.count_nonzero((u <= lo + tol) | (u >= hi - tol)))
+        if n:
+            click.echo(f"stageid: warning: the reference needs drives outside the model's input_limits "
+                       f"[{lo:g}, {hi:g}] {name} (identified range): {n} of {u.size} drive samples clipped there; "
+                       f"give --limits to extrapolate.", err=True)
+    else:
+        n = int(np.count_nonzero((u < lo) | (u > hi)))
+        if n:
+            click.echo(f"stageid: warning: {n} of {u.size} drive samples lie outside the model's input_limits "
+                       f"[{lo:g}, {hi:g}] {name} (identified range); the model is extrapolated there.", err=True)

@@ -33,7 +33,9 @@ Examples:
 @click.option("--model", "kind", type=click.Choice(["pi", "modified-pi"]), default="modified-pi", show_default=True,
               help="Classical PI (plays) or the letter's modified PI (coupled plays).")
 @click.option("--operators", "n_operators", type=click.IntRange(min=2), default=20, show_default=True,
-              help="Number of operators (thresholds equally spaced over the input range, the first is 0).")
+              help="Number of operators (thresholds equally spaced over the input range, the first is 0); "
+                   "at most 1000 (pi) or 100 (modified-pi), one per 5 samples of the records and the "
+                   "number of distinct input values.")
 @click.option("--initial-state", type=click.Choice(["auto", "zero", "ascending", "descending"]), default="auto",
               show_default=True, help="Operator state at the first sample of each record.")
 @click.option("--input-warp/--no-input-warp", default=True, show_default=True,
