@@ -168,3 +168,71 @@ def test_logger_time_jitter_is_accepted_but_a_missing_sample_is_not(tmp_path, di
     rc, out, err = run_cli("simulate", model_path, tmp_path / "gap.csv", "-o", tmp_path / "y2.csv")
     assert_one_line_error(rc, err)
     assert not (tmp_path / "y2.csv").exists()
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+def run_main(*args):
+    """Run `stageid` in this process with warnings as errors: (exit code, stdout, stderr)."""
+    import contextlib
+    import io
+    import warnings
+
+    out, err = io.StringIO(), io.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        warnings.simplefilter("error")  # a RuntimeWarning leaking before the error fails the contract
+        rc = main([str(a) for a in args])
+    return rc, out.getvalue(), err.getvalue()
+
+
+_CHIRP = ["signal", "chirp", "--f0", "1", "--f1", "10", "--duration", "1", "--dt", "0.01"]
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["signal", "prbs", "--n-samples", "100", "--seed", "-1", "-o", "o.csv"], "'--seed': -1 is not in the range x>=0"),
+        (["signal", "random", "--n-samples", "100", "--dt", "0.01", "--f-low", "1", "--f-high", "10", "--seed", "-1", "-o", "o.csv"],
+         "'--seed': -1 is not in the range x>=0"),
+        (["plants", "p558", "--experiment", "chirp-z", "--seed", "-1", "-o", "o.csv"], "'--seed': -1 is not in the range x>=0"),
+        ([*_CHIRP, "-o", "o.mat"], "output 'o.mat' has extension '.mat'; expected .csv or .npz for a table"),
+        ([*_CHIRP, "-o", "o"], "output 'o' has no extension; expected .csv or .npz"),
+        (["plants", "p558", "-o", "m.npz"], "output 'm.npz' has extension '.npz'; expected .json for a model"),
+        (["plants", "p558", "--experiment", "chirp-z", "-o", "e.json"], "expected .csv or .npz for a table"),
+        (["signal", "prbs", "--n-samples", "100", "--name", "Z;1", "-o", "s.csv"], "column name 'Z;1' would not read back from CSV"),
+        (["signal", "prbs", "--n-samples", "100", "--name", "a\tb", "-o", "s.csv"], "would not read back from CSV"),
+        (["plants", "p558", "-o", "nodir/x.json"], "cannot write 'nodir/x.json': directory 'nodir' does not exist."),
+        (["plants", "maglev", "--controller", "-o", "nodir/K.json"], "directory 'nodir' does not exist"),
+        ([*_CHIRP, "-o", "nodir/c.csv"], "directory 'nodir' does not exist"),
+        ([*_CHIRP, "--name", "t", "-o", "c.csv"], "--name 't' is reserved for the time column"),
+        (["signal", "sine", "--freq", "50", "--dt", "0.01", "--duration", "1", "-o", "s.csv"],
+         "must be below the Nyquist frequency 1/(2 dt) = 50 Hz; got 50 Hz"),
+        ([*_CHIRP, "-o", "-"], "-o '-' (standard output) is not supported"),
+        (["signal", "decaying-sine", "--freq", "1", "--n-cycles", "2", "--dt", "0.01", "--amplitude", "1e308", "--offset", "1e308",
+          "-o", "d.csv"], "beyond the largest float"),
+    ],
+)
+def test_output_and_parameter_errors_are_one_line_and_leave_nothing(tmp_path, monkeypatch, args, fragment):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = run_main(*args)
+    assert rc == 2, err
+    assert_one_line_error(rc, err)
+    assert fragment in err
+    assert list(tmp_path.iterdir()) == []  # no output, no file named '-', no temporary file
+
+
+def test_table_outputs_follow_the_extension(tmp_path, discrete_model, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _, model_path = discrete_model
+    assert run_main(*_CHIRP, "--name", "Z", "-o", "z.npz")[0] == 0
+    assert (tmp_path / "z.npz").read_bytes()[:2] == b"PK"  # a zip archive, not CSV text
+    table = read_table(tmp_path / "z.npz")
+    assert table.names == ("Z",) and table.n_samples == 100
+    assert run_main("freqresp", model_path, "--fmin", "1", "--fmax", "100", "--n", "20", "-o", "fr.npz")[0] == 0
+    with np.load(tmp_path / "fr.npz") as fr:
+        assert fr["f_hz"].shape == (20,) and "re_z_Z" in fr.files
+    assert run_main("freqresp", model_path, "--fmin", "1", "--fmax", "100", "--n", "20", "-o", "fr.csv")[0] == 0
+    assert (tmp_path / "fr.csv").read_text().startswith("f_hz,")
+    assert run_main("plants", "p558", "-o", "p558.json")[0] == 0
+    assert json.loads((tmp_path / "p558.json").read_text())["format"] == "stageid.lti/1"
+    assert run_main("signal", "prbs", "--n-samples", "50", "--dt", "0.01", "--name", "Z;1", "-o", "ok.csv")[0] == 0
+    assert read_table(tmp_path / "ok.csv").names == ("Z;1",)  # with a `t` column the name reads back

@@ -75,3 +75,55 @@ def test_identify_closed_loop_report(tmp_path):
     assert len(fits) == 1 and fits[0] > 99.0  # the identified plant re-closed with K reproduces y
     s_true = np.log(1.02) / 0.001
     assert min(abs(p - s_true) for p in metrics["unstable_poles_rad_s"]) < 0.05 * s_true
+
+
+# ----------------------------------------------------------------- regressions of the bug hunt
+def test_report_with_a_constant_output_channel_completes(tmp_path, capsys):
+    g = StateSpaceModel([[0.9]], [[1.0]], [[0.5], [0.2]], [[0.0], [0.0]], dt=0.01, inputs=("u",), outputs=("y", "z"))
+    save_model(g, tmp_path / "g.json")
+    u = np.random.default_rng(5).standard_normal(500)
+    y = g.simulate(u[:, None])
+    write_csv(tmp_path / "flat.csv", {"u": u, "y": y[:, 0], "z": np.zeros(500)}, dt=0.01)  # sensor z did not move
+    rc = main(["report", str(tmp_path / "g.json"), str(tmp_path / "flat.csv"), "--out", str(tmp_path / "rep")])
+    assert rc == 0, capsys.readouterr().err
+    text = (tmp_path / "rep" / "metrics.json").read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    metrics = json.loads(text)
+    assert metrics["fit_percent/flat.csv/z"] is None and metrics["fit_percent/flat.csv/y"] > 99.0
+    assert "<td>n/a</td>" in (tmp_path / "rep" / "index.html").read_text()
+
+
+def test_hysteresis_report_with_a_constant_output_completes(tmp_path, capsys):
+    from stageid.hysteresis import PIModel
+
+    save_model(PIModel(r=[0.0, 20.0, 40.0], weights=[0.01, 0.005, 0.002]), tmp_path / "pi.json")
+    v = 50.0 * (1 - np.cos(np.linspace(0, 4 * np.pi, 400)))
+    write_csv(tmp_path / "yflat.csv", {"V": v, "y": np.full(400, 1.5)}, dt=0.001)
+    rc = main(["report", str(tmp_path / "pi.json"), str(tmp_path / "yflat.csv"), "--inputs", "V", "--outputs", "y",
+               "--out", str(tmp_path / "rep")])
+    assert rc == 0, capsys.readouterr().err
+    assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {"max_error_percent_range/yflat.csv": None}
+
+
+def test_a_failing_report_leaves_no_folder(tmp_path, monkeypatch, capsys):
+    import stageid.report.html as html_module
+
+    g = _record(tmp_path)
+    save_model(g, tmp_path / "g.json")
+
+    def broken_dumps(*args, **kwargs):
+        raise ValueError("metrics cannot be serialised")
+
+    monkeypatch.setattr(html_module.json, "dumps", broken_dumps)  # fails after the HTML was rendered
+    rc = main(["report", str(tmp_path / "g.json"), str(tmp_path / "rec.csv"), "--out", str(tmp_path / "rep")])
+    assert rc == 3 and "metrics cannot be serialised" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.json", "rec.csv"]  # no rep/, no index.html, no temp folder
+
+
+def test_report_into_a_missing_directory_is_refused_before_work(tmp_path, capsys):
+    g = _record(tmp_path)
+    save_model(g, tmp_path / "g.json")
+    rc = main(["report", str(tmp_path / "g.json"), "--out", str(tmp_path / "nodir" / "rep")])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "directory" in err and "nodir' does not exist" in err
+    assert not (tmp_path / "nodir").exists()

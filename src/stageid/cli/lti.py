@@ -75,7 +75,7 @@ Examples:
 @click.option("--fmin", type=float, required=True, help="Lowest frequency [Hz], > 0.")
 @click.option("--fmax", type=float, required=True, help="Highest frequency [Hz].")
 @click.option("--n", "n_points", type=int, default=200, show_default=True, help="Number of log-spaced frequencies.")
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Output CSV.")
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz (by extension).")
 def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, output: str) -> None:
     """Frequency response of an LTI model at N log-spaced frequencies.
 
@@ -84,9 +84,10 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
     """
     import numpy as np
 
-    from ..data.io import write_csv
     from ..models import load_model
+    from ._common import check_output, write_table_output
 
+    check_output(output, "table")
     if not (np.isfinite(fmin) and fmin > 0):
         raise click.BadParameter(f"must be a positive number of Hz; got {fmin}.", param_hint="--fmin")
     if not (np.isfinite(fmax) and fmax > fmin):
@@ -105,4 +106,4 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
         for j, in_name in enumerate(model.inputs):
             columns[f"re_{out_name}_{in_name}"] = fr[:, i, j].real
             columns[f"im_{out_name}_{in_name}"] = fr[:, i, j].imag
-    write_csv(output, columns)
+    write_table_output(output, columns)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import StageIdError
+from ._common import check_output, write_model_output, write_table_output
 
 
 @click.command("plants", epilog="""
@@ -19,7 +20,7 @@ Examples:
 @click.argument("name", required=False)
 @click.option("--experiment", default=None, help="Simulate this experiment instead of writing the model.")
 @click.option("--controller", is_flag=True, help="Write the stage's stabilising controller (closed-loop stages).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Noise/excitation seed of the experiment.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Noise/excitation seed of the experiment, >= 0.")
 @click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None, help="Output .json (model) or .csv/.npz (experiment).")
 def plants_command(name: str | None, experiment: str | None, controller: bool, seed: int, output: str | None) -> None:
     """Reference stages of the papers: P-558 piezo stage, maglev stage, piezo actuator."""
@@ -35,24 +36,20 @@ def plants_command(name: str | None, experiment: str | None, controller: bool, s
         return
     if output is None:
         raise click.UsageError("Missing option '-o' / '--output'.")
-    module = plant_module(name)
     if experiment is not None and controller:
         raise click.UsageError("--experiment and --controller exclude each other.")
+    check_output(output, "table" if experiment is not None else "model")
+    module = plant_module(name)
     if experiment is not None:
-        from ..data.io import write_csv, write_npz
-
         experiments = getattr(module, "EXPERIMENTS", {})
         if experiment not in experiments:
             raise StageIdError(f"plant {name!r} has no experiment {experiment!r}; expected one of {', '.join(experiments)}.")
         record = experiments[experiment](seed=seed)
-        writer = write_npz if output.lower().endswith(".npz") else write_csv
-        writer(output, record)
+        write_table_output(output, record)
         return
-    from ..models.serialization import save_model
-
     if controller:
         if not hasattr(module, "controller"):
             raise StageIdError(f"plant {name!r} has no controller; only closed-loop stages do.")
-        save_model(module.controller(), output)
+        write_model_output(output, module.controller())
     else:
-        save_model(module.model(), output)
+        write_model_output(output, module.model())

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ._common import read_experiments, split_names
+from ._common import check_output_folder, read_experiments, split_names
 
 
 def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None) -> Path:
@@ -42,6 +42,7 @@ def report_command(model_path: str, data: tuple[str, ...], inputs: str | None, o
     """Report on MODEL.json: frequency response, poles and zeros, and simulation against DATA files."""
     from ..models import load_model
 
+    check_output_folder(out_dir)
     model = load_model(model_path)
     ins = split_names(inputs, "--inputs") or tuple(model.inputs)
     outs = split_names(outputs, "--outputs") or tuple(model.outputs)

@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from .._errors import SignalError
+from .._errors import DataError, SignalError
 
 _EXAMPLES = {
     "chirp": "stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 --amplitude 20 --offset 20 --name Z -o z_chirp.csv",
@@ -77,7 +77,8 @@ def _make_command(kind: str) -> click.Command:
             continue
         required = p.default is inspect.Parameter.empty
         default = None if required else p.default
-        options.append(click.Option([flag, name], type=_click_type(p), required=required, default=default,
+        kind_type = click.IntRange(min=0) if name == "seed" else _click_type(p)
+        options.append(click.Option([flag, name], type=kind_type, required=required, default=default,
                                     show_default=not required and default is not None, help=helps.get(name)))
     if "dt" not in params:
         options.append(click.Option(["--dt", "dt"], type=float, default=None, help="Sample time [s] for the `t` column (omitted when not given)."))
@@ -88,11 +89,14 @@ def _make_command(kind: str) -> click.Command:
     def callback(**kwargs: Any) -> None:
         import numpy as np
 
-        from ..data.io import write_csv, write_npz
+        from ..data.table import TIME_COLUMN
         from ..signals import generate
+        from ._common import check_output, write_table_output
 
-        output = kwargs.pop("output")
+        output = check_output(kwargs.pop("output"), "table")
         names = [s.strip() for s in kwargs.pop("names").split(",")]
+        if TIME_COLUMN in names:
+            raise DataError(f"--name '{TIME_COLUMN}' is reserved for the time column; expected another column name.")
         dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
         if "limits" in kwargs:
             kwargs["limits"] = _limits(kwargs["limits"])
@@ -104,8 +108,7 @@ def _make_command(kind: str) -> click.Command:
         if len(names) != x2.shape[1]:
             raise SignalError(f"--names must give {x2.shape[1]} column names; got {len(names)}.")
         columns = {n: x2[:, i] for i, n in enumerate(names)}
-        writer = write_npz if str(output).lower().endswith(".npz") else write_csv
-        writer(output, columns, dt=dt_for_file)
+        write_table_output(output, columns, dt=dt_for_file)
 
     func = SIGNAL_KINDS[kind]
     summary = (inspect.getdoc(func) or kind).splitlines()[0]
