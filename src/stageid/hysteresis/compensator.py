@@ -40,7 +40,9 @@ class Compensator:
     model : PIModel or ModifiedPIModel
         The identified actuator model (its state is the starting state).
     limits : (float, float), optional
-        Drive limits in input units; default ``model.input_limits`` (unlimited if None).
+        Drive limits in input units, ``low < high``; default ``model.input_limits`` (for a
+        model from :class:`~stageid.hysteresis.PIIdentifier` the identified input range;
+        unlimited if None).  The drive is clipped to them.
     dt : float, optional
         Sampling period [s] of the reference; used only by a model's ``creep`` term (default
         its ``sample_time``).
@@ -48,7 +50,8 @@ class Compensator:
     Raises
     ------
     ModelError
-        If the model is not invertible.
+        If the model is not invertible or ``limits`` are malformed; :meth:`step` and
+        :meth:`run` raise it for a non-finite desired output (the state is then unchanged).
 
     Examples
     --------

@@ -280,7 +280,8 @@ class PIModel(_PIBase):
     inputs, outputs : tuple of one str
         Channel names, default ``("V",)`` and ``("y",)``.
     input_limits : (float, float), optional
-        Drive range, used as the default limits of the compensator.
+        Drive range, used as the default limits of the compensator (which clips to it);
+        :class:`~stageid.hysteresis.PIIdentifier` stores the identified input range here.
     creep : CreepTerm, optional
         Linear creep added to the output (:mod:`stageid.hysteresis.creep`); default none
         (rate independent).

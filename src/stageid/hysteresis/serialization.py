@@ -10,7 +10,8 @@
      "input_warp": 0.0, "warp_scale": 1.0,    # modified-pi only: optional input warp
      "weights": [...],
      "state": {"x": 0.0, "z": [...]},         # operator state to start from
-     "input_limits": [lo, hi] | null,         # drive range (compensator default)
+     "input_limits": [lo, hi] | null,         # drive range (compensator default, clipped to);
+                                              # identified models: the identified input range
      "creep": {"time_constants": [...], "weights": [...],   # optional (absent: no creep),
                "sample_time": dt, "state": null | [...]}}   # see stageid.hysteresis.creep
 
