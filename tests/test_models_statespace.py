@@ -71,6 +71,13 @@ def test_poles_and_zeros_of_known_system():
     np.testing.assert_allclose(t.zeros().real, [-3.0], atol=1e-12)
 
 
+def test_zeros_of_the_realisation_as_given_keep_decoupling_zeros():
+    # diag(-1, -5) with the second state unobservable: G(s) = 1/(s + 1), the mode at -5 a decoupling zero
+    g = StateSpaceModel([[-1.0, 0.0], [0.0, -5.0]], [[1.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    assert g.zeros().size == 0                                     # minimal realisation: no zero
+    np.testing.assert_allclose(g.zeros(minimal=False).real, [-5.0], atol=1e-10)
+
+
 def test_shape_error_names_field_and_shapes():
     with pytest.raises(ModelError, match=r"`B` must have shape \(2, 1\); got \(3, 1\)"):
         StateSpaceModel(np.eye(2), np.ones((3, 1)), np.ones((1, 2)), np.zeros((1, 1)))

@@ -111,8 +111,11 @@ def cancel_pairs(poles: np.ndarray, zeros: np.ndarray, dt: float, tol: float = 1
 def _siso_pz(g: StateSpaceModel) -> tuple[np.ndarray, np.ndarray]:
     if g.n_states == 0:
         return np.zeros(0, complex), np.zeros(0, complex)
+    # poles and zeros of the same realisation: ``g.zeros()`` would minimise ``g`` again with its own
+    # rank tolerance and may drop a state of a near-cancelling cluster (the controller's repeated
+    # slow pole), leaving that pole without its zero
     poles = np.linalg.eigvals(g.A)
-    zeros = g.zeros() if g.n_states else np.zeros(0, complex)
+    zeros = g.zeros(minimal=False)
     return poles, zeros
 
 

@@ -108,14 +108,21 @@ class StateSpaceModel:
         """Eigenvalues of ``A`` (rad/s for continuous models, z-plane for discrete)."""
         return np.linalg.eigvals(self.A) if self.n_states else np.zeros(0, dtype=complex)
 
-    def zeros(self) -> np.ndarray:
+    def zeros(self, minimal: bool = True) -> np.ndarray:
         """Transmission zeros: finite generalised eigenvalues of the Rosenbrock pencil of the
         minimal realisation (so decoupling zeros of a non-minimal model are not reported).
 
         For a non-square system the zeros are those shared by two random square
         compressions of the pencil (generically exactly the invariant zeros).
+
+        Parameters
+        ----------
+        minimal : bool
+            ``False`` takes the realisation as it is (invariant zeros, decoupling zeros included):
+            for a model already reduced with a chosen tolerance, whose poles and zeros must come
+            from the same state dimension.
         """
-        g = self.minimal()
+        g = self.minimal() if minimal else self
         n, m, p = g.n_states, g.n_inputs, g.n_outputs
         if n == 0:
             return np.zeros(0, dtype=complex)
