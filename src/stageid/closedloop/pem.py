@@ -29,6 +29,7 @@ reflected into it (Ljung 1999, sec. 10.5) before the loss is evaluated.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -144,6 +145,30 @@ def _segments(u: object, y: object) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+def _check_dt(dt: object) -> float:
+    """``dt`` as a float, or DataError unless it is a finite number of seconds > 0."""
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(float(dt)) and float(dt) > 0):
+        raise DataError(f"`dt` must be a positive, finite number of seconds; got {dt!r}.")
+    return float(dt)
+
+
+def _check_moving(segs: list[tuple[np.ndarray, np.ndarray]], structure: str) -> None:
+    """IdentificationError when the input is constant (zero range) in every record.
+
+    Like :meth:`stageid.subspace.HankelMAP.fit` with no input moving, this is refused rather
+    than warned about: a constant input (zero, or a level held since before the record) is not
+    a step the model can learn from, and the regression would otherwise return a model fitted
+    to the record's start-up transient alone.
+    """
+    if all(uu.size == 0 or np.ptp(uu) == 0 for uu, _ in segs):
+        levels = sorted({float(uu[0]) for uu, _ in segs if uu.size})
+        level = f"constant at {levels[0]:g}" if len(levels) == 1 else "constant"
+        raise IdentificationError(
+            f"the input must move in at least one record to identify the {structure} model; got an input of "
+            f"zero range ({level}) in all {len(segs)} record(s)."
+        )
+
+
 def _stabilize(poly: np.ndarray) -> np.ndarray:
     """Reflect roots of a monic polynomial in ``q^-1`` that lie outside the unit circle."""
     if poly.size <= 1:
@@ -244,7 +269,7 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
     nk : int
         Input delay in samples.
     dt : float
-        Sample time in seconds (stored in the model).
+        Sample time in seconds, finite and > 0 (stored in the model).
 
     Returns
     -------
@@ -252,8 +277,13 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
 
     Raises
     ------
+    DataError
+        When ``dt`` is not a positive finite number, or the records are ragged or not finite.
     IdentificationError
-        When the regression is rank deficient (input not persistently exciting).
+        When the input does not move (is constant, zero range) in any record, or the
+        regression is rank deficient (input not persistently exciting).  A constant input is
+        refused, not warned about, as :meth:`stageid.subspace.HankelMAP.fit` refuses data in
+        which no input moves.
 
     Examples
     --------
@@ -264,8 +294,10 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
     >>> np.round(m.A, 6).tolist(), np.round(m.B, 6).tolist()
     ([1.0, -0.8], [0.5])
     """
+    dt = _check_dt(dt)
     segs = _segments(u, y)
     _check_orders("arx", {"na": na, "nb": nb}, nk)
+    _check_moving(segs, "arx")
     rows, rhs = [], []
     for uu, yy in segs:
         rows.append(np.hstack([-_shifted(yy, na, 1), _shifted(uu, nb, nk)]))
@@ -276,7 +308,7 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
     A = np.concatenate([[1.0], theta[:na]])
     B = theta[na:]
     res = np.concatenate([_residual(A, B, np.ones(1), np.ones(1), np.ones(1), nk, uu, yy) for uu, yy in segs])
-    return PolynomialModel(A, B, np.ones(1), np.ones(1), np.ones(1), int(nk), float(dt), "arx",
+    return PolynomialModel(A, B, np.ones(1), np.ones(1), np.ones(1), int(nk), dt, "arx",
                            float(np.mean(res**2)), res.size)
 
 
@@ -333,7 +365,7 @@ def pem(
     nk : int
         Input delay in samples (1 for a sampled strictly proper loop).
     dt : float
-        Sample time in seconds, stored in the result.
+        Sample time in seconds, finite and > 0, stored in the result.
     max_nfev : int
         Limit on loss evaluations of the optimiser.
     initial : PolynomialModel, optional
@@ -347,8 +379,11 @@ def pem(
 
     Raises
     ------
+    DataError
+        ``dt`` not a positive finite number; ragged, non-finite or too short records.
     IdentificationError
-        Unknown structure, bad orders, or data that do not excite the model.
+        Unknown structure, bad orders, or data that do not excite the model (among them an
+        input that is constant in every record, refused as in :func:`arx`).
 
     Examples
     --------
@@ -361,11 +396,13 @@ def pem(
     True
     """
     orders = _check_orders(structure, dict(orders or {}), nk)
+    dt = _check_dt(dt)
     segs = _segments(u, y)
     n_total = sum(s[0].size for s in segs)
     n_par = sum(orders.values())
     if n_total < 3 * n_par + 10:
         raise DataError(f"a {structure} model with {n_par} parameters needs at least {3 * n_par + 10} samples; got {n_total}.")
+    _check_moving(segs, structure)
     if initial is not None:
         A, B, C, D, F = (np.asarray(p, float) for p in (initial.A, initial.B, initial.C, initial.D, initial.F))
         A = _fit_len(A, orders["na"] + 1, monic=True)
@@ -416,7 +453,7 @@ def pem(
     res = fun(_pack(A, B, C, D, F)) * yscale
     if not np.all(np.isfinite(res)):
         raise IdentificationError(f"the {structure} prediction-error optimisation diverged (non-finite residuals).")
-    return PolynomialModel(A, B * yscale, C, D, F, int(nk), float(dt), structure, float(np.mean(res**2)), res.size,
+    return PolynomialModel(A, B * yscale, C, D, F, int(nk), dt, structure, float(np.mean(res**2)), res.size,
                            int(sol.nfev), bool(sol.status > 0))
 
 
@@ -487,8 +524,11 @@ def select_order(
 
     Raises
     ------
+    DataError
+        ``dt`` not a positive finite number; ragged or non-finite records.
     IdentificationError
-        When no order could be fitted or the criterion is unknown.
+        When no order could be fitted, the criterion is unknown, or the input is constant in
+        every record (as in :func:`arx`).
 
     Examples
     --------
@@ -501,6 +541,10 @@ def select_order(
     """
     if criterion not in ("bic", "aic"):
         raise IdentificationError(f"`criterion` must be 'bic' or 'aic'; got {criterion!r}.")
+    if structure not in STRUCTURES:
+        raise IdentificationError(f"`structure` must be one of {', '.join(STRUCTURES)}; got {structure!r}.")
+    dt = _check_dt(dt)
+    _check_moving(_segments(u, y), structure)
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
