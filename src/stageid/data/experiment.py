@@ -7,6 +7,7 @@ never modified and a result can never alter the data it was fitted on.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, replace
 from typing import Sequence
 
@@ -157,11 +158,40 @@ class Experiment:
         return replace(self, **changes)
 
     def slice(self, start: int = 0, stop: int | None = None) -> "Experiment":
-        """Return samples ``start:stop`` as a new experiment (``t0`` follows)."""
-        stop = self.n_samples if stop is None else stop
-        if not (0 <= start < stop <= self.n_samples):
-            raise DataError(f"slice must satisfy 0 <= start < stop <= {self.n_samples}; got start={start}, stop={stop}.")
-        return replace(self, u=self.u[start:stop], y=self.y[start:stop], t0=self.t0 + start * self.dt)
+        """Return samples ``start:stop`` as a new experiment (``t0`` follows).
+
+        Parameters
+        ----------
+        start, stop : int
+            Sample indices (not times), ``0 <= start < stop <= n_samples``, as in
+            ``u[start:stop]``; ``stop=None`` means the end of the record.  Any integral
+            number is accepted (``2``, ``numpy.int64(2)``, ``2.0``); to cut at a time ``t``
+            in seconds pass ``round((t - t0) / dt)``.
+
+        Returns
+        -------
+        Experiment
+            A copy holding rows ``start`` to ``stop - 1``, with ``t0 + start * dt``.
+
+        Raises
+        ------
+        DataError
+            When an index is not an integral number (e.g. ``1.5`` or ``"2"``), or the
+            indices are reversed, empty or outside the record.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> exp = Experiment(u=np.arange(10.0), y=np.arange(10.0), dt=0.5)
+        >>> part = exp.slice(2.0, 6)
+        >>> part.n_samples, part.t0
+        (4, 1.0)
+        """
+        i0 = _sample_index("start", start, self.n_samples)
+        i1 = self.n_samples if stop is None else _sample_index("stop", stop, self.n_samples)
+        if not (0 <= i0 < i1 <= self.n_samples):
+            raise DataError(f"slice must satisfy 0 <= start < stop <= {self.n_samples}; got start={start!r}, stop={stop!r}.")
+        return replace(self, u=self.u[i0:i1], y=self.y[i0:i1], t0=self.t0 + i0 * self.dt)
 
     def select(self, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> "Experiment":
         """Keep only the named channels, in the order given."""
@@ -187,6 +217,19 @@ class Experiment:
             f"Experiment(name={self.name!r}, n_samples={self.n_samples}, dt={self.dt:g}, "
             f"inputs={list(self.input_names)}, outputs={list(self.output_names)})"
         )
+
+
+def _sample_index(param: str, value: object, n_samples: int) -> int:
+    """``value`` as an int sample index, or DataError unless it is an integral real number."""
+    if not isinstance(value, bool) and isinstance(value, numbers.Integral):
+        return int(value)
+    hint = ""
+    if not isinstance(value, bool) and isinstance(value, numbers.Real):
+        if float(value).is_integer():
+            return int(value)
+        if np.isfinite(float(value)):
+            hint = " (indices count samples; for a time t in seconds pass round((t - t0) / dt))"
+    raise DataError(f"`{param}` of Experiment.slice must be an integer sample index in 0..{n_samples}; got {value!r}{hint}.")
 
 
 def _indices(kind: str, names: tuple[str, ...], wanted: Sequence[str] | None) -> list[int]:
