@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..models import StateSpaceModel, TransferMatrix
+from . import _check_seed
 
 __all__ = ["model", "controller", "controller_continuous", "lead_lag", "simulate_chirp", "EXPERIMENTS", "DT",
            "CROSSOVER_HZ", "UNSTABLE_POLES", "INPUTS", "OUTPUTS"]
@@ -135,6 +136,11 @@ def simulate_chirp(axis: str, seed: int = 0, snr_db: float | None = 80.0, amplit
     stageid.data.Table
         Columns ``r_x, r_y, r_phi`` (references), ``Fx, Fy, Tphi`` (plant inputs) and
         ``x, y, phi`` (measured outputs, noise at ``snr_db`` per channel), ``dt`` = 0.2 ms.
+
+    Raises
+    ------
+    SignalError
+        When ``seed`` (of the measurement noise) is not an integer >= 0.
     """
     from ..closedloop.validation import simulate_closed_loop
     from ..data.table import Table
@@ -142,6 +148,7 @@ def simulate_chirp(axis: str, seed: int = 0, snr_db: float | None = 80.0, amplit
 
     if axis not in OUTPUTS:
         raise ValueError(f"`axis` must be one of {', '.join(OUTPUTS)}; got {axis!r}.")
+    seed = _check_seed(seed, f"chirp-{axis}")
     r1 = chirp(0.0, f1, duration=duration, dt=DT, amplitude=amplitude)
     R = np.zeros((r1.size, 3))
     R[:, OUTPUTS.index(axis)] = r1

@@ -43,6 +43,7 @@ import numpy as np
 
 from .._errors import ModelError
 from ..data.experiment import Experiment
+from . import _check_seed
 
 __all__ = ["PiezoActuator", "model", "EXPERIMENTS", "open_loop_gain"]
 
@@ -206,18 +207,21 @@ def _experiment(u: np.ndarray, dt: float, name: str, seed: int, actuator: PiezoA
 def _decaying_triangle(seed: int = 0) -> Experiment:
     from ..signals import decaying_triangle
 
+    seed = _check_seed(seed, "decaying-triangle")
     return _experiment(decaying_triangle(1.0, 10, 1e-3, amplitude=V_MAX), 1e-3, "decaying-triangle", seed)
 
 
 def _triangle(seed: int = 0) -> Experiment:
     from ..signals import triangle
 
+    seed = _check_seed(seed, "triangle-1hz")
     return _experiment(triangle(1.0, 3, 1e-3, amplitude=450.0), 1e-3, "triangle-1hz", seed)
 
 
 def _decaying_sine(seed: int = 0) -> Experiment:
     from ..signals import decaying_sine
 
+    seed = _check_seed(seed, "decaying-sine")
     u = decaying_sine(0.5, 6, 1e-3, amplitude=480.0, decay="exponential", final_fraction=0.2)
     return _experiment(u, 1e-3, "decaying-sine", seed)
 
