@@ -22,7 +22,7 @@ Examples:
                    "warning tells when the reference needs drives outside the model's input_limits.")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when REF has no `t` column.")
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
-              help="Drive CSV: columns `t` and the model's input name.")
+              help="Drive .csv or .npz (by extension): columns `t` and the model's input name.")
 def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: float | None, out: str) -> None:
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
@@ -30,12 +30,12 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     by sample (exact to 1e-12). The drive starts from the model's stored state; a model with a
     creep term is inverted at the reference file's sampling period.
     """
-    from ..data.io import write_csv
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
     from ..models import load_model
-    from ._common import read_table_checked, split_names
+    from ._common import check_output, read_table_checked, split_names, write_table_output
 
+    check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)
     if not isinstance(model, (PIModel, ModifiedPIModel)):
         raise DataError(f"'{model_path}' is not a hysteresis model (stageid.hysteresis/1); got {type(model).__name__}.")
@@ -54,7 +54,7 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
     # a creep term (rate dependent) runs at the reference's sampling period
     u = Compensator(model, limits=lim, dt=table.dt).run(yref)
-    write_csv(out, {model.inputs[0]: u[:, 0]}, dt=table.dt, t0=table.t0)
+    write_table_output(out, {model.inputs[0]: u[:, 0]}, dt=table.dt, t0=table.t0)
     _warn_outside_range(model, lim, u[:, 0])
 
 

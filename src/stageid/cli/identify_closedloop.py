@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import atomic_output, split_names
+from ._common import check_output, check_output_folder, split_names, write_model_output
 
 
 def _band(text: str) -> tuple[float, float]:
@@ -57,9 +57,13 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
     from ..closedloop import ClosedLoopIdentification
     from ..closedloop.validation import controller_residual
     from ..data import as_experiments
-    from ..models import load_model, save_model
+    from ..models import load_model
     from ._common import read_table_checked
 
+    # a bad -o or --report is refused before the records are read or any loop is fitted
+    check_output(output, "model")
+    if report_dir is not None:
+        check_output_folder(report_dir)
     refs = split_names(references, "--references")
     outs = split_names(outputs, "--outputs")
     assert refs is not None and outs is not None
@@ -121,8 +125,7 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
                 f"misses [0, 2] by {100 * diag[k]:.1f} % over {band[0]:g}-{band[1]:g} Hz (expected < 5 %); the loop was probably "
                 "not closed by this controller (or the plant is not of this structure: try --structure full)."
             )
-    with atomic_output(output) as tmp:
-        save_model(result.plant, tmp)
+    write_model_output(output, result.plant)
     click.echo(result.summary(), err=True)
     if report_dir is not None:
         _write_report(result, exps, result.controller, report_dir)
@@ -135,7 +138,7 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
     from ..closedloop import empirical_transfer, reclose_loop
     from ..plots import time_overlay_figure
     from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero
-    from ..report import Report, write_metrics
+    from ..report import Report, write_report_folder
     from ..validation import fit_percent
 
     dt = result.dt
@@ -162,6 +165,5 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
         report.figure(time_overlay_figure(e.time, e.y, {"re-closed loop": ysim}, e.output_names, e.output_units,
                                           title=f"{e.name}: identified plant re-closed with the known controller"),
                       f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).")
-    path = report.write(report_dir)
-    write_metrics(report_dir, metrics)
+    path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
     click.echo(f"report written to {path}", err=True)

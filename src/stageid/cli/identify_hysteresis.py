@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import atomic_output
+from ._common import check_output, check_output_folder, write_model_output
 
 
 def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | None:
@@ -59,15 +59,16 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
     RMS error of the fit in % of each record's output range.
     """
     from ..hysteresis import PIIdentifier
-    from ..models.serialization import atomic_write_text, dumps
     from ._common import read_experiments
 
+    # a bad -o or --report is refused before the records are read or any model is fitted
+    check_output(out, "model")
+    if report_dir is not None:
+        check_output_folder(report_dir)
     exps = read_experiments(list(data), [input_name], [output_name], ts)
     fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp,
                        creep_time_constants=creep).fit(list(exps))
-    text = dumps(fit.model.to_dict())
-    with atomic_output(out) as tmp:
-        atomic_write_text(tmp, text)
+    write_model_output(out, fit.model)
     if not quiet:
         click.echo(fit.summary())
     if report_dir is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import atomic_output, read_experiments, split_names
+from ._common import check_output, check_output_folder, read_experiments, split_names, write_model_output
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> "int | str | list[int]":
@@ -56,9 +56,12 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
     """
     import warnings
 
-    from ..models import save_model
     from ..subspace.estimator import HankelMAP
 
+    # a bad -o or --report is refused before the records are read or any model is fitted
+    check_output(output, "model")
+    if report_dir is not None:
+        check_output_folder(report_dir)
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     assert ins is not None and outs is not None
@@ -81,8 +84,7 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = est.fit(exps)
-    with atomic_output(output) as tmp:
-        save_model(result.model, tmp)
+    write_model_output(output, result.model)
     seen = set()
     for w in caught:
         text = " ".join(str(w.message).split())  # one line per warning, each once

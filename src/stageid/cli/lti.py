@@ -16,7 +16,8 @@ Examples:
 """)
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("input_path", metavar="INPUT.(csv|npz|mat)", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Output CSV: `t` then one column per model output.")
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
+              help="Output .csv or .npz (by extension): `t` then one column per model output.")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when the input file has no `t` column (default: the model's dt).")
 def simulate_command(model_path: str, input_path: str, output: str, ts: float | None) -> None:
     """Simulate MODEL.json (LTI or hysteresis) driven by the columns of INPUT named like the model's inputs.
@@ -26,10 +27,10 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     """
     import numpy as np
 
-    from ..data.io import write_csv
-    from ._common import read_table_checked
     from ..models import load_model
+    from ._common import check_output, read_table_checked, write_table_output
 
+    check_output(output, "table")  # a bad -o is refused before the model is loaded or run
     model = load_model(model_path)
     model_dt = getattr(model, "dt", None)
     rate_independent = not hasattr(model, "frequency_response")  # hysteresis models need no sample time
@@ -41,9 +42,9 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     y = model.simulate(u, dt=table.dt)
     columns = {name: y[:, k] for k, name in enumerate(model.outputs)}
     if rate_independent and ts is None and file_ts is not None:
-        write_csv(output, columns)  # the input had no time axis: none is invented for the output
+        write_table_output(output, columns)  # the input had no time axis: none is invented for the output
     else:
-        write_csv(output, columns, dt=table.dt, t0=table.t0)
+        write_table_output(output, columns, dt=table.dt, t0=table.t0)
 
 
 def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> float | None:

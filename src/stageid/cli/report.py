@@ -46,6 +46,10 @@ def report_command(model_path: str, data: tuple[str, ...], inputs: str | None, o
     model = load_model(model_path)
     ins = split_names(inputs, "--inputs") or tuple(model.inputs)
     outs = split_names(outputs, "--outputs") or tuple(model.outputs)
+    # the data's columns are renamed to the model's channels, one for one: check the counts
+    # here, where the message can say which side is which
+    _check_count("--inputs", ins, "inputs", tuple(model.inputs))
+    _check_count("--outputs", outs, "outputs", tuple(model.outputs))
     if ts is None and getattr(model, "dt", None) is not None:
         ts_used = None
     else:
@@ -56,3 +60,15 @@ def report_command(model_path: str, data: tuple[str, ...], inputs: str | None, o
         experiments = tuple(renamed)
     path = write_report(model, experiments, out_dir, title)
     click.echo(f"report written to {path}")
+
+
+def _check_count(option: str, given: tuple[str, ...], side: str, model_names: tuple[str, ...]) -> None:
+    """Refuse a renaming list whose length differs from the model's channels on ``side``.
+
+    Example message: ``--inputs: expected 3 names for the model's inputs (a,b,c); got 2 (x,y).``
+    """
+    if len(given) != len(model_names):
+        raise click.UsageError(
+            f"{option}: expected {len(model_names)} name{'s' if len(model_names) != 1 else ''} for the model's {side} "
+            f"({','.join(model_names)}); got {len(given)} ({','.join(given)})."
+        )

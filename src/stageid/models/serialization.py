@@ -103,7 +103,13 @@ def model_from_dict(d: Any) -> Any:
         raise ModelFormatError(f"a model file must hold a JSON object; got {type(d).__name__}.")
     fmt = d.get("format")
     if fmt is None:
-        raise ModelFormatError("`format` is missing; expected e.g. \"stageid.lti/1\".")
+        if "format" in d:
+            came = "`format`: null"
+        else:
+            keys = sorted(map(str, d))
+            shown = ", ".join(keys[:8]) + (", ..." if len(keys) > 8 else "")
+            came = f"an object without it (keys: {shown})" if keys else "an empty object"
+        raise ModelFormatError(f"`format` is missing; expected one of {', '.join(sorted(_FORMATS))}; got {came}.")
     if fmt not in _FORMATS:
         raise ModelFormatError(f"unknown model format {fmt!r}; expected one of {', '.join(sorted(_FORMATS))}.")
     module, func = _FORMATS[fmt].split(":")
