@@ -232,8 +232,10 @@ def deduce_siso(num_t: np.ndarray, den_t: np.ndarray, num_m: np.ndarray, den_m: 
     Examples
     --------
     >>> num, den = deduce_siso([0.0, 1.0], [1.0, 0.5], [2.0], [1.0])
-    >>> np.round(np.roots(den), 6).tolist()   # A = z + 0.5 twice and A - B = z - 0.5
-    [-0.5, 0.5, -0.5]
+    >>> np.round(np.roots(den), 6).tolist()   # A = z + 0.5 and A - B = z - 0.5
+    [-0.5, 0.5]
+    >>> np.round(np.roots(num), 6).tolist()   # A again: the spurious pair at z = -0.5
+    [-0.5]
     """
     B = np.atleast_1d(np.asarray(num_t, dtype=float))
     A = np.atleast_1d(np.asarray(den_t, dtype=float))

@@ -70,7 +70,7 @@ def model(published: bool = False) -> TransferMatrix:
     --------
     >>> g = model()
     >>> round(float(g.dc_gain()[0, 0]), 10)                  # 3.1845 / (-54.62 * 76.91)
-    -0.0007580702
+    -0.0007580655
     """
     s_xphi = 9.74 if published else -9.74
     num = [
@@ -96,7 +96,7 @@ def lead_lag(k_plant: float, unstable_pole: float, stable_pole: float, crossover
     --------
     >>> num, den = lead_lag(3.1845, 54.62, 76.91)
     >>> s = 2j * np.pi * 110
-    >>> round(abs(3.1845 / ((s - 54.62) * (s + 76.91)) * np.polyval(num, s) / np.polyval(den, s)), 9)
+    >>> float(round(abs(3.1845 / ((s - 54.62) * (s + 76.91)) * np.polyval(num, s) / np.polyval(den, s)), 9))
     1.0
     """
     wc = 2 * np.pi * crossover_hz
