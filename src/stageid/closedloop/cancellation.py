@@ -165,6 +165,7 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
     dt = plant.dt
     f_ref = 0.1 / (2 * dt) if f_ref_hz is None else float(f_ref_hz)
     f_grid = np.geomspace(max(f_ref / 100, 1e-3 / dt), 0.45 / dt, 400)
+    G_grid = plant.frequency_response(f_grid)      # once for all entries (one Hessenberg form)
     reports = []
     num_rows, den_rows = [], []
     for i in range(plant.n_outputs):
@@ -176,7 +177,7 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
             kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
             # rebuild the numerator over a wide grid with the kept poles fixed (linear least squares on
             # the entry's own response): robust when a pencil zero of a large entry is inaccurate
-            kz, gain = _refit_numerator(plant, i, j, kp, kz.size, f_grid)
+            kz, gain = _refit_numerator(plant.dt, G_grid[:, i, j], kp, kz.size, f_grid)
             rep = EntryPoleZero(i, j, poles, zeros, kp, kz, gain, pairs)
             reports.append(rep)
             num, den = rep.polynomials()
@@ -187,13 +188,12 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
     return TransferMatrix(num_rows, den_rows, dt, plant.inputs, plant.outputs), tuple(reports)
 
 
-def _refit_numerator(plant: StateSpaceModel, i: int, j: int, kept_poles: np.ndarray, n_zeros: int,
+def _refit_numerator(dt: float, G: np.ndarray, kept_poles: np.ndarray, n_zeros: int,
                      f_grid: np.ndarray) -> tuple[np.ndarray, float]:
-    """Zeros and gain of entry ``(i, j)`` given its kept poles: ``N(z) = G(z) D(z)`` fitted in the
-    relative sense over ``f_grid``; the numerator degree is ``n_zeros``, raised if needed up
-    to ``n_poles - 1`` (strictly proper) until the fit stops improving by 10x."""
-    z = np.exp(2j * np.pi * f_grid * plant.dt)
-    G = np.array([_entry_response(plant, i, j, f) for f in f_grid])
+    """Zeros and gain of an entry with response ``G`` over ``f_grid``, given its kept poles:
+    ``N(z) = G(z) D(z)`` fitted in the relative sense; the numerator degree is ``n_zeros``,
+    raised if needed up to ``n_poles - 1`` (strictly proper) until the fit stops improving by 10x."""
+    z = np.exp(2j * np.pi * f_grid * dt)
     den = np.real(np.poly(kept_poles)) if kept_poles.size else np.array([1.0])
     target = G * np.polyval(den, z)
     w = 1.0 / np.maximum(np.abs(target), 1e-300)
@@ -209,15 +209,6 @@ def _refit_numerator(plant: StateSpaceModel, i: int, j: int, kept_poles: np.ndar
     b = b[nz[0]:] if nz.size else b
     zeros = np.roots(b) if b.size > 1 else np.zeros(0, complex)
     return zeros, float(b[0])
-
-
-def _entry_response(plant: StateSpaceModel, i: int, j: int, f_hz: float) -> complex:
-    z = np.exp(2j * np.pi * f_hz * plant.dt)
-    n = plant.n_states
-    val = plant.D[i, j]
-    if n:
-        val = val + (plant.C[[i]] @ np.linalg.solve(z * np.eye(n) - plant.A, plant.B[:, [j]]))[0, 0]
-    return complex(val)
 
 
 def pole_contributions(plant: StateSpaceModel, poles_z: np.ndarray, freqs_hz: np.ndarray) -> np.ndarray:
@@ -243,7 +234,7 @@ def pole_contributions(plant: StateSpaceModel, poles_z: np.ndarray, freqs_hz: np
     C = plant.C * tdiag[None, :]
     lam, V = np.linalg.eig(A)
     z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * plant.dt)
-    G = np.array([[[_entry_response(plant, i, j, f) for j in range(plant.n_inputs)] for i in range(plant.n_outputs)] for f in freqs_hz])
+    G = plant.frequency_response(freqs_hz)
     scale = np.max(np.abs(G), axis=0)
     for k, pz in enumerate(poles_z):
         m = int(np.argmin(np.abs(lam - pz)))

@@ -19,6 +19,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .._errors import DataError, IdentificationError, ModelError
+from .._threads import single_blas_thread
 from ..data import Experiment, as_experiments
 from ..models import StateSpaceModel, TransferMatrix
 from .cancellation import CancelledPair, EntryPoleZero, cancel_entries, z_to_s
@@ -253,6 +254,7 @@ class ClosedLoopIdentification:
                 "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[self.method]
 
     # ---------------------------------------------------------------- fit
+    @single_blas_thread
     def fit(self, data: Experiment | Sequence[Experiment]) -> ClosedLoopResult:
         """Identify the plant from closed-loop experiments.
 

@@ -57,6 +57,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .._errors import DataError, IdentificationError, ModelError
+from .._threads import single_blas_thread
 from .operators import OperatorState
 from .pi import STATE_KINDS, ModifiedPIModel, PIModel
 
@@ -294,6 +295,7 @@ class PIIdentifier:
                 raise IdentificationError(f"`creep_time_constants` of PIIdentifier must be positive seconds; got {self.creep_time_constants!r}.")
 
     # ------------------------------------------------------------------ fit
+    @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
         """Identify the model from one or several records.
 

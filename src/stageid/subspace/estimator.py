@@ -35,6 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .._errors import DataError, ExcitationWarning, IdentificationError, StabilityWarning
+from .._threads import single_blas_thread
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, segments_statistics, theta_frequency_response,
@@ -120,6 +121,7 @@ class HankelMAPResult:
         return self.channels[0].horizon
 
     # -------------------------------------------------------------- online use
+    @single_blas_thread
     def update(self, data: "Experiment | Sequence[Experiment]") -> "HankelMAPResult":
         """Fold new records into the posterior (eq. 17-18) and return a new result.
 
@@ -353,6 +355,7 @@ class HankelMAP:
                 raise DataError(f"prior strength must be > 0 and finite; got {self.prior!r}.")
 
     # --------------------------------------------------------------------- fit
+    @single_blas_thread
     def fit(self, data: "Experiment | Sequence[Experiment]") -> HankelMAPResult:
         """Identify a model from one or several records.
 

@@ -1,0 +1,61 @@
+"""Fits run with one BLAS thread and restore the caller's thread pool afterwards."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from stageid._threads import single_blas_thread
+
+
+def _blas_threads() -> list[int]:
+    return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+
+
+@pytest.fixture
+def blas():
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool visible to threadpoolctl")
+
+
+def test_fit_runs_single_threaded_and_restores(blas, monkeypatch):
+    monkeypatch.delenv("STAGEID_BLAS_THREADS", raising=False)
+    seen = []
+
+    @single_blas_thread
+    def fit():
+        seen.extend(_blas_threads())
+        return np.linalg.solve(np.eye(3) * 2.0, np.ones(3))
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        np.testing.assert_allclose(fit(), 0.5)
+        assert _blas_threads() == before
+    assert seen and set(seen) == {1}
+
+
+def test_environment_overrides(blas, monkeypatch):
+    seen = []
+
+    @single_blas_thread
+    def fit():
+        seen.extend(_blas_threads())
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        monkeypatch.setenv("STAGEID_BLAS_THREADS", "0")      # leave the pool as it is
+        fit()
+        assert set(seen) == {2}
+        seen.clear()
+        monkeypatch.setenv("STAGEID_BLAS_THREADS", "2")
+        fit()
+        assert set(seen) == {2}
+
+
+def test_estimators_are_wrapped():
+    from stageid.closedloop import ClosedLoopIdentification
+    from stageid.hysteresis import PIIdentifier
+    from stageid.subspace import HankelMAP
+
+    for fn in (HankelMAP.fit, ClosedLoopIdentification.fit, PIIdentifier.fit):
+        assert getattr(fn, "__wrapped__", None) is not None, fn
