@@ -41,8 +41,10 @@ class Compensator:
         The identified actuator model (its state is the starting state).
     limits : (float, float), optional
         Drive limits in input units, ``low < high``; default ``model.input_limits`` (for a
-        model from :class:`~stageid.hysteresis.PIIdentifier` the identified input range;
-        unlimited if None).  The drive is clipped to them.
+        model from :class:`~stageid.hysteresis.PIIdentifier` the identified input range).
+        The drive is clipped to them, silently (the ``stageid compensate`` command warns).
+        The drive is unlimited only when both ``limits`` and ``model.input_limits`` are None;
+        pass ``(-numpy.inf, numpy.inf)`` to lift a model's own limits.
     dt : float, optional
         Sampling period [s] of the reference; used only by a model's ``creep`` term (default
         its ``sample_time``).
@@ -197,8 +199,8 @@ def compensate(model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[fl
         Desired outputs (finite).
     limits : (float, float), optional
         Drive limits ``(low, high)``, ``low < high``; default ``model.input_limits`` (an
-        identified model's identified input range), unlimited if None.  The drive is clipped
-        to them.
+        identified model's identified input range).  The drive is clipped to them; it is
+        unlimited only when both are None (``(-numpy.inf, numpy.inf)`` lifts a model's limits).
 
     Returns
     -------
