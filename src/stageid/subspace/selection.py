@@ -10,7 +10,9 @@ on data not used for the fit.  Here:
   held-out windows, which follows from the held-out :class:`WindowStatistics` alone
   (no pass over the data per candidate);
 * the order is chosen by the simulation error on the held-out segments of each candidate
-  model realised from the training segments (the smallest order within 0.1 % of the best).
+  model realised from the training segments (the smallest order within 0.1 % of the best);
+* both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
+  std of each output), so that small noise-dominated coupling outputs do not decide.
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ class SelectionTable:
     """Error versus a hyper-parameter (``kind`` = "horizon" or "order").
 
     ``values[i]`` was scored ``errors[i]`` (normalised: error energy / output energy, mean
-    over outputs; ``inf`` for unusable candidates); ``chosen`` is the selected value.
+    over outputs, or with output weights the ratio of the weighted sums; ``inf`` for unusable
+    candidates); ``chosen`` is the selected value.
     """
 
     kind: str
@@ -57,11 +60,13 @@ def default_horizons(n_inputs: int, n_outputs: int, n_windows: int, max_regresso
     return ok
 
 
-def prediction_error(theta: np.ndarray, stats: WindowStatistics) -> float:
+def prediction_error(theta: np.ndarray, stats: WindowStatistics, weights: np.ndarray | None = None) -> float:
     """Normalised held-out multi-step prediction error of eq. 9.
 
     ``sum ||y_p - theta x||^2 / sum ||y_p||^2`` per output channel (over all ``p`` block rows),
-    averaged over the output channels.
+    averaged over the output channels; with ``weights`` (one per output, e.g. the inverse noise
+    std) the ratio of the weighted sums ``sum_i w_i^2 err_i / sum_i w_i^2 energy_i`` instead
+    (the same when ``w_i^2`` is proportional to ``1 / energy_i``).
     """
     XX, YX, YY = stats.blocks()
     T = theta @ YX.T
@@ -70,15 +75,25 @@ def prediction_error(theta: np.ndarray, stats: WindowStatistics) -> float:
     res_c = res.reshape(stats.horizon, q).sum(axis=0)
     energy = np.diag(YY).reshape(stats.horizon, q).sum(axis=0)
     energy = np.where(energy > 0, energy, 1.0)
-    return float(np.mean(np.clip(res_c, 0.0, None) / energy))
+    return _normalised(np.clip(res_c, 0.0, None), energy, weights)
 
 
-def simulation_error(model, experiments: Sequence, scored: Sequence[Sequence[tuple[int, int]]]) -> float:
+def _normalised(err: np.ndarray, energy: np.ndarray, weights: np.ndarray | None) -> float:
+    """``mean(err / energy)``, or ``sum(w^2 err) / sum(w^2 energy)`` with weights."""
+    if weights is None:
+        return float(np.mean(err / energy))
+    w2 = np.asarray(weights, dtype=float) ** 2
+    return float(np.sum(w2 * err) / max(float(np.sum(w2 * energy)), 1e-300))
+
+
+def simulation_error(model, experiments: Sequence, scored: Sequence[Sequence[tuple[int, int]]],
+                     weights: np.ndarray | None = None) -> float:
     """Normalised simulation error of ``model`` on the held-out ranges of each (mean-removed) record.
 
     Each record is simulated from rest over its full length (so every held-out range starts
     from a consistent state) and only the samples in ``scored[i]`` (``(start, stop)`` pairs)
-    count; the error energy over the variation energy, averaged over the outputs.
+    count; the error energy over the variation energy, averaged over the outputs (with
+    ``weights``, the ratio of the weighted sums as in :func:`prediction_error`).
     """
     if not model.is_stable():
         return float("inf")
@@ -91,5 +106,5 @@ def simulation_error(model, experiments: Sequence, scored: Sequence[Sequence[tup
             num = num + np.sum(e ** 2, axis=0)
             den = den + np.sum(yy ** 2, axis=0)
     den = np.where(np.asarray(den) > 0, den, 1.0)
-    val = float(np.mean(np.asarray(num) / den))
+    val = _normalised(np.asarray(num), den, weights)
     return val if np.isfinite(val) else float("inf")
