@@ -183,9 +183,15 @@ def _stabilize(poly: np.ndarray) -> np.ndarray:
 
 
 def _residual(A, B, C, D, F, nk, u, y) -> np.ndarray:
+    return _residual_parts(A, B, C, D, F, nk, u, y)[2]
+
+
+def _residual_parts(A, B, C, D, F, nk, u, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(B/F u, A y - B/F u, e)``: the prediction error and the signals its Jacobian reuses."""
     bu = np.concatenate([np.zeros(nk), B])
-    w = ss.lfilter(A, [1.0], y) - ss.lfilter(bu, F, u)
-    return ss.lfilter(D, C, w)
+    yu = ss.lfilter(bu, F, u)                       # B/F u
+    w = ss.lfilter(A, [1.0], y) - yu                 # A y - B/F u
+    return yu, w, ss.lfilter(D, C, w)
 
 
 def _unpack(theta: np.ndarray, orders: dict[str, int]):
@@ -209,33 +215,69 @@ def _pack(A, B, C, D, F) -> np.ndarray:
 
 def _shifted(x: np.ndarray, lags: int, start: int) -> np.ndarray:
     """Columns x(t - start - k), k = 0..lags-1 (zeros before the record), shape (n, lags)."""
-    n = x.size
-    out = np.zeros((n, lags))
-    for k in range(lags):
-        s = start + k
-        if s < n:
-            out[s:, k] = x[: n - s]
+    out = np.empty((x.size, lags))
+    _fill_shifted(out, x, start)
     return out
 
 
-def _jacobian(A, B, C, D, F, nk, orders, u, y) -> np.ndarray:
-    bu = np.concatenate([np.zeros(nk), B])
-    yu = ss.lfilter(bu, F, u)                       # B/F u
-    w = ss.lfilter(A, [1.0], y) - yu                 # A y - B/F u
-    e = ss.lfilter(D, C, w)
-    cols = []
+def _fill_shifted(out: np.ndarray, x: np.ndarray, start: int, negate: bool = False) -> None:
+    """Write the columns of ``_shifted(x, out.shape[1], start)`` (negated if asked) into ``out``.
+
+    ``out`` may be a column block of a larger row-major matrix, so the regressors are written
+    in place instead of building, negating and stacking separate column blocks.
+    """
+    n, lags = out.shape
+    zero = -0.0 if negate else 0.0  # the sign -_shifted(...) gives the leading zeros
+    for k in range(lags):
+        s = min(start + k, n)
+        out[:s, k] = zero
+        if negate:
+            np.negative(x[: n - s], out=out[s:, k])
+        else:
+            out[s:, k] = x[: n - s]
+
+
+def _regressor(blocks: list[list[tuple[np.ndarray, int, int, bool]]], rows: int,
+               out: np.ndarray | None = None) -> np.ndarray:
+    """Stack shifted-signal blocks into one (rows, n_columns) matrix, record by record.
+
+    ``blocks[r]`` lists ``(signal, lags, start, negate)`` for record ``r``; the columns of a
+    record are ``[+/-_shifted(signal, lags, start), ...]`` side by side and the records are
+    stacked below each other (what ``np.vstack`` of ``np.hstack``-ed blocks gives).
+    """
+    ncol = sum(b[1] for b in blocks[0]) if blocks else 0
+    if out is None:
+        out = np.empty((rows, ncol))
+    r0 = 0
+    for rec in blocks:
+        n = rec[0][0].size if rec else 0
+        c0 = 0
+        for sig, lags, start, negate in rec:
+            _fill_shifted(out[r0:r0 + n, c0:c0 + lags], sig, start, negate)
+            c0 += lags
+        r0 += n
+    return out
+
+
+def _jacobian(A, B, C, D, F, nk, orders, u, y, parts=None, out=None) -> np.ndarray:
+    """d e / d theta for one record, shape (n, n_par); ``parts`` = ``_residual_parts(...)`` if known.
+
+    With ``out`` (a (n, n_par) view) the columns are written there and ``out`` is returned.
+    """
+    yu, w, e = _residual_parts(A, B, C, D, F, nk, u, y) if parts is None else parts
+    blocks = []
     if orders["na"]:
-        cols.append(_shifted(ss.lfilter(D, C, y), orders["na"], 1))
+        blocks.append((ss.lfilter(D, C, y), orders["na"], 1, False))
     DCF = np.convolve(C, F)
     if orders["nb"]:
-        cols.append(-_shifted(ss.lfilter(D, DCF, u), orders["nb"], nk))
+        blocks.append((ss.lfilter(D, DCF, u), orders["nb"], nk, True))
     if orders["nc"]:
-        cols.append(-_shifted(ss.lfilter([1.0], C, e), orders["nc"], 1))
+        blocks.append((ss.lfilter([1.0], C, e), orders["nc"], 1, True))
     if orders["nd"]:
-        cols.append(_shifted(ss.lfilter([1.0], C, w), orders["nd"], 1))
+        blocks.append((ss.lfilter([1.0], C, w), orders["nd"], 1, False))
     if orders["nf"]:
-        cols.append(_shifted(ss.lfilter(D, DCF, yu), orders["nf"], 1))
-    return np.hstack(cols)
+        blocks.append((ss.lfilter(D, DCF, yu), orders["nf"], 1, False))
+    return _regressor([blocks], u.size, out=out)
 
 
 def _check_orders(structure: str, orders: dict[str, int], nk: int) -> dict[str, int]:
@@ -312,28 +354,42 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
                            float(np.mean(res**2)), res.size)
 
 
-def _lstsq(Phi: np.ndarray, Y: np.ndarray, what: str, strict: bool = True) -> np.ndarray:
-    scale = np.linalg.norm(Phi, axis=0)
+def _lstsq(Phi: np.ndarray, Y: np.ndarray, what: str, strict: bool = True, overwrite: bool = False) -> np.ndarray:
+    """Least squares with unit-norm columns; ``overwrite=True`` lets ``Phi`` be scaled in place."""
+    scale = np.sqrt(np.add.reduce(Phi * Phi, axis=0))  # = np.linalg.norm(Phi, axis=0), same sums
     if np.any(scale == 0):
         raise IdentificationError(f"the {what} regression is singular: a regressor column is identically zero (no excitation).")
-    theta, _, rank, _ = np.linalg.lstsq(Phi / scale, Y, rcond=None)
+    if overwrite:
+        Phi /= scale
+    else:
+        Phi = Phi / scale
+    theta, _, rank, _ = np.linalg.lstsq(Phi, Y, rcond=None)
     if strict and rank < Phi.shape[1]:
         raise IdentificationError(f"the {what} regression is rank deficient ({rank} of {Phi.shape[1]}): the input does not excite this order.")
     return theta / scale
 
 
-def _steiglitz_mcbride(segs, nb: int, nf: int, nk: int, n_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
-    """Output-error initial estimate: ARX on data pre-filtered by the current 1/F (IV-like)."""
-    F = np.ones(1)
+def _steiglitz_mcbride(segs, nb: int, nf: int, nk: int, n_iter: int = 8,
+                       F0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Output-error initial estimate: ARX on data pre-filtered by the current 1/F (IV-like).
+
+    ``F0`` (default 1) is the ``F`` to start from: passing the ``F`` that ``k`` iterations
+    returned and ``n_iter - k`` continues them exactly.
+    """
+    F = np.ones(1) if F0 is None else F0
     B = np.zeros(nb)
+    rows = sum(uu.size for uu, _ in segs)
+    Phi = np.empty((rows, nf + nb))
     for _ in range(n_iter):
-        rows, rhs = [], []
+        blocks, rhs = [], []
         for uu, yy in segs:
             uf = ss.lfilter([1.0], F, uu)
             yf = ss.lfilter([1.0], F, yy)
-            rows.append(np.hstack([-_shifted(yf, nf, 1), _shifted(uf, nb, nk)]))
+            blocks.append([(yf, nf, 1, True), (uf, nb, nk, False)])
             rhs.append(yf)
-        theta = _lstsq(np.vstack(rows), np.concatenate(rhs), "Steiglitz-McBride", strict=False)
+        _regressor(blocks, rows, out=Phi)
+        Y = rhs[0] if len(rhs) == 1 else np.concatenate(rhs)
+        theta = _lstsq(Phi, Y, "Steiglitz-McBride", strict=False, overwrite=True)
         F = _stabilize(np.concatenate([[1.0], theta[:nf]]))
         B = theta[nf:]
     return B, F
@@ -431,17 +487,35 @@ def pem(
     segs_s = [(uu, yy / yscale) for uu, yy in segs]
     B = B / yscale
 
+    # the optimiser asks for the Jacobian at the point whose residual it has just evaluated:
+    # keep that point's polynomials and filtered signals rather than recomputing them
+    last: dict = {}
+
+    def evaluate(theta):
+        key = np.asarray(theta, dtype=float).tobytes()
+        if last.get("key") != key:
+            A_, B_, C_, D_, F_ = _unpack(theta, orders)
+            polys = (A_, B_, _stabilize(C_), D_, _stabilize(F_))
+            last.update(key=key, polys=polys, signals=[_residual_parts(*polys, nk, uu, yy) for uu, yy in segs_s])
+        return last["polys"], last["signals"]
+
     def parts(theta):
-        A_, B_, C_, D_, F_ = _unpack(theta, orders)
-        return A_, B_, _stabilize(C_), D_, _stabilize(F_)
+        return evaluate(theta)[0]
 
     def fun(theta):
-        A_, B_, C_, D_, F_ = parts(theta)
-        return np.concatenate([_residual(A_, B_, C_, D_, F_, nk, uu, yy) for uu, yy in segs_s])
+        _, signals = evaluate(theta)
+        return np.concatenate([sig[2] for sig in signals])
+
+    n_rows = sum(uu.size for uu, _ in segs_s)
 
     def jac(theta):
-        A_, B_, C_, D_, F_ = parts(theta)
-        return np.vstack([_jacobian(A_, B_, C_, D_, F_, nk, orders, uu, yy) for uu, yy in segs_s])
+        polys, signals = evaluate(theta)
+        J = np.empty((n_rows, n_par))
+        r0 = 0
+        for (uu, yy), sig in zip(segs_s, signals):
+            _jacobian(*polys, nk, orders, uu, yy, parts=sig, out=J[r0:r0 + uu.size])
+            r0 += uu.size
+        return J
 
     theta0 = _pack(A, B, C, D, F)
     try:
