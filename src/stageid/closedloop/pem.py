@@ -451,6 +451,15 @@ def pem(
     >>> np.allclose(m.F, [1, -1.2, 0.5], atol=0.01)
     True
     """
+    return _pem(u, y, structure, orders, nk, dt, max_nfev, initial)
+
+
+def _pem(u, y, structure, orders, nk, dt, max_nfev, initial, sm_start=None) -> PolynomialModel:
+    """:func:`pem`; ``sm_start = (k, F)``: the Steiglitz-McBride start is already ``k`` iterations in, at ``F``.
+
+    :func:`select_order` passes the state its screen reached for the order it selected, so the
+    8 iterations of the start are not run again from ``F = 1`` (the result is the same).
+    """
     orders = _check_orders(structure, dict(orders or {}), nk)
     dt = _check_dt(dt)
     segs = _segments(u, y)
@@ -473,7 +482,10 @@ def pem(
         if structure == "arx":
             return m0
     else:
-        B, F = _steiglitz_mcbride(segs, orders["nb"], orders["nf"], nk)
+        if sm_start is not None and 0 < sm_start[0] < 8:
+            B, F = _steiglitz_mcbride(segs, orders["nb"], orders["nf"], nk, n_iter=8 - sm_start[0], F0=sm_start[1])
+        else:
+            B, F = _steiglitz_mcbride(segs, orders["nb"], orders["nf"], nk)
         A = np.ones(1)
         C = np.concatenate([[1.0], np.zeros(orders["nc"])])
         D = np.concatenate([[1.0], np.zeros(orders["nd"])])
@@ -628,9 +640,11 @@ def select_order(
         segs = _segments(u, y)
         N = sum(s_[0].size for s_ in segs)
         screen_scores = {}
+        screen_states = {}
         for n in orders:
             try:
                 B, F = _steiglitz_mcbride(segs, n, n, nk, n_iter=6)
+                screen_states[n] = (6, F)
             except IdentificationError:
                 continue
             bu = np.concatenate([np.zeros(nk), B])
@@ -642,11 +656,13 @@ def select_order(
         if screen_scores:
             n_best = min(screen_scores, key=screen_scores.get)
             orders = [n_best]
+    else:
+        screen_states = {}
     for n in orders:
         o = {"arx": {"na": n, "nb": n}, "armax": {"na": n, "nb": n, "nc": n}, "oe": {"nb": n, "nf": n},
              "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[structure] if structure in STRUCTURES else {}
         try:
-            m = pem(u, y, structure, o, nk, dt, max_nfev=max_nfev)
+            m = _pem(u, y, structure, o, nk, dt, max_nfev, None, screen_states.get(n))
         except (IdentificationError, DataError) as exc:
             last_error = exc
             continue
