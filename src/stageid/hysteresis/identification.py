@@ -202,8 +202,9 @@ class PIIdentifier:
     max_rows : int, default 20000
         The least-squares problems use at most this many (evenly strided) samples, >= 10; the
         operators always run over every sample.
-    max_evaluations : int, default 500
-        Limit of the nonlinear search (modified PI), >= 1.
+    max_evaluations : int, optional
+        Limit of the nonlinear search (modified PI: weight fits), >= 1; default 1000 with the
+        input warp (its search runs a second, chained simplex) and 500 without.
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
@@ -239,7 +240,7 @@ class PIIdentifier:
 
     def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
                  initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
-                 max_evaluations: int = 500, ridge: float = 1e-6, input_warp: bool = True,
+                 max_evaluations: int | None = None, ridge: float = 1e-6, input_warp: bool = True,
                  creep_time_constants: Sequence[float] | None = None, sample_time: float | None = None) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -270,7 +271,7 @@ class PIIdentifier:
             raise IdentificationError(f"`min_slope_fraction` of PIIdentifier must be a number in (0, 1); got {self.min_slope_fraction!r}.")
         if not _is_int(self.max_rows) or self.max_rows < 10:
             raise IdentificationError(f"`max_rows` of PIIdentifier must be an integer >= 10; got {self.max_rows!r}.")
-        if not _is_int(self.max_evaluations) or self.max_evaluations < 1:
+        if self.max_evaluations is not None and (not _is_int(self.max_evaluations) or self.max_evaluations < 1):
             raise IdentificationError(f"`max_evaluations` of PIIdentifier must be an integer >= 1; got {self.max_evaluations!r}.")
         ridge = _real(self.ridge)
         if ridge is None or ridge < 0:
@@ -413,7 +414,7 @@ class PIIdentifier:
         active = np.flatnonzero(upper > lower)
         count = [0]
         cache: dict[tuple, float] = {}
-        budget = int(self.max_evaluations)
+        budget = int(self.max_evaluations) if self.max_evaluations is not None else (1000 if self.input_warp else 500)
 
         def full(v: np.ndarray) -> np.ndarray:
             th = np.array(theta0, dtype=float)
@@ -443,24 +444,52 @@ class PIIdentifier:
         best_f, best_th = grid[0]
         if f_classical < best_f:
             best_f, best_th = f_classical, classical
-        success = True
         steps_all = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
-        for f_start, th_start in grid[:2]:
-            remaining = budget - count[0]
-            if remaining <= 20:
-                success = False
-                break
-            x0 = th_start[active] / scale[active]
-            steps = steps_all[active]
-            ub = upper[active] / scale[active]
-            k = active.size
+
+        def descend(th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int) -> tuple[float, np.ndarray, bool]:
+            """Nelder-Mead over the parameters ``free`` (indices into theta) from ``th_start``."""
+            base = np.array(th_start, dtype=float)
+
+            def sub(v: np.ndarray) -> float:
+                th = base.copy()
+                th[free] = np.asarray(v) * scale[free]
+                return objective(th[active] / scale[active])
+
+            x0 = base[free] / scale[free]
+            lb, ub = lower[free] / scale[free], upper[free] / scale[free]
+            steps = steps_all[free]
+            k = free.size
             simplex = np.vstack([x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)])
-            res = minimize(objective, x0, method="Nelder-Mead",
-                           bounds=list(zip(lower[active] / scale[active], ub)),
-                           options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start})
-            if res.fun < best_f:
-                best_f, best_th = res.fun, full(res.x)
-            if res.nfev >= remaining:
+            res = minimize(sub, x0, method="Nelder-Mead", bounds=list(zip(lb, ub)),
+                           options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start})
+            th = base.copy()
+            th[free] = res.x * scale[free]
+            return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
+
+        # 1. the simplex on every parameter from the best grid point, with half the budget left;
+        # 2. with the warp, the other half chains two simplexes: the best unwarped grid point
+        #    searched without the warp, then the warp released from there.  A warped fit can then
+        #    not end above the unwarped optimum the search finds (a plain 8-parameter simplex
+        #    from warped grid points stalled above it on asymmetric Bouc-Wen data).
+        remaining = budget - count[0]
+        if remaining > 20:
+            f_new, th_new, converged = descend(best_th, best_f, active, remaining // 2 if self.input_warp else remaining)
+            success = converged
+            if f_new < best_f:
+                best_f, best_th = f_new, th_new
+        else:
+            success = False
+        if self.input_warp:
+            f0, th0 = min(((f, th) for f, th in grid if th[7] == 0.0), key=lambda item: item[0])
+            remaining = budget - count[0]
+            if remaining > 40:
+                f0, th0, _ = descend(th0, f0, active[active != 7], remaining // 2)
+                f_new, th_new, converged = descend(th0, f0, active, budget - count[0])
+                success = success and converged
+                for f_c, th_c in ((f0, th0), (f_new, th_new)):
+                    if f_c < best_f:
+                        best_f, best_th = f_c, th_c
+            else:
                 success = False
         msg = (f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
                f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's.")
