@@ -177,3 +177,13 @@ def test_plant_experiments_accept_numpy_integer_seeds(plant: str, experiment: st
     a, b = f(seed=np.int64(5)), f(seed=5)
     np.testing.assert_array_equal(a.u, b.u)
     np.testing.assert_array_equal(a.y, b.y)
+
+
+@pytest.mark.parametrize("axis", ["z", "", None, 3])
+def test_maglev_chirp_axis_is_checked_in_one_line(axis):
+    from stageid._errors import SignalError
+    from stageid.plants import maglev
+
+    with pytest.raises(SignalError, match=r"`axis` of the maglev chirp must be one of x, y, phi; got") as info:
+        maglev.simulate_chirp(axis)
+    assert "\n" not in str(info.value)

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from .._errors import SignalError
 from ..models import StateSpaceModel, TransferMatrix
 from . import _check_seed
 
@@ -146,8 +147,8 @@ def simulate_chirp(axis: str, seed: int = 0, snr_db: float | None = 80.0, amplit
     from ..data.table import Table
     from ..signals import chirp
 
-    if axis not in OUTPUTS:
-        raise ValueError(f"`axis` must be one of {', '.join(OUTPUTS)}; got {axis!r}.")
+    if not isinstance(axis, str) or axis not in OUTPUTS:
+        raise SignalError(f"`axis` of the maglev chirp must be one of {', '.join(OUTPUTS)}; got {axis!r}.")
     seed = _check_seed(seed, f"chirp-{axis}")
     r1 = chirp(0.0, f1, duration=duration, dt=DT, amplitude=amplitude)
     R = np.zeros((r1.size, 3))
