@@ -660,7 +660,7 @@ def select_order(
         screen_states = {}
     for n in orders:
         o = {"arx": {"na": n, "nb": n}, "armax": {"na": n, "nb": n, "nc": n}, "oe": {"nb": n, "nf": n},
-             "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[structure] if structure in STRUCTURES else {}
+             "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[structure]
         try:
             m = _pem(u, y, structure, o, nk, dt, max_nfev, None, screen_states.get(n))
         except (IdentificationError, DataError) as exc:

@@ -43,7 +43,7 @@ from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_stati
                               theta_response_std)
 from .map_estimator import Posterior, Prior, batch_posterior, default_prior, map_estimate
 from .realization import era, fit_input_matrices, frequency_realization, markov_from_theta, refine_frequency_fit
-from .selection import SelectionTable, default_horizons, prediction_error, simulation_error
+from .selection import SelectionTable, default_horizons, prediction_error, row_residuals, simulation_error
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -203,8 +203,7 @@ class HankelMAPResult:
             p, m, q = post.horizon, post.n_inputs, post.n_outputs
             # in the noise-whitened outputs the realisation fits (theta_w = W theta diag(c))
             w = _output_weights(post)
-            wp = np.tile(w, p)
-            c = np.concatenate([np.ones(p * m), 1.0 / wp, np.ones(p * m)])
+            wp, c = _weight_scales(w, p, m)
             G, S = theta_response_std(_weighted_theta(post.theta, w, p, m, q), post.covariance * p * np.outer(c, c),
                                       post.noise_cov * np.outer(wp, wp), p, m, q, f, self.model.dt)
             G, S = G / w[None, :, None], S / w[None, :, None]
@@ -796,19 +795,23 @@ def _noise_weights(noise_var: np.ndarray, mean_square: np.ndarray) -> np.ndarray
 
 def _training_weights(theta: np.ndarray, stats: WindowStatistics) -> np.ndarray:
     """:func:`_noise_weights` from the training residual of ``theta`` on ``stats``."""
-    XX, YX, YY = stats.blocks()
+    XX, _, YY = stats.blocks()
     p, q = stats.horizon, stats.n_outputs
-    res = np.diag(YY) - 2.0 * np.einsum("rd,rd->r", theta, YX) + np.einsum("rd,rd->r", theta @ XX, theta)
     dof = max(stats.n_windows - XX.shape[0], 1.0)
     mean_square = np.diag(YY).reshape(p, q).mean(axis=0) / max(stats.n_windows, 1.0)
-    return _noise_weights(res.reshape(p, q).mean(axis=0) / dof, mean_square)
+    return _noise_weights(row_residuals(theta, stats).reshape(p, q).mean(axis=0) / dof, mean_square)
+
+
+def _weight_scales(w: np.ndarray, p: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Scales of the rows of ``y_p`` (``w`` per block) and of the regressor ``x`` (past outputs over ``w``)."""
+    wp = np.tile(w, p)
+    return wp, np.concatenate([np.ones(p * m), 1.0 / wp, np.ones(p * m)])
 
 
 def _weighted_theta(theta: np.ndarray, w: np.ndarray, p: int, m: int, q: int) -> np.ndarray:
     """``theta`` of eq. 9 for the outputs ``w * y``: rows times ``w``, past-output columns over ``w``."""
-    wp = np.tile(w, p)
-    cols = np.concatenate([np.ones(p * m), 1.0 / wp, np.ones(p * m)])
-    return theta * wp[:, None] * cols[None, :]
+    rows, cols = _weight_scales(w, p, m)
+    return theta * rows[:, None] * cols[None, :]
 
 
 def _as_records(data: object, where: str) -> tuple[Experiment, ...]:

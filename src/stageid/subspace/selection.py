@@ -68,14 +68,18 @@ def prediction_error(theta: np.ndarray, stats: WindowStatistics, weights: np.nda
     std) the ratio of the weighted sums ``sum_i w_i^2 err_i / sum_i w_i^2 energy_i`` instead
     (the same when ``w_i^2`` is proportional to ``1 / energy_i``).
     """
-    XX, YX, YY = stats.blocks()
-    T = theta @ YX.T
-    res = np.diag(YY) - 2 * np.diag(T) + np.sum((theta @ XX) * theta, axis=1)
+    YY = stats.blocks()[2]
     q = stats.n_outputs
-    res_c = res.reshape(stats.horizon, q).sum(axis=0)
+    res_c = row_residuals(theta, stats).reshape(stats.horizon, q).sum(axis=0)
     energy = np.diag(YY).reshape(stats.horizon, q).sum(axis=0)
     energy = np.where(energy > 0, energy, 1.0)
     return _normalised(np.clip(res_c, 0.0, None), energy, weights)
+
+
+def row_residuals(theta: np.ndarray, stats: WindowStatistics) -> np.ndarray:
+    """``sum ||y_p - theta x||^2`` over the windows of ``stats``, per row of ``y_p`` (``p q`` values)."""
+    XX, YX, YY = stats.blocks()
+    return np.diag(YY) - 2.0 * np.einsum("rd,rd->r", theta, YX) + np.einsum("rd,rd->r", theta @ XX, theta)
 
 
 def _normalised(err: np.ndarray, energy: np.ndarray, weights: np.ndarray | None) -> float:
