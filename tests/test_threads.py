@@ -59,3 +59,16 @@ def test_estimators_are_wrapped():
 
     for fn in (HankelMAP.fit, ClosedLoopIdentification.fit, PIIdentifier.fit):
         assert getattr(fn, "__wrapped__", None) is not None, fn
+
+
+def test_the_controller_is_rebuilt_when_scipy_arrives(monkeypatch):
+    import sys
+
+    from stageid import _threads
+
+    monkeypatch.setattr(_threads, "_controller", None)
+    first = _threads._blas_controller()
+    assert _threads._blas_controller() is first              # kept while nothing new is loaded
+    monkeypatch.setitem(sys.modules, "scipy.linalg", sys.modules.get("scipy.linalg", object()))
+    monkeypatch.setattr(_threads, "_controller", (False, first))
+    assert _threads._blas_controller() is not first          # scipy arrived: scanned again
