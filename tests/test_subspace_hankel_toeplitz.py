@@ -17,7 +17,9 @@ from stageid.subspace.map_estimator import batch_posterior
 from _subspace_systems import random_stage, record
 
 
-@pytest.mark.parametrize("n, r, max_lag, block", [(1000, 3, 7, None), (777, 2, 40, 64), (300, 5, 130, None), (50, 1, 0, None)])
+@pytest.mark.parametrize("n, r, max_lag, block", [(1000, 3, 7, None), (777, 2, 40, 64), (300, 5, 130, None), (50, 1, 0, None),
+                                                     # several FFT batches (64 blocks each), the last one partial
+                                                     (20000, 8, 10, None)])
 def test_lag_correlations_match_direct_sums(n, r, max_lag, block):
     z = np.random.default_rng(n).standard_normal((n, r))
     R = lag_correlations(z, max_lag, block)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from .._errors import DataError
 
@@ -76,7 +77,11 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     nfft = 2 * block
     sign = np.where(np.arange(block + 1) % 2 == 0, 1.0, -1.0)[:, None]  # exp(-j pi f): shift by one block
     S = np.zeros((block + 1, r, r), dtype=complex)
-    chunk = max(1, (1 << 21) // (nfft * max(r, 1)))  # blocks per FFT batch (~32 MB of spectra)
+    # blocks per FFT batch: ~1 MB per batch array.  Larger batches are slower, not faster
+    # (P-558 benchmark record, N = 50 000, r = 6, lags < 120: 12 ms with ~5 MB batches, 3 ms
+    # with ~1 MB): each fresh multi-megabyte temporary costs page faults, small ones are
+    # reused from the allocator's free lists and stay in cache.
+    chunk = max(1, (1 << 17) // (nfft * max(r, 1)))
     start = 0
     # Spectra are computed batch by batch; the first spectrum of the next batch is needed
     # for the last block of the current one, so batches overlap by one block.
@@ -205,23 +210,6 @@ def _window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarra
     return W.transpose(0, 2, 1, 3).reshape(L * r, L * r)
 
 
-def _diagonal_sums(M: np.ndarray, forward: bool) -> np.ndarray:
-    """Block-diagonal running sums of ``M`` (shape (L, L, r, r)).
-
-    ``forward``: ``S[a, b] = sum_{k=1}^{min(a, b)} M[a-k, b-k]``;
-    otherwise ``S[a, b] = sum_{k=1}^{L-1-max(a, b)} M[a+k, b+k]``.
-    """
-    L = M.shape[0]
-    S = np.zeros_like(M)
-    if forward:
-        for a in range(1, L):
-            S[a, 1:] = S[a - 1, :-1] + M[a - 1, :-1]
-    else:
-        for a in range(L - 2, -1, -1):
-            S[a, :-1] = S[a + 1, 1:] + M[a + 1, 1:]
-    return S
-
-
 def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.ndarray:
     """Exact window Gram matrix summed over segments, from their summed lag correlations.
 
@@ -232,8 +220,11 @@ def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.n
 
     i.e. the lag correlation minus products of the first and of the last ``L`` samples
     only.  Both corrections are running sums along the block diagonals of
-    ``sum_segments h h^T`` (heads) and ``f f^T`` (tails), so any number of segments costs one
-    ``(L r) x (L r)`` product each plus ``O(L^2 r^2)``.
+    ``sum_segments h h^T`` (heads) and ``f f^T`` (tails): with ``M = sum h h^T``, the head
+    correction ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the
+    same recursion backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.
+    The recursion runs one block row at a time, so no ``(L r) x (L r)`` temporary besides
+    the result is formed.
 
     Parameters
     ----------
@@ -247,15 +238,35 @@ def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.n
     ndarray of shape (L r, L r)
     """
     L, r, _ = R.shape
-    S = heads.shape[0]
-    lag = np.arange(L)[None, :] - np.arange(L)[:, None]  # b - a
-    Rext = np.concatenate([R[:0:-1].transpose(0, 2, 1), R])  # lags -(L-1) .. L-1
-    W = Rext[lag + L - 1]  # (L, L, r, r)
+    Lr = L * r
+    # block (a, b) of the Toeplitz part is R_ext[b - a] (lags -(L-1) .. L-1, R[-c] = R[c]^T):
+    # with Rc[i, L-1+c, j] = R_ext[c, i, j], row (a, i) of W is Rc[i, L-1-a : 2L-1-a, :]
+    Rc = np.empty((r, 2 * L - 1, r))
+    Rc[:, L - 1:, :] = R.transpose(1, 0, 2)
+    Rc[:, :L - 1, :] = R[:0:-1].transpose(2, 0, 1)
+    s_i, s_c, s_j = Rc.strides
+    toeplitz = as_strided(Rc[:, L - 1:, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
+    W = np.empty((L, r, L, r))
+    W[...] = toeplitz
+    W = W.reshape(Lr, Lr)
+    prev = np.empty((r, Lr))
+    cur = np.empty((r, Lr))
     for block, forward in ((heads, True), (tails, False)):
-        H = block.reshape(S, L * r)
-        M = (H.T @ H).reshape(L, r, L, r).transpose(0, 2, 1, 3)
-        W -= _diagonal_sums(M, forward)
-    return np.ascontiguousarray(W.transpose(0, 2, 1, 3)).reshape(L * r, L * r)
+        H = np.ascontiguousarray(block.reshape(block.shape[0], Lr))
+        prev[:] = 0.0
+        rows = range(1, L) if forward else range(L - 2, -1, -1)
+        for a in rows:
+            src = (a - 1) if forward else (a + 1)
+            Ms = H[:, src * r:(src + 1) * r].T @ H  # block row `src` of sum h h^T, (r, L r)
+            if forward:  # S[a, b] = S[a-1, b-1] + M[a-1, b-1]
+                np.add(prev[:, :-r], Ms[:, :-r], out=cur[:, r:])
+                cur[:, :r] = 0.0
+            else:  # S[a, b] = S[a+1, b+1] + M[a+1, b+1]
+                np.add(prev[:, r:], Ms[:, r:], out=cur[:, :-r])
+                cur[:, -r:] = 0.0
+            W[a * r:(a + 1) * r] -= cur
+            prev, cur = cur, prev
+    return W
 
 
 def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
