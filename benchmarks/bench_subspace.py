@@ -10,7 +10,8 @@ model (largest error over 0-250 Hz relative to each input column's largest true 
 Peers (``pip install -e '.[bench]'``):
 
 * stageid: ``HankelMAP(order=15)`` with its defaults (horizon chosen by held-out prediction
-  error) and ``stageid-p20``: the same with a fixed horizon ``p = 20`` (no selection);
+  error) and ``stageid-p40``: the same with a fixed horizon ``p = 40`` (no selection), the
+  counterpart of python-control's fixed 150 Markov parameters;
 * python-control: ``markov`` with 150 parameters + ``eigensys_realization`` (order 15);
 * SIPPY (``sippy-unipi``): N4SID with ``SS_fixed_order=15`` at its default horizons f = p = 20;
 * nfoursid: ``NFourSID(num_block_rows=20)`` then ``system_identification(rank=15)``.
@@ -40,7 +41,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ENV_1THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
-TOOLS = ("stageid", "stageid-p20", "python-control", "sippy", "nfoursid")
+TOOLS = ("stageid", "stageid-p40", "python-control", "sippy", "nfoursid")
 ORDER = 15
 # per-worker limits: address space and wall time (a peer that exceeds them is reported so)
 MEMORY_LIMIT_GB = 12.0
@@ -78,11 +79,11 @@ def run_tool(tool: str, u, y, dt: float):
     """Identify with one tool; returns (A, B, C, D)."""
     import numpy as np
 
-    if tool in ("stageid", "stageid-p20"):
+    if tool in ("stageid", "stageid-p40"):
         from stageid.data import Experiment
         from stageid.subspace import HankelMAP
 
-        horizon = "auto" if tool == "stageid" else 20
+        horizon = "auto" if tool == "stageid" else 40
         res = HankelMAP(order=ORDER, horizon=horizon).fit(Experiment(u, y, dt))
         g = res.model
         return g.A, g.B, g.C, g.D

@@ -65,8 +65,8 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     >>> bool(np.allclose(R[1], z[:-1].T @ z[1:]))
     True
     """
-    z = np.asarray(z, dtype=float)
-    n, r = z.shape
+    src = z if isinstance(z, _Rows) else _Rows([np.asarray(z, dtype=float)])
+    n, r = src.n, src.r
     if not 0 <= max_lag < max(n, 1):
         raise DataError(f"`max_lag` must satisfy 0 <= max_lag < n_samples = {n}; got {max_lag}.")
     if block is None:
@@ -81,20 +81,18 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     # (P-558 benchmark record, N = 50 000, r = 6, lags < 120: 12 ms with ~5 MB batches, 3 ms
     # with ~1 MB): each fresh multi-megabyte temporary costs page faults, small ones are
     # reused from the allocator's free lists and stay in cache.
-    chunk = max(1, (1 << 17) // (nfft * max(r, 1)))
+    chunk = min(n_blocks, max(1, (1 << 17) // (nfft * max(r, 1))))
+    seg = np.zeros((chunk + 1, nfft, r))  # zero-padded blocks, reused by every batch
+    rows = np.empty(((chunk + 1) * block, r))
     start = 0
     # Spectra are computed batch by batch; the first spectrum of the next batch is needed
     # for the last block of the current one, so batches overlap by one block.
     while start < n_blocks:
         stop = min(n_blocks, start + chunk)
-        seg = np.zeros((stop - start + 1, nfft, r))
-        lo = start * block
-        hi = min(n, (stop + 1) * block)
-        data = z[lo:hi]
-        full = np.zeros(((stop - start + 1) * block, r))
-        full[: data.shape[0]] = data
-        seg[:, :block, :] = full.reshape(stop - start + 1, block, r)
-        F = np.fft.rfft(seg, axis=1)  # (nb+1, block+1, r)
+        k = stop - start + 1
+        src.fill(rows[: k * block], start * block)
+        seg[:k, :block, :] = rows[: k * block].reshape(k, block, r)
+        F = np.fft.rfft(seg[:k], axis=1)  # (k, block+1, r)
         Fa = F[:-1]
         Fb = F[:-1] + sign[None] * F[1:]
         # S[f] += sum_k conj(Fa[k, f])^T Fb[k, f]
@@ -102,6 +100,37 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
         start = stop
     R = np.fft.irfft(S, n=nfft, axis=0)[: max_lag + 1]
     return np.ascontiguousarray(R)
+
+
+class _Rows:
+    """The rows of ``[u y]`` (column blocks side by side) over sample ranges joined by zero
+    gaps, read batch by batch (:meth:`fill`) without forming the joined array: the record is
+    never copied whole (see the batch size in :func:`lag_correlations`)."""
+
+    def __init__(self, blocks: "list[np.ndarray]", ranges: "list[tuple[int, int]] | None" = None, gap: int = 0):
+        self.blocks = blocks
+        self.r = sum(b.shape[1] for b in blocks)
+        self.pieces: list[tuple[int, int, int]] = []  # (virtual start, a, b)
+        v = 0
+        for i, (a, b) in enumerate(ranges if ranges is not None else [(0, blocks[0].shape[0])]):
+            v += gap if i else 0
+            self.pieces.append((v, a, b))
+            v += b - a
+        self.n = v
+
+    def fill(self, out: np.ndarray, lo: int) -> None:
+        """``out[:] =`` rows ``lo .. lo + len(out) - 1`` (zero in the gaps and past the end)."""
+        out[:] = 0.0
+        hi = lo + out.shape[0]
+        for v, a, b in self.pieces:
+            s, e = max(lo, v), min(hi, v + b - a)
+            if s >= e:
+                continue
+            c = 0
+            for blk in self.blocks:
+                w = blk.shape[1]
+                out[s - lo:e - lo, c:c + w] = blk[a + s - v:a + e - v]
+                c += w
 
 
 @dataclass(frozen=True, eq=False)
@@ -328,15 +357,15 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
     usable = sorted({int(p) for p in horizons if 2 * int(p) + 1 <= n and int(p) >= 1})
     if not usable:
         raise DataError(f"horizon {min(horizons)} needs records of more than {2 * min(horizons)} samples; got {n}.")
-    z0 = np.hstack([u, y])
-    r = z0.shape[1]
+    r = u.shape[1] + y.shape[1]
     Lmax = 2 * usable[-1]
     if forgetting != 1.0:
         t = np.arange(n)
-        z = z0 * (forgetting ** ((n - 1 - t) / 2.0))[:, None]
-    else:
-        z = z0
-    R = lag_correlations(z, Lmax - 1)
+        z = np.hstack([u, y]) * (forgetting ** ((n - 1 - t) / 2.0))[:, None]
+        R = lag_correlations(z, Lmax - 1)
+    else:  # no joined copy of the record: its ends are all the Gram corrections need
+        R = lag_correlations(_Rows([u, y]), Lmax - 1)
+        z = np.vstack([np.hstack([u[:Lmax], y[:Lmax]]), np.hstack([u[n - Lmax:], y[n - Lmax:]])])
     power = freqs = None
     if with_spectrum:
         power, freqs = _input_periodogram(u)
@@ -344,7 +373,7 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
     for p in usable:
         L = 2 * p
         K = n - L + 1
-        W = _window_gram(z, R[:L], p)
+        W = _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L:])
         if forgetting != 1.0:
             # z~(t) = lam^((n-1-t)/2) z(t): the weighted window sum is the unweighted one of z~
             # times lam^((K-1) - (n-1) + (a+b)/2) for window positions a, b.
@@ -401,15 +430,9 @@ def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: "list[tuple[int, i
     short = [(a, b) for a, b in ranges if b - a <= L]
     if short:
         raise DataError(f"horizon {p} needs ranges of more than {L} samples; got {short[0][1] - short[0][0]}.")
-    z = np.hstack([u, y])
-    r = z.shape[1]
-    gap = np.zeros((L, r))
-    parts: list[np.ndarray] = []
-    for a, b in ranges:
-        parts += [z[a:b], gap]
-    R = lag_correlations(np.concatenate(parts[:-1]), L - 1)
-    heads = np.stack([z[a:a + L] for a, _ in ranges])
-    tails = np.stack([z[b - L:b] for _, b in ranges])
+    R = lag_correlations(_Rows([u, y], ranges, gap=L), L - 1)
+    heads = np.stack([np.hstack([u[a:a + L], y[a:a + L]]) for a, _ in ranges])
+    tails = np.stack([np.hstack([u[b - L:b], y[b - L:b]]) for _, b in ranges])
     count = int(sum(b - a - L + 1 for a, b in ranges))
     return WindowStatistics(_gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count)
 
@@ -421,10 +444,12 @@ def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np
     Returns ``(power of shape (n_bins, n_inputs), bin centres in cycles per sample)``.
     """
     n = u.shape[0]
-    spec = np.abs(np.fft.rfft(u - u.mean(axis=0), axis=0)) ** 2
     f = np.fft.rfftfreq(n)
     idx = np.minimum((f * 2 * n_bins).astype(int), n_bins - 1)
-    power = np.column_stack([np.bincount(idx, weights=spec[:, j], minlength=n_bins) for j in range(u.shape[1])])
+    power = np.empty((n_bins, u.shape[1]))
+    for j in range(u.shape[1]):  # column by column: no record-sized complex temporaries
+        X = np.fft.rfft(u[:, j] - u[:, j].mean())
+        power[:, j] = np.bincount(idx, weights=X.real ** 2 + X.imag ** 2, minlength=n_bins)
     centres = (np.arange(n_bins) + 0.5) / (2 * n_bins)
     return power, centres
 
