@@ -19,6 +19,8 @@ import os
 import sys
 from typing import Any, Callable, TypeVar
 
+from ._heap import prime_heap
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 
@@ -56,6 +58,7 @@ def single_blas_thread(fn: F) -> F:
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        prime_heap()  # the other half of a fit's environment: see stageid._heap
         n = _limit()
         if n is None:
             return fn(*args, **kwargs)

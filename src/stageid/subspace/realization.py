@@ -263,9 +263,11 @@ def frequency_realization(G: np.ndarray, freqs: np.ndarray, dt: float, order: in
     return A, B, C, D, s
 
 
-def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, zs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``G = C R B + D`` with ``R = (zI - A)^-1``; also returns ``C R`` and ``R B``."""
-    lam, V = np.linalg.eig(A)
+def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, zs: np.ndarray,
+                    eig: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``G = C R B + D`` with ``R = (zI - A)^-1``; also returns ``C R`` and ``R B``
+    (``eig``: ``numpy.linalg.eig(A)`` when the caller has it already)."""
+    lam, V = np.linalg.eig(A) if eig is None else eig
     Vi = np.linalg.inv(V)
     inv = 1.0 / (zs[:, None] - lam[None, :])  # (nz, n)
     CVi = (C @ V)[None, :, :] * inv[:, None, :]  # (nz, q, n)
@@ -278,7 +280,9 @@ def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
 
 def _re_mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """``Re(X @ Y)`` with two real products instead of a complex one."""
-    return X.real @ Y.real - X.imag @ Y.imag
+    out = X.real @ Y.real
+    out -= X.imag @ Y.imag
+    return out
 
 
 def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -286,10 +290,16 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
 
     Uses the product structure ``dG/dA_ij = (C R)[:, i] (R B)[j, :]`` so the Jacobian itself
     is never formed: every block is a weighted sum over frequencies of small outer products.
-    ``a = C R`` (nz, q, n), ``b = R B`` (nz, n, m), ``e`` the residual (nz, q, m).
+    ``a = C R`` (nz, q, n), ``b = R B`` (nz, n, m), ``e`` the residual (nz, q, m).  The blocks
+    are written straight into one preallocated matrix (few large temporaries: see
+    :func:`~stageid.subspace.hankel_toeplitz.lag_correlations` on why that matters).
     """
     nz, q, n = a.shape
     m = b.shape[2]
+    nA, nB, nC, nD = n * n, n * m, q * n, (q * m if feedthrough else 0)
+    iA, iB, iC, iD = 0, nA, nA + nB, nA + nB + nC
+    P = iD + nD
+    JtJ = np.empty((P, P))
     aw = a * w[:, None, None]
     caw = np.conj(aw).reshape(nz, q * n)  # (z, (r, i))
     cb = np.conj(b)
@@ -297,29 +307,34 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     Mb = np.matmul(cb, b.transpose(0, 2, 1))  # conj(b) b^T, (z, j, l)
     Ma2 = Ma.reshape(nz, n * n)
     Mb2 = Mb.reshape(nz, n * n)
+    cb2 = cb.reshape(nz, n * m)
+
+    def put(r0: int, c0: int, blk: np.ndarray) -> None:
+        JtJ[r0:r0 + blk.shape[0], c0:c0 + blk.shape[1]] = blk
+        if r0 != c0:
+            JtJ[c0:c0 + blk.shape[1], r0:r0 + blk.shape[0]] = blk.T
+
     # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
-    AA = _re_mm(Ma2.T, Mb2).reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(n * n, n * n)
-    AB = _re_mm(Ma2.T, cb.reshape(nz, n * m)).reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(n * n, n * m)
-    AC = _re_mm(caw.T, Mb2).reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(n * n, q * n)
-    BB = np.kron(Ma.sum(axis=0).real, np.eye(m))
-    BC = _re_mm(caw.T, b.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(n * m, q * n)
-    CC = np.kron(np.eye(q), (w @ Mb2).real.reshape(n, n))
+    JtJ[:nA, :nA] = _re_mm(Ma2.T, Mb2).reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(nA, nA)
+    put(iA, iB, _re_mm(Ma2.T, cb2).reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(nA, nB))
+    put(iA, iC, _re_mm(caw.T, Mb2).reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(nA, nC))
+    put(iB, iB, np.kron(Ma.sum(axis=0).real, np.eye(m)))
+    put(iB, iC, _re_mm(caw.T, b.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(nB, nC))
+    put(iC, iC, np.kron(np.eye(q), (w @ Mb2).real.reshape(n, n)))
     ew = e * w[:, None, None]
     gA = np.matmul(np.matmul(np.conj(a).transpose(0, 2, 1), ew), cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
     gB = np.matmul(np.conj(a).transpose(0, 2, 1), ew).sum(axis=0).real.reshape(-1)
     gC = np.matmul(ew, cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
-    rows = [[AA, AB, AC], [AB.T, BB, BC], [AC.T, BC.T, CC]]
     grads = [gA, gB, gC]
     if feedthrough:
-        AD = _re_mm(caw.T, cb.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(n * n, q * m)
+        put(iA, iD, _re_mm(caw.T, cb2).reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(nA, nD))
         sa = np.conj(aw).sum(axis=0).real  # (r, i)
-        BD = np.einsum("ri,cd->icrd", sa, np.eye(m)).reshape(n * m, q * m)
+        put(iB, iD, np.einsum("ri,cd->icrd", sa, np.eye(m)).reshape(nB, nD))
         sb = (w[:, None, None] * cb).sum(axis=0).real  # (i, c)
-        CD = np.einsum("rs,ic->risc", np.eye(q), sb).reshape(q * n, q * m)
-        DD = w.sum() * np.eye(q * m)
-        rows = [[AA, AB, AC, AD], [AB.T, BB, BC, BD], [AC.T, BC.T, CC, CD], [AD.T, BD.T, CD.T, DD]]
+        put(iC, iD, np.einsum("rs,ic->risc", np.eye(q), sb).reshape(nC, nD))
+        put(iD, iD, w.sum() * np.eye(nD))
         grads.append(ew.sum(axis=0).real.reshape(-1))
-    return np.block(rows), np.concatenate(grads)
+    return JtJ, np.concatenate(grads)
 
 
 def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, G: np.ndarray, zs: np.ndarray,
@@ -342,8 +357,8 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
     w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
     was_stable = np.max(np.abs(np.linalg.eigvals(A))) < 1.0
 
-    def evaluate(A_, B_, C_, D_):
-        Gm, CR, RB = _model_response(A_, B_, C_, D_, zs)
+    def evaluate(A_, B_, C_, D_, eig=None):
+        Gm, CR, RB = _model_response(A_, B_, C_, D_, zs, eig)
         return Gm - G, CR, RB
 
     def cost_of(res):
@@ -380,8 +395,9 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
             D1 = D + step[n * n + n * m + q * n :].reshape(q, m) if feedthrough else D
             c1 = float("inf")
             try:
-                if not (was_stable and np.max(np.abs(np.linalg.eigvals(A1))) >= 1.0):
-                    res1, CR1, RB1 = evaluate(A1, B1, C1, D1)
+                eig1 = np.linalg.eig(A1)  # the stability check's and the response's
+                if not (was_stable and np.max(np.abs(eig1[0])) >= 1.0):
+                    res1, CR1, RB1 = evaluate(A1, B1, C1, D1, eig1)
                     c1 = cost_of(res1)
             except np.linalg.LinAlgError:
                 pass
