@@ -517,13 +517,19 @@ def theta_frequency_response(theta: np.ndarray, horizon: int, n_inputs: int, n_o
     p, m, q = horizon, n_inputs, n_outputs
     zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
     Gam, Phi, Dp = split_theta(theta, p, m, q)
+    nz = zs.size
     e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
     e_fut = zs[:, None] ** np.arange(p)[None, :]
+
+    def weighted(e: np.ndarray, M: np.ndarray, k: int) -> np.ndarray:
+        # sum_i e[z, i] M[r, i, :] for every z: two real products (nz, p) @ (p, pq k)
+        M2 = np.ascontiguousarray(M.reshape(p * q, p, k).transpose(1, 0, 2)).reshape(p, p * q * k)
+        return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(nz, p * q, k)
+
     # all frequencies at once: rhs (nz, pq, m), lhs (nz, pq, q)
-    rhs = (np.einsum("zi,rim->zrm", e_past, Gam.reshape(p * q, p, m), optimize=True)
-           + np.einsum("zi,rim->zrm", e_fut, Dp.reshape(p * q, p, m), optimize=True))
-    lhs = -np.einsum("zi,riq->zrq", e_past, Phi.reshape(p * q, p, q), optimize=True)
-    lhs += (e_fut[:, :, None, None] * np.eye(q)[None, None]).reshape(zs.size, p * q, q)
+    rhs = weighted(e_past, Gam, m) + weighted(e_fut, Dp, m)
+    lhs = -weighted(e_past, Phi, q)
+    lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]  # z^j I in block row j
     # least squares by the normal equations (q x q per frequency); lhs has full column rank
     # because its block row for the largest power of z dominates
     lh = np.conj(lhs).transpose(0, 2, 1)
