@@ -768,14 +768,6 @@ class HankelMAP:
             B, D = fit_input_matrices(A, C, Gs, zs, self.feedthrough)
         cost = float("nan")
         if refine:
-            if zs.size >= 6 * (order + 1):
-                # coarse to fine: most steps on every other frequency (half the cost per step),
-                # the last ones on all of them, so the result is the full grid's optimum.  On
-                # the P-558 benchmark record (N = 50 000, 200 frequencies): 8-9 steps on 100
-                # points and 1 on 200 instead of 8-10 on 200, same error (8.73e-4).  A third,
-                # coarser level (50 points) saved nothing: the steps did not carry over.
-                A, B, C, D, _ = refine_frequency_fit(A, B, C, D, Gs[::2], zs[::2], feedthrough=self.feedthrough,
-                                                     max_iter=max_iter, tol=1e-3)
             A, B, C, D, info = refine_frequency_fit(A, B, C, D, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=1e-3)
             cost = info["cost"] / max(float(np.sum(np.abs(Gs) ** 2)), 1e-300)
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
