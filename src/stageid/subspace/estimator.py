@@ -446,7 +446,7 @@ class HankelMAP:
         groups: list[tuple[list[int], list[tuple[np.ndarray, np.ndarray]]]] = []
         records = [self._prepare(e) for e in exps]
         m_all = first.n_inputs
-        still = [bool(np.all([np.ptp(r[0][:, j]) == 0 for r in records])) for j in range(m_all)]
+        still = np.all([np.ptp(r[0], axis=0) == 0 for r in records], axis=0).tolist()
         if all(still):
             raise DataError(f"at least one input must move in some record; got every input ({', '.join(first.input_names)}) "
                             f"constant in all {len(records)} record(s).")
@@ -856,8 +856,8 @@ def _check_freqs(freqs_hz: object, dt: float) -> np.ndarray:
 def _channel_scales(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """RMS of every input and output channel over all records (1 for a channel that is zero)."""
     n = sum(u.shape[0] for u, _ in records)
-    su = np.sqrt(sum(np.sum(u ** 2, axis=0) for u, _ in records) / n)
-    sy = np.sqrt(sum(np.sum(y ** 2, axis=0) for _, y in records) / n)
+    su = np.sqrt(sum(np.einsum("ij,ij->j", u, u) for u, _ in records) / n)  # no squared copy
+    sy = np.sqrt(sum(np.einsum("ij,ij->j", y, y) for _, y in records) / n)
     ok_u = np.isfinite(su) & (su > 0)
     ok_y = np.isfinite(sy) & (sy > 0)
     return np.where(ok_u, su, 1.0), np.where(ok_y, sy, 1.0)
