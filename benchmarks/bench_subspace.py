@@ -2,8 +2,9 @@
 
 The P-558 3x3 reference (15 states, Ts = 2 ms), white random-binary inputs on all three
 channels, 1 % output noise, order 15.  Every tool runs in its own process, single-threaded
-(OMP/OPENBLAS/MKL/NUMBA threads = 1), side by side in one run; each (tool, N) is repeated
-and the median wall time of the identification call is reported together with the peak
+(OMP/OPENBLAS/MKL/NUMBA threads = 1), side by side in one run; each (tool, N) runs once
+untimed (imports, first calls), then is repeated, and the median wall time of the
+identification call is reported together with the peak
 resident memory of the worker process and the frequency-response error against the true
 model (largest error over 0-250 Hz relative to each input column's largest true gain).
 
@@ -110,7 +111,8 @@ def run_tool(tool: str, u, y, dt: float):
     raise SystemExit(f"unknown tool {tool!r}")
 
 
-def worker(tool: str, n: int, repeats: int) -> None:
+def worker(tool: str, n: int, repeats: int, warmup: int = 0) -> None:
+    """Time ``repeats`` identifications after ``warmup`` untimed ones (imports, first calls)."""
     import resource
 
     limit = int(MEMORY_LIMIT_GB * 2 ** 30)
@@ -121,6 +123,8 @@ def worker(tool: str, n: int, repeats: int) -> None:
     dt = 0.002
     times = []
     err = float("nan")
+    for _ in range(warmup):
+        run_tool(tool, u, y, dt)
     for _ in range(repeats):
         t0 = time.perf_counter()
         A, B, C, D = run_tool(tool, u, y, dt)
@@ -224,10 +228,12 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 50000, 500000, 5000000])
     ap.add_argument("--tools", nargs="+", default=list(TOOLS))
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="untimed runs before the timed ones, in each worker up to N = 500 000 (default 1)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     if args.worker:
-        worker(args.worker[0], int(args.worker[1]), args.repeats)
+        worker(args.worker[0], int(args.worker[1]), args.repeats, args.warmup)
         return
     rows = []
     skip: set[str] = set()
@@ -236,8 +242,8 @@ def main() -> None:
             if tool in skip:
                 rows.append((tool, n, None, "skipped (failed at a smaller N)"))
                 continue
-            reps = args.repeats if n <= 500000 else 1
-            res, why = spawn(["--worker", tool, str(n), "--repeats", str(reps)])
+            reps, warm = (args.repeats, args.warmup) if n <= 500000 else (1, 0)
+            res, why = spawn(["--worker", tool, str(n), "--repeats", str(reps), "--warmup", str(warm)])
             rows.append((tool, n, res, why))
             if res is None:
                 skip.add(tool)
@@ -259,7 +265,8 @@ def report(rows, proc, rec, args) -> str:
     by = {(t, n): (r, w) for t, n, r, w in rows}
     lines = ["# Benchmark: MIMO state-space identification (P-558 3x3, order 15)", "",
              f"Run: `python benchmarks/bench_subspace.py` on {platform.machine()} / Python {platform.python_version()}, "
-             f"single-threaded, median of {args.repeats} (1 above N = 500 000).  White +-1 inputs, 1 % output noise.",
+             f"single-threaded, {args.warmup} untimed warm-up run(s) then the median of {args.repeats} "
+             f"(one cold run above N = 500 000).  White +-1 inputs, 1 % output noise.",
              "Error: largest |G_est - G_true| over 0-250 Hz relative to each input column's largest true gain.", "",
              "| N | tool | time [s] | peak memory [GB] | FR error | time / stageid |", "|---|---|---|---|---|---|"]
     for n in args.sizes:
