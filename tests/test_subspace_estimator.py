@@ -258,3 +258,39 @@ def test_bad_arguments_are_one_line_data_errors():
         with pytest.raises(DataError) as info:
             call()
         assert "\n" not in str(info.value) and "; got" in str(info.value)
+
+
+@pytest.mark.parametrize("alternative", ["worse", "better"])
+def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypatch, alternative):
+    import stageid.subspace.estimator as est
+
+    g = random_stage(3, m=2, q=2, modes=3)
+    exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)
+    seen = {}
+    real_direct, real_refine = est.frequency_realization, est.refine_frequency_fit
+
+    def direct(G, freqs, dt, order, **kw):
+        out = real_direct(G, freqs, dt, order, **kw)
+        seen["direct"] = est._fit_cost(out[:4], G, np.exp(2j * np.pi * freqs * dt))
+        return out
+
+    def alt(G, freqs, dt, order, feedthrough=True):
+        zs = np.exp(2j * np.pi * freqs * dt)
+        A, B, C, D, _ = real_direct(G, freqs, dt, order, feedthrough=feedthrough)
+        if alternative == "worse":
+            B = B * 3.0
+        else:  # a few refinement steps ahead
+            A, B, C, D, _ = real_refine(A, B, C, D, G, zs, feedthrough=feedthrough, max_iter=3)
+        seen["alt"] = est._fit_cost((A, B, C, D), G, zs)
+        return A, B, C, D
+
+    def refine(A, B, C, D, G, zs, **kw):
+        seen["start"] = est._fit_cost((A, B, C, D), G, zs)
+        return real_refine(A, B, C, D, G, zs, **kw)
+
+    monkeypatch.setattr(est, "frequency_realization", direct)
+    monkeypatch.setattr(est, "balanced_start", alt)
+    monkeypatch.setattr(est, "refine_frequency_fit", refine)
+    HankelMAP(order=g.n_states, horizon=12).fit(exp)
+    assert seen["start"] == min(seen["direct"], seen["alt"])
+    assert (seen["start"] == seen["alt"]) is (alternative == "better")

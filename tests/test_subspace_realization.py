@@ -8,6 +8,8 @@ from stageid.models import StateSpaceModel
 from stageid.subspace.hankel_toeplitz import window_statistics
 from stageid.subspace.map_estimator import batch_posterior
 from stageid.subspace.realization import (
+    balanced_start,
+    balanced_truncation,
     era,
     frequency_realization,
     hankel_h0,
@@ -107,3 +109,69 @@ def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough):
     M, g = _normal_equations(a, b, e, w, feedthrough)
     np.testing.assert_allclose(M, (J.conj().T @ J).real, atol=1e-12 * np.abs(M).max())
     np.testing.assert_allclose(g, (J.conj().T @ r).real, atol=1e-12 * np.abs(g).max())
+
+
+def test_discrete_gramian_solves_the_stein_equation():
+    from stageid.subspace.realization import _discrete_gramian
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((6, 6))
+    A *= 0.995 / np.max(np.abs(np.linalg.eigvals(A)))  # slow: ~13 doublings
+    Q = rng.standard_normal((6, 2))
+    Q = Q @ Q.T
+    X = _discrete_gramian(A, Q)
+    # against the Kronecker form (I - A (x) A) vec(X) = vec(Q)
+    direct = np.linalg.solve(np.eye(36) - np.kron(A, A), Q.ravel()).reshape(6, 6)
+    np.testing.assert_allclose(X, direct, rtol=0, atol=1e-9 * np.abs(direct).max())
+    assert _discrete_gramian(np.diag([1.01, 0.5]), np.eye(2)) is None
+
+
+def test_balanced_truncation_keeps_the_error_within_twice_the_discarded_hankel_values():
+    g = random_stage(5, m=2, q=2, modes=4)  # 8 states, lightly damped
+    f = np.linspace(0.0, 250.0, 2001)
+    G = g.frequency_response(f)
+    full = balanced_truncation(g.A, g.B, g.C, g.n_states)
+    assert full is not None
+    Af, Bf, Cf, hsv = full
+    # all states kept: the same system in balanced coordinates
+    np.testing.assert_allclose(StateSpaceModel(Af, Bf, Cf, g.D, g.dt).frequency_response(f), G, atol=1e-8 * np.abs(G).max())
+    for r in (2, 4, 6):
+        Ar, Br, Cr, _ = balanced_truncation(g.A, g.B, g.C, r)
+        Gr = StateSpaceModel(Ar, Br, Cr, g.D, g.dt).frequency_response(f)
+        worst = np.max(np.linalg.norm(Gr - G, ord=2, axis=(1, 2)))  # largest singular value per frequency
+        assert worst <= 2.0 * hsv[r:].sum() * (1 + 1e-6)
+        assert np.max(np.abs(np.linalg.eigvals(Ar))) < 1.0
+    assert balanced_truncation(np.diag([1.2, 0.3]), np.ones((2, 1)), np.ones((1, 2)), 1) is None
+
+
+def test_balanced_start_recovers_an_exact_response():
+    g = random_stage(6, m=2, q=2, modes=3)
+    f = np.linspace(0.0, 250.0, 200)
+    G = g.frequency_response(f)
+    start = balanced_start(G, f, g.dt, g.n_states, feedthrough=False)
+    assert start is not None
+    est = StateSpaceModel(*start, g.dt)
+    np.testing.assert_allclose(np.sort_complex(est.poles()), np.sort_complex(g.poles()), atol=1e-6)
+    np.testing.assert_allclose(est.frequency_response(f), G, atol=1e-6 * np.abs(G).max())
+    # too few frequencies for twice the order: no start
+    assert balanced_start(G[:8], f[:8], g.dt, g.n_states, feedthrough=False) is None
+
+
+def test_observability_basis_spans_the_lq_subspace():
+    from stageid.subspace.realization import _observability_basis
+
+    rng = np.random.default_rng(7)
+    nf, q, m, r = 40, 2, 3, 5
+    zs = np.exp(1j * np.linspace(0.05, 3.0, nf))
+    G = rng.standard_normal((nf, q, m)) + 1j * rng.standard_normal((nf, q, m))
+    Us, s = _observability_basis(G, zs, r)
+    # reference: LQ factorisation of the stacked real data [U; Y] (McKelvey et al. 1996)
+    powers = zs[None, :] ** np.arange(r)[:, None]
+    Y = (powers[:, :, None, None] * G[None]).transpose(0, 2, 1, 3).reshape(r * q, nf * m)
+    U = np.einsum("rk,ij->rikj", powers, np.eye(m)).reshape(r * m, nf * m)
+    big = np.vstack([np.hstack([U.real, U.imag]), np.hstack([Y.real, Y.imag])])
+    L = np.linalg.qr(big.T, mode="r").T
+    U2, s2, _ = np.linalg.svd(L[r * m:, r * m:], full_matrices=False)
+    np.testing.assert_allclose(s, s2, rtol=1e-10, atol=1e-12 * s2[0])
+    for k in range(r * q):  # the same singular vectors up to sign
+        assert abs(abs(Us[:, k] @ U2[:, k]) - 1.0) < 1e-8

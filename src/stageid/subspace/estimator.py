@@ -12,7 +12,10 @@ Pipeline of :meth:`HankelMAP.fit`:
 
    * ``realization="frequency"`` (default): the response of the identified model over the
      excited band, realised by the frequency-domain counterpart of Lemma 1 and refined by an
-     output-error fit on that band.  Band-limited records (the paper's 1-100 Hz chirps at
+     output-error fit on that band.  The fit starts from the better (lower in-band cost) of
+     that realisation and a balanced truncation of one of twice the order: on white-input
+     records the latter starts 3-30 % above the optimum, so the fit takes 3-4 steps instead
+     of 8-14; on band-limited records the former usually wins.  Band-limited records (the paper's 1-100 Hz chirps at
      Ts = 2 ms) determine ``theta`` only up to directions without input energy, and those
      directions enter the Markov parameters: Lemma 1 on them is then several percent off in
      band, while the in-band response of eq. 9 stays accurate (to ~0.1 % with ``p = 40`` on
@@ -43,7 +46,8 @@ from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, segments_statistics, theta_frequency_response,
                               theta_response_std)
 from .map_estimator import Posterior, Prior, batch_posterior, default_prior, map_estimate
-from .realization import era, fit_input_matrices, frequency_realization, markov_from_theta, refine_frequency_fit
+from .realization import (_fit_cost, balanced_start, era, fit_input_matrices, frequency_realization,
+                          markov_from_theta, refine_frequency_fit)
 from .selection import SelectionTable, default_horizons, prediction_error, row_residuals, simulation_error
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
@@ -768,6 +772,12 @@ class HankelMAP:
             B, D = fit_input_matrices(A, C, Gs, zs, self.feedthrough)
         cost = float("nan")
         if refine:
+            # two starts, the refinement runs from the one with the lower cost: the direct
+            # realisation, or a balanced truncation of one of twice the order (far closer on
+            # white-input records, see realization.balanced_start)
+            alt = balanced_start(Gs, freqs, dt, order, self.feedthrough)
+            if alt is not None and _fit_cost(alt, Gs, zs) < _fit_cost((A, B, C, D), Gs, zs):
+                A, B, C, D = alt
             A, B, C, D, info = refine_frequency_fit(A, B, C, D, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=1e-3)
             cost = info["cost"] / max(float(np.sum(np.abs(Gs) ** 2)), 1e-300)
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
