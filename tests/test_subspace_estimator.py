@@ -294,3 +294,24 @@ def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypa
     HankelMAP(order=g.n_states, horizon=12).fit(exp)
     assert seen["start"] == min(seen["direct"], seen["alt"])
     assert (seen["start"] == seen["alt"]) is (alternative == "better")
+
+
+@pytest.mark.parametrize("order, runs", [(6, 1), (2, 2)])
+def test_a_misfit_refinement_also_runs_from_the_second_start_and_keeps_the_better_end(monkeypatch, order, runs):
+    import stageid.subspace.estimator as est
+
+    g = random_stage(3, m=2, q=2, modes=3)  # 6 states: order 6 fits, order 2 cannot
+    exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)
+    ends = []
+    real_refine = est.refine_frequency_fit
+
+    def refine(*args, **kw):
+        out = real_refine(*args, **kw)
+        ends.append(out[4]["cost"] / float(np.sum(np.abs(args[4]) ** 2)))
+        return out
+
+    monkeypatch.setattr(est, "refine_frequency_fit", refine)
+    res = HankelMAP(order=order, horizon=12).fit(exp)
+    assert len(ends) == runs
+    assert (ends[0] > est.MULTI_START_MISFIT) is (runs == 2)
+    assert res.channels[0].fit_cost == pytest.approx(min(ends), rel=1e-12)

@@ -15,7 +15,10 @@ Pipeline of :meth:`HankelMAP.fit`:
      output-error fit on that band.  The fit starts from the better (lower in-band cost) of
      that realisation and a balanced truncation of one of twice the order: on white-input
      records the latter starts 3-30 % above the optimum, so the fit takes 3-4 steps instead
-     of 8-14; on band-limited records the former usually wins.  Band-limited records (the paper's 1-100 Hz chirps at
+     of 8-14; on band-limited records the former usually wins.  When the refined model still
+     misses the response by more than 1e-3 of its energy (an order too low for the
+     structure, as on real records), the fit is also run from the other start and the better
+     end is kept.  Band-limited records (the paper's 1-100 Hz chirps at
      Ts = 2 ms) determine ``theta`` only up to directions without input energy, and those
      directions enter the Markov parameters: Lemma 1 on them is then several percent off in
      band, while the in-band response of eq. 9 stays accurate (to ~0.1 % with ``p = 40`` on
@@ -69,6 +72,16 @@ LS_RIDGE_STRENGTH = 1e-10
 # of HankelMAP) is taken as at least this fraction of the output's RMS: noise-free records
 # then weigh the outputs as unit RMS does
 NOISE_STD_FLOOR = 1e-3
+#: Relative cost decrease below which the output-error refinement of the realisation stops:
+#: from its starts the later steps move the response far less than its own uncertainty (P-558
+#: benchmark, N = 50 000, p = 40: error 1.328e-3 after 1 step, 1.356e-3 after 3 or 4; the
+#: acceptance sweep moved by <= 0.02 % against 1e-3).
+REFINE_TOL = 3e-3
+#: Relative misfit of the refined realisation (cost over the response's energy) above which
+#: the refinement also runs from the second start.  Fits of the synthetic stages end at
+#: 3e-7 - 3e-6; the DaISy CD player arm (order 3) at 1e-2, the flexible structure (order 12)
+#: at 0.2.
+MULTI_START_MISFIT = 1e-3
 _REALIZATIONS = ("frequency", "markov")
 
 
@@ -773,14 +786,30 @@ class HankelMAP:
             B, D = fit_input_matrices(A, C, Gs, zs, self.feedthrough)
         cost = float("nan")
         if refine:
-            # two starts, the refinement runs from the one with the lower cost: the direct
-            # realisation, or a balanced truncation of one of twice the order (far closer on
-            # white-input records, see realization.balanced_start)
+            # Two starts: the direct realisation, and a balanced truncation of one of twice the
+            # order (far closer on white-input records, see realization.balanced_start).  The
+            # refinement runs from the one with the lower cost; when the result still misses
+            # the response by more than MULTI_START_MISFIT of its energy (the order cannot fit
+            # the system: real structures), it also runs from the other start and keeps the
+            # better end, since a closer start need not lead to the better local optimum there
+            # (flexible structure, order 12: 8.2 from the truncation, 6.5 from the direct start).
+            energy = max(float(np.sum(np.abs(Gs) ** 2)), 1e-300)
+            starts = [(A, B, C, D)]
             alt = balanced_start(Gs, freqs, dt, order, self.feedthrough)
-            if alt is not None and _fit_cost(alt, Gs, zs) < _fit_cost((A, B, C, D), Gs, zs):
-                A, B, C, D = alt
-            A, B, C, D, info = refine_frequency_fit(A, B, C, D, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=1e-3)
-            cost = info["cost"] / max(float(np.sum(np.abs(Gs) ** 2)), 1e-300)
+            if alt is not None:
+                starts.append(alt)
+                starts.sort(key=lambda abcd: _fit_cost(abcd, Gs, zs))
+            best = None
+            for k, start in enumerate(starts):
+                if k and best[4]["cost"] <= MULTI_START_MISFIT * energy:
+                    break
+                # a step that lowers the cost by < 0.3 % ends the fit (REFINE_TOL)
+                out = refine_frequency_fit(*start, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=REFINE_TOL)
+                if best is None or out[4]["cost"] < best[4]["cost"]:
+                    best = out
+            assert best is not None
+            A, B, C, D, info = best
+            cost = info["cost"] / energy
         if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
             raise IdentificationError(f"the realisation of order {order} is not finite.")
         return StateSpaceModel(A, B * scale[None, :], C / w[:, None], D * scale[None, :] / w[:, None], dt), cost
