@@ -175,3 +175,16 @@ def test_observability_basis_spans_the_lq_subspace():
     np.testing.assert_allclose(s, s2, rtol=1e-10, atol=1e-12 * s2[0])
     for k in range(r * q):  # the same singular vectors up to sign
         assert abs(abs(Us[:, k] @ U2[:, k]) - 1.0) < 1e-8
+
+
+def test_balanced_start_gives_none_when_the_truncation_fails(monkeypatch):
+    from stageid.subspace import realization
+
+    g = random_stage(6, m=2, q=2, modes=3)
+    f = np.linspace(0.0, 250.0, 200)
+
+    def broken(*args, **kwargs):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr(realization, "balanced_truncation", broken)
+    assert balanced_start(g.frequency_response(f), f, g.dt, g.n_states, feedthrough=False) is None

@@ -363,12 +363,17 @@ def balanced_start(G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feed
         A, B, C, D, _ = frequency_realization(G, freqs, dt, 2 * order, feedthrough=feedthrough)
     except (IdentificationError, np.linalg.LinAlgError):
         return None
-    red = balanced_truncation(A, B, C, order)
-    if red is None:
+    try:
+        red = balanced_truncation(A, B, C, order)
+        if red is None:
+            return None
+        Ar, _, Cr, _ = red
+        zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+        Br, Dr = fit_input_matrices(Ar, Cr, G, zs, feedthrough)
+    except np.linalg.LinAlgError:  # an SVD or eigensolver that does not converge: no start
         return None
-    Ar, _, Cr, _ = red
-    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-    Br, Dr = fit_input_matrices(Ar, Cr, G, zs, feedthrough)
+    if not all(np.all(np.isfinite(x)) for x in (Ar, Br, Cr, Dr)):
+        return None
     return Ar, Br, Cr, Dr
 
 
