@@ -373,7 +373,7 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
     for p in usable:
         L = 2 * p
         K = n - L + 1
-        W = _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L:])
+        W = _window_gram(z, R[:L], p)
         if forgetting != 1.0:
             # z~(t) = lam^((n-1-t)/2) z(t): the weighted window sum is the unweighted one of z~
             # times lam^((K-1) - (n-1) + (a+b)/2) for window positions a, b.

@@ -282,27 +282,26 @@ def _observability_basis(G: np.ndarray, zs: np.ndarray, r: int) -> tuple[np.ndar
         Yr -= (Yr @ Qw) @ Qw.T
         gram += Yr @ Yr.T
     ev, V = np.linalg.eigh(gram)
-    order = np.argsort(ev)[::-1]
-    return V[:, order], np.sqrt(np.clip(ev[order], 0.0, None))
+    desc = np.argsort(ev)[::-1]
+    return V[:, desc], np.sqrt(np.clip(ev[desc], 0.0, None))
 
 
 def _discrete_gramian(A: np.ndarray, Q: np.ndarray, max_doublings: int = 64) -> np.ndarray | None:
     """``X = sum_k A^k Q A^k^T`` (``X = A X A^T + Q``) by squared Smith iteration, for a stable ``A``.
 
     ``X_(j+1) = X_j + A_j X_j A_j^T`` with ``A_(j+1) = A_j^2`` doubles the number of terms per
-    step: ``log2(log(eps) / log(rho(A)))`` steps (16 at ``rho = 0.9995``).  None when ``A``
-    is not stable or the sum has not converged.
+    step: ``log2(log(eps) / log(rho(A)))`` steps (16 at ``rho = 0.9995``).  None when the sum
+    has not converged (``A`` not stable: its powers overflow or do not vanish).
     """
-    if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
-        return None
     X = np.array(Q, dtype=float)
     Ak = np.array(A, dtype=float)
     for _ in range(max_doublings):
         X = X + Ak @ X @ Ak.T
         Ak = Ak @ Ak
-        if not np.all(np.isfinite(Ak)):
+        size = np.max(np.abs(Ak), initial=0.0)
+        if not size < 1e100:  # growing (unstable) or not finite: stop before overflow
             return None
-        if np.max(np.abs(Ak), initial=0.0) < 1e-17:
+        if size < 1e-17:
             return 0.5 * (X + X.T)
     return None
 
@@ -329,6 +328,8 @@ def balanced_truncation(A: np.ndarray, B: np.ndarray, C: np.ndarray, order: int
     >>> bool(abs(np.linalg.eigvals(Ar)[0] - 0.9) < 0.01)
     True
     """
+    if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+        return None
     P = _discrete_gramian(A, B @ B.T)
     Q = None if P is None else _discrete_gramian(A.T, C.T @ C)
     if P is None or Q is None:
@@ -478,7 +479,8 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
     n = A.shape[0]
     nz, q, m = G.shape
     w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
-    was_stable = np.max(np.abs(np.linalg.eigvals(A))) < 1.0
+    eig0 = np.linalg.eig(A)  # the stability flag's and the first response's
+    was_stable = np.max(np.abs(eig0[0])) < 1.0
 
     def evaluate(A_, B_, C_, D_, eig=None):
         Gm, CR, RB = _model_response(A_, B_, C_, D_, zs, eig)
@@ -487,7 +489,7 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
     def cost_of(res):
         return float(np.sum(w[:, None, None] * (res.real ** 2 + res.imag ** 2)))
 
-    res, CR, RB = evaluate(A, B, C, D)
+    res, CR, RB = evaluate(A, B, C, D, eig0)
     cost0 = cost = cost_of(res)
     # Levenberg-Marquardt with Nielsen's damping update (Madsen, Nielsen & Tingleff 2004, "Methods
     # for non-linear least squares problems", eq. 3.16): the damping follows the gain ratio rho
