@@ -18,6 +18,8 @@ demo: $(STAMP)
 	$(VENV)/bin/stageid demo --out demo-out
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks studies
+	$(VENV)/bin/ruff format --check src tests benchmarks studies
 	$(PY) -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)

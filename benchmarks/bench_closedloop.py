@@ -26,7 +26,7 @@ from stageid.plants.maglev import lead_lag
 from stageid.signals import chirp
 
 DT = 2e-4
-N_ORDER = 4          # closed loop: plant [0, 2] + controller [2, 2] -> 4 poles
+N_ORDER = 4  # closed loop: plant [0, 2] + controller [2, 2] -> 4 poles
 
 
 def _loop():
@@ -65,43 +65,72 @@ def run(repeat: int = 3) -> list[dict]:
     r_um, rv_um = 1e6 * r, 1e6 * rv
     n = N_ORDER
     rows = []
-    for name, structure, orders in (("OE", "oe", {"nb": n, "nf": n}), ("ARMAX", "armax", {"na": n, "nb": n, "nc": n}),
-                                    ("BJ", "bj", {"nb": n, "nf": n, "nc": 2, "nd": 2})):
+    for name, structure, orders in (
+        ("OE", "oe", {"nb": n, "nf": n}),
+        ("ARMAX", "armax", {"na": n, "nb": n, "nc": n}),
+        ("BJ", "bj", {"nb": n, "nf": n, "nc": 2, "nd": 2}),
+    ):
         m, t = _timed(lambda: pem(r_um, y_um, structure, orders, nk=1, dt=DT), repeat)
         rows.append(dict(tool="stageid", method=name, time=t, fit=fit_percent(yv0_um, m.simulate(rv_um))))
     try:
         from sippy_unipi import system_identification
     except ImportError:
         return rows
-    specs = (("OE", dict(OE_orders=[n, n, 1], OE_mod="OPT")), ("ARMAX", dict(ARMAX_orders=[n, n, n, 1], ARMAX_mod="ILLS")),
-             ("BJ", dict(BJ_orders=[n, 2, 2, n, 1])))
+    specs = (
+        ("OE", dict(OE_orders=[n, n, 1], OE_mod="OPT")),
+        ("ARMAX", dict(ARMAX_orders=[n, n, n, 1], ARMAX_mod="ILLS")),
+        ("BJ", dict(BJ_orders=[n, 2, 2, n, 1])),
+    )
     for name, kw in specs:
+
         def ident(kw=kw, name=name):
             with contextlib.redirect_stdout(io.StringIO()):
                 return system_identification(y_um, r_um, name, tsample=DT, **kw)
+
         try:
             mod, t = _timed(ident, repeat)
-            num = np.asarray(mod.NUMERATOR, dtype=float).ravel() if hasattr(mod, "NUMERATOR") else np.asarray(mod.G.num[0][0], float)
-            den = np.asarray(mod.DENOMINATOR, dtype=float).ravel() if hasattr(mod, "DENOMINATOR") else np.asarray(mod.G.den[0][0], float)
+            num = (
+                np.asarray(mod.NUMERATOR, dtype=float).ravel()
+                if hasattr(mod, "NUMERATOR")
+                else np.asarray(mod.G.num[0][0], float)
+            )
+            den = (
+                np.asarray(mod.DENOMINATOR, dtype=float).ravel()
+                if hasattr(mod, "DENOMINATOR")
+                else np.asarray(mod.G.den[0][0], float)
+            )
             g = mod.G
             bz, az = np.asarray(g.num[0][0], float), np.asarray(g.den[0][0], float)
             pad = az.size - bz.size
             yh = ss.lfilter(np.concatenate([np.zeros(pad), bz]), az, rv_um)
             rows.append(dict(tool="SIPPY", method=name, time=t, fit=fit_percent(yv0_um, yh)))
         except Exception as exc:  # a peer failing is a result too
-            rows.append(dict(tool="SIPPY", method=name, time=float("nan"), fit=float("nan"), note=f"{type(exc).__name__}: {exc}"[:80]))
+            rows.append(
+                dict(
+                    tool="SIPPY",
+                    method=name,
+                    time=float("nan"),
+                    fit=float("nan"),
+                    note=f"{type(exc).__name__}: {exc}"[:80],
+                )
+            )
     return rows
 
 
 def markdown(rows: list[dict], repeat: int) -> str:
-    lines = ["# Closed-loop PEM benchmark: stageid vs SIPPY", "",
-             f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}; "
-             f"median of {repeat} runs; written by `benchmarks/bench_closedloop.py`.", "",
-             "Data: closed loop r -> y of an unstable levitation axis under our lead-lag, 10 000 samples at 5 kHz "
-             "(1 um chirp DC -> 2500 Hz), 60 dB output noise; orders 4/4 (BJ noise 2/2), delay 1. Fit = simulation fit on a "
-             "fresh noise-free validation record (1.5 s chirp).", "",
-             "| method | stageid time [s] | stageid fit [%] | SIPPY time [s] | SIPPY fit [%] | time ratio SIPPY/stageid |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "# Closed-loop PEM benchmark: stageid vs SIPPY",
+        "",
+        f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}; "
+        f"median of {repeat} runs; written by `benchmarks/bench_closedloop.py`.",
+        "",
+        "Data: closed loop r -> y of an unstable levitation axis under our lead-lag, 10 000 samples at 5 kHz "
+        "(1 um chirp DC -> 2500 Hz), 60 dB output noise; orders 4/4 (BJ noise 2/2), delay 1. Fit = simulation fit on a "
+        "fresh noise-free validation record (1.5 s chirp).",
+        "",
+        "| method | stageid time [s] | stageid fit [%] | SIPPY time [s] | SIPPY fit [%] | time ratio SIPPY/stageid |",
+        "|---|---|---|---|---|---|",
+    ]
     for method in ("OE", "ARMAX", "BJ"):
         a = next((r for r in rows if r["tool"] == "stageid" and r["method"] == method), None)
         b = next((r for r in rows if r["tool"] == "SIPPY" and r["method"] == method), None)

@@ -98,8 +98,7 @@ def compare_with(path, n, repeat):
     sys.modules[spec.name] = old  # numba's cache finds the module again by name
     spec.loader.exec_module(old)
     rng, inputs = _inputs(n)
-    print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; "
-          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; load average {os.getloadavg()[0]:.2f}")
     print(f"{'input':12s} {'ops':>4s} {'kernel':10s} {'before':>8s} {'after':>8s}  ns/sample/op")
     for name, x in inputs.items():
         x = np.ascontiguousarray(x)
@@ -109,8 +108,10 @@ def compare_with(path, n, repeat):
             rb = 0.6 * ra
             w = rng.uniform(0.0, 1.0, m) / m
             z0 = np.zeros(m)
-            for label, mod_call in (("play auto", lambda M: M.play_sum_auto(x, r, w, z0, 0.0)),
-                                    ("CP auto", lambda M: M.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0))):
+            for label, mod_call in (
+                ("play auto", lambda M: M.play_sum_auto(x, r, w, z0, 0.0)),
+                ("CP auto", lambda M: M.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)),
+            ):
                 yo, zo = mod_call(old)
                 yn, zn = mod_call(K)
                 diff = np.abs(yo - yn).max() / np.abs(yo).max()
@@ -131,9 +132,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=1_000_000)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--compare-with", metavar="KERNELS_PY", default=None,
-                    help="an older copy of stageid/hysteresis/_kernels.py (e.g. from `git show`): time its "
-                         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop")
+    ap.add_argument(
+        "--compare-with",
+        metavar="KERNELS_PY",
+        default=None,
+        help="an older copy of stageid/hysteresis/_kernels.py (e.g. from `git show`): time its "
+        "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop",
+    )
     args = ap.parse_args(argv)
     if args.compare_with:
         return compare_with(args.compare_with, args.samples, args.repeat)
@@ -144,13 +149,17 @@ def main(argv=None) -> int:
 
     n = args.samples
     rng, inputs = _inputs(n)
-    print(f"# {platform.processor() or platform.machine()}, Python {sys.version.split()[0]}, numpy {np.__version__}, "
-          f"{n} samples, median of {args.repeat}; load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"# {platform.processor() or platform.machine()}, Python {sys.version.split()[0]}, numpy {np.__version__}, "
+        f"{n} samples, median of {args.repeat}; load average {os.getloadavg()[0]:.2f}"
+    )
     for name, x in inputs.items():
         dx = np.diff(x)
         moving = dx[dx != 0]
-        print(f"# {name}: turns at {np.mean(moving[1:] * moving[:-1] < 0):.1%} of the moving samples, "
-              f"stands still at {np.mean(dx == 0):.1%}")
+        print(
+            f"# {name}: turns at {np.mean(moving[1:] * moving[:-1] < 0):.1%} of the moving samples, "
+            f"stands still at {np.mean(dx == 0):.1%}"
+        )
     print(f"{'input':12s} {'ops':>4s} {'kernel':14s} {'ns/sample/op':>13s} {'max rel. diff':>14s}")
     rows = []
     n_np = min(n, 100_000)
@@ -188,8 +197,10 @@ def main(argv=None) -> int:
                 assert diff <= 1e-12, f"{label} differs from the reference by {diff:.3g}"
                 rows.append((name, m, label, sec / n / m * 1e9, diff))
                 print(f"{name:12s} {m:4d} {label:14s} {sec / n / m * 1e9:13.4f} {diff:14.2e}")
-            for label, f, ref in (("numpy play", lambda: numpy_play_sum(x[:n_np], r, w, z0), yref),
-                                  ("numpy CP", lambda: numpy_cp_sum(x[:n_np], r, rc, ra, rb, w, z0), ycref)):
+            for label, f, ref in (
+                ("numpy play", lambda: numpy_play_sum(x[:n_np], r, w, z0), yref),
+                ("numpy CP", lambda: numpy_cp_sum(x[:n_np], r, rc, ra, rb, w, z0), ycref),
+            ):
                 sec, y = timed(f, 1)
                 diff = np.abs(y[:n_ref] - ref).max() / max(np.abs(ref).max(), 1e-300)
                 rows.append((name, m, label, sec / n_np / m * 1e9, diff))
@@ -214,15 +225,17 @@ def main(argv=None) -> int:
             rates.append(n_py / (time.perf_counter() - t0))
         return float(np.median(rates))
 
-    py_rate = step_rate(yref[:n_py].tolist())       # Python floats
-    py_rate_np = step_rate(yref[:n_py])             # numpy float64 scalars (iterating an array)
+    py_rate = step_rate(yref[:n_py].tolist())  # Python floats
+    py_rate_np = step_rate(yref[:n_py])  # numpy float64 scalars (iterating an array)
     comp = Compensator(model)
     sec, u = timed(lambda: Compensator(model).run(yref), args.repeat)
     err = np.abs(model.simulate(u)[:, 0] - yref).max() / np.ptp(yref)
-    print(f"compensator, modified PI, {m} operators: compiled per-sample step in a compiled loop "
-          f"{n / sec / 1e6:.2f} M samples/s (model(inverse(y)) - y: {err:.1e} of range); "
-          f"Python Compensator.step per sample {py_rate / 1e6:.3f} M samples/s on Python floats, "
-          f"{py_rate_np / 1e6:.3f} M samples/s on numpy scalars (median of {max(3, args.repeat)})")
+    print(
+        f"compensator, modified PI, {m} operators: compiled per-sample step in a compiled loop "
+        f"{n / sec / 1e6:.2f} M samples/s (model(inverse(y)) - y: {err:.1e} of range); "
+        f"Python Compensator.step per sample {py_rate / 1e6:.3f} M samples/s on Python floats, "
+        f"{py_rate_np / 1e6:.3f} M samples/s on numpy scalars (median of {max(3, args.repeat)})"
+    )
     from stageid.hysteresis import PIModel
 
     pi_model = PIModel(r=r, weights=model.weights)
@@ -232,8 +245,14 @@ def main(argv=None) -> int:
     # with a creep term (rate dependent: per-sample inversion with the creep memory)
     from stageid.hysteresis import CreepTerm
 
-    creep_model = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.3 * r, rb=0.78 * r, weights=model.weights,
-                                  creep=CreepTerm([0.05, 0.2, 1.0, 5.0, 20.0], [0.002] * 5, 1e-4))
+    creep_model = ModifiedPIModel(
+        r=r,
+        rc=0.5 * r,
+        ra=1.3 * r,
+        rb=0.78 * r,
+        weights=model.weights,
+        creep=CreepTerm([0.05, 0.2, 1.0, 5.0, 20.0], [0.002] * 5, 1e-4),
+    )
     yc = creep_model.simulate(inputs["smooth"][:n])[:, 0]
     sec, u = timed(lambda: Compensator(creep_model).run(yc), args.repeat)
     err = np.abs(creep_model.simulate(u)[:, 0] - yc).max() / np.ptp(yc)
@@ -245,8 +264,10 @@ def main(argv=None) -> int:
     for v in yc[2 : 2 + n_step]:
         comp.step(v)
     creep_rate = n_step / (time.perf_counter() - t0)
-    print(f"compensator, modified PI + creep (5 lags), {m} operators: {n / sec / 1e6:.2f} M samples/s "
-          f"(model(inverse(y)) - y: {err:.1e} of range); Python Compensator.step {creep_rate / 1e6:.3f} M samples/s")
+    print(
+        f"compensator, modified PI + creep (5 lags), {m} operators: {n / sec / 1e6:.2f} M samples/s "
+        f"(model(inverse(y)) - y: {err:.1e} of range); Python Compensator.step {creep_rate / 1e6:.3f} M samples/s"
+    )
     print(f"# load average at the end {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -40,8 +40,13 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ENV_1THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-               "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+ENV_1THREAD = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+    "VECLIB_MAXIMUM_THREADS": "1",
+}
 TOOLS = ("stageid", "stageid-p40", "python-control", "sippy", "nfoursid")
 ORDER = 15
 # per-worker limits: address space and wall time (a peer that exceeds them is reported so)
@@ -115,7 +120,7 @@ def worker(tool: str, n: int, repeats: int, warmup: int = 0) -> None:
     """Time ``repeats`` identifications after ``warmup`` untimed ones (imports, first calls)."""
     import resource
 
-    limit = int(MEMORY_LIMIT_GB * 2 ** 30)
+    limit = int(MEMORY_LIMIT_GB * 2**30)
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     import numpy as np  # noqa: F401  (imported before timing)
 
@@ -130,14 +135,16 @@ def worker(tool: str, n: int, repeats: int, warmup: int = 0) -> None:
         A, B, C, D = run_tool(tool, u, y, dt)
         times.append(time.perf_counter() - t0)
         err = response_error(A, B, C, D, dt)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20  # GB (ru_maxrss is KiB on Linux)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # GB (ru_maxrss is KiB on Linux)
     print(json.dumps({"tool": tool, "n": n, "times": times, "peak_gb": peak, "error": err}))
 
 
 def spawn(args: list[str], timeout: float = TIMEOUT_S) -> tuple[dict | None, str]:
     env = {**os.environ, **ENV_1THREAD}
     try:
-        proc = subprocess.run([sys.executable, str(Path(__file__)), *args], capture_output=True, text=True, env=env, timeout=timeout)
+        proc = subprocess.run(
+            [sys.executable, str(Path(__file__)), *args], capture_output=True, text=True, env=env, timeout=timeout
+        )
     except subprocess.TimeoutExpired:
         return None, f"timeout > {timeout:.0f} s"
     if proc.returncode != 0:
@@ -165,7 +172,6 @@ json.dump({'A': np.asarray(s.A).tolist(), 'B': np.asarray(s.B).tolist(), 'C': np
 
 def whole_process(n: int, repeats: int) -> dict:
     """Wall time of the whole `stageid identify statespace` process vs a python-control script."""
-    import numpy as np
 
     from stageid.data import Experiment, write_npz
 
@@ -179,11 +185,25 @@ def whole_process(n: int, repeats: int) -> dict:
         script = Path(d) / "pycontrol_id.py"
         script.write_text(PYCONTROL_SCRIPT)
         cmds = {
-            "stageid CLI": [stageid_exe, "identify", "statespace", str(data), "--inputs", "Z,Rx,Ry",
-                            "--outputs", "z,rx,ry", "--order", "15", "-o", str(Path(d) / "m.json")],
+            "stageid CLI": [
+                stageid_exe,
+                "identify",
+                "statespace",
+                str(data),
+                "--inputs",
+                "Z,Rx,Ry",
+                "--outputs",
+                "z,rx,ry",
+                "--order",
+                "15",
+                "-o",
+                str(Path(d) / "m.json"),
+            ],
             "python-control script": [sys.executable, str(script), str(data), str(Path(d) / "pc.json")],
         }
-        subprocess.run(cmds["stageid CLI"], env=env, capture_output=True)  # warm the file cache (first run reads the package from disk)
+        subprocess.run(
+            cmds["stageid CLI"], env=env, capture_output=True
+        )  # warm the file cache (first run reads the package from disk)
         for name, cmd in cmds.items():
             times = []
             for _ in range(repeats):
@@ -228,8 +248,12 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 50000, 500000, 5000000])
     ap.add_argument("--tools", nargs="+", default=list(TOOLS))
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--warmup", type=int, default=1,
-                    help="untimed runs before the timed ones, in each worker up to N = 500 000 (default 1)")
+    ap.add_argument(
+        "--warmup",
+        type=int,
+        default=1,
+        help="untimed runs before the timed ones, in each worker up to N = 500 000 (default 1)",
+    )
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     if args.worker:
@@ -247,7 +271,11 @@ def main() -> None:
             rows.append((tool, n, res, why))
             if res is None:
                 skip.add(tool)
-            msg = f"{tool:>15} N={n:>8}: " + (f"{statistics.median(res['times']):8.3f} s  {res['peak_gb']:.2f} GB  err {res['error']:.2e}" if res else why)
+            msg = f"{tool:>15} N={n:>8}: " + (
+                f"{statistics.median(res['times']):8.3f} s  {res['peak_gb']:.2f} GB  err {res['error']:.2e}"
+                if res
+                else why
+            )
             print(msg, flush=True)
     proc = whole_process(50000, args.repeats)
     print("whole process at N=50000:", proc, flush=True)
@@ -263,12 +291,17 @@ def report(rows, proc, rec, args) -> str:
     import platform
 
     by = {(t, n): (r, w) for t, n, r, w in rows}
-    lines = ["# Benchmark: MIMO state-space identification (P-558 3x3, order 15)", "",
-             f"Run: `python benchmarks/bench_subspace.py` on {platform.machine()} / Python {platform.python_version()}, "
-             f"single-threaded, {args.warmup} untimed warm-up run(s) then the median of {args.repeats} "
-             f"(one cold run above N = 500 000).  White +-1 inputs, 1 % output noise.",
-             "Error: largest |G_est - G_true| over 0-250 Hz relative to each input column's largest true gain.", "",
-             "| N | tool | time [s] | peak memory [GB] | FR error | time / stageid |", "|---|---|---|---|---|---|"]
+    lines = [
+        "# Benchmark: MIMO state-space identification (P-558 3x3, order 15)",
+        "",
+        f"Run: `python benchmarks/bench_subspace.py` on {platform.machine()} / Python {platform.python_version()}, "
+        f"single-threaded, {args.warmup} untimed warm-up run(s) then the median of {args.repeats} "
+        f"(one cold run above N = 500 000).  White +-1 inputs, 1 % output noise.",
+        "Error: largest |G_est - G_true| over 0-250 Hz relative to each input column's largest true gain.",
+        "",
+        "| N | tool | time [s] | peak memory [GB] | FR error | time / stageid |",
+        "|---|---|---|---|---|---|",
+    ]
     for n in args.sizes:
         base = by.get(("stageid", n), (None, ""))[0]
         bt = statistics.median(base["times"]) if base else None
@@ -286,8 +319,12 @@ def report(rows, proc, rec, args) -> str:
     if len(proc) == 2:
         a, b = proc["stageid CLI"], proc["python-control script"]
         lines.append(f"- ratio: python-control script / stageid CLI = {b / a:.1f}x")
-    lines += ["", f"Recursive MAP update (eq. 17-18), regressor dimension {rec['dimension']}: compiled (numba) "
-              f"{rec['fused_us']:.1f} us per window; textbook numpy {rec['numpy_us']:.1f} us per window.", ""]
+    lines += [
+        "",
+        f"Recursive MAP update (eq. 17-18), regressor dimension {rec['dimension']}: compiled (numba) "
+        f"{rec['fused_us']:.1f} us per window; textbook numpy {rec['numpy_us']:.1f} us per window.",
+        "",
+    ]
     return "\n".join(lines)
 
 

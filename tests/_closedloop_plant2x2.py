@@ -17,13 +17,17 @@ UNSTABLE = (45.0, 70.0)
 
 def plant() -> TransferMatrix:
     num = [[[2.5], [30.0]], [[60.0], [2.0]]]
-    den = [[np.poly([45.0, -70.0]), np.real(np.poly([-20.0, -150 + 1200j, -150 - 1200j]))],
-           [np.real(np.poly([-90.0, -100 + 900j, -100 - 900j])), np.poly([70.0, -60.0])]]
+    den = [
+        [np.poly([45.0, -70.0]), np.real(np.poly([-20.0, -150 + 1200j, -150 - 1200j]))],
+        [np.real(np.poly([-90.0, -100 + 900j, -100 - 900j])), np.poly([70.0, -60.0])],
+    ]
     return TransferMatrix(num, den, None, ("F1", "F2"), ("y1", "y2"))
 
 
 def controller():
     m1 = lead_lag(2.5, 45.0, 70.0, 110.0)
     m2 = lead_lag(2.0, 70.0, 60.0, 110.0)
-    K = TransferMatrix([[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2"))
+    K = TransferMatrix(
+        [[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2")
+    )
     return K.to_statespace(minimal=False).c2d(DT, "tustin")

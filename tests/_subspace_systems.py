@@ -43,8 +43,9 @@ def record(g: StateSpaceModel, u: np.ndarray, noise: float, seed: int, names: bo
     return Experiment(u, y, g.dt)
 
 
-def column_errors(estimated: StateSpaceModel, true: StateSpaceModel, f_low: float = 1.0, f_high: float = 100.0,
-                  n: int = 1000) -> tuple[float, float]:
+def column_errors(
+    estimated: StateSpaceModel, true: StateSpaceModel, f_low: float = 1.0, f_high: float = 100.0, n: int = 1000
+) -> tuple[float, float]:
     """(largest diagonal error, largest coupling error), each relative to its input column's peak gain."""
     f = np.linspace(f_low, f_high, n)
     Gt = true.frequency_response(f)

@@ -58,7 +58,7 @@ def test_constant_input_in_every_record_is_refused_but_one_moving_record_suffice
     c1, c2 = np.full(400, 3.0), np.full(400, -1.0)
     with pytest.raises(IdentificationError, match=r"zero range \(constant\) in all 2 record\(s\)"):
         pem([c1, c2], [y, y], "oe", {"nb": 2, "nf": 2})
-    m = pem([c1, u], [y, y], "oe", {"nb": 2, "nf": 2})   # the second record excites the model
+    m = pem([c1, u], [y, y], "oe", {"nb": 2, "nf": 2})  # the second record excites the model
     assert m.n_samples == 800
 
 
@@ -92,8 +92,12 @@ def test_pem_paths_leave_the_callers_arrays_alone() -> None:
     before = [a.copy() for a in arrays]
     arx(u, y, 2, 2)
     pem(u, y, "oe", {"nb": 2, "nf": 2})
-    for call in (lambda: arx(c, y, 2, 2), lambda: pem(c, y, "oe", {"nb": 2, "nf": 2}),
-                 lambda: arx(u, y, 2, 2, dt=0.0), lambda: select_order(c, y, "oe", orders=[1, 2, 3, 4])):
+    for call in (
+        lambda: arx(c, y, 2, 2),
+        lambda: pem(c, y, "oe", {"nb": 2, "nf": 2}),
+        lambda: arx(u, y, 2, 2, dt=0.0),
+        lambda: select_order(c, y, "oe", orders=[1, 2, 3, 4]),
+    ):
         with pytest.raises(StageIdError):
             call()
     for a, b in zip(arrays, before):
@@ -106,7 +110,9 @@ def _exp(n: int = 10) -> Experiment:
     return Experiment(u=np.arange(float(n)), y=10.0 * np.arange(float(n)), dt=0.5, t0=100.0)
 
 
-@pytest.mark.parametrize("start, stop", [(2.0, 6), (2, 6.0), (np.int64(2), 6.0), (np.float64(2.0), np.int32(6)), (2, np.uint8(6))])
+@pytest.mark.parametrize(
+    "start, stop", [(2.0, 6), (2, 6.0), (np.int64(2), 6.0), (np.float64(2.0), np.int32(6)), (2, np.uint8(6))]
+)
 def test_slice_takes_integral_indices_of_any_numeric_type(start: object, stop: object) -> None:
     # before: any float (even 2.0) raised a raw TypeError from numpy indexing
     part = _exp().slice(start, stop)
@@ -128,7 +134,9 @@ def test_slice_refuses_fractional_indices_and_says_they_are_samples(start: objec
     assert f"got {start if bad == 'start' else stop!r}" in msg and "round((t - t0) / dt)" in msg
 
 
-@pytest.mark.parametrize("start, stop", [("1", 4), (0, "4"), (None, 4), (True, 4), (0, float("nan")), (0, float("inf")), ([1], 4)])
+@pytest.mark.parametrize(
+    "start, stop", [("1", 4), (0, "4"), (None, 4), (True, 4), (0, float("nan")), (0, float("inf")), ([1], 4)]
+)
 def test_slice_refuses_non_numeric_indices(start: object, stop: object) -> None:
     with pytest.raises(DataError, match="must be an integer sample index") as exc:
         _exp().slice(start, stop)
@@ -171,7 +179,9 @@ def test_plant_experiments_refuse_bad_seeds(plant: str, experiment: str, seed: o
     assert _one_line(exc).endswith(f"got {seed!r}.")
 
 
-@pytest.mark.parametrize("plant, experiment", [("p558", "random-z"), ("p558", "prbs"), ("piezo-actuator", "triangle-1hz")])
+@pytest.mark.parametrize(
+    "plant, experiment", [("p558", "random-z"), ("p558", "prbs"), ("piezo-actuator", "triangle-1hz")]
+)
 def test_plant_experiments_accept_numpy_integer_seeds(plant: str, experiment: str) -> None:
     f = plant_module(plant).EXPERIMENTS[experiment]
     a, b = f(seed=np.int64(5)), f(seed=5)

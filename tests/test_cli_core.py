@@ -14,7 +14,9 @@ from stageid.models import StateSpaceModel, TransferMatrix, save_model
 
 def run_cli(*args, cwd=None):
     """Run the real `stageid` process (exit code, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, "-m", "stageid", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "stageid", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=120
+    )
     return proc.returncode, proc.stdout, proc.stderr
 
 
@@ -30,8 +32,15 @@ def discrete_model(tmp_path):
     rng = np.random.default_rng(11)
     A = rng.standard_normal((4, 4))
     A *= 0.95 / np.max(np.abs(np.linalg.eigvals(A)))
-    g = StateSpaceModel(A, rng.standard_normal((4, 2)), rng.standard_normal((3, 4)), rng.standard_normal((3, 2)),
-                        dt=0.002, inputs=("Z", "Rx"), outputs=("z", "rx", "ry"))
+    g = StateSpaceModel(
+        A,
+        rng.standard_normal((4, 2)),
+        rng.standard_normal((3, 4)),
+        rng.standard_normal((3, 2)),
+        dt=0.002,
+        inputs=("Z", "Rx"),
+        outputs=("z", "rx", "ry"),
+    )
     path = tmp_path / "g.json"
     save_model(g, path)
     return g, path
@@ -66,8 +75,14 @@ def test_freqresp_continuous_equals_formula(tmp_path, kind):
     rng = np.random.default_rng(14)
     if kind == "statespace":
         A = rng.standard_normal((5, 5)) - 3 * np.eye(5)
-        model = StateSpaceModel(A, rng.standard_normal((5, 2)), rng.standard_normal((2, 5)), rng.standard_normal((2, 2)),
-                                inputs=("a", "b"), outputs=("x", "y"))
+        model = StateSpaceModel(
+            A,
+            rng.standard_normal((5, 2)),
+            rng.standard_normal((2, 5)),
+            rng.standard_normal((2, 2)),
+            inputs=("a", "b"),
+            outputs=("x", "y"),
+        )
 
         def truth(s):
             return model.C @ np.linalg.solve(s * np.eye(5) - A, model.B) + model.D
@@ -78,8 +93,25 @@ def test_freqresp_continuous_equals_formula(tmp_path, kind):
 
         def truth(s):
             return np.array([[np.polyval(num[i][j], s) / np.polyval(den[i][j], s) for j in range(2)] for i in range(2)])
+
     save_model(model, tmp_path / "m.json")
-    assert main(["freqresp", str(tmp_path / "m.json"), "--fmin", "0.1", "--fmax", "100", "--n", "25", "-o", str(tmp_path / "fr.csv")]) == 0
+    assert (
+        main(
+            [
+                "freqresp",
+                str(tmp_path / "m.json"),
+                "--fmin",
+                "0.1",
+                "--fmax",
+                "100",
+                "--n",
+                "25",
+                "-o",
+                str(tmp_path / "fr.csv"),
+            ]
+        )
+        == 0
+    )
     header = (tmp_path / "fr.csv").read_text().splitlines()[0].split(",")
     assert header == ["f_hz", "re_x_a", "im_x_a", "re_x_b", "im_x_b", "re_y_a", "im_y_a", "re_y_b", "im_y_b"]
     data = np.loadtxt(tmp_path / "fr.csv", delimiter=",", skiprows=1)
@@ -103,8 +135,17 @@ def test_nan_in_csv_is_one_line_error_and_no_output(tmp_path, discrete_model):
 
 
 def test_wrong_b_rows_is_one_line_error_and_no_output(tmp_path):
-    d = {"format": "stageid.lti/1", "kind": "statespace", "dt": None, "A": np.eye(3).tolist(), "B": np.ones((2, 1)).tolist(),
-         "C": np.ones((1, 3)).tolist(), "D": [[0.0]], "inputs": ["u"], "outputs": ["y"]}
+    d = {
+        "format": "stageid.lti/1",
+        "kind": "statespace",
+        "dt": None,
+        "A": np.eye(3).tolist(),
+        "B": np.ones((2, 1)).tolist(),
+        "C": np.ones((1, 3)).tolist(),
+        "D": [[0.0]],
+        "inputs": ["u"],
+        "outputs": ["y"],
+    }
     (tmp_path / "bad.json").write_text(json.dumps(d))
     rc, out, err = run_cli("freqresp", tmp_path / "bad.json", "--fmin", "1", "--fmax", "10", "-o", tmp_path / "fr.csv")
     assert_one_line_error(rc, err)
@@ -122,7 +163,25 @@ def test_wrong_b_rows_is_one_line_error_and_no_output(tmp_path):
         (["simulate", "{m}", "{missing}", "-o", "{out}"], "does not exist"),
         (["freqresp", "{m}", "--fmin", "-1", "--fmax", "10", "-o", "{out}"], "--fmin"),
         (["freqresp", "{m}", "--fmin", "1", "--fmax", "1000", "-o", "{out}"], "Nyquist"),
-        (["signal", "chirp", "--f0", "1", "--f1", "10", "--duration", "1", "--dt", "0.01", "--limits", "0:0.5", "-o", "{out}"], "limits"),
+        (
+            [
+                "signal",
+                "chirp",
+                "--f0",
+                "1",
+                "--f1",
+                "10",
+                "--duration",
+                "1",
+                "--dt",
+                "0.01",
+                "--limits",
+                "0:0.5",
+                "-o",
+                "{out}",
+            ],
+            "limits",
+        ),
         (["simulate", "{m}", "{u_wrong}", "-o", "{out}"], "unknown column 'Z'"),
         (["nonsense"], "No such command"),
     ],
@@ -130,7 +189,12 @@ def test_wrong_b_rows_is_one_line_error_and_no_output(tmp_path):
 def test_bad_input_contract(tmp_path, discrete_model, args, fragment):
     _, model_path = discrete_model
     write_csv(tmp_path / "u_wrong.csv", {"a": np.ones(5), "b": np.ones(5)}, dt=0.002)
-    subst = {"m": model_path, "missing": tmp_path / "missing.csv", "out": tmp_path / "out.csv", "u_wrong": tmp_path / "u_wrong.csv"}
+    subst = {
+        "m": model_path,
+        "missing": tmp_path / "missing.csv",
+        "out": tmp_path / "out.csv",
+        "u_wrong": tmp_path / "u_wrong.csv",
+    }
     rc, out, err = run_cli(*[a.format(**subst) for a in args])
     assert_one_line_error(rc, err)
     assert rc == 2
@@ -140,8 +204,31 @@ def test_bad_input_contract(tmp_path, discrete_model, args, fragment):
 
 def test_signal_writes_chirp_of_the_paper(tmp_path):
     out = tmp_path / "z.csv"
-    assert main(["signal", "chirp", "--f0", "1", "--f1", "100", "--duration", "10", "--dt", "0.002",
-                 "--amplitude", "20", "--offset", "20", "--name", "Z", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "signal",
+                "chirp",
+                "--f0",
+                "1",
+                "--f1",
+                "100",
+                "--duration",
+                "10",
+                "--dt",
+                "0.002",
+                "--amplitude",
+                "20",
+                "--offset",
+                "20",
+                "--name",
+                "Z",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     table = read_table(out)
     z = table.column("Z")
     assert table.dt == pytest.approx(0.002) and z.size == 5000
@@ -190,25 +277,70 @@ _CHIRP = ["signal", "chirp", "--f0", "1", "--f1", "10", "--duration", "1", "--dt
 @pytest.mark.parametrize(
     "args, fragment",
     [
-        (["signal", "prbs", "--n-samples", "100", "--seed", "-1", "-o", "o.csv"], "'--seed': -1 is not in the range x>=0"),
-        (["signal", "random", "--n-samples", "100", "--dt", "0.01", "--f-low", "1", "--f-high", "10", "--seed", "-1", "-o", "o.csv"],
-         "'--seed': -1 is not in the range x>=0"),
-        (["plants", "p558", "--experiment", "chirp-z", "--seed", "-1", "-o", "o.csv"], "'--seed': -1 is not in the range x>=0"),
+        (
+            ["signal", "prbs", "--n-samples", "100", "--seed", "-1", "-o", "o.csv"],
+            "'--seed': -1 is not in the range x>=0",
+        ),
+        (
+            [
+                "signal",
+                "random",
+                "--n-samples",
+                "100",
+                "--dt",
+                "0.01",
+                "--f-low",
+                "1",
+                "--f-high",
+                "10",
+                "--seed",
+                "-1",
+                "-o",
+                "o.csv",
+            ],
+            "'--seed': -1 is not in the range x>=0",
+        ),
+        (
+            ["plants", "p558", "--experiment", "chirp-z", "--seed", "-1", "-o", "o.csv"],
+            "'--seed': -1 is not in the range x>=0",
+        ),
         ([*_CHIRP, "-o", "o.mat"], "output 'o.mat' has extension '.mat'; expected .csv or .npz for a table"),
         ([*_CHIRP, "-o", "o"], "output 'o' has no extension; expected .csv or .npz"),
         (["plants", "p558", "-o", "m.npz"], "output 'm.npz' has extension '.npz'; expected .json for a model"),
         (["plants", "p558", "--experiment", "chirp-z", "-o", "e.json"], "expected .csv or .npz for a table"),
-        (["signal", "prbs", "--n-samples", "100", "--name", "Z;1", "-o", "s.csv"], "column name 'Z;1' would not read back from CSV"),
+        (
+            ["signal", "prbs", "--n-samples", "100", "--name", "Z;1", "-o", "s.csv"],
+            "column name 'Z;1' would not read back from CSV",
+        ),
         (["signal", "prbs", "--n-samples", "100", "--name", "a\tb", "-o", "s.csv"], "would not read back from CSV"),
         (["plants", "p558", "-o", "nodir/x.json"], "cannot write 'nodir/x.json': directory 'nodir' does not exist."),
         (["plants", "maglev", "--controller", "-o", "nodir/K.json"], "directory 'nodir' does not exist"),
         ([*_CHIRP, "-o", "nodir/c.csv"], "directory 'nodir' does not exist"),
         ([*_CHIRP, "--name", "t", "-o", "c.csv"], "--name 't' is reserved for the time column"),
-        (["signal", "sine", "--freq", "50", "--dt", "0.01", "--duration", "1", "-o", "s.csv"],
-         "must be below the Nyquist frequency 1/(2 dt) = 50 Hz; got 50 Hz"),
+        (
+            ["signal", "sine", "--freq", "50", "--dt", "0.01", "--duration", "1", "-o", "s.csv"],
+            "must be below the Nyquist frequency 1/(2 dt) = 50 Hz; got 50 Hz",
+        ),
         ([*_CHIRP, "-o", "-"], "-o '-' (standard output) is not supported"),
-        (["signal", "decaying-sine", "--freq", "1", "--n-cycles", "2", "--dt", "0.01", "--amplitude", "1e308", "--offset", "1e308",
-          "-o", "d.csv"], "beyond the largest float"),
+        (
+            [
+                "signal",
+                "decaying-sine",
+                "--freq",
+                "1",
+                "--n-cycles",
+                "2",
+                "--dt",
+                "0.01",
+                "--amplitude",
+                "1e308",
+                "--offset",
+                "1e308",
+                "-o",
+                "d.csv",
+            ],
+            "beyond the largest float",
+        ),
     ],
 )
 def test_output_and_parameter_errors_are_one_line_and_leave_nothing(tmp_path, monkeypatch, args, fragment):

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -41,11 +40,24 @@ def test_issue_check_unstable_2x2_through_cli(tmp_path: Path) -> None:
     exps = _experiments(tmp_path)
     save_model(controller(), tmp_path / "K.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "K.json"), "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *exps,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "K.json"),
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     G = load_model(out)
-    assert G.dt is None                                   # continuous by default
+    assert G.dt is None  # continuous by default
     f = np.geomspace(20.0, 300.0, 300)
     Gh, Gt = G.frequency_response(f), plant().frequency_response(f)
     for i in range(2):
@@ -57,7 +69,7 @@ def test_issue_check_unstable_2x2_through_cli(tmp_path: Path) -> None:
     poles = G.to_statespace(minimal=False).poles()
     rhp = np.sort(poles[poles.real > 0].real)
     assert rhp.size >= 2
-    for true in UNSTABLE:                                  # both unstable poles within 5 %
+    for true in UNSTABLE:  # both unstable poles within 5 %
         assert np.min(np.abs(rhp - true)) / true < 0.05
 
 
@@ -66,28 +78,58 @@ def test_controller_with_wrong_dimensions_is_one_line_error(tmp_path: Path, caps
     K1 = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[1.0]], DT)
     save_model(K1, tmp_path / "K1.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "K1.json"), "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *exps,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "K1.json"),
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "controller" in err and "1 inputs" in err
 
 
-def test_loop_not_closed_by_controller_is_detected_from_plant_inputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_loop_not_closed_by_controller_is_detected_from_plant_inputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     exps = _experiments(tmp_path, with_inputs=True)
     K = controller()
-    wrong = StateSpaceModel(K.A, K.B, 1.3 * K.C, 1.3 * K.D, K.dt, K.inputs, K.outputs)   # 30 % more gain
+    wrong = StateSpaceModel(K.A, K.B, 1.3 * K.C, 1.3 * K.D, K.dt, K.inputs, K.outputs)  # 30 % more gain
     save_model(wrong, tmp_path / "Kw.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "Kw.json"), "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *exps,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "Kw.json"),
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "not closed by this controller" in err
 
 
 @pytest.mark.slow
-def test_loop_not_closed_by_controller_is_detected_without_plant_inputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_loop_not_closed_by_controller_is_detected_without_plant_inputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """No u columns: a controller of a different design (80 Hz instead of 110 Hz crossover)
     shows as a deduced plant the [0, 2] diagonal cannot follow (measured: 15 % over the band)."""
     from stageid.models import TransferMatrix
@@ -95,11 +137,26 @@ def test_loop_not_closed_by_controller_is_detected_without_plant_inputs(tmp_path
 
     exps = _experiments(tmp_path)
     m1, m2 = lead_lag(2.5, 45.0, 70.0, 80.0), lead_lag(2.0, 70.0, 60.0, 80.0)
-    other = TransferMatrix([[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2"))
+    other = TransferMatrix(
+        [[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2")
+    )
     save_model(other.to_statespace(minimal=False).c2d(DT, "tustin"), tmp_path / "Ko.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "Ko.json"), "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *exps,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "Ko.json"),
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "not closed by this controller" in err
@@ -111,10 +168,14 @@ def test_right_controller_passes_the_plant_input_check(tmp_path: Path) -> None:
 
     exps = _experiments(tmp_path, with_inputs=True)
     t = read_table(exps[0])
-    res = controller_residual(controller(), np.column_stack([t.column("r1"), t.column("r2")]),
-                              np.column_stack([t.column("y1"), t.column("y2")]),
-                              np.column_stack([t.column("F1"), t.column("F2")]), DT)
-    assert np.all(res < 1e-6)       # the simulator closes the loop exactly with this controller
+    res = controller_residual(
+        controller(),
+        np.column_stack([t.column("r1"), t.column("r2")]),
+        np.column_stack([t.column("y1"), t.column("y2")]),
+        np.column_stack([t.column("F1"), t.column("F2")]),
+        DT,
+    )
+    assert np.all(res < 1e-6)  # the simulator closes the loop exactly with this controller
 
 
 def test_singular_deduction_is_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -126,8 +187,21 @@ def test_singular_deduction_is_reported(tmp_path: Path, capsys: pytest.CaptureFi
     Kd = series(K, diff)
     save_model(Kd, tmp_path / "Kd.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "Kd.json"), "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *exps,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "Kd.json"),
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "singular at 0 Hz" in err
@@ -138,14 +212,28 @@ def test_two_references_excited_in_one_file_is_rejected(tmp_path: Path, capsys: 
     y, _ = simulate_closed_loop(plant(), controller(), np.column_stack([r, r]), DT, 70.0)
     write_csv(tmp_path / "both.csv", {"r1": r, "r2": r, "y1": y[:, 0], "y2": y[:, 1]}, dt=DT)
     save_model(controller(), tmp_path / "K.json")
-    rc = main(["identify", "closed-loop", str(tmp_path / "both.csv"), "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "K.json"), "-o", str(tmp_path / "G.json")])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            str(tmp_path / "both.csv"),
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "K.json"),
+            "-o",
+            str(tmp_path / "G.json"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "one reference per experiment" in err
 
 
-def test_band_above_nyquist_is_rejected_before_fitting(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+def test_band_above_nyquist_is_rejected_before_fitting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     # before: --band 20:3000 (Nyquist 2.5 kHz) was rejected only after all closed-loop fits (~100 s)
     import stageid.closedloop.estimator as est
 
@@ -164,8 +252,23 @@ def test_band_above_nyquist_is_rejected_before_fitting(tmp_path: Path, capsys: p
         paths.append(str(tmp_path / f"e{j}.csv"))
     save_model(controller(), tmp_path / "K.json")
     out = tmp_path / "G.json"
-    rc = main(["identify", "closed-loop", *paths, "--references", "r1,r2", "--outputs", "y1,y2",
-               "--controller", str(tmp_path / "K.json"), "--band", "20:3000", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            *paths,
+            "--references",
+            "r1,r2",
+            "--outputs",
+            "y1,y2",
+            "--controller",
+            str(tmp_path / "K.json"),
+            "--band",
+            "20:3000",
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "Nyquist frequency 2500 Hz" in err and "got 20-3000 Hz" in err

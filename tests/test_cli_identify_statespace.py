@@ -5,12 +5,11 @@ import json
 import numpy as np
 import pytest
 
+from _subspace_systems import band_limited, column_errors, record
 from stageid.cli.main import main
 from stageid.data import write_csv, write_npz
 from stageid.models import load_model
 from stageid.plants import piezo_stage as ps
-
-from _subspace_systems import band_limited, column_errors, record
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +24,21 @@ def p558_files(tmp_path_factory):
 
 def test_default_horizon_given_order_meets_the_issue_check(p558_files, tmp_path, capsys):
     out = tmp_path / "model.json"
-    rc = main(["identify", "statespace", str(p558_files / "bl.csv"), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry",
-               "--order", "15", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            str(p558_files / "bl.csv"),
+            "--inputs",
+            "Z,Rx,Ry",
+            "--outputs",
+            "z,rx,ry",
+            "--order",
+            "15",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     model = load_model(out)
     assert json.loads(out.read_text())["format"] == "stageid.lti/1"
@@ -38,8 +50,25 @@ def test_default_horizon_given_order_meets_the_issue_check(p558_files, tmp_path,
 
 def test_npz_fixed_horizon_least_squares(p558_files, tmp_path):
     out = tmp_path / "m.json"
-    rc = main(["identify", "statespace", str(p558_files / "bl.npz"), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry",
-               "--order", "15", "--horizon", "30", "--method", "ls", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            str(p558_files / "bl.npz"),
+            "--inputs",
+            "Z,Rx,Ry",
+            "--outputs",
+            "z,rx,ry",
+            "--order",
+            "15",
+            "--horizon",
+            "30",
+            "--method",
+            "ls",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     diag, coupling = column_errors(load_model(out), ps.model())
     assert diag < 0.02 and coupling < 0.01
@@ -52,18 +81,37 @@ def test_per_channel_files(tmp_path):
         write_csv(p, ps.EXPERIMENTS[name](0))
         paths.append(str(p))
     out = tmp_path / "m.json"
-    rc = main(["identify", "statespace", *paths, "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry", "--per-channel",
-               "--order", "7,4,4", "--horizon", "16", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            *paths,
+            "--inputs",
+            "Z,Rx,Ry",
+            "--outputs",
+            "z,rx,ry",
+            "--per-channel",
+            "--order",
+            "7,4,4",
+            "--horizon",
+            "16",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     assert load_model(out).n_states == 15
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--order", "x"], "--order must be"),
-    (["--horizon", "-2"], "--horizon must be positive"),
-    (["--outputs", "z,nope"], "nope"),
-    (["--forgetting", "2"], "forgetting"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--order", "x"], "--order must be"),
+        (["--horizon", "-2"], "--horizon must be positive"),
+        (["--outputs", "z,nope"], "nope"),
+        (["--forgetting", "2"], "forgetting"),
+    ],
+)
 def test_errors_are_one_line_and_leave_no_file(p558_files, tmp_path, capsys, args, message):
     out = tmp_path / "m.json"
     base = {"--inputs": "Z,Rx,Ry", "--outputs": "z,rx,ry", "--order": "4"}
@@ -89,8 +137,25 @@ def chirp_z_file(tmp_path_factory):
 def test_band_above_nyquist_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
     # before: exit 0 with "band 300-250 Hz" and a wrong model
     out = tmp_path / "o.json"
-    rc = main(["identify", "statespace", str(chirp_z_file), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry", "--order", "6",
-               "--horizon", "20", "--band", "300:1000", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            str(chirp_z_file),
+            "--inputs",
+            "Z,Rx,Ry",
+            "--outputs",
+            "z,rx,ry",
+            "--order",
+            "6",
+            "--horizon",
+            "20",
+            "--band",
+            "300:1000",
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "0-250 Hz" in err and "got 300-1000 Hz" in err
@@ -99,13 +164,29 @@ def test_band_above_nyquist_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
 def test_no_moving_input_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
     # before: exit 0, B = 0 and overflow warnings
     from stageid.data import read_table
+
     table = read_table(chirp_z_file)
     cols = {n.split(" [")[0]: table.column(n) for n in table.names}
     cols["Z"] = np.full_like(cols["Z"], 20.0)
     write_csv(tmp_path / "flat.csv", cols, dt=ps.DT)
     out = tmp_path / "o.json"
-    rc = main(["identify", "statespace", str(tmp_path / "flat.csv"), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry",
-               "--order", "6", "--horizon", "20", "-o", str(out)])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            str(tmp_path / "flat.csv"),
+            "--inputs",
+            "Z,Rx,Ry",
+            "--outputs",
+            "z,rx,ry",
+            "--order",
+            "6",
+            "--horizon",
+            "20",
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "at least one input must move" in err

@@ -11,12 +11,12 @@ import json
 import numpy as np
 import pytest
 
+from stageid._errors import ModelFormatError
 from stageid.cli.main import main
 from stageid.data.io import read_table, write_csv
 from stageid.hysteresis import PIModel
 from stageid.models import StateSpaceModel, save_model
 from stageid.models.serialization import loads
-from stageid._errors import ModelFormatError
 
 DT = 0.01
 
@@ -47,7 +47,9 @@ def inputs(tmp_path, monkeypatch):
     d.mkdir()
     rng = np.random.default_rng(7)
     # open loop: a stable discrete SISO model and a record of it
-    g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1]], [[0.0]], dt=DT, inputs=("u",), outputs=("y",))
+    g = StateSpaceModel(
+        [[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1]], [[0.0]], dt=DT, inputs=("u",), outputs=("y",)
+    )
     save_model(g, d / "g.json")
     u = rng.standard_normal(600)
     write_csv(d / "rec.csv", {"u": u, "y": g.simulate(u[:, None])[:, 0]}, dt=DT)
@@ -61,7 +63,9 @@ def inputs(tmp_path, monkeypatch):
     from stageid.models import feedback
 
     G = StateSpaceModel([[1.02]], [[0.05]], [[1.0]], [[0.0]], dt=DT, inputs=("u",), outputs=("y",))
-    K = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=DT, inputs=("e",), outputs=("u",))
+    K = StateSpaceModel(
+        np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=DT, inputs=("e",), outputs=("u",)
+    )
     save_model(K, d / "K.json")
     r = rng.standard_normal(2000)
     r[:100] = 0.0
@@ -103,23 +107,63 @@ VERBS = {
     "simulate": (["simulate", "in/g.json", "in/rec.csv"], "-o", "table"),
     "simulate-hysteresis": (["simulate", "in/h.json", "in/hyst.csv"], "-o", "table"),
     "compensate": (["compensate", "in/h.json", "in/ref.csv", "--column", "yref"], "-o", "table"),
-    "identify-statespace": (["identify", "statespace", "in/rec.csv", "--inputs", "u", "--outputs", "y", "--order", "2",
-                             "--horizon", "10"], "-o", "model"),
-    "identify-hysteresis": (["identify", "hysteresis", "in/hyst.csv", "--input", "V", "--output", "y", "--model", "pi",
-                             "--operators", "3", "--quiet"], "-o", "model"),
-    "identify-closedloop": (["identify", "closed-loop", "in/cl.csv", "--references", "r_y", "--outputs", "y",
-                             "--controller", "in/K.json", "--structure", "full", "--band", "1:40"], "-o", "model"),
+    "identify-statespace": (
+        ["identify", "statespace", "in/rec.csv", "--inputs", "u", "--outputs", "y", "--order", "2", "--horizon", "10"],
+        "-o",
+        "model",
+    ),
+    "identify-hysteresis": (
+        [
+            "identify",
+            "hysteresis",
+            "in/hyst.csv",
+            "--input",
+            "V",
+            "--output",
+            "y",
+            "--model",
+            "pi",
+            "--operators",
+            "3",
+            "--quiet",
+        ],
+        "-o",
+        "model",
+    ),
+    "identify-closedloop": (
+        [
+            "identify",
+            "closed-loop",
+            "in/cl.csv",
+            "--references",
+            "r_y",
+            "--outputs",
+            "y",
+            "--controller",
+            "in/K.json",
+            "--structure",
+            "full",
+            "--band",
+            "1:40",
+        ],
+        "-o",
+        "model",
+    ),
 }
 GOOD = {"table": "out.csv", "model": "out.json"}
 BAD = {
-    "table": [("nodir/out.csv", "cannot write 'nodir/out.csv': directory 'nodir' does not exist."),
-              ("out.json", "output 'out.json' has extension '.json'; expected .csv or .npz for a table."),
-              ("out.txt", "expected .csv or .npz for a table"),
-              ("-", "-o '-' (standard output) is not supported")],
-    "model": [("nodir/out.json", "cannot write 'nodir/out.json': directory 'nodir' does not exist."),
-              ("out.csv", "output 'out.csv' has extension '.csv'; expected .json for a model."),
-              ("out", "output 'out' has no extension; expected .json for a model."),
-              ("-", "-o '-' (standard output) is not supported")],
+    "table": [
+        ("nodir/out.csv", "cannot write 'nodir/out.csv': directory 'nodir' does not exist."),
+        ("out.json", "output 'out.json' has extension '.json'; expected .csv or .npz for a table."),
+        ("out.txt", "expected .csv or .npz for a table"),
+        ("-", "-o '-' (standard output) is not supported"),
+    ],
+    "model": [
+        ("nodir/out.json", "cannot write 'nodir/out.json': directory 'nodir' does not exist."),
+        ("out.csv", "output 'out.csv' has extension '.csv'; expected .json for a model."),
+        ("out", "output 'out' has no extension; expected .json for a model."),
+        ("-", "-o '-' (standard output) is not supported"),
+    ],
 }
 CASES = [(verb, bad, fragment) for verb, (_, _, kind) in VERBS.items() for bad, fragment in BAD[kind]]
 
@@ -201,7 +245,10 @@ def two_input_model(tmp_path, monkeypatch):
     [
         (["--inputs", "p,q,s"], "--inputs: expected 2 names for the model's inputs (a,b); got 3 (p,q,s)."),
         (["--inputs", "p"], "--inputs: expected 2 names for the model's inputs (a,b); got 1 (p)."),
-        (["--inputs", "p,q", "--outputs", "y,z"], "--outputs: expected 1 name for the model's outputs (y); got 2 (y,z)."),
+        (
+            ["--inputs", "p,q", "--outputs", "y,z"],
+            "--outputs: expected 1 name for the model's outputs (y); got 2 (y,z).",
+        ),
     ],
 )
 def test_report_renaming_lists_must_match_the_model(tmp_path, two_input_model, names, fragment):
@@ -213,16 +260,22 @@ def test_report_renaming_lists_must_match_the_model(tmp_path, two_input_model, n
 def test_report_renaming_lists_of_the_right_length_work(tmp_path, two_input_model):
     rc, _, err = run_main("report", "g.json", "r.csv", "--inputs", "p,q", "--outputs", "z", "--out", "rep")
     assert rc == 0, err
-    assert "fit_percent/r.csv/y" in json.loads((tmp_path / "rep" / "metrics.json").read_text())  # z shown as the model's y
+    assert "fit_percent/r.csv/y" in json.loads(
+        (tmp_path / "rep" / "metrics.json").read_text()
+    )  # z shown as the model's y
 
 
 # ------------------------------------------------------------------ model files without `format`
 def test_a_model_without_format_names_the_accepted_formats():
     with pytest.raises(ModelFormatError) as info:
         loads('{"kind": "statespace", "dt": 0.1, "A": [[0.5]]}')
-    assert str(info.value) == ("`format` is missing; expected one of stageid.hysteresis/1, stageid.lti/1; "
-                               "got an object without it (keys: A, dt, kind).")
-    with pytest.raises(ModelFormatError, match=r"expected one of stageid.hysteresis/1, stageid.lti/1; got an empty object\.$"):
+    assert str(info.value) == (
+        "`format` is missing; expected one of stageid.hysteresis/1, stageid.lti/1; "
+        "got an object without it (keys: A, dt, kind)."
+    )
+    with pytest.raises(
+        ModelFormatError, match=r"expected one of stageid.hysteresis/1, stageid.lti/1; got an empty object\.$"
+    ):
         loads("{}")
     with pytest.raises(ModelFormatError, match=r"stageid.lti/1; got `format`: null\.$"):
         loads('{"format": null}')
@@ -231,6 +284,10 @@ def test_a_model_without_format_names_the_accepted_formats():
 def test_a_model_file_without_format_is_one_line_in_the_cli(tmp_path, inputs):
     (tmp_path / "in" / "bare.json").write_text('{"kind": "statespace"}\n')
     rc, _, err = run_main("simulate", "in/bare.json", "in/rec.csv", "-o", "y.csv")
-    assert_one_line_error(rc, err, "bare.json: `format` is missing; expected one of stageid.hysteresis/1, stageid.lti/1; "
-                                   "got an object without it (keys: kind).")
+    assert_one_line_error(
+        rc,
+        err,
+        "bare.json: `format` is missing; expected one of stageid.hysteresis/1, stageid.lti/1; "
+        "got an object without it (keys: kind).",
+    )
     assert not (tmp_path / "y.csv").exists()

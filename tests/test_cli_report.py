@@ -11,7 +11,9 @@ from stageid.models import StateSpaceModel, save_model
 
 def _record(tmp_path):
     rng = np.random.default_rng(3)
-    g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",))
+    g = StateSpaceModel(
+        [[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",)
+    )
     u = rng.standard_normal(3000)
     y = g.simulate(u[:, None])[:, 0] + 1e-3 * rng.standard_normal(3000)
     write_csv(tmp_path / "rec.csv", {"u": u, "y": y}, dt=0.01)
@@ -30,8 +32,25 @@ def test_report_command_writes_html_and_metrics(tmp_path):
 
 def test_identify_statespace_report(tmp_path):
     _record(tmp_path)
-    rc = main(["identify", "statespace", str(tmp_path / "rec.csv"), "--inputs", "u", "--outputs", "y", "--order", "2",
-               "--horizon", "10", "-o", str(tmp_path / "m.json"), "--report", str(tmp_path / "rep")])
+    rc = main(
+        [
+            "identify",
+            "statespace",
+            str(tmp_path / "rec.csv"),
+            "--inputs",
+            "u",
+            "--outputs",
+            "y",
+            "--order",
+            "2",
+            "--horizon",
+            "10",
+            "-o",
+            str(tmp_path / "m.json"),
+            "--report",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert rc == 0 and (tmp_path / "m.json").exists()
     html = (tmp_path / "rep" / "index.html").read_text()
     assert "Hankel-MAP diagnostics" in html
@@ -43,8 +62,26 @@ def test_identify_hysteresis_report(tmp_path):
     from stageid.plants.piezo_actuator import EXPERIMENTS
 
     write(tmp_path / "ident.csv", EXPERIMENTS["decaying-triangle"](seed=0))
-    rc = main(["identify", "hysteresis", str(tmp_path / "ident.csv"), "--input", "V", "--output", "y", "--model", "pi",
-               "--operators", "10", "-o", str(tmp_path / "h.json"), "--report", str(tmp_path / "rep"), "--quiet"])
+    rc = main(
+        [
+            "identify",
+            "hysteresis",
+            str(tmp_path / "ident.csv"),
+            "--input",
+            "V",
+            "--output",
+            "y",
+            "--model",
+            "pi",
+            "--operators",
+            "10",
+            "-o",
+            str(tmp_path / "h.json"),
+            "--report",
+            str(tmp_path / "rep"),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     html = (tmp_path / "rep" / "index.html").read_text()
     assert html.count("<img src='data:image/png;base64,") == 1 and "Identification" in html
@@ -58,15 +95,37 @@ def test_identify_closed_loop_report(tmp_path):
 
     rng = np.random.default_rng(5)
     G = StateSpaceModel([[1.02]], [[0.05]], [[1.0]], [[0.0]], dt=0.001, inputs=("u",), outputs=("y",))
-    K = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=0.001, inputs=("e",), outputs=("u",))
+    K = StateSpaceModel(
+        np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=0.001, inputs=("e",), outputs=("u",)
+    )
     save_model(K, tmp_path / "K.json")
     r = rng.standard_normal(4000)
     r[:100] = 0.0  # the loop starts at rest
     yu = feedback(G, K).simulate(r[:, None])
-    write_csv(tmp_path / "exp.csv", {"r_y": r, "y": yu[:, 0] + 1e-5 * rng.standard_normal(4000), "u": yu[:, 1]}, dt=0.001)
-    rc = main(["identify", "closed-loop", str(tmp_path / "exp.csv"), "--references", "r_y", "--outputs", "y",
-               "--controller", str(tmp_path / "K.json"), "--structure", "full", "--band", "1:100",
-               "-o", str(tmp_path / "G.json"), "--report", str(tmp_path / "rep")])
+    write_csv(
+        tmp_path / "exp.csv", {"r_y": r, "y": yu[:, 0] + 1e-5 * rng.standard_normal(4000), "u": yu[:, 1]}, dt=0.001
+    )
+    rc = main(
+        [
+            "identify",
+            "closed-loop",
+            str(tmp_path / "exp.csv"),
+            "--references",
+            "r_y",
+            "--outputs",
+            "y",
+            "--controller",
+            str(tmp_path / "K.json"),
+            "--structure",
+            "full",
+            "--band",
+            "1:100",
+            "-o",
+            str(tmp_path / "G.json"),
+            "--report",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert rc == 0
     html = (tmp_path / "rep" / "index.html").read_text()
     assert html.count("<img src='data:image/png;base64,") == 4
@@ -99,8 +158,19 @@ def test_hysteresis_report_with_a_constant_output_completes(tmp_path, capsys):
     save_model(PIModel(r=[0.0, 20.0, 40.0], weights=[0.01, 0.005, 0.002]), tmp_path / "pi.json")
     v = 50.0 * (1 - np.cos(np.linspace(0, 4 * np.pi, 400)))
     write_csv(tmp_path / "yflat.csv", {"V": v, "y": np.full(400, 1.5)}, dt=0.001)
-    rc = main(["report", str(tmp_path / "pi.json"), str(tmp_path / "yflat.csv"), "--inputs", "V", "--outputs", "y",
-               "--out", str(tmp_path / "rep")])
+    rc = main(
+        [
+            "report",
+            str(tmp_path / "pi.json"),
+            str(tmp_path / "yflat.csv"),
+            "--inputs",
+            "V",
+            "--outputs",
+            "y",
+            "--out",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert rc == 0, capsys.readouterr().err
     assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {"max_error_percent_range/yflat.csv": None}
 

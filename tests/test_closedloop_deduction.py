@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 
 from stageid._errors import IdentificationError
-from stageid.closedloop import cancel_entries, cancel_pairs, deduce_plant, deduce_response, deduce_siso, unstable_plant_poles
-from stageid.models import StateSpaceModel, TransferMatrix, feedback
+from stageid.closedloop import (
+    cancel_entries,
+    cancel_pairs,
+    deduce_plant,
+    deduce_response,
+    deduce_siso,
+    unstable_plant_poles,
+)
+from stageid.models import StateSpaceModel, feedback
 
 sys.path.insert(0, str(Path(__file__).parent))
 from _closedloop_plant2x2 import DT, UNSTABLE, controller, plant  # noqa: E402
@@ -20,7 +27,7 @@ def _true_closed_loop() -> tuple[StateSpaceModel, StateSpaceModel, StateSpaceMod
     G = plant().to_statespace(minimal=False).c2d(DT)
     K = controller()
     L = feedback(G, K)
-    T = StateSpaceModel(L.A, L.B, L.C[:2], L.D[:2], DT)           # r -> y
+    T = StateSpaceModel(L.A, L.B, L.C[:2], L.D[:2], DT)  # r -> y
     return G, K, T
 
 
@@ -29,7 +36,7 @@ def test_eq18_inverts_eq15_for_random_complex_matrices() -> None:
     G = rng.standard_normal((5, 3, 3)) + 1j * rng.standard_normal((5, 3, 3))
     M = rng.standard_normal((5, 3, 3)) + 1j * rng.standard_normal((5, 3, 3))
     I = np.eye(3)
-    T = np.linalg.solve(I + G @ M, G @ M)                          # eq. 15, MIMO: (I + G M)^-1 G M
+    T = np.linalg.solve(I + G @ M, G @ M)  # eq. 15, MIMO: (I + G M)^-1 G M
     np.testing.assert_allclose(deduce_response(T, M), G, rtol=1e-9, atol=1e-12)
 
 
@@ -38,7 +45,7 @@ def test_two_degree_of_freedom_law() -> None:
     G = rng.standard_normal((4, 2, 2)) + 1j * rng.standard_normal((4, 2, 2))
     M = rng.standard_normal((4, 2, 2)) + 1j * rng.standard_normal((4, 2, 2))
     Mr = rng.standard_normal((4, 2, 2)) + 1j * rng.standard_normal((4, 2, 2))
-    T = np.linalg.solve(np.eye(2) + G @ M, G @ Mr)                 # u = M_r r - M y
+    T = np.linalg.solve(np.eye(2) + G @ M, G @ Mr)  # u = M_r r - M y
     np.testing.assert_allclose(deduce_response(T, M, Mr), G, rtol=1e-9, atol=1e-12)
 
 
@@ -62,8 +69,8 @@ def test_siso_polynomials_carry_the_spurious_pairs() -> None:
     num, den = deduce_siso([0.0, 0.5], [1.0, -0.6], [0.5], [1.0])
     poles = np.sort(np.roots(den).real)
     zeros = np.sort(np.roots(num).real) if np.count_nonzero(num) > 1 else np.zeros(0)
-    np.testing.assert_allclose(poles, [0.6, 1.1])                  # A = z - 0.6 and A - B = z - 1.1
-    np.testing.assert_allclose(zeros, [0.6])                       # A again: a spurious pair
+    np.testing.assert_allclose(poles, [0.6, 1.1])  # A = z - 0.6 and A - B = z - 1.1
+    np.testing.assert_allclose(zeros, [0.6])  # A again: a spurious pair
     kp, kz, pairs = cancel_pairs(np.roots(den), np.roots(num), dt=1e-3)
     np.testing.assert_allclose(kp.real, [1.1])
     assert len(pairs) == 1 and pairs[0].distance < 1e-12
@@ -75,10 +82,10 @@ def test_cancellation_leaves_the_true_plant_order_on_the_diagonal() -> None:
     by_entry = {(e.output, e.input): e for e in entries}
     for i in range(2):
         e = by_entry[(i, i)]
-        assert e.kept_poles.size == 2                     # [0, 2]: the plant's own two poles ...
+        assert e.kept_poles.size == 2  # [0, 2]: the plant's own two poles ...
         s = np.sort(np.log(e.kept_poles).real / DT)
-        assert np.min(np.abs(s - UNSTABLE[i])) < 1e-3 * UNSTABLE[i]   # ... one of them the unstable one
-        assert max(p.distance for p in e.pairs) < 1e-3   # exact T: spurious pairs cancel tightly
+        assert np.min(np.abs(s - UNSTABLE[i])) < 1e-3 * UNSTABLE[i]  # ... one of them the unstable one
+        assert max(p.distance for p in e.pairs) < 1e-3  # exact T: spurious pairs cancel tightly
     f = np.geomspace(20, 300, 30)
     for i in range(2):
         np.testing.assert_allclose(Gc.frequency_response(f)[:, i, i], G.frequency_response(f)[:, i, i], rtol=1e-4)

@@ -9,8 +9,14 @@ import numpy as np
 import pytest
 
 from stageid._errors import DataError, IdentificationError
-from stageid.closedloop import (ClosedLoopIdentification, direct_identification, empirical_transfer, reclose_loop,
-                                reduce_entry, simulate_closed_loop)
+from stageid.closedloop import (
+    ClosedLoopIdentification,
+    direct_identification,
+    empirical_transfer,
+    reclose_loop,
+    reduce_entry,
+    simulate_closed_loop,
+)
 from stageid.closedloop.reduction import zoh_response
 from stageid.data import Experiment
 from stageid.models import TransferMatrix
@@ -39,7 +45,7 @@ def test_siso_unstable_plant_is_recovered(seed: int) -> None:
     res = ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9)).fit(_siso_experiment(seed))
     f = np.geomspace(20.0, 300.0, 100)
     err = np.abs(res.plant.frequency_response(f) - G_SISO.frequency_response(f)) / np.abs(G_SISO.frequency_response(f))
-    assert err.max() < 0.01                                     # the paper's 1 % over 20-300 Hz
+    assert err.max() < 0.01  # the paper's 1 % over 20-300 Hz
     assert np.isclose(res.unstable_poles.real.max(), 50.0, rtol=0.02)
     assert res.band_error[0, 0] < 0.01
     assert res.plant.dt is None and res.plant.inputs == ("F",) and res.plant.outputs == ("x",)
@@ -47,16 +53,17 @@ def test_siso_unstable_plant_is_recovered(seed: int) -> None:
 
 
 def test_discrete_output_and_custom_structure() -> None:
-    res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 7), structure={(0, 0): (0, 2)},
-                                   continuous=False).fit(_siso_experiment(3))
+    res = ClosedLoopIdentification(
+        _siso_controller(), order_range=range(3, 7), structure={(0, 0): (0, 2)}, continuous=False
+    ).fit(_siso_experiment(3))
     assert res.plant.dt == DT and res.structure == "custom"
 
 
 def test_reduce_entry_keeps_a_given_unstable_pole() -> None:
     f = np.geomspace(20, 300, 50)
-    P = zoh_response([3.0], np.poly([50.0, -80.0]), DT, f) * (1 + 0.001 * np.sin(f))   # 0.1 % ripple
+    P = zoh_response([3.0], np.poly([50.0, -80.0]), DT, f) * (1 + 0.001 * np.sin(f))  # 0.1 % ripple
     red = reduce_entry(P, f, DT, 0, 2, np.array([50.0]))
-    assert np.isclose(np.sort(red.poles.real)[-1], 50.0, rtol=1e-12)           # kept exactly
+    assert np.isclose(np.sort(red.poles.real)[-1], 50.0, rtol=1e-12)  # kept exactly
     assert red.eps_magnitude < 0.002 and red.eps_complex < 0.002
     with pytest.raises(IdentificationError, match="unstable"):
         reduce_entry(P, f, DT, 0, 1, np.array([50.0, 60.0]))
@@ -73,8 +80,8 @@ def test_naive_direct_identification_is_biased_under_feedback() -> None:
     direct_err = np.median(np.abs(direct_identification([u], [y], DT, order=4, freqs_hz=f) - Gt) / np.abs(Gt))
     res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 8)).fit(Experiment(r[:, None], y, DT))
     cl_err = np.median(np.abs(res.plant.c2d(DT).frequency_response(f) - Gt) / np.abs(Gt))
-    assert direct_err > 0.3                      # measured 0.66: biased
-    assert cl_err < 0.5 * direct_err             # measured 0.16
+    assert direct_err > 0.3  # measured 0.66: biased
+    assert cl_err < 0.5 * direct_err  # measured 0.16
 
 
 def test_empirical_transfer_and_reclosed_loop_match_the_data() -> None:
@@ -82,10 +89,10 @@ def test_empirical_transfer_and_reclosed_loop_match_the_data() -> None:
     res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 8)).fit(exp)
     f, etfe = empirical_transfer(exp.u[:, 0], exp.y, DT, band=(20, 300))
     T = res.closed_loop.frequency_response(f)[:, 0, 0]
-    assert np.median(np.abs(etfe[:, 0] - T) / np.abs(T)) < 0.01     # Fig. 4b: identified T on the FFT ratio
+    assert np.median(np.abs(etfe[:, 0] - T) / np.abs(T)) < 0.01  # Fig. 4b: identified T on the FFT ratio
     y, _ = reclose_loop(res.plant, _siso_controller(), exp.u, DT)
     fit = 100 * (1 - np.linalg.norm(exp.y - y) / np.linalg.norm(exp.y - exp.y.mean()))
-    assert fit > 99.0                                             # Fig. 8: re-closed loop reproduces the run
+    assert fit > 99.0  # Fig. 8: re-closed loop reproduces the run
 
 
 def test_fit_errors() -> None:
@@ -100,8 +107,9 @@ def test_fit_errors() -> None:
 
 
 def test_full_structure_siso_matches_the_plant_in_band() -> None:
-    res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 8), structure="full",
-                                   continuous=False).fit(_siso_experiment(6))
+    res = ClosedLoopIdentification(_siso_controller(), order_range=range(3, 8), structure="full", continuous=False).fit(
+        _siso_experiment(6)
+    )
     f = np.geomspace(20.0, 300.0, 60)
     Gt = G_SISO.c2d(DT).frequency_response(f)
     assert np.max(np.abs(res.plant.frequency_response(f) - Gt) / np.abs(Gt)) < 0.01
@@ -113,8 +121,16 @@ def test_bad_arguments_are_one_line_errors() -> None:
     K = _siso_controller()
     with pytest.raises(DataError, match="needs an Experiment or a sequence of them; got NoneType"):
         ClosedLoopIdentification(K).fit(None)
-    bad = [dict(band=(1, 2, 3)), dict(band=None), dict(band=(1.0, float("inf"))), dict(nk="a"), dict(cancel_tol=None),
-           dict(max_nfev=None), dict(structure=5), dict(order_range=[])]
+    bad = [
+        dict(band=(1, 2, 3)),
+        dict(band=None),
+        dict(band=(1.0, float("inf"))),
+        dict(nk="a"),
+        dict(cancel_tol=None),
+        dict(max_nfev=None),
+        dict(structure=5),
+        dict(order_range=[]),
+    ]
     for kwargs in bad:
         with pytest.raises(IdentificationError) as info:
             ClosedLoopIdentification(K, **kwargs).fit(exp)

@@ -9,7 +9,7 @@ import scipy.signal as ss
 from stageid._errors import DataError, IdentificationError
 from stageid.closedloop import arx, pem, select_order
 
-B_TRUE = np.array([0.0, 0.3, 0.1])       # q^-1 (0.3 + 0.1 q^-1): delay 1
+B_TRUE = np.array([0.0, 0.3, 0.1])  # q^-1 (0.3 + 0.1 q^-1): delay 1
 F_TRUE = np.array([1.0, -1.2, 0.5])
 
 
@@ -25,7 +25,7 @@ def _data(n: int, seed: int, noise: np.ndarray | None = None) -> tuple[np.ndarra
 def test_arx_is_exact_without_noise() -> None:
     u, y = _data(400, 0)
     m = arx(u, y, na=2, nb=2, nk=1)
-    np.testing.assert_allclose(m.A, F_TRUE, atol=1e-10)      # noise-free: exact to rounding
+    np.testing.assert_allclose(m.A, F_TRUE, atol=1e-10)  # noise-free: exact to rounding
     np.testing.assert_allclose(m.B, B_TRUE[1:], atol=1e-10)
 
 
@@ -34,7 +34,7 @@ def test_oe_is_consistent_where_arx_is_biased(seed: int) -> None:
     rng = np.random.default_rng(100 + seed)
     n = 4000
     u, y0 = _data(n, seed)
-    e = 0.3 * np.std(y0) * rng.standard_normal(n)              # white output noise, 10 dB SNR
+    e = 0.3 * np.std(y0) * rng.standard_normal(n)  # white output noise, 10 dB SNR
     y = y0 + e
     m_oe = pem(u, y, "oe", {"nb": 2, "nf": 2}, nk=1)
     m_arx = arx(u, y, 2, 2, 1)
@@ -53,9 +53,9 @@ def test_armax_recovers_noise_model() -> None:
     C = np.array([1.0, 0.6])
     y = ss.lfilter([0.0, 0.3, 0.1], A, u) + ss.lfilter(C, A, e)
     m = pem(u, y, "armax", {"na": 2, "nb": 2, "nc": 1})
-    np.testing.assert_allclose(m.A, A, atol=0.02)           # ~5 sigma of the estimate at N = 6000
+    np.testing.assert_allclose(m.A, A, atol=0.02)  # ~5 sigma of the estimate at N = 6000
     np.testing.assert_allclose(m.C, C, atol=0.05)
-    assert abs(m.loss - 0.01) / 0.01 < 0.1                  # loss ~ innovation variance
+    assert abs(m.loss - 0.01) / 0.01 < 0.1  # loss ~ innovation variance
 
 
 def test_bj_separates_plant_and_noise_dynamics() -> None:
@@ -81,7 +81,7 @@ def test_several_records_are_fitted_jointly() -> None:
     u1, y1 = _data(800, 11)
     u2, y2 = _data(800, 12)
     m = pem([u1, u2], [y1, y2], "oe", {"nb": 2, "nf": 2})
-    np.testing.assert_allclose(m.F, F_TRUE, atol=1e-6)      # noise-free: converges to the truth
+    np.testing.assert_allclose(m.F, F_TRUE, atol=1e-6)  # noise-free: converges to the truth
 
 
 def test_select_order_finds_the_true_order() -> None:

@@ -41,18 +41,25 @@ def test_shifted_and_regressor_equal_the_stacked_copies(lags, start):
     c, d = rng.standard_normal(7), rng.standard_normal(7)
     assert np.array_equal(P._shifted(a, lags, start), _reference_shifted(a, lags, start))
     got = P._regressor([[(a, lags, start, True), (b, 2, 1, False)], [(c, lags, start, True), (d, 2, 1, False)]], 19)
-    want = np.vstack([np.hstack([-_reference_shifted(a, lags, start), _reference_shifted(b, 2, 1)]),
-                      np.hstack([-_reference_shifted(c, lags, start), _reference_shifted(d, 2, 1)])])
+    want = np.vstack(
+        [
+            np.hstack([-_reference_shifted(a, lags, start), _reference_shifted(b, 2, 1)]),
+            np.hstack([-_reference_shifted(c, lags, start), _reference_shifted(d, 2, 1)]),
+        ]
+    )
     assert got.shape == want.shape
     assert np.array_equal(got, want)
     assert np.array_equal(np.signbit(got), np.signbit(want))
 
 
-@pytest.mark.parametrize("structure,orders", [
-    ("oe", {"nb": 2, "nf": 2}),
-    ("bj", {"nb": 2, "nf": 2, "nc": 1, "nd": 2}),
-    ("armax", {"na": 2, "nb": 2, "nc": 1}),
-])
+@pytest.mark.parametrize(
+    "structure,orders",
+    [
+        ("oe", {"nb": 2, "nf": 2}),
+        ("bj", {"nb": 2, "nf": 2, "nc": 1, "nd": 2}),
+        ("armax", {"na": 2, "nb": 2, "nc": 1}),
+    ],
+)
 def test_jacobian_is_the_derivative_of_the_residual(structure, orders):
     us, ys = _records()
     full = P._check_orders(structure, orders, 1)
@@ -61,8 +68,9 @@ def test_jacobian_is_the_derivative_of_the_residual(structure, orders):
     A, B, C, D, F = P._unpack(theta, full)
     u, y = us[0], ys[0]
     J = P._jacobian(A, B, C, D, F, 1, full, u, y)
-    J_cached = P._jacobian(A, B, C, D, F, 1, full, u, y, parts=P._residual_parts(A, B, C, D, F, 1, u, y),
-                           out=np.full(J.shape, np.nan))
+    J_cached = P._jacobian(
+        A, B, C, D, F, 1, full, u, y, parts=P._residual_parts(A, B, C, D, F, 1, u, y), out=np.full(J.shape, np.nan)
+    )
     assert np.array_equal(J, J_cached)
     h = 1e-6
     for k in range(theta.size):

@@ -8,10 +8,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_closedloop_estimator import G_SISO, _siso_controller, _siso_experiment  # noqa: E402
-
 from stageid.closedloop import ClosedLoopIdentification, empirical_transfer, reclose_loop  # noqa: E402
 from stageid.plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero, plot_reclosed_loop  # noqa: E402
+from test_closedloop_estimator import G_SISO, _siso_controller, _siso_experiment  # noqa: E402
 
 DT = 2e-4
 
@@ -26,6 +25,6 @@ def test_figures_are_built_and_saved(tmp_path: Path) -> None:
     y, _ = reclose_loop(res.plant, _siso_controller(), exp.u, DT)
     figs.append(plot_reclosed_loop(exp.time, exp.y, y, ["x"]))
     for k, fig in enumerate(figs):
-        assert fig.axes                                   # something was drawn
+        assert fig.axes  # something was drawn
         fig.savefig(tmp_path / f"f{k}.png")
         assert (tmp_path / f"f{k}.png").stat().st_size > 1000

@@ -1,7 +1,15 @@
 """One contract for every estimator: configure, fit, get an immutable result (STYLE.md).
 
+The estimators are found by :func:`stageid.base.estimators` (every concrete subclass of
+:class:`stageid.base.Estimator` in the package), never listed by hand: a new estimator that
+has no data case below fails ``test_every_estimator_has_a_case``.
+
 - ``__init__`` stores its keyword hyper-parameters unchanged and does no work;
-- ``fit`` never modifies the caller's data and returns a frozen result;
+- every ``__init__`` parameter is declared in ``parameter_constraints`` and a value no
+  constraint accepts makes ``fit`` raise :class:`ParameterError` naming that parameter;
+- ``get_params`` returns the parameters, ``repr`` shows those that differ from the defaults;
+- ``fit`` never modifies the caller's data and returns a frozen result that keeps no
+  training array;
 - a second ``fit`` on other data gives an independent result (the first is unchanged).
 """
 
@@ -12,11 +20,10 @@ import json
 import numpy as np
 import pytest
 
-from stageid.closedloop import ClosedLoopIdentification
+from stageid import ParameterError
+from stageid.base import Estimator, estimators
 from stageid.data import Experiment
-from stageid.hysteresis import PIIdentifier
-from stageid.models import StateSpaceModel
-from stageid.subspace import HankelMAP
+from stageid.models import StateSpaceModel, feedback
 
 
 def _siso_data(seed):
@@ -33,41 +40,109 @@ def _hysteresis_data(seed):
     return EXPERIMENTS["decaying-triangle" if seed == 0 else "decaying-sine"](seed=seed)
 
 
+_CONTROLLER = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=0.001)
+
+
 def _closed_loop_data(seed):
     # an unstable first-order plant under a proportional controller; the reference is the input
     rng = np.random.default_rng(seed)
     G = StateSpaceModel([[1.02]], [[0.05]], [[1.0]], [[0.0]], dt=0.001)  # unstable
-    K = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[2.0]], dt=0.001)
-    from stageid.models import feedback
-
-    cl = feedback(G, K)
+    cl = feedback(G, _CONTROLLER)
     r = rng.standard_normal((4000, 1))
     r[:100] = 0.0  # the loop starts at rest, as real records do
     yu = cl.simulate(r)
-    return Experiment(r, yu[:, :1] + 1e-5 * rng.standard_normal((4000, 1)), 0.001, ("r_y",), ("y",)), K
+    return Experiment(r, yu[:, :1] + 1e-5 * rng.standard_normal((4000, 1)), 0.001, ("r_y",), ("y",))
 
 
+def _result_model(result):
+    model = getattr(result, "model", None)
+    return model if model is not None else result.plant
+
+
+# estimator class name -> (a configured instance, data of seed k)
 CASES = {
-    "HankelMAP": (lambda: HankelMAP(horizon=8, order=2), _siso_data),
-    "PIIdentifier": (lambda: PIIdentifier("pi", n_operators=8), _hysteresis_data),
+    "HankelMAP": (lambda cls: cls(horizon=8, order=2), _siso_data),
+    "PIIdentifier": (lambda cls: cls("pi", n_operators=8), _hysteresis_data),
+    "ClosedLoopIdentification": (
+        lambda cls: cls(_CONTROLLER, orders=1, structure="full", band=(1.0, 100.0)),
+        _closed_loop_data,
+    ),
 }
 
-
-@pytest.mark.parametrize("name", list(CASES))
-def test_init_stores_parameters_unchanged(name):
-    make, _ = CASES[name]
-    est = make()
-    params = inspect.signature(type(est).__init__).parameters
-    for p in params:
-        if p == "self":
-            continue
-        assert hasattr(est, p), f"{name} must store `{p}` as an attribute of the same name"
+ESTIMATORS = {cls.__name__: cls for cls in estimators().values() if not cls.__module__.startswith("tests")}
 
 
-@pytest.mark.parametrize("name", list(CASES))
-def test_fit_keeps_caller_data_and_returns_frozen_result(name):
+def test_the_registry_finds_the_estimators():
+    # the three estimators of the papers at least; the registry is filled by subclassing alone
+    assert {"HankelMAP", "PIIdentifier", "ClosedLoopIdentification"} <= set(ESTIMATORS)
+    for cls in ESTIMATORS.values():
+        assert issubclass(cls, Estimator)
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_every_estimator_has_a_case(name):
+    assert name in CASES, f"{name} is an Estimator without a data case in {__name__}.CASES; add one"
+
+
+def test_a_new_subclass_is_registered():
+    class Probe(Estimator):
+        def __init__(self, k=1):
+            self.k = k
+
+        def fit(self, data):
+            self.validate_params()
+
+    assert any(cls is Probe for cls in estimators().values())
+
+
+def _make(name):
     make, data = CASES[name]
-    est = make()
+    return make(ESTIMATORS[name]), data
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_init_stores_parameters_unchanged_and_declares_them(name):
+    cls = ESTIMATORS[name]
+    sentinels = {}
+    for p in cls.parameter_names():
+        # an object no real setting equals: __init__ must keep it as it came (identity)
+        sentinels[p] = object()
+    est = cls(**sentinels)
+    for p, value in sentinels.items():
+        assert getattr(est, p) is value, f"{name}.__init__ must store `{p}` unchanged"
+    assert set(cls.parameter_constraints) == set(cls.parameter_names()), "declare every parameter once"
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_get_params_and_repr(name):
+    est, _ = _make(name)
+    params = est.get_params()
+    assert list(params) == list(type(est).parameter_names())
+    text = repr(est)
+    sig = inspect.signature(type(est).__init__)
+    for p, v in params.items():
+        default = sig.parameters[p].default
+        changed = default is inspect.Parameter.empty or not (type(v) is type(default) and v == default)
+        assert (f"{p}=" in text) == changed, f"repr shows exactly the non-default parameters: {text}"
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_every_bad_setting_is_one_parameter_error(name):
+    est, data = _make(name)
+    exp = data(0)
+    for p in type(est).parameter_names():
+        bad = est.get_params()
+        bad[p] = object()  # no declared constraint accepts a bare object
+        broken = type(est)(**bad)
+        with pytest.raises(ParameterError) as info:
+            broken.fit(exp)
+        message = str(info.value)
+        assert message.startswith(f"`{p}` of {name} must be ") and "\n" not in message, message
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_fit_keeps_caller_data_and_returns_frozen_result(name):
+    est, data = _make(name)
     exp = data(0)
     u_before, y_before = exp.u.copy(), exp.y.copy()
     result = est.fit(exp)
@@ -77,21 +152,31 @@ def test_fit_keeps_caller_data_and_returns_frozen_result(name):
     field = dataclasses.fields(result)[0].name
     with pytest.raises(dataclasses.FrozenInstanceError):
         setattr(result, field, None)
-    before = json.dumps(result.model.to_dict())
+    # no array of the record's length is kept anywhere in the result (fields and nested values)
+    n = exp.u.shape[0]
+    stack, seen = [result], set()
+    while stack:
+        obj = stack.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, np.ndarray):
+            assert n not in obj.shape, f"{name}'s result keeps an array of shape {obj.shape}"
+        elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+            stack.extend(getattr(obj, f.name) for f in dataclasses.fields(obj))
+        elif isinstance(obj, dict):
+            stack.extend(obj.values())
+        elif isinstance(obj, (list, tuple)):
+            stack.extend(obj)
+    before = json.dumps(_result_model(result).to_dict())
     second = est.fit(data(1))
-    assert json.dumps(result.model.to_dict()) == before  # the first result is untouched by a second fit
-    assert json.dumps(second.model.to_dict()) != before  # and the second fit really used the new data
+    assert json.dumps(_result_model(result).to_dict()) == before  # the first result is untouched
+    assert json.dumps(_result_model(second).to_dict()) != before  # and the second fit used the new data
 
 
-def test_closed_loop_estimator_contract():
-    exp, K = _closed_loop_data(0)
-    est = ClosedLoopIdentification(K, orders=1, structure="full", band=(1.0, 100.0))
-    assert est.controller is K and est.orders == 1
-    r_before = exp.u.copy()
-    result = est.fit(exp)
-    np.testing.assert_array_equal(exp.u, r_before)
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        result.plant = None
+def test_closed_loop_recovers_the_unstable_pole():
+    est, data = _make("ClosedLoopIdentification")
+    result = est.fit(data(0))
     # the unstable pole at z = 1.02 (s = ln(1.02)/dt) is recovered from closed-loop data
     s_true = np.log(1.02) / 0.001
     assert np.min(np.abs(np.asarray(result.unstable_poles) - s_true)) < 0.05 * s_true

@@ -96,8 +96,16 @@ def test_load_emps_synthetic(tmp_path):
     p = tmp_path / "DATA_EMPS_PULSES.mat"
     scipy.io.savemat(
         p,
-        {"t": t, "qm": np.ones((n, 1)), "qg": np.zeros((n, 1)), "vir": np.arange(n)[:, None] * 1.0,
-         "pulses_N": np.zeros((n, 1), dtype=np.uint8), "gtau": 35.15, "kp": 160.18, "kv": 243.45},
+        {
+            "t": t,
+            "qm": np.ones((n, 1)),
+            "qg": np.zeros((n, 1)),
+            "vir": np.arange(n)[:, None] * 1.0,
+            "pulses_N": np.zeros((n, 1), dtype=np.uint8),
+            "gtau": 35.15,
+            "kp": 160.18,
+            "kv": 243.45,
+        },
     )
     table = ds.load_emps(p)
     assert isinstance(table, Table)
@@ -126,8 +134,16 @@ def test_load_daisy_with_root_synthetic(tmp_path):
 
 # ----------------------------------------------------------------- the real files
 _DSPACE_LENGTHS = {  # 2 s records at 10 kHz; the staircases last 2, 2.75 and 4 s (Capture.Length)
-    "20_hz_no_lp": 40001, "20_hz_lp": 40001, "40_hz_no_lp": 27501, "100_hz_no_lp": 20001,
-    "tri50_1": 20001, "tri100_1": 20001, "sine50_1": 20001, "sine100_1": 20001, "prbn_1": 20001, "bigsine_1": 20001,
+    "20_hz_no_lp": 40001,
+    "20_hz_lp": 40001,
+    "40_hz_no_lp": 27501,
+    "100_hz_no_lp": 20001,
+    "tri50_1": 20001,
+    "tri100_1": 20001,
+    "sine50_1": 20001,
+    "sine100_1": 20001,
+    "prbn_1": 20001,
+    "bigsine_1": 20001,
 }
 
 

@@ -35,7 +35,9 @@ def _write_text(path, text: str) -> str:
 # ----------------------------------------------------------------- strategies
 _NAME_CHARS = "abcdefghijklmnopqrstuvwxyzABCXYZ0123456789_-. ,\"'[]"
 names_st = st.text(alphabet=_NAME_CHARS, min_size=1, max_size=12).filter(
-    lambda s: s == s.strip() and s != "t" and not dio._UNIT_RE.match(s) and not dio._is_number(s) and not dio._is_dunder(s)
+    lambda s: (
+        s == s.strip() and s != "t" and not dio._UNIT_RE.match(s) and not dio._is_number(s) and not dio._is_dunder(s)
+    )
 )
 
 
@@ -44,7 +46,9 @@ def tables(draw):
     n_cols = draw(st.integers(1, 4))
     names = draw(st.lists(names_st, min_size=n_cols, max_size=n_cols, unique=True))
     n = draw(st.integers(1, 30))
-    values = draw(hnp.arrays(np.float64, (n, n_cols), elements=st.floats(allow_nan=False, allow_infinity=False, width=64)))
+    values = draw(
+        hnp.arrays(np.float64, (n, n_cols), elements=st.floats(allow_nan=False, allow_infinity=False, width=64))
+    )
     dt = draw(st.floats(1e-4, 10.0))
     t0 = draw(st.floats(-1e3, 1e3))
     return names, values, dt, t0
@@ -235,7 +239,7 @@ def test_write_errors(tmp_path):
 
 # ----------------------------------------------------------------- CSV parsing
 def test_csv_variants_units_delimiters_line_endings(tmp_path):
-    text = "\ufefft [s],\"V [V]\",y [um]\r\n0,1,2\r\n\r\n0.001,3,4\r\n0.002,5,6\r\n"
+    text = '\ufefft [s],"V [V]",y [um]\r\n0,1,2\r\n\r\n0.001,3,4\r\n0.002,5,6\r\n'
     path = tmp_path / "units.csv"
     path.write_bytes(text.encode("utf-8"))
     table = read_table(path)
@@ -310,7 +314,9 @@ def test_files_that_are_not_what_their_extension_says(tmp_path):
     np.savez(npz, u=np.zeros(3))
     binary_csv = tmp_path / "x.csv"
     binary_csv.write_bytes(npz.read_bytes())
-    with pytest.raises(DataError, match=r"file 'x.csv' is not a text CSV file: it contains binary data \(it looks like a zip"):
+    with pytest.raises(
+        DataError, match=r"file 'x.csv' is not a text CSV file: it contains binary data \(it looks like a zip"
+    ):
         read_table(binary_csv, ts=1.0)
     latin = tmp_path / "l.csv"
     latin.write_bytes(b"u\xff\xfe,v\n1,2\n")

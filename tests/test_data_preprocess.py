@@ -11,7 +11,9 @@ from stageid.data import Experiment, Offsets, decimate, merge, remove_offset, sp
 
 def _exp(n=200, dt=0.01, t0=0.0, seed=0, **kw) -> Experiment:
     rng = np.random.default_rng(seed)
-    return Experiment(u=rng.standard_normal((n, 2)) + [1.0, -2.0], y=rng.standard_normal((n, 1)) + 5.0, dt=dt, t0=t0, **kw)
+    return Experiment(
+        u=rng.standard_normal((n, 2)) + [1.0, -2.0], y=rng.standard_normal((n, 1)) + 5.0, dt=dt, t0=t0, **kw
+    )
 
 
 # ----------------------------------------------------------------- remove_offset
@@ -117,7 +119,10 @@ def test_merge_checks_sample_time_names_and_units():
         merge([a, _exp(dt=0.02)])
     with pytest.raises(DataError, match=r"same channels"):
         merge([a, a.with_(output_names=("z",))])
-    with pytest.raises(DataError, match=r"same units; got inputs \['V', 'V'\] / outputs \['um'\] and inputs \['V', 'V'\] / outputs \['nm'\]"):
+    with pytest.raises(
+        DataError,
+        match=r"same units; got inputs \['V', 'V'\] / outputs \['um'\] and inputs \['V', 'V'\] / outputs \['nm'\]",
+    ):
         merge([a, a.with_(output_units=("nm",))])
     with pytest.raises(DataError, match=r"at least one experiment"):
         merge([])

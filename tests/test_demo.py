@@ -25,8 +25,17 @@ def test_demo_writes_report_metrics_and_models(tmp_path, capsys):
     assert max(metrics["maglev/diag_error_20_300Hz_percent"]) < 1.0
     for found, true in zip(metrics["maglev/rhp_poles_rad_s"], metrics["maglev/rhp_poles_true_rad_s"]):
         assert abs(found - true) < 0.05 * true
-    assert metrics["hysteresis/model_error_percent_validation"]["modified-pi"] < metrics["hysteresis/model_error_percent_validation"]["pi"]
+    assert (
+        metrics["hysteresis/model_error_percent_validation"]["modified-pi"]
+        < metrics["hysteresis/model_error_percent_validation"]["pi"]
+    )
     assert metrics["hysteresis/tracking_error_percent_fsr"]["modified-PI inverse"] < 2.0
-    for name in ("p558_identified.json", "maglev_plant.json", "maglev_controller.json", "actuator_pi.json", "actuator_modified-pi.json"):
+    for name in (
+        "p558_identified.json",
+        "maglev_plant.json",
+        "maglev_controller.json",
+        "actuator_pi.json",
+        "actuator_modified-pi.json",
+    ):
         model = load_model(out / name)
         assert model.inputs and model.outputs

@@ -10,7 +10,9 @@ import pytest
 
 import stageid
 
-_MODULES = sorted(m.name for m in pkgutil.walk_packages(stageid.__path__, "stageid.") if not m.name.endswith("__main__"))
+_MODULES = sorted(
+    m.name for m in pkgutil.walk_packages(stageid.__path__, "stageid.") if not m.name.endswith("__main__")
+)
 
 
 @pytest.mark.parametrize("name", _MODULES)
@@ -22,6 +24,8 @@ def test_docstring_examples(name: str) -> None:
 
 def test_the_examples_are_found() -> None:
     # guards the test above against silently checking nothing (e.g. a packaging change)
-    attempted = sum(doctest.testmod(importlib.import_module(n), verbose=False).attempted
-                    for n in ("stageid.closedloop.deduction", "stageid.plants.maglev", "stageid.hysteresis.compensator"))
+    attempted = sum(
+        doctest.testmod(importlib.import_module(n), verbose=False).attempted
+        for n in ("stageid.closedloop.deduction", "stageid.plants.maglev", "stageid.hysteresis.compensator")
+    )
     assert attempted >= 5

@@ -25,8 +25,9 @@ def test_recovers_classical_pi_exactly():
 def test_recovers_modified_pi_on_the_search_grid():
     u = _input()
     r = np.arange(8) * 50.0
-    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r,
-                           weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
+    true = ModifiedPIModel(
+        r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r, weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005]
+    )
     y = true.simulate(u)
     classical = PIIdentifier("pi", n_operators=8).fit((u, y))
     fit = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200, input_warp=False).fit((u, y))
@@ -38,8 +39,15 @@ def test_recovers_modified_pi_on_the_search_grid():
 def test_recovers_input_warp():
     u = _input()
     r = np.arange(8) * 50.0
-    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r, input_warp=0.2, warp_scale=400.0,
-                           weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
+    true = ModifiedPIModel(
+        r=r,
+        rc=0.5 * r,
+        ra=1.4 * r,
+        rb=0.7 * 1.4 * r,
+        input_warp=0.2,
+        warp_scale=400.0,
+        weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005],
+    )
     y = true.simulate(u)
     without = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200, input_warp=False).fit((u, y))
     fit = PIIdentifier("modified-pi", n_operators=8, max_evaluations=200).fit((u, y))
@@ -91,8 +99,9 @@ def test_classical_fit_with_input_range_wider_than_the_data(input_range):
 
     u = forc_staircase(-90, 90, 50, 20, 1e-4, shape="cosine")
     r = np.arange(8) * 90 / 8
-    true = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r,
-                           weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005])
+    true = ModifiedPIModel(
+        r=r, rc=0.5 * r, ra=1.4 * r, rb=0.7 * 1.4 * r, weights=[0.01, 0.004, 0.003, 0.002, 0.002, 0.001, 0.0015, 0.0005]
+    )
     y = true.simulate(u)[:, 0] + 1e-4 * np.random.default_rng(0).standard_normal(u.size)
     narrow = PIIdentifier("pi", n_operators=20).fit((u, y))
     fit = PIIdentifier("pi", n_operators=40, input_range=input_range).fit((u, y))
@@ -102,6 +111,7 @@ def test_classical_fit_with_input_range_wider_than_the_data(input_range):
 
 
 # --- regressions of the bug hunt (each failed before its fix) --------------------------------
+
 
 def _small():
     u = decaying_triangle(1.0, 4, 2e-3, amplitude=100.0)  # 2000 samples
@@ -124,21 +134,27 @@ def test_two_input_columns_refused():
         PIIdentifier("pi", n_operators=4).fit((u, np.c_[y, y, y]))
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(max_rows=0), "`max_rows` of PIIdentifier must be an integer >= 10; got 0"),
-    (dict(max_rows=2.5), "`max_rows`"),
-    (dict(min_slope_fraction="x"), r"`min_slope_fraction` of PIIdentifier must be a number in \(0, 1\); got 'x'"),
-    (dict(min_slope_fraction=float("nan")), "`min_slope_fraction`"),
-    (dict(input_range=(10, -10)), r"`input_range` of PIIdentifier must be \(low, high\) with finite low < high; got \(10, -10\)"),
-    (dict(input_range=(10,)), "`input_range`"),
-    (dict(input_range="ab"), "`input_range`"),
-    (dict(ridge=-1.0), "`ridge`"),
-    (dict(max_evaluations=0), "`max_evaluations`"),
-    (dict(input_warp="no"), "`input_warp`"),
-    (dict(sample_time=-1e-3), "`sample_time`"),
-    (dict(n_operators=5000), "`n_operators` of PIIdentifier must be at most 1000 for a pi model; got 5000"),
-    (dict(model="modified-pi", n_operators=101), "at most 100 for a modified-pi model; got 101"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(max_rows=0), "`max_rows` of PIIdentifier must be an integer >= 10; got 0"),
+        (dict(max_rows=2.5), "`max_rows`"),
+        (dict(min_slope_fraction="x"), r"`min_slope_fraction` of PIIdentifier must be a number in \(0, 1\); got 'x'"),
+        (dict(min_slope_fraction=float("nan")), "`min_slope_fraction`"),
+        (
+            dict(input_range=(10, -10)),
+            r"`input_range` of PIIdentifier must be \(low, high\) with finite low < high; got \(10, -10\)",
+        ),
+        (dict(input_range=(10,)), "`input_range`"),
+        (dict(input_range="ab"), "`input_range`"),
+        (dict(ridge=-1.0), "`ridge`"),
+        (dict(max_evaluations=0), "`max_evaluations`"),
+        (dict(input_warp="no"), "`input_warp`"),
+        (dict(sample_time=-1e-3), "`sample_time`"),
+        (dict(n_operators=5000), "`n_operators` of PIIdentifier must be at most 1000 for a pi model; got 5000"),
+        (dict(model="modified-pi", n_operators=101), "at most 100 for a modified-pi model; got 101"),
+    ],
+)
 def test_bad_hyperparameters_one_line(kwargs, match):
     # raw ZeroDivisionError / ValueError or misleading messages before
     u, y = _small()
@@ -166,7 +182,9 @@ def test_identified_model_records_its_input_range():
 
     u, y = _small()
     u2 = 0.5 * u - 30.0
-    fit = PIIdentifier("pi", n_operators=4).fit([(u, y), (u2, PIModel(r=np.arange(4) * 25.0, weights=[0.01, 0.004, 0.003, 0.002]).simulate(u2))])
+    fit = PIIdentifier("pi", n_operators=4).fit(
+        [(u, y), (u2, PIModel(r=np.arange(4) * 25.0, weights=[0.01, 0.004, 0.003, 0.002]).simulate(u2))]
+    )
     assert fit.model.input_limits == (float(u.min()), float(u.max()))
     assert loads(dumps(fit.model.to_dict())).input_limits == fit.model.input_limits
     drive = compensate(fit.model, 100.0 * y)  # 100x the identified output range

@@ -18,8 +18,17 @@ def _mpi(rng, n=10):
     r = np.arange(n) * 40.0
     c, a, b = rng.uniform(0.2, 1, n), rng.uniform(0.5, 2, n), rng.uniform(0, 1, n)
     w = np.r_[1.0, rng.uniform(-0.05, 0.4, n - 1)]
-    return ModifiedPIModel(r=r, rc=c * r, ra=a * r, rb=b * a * r, weights=w, output_offset=-0.4, input_offset=7.0,
-                           input_warp=float(rng.uniform(-0.3, 0.3)), warp_scale=300.0)
+    return ModifiedPIModel(
+        r=r,
+        rc=c * r,
+        ra=a * r,
+        rb=b * a * r,
+        weights=w,
+        output_offset=-0.4,
+        input_offset=7.0,
+        input_warp=float(rng.uniform(-0.3, 0.3)),
+        warp_scale=300.0,
+    )
 
 
 def _drive(rng, n=3000):
@@ -86,7 +95,7 @@ def test_streaming_equals_batch_and_limits(make):
     # the compensator's state follows the clipped drive: it equals the model run on that drive
     np.testing.assert_allclose(comp.state.z, m.run(step)[1].z, atol=1e-8)
     # where no limit is hit, the model follows the target
-    inside = (np.abs(step) < 299.0)
+    inside = np.abs(step) < 299.0
     np.testing.assert_allclose(m.simulate(step)[inside, 0], yd[inside], atol=1e-8)
 
 
@@ -114,10 +123,16 @@ def _creep_pi():
     return PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
 
 
-@pytest.mark.parametrize("make", [lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]),
-                                  lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]).to_modified(),
-                                  lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], input_offset=0.5).to_modified(),
-                                  _creep_pi], ids=["pi", "modified-pi", "modified-pi-offset", "creep"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]),
+        lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]).to_modified(),
+        lambda: PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], input_offset=0.5).to_modified(),
+        _creep_pi,
+    ],
+    ids=["pi", "modified-pi", "modified-pi-offset", "creep"],
+)
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_step_refuses_non_finite_and_keeps_state(make, bad):
     # regression: step(nan) used to return nan and poison every later drive (run() refused it)

@@ -13,8 +13,7 @@ identity-only model, partial, exact and one-over blocks, and more hot blocks tha
 import numpy as np
 import pytest
 
-from stageid.hysteresis import PIModel
-from stageid.hysteresis import _kernels
+from stageid.hysteresis import PIModel, _kernels
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 N = 3000
@@ -190,8 +189,10 @@ def test_play_banded_edge_cases():
     x = _walk(np.random.default_rng(1), 2000)
     r = np.linspace(0, 100, 6)
     w6 = np.linspace(1, 2, 6)
-    for call in (lambda xx: _kernels.play_sum_banded(xx, r, w6, np.zeros(6)),
-                 lambda xx: _kernels.cp_sum_banded(xx, r, 0.5 * r, r, 0.5 * r, w6, np.zeros(6))):
+    for call in (
+        lambda xx: _kernels.play_sum_banded(xx, r, w6, np.zeros(6)),
+        lambda xx: _kernels.cp_sum_banded(xx, r, 0.5 * r, r, 0.5 * r, w6, np.zeros(6)),
+    ):
         ys, zs = call(x[::2])
         yc, zc = call(np.ascontiguousarray(x[::2]))
         assert np.array_equal(ys, yc) and np.array_equal(zs, zc)

@@ -18,8 +18,7 @@ of hot blocks changes during the record.
 import numpy as np
 import pytest
 
-from stageid.hysteresis import ModifiedPIModel, OperatorState
-from stageid.hysteresis import _kernels
+from stageid.hysteresis import ModifiedPIModel, OperatorState, _kernels
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 N = 5000  # > 2 adaptation blocks of the banded kernel; the reference takes ~0.1 s

@@ -16,8 +16,20 @@ def _modified(rng, n=8):
     ra = r * 1.4
     rb = ra * 0.6
     w = np.r_[1.0, rng.uniform(0.0, 0.3, n - 1)]
-    return ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, weights=w, input_offset=3.0, output_offset=-0.2, input_warp=0.1, warp_scale=350.0,
-                           inputs=("V",), outputs=("y",), input_limits=(-500.0, 500.0))
+    return ModifiedPIModel(
+        r=r,
+        rc=rc,
+        ra=ra,
+        rb=rb,
+        weights=w,
+        input_offset=3.0,
+        output_offset=-0.2,
+        input_warp=0.1,
+        warp_scale=350.0,
+        inputs=("V",),
+        outputs=("y",),
+        input_limits=(-500.0, 500.0),
+    )
 
 
 def test_simulate_shapes_and_linear_term():
@@ -63,7 +75,11 @@ def test_immutable_and_inputs_untouched():
 @pytest.mark.parametrize("kind", ["pi", "modified"])
 def test_json_round_trip_byte_stable(kind):
     rng = np.random.default_rng(3)
-    m = _modified(rng) if kind == "modified" else PIModel(r=[0.0, 0.1, 0.30000000000000004], weights=[1 / 3, 0.2, 1e-17])
+    m = (
+        _modified(rng)
+        if kind == "modified"
+        else PIModel(r=[0.0, 0.1, 0.30000000000000004], weights=[1 / 3, 0.2, 1e-17])
+    )
     u = 300 * np.sin(np.linspace(0, 5, 200))
     m = m.with_state(m.run(u)[1])  # a non-trivial state survives the round trip
     text = dumps(m.to_dict())

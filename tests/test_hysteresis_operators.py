@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from stageid import ModelError
-from stageid.hysteresis import OperatorState, coupled_play, play
-from stageid.hysteresis import _kernels
+from stageid.hysteresis import OperatorState, _kernels, coupled_play, play
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 
@@ -32,7 +31,9 @@ def test_kernels_equal_reference(seed):
     w = rng.normal(size=r.size)
     y, _ = _kernels.cp_sum(x, r, rc, ra, rb, w, z0)
     # the weighted sum may be reassociated by the compiler: 1e-12 relative
-    np.testing.assert_allclose(y, Zr_sum := coupled_play_reference(x, r, rc, ra, rb, z0)[0] @ w, rtol=1e-12, atol=1e-12 * np.abs(Zr_sum).max())
+    np.testing.assert_allclose(
+        y, Zr_sum := coupled_play_reference(x, r, rc, ra, rb, z0)[0] @ w, rtol=1e-12, atol=1e-12 * np.abs(Zr_sum).max()
+    )
 
 
 def test_play_is_cp_with_equal_thresholds():
@@ -95,7 +96,9 @@ def test_wiping_out():
 
 def _branches(op, levels=(-200.0, 0.0, 200.0)):
     # major loop: 0 -> 400 -> -400 -> 400 -> -400, sampled every volt
-    x = np.concatenate([np.arange(0, 400), np.arange(400, -400, -1), np.arange(-400, 400), np.arange(400, -401, -1)]).astype(float)
+    x = np.concatenate(
+        [np.arange(0, 400), np.arange(400, -400, -1), np.arange(-400, 400), np.arange(400, -401, -1)]
+    ).astype(float)
     z = op(x)[:, 0]
     rise = slice(1200, 2000)  # the second rise from -400
     fall = slice(2000, 2801)  # the second fall from +400

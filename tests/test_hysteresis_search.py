@@ -10,7 +10,9 @@ from stageid.hysteresis import PIIdentifier
 from stageid.signals import decaying_triangle
 
 
-def bouc_wen(u: np.ndarray, a=1.0, beta=(2.5, 1.5), gamma=(1.0, 0.2), w=0.3, lin=1.0, quad=-0.1, cubic=0.1) -> np.ndarray:
+def bouc_wen(
+    u: np.ndarray, a=1.0, beta=(2.5, 1.5), gamma=(1.0, 0.2), w=0.3, lin=1.0, quad=-0.1, cubic=0.1
+) -> np.ndarray:
     """Rate-independent Bouc-Wen loop (n = 1) on x = u / 500 with direction-dependent beta, gamma
     (asymmetric) and a static cubic, ~8 % hysteresis: dh = a dx - beta |dx| h - gamma dx |h|."""
     x = np.asarray(u, dtype=float) / 500.0

@@ -78,9 +78,17 @@ def test_file_layout_matches_the_contract(tmp_path):
 
 
 def _ss_dict():
-    return {"format": "stageid.lti/1", "kind": "statespace", "dt": None,
-            "A": np.eye(15).tolist(), "B": np.ones((15, 3)).tolist(), "C": np.ones((3, 15)).tolist(),
-            "D": np.zeros((3, 3)).tolist(), "inputs": ["Z", "Rx", "Ry"], "outputs": ["z", "rx", "ry"]}
+    return {
+        "format": "stageid.lti/1",
+        "kind": "statespace",
+        "dt": None,
+        "A": np.eye(15).tolist(),
+        "B": np.ones((15, 3)).tolist(),
+        "C": np.ones((3, 15)).tolist(),
+        "D": np.zeros((3, 3)).tolist(),
+        "inputs": ["Z", "Rx", "Ry"],
+        "outputs": ["z", "rx", "ry"],
+    }
 
 
 @pytest.mark.parametrize(

@@ -74,7 +74,7 @@ def test_poles_and_zeros_of_known_system():
 def test_zeros_of_the_realisation_as_given_keep_decoupling_zeros():
     # diag(-1, -5) with the second state unobservable: G(s) = 1/(s + 1), the mode at -5 a decoupling zero
     g = StateSpaceModel([[-1.0, 0.0], [0.0, -5.0]], [[1.0], [1.0]], [[1.0, 0.0]], [[0.0]])
-    assert g.zeros().size == 0                                     # minimal realisation: no zero
+    assert g.zeros().size == 0  # minimal realisation: no zero
     np.testing.assert_allclose(g.zeros(minimal=False).real, [-5.0], atol=1e-10)
 
 
@@ -109,7 +109,9 @@ def test_c2d_zoh_matches_python_control():
     ours = c2d(g, 0.05)
     theirs = control.c2d(g.to_control(), 0.05, method="zoh")
     f = np.linspace(0.0, 9.0, 10)
-    np.testing.assert_allclose(ours.frequency_response(f), StateSpaceModel.from_control(theirs).frequency_response(f), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        ours.frequency_response(f), StateSpaceModel.from_control(theirs).frequency_response(f), rtol=1e-10, atol=1e-12
+    )
 
 
 def test_d2c_without_real_logarithm_is_a_clear_error():
@@ -146,9 +148,19 @@ def test_feedback_matches_python_control():
     cl = feedback(G, K)
     ref = control.feedback(control.series(K.to_control(), G.to_control()), 1)
     f = np.linspace(0.0, 40.0, 9)
-    np.testing.assert_allclose(cl.frequency_response(f)[:, :1, :], StateSpaceModel.from_control(ref).frequency_response(f), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        cl.frequency_response(f)[:, :1, :],
+        StateSpaceModel.from_control(ref).frequency_response(f),
+        rtol=1e-9,
+        atol=1e-12,
+    )
     u_of_r = control.feedback(K.to_control(), G.to_control())
-    np.testing.assert_allclose(cl.frequency_response(f)[:, 1:, :], StateSpaceModel.from_control(u_of_r).frequency_response(f), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        cl.frequency_response(f)[:, 1:, :],
+        StateSpaceModel.from_control(u_of_r).frequency_response(f),
+        rtol=1e-9,
+        atol=1e-12,
+    )
     assert cl.is_stable() and not G.is_stable()
 
 
@@ -157,7 +169,9 @@ def test_series_composes_frequency_responses():
     g1 = random_stable(rng, 2, 1, 2)
     g2 = random_stable(rng, 3, 2, 1)
     f = np.array([0.1, 1.0, 5.0])
-    np.testing.assert_allclose(series(g1, g2).frequency_response(f), g2.frequency_response(f) @ g1.frequency_response(f), rtol=1e-10)
+    np.testing.assert_allclose(
+        series(g1, g2).frequency_response(f), g2.frequency_response(f) @ g1.frequency_response(f), rtol=1e-10
+    )
 
 
 def test_control_round_trip_keeps_labels_and_dt():

@@ -20,8 +20,8 @@ def test_dc_gains_follow_the_paper() -> None:
     assert g[0, 0] == pytest.approx(3.1845 / (-54.62 * 76.91), rel=1e-12)
     assert g[1, 1] == pytest.approx(3.1623 / (-82.21 * 76.91), rel=1e-12)
     assert g[2, 2] == pytest.approx(1530.1985 / (-86.73 * 76.91), rel=1e-12)
-    assert g[1, 0] == pytest.approx(42.4017 / (13.83 * 1.98e6), rel=1e-12)       # G_xy: x -> y
-    assert g[1, 2] == pytest.approx(0.9065 / (76.91 * 315.60), rel=1e-12)        # G_phiy: phi -> y
+    assert g[1, 0] == pytest.approx(42.4017 / (13.83 * 1.98e6), rel=1e-12)  # G_xy: x -> y
+    assert g[1, 2] == pytest.approx(0.9065 / (76.91 * 315.60), rel=1e-12)  # G_phiy: phi -> y
     assert g[2, 0] == pytest.approx(0.4266 * -6977.0 / (9.74 * 1.17e6), rel=1e-12)  # G_xphi, mirrored pole
 
 
@@ -35,11 +35,14 @@ def test_unstable_poles() -> None:
 def test_controller_structure_and_crossover() -> None:
     Kc = maglev.controller_continuous()
     G = maglev.model()
-    L = G.frequency_response([maglev.CROSSOVER_HZ])[0] * np.diag(Kc.frequency_response([maglev.CROSSOVER_HZ])[0])[None, :]
-    np.testing.assert_allclose(np.abs(np.diag(L)), 1.0, rtol=1e-12)            # |G_ii M_i| = 1 at 110 Hz
+    L = (
+        G.frequency_response([maglev.CROSSOVER_HZ])[0]
+        * np.diag(Kc.frequency_response([maglev.CROSSOVER_HZ])[0])[None, :]
+    )
+    np.testing.assert_allclose(np.abs(np.diag(L)), 1.0, rtol=1e-12)  # |G_ii M_i| = 1 at 110 Hz
     for i in range(3):
-        assert np.count_nonzero(Kc.num[i][i]) == 3 and Kc.den[i][i].size == 3    # [2, 2] per axis (eq. 16)
-        assert np.all(Kc.num[i][1 - i if i < 2 else 0] == 0)                      # decentralised
+        assert np.count_nonzero(Kc.num[i][i]) == 3 and Kc.den[i][i].size == 3  # [2, 2] per axis (eq. 16)
+        assert np.all(Kc.num[i][1 - i if i < 2 else 0] == 0)  # decentralised
     K = maglev.controller()
     assert K.dt == maglev.DT and K.n_states == 6
 

@@ -24,7 +24,7 @@ def test_hysteresis_like_the_letter():
 
 def test_asymmetric_loop():
     u, y = _major(model())
-    up = (np.diff(u) > 0)
+    up = np.diff(u) > 0
     cycle = slice(1000, 2000)
     x = u[cycle]
     ys = y[cycle]

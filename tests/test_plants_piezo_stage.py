@@ -20,9 +20,23 @@ def test_structure_and_names():
 def test_poles_and_dc_gains_computed_from_the_paper():
     # eigenvalues of A1 (eq. 23), A2 (eq. 24) and A3 (eq. 25), computed once from the printed
     # matrices with numpy (rounded to 4 digits); the tolerance covers that rounding
-    expected = [0.538 + 0.4018j, 0.538 - 0.4018j, 0.7573, 0.8199 + 0.097j, 0.8199 - 0.097j, 0.8888, 0.9732,
-                0.7821 + 0.2093j, 0.7821 - 0.2093j, 0.9184 + 0.0117j, 0.9184 - 0.0117j,
-                0.7811 + 0.2183j, 0.7811 - 0.2183j, 0.9305 + 0.0126j, 0.9305 - 0.0126j]
+    expected = [
+        0.538 + 0.4018j,
+        0.538 - 0.4018j,
+        0.7573,
+        0.8199 + 0.097j,
+        0.8199 - 0.097j,
+        0.8888,
+        0.9732,
+        0.7821 + 0.2093j,
+        0.7821 - 0.2093j,
+        0.9184 + 0.0117j,
+        0.9184 - 0.0117j,
+        0.7811 + 0.2183j,
+        0.7811 - 0.2183j,
+        0.9305 + 0.0126j,
+        0.9305 - 0.0126j,
+    ]
     got = np.sort_complex(ps.model().poles())
     np.testing.assert_allclose(got, np.sort_complex(np.array(expected)), atol=6e-5)
     dc = ps.model().dc_gain()

@@ -26,9 +26,21 @@ def render_image_counts(html_path, tmp_path):
     """Load the page in headless Chromium; return (loaded, total) images as seen by the browser."""
     page = tmp_path / "check.html"
     page.write_text(html_path.read_text().replace("</body>", _CHECK))
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000", "--dump-dom", page.as_uri()]
+    cmd = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--virtual-time-budget=10000",
+        "--dump-dom",
+        page.as_uri(),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     match = re.search(r'data-images="(\d+)/(\d+)"', proc.stdout)
     assert match, f"browser gave no result: {proc.stderr[-500:]}"
@@ -38,7 +50,9 @@ def render_image_counts(html_path, tmp_path):
 @pytest.fixture
 def report_file(tmp_path):
     rng = np.random.default_rng(0)
-    g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.5]], [[1.0, 0.0]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",))
+    g = StateSpaceModel(
+        [[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.5]], [[1.0, 0.0]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",)
+    )
     u = rng.standard_normal((500, 1))
     exp = Experiment(u, g.simulate(u) + 0.01 * rng.standard_normal((500, 1)), 0.01, ("u",), ("y",), name="record")
     report, metrics = model_report(g, [exp])
@@ -73,7 +87,9 @@ def test_broken_figure_is_detected(tmp_path):
     fig, ax = plt.subplots()
     ax.plot([0, 1])
     r.figure(fig, "good")
-    html_text = r.to_html().replace("</figure>", "</figure><figure><img src='data:image/png;base64,AAAA' alt='bad'></figure>", 1)
+    html_text = r.to_html().replace(
+        "</figure>", "</figure><figure><img src='data:image/png;base64,AAAA' alt='bad'></figure>", 1
+    )
     path = tmp_path / "index.html"
     path.write_text(html_text)
     loaded, total = render_image_counts(path, tmp_path)

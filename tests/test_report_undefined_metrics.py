@@ -14,8 +14,15 @@ from stageid.validation import fit_percent
 
 
 def _model():
-    return StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1], [0.0, 0.0]], [[0.0], [0.0]],
-                           dt=0.01, inputs=("u",), outputs=("y", "flat"))
+    return StateSpaceModel(
+        [[0.9, 0.2], [-0.2, 0.9]],
+        [[1.0], [0.0]],
+        [[0.5, 0.1], [0.0, 0.0]],
+        [[0.0], [0.0]],
+        dt=0.01,
+        inputs=("u",),
+        outputs=("y", "flat"),
+    )
 
 
 def _experiment(n=400):
@@ -90,8 +97,10 @@ def test_log_plots_of_zero_responses_draw_without_warnings():
     bands = {"model": (np.zeros((50, 2, 2)), np.abs(H) * 2)}
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # matplotlib's "cannot be log-scaled" warnings fail here
-        for fig in (bode_figure(f, {"model": H}, ["a", "b"], ["y1", "y2"], bands=bands),
-                    error_curve([1, 2, 3], {"err": [0.0, -1.0, 2.0]}, xlabel="order")):
+        for fig in (
+            bode_figure(f, {"model": H}, ["a", "b"], ["y1", "y2"], bands=bands),
+            error_curve([1, 2, 3], {"err": [0.0, -1.0, 2.0]}, xlabel="order"),
+        ):
             fig.savefig(io.BytesIO(), format="png")
     texts = [t.get_text() for ax in fig.axes for t in ax.texts]
     zero_notes = [t for ax in bode_figure(f, {"model": H}, ["a", "b"], ["y1", "y2"]).axes for t in ax.texts]

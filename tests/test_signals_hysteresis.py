@@ -61,8 +61,7 @@ def test_decay_envelope_laws():
 
 def test_decaying_triangle_values_at_known_times():
     x = decaying_triangle(1.0, 2, 0.125, amplitude=4.0, offset=10.0)
-    assert x.tolist() == [10.0, 12.0, 14.0, 12.0, 10.0, 8.0, 6.0, 8.0,
-                          10.0, 11.0, 12.0, 11.0, 10.0, 9.0, 8.0, 9.0]
+    assert x.tolist() == [10.0, 12.0, 14.0, 12.0, 10.0, 8.0, 6.0, 8.0, 10.0, 11.0, 12.0, 11.0, 10.0, 9.0, 8.0, 9.0]
 
 
 @pytest.mark.parametrize(
@@ -111,19 +110,65 @@ def test_forc_reversal_maxima_rise_in_equal_steps(shape):
 
 def test_forc_triangle_has_straight_ramps():
     x = forc_staircase(0.0, 4.0, 4, 1.0, 0.125)
-    np.testing.assert_allclose(x, [0, 0.25, 0.5, 0.75, 1, 0.75, 0.5, 0.25,
-                                   0, 0.5, 1, 1.5, 2, 1.5, 1, 0.5,
-                                   0, 0.75, 1.5, 2.25, 3, 2.25, 1.5, 0.75,
-                                   0, 1, 2, 3, 4, 3, 2, 1], atol=1e-12)
+    np.testing.assert_allclose(
+        x,
+        [
+            0,
+            0.25,
+            0.5,
+            0.75,
+            1,
+            0.75,
+            0.5,
+            0.25,
+            0,
+            0.5,
+            1,
+            1.5,
+            2,
+            1.5,
+            1,
+            0.5,
+            0,
+            0.75,
+            1.5,
+            2.25,
+            3,
+            2.25,
+            1.5,
+            0.75,
+            0,
+            1,
+            2,
+            3,
+            4,
+            3,
+            2,
+            1,
+        ],
+        atol=1e-12,
+    )
 
 
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [
-        (dict(minimum=1.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3), "`maximum` of forc staircase must be greater than minimum = 1; got 1"),
-        (dict(minimum=0.0, maximum=1.0, n_reversals=0, freq=1.0, dt=1e-3), "`n_reversals` of forc staircase must be an integer >= 1; got 0"),
-        (dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3, shape="square"), "'triangle', 'cosine'; got 'square'"),
-        (dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3, idle=-1.0), "`idle` of forc staircase must be >= 0; got -1"),
+        (
+            dict(minimum=1.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3),
+            "`maximum` of forc staircase must be greater than minimum = 1; got 1",
+        ),
+        (
+            dict(minimum=0.0, maximum=1.0, n_reversals=0, freq=1.0, dt=1e-3),
+            "`n_reversals` of forc staircase must be an integer >= 1; got 0",
+        ),
+        (
+            dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3, shape="square"),
+            "'triangle', 'cosine'; got 'square'",
+        ),
+        (
+            dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3, idle=-1.0),
+            "`idle` of forc staircase must be >= 0; got -1",
+        ),
         (dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1e4, dt=1e-3), "Nyquist"),
     ],
 )

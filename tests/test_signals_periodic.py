@@ -113,8 +113,14 @@ def test_multisine_scaling_determinism_and_channels():
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [
-        (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, kind="flat"), "'random-phase', 'schroeder'; got 'flat'"),
-        (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, n_periods=3), "must be a multiple of n_periods = 3; got 1000"),
+        (
+            dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, kind="flat"),
+            "'random-phase', 'schroeder'; got 'flat'",
+        ),
+        (
+            dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, n_periods=3),
+            "must be a multiple of n_periods = 3; got 1000",
+        ),
         (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=5.0), "at least one line"),
         (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=501.0), "Nyquist frequency 1/(2 dt) = 500 Hz; got 501 Hz"),
         (dict(n_samples=1000, dt=1e-3, f_low=100.0, f_high=100.0), "greater than f_low = 100 Hz; got 100 Hz"),
@@ -129,7 +135,9 @@ def test_multisine_parameter_errors(kwargs, fragment):
 
 def test_multisine_limits_error():
     # the peak |x - offset| = 5 is reached on one side at least
-    with pytest.raises(SignalError, match=r"^multisine spans \[1[5-9][.\d]*, 2[0-5][.\d]*\] but limits are \[16, 30\]\.$"):
+    with pytest.raises(
+        SignalError, match=r"^multisine spans \[1[5-9][.\d]*, 2[0-5][.\d]*\] but limits are \[16, 30\]\.$"
+    ):
         multisine(1000, 1e-3, 1.0, 100.0, kind="schroeder", amplitude=5.0, offset=20.0, limits=(16, 30))
 
 

@@ -71,11 +71,17 @@ def test_band_limited_random_multichannel_independent_and_band_limited():
     [
         (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=600.0), "Nyquist frequency 1/(2 dt) = 500 Hz; got 600 Hz"),
         (dict(n_samples=1000, dt=1e-3, f_low=50.0, f_high=10.0), "greater than f_low = 50 Hz; got 10 Hz"),
-        (dict(n_samples=1, dt=1e-3, f_low=1.0, f_high=10.0), "`n_samples` of band-limited random signal must be an integer >= 2; got 1"),
+        (
+            dict(n_samples=1, dt=1e-3, f_low=1.0, f_high=10.0),
+            "`n_samples` of band-limited random signal must be an integer >= 2; got 1",
+        ),
         (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=5.0), "at least one FFT line"),
         (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=50.0, rms=1.0, amplitude=1.0), "either `rms` or `amplitude`"),
         (dict(n_samples=100, dt=-1e-3, f_low=1.0, f_high=50.0), "`dt` of band-limited random signal must be > 0"),
-        (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=50.0, n_channels=0), "`n_channels` of band-limited random signal must be an integer >= 1; got 0"),
+        (
+            dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=50.0, n_channels=0),
+            "`n_channels` of band-limited random signal must be an integer >= 1; got 0",
+        ),
     ],
 )
 def test_band_limited_random_parameter_errors(kwargs, fragment):

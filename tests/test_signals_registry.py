@@ -114,9 +114,7 @@ def test_caller_limits_tuple_and_arrays_not_modified():
     assert lim == [0.0, 40.0]
 
 
-@pytest.mark.parametrize(
-    "module", ["_common", "sweeps", "random", "periodic", "hysteresis", "registry"]
-)
+@pytest.mark.parametrize("module", ["_common", "sweeps", "random", "periodic", "hysteresis", "registry"])
 def test_docstring_examples_run(module):
     mod = importlib.import_module(f"stageid.signals.{module}")
     result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)

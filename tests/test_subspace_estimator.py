@@ -5,12 +5,11 @@ import warnings
 import numpy as np
 import pytest
 
+from _subspace_systems import band_limited, column_errors, random_stage, record
 from stageid._errors import DataError, StageIdWarning
 from stageid.data import Experiment
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP, HankelMAPResult, Prior
-
-from _subspace_systems import band_limited, column_errors, random_stage, record
 
 
 def _p558_band_limited(seed, n=20000):
@@ -89,7 +88,9 @@ def test_update_carries_the_posterior_over():
     assert isinstance(step, HankelMAPResult) and step is not both
     # band-limited data make the normal equations ill-conditioned (~1e10): rounding of the
     # two summation orders shows up at ~1e-5 of the largest entry
-    np.testing.assert_allclose(step.posterior.theta, both.posterior.theta, atol=1e-4 * np.abs(both.posterior.theta).max())
+    np.testing.assert_allclose(
+        step.posterior.theta, both.posterior.theta, atol=1e-4 * np.abs(both.posterior.theta).max()
+    )
     diag, coupling = column_errors(step.model, ps.model())
     assert diag < 0.02 and coupling < 0.01
 
@@ -99,6 +100,7 @@ def test_forgetting_tracks_a_drifting_stage():
     g1 = random_stage(7, m=1, q=1, modes=1)
     g2 = g1.with_names()
     from stageid.models import StateSpaceModel
+
     g2 = StateSpaceModel(g1.A, 0.9 * g1.B, g1.C, g1.D, g1.dt)
     u1 = band_limited(10000, 1, g1.dt, 1)
     u2 = band_limited(10000, 1, g1.dt, 2)
@@ -157,6 +159,7 @@ def test_warning_for_inputs_that_do_not_excite():
 # ------------------------------------------------------------------ regressions of the bug hunt
 def _two_pole_record(scale_u=1.0, scale_y=1.0, dt=0.01):
     from stageid.models import StateSpaceModel
+
     g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.1, 0.0]], [[0.0]], dt=0.01)
     u = np.random.default_rng(0).standard_normal((3000, 1))
     return g, Experiment(u * scale_u, g.simulate(u) * scale_y, dt)
@@ -179,7 +182,9 @@ def test_result_does_not_depend_on_the_units_of_inputs_and_outputs(method):
             # 1e-6 relative: the scaled problems agree to rounding (~1e-12); the bound leaves room
             # for the order of the floating-point sums
             np.testing.assert_allclose(np.sort_complex(res.model.poles()), poles, rtol=1e-6, atol=1e-9)
-            np.testing.assert_allclose(res.model.frequency_response(f) * su / sy, G_ref, rtol=1e-6, atol=1e-9 * np.abs(G_ref).max())
+            np.testing.assert_allclose(
+                res.model.frequency_response(f) * su / sy, G_ref, rtol=1e-6, atol=1e-9 * np.abs(G_ref).max()
+            )
             Gb, Sb = res.response_bands(f)
             Gr, Sr = ref.response_bands(f)
             np.testing.assert_allclose(Gb * su / sy, Gr, rtol=1e-6, atol=1e-9 * np.abs(Gr).max())
@@ -190,8 +195,11 @@ def test_least_squares_on_noise_free_mimo_data_finds_the_poles_and_warns():
     # noise-free windows needs a mode at z = 1); the ridge on the singular problem gives 0.7/0.8/0.9
     from stageid._errors import ExcitationWarning
     from stageid.models import StateSpaceModel
+
     rng = np.random.default_rng(1)
-    g = StateSpaceModel(np.diag([0.9, 0.8, 0.7]), rng.standard_normal((3, 2)), rng.standard_normal((2, 3)), np.zeros((2, 2)), dt=0.01)
+    g = StateSpaceModel(
+        np.diag([0.9, 0.8, 0.7]), rng.standard_normal((3, 2)), rng.standard_normal((2, 3)), np.zeros((2, 2)), dt=0.01
+    )
     u = np.random.default_rng(2).standard_normal((4000, 2))
     with pytest.warns(ExcitationWarning, match="least-squares normal equations .* singular"):
         res = HankelMAP(horizon=10, order=3, method="ls").fit(Experiment(u, g.simulate(u), 0.01))
@@ -231,6 +239,7 @@ def test_records_without_any_moving_input_are_rejected():
 def test_held_out_error_above_one_warns():
     # 60 samples of the Z chirp: the auto horizon/order model predicts worse than zero
     from stageid._errors import ExcitationWarning
+
     exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
     with pytest.warns(ExcitationWarning, match=r"held-out error .* \(expected < 1\)"):
         res = HankelMAP().fit(exp)

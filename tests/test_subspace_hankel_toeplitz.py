@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from _subspace_systems import random_stage, record
 from stageid._errors import DataError
 from stageid.subspace.hankel_toeplitz import (
     dense_regression,
@@ -14,12 +15,18 @@ from stageid.subspace.hankel_toeplitz import (
 )
 from stageid.subspace.map_estimator import batch_posterior
 
-from _subspace_systems import random_stage, record
 
-
-@pytest.mark.parametrize("n, r, max_lag, block", [(1000, 3, 7, None), (777, 2, 40, 64), (300, 5, 130, None), (50, 1, 0, None),
-                                                     # several FFT batches (64 blocks each), the last one partial
-                                                     (20000, 8, 10, None)])
+@pytest.mark.parametrize(
+    "n, r, max_lag, block",
+    [
+        (1000, 3, 7, None),
+        (777, 2, 40, 64),
+        (300, 5, 130, None),
+        (50, 1, 0, None),
+        # several FFT batches (64 blocks each), the last one partial
+        (20000, 8, 10, None),
+    ],
+)
 def test_lag_correlations_match_direct_sums(n, r, max_lag, block):
     z = np.random.default_rng(n).standard_normal((n, r))
     R = lag_correlations(z, max_lag, block)
@@ -52,8 +59,18 @@ def test_regressor_layout_is_eq_9():
     y = np.arange(20.0)[:, None] * np.array([[1000.0]]) + 0.5
     X, Y = dense_regression(u, y, 2)
     k = 2  # first regression sample
-    assert X[0].tolist() == [u[k - 2, 0], u[k - 2, 1], u[k - 1, 0], u[k - 1, 1], y[k - 2, 0], y[k - 1, 0],
-                             u[k, 0], u[k, 1], u[k + 1, 0], u[k + 1, 1]]
+    assert X[0].tolist() == [
+        u[k - 2, 0],
+        u[k - 2, 1],
+        u[k - 1, 0],
+        u[k - 1, 1],
+        y[k - 2, 0],
+        y[k - 1, 0],
+        u[k, 0],
+        u[k, 1],
+        u[k + 1, 0],
+        u[k + 1, 1],
+    ]
     assert Y[0].tolist() == [y[k, 0], y[k + 1, 0]]
     xi, yi = regressor_indices(2, 2, 1)
     assert xi.size == 10 and yi.size == 2

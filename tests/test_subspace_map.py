@@ -55,7 +55,7 @@ def test_recursion_equals_batch_posterior_and_python_reference(forgetting):
     np.testing.assert_allclose(P_b, P_py, atol=1e-11)
     stats = window_statistics(u, y, p, forgetting=forgetting)
     # batch form: prior information discounted by lambda^N like the recursion's P_0 / lambda^N
-    post = batch_posterior(stats, Prior(theta0, np.linalg.inv(P0) * forgetting ** stats.count))
+    post = batch_posterior(stats, Prior(theta0, np.linalg.inv(P0) * forgetting**stats.count))
     np.testing.assert_allclose(th_c, th_py, atol=1e-10)
     np.testing.assert_allclose(P_c, P_py, atol=1e-12)
     np.testing.assert_allclose(th_c, post.theta, atol=1e-9)
@@ -159,9 +159,9 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
 
 
 def test_vector_intrinsics_match_numpy():
-    # the 4-wide operations the delayed-update kernel is written in (stageid.subspace._simd)
+    # the 4-wide operations the delayed-update kernel is written in (stageid.simd)
     numba = pytest.importorskip("numba")
-    from stageid.subspace._simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
+    from stageid.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
 
     @numba.njit
     def kernel(a, b, c, out):

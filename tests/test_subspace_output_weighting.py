@@ -9,13 +9,12 @@ at p = 25 and 0.9-1.4 % with the automatic horizon (p = 8 was chosen by the nois
 import numpy as np
 import pytest
 
+from _subspace_systems import band_limited, record
 from stageid.data import Experiment
 from stageid.models import StateSpaceModel
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
 from stageid.subspace.estimator import _output_weights
-
-from _subspace_systems import band_limited, record
 
 F = np.linspace(1.0, 100.0, 1000)
 
@@ -58,7 +57,9 @@ def test_noise_weighting_does_not_depend_on_the_units():
     G_ref = ref.model.frequency_response(F)
     G = res.model.frequency_response(F) * 1e-3 / k[None, :, None]
     np.testing.assert_allclose(G, G_ref, rtol=1e-6, atol=1e-9 * np.abs(G_ref).max())
-    np.testing.assert_allclose(np.sort_complex(res.model.poles()), np.sort_complex(ref.model.poles()), rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(
+        np.sort_complex(res.model.poles()), np.sort_complex(ref.model.poles()), rtol=1e-6, atol=1e-9
+    )
 
 
 def test_equal_relative_noise_and_noise_free_records_weigh_the_outputs_alike():

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from _subspace_systems import random_stage, record
 from stageid._errors import IdentificationError
 from stageid.models import StateSpaceModel
 from stageid.subspace.hankel_toeplitz import window_statistics
@@ -18,8 +19,6 @@ from stageid.subspace.realization import (
     markov_from_theta,
     refine_frequency_fit,
 )
-
-from _subspace_systems import random_stage, record
 
 
 def _exact_theta(g, p, n=2500, seed=0):
@@ -54,7 +53,9 @@ def test_lemma_1_recovers_poles_and_response_from_exact_markov_parameters():
     est = StateSpaceModel(A, B, C, D, g.dt)
     np.testing.assert_allclose(np.sort_complex(est.poles()), np.sort_complex(g.poles()), atol=1e-8)
     f = np.linspace(1, 200, 50)
-    np.testing.assert_allclose(est.frequency_response(f), g.frequency_response(f), atol=1e-8 * np.abs(g.frequency_response(f)).max())
+    np.testing.assert_allclose(
+        est.frequency_response(f), g.frequency_response(f), atol=1e-8 * np.abs(g.frequency_response(f)).max()
+    )
     H0, H1 = hankel_matrices(Y, 3, 2)
     assert H0.shape == (9, 8) and np.allclose(H1[:3, :2], Y[2])
     with pytest.raises(IdentificationError, match="Lemma 1 needs"):
@@ -134,7 +135,9 @@ def test_balanced_truncation_keeps_the_error_within_twice_the_discarded_hankel_v
     assert full is not None
     Af, Bf, Cf, hsv = full
     # all states kept: the same system in balanced coordinates
-    np.testing.assert_allclose(StateSpaceModel(Af, Bf, Cf, g.D, g.dt).frequency_response(f), G, atol=1e-8 * np.abs(G).max())
+    np.testing.assert_allclose(
+        StateSpaceModel(Af, Bf, Cf, g.D, g.dt).frequency_response(f), G, atol=1e-8 * np.abs(G).max()
+    )
     for r in (2, 4, 6):
         Ar, Br, Cr, _ = balanced_truncation(g.A, g.B, g.C, r)
         Gr = StateSpaceModel(Ar, Br, Cr, g.D, g.dt).frequency_response(f)
@@ -171,7 +174,7 @@ def test_observability_basis_spans_the_lq_subspace():
     U = np.einsum("rk,ij->rikj", powers, np.eye(m)).reshape(r * m, nf * m)
     big = np.vstack([np.hstack([U.real, U.imag]), np.hstack([Y.real, Y.imag])])
     L = np.linalg.qr(big.T, mode="r").T
-    U2, s2, _ = np.linalg.svd(L[r * m:, r * m:], full_matrices=False)
+    U2, s2, _ = np.linalg.svd(L[r * m :, r * m :], full_matrices=False)
     np.testing.assert_allclose(s, s2, rtol=1e-10, atol=1e-12 * s2[0])
     for k in range(r * q):  # the same singular vectors up to sign
         assert abs(abs(Us[:, k] @ U2[:, k]) - 1.0) < 1e-8

@@ -43,7 +43,7 @@ def test_environment_overrides(blas, monkeypatch):
         seen.extend(_blas_threads())
 
     with threadpool_limits(limits=2, user_api="blas"):
-        monkeypatch.setenv("STAGEID_BLAS_THREADS", "0")      # leave the pool as it is
+        monkeypatch.setenv("STAGEID_BLAS_THREADS", "0")  # leave the pool as it is
         fit()
         assert set(seen) == {2}
         seen.clear()
@@ -68,7 +68,7 @@ def test_the_controller_is_rebuilt_when_scipy_arrives(monkeypatch):
 
     monkeypatch.setattr(_threads, "_controller", None)
     first = _threads._blas_controller()
-    assert _threads._blas_controller() is first              # kept while nothing new is loaded
+    assert _threads._blas_controller() is first  # kept while nothing new is loaded
     monkeypatch.setitem(sys.modules, "scipy.linalg", sys.modules.get("scipy.linalg", object()))
     monkeypatch.setattr(_threads, "_controller", (False, first))
-    assert _threads._blas_controller() is not first          # scipy arrived: scanned again
+    assert _threads._blas_controller() is not first  # scipy arrived: scanned again

@@ -15,6 +15,7 @@ __all__ = [
     "ModelFormatError",
     "SignalError",
     "IdentificationError",
+    "ParameterError",
     "StageIdWarning",
     "ExcitationWarning",
     "StabilityWarning",
@@ -43,6 +44,15 @@ class SignalError(StageIdError, ValueError):
 
 class IdentificationError(StageIdError, RuntimeError):
     """Identification could not produce a model (singular problem, no convergence, ...)."""
+
+
+class ParameterError(StageIdError, ValueError):
+    """A setting is invalid: an estimator's hyper-parameter or a function's option.
+
+    Every estimator raises it for a bad setting, from :meth:`fit` (where the settings are
+    checked, see :class:`stageid.base.Estimator`); the message names the setting, what was
+    expected and what came.
+    """
 
 
 class StageIdWarning(UserWarning):

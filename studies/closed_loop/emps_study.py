@@ -54,7 +54,9 @@ def _load(name: str):
     return load_emps(Path(SHARED_DATA) / "emps" / name)
 
 
-def simulate_law(plant_d: StateSpaceModel, r: np.ndarray, ts: float, pulses: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def simulate_law(
+    plant_d: StateSpaceModel, r: np.ndarray, ts: float, pulses: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Position and force of the plant under the EMPS law, step by step (force pulses added at the input)."""
     n = r.size
     x = np.zeros(plant_d.n_states)
@@ -70,7 +72,9 @@ def simulate_law(plant_d: StateSpaceModel, r: np.ndarray, ts: float, pulses: np.
     return q, F
 
 
-def simulate_physical(theta: np.ndarray, r: np.ndarray, q0: float, ts: float, pulses: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def simulate_physical(
+    theta: np.ndarray, r: np.ndarray, q0: float, ts: float, pulses: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Position and velocity of ``M a = F - Fv v - Fc sign(v) - offset`` under the EMPS law
     (semi-implicit Euler at ``ts``), force pulses added at the plant input."""
     mass, fv, fc, off = (float(t) for t in theta)
@@ -114,14 +118,18 @@ def run() -> dict:
     q, r = est.column("qm"), est.column("qg")
     # the record starts at rest at q = r = q(0): work with deviations from there
     exp = Experiment((r - q[0])[:, None], (q - q[0])[:, None], ts, ("qg",), ("qm",))
-    lines = ["# EMPS (real data), measured by studies/closed_loop/emps_study.py", "",
-             "| band [Hz] | T order | M [kg] | Fv [N s/m] | eps (band) | pulse record: position error | velocity error |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "# EMPS (real data), measured by studies/closed_loop/emps_study.py",
+        "",
+        "| band [Hz] | T order | M [kg] | Fv [N s/m] | eps (band) | pulse record: position error | velocity error |",
+        "|---|---|---|---|---|---|---|",
+    ]
     rows = []
     qv, rv, pv = val.column("qm"), val.column("qg"), val.column("pulses_N")
     for band in ((0.1, 5.0), (0.1, 20.0), (0.5, 20.0)):
-        res = ClosedLoopIdentification(M, reference_filter=Mr, band=band, structure={(0, 0): (0, 2)},
-                                       order_range=range(2, 9)).fit(exp)
+        res = ClosedLoopIdentification(
+            M, reference_filter=Mr, band=band, structure={(0, 0): (0, 2)}, order_range=range(2, 9)
+        ).fit(exp)
         num, den = res.plant.num[0][0], res.plant.den[0][0]
         den = den / den[0]
         K = num[-1] / den[0]
@@ -134,13 +142,28 @@ def run() -> dict:
         vel = np.gradient(qv, ts)
         vel_s = np.gradient(qs, ts)
         e_vel = np.linalg.norm(vel - vel_s) / np.linalg.norm(vel)
-        rows.append(dict(band=band, mass=mass, fv=fv, e_pos=e_pos, e_vel=e_vel, eps=res.band_error[0, 0],
-                         order=res.pem_models[(0, 0)].F.size - 1))
-        lines.append(f"| {band[0]:g}-{band[1]:g} | {rows[-1]['order']} | {mass:.2f} | {fv:.1f} | {100 * res.band_error[0, 0]:.2f} % | "
-                     f"{100 * e_pos:.3f} % | {100 * e_vel:.2f} % |")
-    lines += ["", "Tailor-made closed-loop output error (known law, physical plant, fitted on DATA_EMPS, validated on the pulse record):", "",
-              "| plant model | M [kg] | Fv [N s/m] | Fc [N] | offset [N] | position error (pulses) | velocity error (pulses) |",
-              "|---|---|---|---|---|---|---|"]
+        rows.append(
+            dict(
+                band=band,
+                mass=mass,
+                fv=fv,
+                e_pos=e_pos,
+                e_vel=e_vel,
+                eps=res.band_error[0, 0],
+                order=res.pem_models[(0, 0)].F.size - 1,
+            )
+        )
+        lines.append(
+            f"| {band[0]:g}-{band[1]:g} | {rows[-1]['order']} | {mass:.2f} | {fv:.1f} | {100 * res.band_error[0, 0]:.2f} % | "
+            f"{100 * e_pos:.3f} % | {100 * e_vel:.2f} % |"
+        )
+    lines += [
+        "",
+        "Tailor-made closed-loop output error (known law, physical plant, fitted on DATA_EMPS, validated on the pulse record):",
+        "",
+        "| plant model | M [kg] | Fv [N s/m] | Fc [N] | offset [N] | position error (pulses) | velocity error (pulses) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     tm = []
     for coulomb in (False, True):
         th, nfev = fit_physical(r, q, ts, coulomb)
@@ -150,15 +173,22 @@ def run() -> dict:
         e_vel = np.linalg.norm(vel - np.gradient(qs, ts)) / np.linalg.norm(vel)
         tm.append(dict(coulomb=coulomb, theta=th, e_pos=e_pos, e_vel=e_vel))
         label = "mass + viscous + Coulomb + offset" if coulomb else "linear: mass + viscous"
-        lines.append(f"| {label} | {th[0]:.2f} | {th[1]:.1f} | {th[2]:.2f} | {th[3]:.2f} | {100 * e_pos:.4f} % | {100 * e_vel:.3f} % |")
+        lines.append(
+            f"| {label} | {th[0]:.2f} | {th[1]:.1f} | {th[2]:.2f} | {th[3]:.2f} | {100 * e_pos:.4f} % | {100 * e_vel:.3f} % |"
+        )
     pub = np.array([M_PUB, FV_PUB, 20.3935, -3.1648])
     qs, _ = simulate_physical(pub, rv, qv[0], ts, pv)
     vel = np.gradient(qv, ts)
-    lines.append(f"| published parameters in the same simulation | {pub[0]:.2f} | {pub[1]:.1f} | {pub[2]:.2f} | {pub[3]:.2f} | "
-                 f"{100 * np.linalg.norm(qv - qs) / np.linalg.norm(qv):.4f} % | {100 * np.linalg.norm(vel - np.gradient(qs, ts)) / np.linalg.norm(vel):.3f} % |")
-    lines += ["", f"Published (IDIM-LS with Coulomb friction and offset): M = {M_PUB} kg, Fv = {FV_PUB} N s/m; "
-              "closed-loop simulation relative errors 0.0138 % (position), 0.229 % (velocity).",
-              "Errors here are ||q - q_sim|| / ||q|| and ||v - v_sim|| / ||v|| on the pulse record (v by central differences)."]
+    lines.append(
+        f"| published parameters in the same simulation | {pub[0]:.2f} | {pub[1]:.1f} | {pub[2]:.2f} | {pub[3]:.2f} | "
+        f"{100 * np.linalg.norm(qv - qs) / np.linalg.norm(qv):.4f} % | {100 * np.linalg.norm(vel - np.gradient(qs, ts)) / np.linalg.norm(vel):.3f} % |"
+    )
+    lines += [
+        "",
+        f"Published (IDIM-LS with Coulomb friction and offset): M = {M_PUB} kg, Fv = {FV_PUB} N s/m; "
+        "closed-loop simulation relative errors 0.0138 % (position), 0.229 % (velocity).",
+        "Errors here are ||q - q_sim|| / ||q|| and ||v - v_sim|| / ||v|| on the pulse record (v by central differences).",
+    ]
     (OUT / "emps_summary.md").write_text("\n".join(lines))
     return {"rows": rows, "tailor_made": tm, "text": "\n".join(lines)}
 

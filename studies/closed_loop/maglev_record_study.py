@@ -31,8 +31,15 @@ def _load() -> dict:
     return sio.loadmat(p)
 
 
-def _arx_fit(y: np.ndarray, u: np.ndarray | None, order: int, train: slice, test: slice, ar: bool = True,
-             fir_order: int | None = None) -> float:
+def _arx_fit(
+    y: np.ndarray,
+    u: np.ndarray | None,
+    order: int,
+    train: slice,
+    test: slice,
+    ar: bool = True,
+    fir_order: int | None = None,
+) -> float:
     """One-step fit percent on ``test`` of a MISO ARX model y <- u (columns), trained on ``train``;
     ``u=None`` gives the AR-only baseline, ``ar=False`` a FIR model from ``u`` alone."""
     from stageid.closedloop.pem import _shifted
@@ -49,7 +56,7 @@ def _arx_fit(y: np.ndarray, u: np.ndarray | None, order: int, train: slice, test
     Phi, Y = reg(train)
     th, *_ = np.linalg.lstsq(Phi, Y, rcond=None)
     Phi_t, Y_t = reg(test)
-    e = Y_t - Phi_t @ th                      # one-step prediction error (the controller acts on measured data)
+    e = Y_t - Phi_t @ th  # one-step prediction error (the controller acts on measured data)
     return float(100 * (1 - np.linalg.norm(e) / np.linalg.norm(Y_t - Y_t.mean())))
 
 
@@ -71,14 +78,20 @@ def run() -> dict:
             best = (k - cur + 1, k + 1)
     lo, hi = best
     mid = lo + (hi - lo) // 2
-    lines = ["# Real maglev record (PD_data_with_input.mat), measured by studies/closed_loop/maglev_record_study.py", "",
-             f"- samples after the loop starts: {n} ({n / FS:.2f} s at ~{FS:g} Hz); saturated commands: "
-             f"u1 {100 * sat[:, 0].mean():.1f} %, u2 {100 * sat[:, 1].mean():.1f} %; longest unsaturated stretch {hi - lo} samples.",
-             "- no reference signal was recorded: nothing external excites the loop, so the closed-loop transfer T of eq. 11 "
-             "(reference -> output) cannot be identified and eq. 18 cannot be applied, whatever the controller.", "",
-             "Linear controller check: one-step fit [%] of ARX(order 4) from a magnetometer's x/y channels to each command "
-             "(trained on the first half of the unsaturated stretch, tested on the second):", "",
-             "| model | u1 | u2 |", "|---|---|---|"]
+    lines = [
+        "# Real maglev record (PD_data_with_input.mat), measured by studies/closed_loop/maglev_record_study.py",
+        "",
+        f"- samples after the loop starts: {n} ({n / FS:.2f} s at ~{FS:g} Hz); saturated commands: "
+        f"u1 {100 * sat[:, 0].mean():.1f} %, u2 {100 * sat[:, 1].mean():.1f} %; longest unsaturated stretch {hi - lo} samples.",
+        "- no reference signal was recorded: nothing external excites the loop, so the closed-loop transfer T of eq. 11 "
+        "(reference -> output) cannot be identified and eq. 18 cannot be applied, whatever the controller.",
+        "",
+        "Linear controller check: one-step fit [%] of ARX(order 4) from a magnetometer's x/y channels to each command "
+        "(trained on the first half of the unsaturated stretch, tested on the second):",
+        "",
+        "| model | u1 | u2 |",
+        "|---|---|---|",
+    ]
     fits = {}
     base = [_arx_fit(u[:, j], None, 4, slice(lo, mid), slice(mid, hi)) for j in range(2)]
     lines.append(f"| AR(4) of the command alone (baseline) | {base[0]:.2f} | {base[1]:.2f} |")
@@ -88,10 +101,14 @@ def run() -> dict:
         fits[k] = row + fir
         lines.append(f"| ARX(4) with sensor {k} x/y | {row[0]:.2f} | {row[1]:.2f} |")
         lines.append(f"| FIR(30) from sensor {k} x/y only | {fir[0]:.2f} | {fir[1]:.2f} |")
-    lines += ["", "Reading: a high fit means the commands are (close to) a linear function of that sensor's recent samples, i.e. a "
-              "controller model could be estimated from the data instead of trusted; it does not identify the plant, because "
-              "with no external excitation the plant input is itself a function of the measured output (the direct method then "
-              "returns the inverse controller, -1/M, not G).", ""]
+    lines += [
+        "",
+        "Reading: a high fit means the commands are (close to) a linear function of that sensor's recent samples, i.e. a "
+        "controller model could be estimated from the data instead of trusted; it does not identify the plant, because "
+        "with no external excitation the plant input is itself a function of the measured output (the direct method then "
+        "returns the inverse controller, -1/M, not G).",
+        "",
+    ]
     (OUT / "maglev_record_summary.md").write_text("\n".join(lines))
     return {"fits": fits, "saturation": sat.mean(axis=0), "text": "\n".join(lines)}
 

@@ -57,8 +57,9 @@ def run(seed: int = 0, snr_db: float = 80.0) -> dict:
         figs["pole_zero_x.png"] = plot_pole_zero(res, (0, 0))
         fe, etfe = empirical_transfer(exps[0].u[:, 0], exps[0].y, maglev.DT, band=(1, 2500))
         ff = np.geomspace(1, 2500, 400)
-        figs["closed_loop_x.png"] = plot_closed_loop_bode(ff, res.closed_loop.frequency_response(ff)[:, 0, 0], (fe, etfe[:, 0]),
-                                                          title="T: r_x -> x (Fig. 4b)")
+        figs["closed_loop_x.png"] = plot_closed_loop_bode(
+            ff, res.closed_loop.frequency_response(ff)[:, 0, 0], (fe, etfe[:, 0]), title="T: r_x -> x (Fig. 4b)"
+        )
         ysim, _ = reclose_loop(res.plant, maglev.controller(), exps[0].u, maglev.DT)
         figs["reclosed_x.png"] = plot_reclosed_loop(exps[0].time, exps[0].y, ysim, outs)
         for name, fig in figs.items():
@@ -74,13 +75,20 @@ def run(seed: int = 0, snr_db: float = 80.0) -> dict:
         "",
         "| quantity | paper claims | measured here |",
         "|---|---|---|",
-        "| reduced-order fit error eps over 20-300 Hz (diagonal) | < 1 % | " +
-        ", ".join(f"{100 * res.band_error[k, k]:.3f} %" for k in range(3)) + " |",
-        "| eps over 20-300 Hz (couplings, max) | < 1 % (stated for all nine) | " +
-        f"{100 * max(res.band_error[i, j] for i in range(3) for j in range(3) if i != j):.3f} % |",
-        "| RHP poles x, y, phi [rad/s] (reduced plant) | 54.62, 82.21, 86.73 | " + ", ".join(f"{p.real:.2f}" for p in res.plant_unstable_poles) + " |",
-        "| RHP zeros of M (I - T) (full-order deduction) | - | " + ", ".join(f"{p:.4g}" for p in res.unstable_poles) + " |",
-        "| order of T (eq. 17) | [3, 4] | " + ", ".join(str(m.F.size - 1) for m in res.pem_models.values()) + " (BIC) |",
+        "| reduced-order fit error eps over 20-300 Hz (diagonal) | < 1 % | "
+        + ", ".join(f"{100 * res.band_error[k, k]:.3f} %" for k in range(3))
+        + " |",
+        "| eps over 20-300 Hz (couplings, max) | < 1 % (stated for all nine) | "
+        + f"{100 * max(res.band_error[i, j] for i in range(3) for j in range(3) if i != j):.3f} % |",
+        "| RHP poles x, y, phi [rad/s] (reduced plant) | 54.62, 82.21, 86.73 | "
+        + ", ".join(f"{p.real:.2f}" for p in res.plant_unstable_poles)
+        + " |",
+        "| RHP zeros of M (I - T) (full-order deduction) | - | "
+        + ", ".join(f"{p:.4g}" for p in res.unstable_poles)
+        + " |",
+        "| order of T (eq. 17) | [3, 4] | "
+        + ", ".join(str(m.F.size - 1) for m in res.pem_models.values())
+        + " (BIC) |",
         "",
         "Reduced model vs the true plant of eq. 22-24 over 20-300 Hz (max |G_id - G| / |G| per entry; "
         "and relative to the entry's peak):",
@@ -90,8 +98,10 @@ def run(seed: int = 0, snr_db: float = 80.0) -> dict:
     ]
     for i in range(3):
         for j in range(3):
-            lines.append(f"| {maglev.INPUTS[j]} -> {outs[i]} | {100 * rel[i, j]:.3f} % | {100 * peak[i, j]:.3f} % | "
-                         f"{100 * full_rel[i, j]:.3f} % | {100 * dir_rel[i, j]:.2f} % |")
+            lines.append(
+                f"| {maglev.INPUTS[j]} -> {outs[i]} | {100 * rel[i, j]:.3f} % | {100 * peak[i, j]:.3f} % | "
+                f"{100 * full_rel[i, j]:.3f} % | {100 * dir_rel[i, j]:.2f} % |"
+            )
     lines += ["", "Re-closed loop (identified plant + known controller, recorded references): fit per output [%]:", ""]
     for e, fit in zip(exps, fits):
         lines.append(f"- {e.name}: " + ", ".join(f"{o} {v:.3f}" for o, v in zip(outs, fit)))

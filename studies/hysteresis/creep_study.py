@@ -55,7 +55,17 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "output"
-NAMES = ["20_hz_no_lp", "40_hz_no_lp", "100_hz_no_lp", "tri50_1", "tri100_1", "sine50_1", "sine100_1", "prbn_1", "bigsine_1"]
+NAMES = [
+    "20_hz_no_lp",
+    "40_hz_no_lp",
+    "100_hz_no_lp",
+    "tri50_1",
+    "tri100_1",
+    "sine50_1",
+    "sine100_1",
+    "prbn_1",
+    "bigsine_1",
+]
 TAUS = (0.05, 0.2, 1.0, 5.0, 20.0)
 N_MEMORY = 10
 
@@ -91,7 +101,9 @@ def diagnosis(lines, recs, dts):
     forc = NAMES[:3]
     feats = {}
     lines.append("## A. The drift at the -90 V minima of the FORC records\n")
-    lines.append("| record | duration [s] | cycles | drift of the minima [um] | % of range | per second [um/s] | per cycle [nm] |")
+    lines.append(
+        "| record | duration [s] | cycles | drift of the minima [um] | % of range | per second [um/s] | per cycle [nm] |"
+    )
     lines.append("|---|---|---|---|---|---|---|")
     for n in forc:
         u, y = recs[n]
@@ -99,18 +111,28 @@ def diagnosis(lines, recs, dts):
         t = k * dts[n]
         drift = ymin[-1] - ymin[0]
         dur = t[-1] - t[0]
-        feats[n] = {"time [s]": t, "cycle index": np.arange(k.size, dtype=float),
-                    "reversal level M": np.maximum.accumulate(u)[k], "ymin": ymin}
-        lines.append(f"| {n} | {u.size * dts[n]:.2f} | {k.size} | {drift:.3f} | {100 * drift / np.ptp(y):.2f} | "
-                     f"{drift / dur:.3f} | {1e3 * drift / (k.size - 1):.2f} |")
+        feats[n] = {
+            "time [s]": t,
+            "cycle index": np.arange(k.size, dtype=float),
+            "reversal level M": np.maximum.accumulate(u)[k],
+            "ymin": ymin,
+        }
+        lines.append(
+            f"| {n} | {u.size * dts[n]:.2f} | {k.size} | {drift:.3f} | {100 * drift / np.ptp(y):.2f} | "
+            f"{drift / dur:.3f} | {1e3 * drift / (k.size - 1):.2f} |"
+        )
     lines.append("")
-    lines.append("Law fitted to the 20 Hz minima (offset + shape), applied to the others with their own offset; "
-                 "max residual of the minima [nm]:\n")
+    lines.append(
+        "Law fitted to the 20 Hz minima (offset + shape), applied to the others with their own offset; "
+        "max residual of the minima [nm]:\n"
+    )
     lines.append("| law | 20 Hz (fit) | 40 Hz | 100 Hz |")
     lines.append("|---|---|---|---|")
-    laws = (("linear in time (sensor/thermal drift)", "time [s]", 1),
-            ("linear in cycle index", "cycle index", 1),
-            ("quadratic in the reversal level M (running max of u)", "reversal level M", 2))
+    laws = (
+        ("linear in time (sensor/thermal drift)", "time [s]", 1),
+        ("linear in cycle index", "cycle index", 1),
+        ("quadratic in the reversal level M (running max of u)", "reversal level M", 2),
+    )
     for label, key, deg in laws:
         x = feats[forc[0]][key]
         A = np.vander(x, deg + 1)
@@ -172,7 +194,7 @@ def joint_fit(model, u, y, dt, kind, lo, hi):
         s = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-12)
         lb = np.full(A.shape[1], -np.inf)
         if kind in ("creep", "memory", "creep+memory"):
-            lb[Z.shape[1]:Z.shape[1] + X.shape[1]] = 0.0
+            lb[Z.shape[1] : Z.shape[1] + X.shape[1]] = 0.0
         res = lsq_linear(A / s, y, bounds=(lb, np.inf), method="bvls", tol=1e-12)
         th = res.x / s
         sse = float(np.sum((y - A @ th) ** 2))
@@ -239,9 +261,13 @@ def models(lines, recs, dts, do_research):
         label = "classical PI" if base == "pi" else "modified PI"
         m = fits[base].model
         rows[f"{label} (run_study)"] = [align_record(m, *recs[n])[1][:, 0] for n in NAMES]
-        for kind, tag in (("none", "refitted by this script's joint LS, no extra term"), ("creep-free", "+ creep, free weights"),
-                          ("creep", "+ creep, c >= 0"), ("memory", "+ reversal memory, d >= 0"),
-                          ("creep+memory", "+ creep + reversal memory, c, d >= 0")):
+        for kind, tag in (
+            ("none", "refitted by this script's joint LS, no extra term"),
+            ("creep-free", "+ creep, free weights"),
+            ("creep", "+ creep, c >= 0"),
+            ("memory", "+ reversal memory, d >= 0"),
+            ("creep+memory", "+ creep + reversal memory, c, d >= 0"),
+        ):
             if base == "pi" and kind in ("creep-free", "creep+memory"):
                 continue
             mm = research(m, u0, y0, dt0, kind, lo, hi) if (do_research and base == "modified-pi") else m
@@ -252,20 +278,27 @@ def models(lines, recs, dts, do_research):
             rows[key + "|info"] = (c, slope)
     elapsed = time.perf_counter() - t0
     lines.append("## B. Identified on the 20 Hz FORC record, validated without refitting\n")
-    lines.append(f"Max / RMS error in % of each record's output range.  Creep taus {', '.join(f'{v:g}' for v in TAUS)} s; "
-                 f"reversal memory: {N_MEMORY} thresholds equally spaced over {lo:.0f}...{hi:.0f} V.\n")
+    lines.append(
+        f"Max / RMS error in % of each record's output range.  Creep taus {', '.join(f'{v:g}' for v in TAUS)} s; "
+        f"reversal memory: {N_MEMORY} thresholds equally spaced over {lo:.0f}...{hi:.0f} V.\n"
+    )
     keys = [k for k in rows if not k.endswith("|info")]
     lines.append("| model | " + " | ".join(n.replace("_no_lp", "").replace("_hz", " Hz") for n in NAMES) + " |")
     lines.append("|---" * (len(NAMES) + 1) + "|")
     for key in keys:
-        cells = [f"{max_error_percent(recs[n][1], yh):.2f} / {rms_error_percent(recs[n][1], yh):.2f}" for n, yh in zip(NAMES, rows[key])]
+        cells = [
+            f"{max_error_percent(recs[n][1], yh):.2f} / {rms_error_percent(recs[n][1], yh):.2f}"
+            for n, yh in zip(NAMES, rows[key])
+        ]
         lines.append(f"| {key} | " + " | ".join(cells) + " |")
     lines.append("")
     for key in keys:
         if key + "|info" in rows:
             c, slope = rows[key + "|info"]
-            lines.append(f"* {key}: extra weights {np.array2string(c, precision=4, separator=', ')}, "
-                         f"min slope of the PI part {slope:.4g} um/V")
+            lines.append(
+                f"* {key}: extra weights {np.array2string(c, precision=4, separator=', ')}, "
+                f"min slope of the PI part {slope:.4g} um/V"
+            )
     lines.append(f"\nTime for part B: {elapsed:.1f} s.\n")
 
 
@@ -273,18 +306,28 @@ def library(lines, recs, dts):
     from stageid.hysteresis import Compensator, PIIdentifier, align_record, max_error_percent, rms_error_percent
 
     u0, y0 = recs[NAMES[0]]
-    variants = (("classical PI", "pi", {}), ("classical PI + creep", "pi", {"creep_time_constants": TAUS}),
-                ("modified PI (letter)", "modified-pi", {"input_warp": False}),
-                ("modified PI (letter) + creep", "modified-pi", {"input_warp": False, "creep_time_constants": TAUS}),
-                ("modified PI + warp", "modified-pi", {}),
-                ("modified PI + warp + creep", "modified-pi", {"creep_time_constants": TAUS}),
-                ("modified PI (letter) + creep, start forced 'ascending'", "modified-pi",
-                 {"input_warp": False, "creep_time_constants": TAUS, "initial_state": "ascending"}))
+    variants = (
+        ("classical PI", "pi", {}),
+        ("classical PI + creep", "pi", {"creep_time_constants": TAUS}),
+        ("modified PI (letter)", "modified-pi", {"input_warp": False}),
+        ("modified PI (letter) + creep", "modified-pi", {"input_warp": False, "creep_time_constants": TAUS}),
+        ("modified PI + warp", "modified-pi", {}),
+        ("modified PI + warp + creep", "modified-pi", {"creep_time_constants": TAUS}),
+        (
+            "modified PI (letter) + creep, start forced 'ascending'",
+            "modified-pi",
+            {"input_warp": False, "creep_time_constants": TAUS, "initial_state": "ascending"},
+        ),
+    )
     lines.append("## C. Library option: `PIIdentifier(..., creep_time_constants=(0.05, 0.2, 1, 5, 20))`\n")
-    lines.append("Identified on the 20 Hz record (creep jointly with weights and threshold search), other records "
-                 "through `align_record` (own offset and starting-state kind; creep at rest at the first input, like the operators).  "
-                 "Max / RMS error, % of range.\n")
-    lines.append("| model | " + " | ".join(n.replace("_no_lp", "").replace("_hz", " Hz") for n in NAMES) + " | fit time [s] |")
+    lines.append(
+        "Identified on the 20 Hz record (creep jointly with weights and threshold search), other records "
+        "through `align_record` (own offset and starting-state kind; creep at rest at the first input, like the operators).  "
+        "Max / RMS error, % of range.\n"
+    )
+    lines.append(
+        "| model | " + " | ".join(n.replace("_no_lp", "").replace("_hz", " Hz") for n in NAMES) + " | fit time [s] |"
+    )
     lines.append("|---" * (len(NAMES) + 2) + "|")
     notes = []
     for label, kind, kw in variants:
@@ -301,8 +344,10 @@ def library(lines, recs, dts):
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {elapsed:.1f} |")
         creep = fit.model.creep
         if creep is not None:
-            notes.append(f"* {label}: start {fit.initial_states[0]}, creep weights "
-                         + ", ".join(f"{c:.3g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights)))
+            notes.append(
+                f"* {label}: start {fit.initial_states[0]}, creep weights "
+                + ", ".join(f"{c:.3g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights))
+            )
         if label == "modified PI (letter) + creep":
             # An identified model's input_limits are the identification record's input range
             # (-90...90 V here) and Compensator clips to them by default.  The 40 Hz reference
@@ -313,19 +358,21 @@ def library(lines, recs, dts):
             m, _ = align_record(fit.model, u, y)
             drive_range = (min(float(recs[n][0].min()) for n in NAMES), max(float(recs[n][0].max()) for n in NAMES))
             wide = None
-            for lim_label, lim in ((f"drive range of the records {drive_range[0]:.1f}...{drive_range[1]:.1f} V",
-                                    drive_range),
-                                   (f"default limits = identified input range {m.input_limits[0]:.1f}..."
-                                    f"{m.input_limits[1]:.1f} V", None)):
+            for lim_label, lim in (
+                (f"drive range of the records {drive_range[0]:.1f}...{drive_range[1]:.1f} V", drive_range),
+                (f"default limits = identified input range {m.input_limits[0]:.1f}...{m.input_limits[1]:.1f} V", None),
+            ):
                 comp = Compensator(m, limits=lim)
                 drive = comp.run(y)
                 wide = drive if wide is None else wide
                 gap = float(np.max(np.abs(m.simulate(drive)[:, 0] - y)))
                 lo, hi = comp.limits
                 n_out = int(np.count_nonzero((wide[:, 0] < lo) | (wide[:, 0] > hi)))  # unclipped drive outside
-                notes.append(f"* compensator check ({label}, 40 Hz measured output as reference, {lim_label}): "
-                             f"max |model(drive) - reference| = {gap:.2e} um ({100 * gap / np.ptp(y):.2g} % of range), "
-                             f"drive {drive.min():.1f}...{drive.max():.1f} V; the unlimited drive leaves these limits on {n_out} of {y.size} samples")
+                notes.append(
+                    f"* compensator check ({label}, 40 Hz measured output as reference, {lim_label}): "
+                    f"max |model(drive) - reference| = {gap:.2e} um ({100 * gap / np.ptp(y):.2g} % of range), "
+                    f"drive {drive.min():.1f}...{drive.max():.1f} V; the unlimited drive leaves these limits on {n_out} of {y.size} samples"
+                )
     lines.extend(notes)
     lines.append("")
     # which time scale does the creep pick?  one lag at a time, letter's modified PI
@@ -333,8 +380,9 @@ def library(lines, recs, dts):
     lines.append("| tau [s] | c | 20 Hz (fit) | 40 Hz | 100 Hz | tri50_1 | sine50_1 |")
     lines.append("|---|---|---|---|---|---|---|")
     for tau in (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 2.0):
-        fit = PIIdentifier("modified-pi", n_operators=20, input_warp=False, creep_time_constants=(tau,),
-                           sample_time=dts[NAMES[0]]).fit((u0, y0))
+        fit = PIIdentifier(
+            "modified-pi", n_operators=20, input_warp=False, creep_time_constants=(tau,), sample_time=dts[NAMES[0]]
+        ).fit((u0, y0))
         cells = []
         for n in (NAMES[0], NAMES[1], NAMES[2], "tri50_1", "sine50_1"):
             u, y = recs[n]

@@ -15,8 +15,8 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import click
 
@@ -141,7 +141,9 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
         raise ValueError(f"kind must be 'table' or 'model'; got {kind!r}.")
     allowed = TABLE_SUFFIXES if kind == "table" else MODEL_SUFFIXES
     if str(path) == "-":
-        raise DataError(f"-o '-' (standard output) is not supported; expected a file name ending in {' or '.join(allowed)}.")
+        raise DataError(
+            f"-o '-' (standard output) is not supported; expected a file name ending in {' or '.join(allowed)}."
+        )
     target = Path(path)
     suffix = target.suffix.lower()
     if suffix not in allowed:

@@ -7,22 +7,34 @@ import click
 from .._errors import DataError
 
 
-@click.command("compensate", epilog="""
+@click.command(
+    "compensate",
+    epilog="""
 \b
 Examples:
   stageid compensate hyst.json ref.csv --column yref -o drive.csv
   stageid compensate hyst.json ref.csv --column yref --limits -500,500 -o drive.csv
-""")
+""",
+)
 @click.argument("model_path", metavar="HYST.json", type=click.Path(dir_okay=False))
 @click.argument("ref_path", metavar="REF.(csv|npz|mat)", type=click.Path(dir_okay=False))
 @click.option("--column", required=True, help="Column of REF holding the desired output.")
-@click.option("--limits", default=None,
-              help="Drive limits LOW,HIGH (default: the model's input_limits, i.e. the identified input range of "
-                   "a model from `stageid identify hysteresis`, else none). The drive is clipped to them; a "
-                   "warning tells when the reference needs drives outside the model's input_limits.")
+@click.option(
+    "--limits",
+    default=None,
+    help="Drive limits LOW,HIGH (default: the model's input_limits, i.e. the identified input range of "
+    "a model from `stageid identify hysteresis`, else none). The drive is clipped to them; a "
+    "warning tells when the reference needs drives outside the model's input_limits.",
+)
 @click.option("--ts", type=float, default=None, help="Sample time [s] when REF has no `t` column.")
-@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
-              help="Drive .csv or .npz (by extension): columns `t` and the model's input name.")
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Drive .csv or .npz (by extension): columns `t` and the model's input name.",
+)
 def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: float | None, out: str) -> None:
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
@@ -70,11 +82,17 @@ def _warn_outside_range(model, limits: tuple[float, float] | None, u) -> None:
         tol = 1e-9 * (hi - lo)
         n = int(np.count_nonzero((u <= lo + tol) | (u >= hi - tol)))
         if n:
-            click.echo(f"stageid: warning: the reference needs drives outside the model's input_limits "
-                       f"[{lo:g}, {hi:g}] {name} (identified range): {n} of {u.size} drive samples clipped there; "
-                       f"give --limits to extrapolate.", err=True)
+            click.echo(
+                f"stageid: warning: the reference needs drives outside the model's input_limits "
+                f"[{lo:g}, {hi:g}] {name} (identified range): {n} of {u.size} drive samples clipped there; "
+                f"give --limits to extrapolate.",
+                err=True,
+            )
     else:
         n = int(np.count_nonzero((u < lo) | (u > hi)))
         if n:
-            click.echo(f"stageid: warning: {n} of {u.size} drive samples lie outside the model's input_limits "
-                       f"[{lo:g}, {hi:g}] {name} (identified range); the model is extrapolated there.", err=True)
+            click.echo(
+                f"stageid: warning: {n} of {u.size} drive samples lie outside the model's input_limits "
+                f"[{lo:g}, {hi:g}] {name} (identified range); the model is extrapolated there.",
+                err=True,
+            )

@@ -8,29 +8,47 @@ import time
 import click
 
 
-@click.command("demo", epilog="""
+@click.command(
+    "demo",
+    epilog="""
 \b
 Examples:
   stageid demo --out demo-out          # all three workflows, report in demo-out/index.html
   stageid demo --out d --only maglev   # one workflow
-""")
-@click.option("--out", "out_dir", default="demo-out", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for index.html, metrics.json and the identified models.")
-@click.option("--only", type=click.Choice(["piezo_stage", "maglev", "hysteresis"]), multiple=True,
-              help="Run only these workflows (repeatable).")
+""",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    default="demo-out",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Folder for index.html, metrics.json and the identified models.",
+)
+@click.option(
+    "--only",
+    type=click.Choice(["piezo_stage", "maglev", "hysteresis"]),
+    multiple=True,
+    help="Run only these workflows (repeatable).",
+)
 def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
     """Identify the P-558 piezo stage (Hankel-MAP), the unstable maglev plant (closed loop) and the
     piezo actuator's hysteresis (modified PI + inverse feedforward); print a summary and write a report."""
     from tqdm.auto import tqdm
 
     from ..demo import WORKFLOWS, run_demo
-
     from ._common import is_interactive
 
     workflows = only or WORKFLOWS
     stages = {"piezo_stage": 5, "maglev": 2, "hysteresis": 4}
-    bar = tqdm(total=sum(stages[w] for w in workflows), desc="stageid demo", unit="step", file=sys.stderr,
-               bar_format="{desc}: {n_fmt}/{total_fmt} [{elapsed}] {postfix}", disable=not is_interactive())
+    bar = tqdm(
+        total=sum(stages[w] for w in workflows),
+        desc="stageid demo",
+        unit="step",
+        file=sys.stderr,
+        bar_format="{desc}: {n_fmt}/{total_fmt} [{elapsed}] {postfix}",
+        disable=not is_interactive(),
+    )
     first = [True]
     start = time.perf_counter()
 
@@ -47,10 +65,14 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
         bar.update(1)
     finally:
         bar.close()
-    width = [max(len(str(r[k])) for r in result.rows + (("workflow", "metric", "measured", "reference"),)) for k in range(4)]
+    width = [
+        max(len(str(r[k])) for r in result.rows + (("workflow", "metric", "measured", "reference"),)) for k in range(4)
+    ]
     header = ("workflow", "metric", "measured", "reference")
     click.echo("  ".join(h.ljust(w) for h, w in zip(header, width)))
     click.echo("  ".join("-" * w for w in width))
     for row in result.rows:
         click.echo("  ".join(str(c).ljust(w) for c, w in zip(row, width)))
-    click.echo(f"\nreport: {result.report}   metrics: {result.report.parent / 'metrics.json'}   ({result.seconds:.0f} s)")
+    click.echo(
+        f"\nreport: {result.report}   metrics: {result.report.parent / 'metrics.json'}   ({result.seconds:.0f} s)"
+    )

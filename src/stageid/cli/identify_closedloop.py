@@ -18,34 +18,76 @@ def _band(text: str) -> tuple[float, float]:
     return lo, hi
 
 
-@click.command("closed-loop", epilog="""
+@click.command(
+    "closed-loop",
+    epilog="""
 \b
 Examples:
   stageid plants maglev --controller -o K.json
   stageid plants maglev --experiment chirp-x -o ex.csv   (and chirp-y, chirp-phi)
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
       --outputs x,y,phi --controller K.json --band 20:300 -o G.json
-""")
+""",
+)
 @click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--references", required=True, help="Reference columns R1,R2[,R3] (one excited per file).")
 @click.option("--outputs", required=True, help="Measured output columns Y1,Y2[,Y3], same order as the references.")
-@click.option("--controller", "controller_path", required=True, type=click.Path(dir_okay=False),
-              help="Known controller u = M (r - y), stageid.lti/1 (discrete or continuous).")
-@click.option("--plant-inputs", default=None, help="Plant-input columns U1,U2[,U3] to check u = M (r - y); "
-              "default: the controller's output names when the files have them.")
+@click.option(
+    "--controller",
+    "controller_path",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Known controller u = M (r - y), stageid.lti/1 (discrete or continuous).",
+)
+@click.option(
+    "--plant-inputs",
+    default=None,
+    help="Plant-input columns U1,U2[,U3] to check u = M (r - y); "
+    "default: the controller's output names when the files have them.",
+)
 @click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
-@click.option("--band", "band_text", default="20:300", show_default=True, help="Band FMIN:FMAX (Hz) of the reduction and errors.")
-@click.option("--structure", type=click.Choice(["paper", "full"]), default="paper", show_default=True,
-              help="paper: [0,2] diagonal and third-order couplings; full: the cancelled full-order deduction.")
+@click.option(
+    "--band", "band_text", default="20:300", show_default=True, help="Band FMIN:FMAX (Hz) of the reduction and errors."
+)
+@click.option(
+    "--structure",
+    type=click.Choice(["paper", "full"]),
+    default="paper",
+    show_default=True,
+    help="paper: [0,2] diagonal and third-order couplings; full: the cancelled full-order deduction.",
+)
 @click.option("--discrete", is_flag=True, help="Write the plant at the data's sample time instead of continuous.")
-@click.option("--method", type=click.Choice(["oe", "armax", "bj", "arx"]), default="oe", show_default=True,
-              help="Closed-loop model structure of eq. 12.")
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1).")
-@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
-              help="Also write an HTML report (plant Bode and pole-zero maps, closed loop vs FFT estimate, re-closed loop).")
-def closedloop_command(experiments: tuple[str, ...], references: str, outputs: str, controller_path: str,
-                       plant_inputs: str | None, ts: float | None, band_text: str, structure: str, discrete: bool,
-                       method: str, output: str, report_dir: str | None) -> None:
+@click.option(
+    "--method",
+    type=click.Choice(["oe", "armax", "bj", "arx"]),
+    default="oe",
+    show_default=True,
+    help="Closed-loop model structure of eq. 12.",
+)
+@click.option(
+    "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1)."
+)
+@click.option(
+    "--report",
+    "report_dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Also write an HTML report (plant Bode and pole-zero maps, closed loop vs FFT estimate, re-closed loop).",
+)
+def closedloop_command(
+    experiments: tuple[str, ...],
+    references: str,
+    outputs: str,
+    controller_path: str,
+    plant_inputs: str | None,
+    ts: float | None,
+    band_text: str,
+    structure: str,
+    discrete: bool,
+    method: str,
+    output: str,
+    report_dir: str | None,
+) -> None:
     """Identify an open-loop-unstable plant from closed-loop experiments (Shakir & Kim).
 
     Each EXP file excites one reference; the closed loop r -> y is identified pair by pair,
@@ -68,7 +110,9 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
     outs = split_names(outputs, "--outputs")
     assert refs is not None and outs is not None
     if len(refs) != len(outs):
-        raise click.UsageError(f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}.")
+        raise click.UsageError(
+            f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}."
+        )
     band = _band(band_text)
     K = load_model(controller_path)
     if not hasattr(K, "n_inputs") or not hasattr(K, "frequency_response"):
@@ -80,24 +124,33 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
             f"'{controller_path}' has {K.n_inputs} inputs and {K.n_outputs} outputs."
         )
     tables = [read_table_checked(path, ts) for path in experiments]
-    exps = as_experiments([t.experiment(inputs=list(refs), outputs=list(outs), name=str(path))
-                           for t, path in zip(tables, experiments)])
+    exps = as_experiments(
+        [t.experiment(inputs=list(refs), outputs=list(outs), name=str(path)) for t, path in zip(tables, experiments)]
+    )
     dt = exps[0].dt
     u_names = split_names(plant_inputs, "--plant-inputs")
     if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
         u_names = tuple(K.outputs)
     if u_names is not None:
         if len(u_names) != K.n_outputs:
-            raise click.UsageError(f"--plant-inputs must name {K.n_outputs} columns (the controller's outputs); got {len(u_names)}.")
+            raise click.UsageError(
+                f"--plant-inputs must name {K.n_outputs} columns (the controller's outputs); got {len(u_names)}."
+            )
         for t, e, path in zip(tables, exps, experiments):
             for name in u_names:
                 if name not in t.names:
-                    raise DataError(f"{path}: plant-input column '{name}' is missing; expected one of {', '.join(t.names)}.")
+                    raise DataError(
+                        f"{path}: plant-input column '{name}' is missing; expected one of {', '.join(t.names)}."
+                    )
             U = np.column_stack([t.column(n) for n in u_names])
             best = None
             kinds = ("discrete",) if K.dt is not None else ("tustin", "zoh")
             for kind in kinds:
-                Kd = K if K.dt is not None else (K.to_statespace(minimal=False) if hasattr(K, "to_statespace") else K).c2d(dt, kind)
+                Kd = (
+                    K
+                    if K.dt is not None
+                    else (K.to_statespace(minimal=False) if hasattr(K, "to_statespace") else K).c2d(dt, kind)
+                )
                 res = controller_residual(Kd, e.u, e.y, U, dt)
                 if best is None or res.max() < best[0].max():
                     best = (res, kind)
@@ -111,8 +164,9 @@ def closedloop_command(experiments: tuple[str, ...], references: str, outputs: s
             disc = "tustin" if best[1] == "discrete" else best[1]
     else:
         disc = "tustin"
-    est = ClosedLoopIdentification(K, method=method, structure=structure, band=band, continuous=not discrete,
-                                   controller_discretization=disc)
+    est = ClosedLoopIdentification(
+        K, method=method, structure=structure, band=band, continuous=not discrete, controller_discretization=disc
+    )
     result = est.fit(exps)
     if structure == "paper":
         # without plant-input columns a wrong controller cannot be seen in u; it shows as a deduced
@@ -143,27 +197,47 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
 
     dt = result.dt
     report = Report("Closed-loop identification")
-    metrics = {"band_error_percent": (100 * np.asarray(result.band_error)).tolist(),
-               "unstable_poles_rad_s": [float(p.real) for p in np.asarray(result.plant_unstable_poles)]}
+    metrics = {
+        "band_error_percent": (100 * np.asarray(result.band_error)).tolist(),
+        "unstable_poles_rad_s": [float(p.real) for p in np.asarray(result.plant_unstable_poles)],
+    }
     report.section("Identified plant")
     report.paragraph(result.summary())
-    report.figure(plot_plant_bode(result, np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300)),
-                  "Identified plant: reduced fit and full-order deduction (eq. 18).")
-    report.figure(plot_pole_zero(result, (0, 0)), "Pole-zero map of the first diagonal entry before and after cancellation.")
+    report.figure(
+        plot_plant_bode(result, np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300)),
+        "Identified plant: reduced fit and full-order deduction (eq. 18).",
+    )
+    report.figure(
+        plot_pole_zero(result, (0, 0)), "Pole-zero map of the first diagonal entry before and after cancellation."
+    )
     report.section("Validation against the data")
     for e in exps:
         j = int(np.argmax(np.std(e.u, axis=0)))
         ff = np.geomspace(max(1.0 / e.duration, 0.1), 0.45 / dt, 300)
         fe, etfe = empirical_transfer(e.u[:, j], e.y, dt, band=(ff[0], ff[-1]))
-        report.figure(plot_closed_loop_bode(ff, result.closed_loop.frequency_response(ff)[:, j, j], (fe, etfe[:, j]),
-                                            title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}"),
-                      f"{e.name}: identified closed loop beside the empirical transfer function of the record.")
+        report.figure(
+            plot_closed_loop_bode(
+                ff,
+                result.closed_loop.frequency_response(ff)[:, j, j],
+                (fe, etfe[:, j]),
+                title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}",
+            ),
+            f"{e.name}: identified closed loop beside the empirical transfer function of the record.",
+        )
         ysim, _ = reclose_loop(result.plant, controller, e.u, dt)
         fit = fit_percent(e.y, ysim)
         for name, v in zip(e.output_names, fit):
             metrics[f"reclosed_fit_percent/{e.name}/{name}"] = float(v)
-        report.figure(time_overlay_figure(e.time, e.y, {"re-closed loop": ysim}, e.output_names, e.output_units,
-                                          title=f"{e.name}: identified plant re-closed with the known controller"),
-                      f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).")
+        report.figure(
+            time_overlay_figure(
+                e.time,
+                e.y,
+                {"re-closed loop": ysim},
+                e.output_names,
+                e.output_units,
+                title=f"{e.name}: identified plant re-closed with the known controller",
+            ),
+            f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
+        )
     path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
     click.echo(f"report written to {path}", err=True)

@@ -13,45 +13,100 @@ def _time_constants(ctx: click.Context, param: click.Parameter, value: str | Non
     try:
         taus = tuple(float(v) for v in value.split(","))
     except ValueError:
-        raise click.BadParameter(f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}.") from None
+        raise click.BadParameter(
+            f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}."
+        ) from None
     if not taus or not all(t > 0 and t < float("inf") for t in taus):
         raise click.BadParameter(f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}.")
     return taus
 
 
-@click.command("hysteresis", epilog="""
+@click.command(
+    "hysteresis",
+    epilog="""
 \b
 Examples:
   stageid identify hysteresis decay.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify hysteresis forc.csv --input V --output y --model pi --operators 20 -o pi.json
   stageid identify hysteresis a.csv b.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
-""")
+""",
+)
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
 @click.option("--input", "input_name", required=True, help="Input column (drive, e.g. V).")
 @click.option("--output", "output_name", required=True, help="Output column (displacement, e.g. y).")
-@click.option("--model", "kind", type=click.Choice(["pi", "modified-pi"]), default="modified-pi", show_default=True,
-              help="Classical PI (plays) or the letter's modified PI (coupled plays).")
-@click.option("--operators", "n_operators", type=click.IntRange(min=2), default=20, show_default=True,
-              help="Number of operators (thresholds equally spaced over the input range, the first is 0); "
-                   "at most 1000 (pi) or 100 (modified-pi), one per 5 samples of the records and the "
-                   "number of distinct input values.")
-@click.option("--initial-state", type=click.Choice(["auto", "zero", "ascending", "descending"]), default="auto",
-              show_default=True, help="Operator state at the first sample of each record.")
-@click.option("--input-warp/--no-input-warp", default=True, show_default=True,
-              help="Modified PI only: also fit a monotone quadratic input warp (our extension); "
-                   "--no-input-warp gives the letter's model exactly.")
-@click.option("--creep", "creep", default=None, callback=_time_constants, metavar="TAU1,TAU2,...",
-              help="Also fit a linear creep term: first-order lags of the input with these time constants "
-                   "[s], weights >= 0 (our extension; the records' time column gives dt).")
+@click.option(
+    "--model",
+    "kind",
+    type=click.Choice(["pi", "modified-pi"]),
+    default="modified-pi",
+    show_default=True,
+    help="Classical PI (plays) or the letter's modified PI (coupled plays).",
+)
+@click.option(
+    "--operators",
+    "n_operators",
+    type=click.IntRange(min=2),
+    default=20,
+    show_default=True,
+    help="Number of operators (thresholds equally spaced over the input range, the first is 0); "
+    "at most 1000 (pi) or 100 (modified-pi), one per 5 samples of the records and the "
+    "number of distinct input values.",
+)
+@click.option(
+    "--initial-state",
+    type=click.Choice(["auto", "zero", "ascending", "descending"]),
+    default="auto",
+    show_default=True,
+    help="Operator state at the first sample of each record.",
+)
+@click.option(
+    "--input-warp/--no-input-warp",
+    default=True,
+    show_default=True,
+    help="Modified PI only: also fit a monotone quadratic input warp (our extension); "
+    "--no-input-warp gives the letter's model exactly.",
+)
+@click.option(
+    "--creep",
+    "creep",
+    default=None,
+    callback=_time_constants,
+    metavar="TAU1,TAU2,...",
+    help="Also fit a linear creep term: first-order lags of the input with these time constants "
+    "[s], weights >= 0 (our extension; the records' time column gives dt).",
+)
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
-@click.option("-o", "--output-file", "out", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.hysteresis/1 JSON).")
+@click.option(
+    "-o",
+    "--output-file",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Model file (stageid.hysteresis/1 JSON).",
+)
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
-@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
-              help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.")
-def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str, n_operators: int,
-             initial_state: str, input_warp: bool, ts: float | None, out: str, quiet: bool, report_dir: str | None,
-             creep: tuple[float, ...] | None = None) -> None:
+@click.option(
+    "--report",
+    "report_dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.",
+)
+def identify(
+    data: tuple[str, ...],
+    input_name: str,
+    output_name: str,
+    kind: str,
+    n_operators: int,
+    initial_state: str,
+    input_warp: bool,
+    ts: float | None,
+    out: str,
+    quiet: bool,
+    report_dir: str | None,
+    creep: tuple[float, ...] | None = None,
+) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
@@ -66,8 +121,9 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
     if report_dir is not None:
         check_output_folder(report_dir)
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    fit = PIIdentifier(kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp,
-                       creep_time_constants=creep).fit(list(exps))
+    fit = PIIdentifier(
+        kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp, creep_time_constants=creep
+    ).fit(list(exps))
     write_model_output(out, fit.model)
     if not quiet:
         click.echo(fit.summary())
@@ -80,7 +136,13 @@ def identify(data: tuple[str, ...], input_name: str, output_name: str, kind: str
 
         # the model starts from the zero state at 0 input with the first record's offset; other
         # records' sensor zeros differ, so each is shown against the model shifted to its fitted offset
-        records = [e.with_(y=e.y - (off - fit.output_offsets[0]), input_names=tuple(fit.model.inputs),
-                           output_names=tuple(fit.model.outputs)) for e, off in zip(exps, fit.output_offsets)]
+        records = [
+            e.with_(
+                y=e.y - (off - fit.output_offsets[0]),
+                input_names=tuple(fit.model.inputs),
+                output_names=tuple(fit.model.outputs),
+            )
+            for e, off in zip(exps, fit.output_offsets)
+        ]
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra)
         click.echo(f"report written to {path}", err=True)

@@ -7,48 +7,98 @@ import click
 from ._common import check_output, check_output_folder, read_experiments, split_names, write_model_output
 
 
-def _int_or_auto(text: str, option: str, allow_list: bool = False) -> "int | str | list[int]":
+def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
     t = text.strip().lower()
     if t == "auto":
         return "auto"
     try:
         values = [int(v) for v in t.split(",")] if allow_list else [int(t)]
     except ValueError:
-        raise click.UsageError(f"{option} must be a positive integer{' (or a comma list)' if allow_list else ''} or 'auto'; got {text!r}.") from None
+        raise click.UsageError(
+            f"{option} must be a positive integer{' (or a comma list)' if allow_list else ''} or 'auto'; got {text!r}."
+        ) from None
     if any(v < 1 for v in values):
         raise click.UsageError(f"{option} must be positive; got {text!r}.")
     return values if len(values) > 1 else values[0]
 
 
-@click.command("statespace", epilog="""
+@click.command(
+    "statespace",
+    epilog="""
 \b
 Examples:
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json
   stageid identify statespace cz.csv crx.csv cry.csv --inputs Z,Rx,Ry --outputs z,rx,ry \\
       --per-channel --order 7,4,4 -o model.json      (one file per excited input, eq. 19-22)
   stageid identify statespace run.npz --inputs u1,u2 --outputs y1,y2 --ts 0.002 -o model.json
-""")
+""",
+)
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--inputs", required=True, help="Input columns A,B,C.")
 @click.option("--outputs", required=True, help="Output columns X,Y,Z.")
 @click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
-@click.option("--order", "order_text", default="auto", show_default=True,
-              help="Model order N, 'auto' (held-out simulation error), or one per input with --per-channel (7,4,4).")
-@click.option("--horizon", "horizon_text", default="auto", show_default=True,
-              help="Horizon p of the Hankel-Toeplitz model, or 'auto' (held-out prediction error).")
-@click.option("--method", type=click.Choice(["map", "ls"]), default="map", show_default=True,
-              help="MAP with a weak prior (eq. 17) or batch least squares (identified Hankel matrix).")
-@click.option("--per-channel", is_flag=True, help="One single-input model per input from the files that move only it, stacked.")
-@click.option("--forgetting", type=float, default=1.0, show_default=True, help="Exponential forgetting factor in (0, 1].")
-@click.option("--realization", type=click.Choice(["frequency", "markov"]), default="frequency", show_default=True,
-              help="frequency: in-band realisation (robust to band-limited data); markov: Lemma 1 on Markov parameters.")
-@click.option("--band", "band_text", default=None, help="Band FMIN:FMAX in Hz for the realisation (default: the excited band).")
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.lti/1).")
-@click.option("--report", "report_dir", default=None, type=click.Path(file_okay=False),
-              help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.")
-def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: float | None, order_text: str,
-                       horizon_text: str, method: str, per_channel: bool, forgetting: float, realization: str,
-                       band_text: str | None, output: str, report_dir: str | None) -> None:
+@click.option(
+    "--order",
+    "order_text",
+    default="auto",
+    show_default=True,
+    help="Model order N, 'auto' (held-out simulation error), or one per input with --per-channel (7,4,4).",
+)
+@click.option(
+    "--horizon",
+    "horizon_text",
+    default="auto",
+    show_default=True,
+    help="Horizon p of the Hankel-Toeplitz model, or 'auto' (held-out prediction error).",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["map", "ls"]),
+    default="map",
+    show_default=True,
+    help="MAP with a weak prior (eq. 17) or batch least squares (identified Hankel matrix).",
+)
+@click.option(
+    "--per-channel", is_flag=True, help="One single-input model per input from the files that move only it, stacked."
+)
+@click.option(
+    "--forgetting", type=float, default=1.0, show_default=True, help="Exponential forgetting factor in (0, 1]."
+)
+@click.option(
+    "--realization",
+    type=click.Choice(["frequency", "markov"]),
+    default="frequency",
+    show_default=True,
+    help="frequency: in-band realisation (robust to band-limited data); markov: Lemma 1 on Markov parameters.",
+)
+@click.option(
+    "--band", "band_text", default=None, help="Band FMIN:FMAX in Hz for the realisation (default: the excited band)."
+)
+@click.option(
+    "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.lti/1)."
+)
+@click.option(
+    "--report",
+    "report_dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.",
+)
+def statespace_command(
+    data: tuple[str, ...],
+    inputs: str,
+    outputs: str,
+    ts: float | None,
+    order_text: str,
+    horizon_text: str,
+    method: str,
+    per_channel: bool,
+    forgetting: float,
+    realization: str,
+    band_text: str | None,
+    output: str,
+    report_dir: str | None,
+) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
 
     Several DATA files are several records of the same stage (e.g. one per excited input).
@@ -79,8 +129,15 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
             raise click.UsageError(f"--band must satisfy 0 <= FMIN < FMAX; got {band_text!r}.")
         band = (lo, hi)
     exps = read_experiments(data, ins, outs, ts)
-    est = HankelMAP(horizon=horizon, order=order, method=method, per_channel=per_channel, forgetting=forgetting,
-                    realization=realization, band=band)
+    est = HankelMAP(
+        horizon=horizon,
+        order=order,
+        method=method,
+        per_channel=per_channel,
+        forgetting=forgetting,
+        realization=realization,
+        band=band,
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = est.fit(exps)
@@ -104,12 +161,17 @@ def statespace_command(data: tuple[str, ...], inputs: str, outputs: str, ts: flo
             f = np.geomspace(max(lo, 1e-3), hi, 300)
             report.section("Hankel-MAP diagnostics")
             report.paragraph(result.summary())
-            report.figure(bode_with_bands(result, f), "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.")
+            report.figure(
+                bode_with_bands(result, f),
+                "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
+            )
             for ch in result.channels:
                 for table in (ch.horizon_table, ch.order_table):
                     if table is not None:
-                        report.figure(selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
-                                      f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.")
+                        report.figure(
+                            selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
+                            f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.",
+                        )
 
         path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra)
         click.echo(f"report written to {path}", err=True)

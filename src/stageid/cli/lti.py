@@ -7,18 +7,32 @@ import click
 from .._errors import DataError, ModelError
 
 
-@click.command("simulate", epilog="""
+@click.command(
+    "simulate",
+    epilog="""
 \b
 Examples:
   stageid simulate p558.json chirp.csv -o response.csv
   stageid simulate hyst.json drive.csv -o displacement.csv
   stageid simulate model.json record.npz --ts 0.002 -o out.csv
-""")
+""",
+)
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("input_path", metavar="INPUT.(csv|npz|mat)", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
-              help="Output .csv or .npz (by extension): `t` then one column per model output.")
-@click.option("--ts", type=float, default=None, help="Sample time [s] when the input file has no `t` column (default: the model's dt).")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Output .csv or .npz (by extension): `t` then one column per model output.",
+)
+@click.option(
+    "--ts",
+    type=float,
+    default=None,
+    help="Sample time [s] when the input file has no `t` column (default: the model's dt).",
+)
 def simulate_command(model_path: str, input_path: str, output: str, ts: float | None) -> None:
     """Simulate MODEL.json (LTI or hysteresis) driven by the columns of INPUT named like the model's inputs.
 
@@ -66,17 +80,27 @@ def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> fl
     return None
 
 
-@click.command("freqresp", epilog="""
+@click.command(
+    "freqresp",
+    epilog="""
 \b
 Examples:
   stageid freqresp p558.json --fmin 1 --fmax 200 --n 400 -o fr.csv
   stageid freqresp maglev.json --fmin 10 --fmax 1000 -o maglev_fr.csv
-""")
+""",
+)
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.option("--fmin", type=float, required=True, help="Lowest frequency [Hz], > 0.")
 @click.option("--fmax", type=float, required=True, help="Highest frequency [Hz].")
 @click.option("--n", "n_points", type=int, default=200, show_default=True, help="Number of log-spaced frequencies.")
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz (by extension).")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Output .csv or .npz (by extension).",
+)
 def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, output: str) -> None:
     """Frequency response of an LTI model at N log-spaced frequencies.
 
@@ -99,7 +123,10 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
     if not hasattr(model, "frequency_response"):
         raise ModelError(f"'{model_path}' is not an LTI model; freqresp needs a stageid.lti/1 file.")
     if model.dt is not None and fmax > 0.5 / model.dt * (1 + 1e-12):
-        raise click.BadParameter(f"{fmax:g} Hz exceeds the Nyquist frequency {0.5 / model.dt:g} Hz of this discrete model.", param_hint="--fmax")
+        raise click.BadParameter(
+            f"{fmax:g} Hz exceeds the Nyquist frequency {0.5 / model.dt:g} Hz of this discrete model.",
+            param_hint="--fmax",
+        )
     f = np.geomspace(fmin, fmax, n_points) if n_points > 1 else np.array([fmin])
     fr = model.frequency_response(f)
     columns: dict[str, np.ndarray] = {"f_hz": f}

@@ -50,13 +50,15 @@ def cli(ctx: click.Context, debug: bool) -> None:
     ctx.obj["debug"] = debug
 
 
-@cli.group(epilog="""
+@cli.group(
+    epilog="""
 \b
 Examples:
   stageid identify statespace x.csv y.csv --inputs Z,Rx,Ry --outputs z,rx,ry -o model.json
   stageid identify closed-loop ex.csv ey.csv --references rx,ry --outputs x,y --controller K.json -o G.json
   stageid identify hysteresis forc.csv --input V --output y --model modified-pi -o hyst.json
-""")
+"""
+)
 def identify() -> None:
     """Identify a model from measured records."""
 
@@ -103,7 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # a bug: still one line, with a hint how to see more
         if debug:
             raise
-        click.echo(f"stageid: internal error: {type(exc).__name__}: {_one_line(str(exc))} (rerun with --debug for details)", err=True)
+        click.echo(
+            f"stageid: internal error: {type(exc).__name__}: {_one_line(str(exc))} (rerun with --debug for details)",
+            err=True,
+        )
         return 3
     return 0
 

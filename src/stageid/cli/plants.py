@@ -8,7 +8,9 @@ from .._errors import StageIdError
 from ._common import check_output, write_model_output, write_table_output
 
 
-@click.command("plants", epilog="""
+@click.command(
+    "plants",
+    epilog="""
 \b
 Examples:
   stageid plants                                   # list stages and their experiments
@@ -16,12 +18,26 @@ Examples:
   stageid plants p558 --experiment chirp-z -o z.csv
   stageid plants maglev --controller -o K.json     # the known stabilising controller
   stageid plants maglev --experiment chirp-x --seed 3 -o ex.csv
-""")
+""",
+)
 @click.argument("name", required=False)
 @click.option("--experiment", default=None, help="Simulate this experiment instead of writing the model.")
 @click.option("--controller", is_flag=True, help="Write the stage's stabilising controller (closed-loop stages).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Noise/excitation seed of the experiment, >= 0.")
-@click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None, help="Output .json (model) or .csv/.npz (experiment).")
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Noise/excitation seed of the experiment, >= 0.",
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Output .json (model) or .csv/.npz (experiment).",
+)
 def plants_command(name: str | None, experiment: str | None, controller: bool, seed: int, output: str | None) -> None:
     """Reference stages of the papers: P-558 piezo stage, maglev stage, piezo actuator."""
     from ..plants import PLANTS, plant_module
@@ -43,7 +59,9 @@ def plants_command(name: str | None, experiment: str | None, controller: bool, s
     if experiment is not None:
         experiments = getattr(module, "EXPERIMENTS", {})
         if experiment not in experiments:
-            raise StageIdError(f"plant {name!r} has no experiment {experiment!r}; expected one of {', '.join(experiments)}.")
+            raise StageIdError(
+                f"plant {name!r} has no experiment {experiment!r}; expected one of {', '.join(experiments)}."
+            )
         record = experiments[experiment](seed=seed)
         write_table_output(output, record)
         return

@@ -25,20 +25,33 @@ def write_report(model, experiments, out_dir: str, title: str | None = None, ext
     return write_report_folder(out_dir, report, metrics)
 
 
-@click.command("report", epilog="""
+@click.command(
+    "report",
+    epilog="""
 \b
 Examples:
   stageid report model.json val.csv --inputs Z,Rx,Ry --outputs z,rx,ry --out report/
   stageid report hyst.json tri.csv --inputs V --outputs y --out hyst-report/
-""")
+""",
+)
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("data", nargs=-1, type=click.Path(dir_okay=False))
 @click.option("--inputs", default=None, help="Input columns (default: the model's input names).")
 @click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
 @click.option("--title", default=None, help="Report title.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for index.html and metrics.json.")
-def report_command(model_path: str, data: tuple[str, ...], inputs: str | None, outputs: str | None, ts: float | None, title: str | None, out_dir: str) -> None:
+@click.option(
+    "--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for index.html and metrics.json."
+)
+def report_command(
+    model_path: str,
+    data: tuple[str, ...],
+    inputs: str | None,
+    outputs: str | None,
+    ts: float | None,
+    title: str | None,
+    out_dir: str,
+) -> None:
     """Report on MODEL.json: frequency response, poles and zeros, and simulation against DATA files."""
     from ..models import load_model
 

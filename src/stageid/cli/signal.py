@@ -32,7 +32,11 @@ def _limits(value: str | None) -> tuple[float, float] | None:
 
 
 def _click_type(param: inspect.Parameter) -> Any:
-    ann = param.annotation if isinstance(param.annotation, str) else getattr(param.annotation, "__name__", str(param.annotation))
+    ann = (
+        param.annotation
+        if isinstance(param.annotation, str)
+        else getattr(param.annotation, "__name__", str(param.annotation))
+    )
     ann = ann.replace("typing.", "").strip()
     if ann.startswith("int"):
         return int
@@ -73,18 +77,51 @@ def _make_command(kind: str) -> click.Command:
     for name, p in params.items():
         flag = "--" + name.replace("_", "-")
         if name == "limits":
-            options.append(click.Option([flag], type=str, default=None, help="Allowed range LO:HI; exceeding it is an error (never clipped)."))
+            options.append(
+                click.Option(
+                    [flag],
+                    type=str,
+                    default=None,
+                    help="Allowed range LO:HI; exceeding it is an error (never clipped).",
+                )
+            )
             continue
         required = p.default is inspect.Parameter.empty
         default = None if required else p.default
         kind_type = click.IntRange(min=0) if name == "seed" else _click_type(p)
-        options.append(click.Option([flag, name], type=kind_type, required=required, default=default,
-                                    show_default=not required and default is not None, help=helps.get(name)))
+        options.append(
+            click.Option(
+                [flag, name],
+                type=kind_type,
+                required=required,
+                default=default,
+                show_default=not required and default is not None,
+                help=helps.get(name),
+            )
+        )
     if "dt" not in params:
-        options.append(click.Option(["--dt", "dt"], type=float, default=None, help="Sample time [s] for the `t` column (omitted when not given)."))
-    options.append(click.Option(["--name", "--names", "names"], type=str, default="u", show_default=True,
-                                help="Column name(s), comma-separated for several channels."))
-    options.append(click.Option(["-o", "--output", "output"], required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz."))
+        options.append(
+            click.Option(
+                ["--dt", "dt"],
+                type=float,
+                default=None,
+                help="Sample time [s] for the `t` column (omitted when not given).",
+            )
+        )
+    options.append(
+        click.Option(
+            ["--name", "--names", "names"],
+            type=str,
+            default="u",
+            show_default=True,
+            help="Column name(s), comma-separated for several channels.",
+        )
+    )
+    options.append(
+        click.Option(
+            ["-o", "--output", "output"], required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz."
+        )
+    )
 
     def callback(**kwargs: Any) -> None:
         import numpy as np

@@ -25,13 +25,36 @@ from .deduction import deduce_plant, deduce_response, deduce_siso, unstable_plan
 from .estimator import ClosedLoopIdentification, ClosedLoopResult, excited_reference
 from .pem import PolynomialModel, arx, pem, select_order
 from .reduction import ReducedEntry, paper_orders, reduce_entry
-from .validation import controller_residual, direct_identification, empirical_transfer, reclose_loop, simulate_closed_loop
+from .validation import (
+    controller_residual,
+    direct_identification,
+    empirical_transfer,
+    reclose_loop,
+    simulate_closed_loop,
+)
 
 __all__ = [
-    "ClosedLoopIdentification", "ClosedLoopResult", "excited_reference",
-    "pem", "arx", "select_order", "PolynomialModel",
-    "deduce_plant", "deduce_response", "deduce_siso", "unstable_plant_poles",
-    "cancel_entries", "cancel_pairs", "CancelledPair", "EntryPoleZero",
-    "reduce_entry", "ReducedEntry", "paper_orders",
-    "simulate_closed_loop", "empirical_transfer", "reclose_loop", "direct_identification", "controller_residual",
+    "ClosedLoopIdentification",
+    "ClosedLoopResult",
+    "excited_reference",
+    "pem",
+    "arx",
+    "select_order",
+    "PolynomialModel",
+    "deduce_plant",
+    "deduce_response",
+    "deduce_siso",
+    "unstable_plant_poles",
+    "cancel_entries",
+    "cancel_pairs",
+    "CancelledPair",
+    "EntryPoleZero",
+    "reduce_entry",
+    "ReducedEntry",
+    "paper_orders",
+    "simulate_closed_loop",
+    "empirical_transfer",
+    "reclose_loop",
+    "direct_identification",
+    "controller_residual",
 ]

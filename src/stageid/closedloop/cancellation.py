@@ -61,8 +61,15 @@ def z_to_s(z: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def cancel_pairs(poles: np.ndarray, zeros: np.ndarray, dt: float, tol: float = 1e-2,
-                 output: int = 0, input: int = 0, unstable_tol: float = 0.25) -> tuple[np.ndarray, np.ndarray, tuple[CancelledPair, ...]]:
+def cancel_pairs(
+    poles: np.ndarray,
+    zeros: np.ndarray,
+    dt: float,
+    tol: float = 1e-2,
+    output: int = 0,
+    input: int = 0,
+    unstable_tol: float = 0.25,
+) -> tuple[np.ndarray, np.ndarray, tuple[CancelledPair, ...]]:
     """Remove pole-zero pairs closer than ``tol`` (relative, in the ``s``-plane).
 
     Parameters
@@ -134,8 +141,9 @@ def _entry(plant: StateSpaceModel, i: int, j: int) -> StateSpaceModel:
     return StateSpaceModel(A, b / nb, c / nc, d, plant.dt)
 
 
-def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | None = None,
-                   minimal_tol: float | None = None) -> tuple[TransferMatrix, tuple[EntryPoleZero, ...]]:
+def cancel_entries(
+    plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | None = None, minimal_tol: float | None = None
+) -> tuple[TransferMatrix, tuple[EntryPoleZero, ...]]:
     """Per entry of a deduced discrete plant: minimal SISO realisation, poles, zeros, cancellation.
 
     Parameters
@@ -165,14 +173,16 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
     dt = plant.dt
     f_ref = 0.1 / (2 * dt) if f_ref_hz is None else float(f_ref_hz)
     f_grid = np.geomspace(max(f_ref / 100, 1e-3 / dt), 0.45 / dt, 400)
-    G_grid = plant.frequency_response(f_grid)      # once for all entries (one Hessenberg form)
+    G_grid = plant.frequency_response(f_grid)  # once for all entries (one Hessenberg form)
     reports = []
     num_rows, den_rows = [], []
     for i in range(plant.n_outputs):
         nr, dr = [], []
         for j in range(plant.n_inputs):
             g = _entry(plant, i, j)
-            g = minimal_realization(g, minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(g.A, 2)))
+            g = minimal_realization(
+                g, minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(g.A, 2))
+            )
             poles, zeros = _siso_pz(g)
             kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
             # rebuild the numerator over a wide grid with the kept poles fixed (linear least squares on
@@ -188,8 +198,9 @@ def cancel_entries(plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | 
     return TransferMatrix(num_rows, den_rows, dt, plant.inputs, plant.outputs), tuple(reports)
 
 
-def _refit_numerator(dt: float, G: np.ndarray, kept_poles: np.ndarray, n_zeros: int,
-                     f_grid: np.ndarray) -> tuple[np.ndarray, float]:
+def _refit_numerator(
+    dt: float, G: np.ndarray, kept_poles: np.ndarray, n_zeros: int, f_grid: np.ndarray
+) -> tuple[np.ndarray, float]:
     """Zeros and gain of an entry with response ``G`` over ``f_grid``, given its kept poles:
     ``N(z) = G(z) D(z)`` fitted in the relative sense; the numerator degree is ``n_zeros``,
     raised if needed up to ``n_poles - 1`` (strictly proper) until the fit stops improving by 10x."""
@@ -200,13 +211,15 @@ def _refit_numerator(dt: float, G: np.ndarray, kept_poles: np.ndarray, n_zeros: 
     best = None
     for deg in range(min(n_zeros, max(kept_poles.size - 1, 0)), max(kept_poles.size - 1, 0) + 1):
         V = np.vander(z, deg + 1) * w[:, None]
-        b, *_ = np.linalg.lstsq(np.vstack([V.real, V.imag]), np.concatenate([(target * w).real, (target * w).imag]), rcond=None)
+        b, *_ = np.linalg.lstsq(
+            np.vstack([V.real, V.imag]), np.concatenate([(target * w).real, (target * w).imag]), rcond=None
+        )
         err = float(np.max(np.abs(np.polyval(b, z) - target) * w))
         if best is None or err < 0.1 * best[0]:
             best = (err, b)
     b = best[1] if best is not None else np.array([0.0])
     nz = np.flatnonzero(np.abs(b) > 1e-14 * np.max(np.abs(b))) if np.any(b) else np.array([0])
-    b = b[nz[0]:] if nz.size else b
+    b = b[nz[0] :] if nz.size else b
     zeros = np.roots(b) if b.size > 1 else np.zeros(0, complex)
     return zeros, float(b[0])
 

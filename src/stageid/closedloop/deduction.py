@@ -22,7 +22,7 @@ is handled by ``reference_filter=M_r``: then ``T = (I + G M)^-1 G M_r`` and
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -41,7 +41,9 @@ def _as_ss(model: StateSpaceModel | TransferMatrix) -> StateSpaceModel:
     raise ModelError(f"expected a StateSpaceModel or TransferMatrix; got {type(model).__name__}.")
 
 
-def as_discrete_controller(controller: StateSpaceModel | TransferMatrix, dt: float, method: str = "tustin") -> StateSpaceModel:
+def as_discrete_controller(
+    controller: StateSpaceModel | TransferMatrix, dt: float, method: str = "tustin"
+) -> StateSpaceModel:
     """The controller as a discrete state-space model at ``dt``.
 
     A continuous controller is discretised with ``method`` ("tustin" by default, the
@@ -61,8 +63,13 @@ def as_discrete_controller(controller: StateSpaceModel | TransferMatrix, dt: flo
     return K
 
 
-def deduce_response(T: np.ndarray, M: np.ndarray, reference_filter: np.ndarray | None = None,
-                    freqs_hz: Sequence[float] | None = None, rcond: float = 1e-6) -> np.ndarray:
+def deduce_response(
+    T: np.ndarray,
+    M: np.ndarray,
+    reference_filter: np.ndarray | None = None,
+    freqs_hz: Sequence[float] | None = None,
+    rcond: float = 1e-6,
+) -> np.ndarray:
     """Eq. 18 frequency by frequency: ``G(f) = T(f) [M(f) (I - T(f))]^-1``.
 
     Parameters
@@ -102,7 +109,9 @@ def deduce_response(T: np.ndarray, M: np.ndarray, reference_filter: np.ndarray |
     M = np.asarray(M, dtype=complex)
     Mr = M if reference_filter is None else np.asarray(reference_filter, dtype=complex)
     if T.ndim != 3 or M.shape != T.shape or Mr.shape != T.shape or T.shape[1] != T.shape[2]:
-        raise IdentificationError(f"T, M (and M_r) must all have shape (n_freqs, p, p); got {T.shape}, {M.shape} and {Mr.shape}.")
+        raise IdentificationError(
+            f"T, M (and M_r) must all have shape (n_freqs, p, p); got {T.shape}, {M.shape} and {Mr.shape}."
+        )
     U = Mr - M @ T
     svals = np.linalg.svd(U, compute_uv=False)
     # scale: the controller's typical size (median over the grid of its largest singular value)
@@ -161,8 +170,11 @@ def _identity(p: int, dt: float | None) -> StateSpaceModel:
     return StateSpaceModel(np.zeros((0, 0)), np.zeros((0, p)), np.zeros((p, 0)), np.eye(p), dt)
 
 
-def deduce_plant(closed_loop: StateSpaceModel | TransferMatrix, controller: StateSpaceModel | TransferMatrix,
-                 reference_filter: StateSpaceModel | TransferMatrix | None = None) -> StateSpaceModel:
+def deduce_plant(
+    closed_loop: StateSpaceModel | TransferMatrix,
+    controller: StateSpaceModel | TransferMatrix,
+    reference_filter: StateSpaceModel | TransferMatrix | None = None,
+) -> StateSpaceModel:
     """Eq. 18 as a (non-minimal) discrete state-space model ``G = T [M (I - T)]^-1``.
 
     Parameters
@@ -204,20 +216,31 @@ def deduce_plant(closed_loop: StateSpaceModel | TransferMatrix, controller: Stat
     Mr = M if reference_filter is None else _as_ss(reference_filter)
     p = T.n_outputs
     if T.n_inputs != p:
-        raise IdentificationError(f"the closed loop must be square (one reference per output); got {p} outputs and {T.n_inputs} references.")
+        raise IdentificationError(
+            f"the closed loop must be square (one reference per output); got {p} outputs and {T.n_inputs} references."
+        )
     if M.n_inputs != p or M.n_outputs != p or Mr.n_inputs != p or Mr.n_outputs != p:
         raise IdentificationError(
             f"the controller must map the {p} tracking errors to {p} plant inputs; got {M.n_inputs} inputs and {M.n_outputs} outputs."
         )
-    if T.dt is None or M.dt is None or not np.isclose(T.dt, M.dt, rtol=1e-6) or (Mr.dt is None or not np.isclose(Mr.dt, T.dt, rtol=1e-6)):
-        raise IdentificationError(f"closed loop and controller must be discrete with one sample time; got dt={T.dt} and dt={M.dt}.")
+    if (
+        T.dt is None
+        or M.dt is None
+        or not np.isclose(T.dt, M.dt, rtol=1e-6)
+        or (Mr.dt is None or not np.isclose(Mr.dt, T.dt, rtol=1e-6))
+    ):
+        raise IdentificationError(
+            f"closed loop and controller must be discrete with one sample time; got dt={T.dt} and dt={M.dt}."
+        )
     Tr = T.with_names(inputs=tuple(f"r{i + 1}" for i in range(p)))
-    U = _sub(_mul(Mr, _identity(p, T.dt)), _mul(M, Tr))     # M_r - M T  (r -> u)
+    U = _sub(_mul(Mr, _identity(p, T.dt)), _mul(M, Tr))  # M_r - M T  (r -> u)
     G = _balanced(_mul(Tr, _inverse(U)))
     return G.with_names(inputs=M.outputs, outputs=T.outputs)
 
 
-def deduce_siso(num_t: np.ndarray, den_t: np.ndarray, num_m: np.ndarray, den_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def deduce_siso(
+    num_t: np.ndarray, den_t: np.ndarray, num_m: np.ndarray, den_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """SISO eq. 18 in polynomials, keeping every factor as the paper's eq. 19-21 do.
 
     With ``T = B/A`` and ``M = N_M / D_M`` (descending powers of ``z``, equal-length
@@ -250,8 +273,11 @@ def deduce_siso(num_t: np.ndarray, den_t: np.ndarray, num_m: np.ndarray, den_m: 
     return num, den
 
 
-def unstable_plant_poles(closed_loop: StateSpaceModel | TransferMatrix, controller: StateSpaceModel | TransferMatrix,
-                         reference_filter: StateSpaceModel | TransferMatrix | None = None) -> np.ndarray:
+def unstable_plant_poles(
+    closed_loop: StateSpaceModel | TransferMatrix,
+    controller: StateSpaceModel | TransferMatrix,
+    reference_filter: StateSpaceModel | TransferMatrix | None = None,
+) -> np.ndarray:
     """Discrete unstable poles of the deduced plant: zeros of ``M_r - M T`` outside the unit circle.
 
     ``(M_r - M T)^-1`` has its poles at the zeros of ``M_r - M T``; with ``M_r = M`` those are

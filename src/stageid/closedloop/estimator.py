@@ -13,8 +13,8 @@ Steps (Fig. 2 of the paper):
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -43,7 +43,9 @@ def excited_reference(exp: Experiment, rel_threshold: float = 1e-3) -> int:
     """
     rms = np.sqrt(np.mean((exp.u - exp.u.mean(axis=0)) ** 2, axis=0))
     if not np.any(rms > 0):
-        raise DataError(f"experiment '{exp.name or 'unnamed'}' has no excited reference: every reference column is constant.")
+        raise DataError(
+            f"experiment '{exp.name or 'unnamed'}' has no excited reference: every reference column is constant."
+        )
     active = np.flatnonzero(rms > rel_threshold * rms.max())
     if active.size != 1:
         names = ", ".join(exp.input_names[k] for k in active)
@@ -113,7 +115,9 @@ class ClosedLoopResult:
     def deduced_response(self, freqs_hz: Sequence[float] | np.ndarray) -> np.ndarray:
         """Full-order deduced plant response (eq. 18) at ``freqs_hz``, shape (n_freqs, p, p)."""
         f = np.asarray(freqs_hz, dtype=float)
-        return deduce_response(self.closed_loop.frequency_response(f), self.controller.frequency_response(f), freqs_hz=f)
+        return deduce_response(
+            self.closed_loop.frequency_response(f), self.controller.frequency_response(f), freqs_hz=f
+        )
 
     @property
     def plant_unstable_poles(self) -> np.ndarray:
@@ -132,18 +136,29 @@ class ClosedLoopResult:
     def summary(self) -> str:
         """A plain-text summary: orders, fits, unstable poles, band errors, cancellations."""
         p = self.closed_loop.n_outputs
-        lines = [f"closed-loop identification ({self.structure} structure), dt = {self.dt:g} s, band {self.band[0]:g}-{self.band[1]:g} Hz"]
+        lines = [
+            f"closed-loop identification ({self.structure} structure), dt = {self.dt:g} s, band {self.band[0]:g}-{self.band[1]:g} Hz"
+        ]
         for (i, j), m in sorted(self.pem_models.items()):
-            lines.append(f"  T[{self.closed_loop.outputs[i]}<-{self.closed_loop.inputs[j]}]: {m.structure} order {m.F.size - 1 + m.A.size - 1}, "
-                         f"fit {self.closed_loop_fit[i, j]:.2f} %")
+            lines.append(
+                f"  T[{self.closed_loop.outputs[i]}<-{self.closed_loop.inputs[j]}]: {m.structure} order {m.F.size - 1 + m.A.size - 1}, "
+                f"fit {self.closed_loop_fit[i, j]:.2f} %"
+            )
         lines.append("  unstable poles of M (I - T) [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.unstable_poles))
-        lines.append("  unstable poles of the plant returned [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.plant_unstable_poles))
+        lines.append(
+            "  unstable poles of the plant returned [rad/s]: "
+            + ", ".join(f"{p_:.4g}" for p_ in self.plant_unstable_poles)
+        )
         for i in range(p):
             for j in range(p):
-                lines.append(f"  G[{self.plant.outputs[i]}<-{self.plant.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
-                             f"(complex {100 * self.band_error_complex[i, j]:.3f} %)")
-        lines.append(f"  {len(self.cancellations)} pole-zero pairs cancelled; largest distance "
-                     f"{max((c.distance for c in self.cancellations), default=0.0):.2e}")
+                lines.append(
+                    f"  G[{self.plant.outputs[i]}<-{self.plant.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
+                    f"(complex {100 * self.band_error_complex[i, j]:.3f} %)"
+                )
+        lines.append(
+            f"  {len(self.cancellations)} pole-zero pairs cancelled; largest distance "
+            f"{max((c.distance for c in self.cancellations), default=0.0):.2e}"
+        )
         return "\n".join(lines)
 
 
@@ -222,15 +237,25 @@ class ClosedLoopIdentification:
     # ------------------------------------------------------------- checks
     def _check_params(self) -> None:
         if self.method not in STRUCTURES:
-            raise IdentificationError(f"`method` of ClosedLoopIdentification must be one of {', '.join(STRUCTURES)}; got {self.method!r}.")
+            raise IdentificationError(
+                f"`method` of ClosedLoopIdentification must be one of {', '.join(STRUCTURES)}; got {self.method!r}."
+            )
         if not (isinstance(self.structure, Mapping) or self.structure in _PLANT_STRUCTURES):
-            raise IdentificationError(f"`structure` must be 'paper', 'full' or a dict of orders; got {self.structure!r}.")
+            raise IdentificationError(
+                f"`structure` must be 'paper', 'full' or a dict of orders; got {self.structure!r}."
+            )
         if not (isinstance(self.nk, (int, np.integer)) and not isinstance(self.nk, bool) and self.nk >= 0):
             raise IdentificationError(f"`nk` must be a non-negative integer (delay in samples); got {self.nk!r}.")
         tol = self.cancel_tol
-        if not (isinstance(tol, (int, float, np.integer, np.floating)) and not isinstance(tol, bool) and 0 <= float(tol) < np.inf):
+        if not (
+            isinstance(tol, (int, float, np.integer, np.floating))
+            and not isinstance(tol, bool)
+            and 0 <= float(tol) < np.inf
+        ):
             raise IdentificationError(f"`cancel_tol` must be a finite number >= 0; got {tol!r}.")
-        if not (isinstance(self.max_nfev, (int, np.integer)) and not isinstance(self.max_nfev, bool) and self.max_nfev >= 1):
+        if not (
+            isinstance(self.max_nfev, (int, np.integer)) and not isinstance(self.max_nfev, bool) and self.max_nfev >= 1
+        ):
             raise IdentificationError(f"`max_nfev` must be a positive integer; got {self.max_nfev!r}.")
         if self.orders == "auto":
             try:
@@ -238,20 +263,31 @@ class ClosedLoopIdentification:
             except (TypeError, ValueError):
                 rng = []
             if not rng or min(rng) < 1:
-                raise IdentificationError(f"`order_range` must be a non-empty sequence of positive integers; got {self.order_range!r}.")
+                raise IdentificationError(
+                    f"`order_range` must be a non-empty sequence of positive integers; got {self.order_range!r}."
+                )
         b = self.band
-        if not (isinstance(b, (tuple, list, np.ndarray)) and len(b) == 2
-                and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in b)
-                and 0 < float(b[0]) < float(b[1]) < np.inf):
+        if not (
+            isinstance(b, (tuple, list, np.ndarray))
+            and len(b) == 2
+            and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in b)
+            and 0 < float(b[0]) < float(b[1]) < np.inf
+        ):
             raise IdentificationError(f"`band` must be (f_min, f_max) in Hz with 0 < f_min < f_max finite; got {b!r}.")
         if self.controller_discretization not in ("tustin", "zoh"):
-            raise IdentificationError(f"`controller_discretization` must be 'tustin' or 'zoh'; got {self.controller_discretization!r}.")
+            raise IdentificationError(
+                f"`controller_discretization` must be 'tustin' or 'zoh'; got {self.controller_discretization!r}."
+            )
         if not (isinstance(self.orders, (int, np.integer, Mapping)) or self.orders == "auto"):
             raise IdentificationError(f"`orders` must be 'auto', an int or a dict; got {self.orders!r}.")
 
     def _orders_for(self, n: int) -> dict[str, int]:
-        return {"arx": {"na": n, "nb": n}, "armax": {"na": n, "nb": n, "nc": n}, "oe": {"nb": n, "nf": n},
-                "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[self.method]
+        return {
+            "arx": {"na": n, "nb": n},
+            "armax": {"na": n, "nb": n, "nc": n},
+            "oe": {"nb": n, "nf": n},
+            "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2},
+        }[self.method]
 
     # ---------------------------------------------------------------- fit
     @single_blas_thread
@@ -281,20 +317,30 @@ class ClosedLoopIdentification:
         """
         self._check_params()
         if not isinstance(data, (Experiment, list, tuple)):
-            raise DataError(f"ClosedLoopIdentification.fit needs an Experiment or a sequence of them; got {type(data).__name__}.")
+            raise DataError(
+                f"ClosedLoopIdentification.fit needs an Experiment or a sequence of them; got {type(data).__name__}."
+            )
         exps = as_experiments(data)
         first = exps[0]
         p = first.n_outputs
         if first.n_inputs != p:
-            raise DataError(f"closed-loop data need one reference per output; got {first.n_inputs} references and {p} outputs.")
+            raise DataError(
+                f"closed-loop data need one reference per output; got {first.n_inputs} references and {p} outputs."
+            )
         dt = first.dt
         nyq = 0.5 / dt
         if float(self.band[1]) >= nyq:  # before any fit: the pairs take minutes on long records
-            raise IdentificationError(f"`band` must end below the Nyquist frequency {nyq:g} Hz (dt = {dt:g} s); "
-                                      f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz.")
+            raise IdentificationError(
+                f"`band` must end below the Nyquist frequency {nyq:g} Hz (dt = {dt:g} s); "
+                f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz."
+            )
         try:
             M = as_discrete_controller(self.controller, dt, self.controller_discretization)
-            Mr = None if self.reference_filter is None else as_discrete_controller(self.reference_filter, dt, self.controller_discretization)
+            Mr = (
+                None
+                if self.reference_filter is None
+                else as_discrete_controller(self.reference_filter, dt, self.controller_discretization)
+            )
         except ModelError as exc:
             raise IdentificationError(str(exc)) from None
         if M.n_inputs != p or M.n_outputs != p:
@@ -352,7 +398,7 @@ class ClosedLoopIdentification:
             T_chk = T.frequency_response(f_check)
             M_chk = M.frequency_response(f_check)
             Mr_chk = M_chk if Mr is None else Mr.frequency_response(f_check)
-        ok = np.all(np.isfinite(T_chk) & np.isfinite(M_chk) & np.isfinite(Mr_chk), axis=(1, 2))   # skip controller poles
+        ok = np.all(np.isfinite(T_chk) & np.isfinite(M_chk) & np.isfinite(Mr_chk), axis=(1, 2))  # skip controller poles
         deduce_response(T_chk[ok], M_chk[ok], Mr_chk[ok], f_check[ok])
         zu = unstable_plant_poles(T, M, Mr)
         s_unstable = z_to_s(zu, dt)
@@ -363,8 +409,12 @@ class ClosedLoopIdentification:
 
         # 4. reduction over the band (sec. 3.3)
         f_band = np.geomspace(lo, hi, 120)
-        P_band = deduce_response(T.frequency_response(f_band), M.frequency_response(f_band),
-                                 None if Mr is None else Mr.frequency_response(f_band), f_band)
+        P_band = deduce_response(
+            T.frequency_response(f_band),
+            M.frequency_response(f_band),
+            None if Mr is None else Mr.frequency_response(f_band),
+            f_band,
+        )
         reduced: dict[tuple[int, int], ReducedEntry] = {}
         eps = np.zeros((p, p))
         eps_c = np.zeros((p, p))
@@ -375,10 +425,11 @@ class ClosedLoopIdentification:
                 try:
                     plant = G_cancel.d2c("zoh")
                 except ModelError as exc:
-                    raise IdentificationError(f"the full-order deduced plant has no continuous ZOH equivalent ({exc}); "
-                                              "ask for a discrete plant or a reduced structure.") from None
-            resp = (plant.frequency_response(f_band) if not self.continuous else
-                    _zoh_matrix(plant, dt, f_band))
+                    raise IdentificationError(
+                        f"the full-order deduced plant has no continuous ZOH equivalent ({exc}); "
+                        "ask for a discrete plant or a reduced structure."
+                    ) from None
+            resp = plant.frequency_response(f_band) if not self.continuous else _zoh_matrix(plant, dt, f_band)
             eps = np.max(np.abs(np.abs(P_band) - np.abs(resp)) / np.abs(P_band), axis=0)
             eps_c = np.max(np.abs(P_band - resp) / np.abs(P_band), axis=0)
             if eps_c.max() > 0.05:
@@ -393,7 +444,9 @@ class ClosedLoopIdentification:
             for i in range(p):
                 for j in range(p):
                     if (i, j) not in orders:
-                        raise IdentificationError(f"`structure` has no orders for entry ({i}, {j}); give (n_zeros, n_poles) for every entry.")
+                        raise IdentificationError(
+                            f"`structure` has no orders for entry ({i}, {j}); give (n_zeros, n_poles) for every entry."
+                        )
                     nz, n_p = orders[(i, j)]
                     ent = next(e for e in entries if e.output == i and e.input == j)
                     keep = _entry_unstable(ent, s_unstable, dt)
@@ -406,15 +459,28 @@ class ClosedLoopIdentification:
                 plant = plant.c2d(dt, "zoh")
         plant = _rename(plant, M.outputs, first.output_names)
         return ClosedLoopResult(
-            plant=plant, plant_full=G_full, plant_cancelled=G_cancel, closed_loop=T, controller=M,
-            unstable_poles=s_unstable, cancellations=pairs, entries=entries, reduced=reduced,
-            band=(lo, hi), band_error=eps, band_error_complex=eps_c, pem_models=pem_models,
-            closed_loop_fit=fits, dt=dt, structure=structure_name,
+            plant=plant,
+            plant_full=G_full,
+            plant_cancelled=G_cancel,
+            closed_loop=T,
+            controller=M,
+            unstable_poles=s_unstable,
+            cancellations=pairs,
+            entries=entries,
+            reduced=reduced,
+            band=(lo, hi),
+            band_error=eps,
+            band_error_complex=eps_c,
+            pem_models=pem_models,
+            closed_loop_fit=fits,
+            dt=dt,
+            structure=structure_name,
         )
 
 
-def _reduce_choice(P: np.ndarray, f: np.ndarray, dt: float, nz: int, n_p: int, keep: np.ndarray,
-                   diagonal: bool) -> ReducedEntry:
+def _reduce_choice(
+    P: np.ndarray, f: np.ndarray, dt: float, nz: int, n_p: int, keep: np.ndarray, diagonal: bool
+) -> ReducedEntry:
     """Fit one entry three ways and keep the best.
 
     * unstable poles fixed at the values the deduction gives (when they fit the structure);

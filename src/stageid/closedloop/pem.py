@@ -30,8 +30,8 @@ reflected into it (Ljung 1999, sec. 10.5) before the loss is evaluated.
 from __future__ import annotations
 
 import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 import scipy.signal as ss
@@ -189,8 +189,8 @@ def _residual(A, B, C, D, F, nk, u, y) -> np.ndarray:
 def _residual_parts(A, B, C, D, F, nk, u, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(B/F u, A y - B/F u, e)``: the prediction error and the signals its Jacobian reuses."""
     bu = np.concatenate([np.zeros(nk), B])
-    yu = ss.lfilter(bu, F, u)                       # B/F u
-    w = ss.lfilter(A, [1.0], y) - yu                 # A y - B/F u
+    yu = ss.lfilter(bu, F, u)  # B/F u
+    w = ss.lfilter(A, [1.0], y) - yu  # A y - B/F u
     return yu, w, ss.lfilter(D, C, w)
 
 
@@ -199,7 +199,7 @@ def _unpack(theta: np.ndarray, orders: dict[str, int]):
     parts = {}
     for name in ("na", "nb", "nc", "nd", "nf"):
         n = orders[name]
-        parts[name] = theta[k:k + n]
+        parts[name] = theta[k : k + n]
         k += n
     A = np.concatenate([[1.0], parts["na"]])
     B = parts["nb"].copy()
@@ -237,8 +237,9 @@ def _fill_shifted(out: np.ndarray, x: np.ndarray, start: int, negate: bool = Fal
             out[s:, k] = x[: n - s]
 
 
-def _regressor(blocks: list[list[tuple[np.ndarray, int, int, bool]]], rows: int,
-               out: np.ndarray | None = None) -> np.ndarray:
+def _regressor(
+    blocks: list[list[tuple[np.ndarray, int, int, bool]]], rows: int, out: np.ndarray | None = None
+) -> np.ndarray:
     """Stack shifted-signal blocks into one (rows, n_columns) matrix, record by record.
 
     ``blocks[r]`` lists ``(signal, lags, start, negate)`` for record ``r``; the columns of a
@@ -253,7 +254,7 @@ def _regressor(blocks: list[list[tuple[np.ndarray, int, int, bool]]], rows: int,
         n = rec[0][0].size if rec else 0
         c0 = 0
         for sig, lags, start, negate in rec:
-            _fill_shifted(out[r0:r0 + n, c0:c0 + lags], sig, start, negate)
+            _fill_shifted(out[r0 : r0 + n, c0 : c0 + lags], sig, start, negate)
             c0 += lags
         r0 += n
     return out
@@ -288,7 +289,9 @@ def _check_orders(structure: str, orders: dict[str, int], nk: int) -> dict[str, 
         if key not in full:
             raise IdentificationError(f"unknown order {key!r}; expected some of na, nb, nc, nd, nf.")
         if key not in _FREE[structure] and val:
-            raise IdentificationError(f"order {key} is not free in a {structure} model (free: {', '.join(_FREE[structure])}); got {key}={val}.")
+            raise IdentificationError(
+                f"order {key} is not free in a {structure} model (free: {', '.join(_FREE[structure])}); got {key}={val}."
+            )
         if int(val) != val or val < 0:
             raise IdentificationError(f"order {key} must be a non-negative integer; got {val!r}.")
         full[key] = int(val)
@@ -350,27 +353,33 @@ def arx(u: object, y: object, na: int, nb: int, nk: int = 1, dt: float = 1.0) ->
     A = np.concatenate([[1.0], theta[:na]])
     B = theta[na:]
     res = np.concatenate([_residual(A, B, np.ones(1), np.ones(1), np.ones(1), nk, uu, yy) for uu, yy in segs])
-    return PolynomialModel(A, B, np.ones(1), np.ones(1), np.ones(1), int(nk), dt, "arx",
-                           float(np.mean(res**2)), res.size)
+    return PolynomialModel(
+        A, B, np.ones(1), np.ones(1), np.ones(1), int(nk), dt, "arx", float(np.mean(res**2)), res.size
+    )
 
 
 def _lstsq(Phi: np.ndarray, Y: np.ndarray, what: str, strict: bool = True, overwrite: bool = False) -> np.ndarray:
     """Least squares with unit-norm columns; ``overwrite=True`` lets ``Phi`` be scaled in place."""
     scale = np.sqrt(np.add.reduce(Phi * Phi, axis=0))  # = np.linalg.norm(Phi, axis=0), same sums
     if np.any(scale == 0):
-        raise IdentificationError(f"the {what} regression is singular: a regressor column is identically zero (no excitation).")
+        raise IdentificationError(
+            f"the {what} regression is singular: a regressor column is identically zero (no excitation)."
+        )
     if overwrite:
         Phi /= scale
     else:
         Phi = Phi / scale
     theta, _, rank, _ = np.linalg.lstsq(Phi, Y, rcond=None)
     if strict and rank < Phi.shape[1]:
-        raise IdentificationError(f"the {what} regression is rank deficient ({rank} of {Phi.shape[1]}): the input does not excite this order.")
+        raise IdentificationError(
+            f"the {what} regression is rank deficient ({rank} of {Phi.shape[1]}): the input does not excite this order."
+        )
     return theta / scale
 
 
-def _steiglitz_mcbride(segs, nb: int, nf: int, nk: int, n_iter: int = 8,
-                       F0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _steiglitz_mcbride(
+    segs, nb: int, nf: int, nk: int, n_iter: int = 8, F0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Output-error initial estimate: ARX on data pre-filtered by the current 1/F (IV-like).
 
     ``F0`` (default 1) is the ``F`` to start from: passing the ``F`` that ``k`` iterations
@@ -466,7 +475,9 @@ def _pem(u, y, structure, orders, nk, dt, max_nfev, initial, sm_start=None) -> P
     n_total = sum(s[0].size for s in segs)
     n_par = sum(orders.values())
     if n_total < 3 * n_par + 10:
-        raise DataError(f"a {structure} model with {n_par} parameters needs at least {3 * n_par + 10} samples; got {n_total}.")
+        raise DataError(
+            f"a {structure} model with {n_par} parameters needs at least {3 * n_par + 10} samples; got {n_total}."
+        )
     _check_moving(segs, structure)
     if initial is not None:
         A, B, C, D, F = (np.asarray(p, float) for p in (initial.A, initial.B, initial.C, initial.D, initial.F))
@@ -525,22 +536,35 @@ def _pem(u, y, structure, orders, nk, dt, max_nfev, initial, sm_start=None) -> P
         J = np.empty((n_rows, n_par))
         r0 = 0
         for (uu, yy), sig in zip(segs_s, signals):
-            _jacobian(*polys, nk, orders, uu, yy, parts=sig, out=J[r0:r0 + uu.size])
+            _jacobian(*polys, nk, orders, uu, yy, parts=sig, out=J[r0 : r0 + uu.size])
             r0 += uu.size
         return J
 
     theta0 = _pack(A, B, C, D, F)
     try:
-        sol = least_squares(fun, theta0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev,
-                            ftol=1e-12, xtol=1e-12, gtol=1e-12)
+        sol = least_squares(
+            fun, theta0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12
+        )
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentificationError(f"the {structure} prediction-error optimisation failed: {exc}") from None
     A, B, C, D, F = parts(sol.x)
     res = fun(_pack(A, B, C, D, F)) * yscale
     if not np.all(np.isfinite(res)):
         raise IdentificationError(f"the {structure} prediction-error optimisation diverged (non-finite residuals).")
-    return PolynomialModel(A, B * yscale, C, D, F, int(nk), dt, structure, float(np.mean(res**2)), res.size,
-                           int(sol.nfev), bool(sol.status > 0))
+    return PolynomialModel(
+        A,
+        B * yscale,
+        C,
+        D,
+        F,
+        int(nk),
+        dt,
+        structure,
+        float(np.mean(res**2)),
+        res.size,
+        int(sol.nfev),
+        bool(sol.status > 0),
+    )
 
 
 def _hannan_rissanen(w: list[np.ndarray], nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
@@ -659,8 +683,12 @@ def select_order(
     else:
         screen_states = {}
     for n in orders:
-        o = {"arx": {"na": n, "nb": n}, "armax": {"na": n, "nb": n, "nc": n}, "oe": {"nb": n, "nf": n},
-             "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2}}[structure]
+        o = {
+            "arx": {"na": n, "nb": n},
+            "armax": {"na": n, "nb": n, "nc": n},
+            "oe": {"nb": n, "nf": n},
+            "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2},
+        }[structure]
         try:
             m = _pem(u, y, structure, o, nk, dt, max_nfev, None, screen_states.get(n))
         except (IdentificationError, DataError) as exc:

@@ -146,26 +146,34 @@ def reduce_entry(
     up = np.asarray(unstable_poles, dtype=complex).reshape(-1)
     n_free = n_poles - up.size
     if n_zeros < 0 or n_poles < 1 or n_zeros > n_poles:
-        raise IdentificationError(f"a reduced structure needs 0 <= n_zeros <= n_poles and n_poles >= 1; got [{n_zeros}, {n_poles}].")
+        raise IdentificationError(
+            f"a reduced structure needs 0 <= n_zeros <= n_poles and n_poles >= 1; got [{n_zeros}, {n_poles}]."
+        )
     if n_free < 0:
-        raise IdentificationError(f"structure [{n_zeros}, {n_poles}] cannot keep the entry's {up.size} unstable poles; give more poles.")
+        raise IdentificationError(
+            f"structure [{n_zeros}, {n_poles}] cannot keep the entry's {up.size} unstable poles; give more poles."
+        )
     if f.size < n_zeros + n_free + 2 or f.size != P.size:
-        raise IdentificationError(f"the band needs at least {n_zeros + n_free + 2} frequencies matching the response; got {f.size} and {P.size}.")
+        raise IdentificationError(
+            f"the band needs at least {n_zeros + n_free + 2} frequencies matching the response; got {f.size} and {P.size}."
+        )
     if not np.all(np.isfinite(P)) or np.any(P == 0):
         raise IdentificationError("the deduced response must be finite and non-zero over the band.")
-    w0 = 2 * np.pi * np.sqrt(f.min() * f.max())         # frequency normalisation
+    w0 = 2 * np.pi * np.sqrt(f.min() * f.max())  # frequency normalisation
     du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
     # --- linear (Levy) start on the continuous approximation P_c ~ P_d exp(+j w dt / 2)
     s_n = 2j * np.pi * f / w0
     Pc = P * np.exp(1j * np.pi * f * dt)
-    cols = [s_n ** k for k in range(n_zeros, -1, -1)]                                # numerator b
+    cols = [s_n**k for k in range(n_zeros, -1, -1)]  # numerator b
     du = np.polyval(du_n, s_n)
-    cols += [-Pc * du * s_n ** k for k in range(n_free - 1, -1, -1)]                  # a_1..a_nfree
-    rhs = Pc * du * s_n ** n_free
+    cols += [-Pc * du * s_n**k for k in range(n_free - 1, -1, -1)]  # a_1..a_nfree
+    rhs = Pc * du * s_n**n_free
     Phi = np.column_stack(cols) if cols else np.zeros((f.size, 0))
     wgt = 1.0 / np.abs(rhs)
     Phi_w = Phi * wgt[:, None]
-    theta, *_ = np.linalg.lstsq(np.vstack([Phi_w.real, Phi_w.imag]), np.concatenate([(rhs * wgt).real, (rhs * wgt).imag]), rcond=None)
+    theta, *_ = np.linalg.lstsq(
+        np.vstack([Phi_w.real, Phi_w.imag]), np.concatenate([(rhs * wgt).real, (rhs * wgt).imag]), rcond=None
+    )
     nb = n_zeros + 1
 
     def build(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -183,7 +191,14 @@ def reduce_entry(
         return np.concatenate([r.real, r.imag])
 
     try:
-        sol = least_squares(resid, theta, method="lm" if theta.size * 2 <= 2 * f.size else "trf", max_nfev=max_nfev, xtol=1e-12, ftol=1e-12)
+        sol = least_squares(
+            resid,
+            theta,
+            method="lm" if theta.size * 2 <= 2 * f.size else "trf",
+            max_nfev=max_nfev,
+            xtol=1e-12,
+            ftol=1e-12,
+        )
         theta = sol.x
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None

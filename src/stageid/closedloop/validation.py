@@ -13,7 +13,7 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -97,8 +97,13 @@ def simulate_closed_loop(
     return out[:, :p] + n, out[:, p:]
 
 
-def empirical_transfer(reference: np.ndarray, outputs: np.ndarray, dt: float, band: tuple[float, float] | None = None,
-                       min_relative_power: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+def empirical_transfer(
+    reference: np.ndarray,
+    outputs: np.ndarray,
+    dt: float,
+    band: tuple[float, float] | None = None,
+    min_relative_power: float = 1e-3,
+) -> tuple[np.ndarray, np.ndarray]:
     """Empirical transfer function ``Y(f) / R(f)`` from the FFTs of one experiment.
 
     Parameters
@@ -131,8 +136,12 @@ def empirical_transfer(reference: np.ndarray, outputs: np.ndarray, dt: float, ba
     return f[keep], Y[keep] / R[keep, None]
 
 
-def reclose_loop(plant: StateSpaceModel | TransferMatrix, controller: StateSpaceModel | TransferMatrix,
-                 references: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def reclose_loop(
+    plant: StateSpaceModel | TransferMatrix,
+    controller: StateSpaceModel | TransferMatrix,
+    references: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Outputs and plant inputs of the identified plant closed with the known controller (Fig. 8).
 
     Returns
@@ -142,8 +151,13 @@ def reclose_loop(plant: StateSpaceModel | TransferMatrix, controller: StateSpace
     return simulate_closed_loop(plant, controller, references, dt, snr_db=None)
 
 
-def controller_residual(controller: StateSpaceModel | TransferMatrix, references: np.ndarray, outputs: np.ndarray,
-                        plant_inputs: np.ndarray, dt: float) -> np.ndarray:
+def controller_residual(
+    controller: StateSpaceModel | TransferMatrix,
+    references: np.ndarray,
+    outputs: np.ndarray,
+    plant_inputs: np.ndarray,
+    dt: float,
+) -> np.ndarray:
     """``||u - M (r - y)|| / ||u||`` per plant input: ~0 when the loop was closed by ``M``.
 
     Parameters
@@ -161,14 +175,21 @@ def controller_residual(controller: StateSpaceModel | TransferMatrix, references
     e = np.asarray(references, float) - np.asarray(outputs, float)
     u = np.asarray(plant_inputs, float)
     if e.shape[1] != K.n_inputs or u.shape[1] != K.n_outputs:
-        raise DataError(f"the controller maps {K.n_inputs} errors to {K.n_outputs} inputs; got {e.shape[1]} references/outputs and {u.shape[1]} plant inputs.")
+        raise DataError(
+            f"the controller maps {K.n_inputs} errors to {K.n_outputs} inputs; got {e.shape[1]} references/outputs and {u.shape[1]} plant inputs."
+        )
     # the controller is simulated from rest: the records are expected to start at rest
     u_hat = K.simulate(e)
     return np.linalg.norm(u - u_hat, axis=0) / np.maximum(np.linalg.norm(u, axis=0), 1e-300)
 
 
-def direct_identification(plant_inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], dt: float,
-                          order: int = 6, freqs_hz: np.ndarray | None = None) -> np.ndarray:
+def direct_identification(
+    plant_inputs: Sequence[np.ndarray],
+    outputs: Sequence[np.ndarray],
+    dt: float,
+    order: int = 6,
+    freqs_hz: np.ndarray | None = None,
+) -> np.ndarray:
     """Naive open-loop ARX from the plant inputs to the outputs, ignoring the feedback.
 
     Each output gets a MISO ARX model ``A_i y_i = sum_j B_ij u_j + e`` of ``order`` fitted on
@@ -205,6 +226,6 @@ def direct_identification(plant_inputs: Sequence[np.ndarray], outputs: Sequence[
         A = np.concatenate([[1.0], th[:order]])
         den = np.polynomial.polynomial.polyval(q, A)
         for j in range(m):
-            b = np.concatenate([[0.0], th[order * (1 + j):order * (2 + j)]])
+            b = np.concatenate([[0.0], th[order * (1 + j) : order * (2 + j)]])
             out[:, i, j] = np.polynomial.polynomial.polyval(q, b) / den
     return out

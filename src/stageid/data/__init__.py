@@ -24,8 +24,8 @@ the per-format readers are implemented in :mod:`stageid.data.io`.
 
 from .experiment import Experiment, as_experiments
 from .io import read_csv, read_mat, read_npz, read_table, write_csv, write_npz
-from .table import Table
 from .preprocess import Offsets, decimate, merge, remove_offset, split
+from .table import Table
 
 __all__ = [
     "Experiment",

@@ -133,7 +133,9 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
         raise DataError(f"{where}expected exactly one dSPACE struct variable; got {len(keys)} ({', '.join(keys)}).")
     rec = content[keys[0]]
     if getattr(rec.dtype, "names", None) is None or not {"X", "Y"} <= set(rec.dtype.names):
-        raise DataError(f"{where}variable '{keys[0]}' is not a dSPACE struct with fields X and Y; got dtype {rec.dtype}.")
+        raise DataError(
+            f"{where}variable '{keys[0]}' is not a dSPACE struct with fields X and Y; got dtype {rec.dtype}."
+        )
     rec = rec.ravel()[0]
     x, ys = rec["X"].ravel(), rec["Y"].ravel()
     if x.size < 1 or ys.size < 3:
@@ -142,7 +144,9 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
     disp = _vector(ys[0]["Data"], "Y(1).Data", where)
     volt = _vector(ys[2]["Data"], "Y(3).Data", where)
     if not (t.size == disp.size == volt.size):
-        raise DataError(f"{where}X.Data, Y(1).Data and Y(3).Data must have one length; got {t.size}, {disp.size}, {volt.size}.")
+        raise DataError(
+            f"{where}X.Data, Y(1).Data and Y(3).Data must have one length; got {t.size}, {disp.size}, {volt.size}."
+        )
     nominal = None
     if "Capture" in rec.dtype.names:
         cap = rec["Capture"].ravel()[0]
@@ -205,7 +209,9 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
     try:
         data = np.loadtxt(p, delimiter=",", usecols=(1, 2, 3), ndmin=2, comments=None)
     except (ValueError, UnicodeDecodeError) as exc:
-        raise DataError(f"{where}expected 4 comma-separated fields per line (index, time, displacement, voltage): {exc}") from None
+        raise DataError(
+            f"{where}expected 4 comma-separated fields per line (index, time, displacement, voltage): {exc}"
+        ) from None
     if data.shape[0] == 0:
         raise DataError(f"file '{p.name}' is empty; expected lines of index, time, displacement, voltage.")
     _check_time(data[:, 0], where)
@@ -342,7 +348,9 @@ def load_daisy(name: str, root: PathLike | None = None) -> Experiment:
     if root is None:
         shared = shared_data_dir()
         if shared is None:
-            raise DataError(f"the shared data folder was not found; set {ENV_VAR} or pass root= (the folder with {file_name}).")
+            raise DataError(
+                f"the shared data folder was not found; set {ENV_VAR} or pass root= (the folder with {file_name})."
+            )
         folder = shared / "daisy"
     else:
         folder = Path(root)
@@ -351,7 +359,9 @@ def load_daisy(name: str, root: PathLike | None = None) -> Experiment:
     if p.suffix == ".mat":
         content = _loadmat(p)
         if "flexibleStructure" not in content:
-            raise DataError(f"{where}expected variable 'flexibleStructure'; got {', '.join(k for k in content if not k.startswith('__'))}.")
+            raise DataError(
+                f"{where}expected variable 'flexibleStructure'; got {', '.join(k for k in content if not k.startswith('__'))}."
+            )
         data = np.asarray(content["flexibleStructure"], dtype=float)
     else:
         try:
@@ -360,7 +370,9 @@ def load_daisy(name: str, root: PathLike | None = None) -> Experiment:
             raise DataError(f"{where}expected a whitespace-separated numeric matrix: {exc}") from None
     n_cols = len(ins) + len(outs)
     if data.ndim != 2 or data.shape[1] != n_cols:
-        raise DataError(f"{where}expected {n_cols} columns ({len(ins)} inputs, {len(outs)} outputs); got shape {data.shape}.")
+        raise DataError(
+            f"{where}expected {n_cols} columns ({len(ins)} inputs, {len(outs)} outputs); got shape {data.shape}."
+        )
     return Experiment(
         u=data[:, : len(ins)],
         y=data[:, len(ins) :],

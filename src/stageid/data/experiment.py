@@ -8,8 +8,8 @@ never modified and a result can never alter the data it was fitted on.
 from __future__ import annotations
 
 import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Sequence
 
 import numpy as np
 
@@ -101,9 +101,13 @@ class Experiment:
         in_names = tuple(str(n) for n in self.input_names) or _default_names("u", u.shape[1])
         out_names = tuple(str(n) for n in self.output_names) or _default_names("y", y.shape[1])
         if len(in_names) != u.shape[1]:
-            raise DataError(f"`input_names` must have {u.shape[1]} entries (one per input column); got {len(in_names)}.")
+            raise DataError(
+                f"`input_names` must have {u.shape[1]} entries (one per input column); got {len(in_names)}."
+            )
         if len(out_names) != y.shape[1]:
-            raise DataError(f"`output_names` must have {y.shape[1]} entries (one per output column); got {len(out_names)}.")
+            raise DataError(
+                f"`output_names` must have {y.shape[1]} entries (one per output column); got {len(out_names)}."
+            )
         in_units = tuple(str(s) for s in self.input_units) or ("",) * u.shape[1]
         out_units = tuple(str(s) for s in self.output_units) or ("",) * y.shape[1]
         if len(in_units) != u.shape[1] or len(out_units) != y.shape[1]:
@@ -153,11 +157,11 @@ class Experiment:
         return self.n_samples * self.dt
 
     # ------------------------------------------------------------ derivation
-    def with_(self, **changes: object) -> "Experiment":
+    def with_(self, **changes: object) -> Experiment:
         """Return a copy with some fields replaced (the copy is validated again)."""
         return replace(self, **changes)
 
-    def slice(self, start: int = 0, stop: int | None = None) -> "Experiment":
+    def slice(self, start: int = 0, stop: int | None = None) -> Experiment:
         """Return samples ``start:stop`` as a new experiment (``t0`` follows).
 
         Parameters
@@ -190,10 +194,12 @@ class Experiment:
         i0 = _sample_index("start", start, self.n_samples)
         i1 = self.n_samples if stop is None else _sample_index("stop", stop, self.n_samples)
         if not (0 <= i0 < i1 <= self.n_samples):
-            raise DataError(f"slice must satisfy 0 <= start < stop <= {self.n_samples}; got start={start!r}, stop={stop!r}.")
+            raise DataError(
+                f"slice must satisfy 0 <= start < stop <= {self.n_samples}; got start={start!r}, stop={stop!r}."
+            )
         return replace(self, u=self.u[i0:i1], y=self.y[i0:i1], t0=self.t0 + i0 * self.dt)
 
-    def select(self, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> "Experiment":
+    def select(self, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> Experiment:
         """Keep only the named channels, in the order given."""
         in_idx = _indices("input", self.input_names, inputs)
         out_idx = _indices("output", self.output_names, outputs)
@@ -210,7 +216,9 @@ class Experiment:
     def require_samples(self, n_needed: int, purpose: str) -> None:
         """Raise :class:`DataError` unless the record has at least ``n_needed`` samples."""
         if self.n_samples < n_needed:
-            raise DataError(f"{purpose} needs at least {n_needed} samples; experiment '{self.name or 'unnamed'}' has {self.n_samples}.")
+            raise DataError(
+                f"{purpose} needs at least {n_needed} samples; experiment '{self.name or 'unnamed'}' has {self.n_samples}."
+            )
 
     def __repr__(self) -> str:
         return (
@@ -229,7 +237,9 @@ def _sample_index(param: str, value: object, n_samples: int) -> int:
             return int(value)
         if np.isfinite(float(value)):
             hint = " (indices count samples; for a time t in seconds pass round((t - t0) / dt))"
-    raise DataError(f"`{param}` of Experiment.slice must be an integer sample index in 0..{n_samples}; got {value!r}{hint}.")
+    raise DataError(
+        f"`{param}` of Experiment.slice must be an integer sample index in 0..{n_samples}; got {value!r}{hint}."
+    )
 
 
 def _indices(kind: str, names: tuple[str, ...], wanted: Sequence[str] | None) -> list[int]:
@@ -243,7 +253,7 @@ def _indices(kind: str, names: tuple[str, ...], wanted: Sequence[str] | None) ->
     return out
 
 
-def as_experiments(data: "Experiment | Sequence[Experiment]") -> tuple[Experiment, ...]:
+def as_experiments(data: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:
     """Normalise one experiment or a sequence of them into a checked tuple.
 
     All experiments must share the sample time and the channel names; identification

@@ -21,8 +21,9 @@ import os
 import re
 import tempfile
 import warnings
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence, Union
+from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
@@ -178,7 +179,9 @@ def read_csv(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     raw_names = next(csv.reader([first_line], delimiter=delimiter))
     names, units = _parse_header(raw_names, where)
     if all(_is_number(n) for n in names):
-        raise DataError(f"file '{p.name}' has no header row; expected column names in the first line, got '{first_line[:60]}'.")
+        raise DataError(
+            f"file '{p.name}' has no header row; expected column names in the first line, got '{first_line[:60]}'."
+        )
     try:
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="loadtxt: input contained no data", category=UserWarning)
@@ -256,7 +259,9 @@ def _raise_first_bad_cell(p: Path, delimiter: str, names: Sequence[str]) -> None
                             f"column '{name}' row {row}: {shown} is not a number (file '{p.name}', line {line_no}; data rows counted from 0)."
                         )
         except UnicodeDecodeError:
-            raise DataError(f"file '{p.name}' is not a UTF-8 text CSV file: undecodable bytes after file line {line_no}.") from None
+            raise DataError(
+                f"file '{p.name}' is not a UTF-8 text CSV file: undecodable bytes after file line {line_no}."
+            ) from None
         except csv.Error as exc:
             raise DataError(f"{where}malformed CSV at file line {line_no}: {exc}.") from None
 
@@ -316,7 +321,9 @@ def read_npz(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
 
 def _units_from_pairs(arr: np.ndarray, where: str) -> dict[str, str]:
     if arr.dtype.kind not in "US" or arr.ndim != 2 or arr.shape[1] != 2:
-        raise DataError(f"{where}'__units__' must be a string array of [name, unit] pairs; got dtype {arr.dtype}, shape {arr.shape}.")
+        raise DataError(
+            f"{where}'__units__' must be a string array of [name, unit] pairs; got dtype {arr.dtype}, shape {arr.shape}."
+        )
     return {str(n): str(u) for n, u in arr}
 
 
@@ -367,7 +374,11 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
             names.append(name)
             columns.append(col)
     if not columns:
-        found = f"; found only {', '.join(skipped)} (use a dedicated loader from stageid.data.datasets for structs)" if skipped else ""
+        found = (
+            f"; found only {', '.join(skipped)} (use a dedicated loader from stageid.data.datasets for structs)"
+            if skipped
+            else ""
+        )
         raise DataError(f"file '{p.name}' holds no numeric column variables{found}.")
     values = _stack_equal_length(names, columns, where)
     units = ["s" if n == TIME_COLUMN else "" for n in names]
@@ -448,14 +459,18 @@ def _mat73_variables(p: Path, where: str) -> tuple[list[tuple[str, np.ndarray]],
 
 # ====================================================================== writers
 def _table_for_writing(
-    data: "Mapping[str, ArrayLike] | Table | Experiment", dt: float | None, t0: float | None
+    data: Mapping[str, ArrayLike] | Table | Experiment, dt: float | None, t0: float | None
 ) -> Table:
     if isinstance(data, (Table, Experiment)):
         if dt is not None or t0 is not None:
-            raise DataError(f"dt and t0 are taken from the {type(data).__name__}; pass them only with a mapping of columns.")
+            raise DataError(
+                f"dt and t0 are taken from the {type(data).__name__}; pass them only with a mapping of columns."
+            )
         return data if isinstance(data, Table) else Table.from_experiment(data)
     if not isinstance(data, Mapping):
-        raise DataError(f"data must be a mapping of column name -> array, a Table or an Experiment; got {type(data).__name__}.")
+        raise DataError(
+            f"data must be a mapping of column name -> array, a Table or an Experiment; got {type(data).__name__}."
+        )
     names, columns = [], []
     for key, value in data.items():
         arr = np.asarray(value)
@@ -473,8 +488,12 @@ def _table_for_writing(
     if TIME_COLUMN in names:
         i = names.index(TIME_COLUMN)
         _check_finite(values[:, i : i + 1], [TIME_COLUMN], "")
-        t0_col, dt_col = _time_axis(values[:, i], "", None if dt is None else _positive_seconds("dt", dt), DEFAULT_TIME_RTOL)
-        if t0 is not None and abs(t0 - t0_col) > max(DEFAULT_TIME_RTOL * dt_col, 4.0 * np.finfo(float).eps * abs(t0_col)):
+        t0_col, dt_col = _time_axis(
+            values[:, i], "", None if dt is None else _positive_seconds("dt", dt), DEFAULT_TIME_RTOL
+        )
+        if t0 is not None and abs(t0 - t0_col) > max(
+            DEFAULT_TIME_RTOL * dt_col, 4.0 * np.finfo(float).eps * abs(t0_col)
+        ):
             raise DataError(f"t0={t0!r} disagrees with the first time stamp {t0_col!r} of column '{TIME_COLUMN}'.")
         keep = [j for j in range(len(names)) if j != i]
         return Table(tuple(names[j] for j in keep), values[:, keep], dt=dt_col, t0=t0_col)
@@ -539,7 +558,7 @@ def _check_header_reads_back(line: str, header: Sequence[str]) -> None:
         if [c.strip() for c in parsed] != list(header) or (delimiter != "," and len(header) > 1):
             problem = f"the header would be split at {delimiter!r} into {len(parsed)} column(s)"
     if problem:
-        bad = next((h for h in header if any(c in h for c in ",;\t\"\n\r\ufeff")), header[0])
+        bad = next((h for h in header if any(c in h for c in ',;\t"\n\r\ufeff')), header[0])
         raise DataError(
             f"column name {bad!r} would not read back from CSV ({problem}); expected names without "
             f"tabs, ';', quotes or line breaks."
@@ -548,7 +567,7 @@ def _check_header_reads_back(line: str, header: Sequence[str]) -> None:
 
 def write_csv(
     path: PathLike,
-    data: "Mapping[str, ArrayLike] | Table | Experiment",
+    data: Mapping[str, ArrayLike] | Table | Experiment,
     *,
     dt: float | None = None,
     t0: float | None = None,
@@ -597,7 +616,9 @@ def write_csv(
         if _UNIT_RE.match(n):
             raise DataError(f"column name '{n}' would be read back as a name with a unit; rename it.")
     if all(_is_number(n) for n in table.names):
-        raise DataError(f"column names {list(table.names)} all look like numbers and would not be read back as a header; rename them.")
+        raise DataError(
+            f"column names {list(table.names)} all look like numbers and would not be read back as a header; rename them."
+        )
     header = [n if not u else f"{n} [{u}]" for n, u in zip(table.names, table.units)]
     values = table.values
     if table.dt is not None:
@@ -615,7 +636,7 @@ def write_csv(
 
 def write_npz(
     path: PathLike,
-    data: "Mapping[str, ArrayLike] | Table | Experiment",
+    data: Mapping[str, ArrayLike] | Table | Experiment,
     *,
     dt: float | None = None,
     t0: float | None = None,

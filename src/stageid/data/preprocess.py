@@ -4,8 +4,8 @@ decimation.  Every function returns new :class:`Experiment` objects; inputs are 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -90,9 +90,7 @@ class Offsets:
         return exp.with_(u=exp.u + u_trend, y=exp.y + y_trend)
 
 
-def remove_offset(
-    exp: Experiment, kind: str = "constant", channels: str = "both"
-) -> tuple[Experiment, Offsets]:
+def remove_offset(exp: Experiment, kind: str = "constant", channels: str = "both") -> tuple[Experiment, Offsets]:
     """Remove the mean (``"constant"``) or a least-squares straight line (``"linear"``).
 
     Parameters
@@ -289,7 +287,9 @@ def decimate(exp: Experiment, factor: int, *, antialias: bool = True) -> Experim
 
     n_taps = 20 * factor + 1  # scipy's FIR design for decimate: order 20 * factor
     if exp.n_samples < n_taps:
-        raise DataError(f"decimating by {factor} with anti-aliasing needs at least {n_taps} samples; got {exp.n_samples}.")
+        raise DataError(
+            f"decimating by {factor} with anti-aliasing needs at least {n_taps} samples; got {exp.n_samples}."
+        )
     taps = signal.firwin(n_taps, 1.0 / factor, window="hamming")  # unit gain at DC
     u = _zero_phase_fir(exp.u, taps)[::factor]
     y = _zero_phase_fir(exp.y, taps)[::factor]

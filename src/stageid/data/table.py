@@ -10,8 +10,8 @@ Shared conventions (used by every reader in :mod:`stageid.data.io`):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -81,7 +81,9 @@ class Table:
             raise DataError(f"{where}a table needs at least one named column; got none.")
         _check_unique(names, where)
         if TIME_COLUMN in names:
-            raise DataError(f"{where}the column name '{TIME_COLUMN}' is reserved for the time axis; pass dt and t0 instead.")
+            raise DataError(
+                f"{where}the column name '{TIME_COLUMN}' is reserved for the time axis; pass dt and t0 instead."
+            )
         try:
             values = np.array(self.values, dtype=float, copy=True)
         except (TypeError, ValueError) as exc:
@@ -209,7 +211,7 @@ class Table:
         )
 
     @classmethod
-    def from_experiment(cls, exp: Experiment) -> "Table":
+    def from_experiment(cls, exp: Experiment) -> Table:
         """The table of an experiment's columns: inputs first, then outputs.
 
         Raises
@@ -234,7 +236,9 @@ class Table:
 
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:
-            raise DataError(f"{_where(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading).")
+            raise DataError(
+                f"{_where(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading)."
+            )
         return self.dt
 
     def __repr__(self) -> str:
@@ -270,7 +274,9 @@ def _check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
     if bad.any():
         row, col = (int(i) for i in np.argwhere(bad)[0])
         what = "NaN" if np.isnan(values[row, col]) else "inf"
-        raise DataError(f"{where}column '{names[col]}' has {what} at row {row} (data rows counted from 0); every sample must be finite.")
+        raise DataError(
+            f"{where}column '{names[col]}' has {what} at row {row} (data rows counted from 0); every sample must be finite."
+        )
 
 
 def _time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
@@ -300,7 +306,9 @@ def _time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tupl
     if ts is not None:
         # the mean step spreads the rounding of two stamps over n - 1 steps
         if abs(ts - dt) > max(rtol * dt, _stamp_rounding(t) / (n - 1)):
-            raise DataError(f"{where}ts={ts!r} s disagrees with the time column '{TIME_COLUMN}', whose step is {dt!r} s.")
+            raise DataError(
+                f"{where}ts={ts!r} s disagrees with the time column '{TIME_COLUMN}', whose step is {dt!r} s."
+            )
         dt = ts
     return float(t[0]), dt
 

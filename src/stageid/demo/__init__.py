@@ -9,9 +9,10 @@ models into ``out_dir`` and returns the summary rows.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 __all__ = ["run_demo", "DemoResult", "WORKFLOWS"]
 
@@ -28,7 +29,9 @@ class DemoResult:
     seconds: float
 
 
-def run_demo(out_dir: str | Path, step: Callable[[str], None] | None = None, workflows: tuple[str, ...] = WORKFLOWS) -> DemoResult:
+def run_demo(
+    out_dir: str | Path, step: Callable[[str], None] | None = None, workflows: tuple[str, ...] = WORKFLOWS
+) -> DemoResult:
     """Run the workflows and write the report; ``step`` is called with a description before each stage."""
     import importlib
 

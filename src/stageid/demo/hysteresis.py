@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,11 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     valid = EXPERIMENTS["triangle-1hz"](seed=1)
     fits = {}
     # "modified-pi" is the letter's model exactly; "modified-pi+warp" adds our monotone input warp
-    for key, kind, warp in (("pi", "pi", False), ("modified-pi", "modified-pi", False), ("modified-pi+warp", "modified-pi", True)):
+    for key, kind, warp in (
+        ("pi", "pi", False),
+        ("modified-pi", "modified-pi", False),
+        ("modified-pi+warp", "modified-pi", True),
+    ):
         step(f"hysteresis: identifying the {key} model (20 operators)")
         fits[key] = PIIdentifier(kind, n_operators=20, input_warp=warp).fit(ident)
         save_model(fits[key].model, out_dir / f"actuator_{key.replace('+', '_')}.json")
@@ -36,8 +41,11 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     dt = 1e-3
     y_ref = triangle(1.0, 3.0, dt, amplitude=1.5) + 0.5
     drives = {"no compensation": y_ref / open_loop_gain(actuator)}
-    for kind, label in (("pi", "classical-PI inverse"), ("modified-pi", "modified-PI inverse"),
-                        ("modified-pi+warp", "modified-PI+warp inverse")):
+    for kind, label in (
+        ("pi", "classical-PI inverse"),
+        ("modified-pi", "modified-PI inverse"),
+        ("modified-pi+warp", "modified-PI+warp inverse"),
+    ):
         drives[label] = Compensator(fits[kind].model, limits=(-500.0, 500.0)).run(y_ref)[:, 0]
     outputs = {label: actuator.simulate(d)[:, 0] for label, d in drives.items()}
     track = {label: float(tracking_error_percent(y_ref, y)) for label, y in outputs.items()}
@@ -58,27 +66,86 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     )
     report.table(
         ["quantity", "classical PI", "modified PI", "modified PI + warp", "letter (classical / modified)"],
-        [["max modelling error, identification [% of range]", ident_err["pi"], ident_err["modified-pi"], ident_err["modified-pi+warp"], "5.31 / 1.02"],
-         ["max modelling error, validation [% of range]", model_err["pi"], model_err["modified-pi"], model_err["modified-pi+warp"], "-"],
-         ["tracking error [% FSR]", track["classical-PI inverse"], track["modified-PI inverse"], track["modified-PI+warp inverse"], "4.8 / 2.6"],
-         ["hysteresis of the tracking loop [%]", hyst["classical-PI inverse"], hyst["modified-PI inverse"], hyst["modified-PI+warp inverse"], "2.9 / 1.5"]],
+        [
+            [
+                "max modelling error, identification [% of range]",
+                ident_err["pi"],
+                ident_err["modified-pi"],
+                ident_err["modified-pi+warp"],
+                "5.31 / 1.02",
+            ],
+            [
+                "max modelling error, validation [% of range]",
+                model_err["pi"],
+                model_err["modified-pi"],
+                model_err["modified-pi+warp"],
+                "-",
+            ],
+            [
+                "tracking error [% FSR]",
+                track["classical-PI inverse"],
+                track["modified-PI inverse"],
+                track["modified-PI+warp inverse"],
+                "4.8 / 2.6",
+            ],
+            [
+                "hysteresis of the tracking loop [%]",
+                hyst["classical-PI inverse"],
+                hyst["modified-PI inverse"],
+                hyst["modified-PI+warp inverse"],
+                "2.9 / 1.5",
+            ],
+        ],
         caption=f"Without compensation: tracking error {track['no compensation']:.2f} % FSR, hysteresis "
-                f"{hyst['no compensation']:.2f} % (letter: 11 % and 8.3 %).",
+        f"{hyst['no compensation']:.2f} % (letter: 11 % and 8.3 %).",
     )
     u = ident.u[:, 0]
-    report.figure(loop_figure(u, {"actuator": ident.y[:, 0], "classical PI": fits["pi"].model.simulate(ident.u)[:, 0],
-                                  "modified PI": fits["modified-pi"].model.simulate(ident.u)[:, 0]},
-                              title="Loops on the identification record (Figs. 5-7)"),
-                  "Hysteresis loops of the actuator and both models on the decaying-triangle identification record; input V [V], output [um].")
-    report.figure(model_errors_figure(valid.time, {k: valid.y[:, 0] - preds[k] for k in fits}, title="Modelling error on the validation triangle (Fig. 8)"),
-                  "Modelling error [um] of the classical PI, the letter's modified PI and the modified PI with input warp on the 1 Hz validation triangle.")
+    report.figure(
+        loop_figure(
+            u,
+            {
+                "actuator": ident.y[:, 0],
+                "classical PI": fits["pi"].model.simulate(ident.u)[:, 0],
+                "modified PI": fits["modified-pi"].model.simulate(ident.u)[:, 0],
+            },
+            title="Loops on the identification record (Figs. 5-7)",
+        ),
+        "Hysteresis loops of the actuator and both models on the decaying-triangle identification record; input V [V], output [um].",
+    )
+    report.figure(
+        model_errors_figure(
+            valid.time,
+            {k: valid.y[:, 0] - preds[k] for k in fits},
+            title="Modelling error on the validation triangle (Fig. 8)",
+        ),
+        "Modelling error [um] of the classical PI, the letter's modified PI and the modified PI with input warp on the 1 Hz validation triangle.",
+    )
     t = np.arange(y_ref.size) * dt
-    report.figure(loop_figure(y_ref, outputs, xlabel="desired output [um]", ylabel="actual output [um]",
-                              title="Tracking loops (Figs. 10-12)"),
-                  "Actual versus desired displacement without compensation and with the two inverse-model feedforwards.")
-    report.figure(tracking_figure(t, y_ref, outputs["modified-PI inverse"], title="Modified-PI inverse feedforward"),
-                  "Desired and actual output with the modified-PI inverse compensator, tracking error and hysteresis curve.")
+    report.figure(
+        loop_figure(
+            y_ref,
+            outputs,
+            xlabel="desired output [um]",
+            ylabel="actual output [um]",
+            title="Tracking loops (Figs. 10-12)",
+        ),
+        "Actual versus desired displacement without compensation and with the two inverse-model feedforwards.",
+    )
+    report.figure(
+        tracking_figure(t, y_ref, outputs["modified-PI inverse"], title="Modified-PI inverse feedforward"),
+        "Desired and actual output with the modified-PI inverse compensator, tracking error and hysteresis curve.",
+    )
     return [
-        ["actuator hysteresis", "model error PI / mod. PI / +warp", f"{model_err['pi']:.2f} / {model_err['modified-pi']:.2f} / {model_err['modified-pi+warp']:.2f} % range", "letter 5.31 / 1.02"],
-        ["actuator hysteresis", "tracking none / PI / mod. PI / +warp", f"{track['no compensation']:.1f} / {track['classical-PI inverse']:.1f} / {track['modified-PI inverse']:.1f} / {track['modified-PI+warp inverse']:.1f} % FSR", "letter 11 / 4.8 / 2.6"],
+        [
+            "actuator hysteresis",
+            "model error PI / mod. PI / +warp",
+            f"{model_err['pi']:.2f} / {model_err['modified-pi']:.2f} / {model_err['modified-pi+warp']:.2f} % range",
+            "letter 5.31 / 1.02",
+        ],
+        [
+            "actuator hysteresis",
+            "tracking none / PI / mod. PI / +warp",
+            f"{track['no compensation']:.1f} / {track['classical-PI inverse']:.1f} / {track['modified-PI inverse']:.1f} / {track['modified-PI+warp inverse']:.1f} % FSR",
+            "letter 11 / 4.8 / 2.6",
+        ],
     ]

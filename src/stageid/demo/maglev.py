@@ -7,8 +7,9 @@ G = T (M - M T)^-1 (eq. 18), cancellation and reduction to the paper's structure
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -55,31 +56,65 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
         "function (eq. 12-14), plant deduction G = T (M - M T)^-1 (eq. 18), spurious pole-zero cancellation (3.2.3) and "
         "reduction to the paper's [0, 2] diagonal and third-order couplings over 20-300 Hz."
     )
-    rows = [[f"{refs[j][2:]} -> {outs[i]}", 100 * float(rel[i, j]), 100 * float(of_peak[i, j]), 100 * float(result.band_error[i, j])]
-            for i in range(3) for j in range(3)]
-    report.table(["entry", "max |G_id - G| / |G| [%]", "of entry peak [%]", "eps reduction [%]"], rows,
-                 caption="Identified plant against the truth over 20-300 Hz (paper: reduction error eps < 1 %).")
-    report.table(["", "x", "y", "phi"],
-                 [["identified RHP pole [rad/s]", *[float(p) for p in rhp[:3]]],
-                  ["true RHP pole [rad/s]", *[float(p) for p in true_rhp[:3]]],
-                  ["paper eq. 22a-24a [rad/s]", *PAPER_RHP_POLES]],
-                 caption="Open-loop unstable poles recovered from closed-loop data.")
-    report.figure(plot_plant_bode(result, np.geomspace(1.0, 2000.0, 300), true),
-                  "Identified plant (reduced and full-order deduction) against the truth of eq. 22-24, all nine entries.")
-    report.figure(plot_pole_zero(result, (0, 0)),
-                  "Pole-zero map of the x-axis plant: full-order deduction with its spurious pairs and the reduced model (Fig. 6).")
+    rows = [
+        [
+            f"{refs[j][2:]} -> {outs[i]}",
+            100 * float(rel[i, j]),
+            100 * float(of_peak[i, j]),
+            100 * float(result.band_error[i, j]),
+        ]
+        for i in range(3)
+        for j in range(3)
+    ]
+    report.table(
+        ["entry", "max |G_id - G| / |G| [%]", "of entry peak [%]", "eps reduction [%]"],
+        rows,
+        caption="Identified plant against the truth over 20-300 Hz (paper: reduction error eps < 1 %).",
+    )
+    report.table(
+        ["", "x", "y", "phi"],
+        [
+            ["identified RHP pole [rad/s]", *[float(p) for p in rhp[:3]]],
+            ["true RHP pole [rad/s]", *[float(p) for p in true_rhp[:3]]],
+            ["paper eq. 22a-24a [rad/s]", *PAPER_RHP_POLES],
+        ],
+        caption="Open-loop unstable poles recovered from closed-loop data.",
+    )
+    report.figure(
+        plot_plant_bode(result, np.geomspace(1.0, 2000.0, 300), true),
+        "Identified plant (reduced and full-order deduction) against the truth of eq. 22-24, all nine entries.",
+    )
+    report.figure(
+        plot_pole_zero(result, (0, 0)),
+        "Pole-zero map of the x-axis plant: full-order deduction with its spurious pairs and the reduced model (Fig. 6).",
+    )
     fe, etfe = empirical_transfer(exps[0].u[:, 0], exps[0].y, maglev.DT, band=(1.0, 2500.0))
     ff = np.geomspace(1.0, 2500.0, 400)
-    report.figure(plot_closed_loop_bode(ff, result.closed_loop.frequency_response(ff)[:, 0, 0], (fe, etfe[:, 0]),
-                                        title="Closed loop r_x -> x (Fig. 4b)"),
-                  "Identified closed-loop response r_x -> x beside the empirical transfer function from the data's FFTs.")
+    report.figure(
+        plot_closed_loop_bode(
+            ff,
+            result.closed_loop.frequency_response(ff)[:, 0, 0],
+            (fe, etfe[:, 0]),
+            title="Closed loop r_x -> x (Fig. 4b)",
+        ),
+        "Identified closed-loop response r_x -> x beside the empirical transfer function from the data's FFTs.",
+    )
     ysim, _ = reclose_loop(result.plant, controller, exps[0].u, maglev.DT)
-    fit = 100 * (1 - np.linalg.norm(exps[0].y - ysim, axis=0) / np.linalg.norm(exps[0].y - exps[0].y.mean(axis=0), axis=0))
+    fit = 100 * (
+        1 - np.linalg.norm(exps[0].y - ysim, axis=0) / np.linalg.norm(exps[0].y - exps[0].y.mean(axis=0), axis=0)
+    )
     metrics["maglev/reclosed_fit_percent_chirp_x"] = [float(v) for v in fit]
-    report.figure(plot_reclosed_loop(exps[0].time, exps[0].y, ysim, outs),
-                  f"Time-domain check (Fig. 8): the identified plant re-closed with the known controller, driven by the "
-                  f"recorded chirp on x; fit {', '.join(f'{o} {v:.1f} %' for o, v in zip(outs, fit))}.")
+    report.figure(
+        plot_reclosed_loop(exps[0].time, exps[0].y, ysim, outs),
+        f"Time-domain check (Fig. 8): the identified plant re-closed with the known controller, driven by the "
+        f"recorded chirp on x; fit {', '.join(f'{o} {v:.1f} %' for o, v in zip(outs, fit))}.",
+    )
     return [
-        ["maglev closed loop", "diagonal error 20-300 Hz", ", ".join(f"{100 * rel[k, k]:.2f} %" for k in range(3)), "paper eps < 1 %"],
+        [
+            "maglev closed loop",
+            "diagonal error 20-300 Hz",
+            ", ".join(f"{100 * rel[k, k]:.2f} %" for k in range(3)),
+            "paper eps < 1 %",
+        ],
         ["maglev closed loop", "RHP poles [rad/s]", ", ".join(f"{p:.1f}" for p in rhp[:3]), "paper 54.6, 82.2, 86.7"],
     ]

@@ -7,15 +7,18 @@ update with a second set of chirps, validated against the reference model of eq.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from ..report import Report
 
 PAPER_ORDERS = (7, 4, 4)  # the sub-model orders Cao & Chen chose (Tables 4-6)
-HORIZON = 40  # p; on these 10 s chirps the held-out split (the chirps' last, fastest quarter) favours too short a horizon
+HORIZON = (
+    40  # p; on these 10 s chirps the held-out split (the chirps' last, fastest quarter) favours too short a horizon
+)
 
 
 def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[str], None]) -> list[list[Any]]:
@@ -76,32 +79,73 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     )
     report.table(
         ["quantity", "first fit", "after online update"],
-        [["max diagonal error over 1-100 Hz [% of column peak]", 100 * float(np.max(np.diag(err_first))), 100 * float(np.max(diag))],
-         ["max coupling error over 1-100 Hz [% of column peak]", 100 * float(np.max(err_first[~np.eye(3, dtype=bool)])), 100 * float(np.max(coupling))],
-         ["horizons p per channel", str([ch.horizon for ch in result.channels]), str([ch.horizon for ch in updated.channels])]],
+        [
+            [
+                "max diagonal error over 1-100 Hz [% of column peak]",
+                100 * float(np.max(np.diag(err_first))),
+                100 * float(np.max(diag)),
+            ],
+            [
+                "max coupling error over 1-100 Hz [% of column peak]",
+                100 * float(np.max(err_first[~np.eye(3, dtype=bool)])),
+                100 * float(np.max(coupling)),
+            ],
+            [
+                "horizons p per channel",
+                str([ch.horizon for ch in result.channels]),
+                str([ch.horizon for ch in updated.channels]),
+            ],
+        ],
         caption="Frequency-response error of the identified model against the reference (issue target: 2 % diagonal, 1 % couplings).",
     )
-    report.figure(bode_figure(f, {"identified": updated.model.frequency_response(f), "true (eq. 23-25)": G_true},
-                              true.inputs, true.outputs, title="P-558: identified vs true",
-                              styles={"true (eq. 23-25)": "k--"}),
-                  "Bode magnitude and phase of the identified 3x3 model (after the online update) against the reference; "
-                  "inputs Z [um], Rx, Ry [urad]; outputs z [um], rx, ry [urad].")
-    report.figure(bode_with_bands(updated, f, true, title="Hankel-Toeplitz response with +-2 std posterior bands"),
-                  "Magnitude of the eq. 9 response with its posterior uncertainty band (MAP covariance), the realised model and the truth.")
+    report.figure(
+        bode_figure(
+            f,
+            {"identified": updated.model.frequency_response(f), "true (eq. 23-25)": G_true},
+            true.inputs,
+            true.outputs,
+            title="P-558: identified vs true",
+            styles={"true (eq. 23-25)": "k--"},
+        ),
+        "Bode magnitude and phase of the identified 3x3 model (after the online update) against the reference; "
+        "inputs Z [um], Rx, Ry [urad]; outputs z [um], rx, ry [urad].",
+    )
+    report.figure(
+        bode_with_bands(updated, f, true, title="Hankel-Toeplitz response with +-2 std posterior bands"),
+        "Magnitude of the eq. 9 response with its posterior uncertainty band (MAP covariance), the realised model and the truth.",
+    )
     table = sweep.channels[0].order_table
     metrics["p558/z_channel_selected_order"] = int(sweep.channels[0].order)
-    report.figure(selection_plot(table, title=f"Z channel: held-out error versus order (p = {HORIZON})"),
-                  "Order selection (Tables 4-6 of the paper): normalised held-out simulation error versus model order for the "
-                  f"Z channel; the selected order is {sweep.channels[0].order}, the paper chose 7.")
-    report.figure(pzmap_figure({"identified": (updated.model.poles(), np.zeros(0)), "true": (true.poles(), np.zeros(0))},
-                               continuous=False, title="P-558 poles (z-plane)"),
-                  "Poles of the identified and the reference model in the z-plane (Ts = 2 ms).")
+    report.figure(
+        selection_plot(table, title=f"Z channel: held-out error versus order (p = {HORIZON})"),
+        "Order selection (Tables 4-6 of the paper): normalised held-out simulation error versus model order for the "
+        f"Z channel; the selected order is {sweep.channels[0].order}, the paper chose 7.",
+    )
+    report.figure(
+        pzmap_figure(
+            {"identified": (updated.model.poles(), np.zeros(0)), "true": (true.poles(), np.zeros(0))},
+            continuous=False,
+            title="P-558 poles (z-plane)",
+        ),
+        "Poles of the identified and the reference model in the z-plane (Ts = 2 ms).",
+    )
     exp, y_hat = overlays[0]
-    report.figure(time_overlay_figure(exp.time, exp.y, {"identified model": y_hat}, exp.output_names, exp.output_units,
-                                      title="Validation: 5 Hz sine on Z (Table 7)"),
-                  "Measured (simulated reference with noise) and predicted outputs for a 5 Hz sine on Z, with the error trace.")
-    report.table(["validation record", "output", "fit [%]", "error 2-norm"], val_rows,
-                 caption="Time-domain validation (the paper's Tables 7-8 use the 2-norm of the error).")
+    report.figure(
+        time_overlay_figure(
+            exp.time,
+            exp.y,
+            {"identified model": y_hat},
+            exp.output_names,
+            exp.output_units,
+            title="Validation: 5 Hz sine on Z (Table 7)",
+        ),
+        "Measured (simulated reference with noise) and predicted outputs for a 5 Hz sine on Z, with the error trace.",
+    )
+    report.table(
+        ["validation record", "output", "fit [%]", "error 2-norm"],
+        val_rows,
+        caption="Time-domain validation (the paper's Tables 7-8 use the 2-norm of the error).",
+    )
     return [
         ["P-558 Hankel-MAP", "max diagonal FRF error 1-100 Hz", f"{100 * np.max(diag):.2f} %", "target < 2 %"],
         ["P-558 Hankel-MAP", "max coupling FRF error 1-100 Hz", f"{100 * np.max(coupling):.2f} %", "target < 1 %"],

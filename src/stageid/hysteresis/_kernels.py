@@ -287,7 +287,9 @@ def cp_invert(target, P, z0, x0, lo, hi, smin, tol):  # pragma: no cover - compi
 
 
 @_jit_exact
-def cp_invert_creep(yref, P, z0, x0, lo, hi, smin, tol, out_off, in_off, a, ca, s0, u0, g, tol_fp):  # pragma: no cover - compiled
+def cp_invert_creep(
+    yref, P, z0, x0, lo, hi, smin, tol, out_off, in_off, a, ca, s0, u0, g, tol_fp
+):  # pragma: no cover - compiled
     """Batch inversion of a modified-PI model with a creep term (no input warp), as
     ``creep.CreepInverse.step`` does it sample by sample: the creep memory ``h = ca . s`` is
     subtracted from the target, ``P`` carries the instantaneous creep gain ``g`` folded into
@@ -468,18 +470,34 @@ def _cp_events(r, rc, ra, rb, w, z, d, pos, dslope):  # pragma: no cover - compi
         zi = z[i]
         if d > 0.0:
             if zi < 0.0:
-                pos[e] = zi + rc[i]; dslope[e] = w[i]; e += 1
-                pos[e] = rc[i]; dslope[e] = -w[i]; e += 1
-                pos[e] = r[i]; dslope[e] = w[i]; e += 1
+                pos[e] = zi + rc[i]
+                dslope[e] = w[i]
+                e += 1
+                pos[e] = rc[i]
+                dslope[e] = -w[i]
+                e += 1
+                pos[e] = r[i]
+                dslope[e] = w[i]
+                e += 1
             else:
-                pos[e] = zi + r[i]; dslope[e] = w[i]; e += 1
+                pos[e] = zi + r[i]
+                dslope[e] = w[i]
+                e += 1
         else:
             if zi > 0.0:
-                pos[e] = zi - rb[i]; dslope[e] = w[i]; e += 1
-                pos[e] = -rb[i]; dslope[e] = -w[i]; e += 1
-                pos[e] = -ra[i]; dslope[e] = w[i]; e += 1
+                pos[e] = zi - rb[i]
+                dslope[e] = w[i]
+                e += 1
+                pos[e] = -rb[i]
+                dslope[e] = -w[i]
+                e += 1
+                pos[e] = -ra[i]
+                dslope[e] = w[i]
+                e += 1
             else:
-                pos[e] = zi - ra[i]; dslope[e] = w[i]; e += 1
+                pos[e] = zi - ra[i]
+                dslope[e] = w[i]
+                e += 1
     return e
 
 
@@ -641,7 +659,9 @@ class _V4:
         lo = self.b.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, 2), [0, 1]))
         hi = self.b.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, 2), [2, 3]))
         s = self.add(lo, hi, _SUMF)
-        return self.add(self.b.extract_element(s, ir.Constant(i32, 0)), self.b.extract_element(s, ir.Constant(i32, 1)), _SUMF)
+        return self.add(
+            self.b.extract_element(s, ir.Constant(i32, 0)), self.b.extract_element(s, ir.Constant(i32, 1)), _SUMF
+        )
 
     def hmin(self, v):
         l0, l1, l2, l3 = self.lanes(v)
@@ -661,8 +681,10 @@ def _block_rows(context, builder, aryty, ary, b, n_rows):
     """Pointers to the rows of block b of a C-contiguous (n_blocks, n_rows, 4) array."""
     data = context.make_array(aryty)(context, builder, ary).data
     base = builder.mul(b, ir.Constant(b.type, _L * n_rows))
-    return [builder.bitcast(builder.gep(data, [builder.add(base, ir.Constant(b.type, _L * j))]), _VEC.as_pointer())
-            for j in range(n_rows)]
+    return [
+        builder.bitcast(builder.gep(data, [builder.add(base, ir.Constant(b.type, _L * j))]), _VEC.as_pointer())
+        for j in range(n_rows)
+    ]
 
 
 def _load(builder, p):
@@ -825,8 +847,9 @@ def _make_run(kind, n_reg, memory):
             yl_slot = cgutils.alloca_once_value(builder, ylv)
             z_slots = [cgutils.alloca_once_value(builder, _load(builder, rows[b][zrow])) for b in range(n_reg)]
             fn = builder.function
-            head, body, still, move, update, done = (fn.append_basic_block(f"band.{s}") for s in
-                                                     ("head", "body", "still", "move", "update", "done"))
+            head, body, still, move, update, done = (
+                fn.append_basic_block(f"band.{s}") for s in ("head", "body", "still", "move", "update", "done")
+            )
             one = ir.Constant(_I64, 1)
             builder.branch(head)
             builder.position_at_end(head)
@@ -840,8 +863,9 @@ def _make_run(kind, n_reg, memory):
             builder.store(builder.add(kk, one), k_slot)
             builder.branch(head)
             builder.position_at_end(move)
-            inside = builder.and_(builder.fcmp_ordered("<", xk, hiv, flags=_EXACT),
-                                  builder.fcmp_ordered(">", xk, lov, flags=_EXACT))
+            inside = builder.and_(
+                builder.fcmp_ordered("<", xk, hiv, flags=_EXACT), builder.fcmp_ordered(">", xk, lov, flags=_EXACT)
+            )
             builder.cbranch(inside, update, done)
             builder.position_at_end(update)
             xs = vec.splat(xk)
@@ -853,10 +877,13 @@ def _make_run(kind, n_reg, memory):
                 v = _update_lanes(vec, kind, rb_, xs, t)
                 parts.append(vec.mul(_load(builder, rows[b][wrow]), v))
             if memory:
-                parts.append(_emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind))
+                parts.append(
+                    _emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind)
+                )
             while len(parts) > 1:  # pairwise sum of the block sums
                 parts = [vec.add(parts[i], parts[i + 1], _SUMF) for i in range(0, len(parts) - 1, 2)] + (
-                    [parts[-1]] if len(parts) % 2 else [])
+                    [parts[-1]] if len(parts) % 2 else []
+                )
             yk = vec.add(Cv, vec.mul(W0v, xk), _SUMF)
             if parts:
                 yk = vec.add(yk, vec.hsum(parts[0]), _SUMF)
@@ -868,8 +895,9 @@ def _make_run(kind, n_reg, memory):
             builder.position_at_end(done)
             for b in range(n_reg):
                 builder.store(builder.load(z_slots[b]), rows[b][zrow], align=8)
-            return context.make_tuple(builder, signature.return_type,
-                                      [builder.load(k_slot), builder.load(xl_slot), builder.load(yl_slot)])
+            return context.make_tuple(
+                builder, signature.return_type, [builder.load(k_slot), builder.load(xl_slot), builder.load(yl_slot)]
+            )
 
         return sig, codegen
 
@@ -889,7 +917,9 @@ def _left4(typingctx, lob, hib, g, x):
         lo = _load_at(context, builder, signature.args[0], la, gv)
         hi = _load_at(context, builder, signature.args[1], ha, gv)
         xs = _V4(builder).splat(xk)
-        out = builder.or_(builder.fcmp_ordered(">=", xs, hi, flags=_EXACT), builder.fcmp_ordered("<=", xs, lo, flags=_EXACT))
+        out = builder.or_(
+            builder.fcmp_ordered(">=", xs, hi, flags=_EXACT), builder.fcmp_ordered("<=", xs, lo, flags=_EXACT)
+        )
         return builder.zext(builder.bitcast(out, ir.IntType(_L)), _I64)
 
     return sig, codegen
@@ -906,7 +936,9 @@ def _reduce4(typingctx, Cb, lob, hib, g):
         gv = context.cast(builder, args[3], signature.args[3], types.int64)
         vecs = [_load_at(context, builder, signature.args[i], args[i], gv) for i in range(3)]
         vec = _V4(builder)
-        return context.make_tuple(builder, signature.return_type, [vec.hsum(vecs[0]), vec.hmax(vecs[1]), vec.hmin(vecs[2])])
+        return context.make_tuple(
+            builder, signature.return_type, [vec.hsum(vecs[0]), vec.hmax(vecs[1]), vec.hmin(vecs[2])]
+        )
 
     return sig, codegen
 
@@ -1093,8 +1125,11 @@ def _banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
             if n_hot < nb:
                 # one more hot block: the exits that left only the first cold block, and its
                 # updates, would not happen (the other cold blocks evolve the same either way)
-                more = (c_hot * (n_hot + 1) + (c_exit + 0.9 * (nb - n_hot - 1)) * counts[2] * per
-                        + c_update * (counts[1] - counts[3]) * per)
+                more = (
+                    c_hot * (n_hot + 1)
+                    + (c_exit + 0.9 * (nb - n_hot - 1)) * counts[2] * per
+                    + c_update * (counts[1] - counts[3]) * per
+                )
                 est[n_hot + 1] = more if est[n_hot + 1] == 0.0 else 0.5 * (est[n_hot + 1] + more)
             n_blocks += 1
             if (n_blocks & 31) == 0 and n_hot > 0:  # one hot block less: measured again now and then

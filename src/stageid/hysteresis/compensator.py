@@ -66,8 +66,9 @@ class Compensator:
     [0.0, 2.0, 1.0]
     """
 
-    def __init__(self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None,
-                 dt: float | None = None) -> None:
+    def __init__(
+        self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None, dt: float | None = None
+    ) -> None:
         from . import _kernels
 
         self._k = _kernels
@@ -189,7 +190,9 @@ def _check_limits(lim: object) -> tuple[float, float] | None:
     return lo, hi
 
 
-def compensate(model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None) -> np.ndarray:
+def compensate(
+    model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None
+) -> np.ndarray:
     """Batch feedforward: the drive of shape (n_samples, 1) for a desired output record.
 
     Parameters

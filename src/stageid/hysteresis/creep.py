@@ -131,8 +131,9 @@ class CreepTerm:
         """``g = sum_j c_j (1 - a_j)``: how the current sample's output depends on its input."""
         return float(np.sum(self.weights * (1.0 - self.poles(dt))))
 
-    def lags(self, u: object, dt: float | None = None, state: np.ndarray | None = None,
-             rest: float | None = None) -> np.ndarray:
+    def lags(
+        self, u: object, dt: float | None = None, state: np.ndarray | None = None, rest: float | None = None
+    ) -> np.ndarray:
         """Lag outputs ``s_j(k)``, shape (n_samples, n_lags), from ``state`` (default the term's;
         ``None``: at rest at ``rest``, default ``u[0]``)."""
         from scipy.signal import lfilter
@@ -167,21 +168,30 @@ class CreepTerm:
             return np.zeros(0), final
         return S @ self.weights, S[-1].copy()
 
-    def with_state(self, state: object | None) -> "CreepTerm":
+    def with_state(self, state: object | None) -> CreepTerm:
         """A copy with lag outputs ``state`` (``None``: at rest, see the module notes)."""
         return replace(self, state=state)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``creep`` object of the ``stageid.hysteresis/1`` format."""
-        return {"time_constants": self.time_constants.tolist(), "weights": self.weights.tolist(),
-                "sample_time": self.sample_time, "state": None if self.state is None else self.state.tolist()}
+        return {
+            "time_constants": self.time_constants.tolist(),
+            "weights": self.weights.tolist(),
+            "sample_time": self.sample_time,
+            "state": None if self.state is None else self.state.tolist(),
+        }
 
     @classmethod
-    def from_dict(cls, d: object) -> "CreepTerm":
+    def from_dict(cls, d: object) -> CreepTerm:
         """Inverse of :meth:`to_dict`; raises :class:`ModelFormatError` on malformed fields."""
-        if not isinstance(d, dict) or not {"time_constants", "weights", "sample_time"} <= set(d) \
-                or not set(d) <= {"time_constants", "weights", "sample_time", "state"}:
-            raise ModelFormatError(f"`creep` must be an object with time_constants, weights, sample_time[, state]; got {d!r:.80}.")
+        if (
+            not isinstance(d, dict)
+            or not {"time_constants", "weights", "sample_time"} <= set(d)
+            or not set(d) <= {"time_constants", "weights", "sample_time", "state"}
+        ):
+            raise ModelFormatError(
+                f"`creep` must be an object with time_constants, weights, sample_time[, state]; got {d!r:.80}."
+            )
         for key in ("time_constants", "weights") + (("state",) if d.get("state") is not None else ()):
             v = d[key]
             if not isinstance(v, list) or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v):
@@ -289,7 +299,9 @@ class CreepInverse:
         """
         y_ref = float(y_ref)
         if not math.isfinite(y_ref):
-            raise ModelError(f"desired output `y_ref` must be finite; got {y_ref} (the compensator state is unchanged).")
+            raise ModelError(
+                f"desired output `y_ref` must be finite; got {y_ref} (the compensator state is unchanged)."
+            )
         if not self._fresh and self._compiled:
             return float(self._run_compiled(np.array([y_ref]))[0])
         if self._fresh:  # creep at rest at this sample's (unknown) input: output G*u, no memory
@@ -340,8 +352,12 @@ class CreepInverse:
     @property
     def _compiled(self) -> bool:
         inner = self._inner
-        return (self._folded and inner._creep is None and inner._inverse is None
-                and getattr(self.model, "input_warp", 0.0) == 0.0)
+        return (
+            self._folded
+            and inner._creep is None
+            and inner._inverse is None
+            and getattr(self.model, "input_warp", 0.0) == 0.0
+        )
 
     def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
         """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
@@ -351,9 +367,23 @@ class CreepInverse:
             return yr.copy()
         inner = self._inner
         u, z, x, s = _kernels.cp_invert_creep(
-            yr, inner._P, inner._z, inner._x, inner._lo, inner._hi, inner._smin, inner._tol,
-            float(self.model.output_offset), float(self.model.input_offset), self._a, self._ca, self._s,
-            float(self._u_prev), float(self._g), float(self._tol))
+            yr,
+            inner._P,
+            inner._z,
+            inner._x,
+            inner._lo,
+            inner._hi,
+            inner._smin,
+            inner._tol,
+            float(self.model.output_offset),
+            float(self.model.input_offset),
+            self._a,
+            self._ca,
+            self._s,
+            float(self._u_prev),
+            float(self._g),
+            float(self._tol),
+        )
         inner._z, inner._x, self._s = z, float(x), s
         self._u_prev = float(u[-1])
         return u

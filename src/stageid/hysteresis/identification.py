@@ -51,14 +51,14 @@ end of the identified range), with the output offset of the first record; use
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from .._errors import DataError, IdentificationError, ModelError
 from .._threads import single_blas_thread
-from .operators import OperatorState
 from .pi import STATE_KINDS, ModifiedPIModel, PIModel
 
 __all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
@@ -122,12 +122,16 @@ class HysteresisFit:
         for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
         if kind == "modified-pi":
-            lines.append(f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
-                         f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}, "
-                         f"input warp = {self.model.input_warp:.4f}")
+            lines.append(
+                f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
+                f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}, "
+                f"input warp = {self.model.input_warp:.4f}"
+            )
         creep = getattr(self.model, "creep", None)
         if creep is not None:
-            lines.append("  creep: " + ", ".join(f"{c:.4g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights)))
+            lines.append(
+                "  creep: " + ", ".join(f"{c:.4g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights))
+            )
         lines.append(f"  {self.message}")
         return "\n".join(lines)
 
@@ -137,7 +141,9 @@ def _ratio(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.median(a[k] / b[k])) if np.any(k) else float("nan")
 
 
-def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[tuple[np.ndarray, np.ndarray]], str, str]:
+def _records(
+    data: Any, inputs: str | None, outputs: str | None
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], str, str]:
     from ..data import Experiment
 
     if isinstance(data, Experiment):
@@ -149,7 +155,9 @@ def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[t
     for k, item in enumerate(data):
         if isinstance(item, Experiment):
             if item.n_inputs != 1 or item.n_outputs != 1:
-                raise DataError(f"hysteresis identification needs one input and one output; record {k} has {item.n_inputs} and {item.n_outputs}.")
+                raise DataError(
+                    f"hysteresis identification needs one input and one output; record {k} has {item.n_inputs} and {item.n_outputs}."
+                )
             u, y = item.u[:, 0], item.y[:, 0]
             if k == 0:
                 in_name = inputs or item.input_names[0]
@@ -158,12 +166,16 @@ def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[t
             try:
                 pair = [np.asarray(item[0], dtype=float), np.asarray(item[1], dtype=float)]
             except (TypeError, ValueError, IndexError, KeyError):
-                raise DataError(f"record {k} must be an Experiment or a (u, y) pair of numeric arrays; got {type(item).__name__}.") from None
+                raise DataError(
+                    f"record {k} must be an Experiment or a (u, y) pair of numeric arrays; got {type(item).__name__}."
+                ) from None
             for j, what in enumerate(("input", "output")):
                 a = pair[j]
                 if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != 1):
-                    raise DataError(f"record {k}: one {what} column expected (shape (n_samples,) or (n_samples, 1)); "
-                                    f"got shape {a.shape}.")
+                    raise DataError(
+                        f"record {k}: one {what} column expected (shape (n_samples,) or (n_samples, 1)); "
+                        f"got shape {a.shape}."
+                    )
             u, y = pair[0].reshape(-1), pair[1].reshape(-1)
             if u.shape != y.shape:
                 raise DataError(f"record {k}: input and output must have equal length; got {u.size} and {y.size}.")
@@ -173,8 +185,10 @@ def _records(data: Any, inputs: str | None, outputs: str | None) -> tuple[list[t
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise DataError(f"{label} has NaN or inf samples.")
         if not np.ptp(y) > 0:
-            raise DataError(f"{label}: the output is constant ({y[0]:g}); every record's output must vary "
-                            "(errors are reported in % of each record's output range).")
+            raise DataError(
+                f"{label}: the output is constant ({y[0]:g}); every record's output must vary "
+                "(errors are reported in % of each record's output range)."
+            )
         recs.append((np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)))
     if not recs:
         raise DataError("no records given; expected at least one Experiment.")
@@ -238,10 +252,20 @@ class PIIdentifier:
     True
     """
 
-    def __init__(self, model: str = "pi", n_operators: int = 20, input_range: tuple[float, float] | None = None,
-                 initial_state: str = "auto", min_slope_fraction: float = 0.02, max_rows: int = 20000,
-                 max_evaluations: int | None = None, ridge: float = 1e-6, input_warp: bool = True,
-                 creep_time_constants: Sequence[float] | None = None, sample_time: float | None = None) -> None:
+    def __init__(
+        self,
+        model: str = "pi",
+        n_operators: int = 20,
+        input_range: tuple[float, float] | None = None,
+        initial_state: str = "auto",
+        min_slope_fraction: float = 0.02,
+        max_rows: int = 20000,
+        max_evaluations: int | None = None,
+        ridge: float = 1e-6,
+        input_warp: bool = True,
+        creep_time_constants: Sequence[float] | None = None,
+        sample_time: float | None = None,
+    ) -> None:
         self.model = model
         self.n_operators = n_operators
         self.input_range = input_range
@@ -257,22 +281,33 @@ class PIIdentifier:
     # ------------------------------------------------------------------ checks
     def _check(self) -> None:
         if self.model not in MODEL_KINDS:
-            raise IdentificationError(f"`model` of PIIdentifier must be one of {', '.join(MODEL_KINDS)}; got {self.model!r}.")
+            raise IdentificationError(
+                f"`model` of PIIdentifier must be one of {', '.join(MODEL_KINDS)}; got {self.model!r}."
+            )
         if not _is_int(self.n_operators) or self.n_operators < 2:
-            raise IdentificationError(f"`n_operators` of PIIdentifier must be an integer >= 2; got {self.n_operators!r}.")
+            raise IdentificationError(
+                f"`n_operators` of PIIdentifier must be an integer >= 2; got {self.n_operators!r}."
+            )
         cap = MAX_OPERATORS[self.model]
         if self.n_operators > cap:
-            raise IdentificationError(f"`n_operators` of PIIdentifier must be at most {cap} for a {self.model} model; "
-                                      f"got {self.n_operators}.")
+            raise IdentificationError(
+                f"`n_operators` of PIIdentifier must be at most {cap} for a {self.model} model; got {self.n_operators}."
+            )
         if self.initial_state not in _STATE_CHOICES:
-            raise IdentificationError(f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}.")
+            raise IdentificationError(
+                f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}."
+            )
         msf = _real(self.min_slope_fraction)
         if msf is None or not 0 < msf < 1:
-            raise IdentificationError(f"`min_slope_fraction` of PIIdentifier must be a number in (0, 1); got {self.min_slope_fraction!r}.")
+            raise IdentificationError(
+                f"`min_slope_fraction` of PIIdentifier must be a number in (0, 1); got {self.min_slope_fraction!r}."
+            )
         if not _is_int(self.max_rows) or self.max_rows < 10:
             raise IdentificationError(f"`max_rows` of PIIdentifier must be an integer >= 10; got {self.max_rows!r}.")
         if self.max_evaluations is not None and (not _is_int(self.max_evaluations) or self.max_evaluations < 1):
-            raise IdentificationError(f"`max_evaluations` of PIIdentifier must be an integer >= 1; got {self.max_evaluations!r}.")
+            raise IdentificationError(
+                f"`max_evaluations` of PIIdentifier must be an integer >= 1; got {self.max_evaluations!r}."
+            )
         ridge = _real(self.ridge)
         if ridge is None or ridge < 0:
             raise IdentificationError(f"`ridge` of PIIdentifier must be a number >= 0; got {self.ridge!r}.")
@@ -284,16 +319,22 @@ class PIIdentifier:
             except (TypeError, ValueError):
                 lo = hi = None
             if lo is None or hi is None or not lo < hi:
-                raise IdentificationError(f"`input_range` of PIIdentifier must be (low, high) with finite low < high; "
-                                          f"got {self.input_range!r}.")
+                raise IdentificationError(
+                    f"`input_range` of PIIdentifier must be (low, high) with finite low < high; "
+                    f"got {self.input_range!r}."
+                )
         if self.sample_time is not None:
             ts = _real(self.sample_time)
             if ts is None or ts <= 0:
-                raise IdentificationError(f"`sample_time` of PIIdentifier must be a positive number of seconds; got {self.sample_time!r}.")
+                raise IdentificationError(
+                    f"`sample_time` of PIIdentifier must be a positive number of seconds; got {self.sample_time!r}."
+                )
         if self.creep_time_constants is not None:
             taus = np.asarray(self.creep_time_constants, dtype=float).reshape(-1)
             if taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
-                raise IdentificationError(f"`creep_time_constants` of PIIdentifier must be positive seconds; got {self.creep_time_constants!r}.")
+                raise IdentificationError(
+                    f"`creep_time_constants` of PIIdentifier must be positive seconds; got {self.creep_time_constants!r}."
+                )
 
     # ------------------------------------------------------------------ fit
     @single_blas_thread
@@ -333,10 +374,14 @@ class PIIdentifier:
             raise IdentificationError(
                 f"`n_operators` of PIIdentifier must be at most {bound} for these records (one operator per "
                 f"{SAMPLES_PER_OPERATOR} of their {n_total} samples, no more than their {n_levels} distinct input "
-                f"values); got {self.n_operators}.")
+                f"values); got {self.n_operators}."
+            )
         creep = None
         if self.creep_time_constants is not None:
-            creep = (np.asarray(self.creep_time_constants, dtype=float).reshape(-1), _creep_sample_time(data, self.sample_time))
+            creep = (
+                np.asarray(self.creep_time_constants, dtype=float).reshape(-1),
+                _creep_sample_time(data, self.sample_time),
+            )
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         else:
@@ -390,7 +435,9 @@ class PIIdentifier:
             from .creep import CreepTerm
 
             c = ctx.solve_creep(theta, kinds, classical=self.model == "pi")[3]
-            model = replace(model, creep=CreepTerm(time_constants=creep[0], weights=np.maximum(c, 0.0), sample_time=creep[1]))
+            model = replace(
+                model, creep=CreepTerm(time_constants=creep[0], weights=np.maximum(c, 0.0), sample_time=creep[1])
+            )
         max_e, rms_e = [], []
         for j, (u, y) in enumerate(recs):
             m_j = model.with_state(model.consistent_state(u[0], kinds[j]))
@@ -399,11 +446,18 @@ class PIIdentifier:
             e = y - yh
             max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
             rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
-        return HysteresisFit(model=model, max_error_percent=tuple(max_e), rms_error_percent=tuple(rms_e),
-                             output_offsets=tuple(float(v) for v in offsets), initial_states=tuple(kinds),
-                             n_evaluations=n_eval, success=success, message=message)
+        return HysteresisFit(
+            model=model,
+            max_error_percent=tuple(max_e),
+            rms_error_percent=tuple(rms_e),
+            output_offsets=tuple(float(v) for v in offsets),
+            initial_states=tuple(kinds),
+            n_evaluations=n_eval,
+            success=success,
+            message=message,
+        )
 
-    def _search(self, ctx: "_Context", theta0: np.ndarray, kinds: list[str], R: float, lo: float, hi: float):
+    def _search(self, ctx: _Context, theta0: np.ndarray, kinds: list[str], R: float, lo: float, hi: float):
         from scipy.optimize import minimize
 
         centre = 0.5 * (lo + hi)
@@ -434,7 +488,7 @@ class PIIdentifier:
         # coarse grid over the mean ratios (thresholds proportional to r) and the warp,
         # then Nelder-Mead on all parameters from the two best grid points
         grid = []
-        for q in ((-0.2, 0.0, 0.2) if self.input_warp else (0.0,)):
+        for q in (-0.2, 0.0, 0.2) if self.input_warp else (0.0,):
             for c0 in (0.2, 0.5, 0.8, 1.0):
                 for a0 in (0.7, 1.0, 1.4, 2.0):
                     for b0 in (0.4, 0.7, 1.0):
@@ -446,7 +500,9 @@ class PIIdentifier:
             best_f, best_th = f_classical, classical
         steps_all = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
 
-        def descend(th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int) -> tuple[float, np.ndarray, bool]:
+        def descend(
+            th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int
+        ) -> tuple[float, np.ndarray, bool]:
             """Nelder-Mead over the parameters ``free`` (indices into theta) from ``th_start``."""
             base = np.array(th_start, dtype=float)
 
@@ -459,9 +515,16 @@ class PIIdentifier:
             lb, ub = lower[free] / scale[free], upper[free] / scale[free]
             steps = steps_all[free]
             k = free.size
-            simplex = np.vstack([x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)])
-            res = minimize(sub, x0, method="Nelder-Mead", bounds=list(zip(lb, ub)),
-                           options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start})
+            simplex = np.vstack(
+                [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
+            )
+            res = minimize(
+                sub,
+                x0,
+                method="Nelder-Mead",
+                bounds=list(zip(lb, ub)),
+                options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start},
+            )
             th = base.copy()
             th[free] = res.x * scale[free]
             return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
@@ -473,7 +536,9 @@ class PIIdentifier:
         #    from warped grid points stalled above it on asymmetric Bouc-Wen data).
         remaining = budget - count[0]
         if remaining > 20:
-            f_new, th_new, converged = descend(best_th, best_f, active, remaining // 2 if self.input_warp else remaining)
+            f_new, th_new, converged = descend(
+                best_th, best_f, active, remaining // 2 if self.input_warp else remaining
+            )
             success = converged
             if f_new < best_f:
                 best_f, best_th = f_new, th_new
@@ -491,20 +556,30 @@ class PIIdentifier:
                         best_f, best_th = f_c, th_c
             else:
                 success = False
-        msg = (f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
-               f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's.")
+        msg = (
+            f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
+            f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's."
+        )
         return best_th, count[0], success, msg
+
 
 def _creep_sample_time(data: Any, sample_time: float | None) -> float:
     """The one sampling period of the records (Experiment.dt, else ``sample_time``)."""
     from ..data import Experiment
 
-    items = [data] if isinstance(data, Experiment) else ([data] if isinstance(data, tuple) and len(data) == 2
-                                                          and not isinstance(data[0], Experiment) else list(data))
+    items = (
+        [data]
+        if isinstance(data, Experiment)
+        else (
+            [data] if isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], Experiment) else list(data)
+        )
+    )
     dts = {float(e.dt) for e in items if isinstance(e, Experiment)}
     if any(not isinstance(e, Experiment) for e in items):
         if sample_time is None:
-            raise IdentificationError("fitting creep needs the sampling period: pass `sample_time` for (u, y) records; got None.")
+            raise IdentificationError(
+                "fitting creep needs the sampling period: pass `sample_time` for (u, y) records; got None."
+            )
         dts.add(float(sample_time))
     elif sample_time is not None and dts != {float(sample_time)}:
         raise IdentificationError(f"`sample_time` {sample_time!r} differs from the records' dt {sorted(dts)}.")
@@ -669,8 +744,9 @@ class _Context:
         idx = self._live(blocks)
         m = idx.size
         p = m + nc  # operator weights, creep weights, then one offset per record
-        G, Gfit, g, yy = self._normal_equations([np.hstack([b[:, idx], self.lags[j]]) for j, b in enumerate(blocks)],
-                                                m, classical)
+        G, Gfit, g, yy = self._normal_equations(
+            [np.hstack([b[:, idx], self.lags[j]]) for j, b in enumerate(blocks)], m, classical
+        )
         sol = _gram_solve(G, g)
         wl, cl = sol[:m], sol[m:p]
         if classical:
@@ -711,12 +787,20 @@ class _Context:
         classical = self.kind == "pi"
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         # input_limits: the identified input range (the compensator's default drive limits)
-        common = dict(weights=w, input_offset=xc, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,),
-                      input_limits=identified)
+        common = dict(
+            weights=w,
+            input_offset=xc,
+            output_offset=float(offset),
+            inputs=(in_name,),
+            outputs=(out_name,),
+            input_limits=identified,
+        )
         if classical:
             model = PIModel(r=r, **common)
         else:
-            model = ModifiedPIModel(r=r, rc=rc, ra=ra, rb=rb, input_warp=self.warp(theta, False), warp_scale=self.R, **common)
+            model = ModifiedPIModel(
+                r=r, rc=rc, ra=ra, rb=rb, input_warp=self.warp(theta, False), warp_scale=self.R, **common
+            )
         u_rest = min(max(0.0, lo), hi)
         return model.with_state(model.consistent_state(u_rest, "zero"))
 
@@ -755,8 +839,9 @@ def _bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarra
     return res.x / d
 
 
-def align_record(model: PIModel | ModifiedPIModel, u: object, y: object, initial_state: str = "auto",
-                 fit_offset: bool = True) -> tuple[Any, np.ndarray]:
+def align_record(
+    model: PIModel | ModifiedPIModel, u: object, y: object, initial_state: str = "auto", fit_offset: bool = True
+) -> tuple[Any, np.ndarray]:
     """Fit a record's own output offset and starting state, then simulate the model on it.
 
     Records taken at other times have other sensor zeros and start from unknown hysteretic
@@ -792,7 +877,9 @@ def align_record(model: PIModel | ModifiedPIModel, u: object, y: object, initial
         raise DataError(f"input and output must have equal length; got {uu.size} and {yy.size}.")
     choices = STATE_KINDS if initial_state == "auto" else (initial_state,)
     if initial_state not in _STATE_CHOICES + ("model",):
-        raise ModelError(f"`initial_state` must be one of auto, zero, ascending, descending, model; got {initial_state!r}.")
+        raise ModelError(
+            f"`initial_state` must be one of auto, zero, ascending, descending, model; got {initial_state!r}."
+        )
     best = None
     for kind in choices:
         m = model if kind == "model" else model.with_state(model.consistent_state(uu[0], kind))

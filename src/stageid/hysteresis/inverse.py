@@ -101,14 +101,23 @@ def pi_inverse(model: PIModel) -> PIModel:
     """
     W = _check_classical(model)
     if getattr(model, "creep", None) is not None:
-        raise ModelError("the closed-form inverse is rate independent; got a model with a creep term (use invert or Compensator).")
+        raise ModelError(
+            "the closed-form inverse is rate independent; got a model with a creep term (use invert or Compensator)."
+        )
     r, w = model.r, model.weights
     r_inv = np.array([np.sum(w[: j + 1] * (r[j] - r[: j + 1])) for j in range(r.size)])
     w_inv = np.empty_like(w)
     w_inv[0] = 1.0 / W[0]
     w_inv[1:] = 1.0 / W[1:] - 1.0 / W[:-1]
-    return PIModel(r=r_inv, weights=w_inv, input_offset=model.output_offset, output_offset=model.input_offset,
-                   state=inverse_state(model), inputs=model.outputs, outputs=model.inputs)
+    return PIModel(
+        r=r_inv,
+        weights=w_inv,
+        input_offset=model.output_offset,
+        output_offset=model.input_offset,
+        state=inverse_state(model),
+        inputs=model.outputs,
+        outputs=model.inputs,
+    )
 
 
 def _packed(model: ModifiedPIModel | PIModel) -> np.ndarray:
@@ -121,7 +130,9 @@ def _tolerance(model) -> float:
     return 1e-12 * max(scale, 1e-300)
 
 
-def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, float] | None = None) -> tuple[np.ndarray, OperatorState]:
+def invert(
+    model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, float] | None = None
+) -> tuple[np.ndarray, OperatorState]:
     """Per-sample monotone inversion: inputs that make ``model`` output ``y``.
 
     Parameters
@@ -174,8 +185,14 @@ def invert(model: ModifiedPIModel | PIModel, y: object, limits: tuple[float, flo
     from .compensator import _check_limits
 
     lim = _check_limits(limits if limits is not None else model.input_limits)
-    lo, hi = (-np.inf, np.inf) if lim is None else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
-    x, zf, xf = _kernels.cp_invert(target, _packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, _tolerance(model))
+    lo, hi = (
+        (-np.inf, np.inf)
+        if lim is None
+        else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
+    )
+    x, zf, xf = _kernels.cp_invert(
+        target, _packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, _tolerance(model)
+    )
     u = model.from_operator_input(x)
     if lim is not None:  # the warp's inverse may round a clipped value a hair outside
         u = np.clip(u, float(lim[0]), float(lim[1]))

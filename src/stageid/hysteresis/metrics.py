@@ -26,7 +26,9 @@ def _pair(a: object, b: object, what: str) -> tuple[np.ndarray, np.ndarray]:
     x = np.asarray(a, dtype=float).reshape(-1) if np.ndim(a) <= 1 or np.shape(a)[-1] == 1 else None
     y = np.asarray(b, dtype=float).reshape(-1) if np.ndim(b) <= 1 or np.shape(b)[-1] == 1 else None
     if x is None or y is None or x.shape != y.shape:
-        raise DataError(f"{what} needs two single-channel records of equal length; got shapes {np.shape(a)} and {np.shape(b)}.")
+        raise DataError(
+            f"{what} needs two single-channel records of equal length; got shapes {np.shape(a)} and {np.shape(b)}."
+        )
     if x.size < 2:
         raise DataError(f"{what} needs at least 2 samples; got {x.size}.")
     return x, y

@@ -108,13 +108,15 @@ class OperatorState:
         z = np.array(self.z, dtype=float, copy=True).reshape(-1)
         x = float(self.x)
         if not np.isfinite(x) or not np.all(np.isfinite(z)):
-            raise ModelError(f"operator state must be finite; got x={x} and z with {int(np.sum(~np.isfinite(z)))} non-finite values.")
+            raise ModelError(
+                f"operator state must be finite; got x={x} and z with {int(np.sum(~np.isfinite(z)))} non-finite values."
+            )
         z.setflags(write=False)
         object.__setattr__(self, "x", x)
         object.__setattr__(self, "z", z)
 
     @classmethod
-    def zeros(cls, n_operators: int) -> "OperatorState":
+    def zeros(cls, n_operators: int) -> OperatorState:
         """The letter's initial state ``x0 = 0``, ``z0 = 0``."""
         return cls(0.0, np.zeros(n_operators))
 
@@ -158,10 +160,14 @@ def check_cp_thresholds(r: object, rc: object, ra: object, rb: object) -> tuple[
     tol = 1e-12 * (1.0 + np.abs(r_))
     if np.any(rc_ > r_ + tol):
         i = int(np.argmax(rc_ - r_))
-        raise ModelError(f"CP thresholds need rc <= r (else eq. 3 jumps); operator {i} has rc={rc_[i]:g} > r={r_[i]:g}.")
+        raise ModelError(
+            f"CP thresholds need rc <= r (else eq. 3 jumps); operator {i} has rc={rc_[i]:g} > r={r_[i]:g}."
+        )
     if np.any(rb_ > ra_ + 1e-12 * (1.0 + np.abs(ra_))):
         i = int(np.argmax(rb_ - ra_))
-        raise ModelError(f"CP thresholds need rb <= ra (else eq. 3 jumps); operator {i} has rb={rb_[i]:g} > ra={ra_[i]:g}.")
+        raise ModelError(
+            f"CP thresholds need rb <= ra (else eq. 3 jumps); operator {i} has rb={rb_[i]:g} > ra={ra_[i]:g}."
+        )
     return r_, np.minimum(rc_, r_), ra_, np.minimum(rb_, ra_)
 
 
@@ -181,7 +187,9 @@ def play_reference(x: np.ndarray, r: np.ndarray, z0: np.ndarray) -> tuple[np.nda
     return out, np.array(z)
 
 
-def coupled_play_reference(x: np.ndarray, r: np.ndarray, rc: np.ndarray, ra: np.ndarray, rb: np.ndarray, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def coupled_play_reference(
+    x: np.ndarray, r: np.ndarray, rc: np.ndarray, ra: np.ndarray, rb: np.ndarray, z0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Plain-Python CP bank, eq. 3 in the consistent reading of the module notes."""
     n, m = x.shape[0], r.shape[0]
     out = np.empty((n, m))

@@ -100,7 +100,10 @@ class _PIBase:
             raise ModelError(f"`state` must hold {r.size} operator outputs; got {st.z.size}.")
         set_(self, "state", st)
         for name in ("inputs", "outputs"):
-            names = tuple(str(s) for s in ((getattr(self, name),) if isinstance(getattr(self, name), str) else getattr(self, name)))
+            names = tuple(
+                str(s)
+                for s in ((getattr(self, name),) if isinstance(getattr(self, name), str) else getattr(self, name))
+            )
             if len(names) != 1:
                 raise ModelError(f"a hysteresis model has exactly one {name[:-1]} name; got {list(names)}.")
             set_(self, name, names)
@@ -165,7 +168,7 @@ class _PIBase:
             z = np.maximum(up, np.minimum(down, 0.0))
         return OperatorState(x, z)
 
-    def with_state(self, state: OperatorState | None) -> "_PIBase":
+    def with_state(self, state: OperatorState | None) -> _PIBase:
         """A copy of the model starting from ``state`` (``None``: the zero state)."""
         return replace(self, state=state)
 
@@ -240,21 +243,32 @@ class _PIBase:
         """A lower bound of dy/dx over all states: ``w_0 + sum min(w_i, 0)`` (see module notes)."""
         order = np.argsort(self.r, kind="stable")
         w = self.weights[order]
-        return float(w[0] + np.sum(np.minimum(w[1:], 0.0))) if self.r[order][0] == 0.0 else float(np.sum(np.minimum(w, 0.0)))
+        return (
+            float(w[0] + np.sum(np.minimum(w[1:], 0.0)))
+            if self.r[order][0] == 0.0
+            else float(np.sum(np.minimum(w, 0.0)))
+        )
 
     def min_input_slope(self) -> float:
         """A lower bound of dy/du (model input units): :meth:`min_slope` times the warp's least slope."""
         return self.min_slope() * self._warp_slope()
 
     def _base_dict(self) -> dict[str, Any]:
-        return {"format": HYSTERESIS_FORMAT, "kind": self.kind,
-                "inputs": list(self.inputs), "outputs": list(self.outputs),
-                "input_offset": self.input_offset, "output_offset": self.output_offset}
+        return {
+            "format": HYSTERESIS_FORMAT,
+            "kind": self.kind,
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+            "input_offset": self.input_offset,
+            "output_offset": self.output_offset,
+        }
 
     def _tail_dict(self) -> dict[str, Any]:
-        d = {"weights": self.weights.tolist(),
-             "state": {"x": self.state.x, "z": self.state.z.tolist()},
-             "input_limits": None if self.input_limits is None else list(self.input_limits)}
+        d = {
+            "weights": self.weights.tolist(),
+            "state": {"x": self.state.x, "z": self.state.z.tolist()},
+            "input_limits": None if self.input_limits is None else list(self.input_limits),
+        }
         creep = getattr(self, "creep", None)
         if creep is not None:  # optional field: models without creep write exactly the old format
             d["creep"] = creep.to_dict()
@@ -316,12 +330,22 @@ class PIModel(_PIBase):
         """Slopes ``sum_{i<=j} w_i`` of the initial loading curve on ``[r_j, r_{j+1}]``, shape (n_operators,)."""
         return np.cumsum(self.weights)
 
-    def to_modified(self) -> "ModifiedPIModel":
+    def to_modified(self) -> ModifiedPIModel:
         """The same model written as a modified PI model (``rc = ra = rb = r``)."""
-        return ModifiedPIModel(r=self.r, rc=self.r, ra=self.r, rb=self.r, weights=self.weights,
-                               input_offset=self.input_offset, output_offset=self.output_offset,
-                               state=self.state, inputs=self.inputs, outputs=self.outputs,
-                               input_limits=self.input_limits, creep=self.creep)
+        return ModifiedPIModel(
+            r=self.r,
+            rc=self.r,
+            ra=self.r,
+            rb=self.r,
+            weights=self.weights,
+            input_offset=self.input_offset,
+            output_offset=self.output_offset,
+            state=self.state,
+            inputs=self.inputs,
+            outputs=self.outputs,
+            input_limits=self.input_limits,
+            creep=self.creep,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.hysteresis/1`` dictionary (round-trips byte-stably through ``dumps``)."""
@@ -397,7 +421,9 @@ class ModifiedPIModel(_PIBase):
         R = self.warp_scale
         tp = x / R
         inner = 2.0 * tp / (1.0 + np.sqrt(np.maximum(1.0 + 4.0 * q * tp, 0.0)))
-        t = np.where(tp > 1.0 + q, (tp + q) / (1.0 + 2.0 * q), np.where(tp < -1.0 + q, (tp + q) / (1.0 - 2.0 * q), inner))
+        t = np.where(
+            tp > 1.0 + q, (tp + q) / (1.0 + 2.0 * q), np.where(tp < -1.0 + q, (tp + q) / (1.0 - 2.0 * q), inner)
+        )
         return t * R + self.input_offset
 
     def _warp_slope(self) -> float:

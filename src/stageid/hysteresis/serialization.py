@@ -35,8 +35,19 @@ _KEYS = {
     "pi": ("r", "weights"),
     "modified-pi": ("r", "rc", "ra", "rb", "weights"),
 }
-_OPTIONAL = ("inputs", "outputs", "input_offset", "output_offset", "state", "input_limits", "name", "description",
-             "input_warp", "warp_scale", "creep")
+_OPTIONAL = (
+    "inputs",
+    "outputs",
+    "input_offset",
+    "output_offset",
+    "state",
+    "input_limits",
+    "name",
+    "description",
+    "input_warp",
+    "warp_scale",
+    "creep",
+)
 
 
 def _numbers(d: dict, key: str) -> list[float]:
@@ -91,7 +102,7 @@ def model_from_dict(d: dict[str, Any]) -> Any:
 
         return PiezoActuator.from_dict(d)
     if kind not in _KEYS:
-        raise ModelFormatError(f"`kind` must be \"pi\" or \"modified-pi\"; got {kind!r}.")
+        raise ModelFormatError(f'`kind` must be "pi" or "modified-pi"; got {kind!r}.')
     for key in _KEYS[kind]:
         if key not in d:
             raise ModelFormatError(f"`{key}` is missing from the {kind} model.")
@@ -120,12 +131,22 @@ def model_from_dict(d: dict[str, Any]) -> Any:
         state = OperatorState(_number(s, "x", 0.0), z)
     limits = d.get("input_limits")
     if limits is not None:
-        if not isinstance(limits, list) or len(limits) != 2 or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in limits):
+        if (
+            not isinstance(limits, list)
+            or len(limits) != 2
+            or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in limits)
+        ):
             raise ModelFormatError(f"`input_limits` must be [low, high] or null; got {limits!r}.")
         limits = (float(limits[0]), float(limits[1]))
-    common = dict(weights=arrays["weights"], input_offset=_number(d, "input_offset", 0.0),
-                  output_offset=_number(d, "output_offset", 0.0), state=state,
-                  inputs=names["inputs"], outputs=names["outputs"], input_limits=limits)
+    common = dict(
+        weights=arrays["weights"],
+        input_offset=_number(d, "input_offset", 0.0),
+        output_offset=_number(d, "output_offset", 0.0),
+        state=state,
+        inputs=names["inputs"],
+        outputs=names["outputs"],
+        input_limits=limits,
+    )
     if d.get("creep") is not None:  # optional: files written before the creep option have none
         from .creep import CreepTerm
 
@@ -133,8 +154,15 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     try:
         if kind == "pi":
             return PIModel(r=arrays["r"], **common)
-        return ModifiedPIModel(r=arrays["r"], rc=arrays["rc"], ra=arrays["ra"], rb=arrays["rb"],
-                               input_warp=_number(d, "input_warp", 0.0), warp_scale=_number(d, "warp_scale", 1.0), **common)
+        return ModifiedPIModel(
+            r=arrays["r"],
+            rc=arrays["rc"],
+            ra=arrays["ra"],
+            rb=arrays["rb"],
+            input_warp=_number(d, "input_warp", 0.0),
+            warp_scale=_number(d, "warp_scale", 1.0),
+            **common,
+        )
     except ModelFormatError:
         raise
     except ModelError as exc:

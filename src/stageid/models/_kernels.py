@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def _simulate_python(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, u: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _simulate_python(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, u: np.ndarray, x0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Reference recursion x(k+1) = A x(k) + B u(k), y(k) = C x(k) + D u(k)."""
     n_samples = u.shape[0]
     y = np.empty((n_samples, C.shape[0]))
@@ -19,7 +21,9 @@ def _simulate_python(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
 _compiled = None
 
 
-def simulate_discrete(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, u: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def simulate_discrete(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, u: np.ndarray, x0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Run the exact discrete recursion; returns (y of shape (n_samples, p), final state)."""
     global _compiled
     if u.shape[0] < 2000 or A.shape[0] == 0:
@@ -28,7 +32,14 @@ def simulate_discrete(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray
         import numba
 
         _compiled = numba.njit(cache=True, nogil=True)(_simulate_loop)
-    y, x = _compiled(np.ascontiguousarray(A), np.ascontiguousarray(B), np.ascontiguousarray(C), np.ascontiguousarray(D), np.ascontiguousarray(u), x0.copy())
+    y, x = _compiled(
+        np.ascontiguousarray(A),
+        np.ascontiguousarray(B),
+        np.ascontiguousarray(C),
+        np.ascontiguousarray(D),
+        np.ascontiguousarray(u),
+        x0.copy(),
+    )
     return y, x
 
 

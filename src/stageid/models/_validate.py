@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from .._errors import ModelError, ModelFormatError
+from .._errors import ModelError
 
 
-def as_matrix(name: str, value: object, shape: tuple[int | None, int | None], error: type[ModelError] = ModelError) -> np.ndarray:
+def as_matrix(
+    name: str, value: object, shape: tuple[int | None, int | None], error: type[ModelError] = ModelError
+) -> np.ndarray:
     """Return ``value`` as a read-only float matrix of ``shape`` (None = any size).
 
     Raises ``error`` with a message such as "`B` must have shape (15, 3); got (5, 3)."
@@ -48,7 +50,9 @@ def _describe(value: object) -> str:
     return type(value).__name__
 
 
-def as_names(field: str, names: Sequence[str] | None, count: int, prefix: str, error: type[ModelError] = ModelError) -> tuple[str, ...]:
+def as_names(
+    field: str, names: Sequence[str] | None, count: int, prefix: str, error: type[ModelError] = ModelError
+) -> tuple[str, ...]:
     """Validate channel names (default ``prefix1, prefix2, ...``)."""
     if names is None or (not isinstance(names, str) and len(names) == 0):
         return tuple(f"{prefix}{i + 1}" for i in range(count))

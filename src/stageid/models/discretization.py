@@ -74,7 +74,9 @@ def c2d(model: M, dt: float, method: str = "zoh") -> M:
             Ad = np.linalg.solve(Minv, I + A * dt / 2.0)
             MB = np.linalg.solve(Minv, B)
         except np.linalg.LinAlgError:
-            raise ModelError(f"Tustin discretisation is undefined: A has an eigenvalue at 2/dt = {2 / dt:g} rad/s.") from None
+            raise ModelError(
+                f"Tustin discretisation is undefined: A has an eigenvalue at 2/dt = {2 / dt:g} rad/s."
+            ) from None
         Bd = MB * dt
         Cd = np.linalg.solve(Minv.T, C.T).T
         Dd = D + C @ MB * dt / 2.0

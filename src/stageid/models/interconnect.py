@@ -22,7 +22,9 @@ def series(first: StateSpaceModel, second: StateSpaceModel) -> StateSpaceModel:
     """
     _same_time_base(first, second)
     if first.n_outputs != second.n_inputs:
-        raise ModelError(f"series needs first.n_outputs == second.n_inputs; got {first.n_outputs} and {second.n_inputs}.")
+        raise ModelError(
+            f"series needs first.n_outputs == second.n_inputs; got {first.n_outputs} and {second.n_inputs}."
+        )
     n1, n2 = first.n_states, second.n_states
     A = np.block([[first.A, np.zeros((n1, n2))], [second.B @ first.C, second.A]])
     B = np.vstack([first.B, second.B @ first.D])
@@ -65,7 +67,7 @@ def feedback(plant: StateSpaceModel, controller: StateSpaceModel, noise_inputs: 
     if np.linalg.cond(M) > 1e12:
         raise ModelError("the feedback loop is ill-posed: I + D_K D_G is singular (algebraic loop).")
     F = np.linalg.inv(M)
-    Ux = F @ np.hstack([-K.D @ G.C, K.C])        # u = Ux x + Ur e_in, with e_in = r (- n)
+    Ux = F @ np.hstack([-K.D @ G.C, K.C])  # u = Ux x + Ur e_in, with e_in = r (- n)
     Ur = F @ K.D
     Bu = np.vstack([G.B, -K.B @ G.D])
     A = np.block([[G.A, np.zeros((ng, nk))], [-K.B @ G.C, K.A]]) + Bu @ Ux

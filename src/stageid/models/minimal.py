@@ -56,7 +56,9 @@ def minimal_realization(model: StateSpaceModel, tol: float | None = None) -> Sta
     if model.n_states == 0:
         return model
     if tol is None:
-        scale = max(1.0, np.linalg.norm(A, 2), np.linalg.norm(B, 2) if B.size else 0.0, np.linalg.norm(C, 2) if C.size else 0.0)
+        scale = max(
+            1.0, np.linalg.norm(A, 2), np.linalg.norm(B, 2) if B.size else 0.0, np.linalg.norm(C, 2) if C.size else 0.0
+        )
         tol = 1e-9 * scale
     Qc = controllable_basis(A, B, tol)
     Ac, Bc, Cc = Qc.T @ A @ Qc, Qc.T @ B, C @ Qc

@@ -24,14 +24,24 @@ import importlib
 import json
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from .._errors import ModelFormatError
 
-__all__ = ["LTI_FORMAT", "dumps", "loads", "lti_to_dict", "lti_from_dict", "load_model", "save_model", "register_format"]
+__all__ = [
+    "LTI_FORMAT",
+    "dumps",
+    "loads",
+    "lti_to_dict",
+    "lti_from_dict",
+    "load_model",
+    "save_model",
+    "register_format",
+]
 
 LTI_FORMAT = "stageid.lti/1"
 
@@ -126,14 +136,27 @@ def lti_to_dict(model: Any) -> dict[str, Any]:
     from .transfer import TransferMatrix
 
     if isinstance(model, StateSpaceModel):
-        return {"format": LTI_FORMAT, "kind": "statespace", "dt": model.dt,
-                "A": model.A.tolist(), "B": model.B.tolist(), "C": model.C.tolist(), "D": model.D.tolist(),
-                "inputs": list(model.inputs), "outputs": list(model.outputs)}
+        return {
+            "format": LTI_FORMAT,
+            "kind": "statespace",
+            "dt": model.dt,
+            "A": model.A.tolist(),
+            "B": model.B.tolist(),
+            "C": model.C.tolist(),
+            "D": model.D.tolist(),
+            "inputs": list(model.inputs),
+            "outputs": list(model.outputs),
+        }
     if isinstance(model, TransferMatrix):
-        return {"format": LTI_FORMAT, "kind": "transfer", "dt": model.dt,
-                "num": [[e.tolist() for e in row] for row in model.num],
-                "den": [[e.tolist() for e in row] for row in model.den],
-                "inputs": list(model.inputs), "outputs": list(model.outputs)}
+        return {
+            "format": LTI_FORMAT,
+            "kind": "transfer",
+            "dt": model.dt,
+            "num": [[e.tolist() for e in row] for row in model.num],
+            "den": [[e.tolist() for e in row] for row in model.den],
+            "inputs": list(model.inputs),
+            "outputs": list(model.outputs),
+        }
     raise ModelFormatError(f"expected a StateSpaceModel or TransferMatrix; got {type(model).__name__}.")
 
 
@@ -149,7 +172,7 @@ def lti_from_dict(d: dict[str, Any]) -> Any:
         raise ModelFormatError(f"`format` must be {LTI_FORMAT!r}; got {d.get('format')!r}.")
     kind = d.get("kind")
     if kind not in _REQUIRED:
-        raise ModelFormatError(f"`kind` must be \"statespace\" or \"transfer\"; got {kind!r}.")
+        raise ModelFormatError(f'`kind` must be "statespace" or "transfer"; got {kind!r}.')
     for key in _REQUIRED[kind]:
         if key not in d:
             raise ModelFormatError(f"`{key}` is missing from the {kind} model.")

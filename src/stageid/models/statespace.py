@@ -1,13 +1,14 @@
 """Immutable MIMO state-space models, discrete or continuous.
 
-    x(k+1) = A x(k) + B u(k),   y(k) = C x(k) + D u(k)        (discrete, ``dt`` > 0)
-    dx/dt  = A x(t) + B u(t),   y(t) = C x(t) + D u(t)        (continuous, ``dt`` is None)
+x(k+1) = A x(k) + B u(k),   y(k) = C x(k) + D u(k)        (discrete, ``dt`` > 0)
+dx/dt  = A x(t) + B u(t),   y(t) = C x(t) + D u(t)        (continuous, ``dt`` is None)
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -93,15 +94,22 @@ class StateSpaceModel:
     def is_discrete(self) -> bool:
         return self.dt is not None
 
-    def with_names(self, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> "StateSpaceModel":
+    def with_names(
+        self, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None
+    ) -> StateSpaceModel:
         """Return the same model with new channel names."""
-        return replace(self, inputs=tuple(inputs) if inputs is not None else self.inputs,
-                       outputs=tuple(outputs) if outputs is not None else self.outputs)
+        return replace(
+            self,
+            inputs=tuple(inputs) if inputs is not None else self.inputs,
+            outputs=tuple(outputs) if outputs is not None else self.outputs,
+        )
 
     def __repr__(self) -> str:
         kind = "continuous" if self.dt is None else f"dt={self.dt:g}"
-        return (f"StateSpaceModel(n_states={self.n_states}, inputs={list(self.inputs)}, "
-                f"outputs={list(self.outputs)}, {kind})")
+        return (
+            f"StateSpaceModel(n_states={self.n_states}, inputs={list(self.inputs)}, "
+            f"outputs={list(self.outputs)}, {kind})"
+        )
 
     # -------------------------------------------------------------- analysis
     def poles(self) -> np.ndarray:
@@ -239,25 +247,25 @@ class StateSpaceModel:
         return y
 
     # ------------------------------------------------------------ conversion
-    def c2d(self, dt: float, method: str = "zoh") -> "StateSpaceModel":
+    def c2d(self, dt: float, method: str = "zoh") -> StateSpaceModel:
         """Discretise (``method`` = "zoh" or "tustin"); see :func:`stageid.models.c2d`."""
         from .discretization import c2d
 
         return c2d(self, dt, method)
 
-    def d2c(self, method: str = "zoh") -> "StateSpaceModel":
+    def d2c(self, method: str = "zoh") -> StateSpaceModel:
         """Continuous equivalent; see :func:`stageid.models.d2c`."""
         from .discretization import d2c
 
         return d2c(self, method)
 
-    def minimal(self, tol: float | None = None) -> "StateSpaceModel":
+    def minimal(self, tol: float | None = None) -> StateSpaceModel:
         """Remove uncontrollable and unobservable states; see :func:`stageid.models.minimal_realization`."""
         from .minimal import minimal_realization
 
         return minimal_realization(self, tol)
 
-    def to_transfer(self) -> "Any":
+    def to_transfer(self) -> Any:
         """Return the equivalent :class:`~stageid.models.TransferMatrix` (minimal per entry)."""
         from .transfer import TransferMatrix
 
@@ -267,19 +275,33 @@ class StateSpaceModel:
         """Return a ``control.StateSpace`` with the same matrices, sample time and labels."""
         import control
 
-        return control.ss(self.A, self.B, self.C, self.D, 0 if self.dt is None else self.dt,
-                          inputs=list(self.inputs), outputs=list(self.outputs))
+        return control.ss(
+            self.A,
+            self.B,
+            self.C,
+            self.D,
+            0 if self.dt is None else self.dt,
+            inputs=list(self.inputs),
+            outputs=list(self.outputs),
+        )
 
     @classmethod
-    def from_control(cls, sys: Any) -> "StateSpaceModel":
+    def from_control(cls, sys: Any) -> StateSpaceModel:
         """Build from a python-control ``StateSpace`` (or anything ``control.ss`` accepts)."""
         import control
 
         if not isinstance(sys, control.StateSpace):
             sys = control.ss(sys)
         dt = _dt_from_control(sys.dt)
-        return cls(np.asarray(sys.A), np.asarray(sys.B), np.asarray(sys.C), np.asarray(sys.D), dt,
-                   tuple(sys.input_labels), tuple(sys.output_labels))
+        return cls(
+            np.asarray(sys.A),
+            np.asarray(sys.B),
+            np.asarray(sys.C),
+            np.asarray(sys.D),
+            dt,
+            tuple(sys.input_labels),
+            tuple(sys.output_labels),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.lti/1`` dictionary."""

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ def _as_poly(field: str, i: int, j: int, value: object, error: type[ModelError])
 
 def _strip(poly: np.ndarray) -> np.ndarray:
     nz = np.flatnonzero(poly)
-    return poly[nz[0]:] if nz.size else poly[-1:]
+    return poly[nz[0] :] if nz.size else poly[-1:]
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,8 +79,10 @@ class TransferMatrix:
         if isinstance(den, np.ndarray) and den.ndim == 1:
             den = [[den]]
         for field, val in (("num", num), ("den", den)):
-            if not isinstance(val, (list, tuple, np.ndarray)) or len(val) == 0 or any(
-                not isinstance(row, (list, tuple, np.ndarray)) or len(row) == 0 for row in val
+            if (
+                not isinstance(val, (list, tuple, np.ndarray))
+                or len(val) == 0
+                or any(not isinstance(row, (list, tuple, np.ndarray)) or len(row) == 0 for row in val)
             ):
                 raise error(f"`{field}` must be nested as [output][input][coefficient]; got {type(val).__name__}.")
         p = len(num)
@@ -124,7 +127,7 @@ class TransferMatrix:
         kind = "continuous" if self.dt is None else f"dt={self.dt:g}"
         return f"TransferMatrix(inputs={list(self.inputs)}, outputs={list(self.outputs)}, {kind})"
 
-    def entry(self, output: int | str, input: int | str) -> "TransferMatrix":
+    def entry(self, output: int | str, input: int | str) -> TransferMatrix:
         """The SISO transfer function from ``input`` to ``output`` (index or name)."""
         i = self.outputs.index(output) if isinstance(output, str) else int(output)
         j = self.inputs.index(input) if isinstance(input, str) else int(input)
@@ -218,16 +221,16 @@ class TransferMatrix:
         k = 0
         for i, j, (a, b, c, d) in blocks:
             r = a.shape[0]
-            A[k:k + r, k:k + r] = a
-            B[k:k + r, j] = b[:, 0]
-            C[i, k:k + r] = c[0]
+            A[k : k + r, k : k + r] = a
+            B[k : k + r, j] = b[:, 0]
+            C[i, k : k + r] = c[0]
             D[i, j] = d[0, 0]
             k += r
         model = StateSpaceModel(A, B, C, D, self.dt, self.inputs, self.outputs)
         return model.minimal() if minimal else model
 
     @classmethod
-    def from_statespace(cls, model: StateSpaceModel) -> "TransferMatrix":
+    def from_statespace(cls, model: StateSpaceModel) -> TransferMatrix:
         """Entry-wise transfer functions of a state-space model, each from a minimal SISO realisation."""
         num, den = [], []
         for i in range(model.n_outputs):
@@ -245,7 +248,7 @@ class TransferMatrix:
             den.append(drow)
         return cls(num, den, model.dt, model.inputs, model.outputs)
 
-    def map_entries(self, fn: Callable[[StateSpaceModel], StateSpaceModel]) -> "TransferMatrix":
+    def map_entries(self, fn: Callable[[StateSpaceModel], StateSpaceModel]) -> TransferMatrix:
         """Apply a state-space operation (e.g. c2d) to every SISO entry and rebuild the matrix."""
         num, den, dt = [], [], None
         for i in range(self.n_outputs):
@@ -261,12 +264,12 @@ class TransferMatrix:
             den.append(drow)
         return replace(self, num=num, den=den, dt=dt)
 
-    def c2d(self, dt: float, method: str = "zoh") -> "TransferMatrix":
+    def c2d(self, dt: float, method: str = "zoh") -> TransferMatrix:
         from .discretization import c2d
 
         return c2d(self, dt, method)
 
-    def d2c(self, method: str = "zoh") -> "TransferMatrix":
+    def d2c(self, method: str = "zoh") -> TransferMatrix:
         from .discretization import d2c
 
         return d2c(self, method)
@@ -275,11 +278,16 @@ class TransferMatrix:
         """Return a ``control.TransferFunction`` with the same coefficients and labels."""
         import control
 
-        return control.tf([[list(e) for e in row] for row in self.num], [[list(e) for e in row] for row in self.den],
-                          0 if self.dt is None else self.dt, inputs=list(self.inputs), outputs=list(self.outputs))
+        return control.tf(
+            [[list(e) for e in row] for row in self.num],
+            [[list(e) for e in row] for row in self.den],
+            0 if self.dt is None else self.dt,
+            inputs=list(self.inputs),
+            outputs=list(self.outputs),
+        )
 
     @classmethod
-    def from_control(cls, sys: Any) -> "TransferMatrix":
+    def from_control(cls, sys: Any) -> TransferMatrix:
         """Build from a python-control ``TransferFunction`` (or a StateSpace, converted entry-wise)."""
         import control
 

@@ -33,7 +33,6 @@ at wc/10, pole at wc/100); the gain makes ``|G_ii M_i| = 1`` at 110 Hz; Tustin a
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -42,14 +41,25 @@ from .._errors import SignalError
 from ..models import StateSpaceModel, TransferMatrix
 from . import _check_seed
 
-__all__ = ["model", "controller", "controller_continuous", "lead_lag", "simulate_chirp", "EXPERIMENTS", "DT",
-           "CROSSOVER_HZ", "UNSTABLE_POLES", "INPUTS", "OUTPUTS"]
+__all__ = [
+    "model",
+    "controller",
+    "controller_continuous",
+    "lead_lag",
+    "simulate_chirp",
+    "EXPERIMENTS",
+    "DT",
+    "CROSSOVER_HZ",
+    "UNSTABLE_POLES",
+    "INPUTS",
+    "OUTPUTS",
+]
 
 DT = 1.0 / 5000.0
 CROSSOVER_HZ = 110.0
 INPUTS = ("Fx", "Fy", "Tphi")
 OUTPUTS = ("x", "y", "phi")
-UNSTABLE_POLES = (54.62, 82.21, 86.73)       # rad/s, eq. 22a, 23a, 24a
+UNSTABLE_POLES = (54.62, 82.21, 86.73)  # rad/s, eq. 22a, 23a, 24a
 
 
 def _p(*factors: Any) -> np.ndarray:
@@ -87,7 +97,9 @@ def model(published: bool = False) -> TransferMatrix:
     return TransferMatrix(num, den, None, INPUTS, OUTPUTS)
 
 
-def lead_lag(k_plant: float, unstable_pole: float, stable_pole: float, crossover_hz: float = CROSSOVER_HZ) -> tuple[np.ndarray, np.ndarray]:
+def lead_lag(
+    k_plant: float, unstable_pole: float, stable_pole: float, crossover_hz: float = CROSSOVER_HZ
+) -> tuple[np.ndarray, np.ndarray]:
     """[2, 2] lead-lag for ``k / ((s - a)(s + b))``: ``(num, den)`` in descending powers of ``s``.
 
     Lead zero ``wc/3``, lead pole ``3 wc``, lag zero ``wc/10``, lag pole ``wc/100``; gain
@@ -128,8 +140,16 @@ def controller(dt: float = DT) -> StateSpaceModel:
     return controller_continuous().to_statespace(minimal=False).c2d(dt, "tustin")
 
 
-def simulate_chirp(axis: str, seed: int = 0, snr_db: float | None = 80.0, amplitude: float = 1e-6, f1: float = 2500.0,
-                   duration: float = 2.0, published: bool = False, noise_reference: str = "channel"):
+def simulate_chirp(
+    axis: str,
+    seed: int = 0,
+    snr_db: float | None = 80.0,
+    amplitude: float = 1e-6,
+    f1: float = 2500.0,
+    duration: float = 2.0,
+    published: bool = False,
+    noise_reference: str = "channel",
+):
     """The paper's identification run (sec. 3.1): a chirp on one reference, DC to ``f1``.
 
     Returns

@@ -36,8 +36,8 @@ of range (the letter: 5.31 %); see ``tests/test_plants_piezo_actuator.py`` and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -115,11 +115,26 @@ class PiezoActuator:
         w = np.exp(-self.density * t)
         w = self.hysteresis_weight * w / w.sum()
         ra = a * r
-        bank = ModifiedPIModel(r=np.r_[0.0, r], rc=np.r_[0.0, c * r], ra=np.r_[0.0, ra], rb=np.r_[0.0, b * ra],
-                               weights=np.r_[self.lin, w])
+        bank = ModifiedPIModel(
+            r=np.r_[0.0, r], rc=np.r_[0.0, c * r], ra=np.r_[0.0, ra], rb=np.r_[0.0, b * ra], weights=np.r_[self.lin, w]
+        )
         object.__setattr__(self, "_bank", bank)
 
-    _PARAMS = ("n_fine", "density", "hysteresis_weight", "lin", "c", "a", "b", "gain", "quad", "cubic", "noise", "f_n", "zeta")
+    _PARAMS = (
+        "n_fine",
+        "density",
+        "hysteresis_weight",
+        "lin",
+        "c",
+        "a",
+        "b",
+        "gain",
+        "quad",
+        "cubic",
+        "noise",
+        "f_n",
+        "zeta",
+    )
 
     def to_dict(self) -> dict:
         """The ``stageid.hysteresis/1`` dictionary (kind ``"piezo-actuator"``: the parameters)."""
@@ -127,17 +142,24 @@ class PiezoActuator:
         for name in self._PARAMS:
             v = getattr(self, name)
             params[name] = list(v) if isinstance(v, tuple) else v
-        return {"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs": list(self.inputs),
-                "outputs": list(self.outputs), "parameters": params}
+        return {
+            "format": "stageid.hysteresis/1",
+            "kind": "piezo-actuator",
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+            "parameters": params,
+        }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PiezoActuator":
+    def from_dict(cls, d: dict) -> PiezoActuator:
         """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field."""
         from .._errors import ModelFormatError
 
         params = d.get("parameters")
         if not isinstance(params, dict) or set(params) - set(cls._PARAMS):
-            raise ModelFormatError(f"`parameters` of a piezo-actuator model must be an object with keys among {', '.join(cls._PARAMS)}.")
+            raise ModelFormatError(
+                f"`parameters` of a piezo-actuator model must be an object with keys among {', '.join(cls._PARAMS)}."
+            )
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
         try:
             return cls(**kw, inputs=tuple(d.get("inputs", ["V"])), outputs=tuple(d.get("outputs", ["y"])))
@@ -200,8 +222,16 @@ def _experiment(u: np.ndarray, dt: float, name: str, seed: int, actuator: PiezoA
     y = act.simulate(u, dt)[:, 0]
     if act.noise > 0:
         y = y + np.random.default_rng(seed).normal(0.0, act.noise, size=y.size)
-    return Experiment(u=u[:, None], y=y[:, None], dt=dt, input_names=act.inputs, output_names=act.outputs,
-                      input_units=("V",), output_units=("um",), name=name)
+    return Experiment(
+        u=u[:, None],
+        y=y[:, None],
+        dt=dt,
+        input_names=act.inputs,
+        output_names=act.outputs,
+        input_units=("V",),
+        output_units=("um",),
+        name=name,
+    )
 
 
 def _decaying_triangle(seed: int = 0) -> Experiment:

@@ -38,7 +38,7 @@ std 1 nm on ``z`` and 0.1 urad on ``rx``/``ry``, twice the resolution of Table 1
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -56,35 +56,43 @@ OUTPUT_UNITS = ("um", "urad", "urad")
 NOISE_STD = np.array([0.001, 0.1, 0.1])
 
 # eq. 23
-_A1 = [[0.9239, -0.1747, 0.0057, -0.0297, -0.0026, -0.0045, -0.0004],
-       [0.1757, 0.6973, 0.0604, -0.2463, -0.0262, -0.0333, -0.0031],
-       [0.0219, -0.1592, 0.8761, -0.0622, -0.0504, -0.0266, 0.011],
-       [-0.0291, 0.2297, 0.4, 0.4512, -0.1, 0.1691, 0.0169],
-       [-0.0101, 0.0321, 0.095, -0.1506, 0.9447, 0.1266, 0.0155],
-       [-0.0068, 0.0231, 0.0439, -0.3232, -0.1645, 0.6283, -0.0277],
-       [-0.0044, 0.0093, 0.116, -0.085, 0.00008, -0.1766, 0.8136]]
+_A1 = [
+    [0.9239, -0.1747, 0.0057, -0.0297, -0.0026, -0.0045, -0.0004],
+    [0.1757, 0.6973, 0.0604, -0.2463, -0.0262, -0.0333, -0.0031],
+    [0.0219, -0.1592, 0.8761, -0.0622, -0.0504, -0.0266, 0.011],
+    [-0.0291, 0.2297, 0.4, 0.4512, -0.1, 0.1691, 0.0169],
+    [-0.0101, 0.0321, 0.095, -0.1506, 0.9447, 0.1266, 0.0155],
+    [-0.0068, 0.0231, 0.0439, -0.3232, -0.1645, 0.6283, -0.0277],
+    [-0.0044, 0.0093, 0.116, -0.085, 0.00008, -0.1766, 0.8136],
+]
 _B1 = [[0.3094], [-0.2819], [-0.0608], [0.0912], [0.0185], [0.0199], [0.0061]]
-_C1 = [[0.3052, 0.2798, -0.0221, 0.0891, 0.0073, 0.0153, 0.0018],
-       [0.0134, 0.0259, 0.0453, 0.0533, 0.0381, -0.0397, -0.0108],
-       [0.0033, -0.0215, 0.0189, -0.0416, -0.0061, 0.0375, -0.0039]]
+_C1 = [
+    [0.3052, 0.2798, -0.0221, 0.0891, 0.0073, 0.0153, 0.0018],
+    [0.0134, 0.0259, 0.0453, 0.0533, 0.0381, -0.0397, -0.0108],
+    [0.0033, -0.0215, 0.0189, -0.0416, -0.0061, 0.0375, -0.0039],
+]
 # eq. 24
-_A2 = [[0.9493, 0.1175, 0.0173, 0.0233],
-       [-0.1161, 0.7929, -0.1205, -0.1509],
-       [-0.0001, 0.072, 0.9273, -0.2011],
-       [0.0238, 0.1573, 0.0285, 0.7314]]
+_A2 = [
+    [0.9493, 0.1175, 0.0173, 0.0233],
+    [-0.1161, 0.7929, -0.1205, -0.1509],
+    [-0.0001, 0.072, 0.9273, -0.2011],
+    [0.0238, 0.1573, 0.0285, 0.7314],
+]
 _B2 = [[0.2595], [0.2232], [-0.0325], [-0.0693]]
-_C2 = [[-0.00002, -0.00001, -0.00002, -0.00024],
-       [0.2402, -0.2215, -0.0502, -0.0687],
-       [-0.0002, -0.00053, -0.00049, -0.0011]]
+_C2 = [
+    [-0.00002, -0.00001, -0.00002, -0.00024],
+    [0.2402, -0.2215, -0.0502, -0.0687],
+    [-0.0002, -0.00053, -0.00049, -0.0011],
+]
 # eq. 25
-_A3 = [[0.9485, 0.1204, -0.0134, 0.0261],
-       [-0.1184, 0.7981, 0.0779, -0.1711],
-       [0.003, -0.0094, 0.9656, 0.1719],
-       [0.0225, 0.1825, -0.0783, 0.711]]
+_A3 = [
+    [0.9485, 0.1204, -0.0134, 0.0261],
+    [-0.1184, 0.7981, 0.0779, -0.1711],
+    [0.003, -0.0094, 0.9656, 0.1719],
+    [0.0225, 0.1825, -0.0783, 0.711],
+]
 _B3 = [[-0.2574], [-0.2229], [-0.015], [0.0775]]
-_C3 = [[-0.00002, -0.00001, -0.0001, -0.00022],
-       [0.0043, -0.0018, -0.0031, -0.0028],
-       [-0.239, 0.2205, -0.0376, 0.0762]]
+_C3 = [[-0.00002, -0.00001, -0.0001, -0.00022], [0.0043, -0.0018, -0.0031, -0.0028], [-0.239, 0.2205, -0.0376, 0.0762]]
 
 
 def channel_models() -> tuple[StateSpaceModel, StateSpaceModel, StateSpaceModel]:
@@ -134,7 +142,7 @@ def _t(duration: float) -> np.ndarray:
 def _chirp_input(channel: int, amplitude: float, offset: float, duration: float = 10.0) -> np.ndarray:
     t = _t(duration)
     f0, f1 = 1.0, 100.0
-    phase = 2 * np.pi * (f0 * t + 0.5 * (f1 - f0) / duration * t ** 2)
+    phase = 2 * np.pi * (f0 * t + 0.5 * (f1 - f0) / duration * t**2)
     u = np.zeros((t.size, 3))
     u[:, channel] = offset + amplitude * np.sin(phase)
     return u
@@ -166,6 +174,7 @@ def _chirp(channel: int, amplitude: float, offset: float) -> Callable[..., Exper
     def make(seed: int = 0) -> Experiment:
         seed = _check_seed(seed, f"chirp-{OUTPUTS[channel]}")
         return _record(_chirp_input(channel, amplitude, offset), f"chirp-{OUTPUTS[channel]}", seed)
+
     make.__doc__ = f"Chirp 1-100 Hz on {INPUTS[channel]} (amplitude {amplitude}, offset {offset}), 10 s."
     return make
 
@@ -174,6 +183,7 @@ def _random(channel: int, peak: float) -> Callable[..., Experiment]:
     def make(seed: int = 0) -> Experiment:
         seed = _check_seed(seed, f"random-{OUTPUTS[channel]}")
         return _record(_random_input([channel], peak, seed, 10.0), f"random-{OUTPUTS[channel]}", seed)
+
     make.__doc__ = f"Band-limited random 1-100 Hz on {INPUTS[channel]}, peak {peak}, 10 s."
     return make
 
@@ -184,6 +194,7 @@ def _sine(channel: int, freq: float) -> Callable[..., Experiment]:
     def make(seed: int = 0) -> Experiment:
         seed = _check_seed(seed, f"sine-{freq:g}hz-{OUTPUTS[channel]}")
         return _record(_sine_input(channel, freq, amp, off), f"sine-{freq:g}hz-{OUTPUTS[channel]}", seed)
+
     make.__doc__ = f"{freq:g} Hz sinusoid on {INPUTS[channel]} (amplitude {amp}, offset {off}), 4 s."
     return make
 

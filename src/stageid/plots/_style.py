@@ -47,15 +47,25 @@ def loglog(ax: Any, x: Any, y: Any, *args: Any, **kwargs: Any) -> Any:
     import numpy as np
 
     xs, ys = positive(x), positive(y)
-    line, = ax.loglog(xs, ys, *args, **kwargs)
+    (line,) = ax.loglog(xs, ys, *args, **kwargs)
     if not np.any(np.isfinite(xs) & np.isfinite(ys)) and not getattr(ax, "_stageid_zero_note", False):
-        ax.text(0.5, 0.5, "zero response\n(nothing to draw on a log axis)", transform=ax.transAxes,
-                ha="center", va="center", fontsize=8, color="0.35")
+        ax.text(
+            0.5,
+            0.5,
+            "zero response\n(nothing to draw on a log axis)",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=8,
+            color="0.35",
+        )
         ax._stageid_zero_note = True
     return line
 
 
-def subplots(nrows: int = 1, ncols: int = 1, figsize: tuple[float, float] = (6.4, 4.8), **kwargs: Any) -> tuple[Any, Any]:
+def subplots(
+    nrows: int = 1, ncols: int = 1, figsize: tuple[float, float] = (6.4, 4.8), **kwargs: Any
+) -> tuple[Any, Any]:
     """``(figure, axes)`` like ``pyplot.subplots``, with the constrained layout, without pyplot."""
     import matplotlib
 

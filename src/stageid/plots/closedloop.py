@@ -6,7 +6,8 @@ works headless; save it with ``fig.savefig(path)``.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -55,8 +56,13 @@ def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant:
     return fig
 
 
-def plot_closed_loop_bode(freqs_hz: np.ndarray, identified: np.ndarray, empirical: tuple[np.ndarray, np.ndarray] | None = None,
-                          true: np.ndarray | None = None, title: str = "") -> Any:
+def plot_closed_loop_bode(
+    freqs_hz: np.ndarray,
+    identified: np.ndarray,
+    empirical: tuple[np.ndarray, np.ndarray] | None = None,
+    true: np.ndarray | None = None,
+    title: str = "",
+) -> Any:
     """One closed-loop entry: identified ``T`` vs the FFT ratio of the data and the truth (Fig. 4b)."""
     fig, axes = _figure(1, 1, (5.0, 3.4))
     ax = axes[0, 0]

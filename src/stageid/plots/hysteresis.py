@@ -6,7 +6,8 @@ no global state); save it with ``fig.savefig(path)``.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -23,8 +24,9 @@ def _flat(a: Any) -> np.ndarray:
     return np.asarray(a, dtype=float).reshape(-1)
 
 
-def loop_figure(u: Any, curves: Mapping[str, Any], xlabel: str = "input [V]", ylabel: str = "output [um]",
-                title: str = "") -> Any:
+def loop_figure(
+    u: Any, curves: Mapping[str, Any], xlabel: str = "input [V]", ylabel: str = "output [um]", title: str = ""
+) -> Any:
     """Input-output loops of several outputs against one input (Figs. 5-7).
 
     Parameters
@@ -59,7 +61,9 @@ def loop_figure(u: Any, curves: Mapping[str, Any], xlabel: str = "input [V]", yl
     return fig
 
 
-def model_errors_figure(time: Any, errors: Mapping[str, Any], ylabel: str = "modelling error [um]", title: str = "") -> Any:
+def model_errors_figure(
+    time: Any, errors: Mapping[str, Any], ylabel: str = "modelling error [um]", title: str = ""
+) -> Any:
     """Modelling-error traces of several models over time (Fig. 8)."""
     fig, axes = _figure(1, 1, (7.0, 3.2))
     ax = axes[0, 0]
@@ -105,5 +109,3 @@ def tracking_figure(time: Any, reference: Any, output: Any, title: str = "", uni
     ax.set_ylabel(f"real [{unit}]")
     ax.set_title("(b) hysteresis curve")
     return fig
-
-

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -40,7 +40,9 @@ def bode_figure(
     """
     p, m = len(output_names), len(input_names)
     rows = 2 * p if phase else p
-    fig, axes = subplots(rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True)
+    fig, axes = subplots(
+        rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True
+    )
     styles = dict(styles or {})
     for label, H in responses.items():
         style = styles.get(label, "-")
@@ -53,14 +55,26 @@ def bode_figure(
                 if bands and label in bands:
                     lo, hi = bands[label]
                     upper = positive(hi[:, i, j])
-                    ax.fill_between(positive(freqs_hz), np.fmin(np.maximum(lo[:, i, j], 1e-300), upper), upper,
-                                    color=line.get_color(), alpha=0.25, lw=0)
+                    ax.fill_between(
+                        positive(freqs_hz),
+                        np.fmin(np.maximum(lo[:, i, j], 1e-300), upper),
+                        upper,
+                        color=line.get_color(),
+                        alpha=0.25,
+                        lw=0,
+                    )
                 ax.set_title(f"{input_names[j]} → {output_names[i]}")
                 if j == 0:
                     ax.set_ylabel(f"|G| {magnitude_unit}".strip())
                 if phase:
                     axp = axes[2 * i + 1, j]
-                    axp.semilogx(positive(freqs_hz), np.degrees(np.unwrap(np.angle(H[:, i, j]))), ls, color=line.get_color(), lw=1.1)
+                    axp.semilogx(
+                        positive(freqs_hz),
+                        np.degrees(np.unwrap(np.angle(H[:, i, j]))),
+                        ls,
+                        color=line.get_color(),
+                        lw=1.1,
+                    )
                     if j == 0:
                         axp.set_ylabel("phase [deg]")
     for ax in axes[-1]:
@@ -129,8 +143,9 @@ def time_overlay_figure(
     measured = np.asarray(measured).reshape(len(t), -1)
     n = measured.shape[1]
     units = list(units) if units else [""] * n
-    fig, axes = subplots(2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True,
-                             gridspec_kw={"height_ratios": [2.2, 1.0]})
+    fig, axes = subplots(
+        2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True, gridspec_kw={"height_ratios": [2.2, 1.0]}
+    )
     key = error_of or next(iter(predicted), None)
     for j in range(n):
         ax = axes[0, j]

@@ -6,7 +6,8 @@ pyplot state, no ``show``); save it with ``fig.savefig(path)``.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -19,8 +20,9 @@ def _figure(width: float, height: float):
     return figure((width, height))
 
 
-def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_model: Any = None,
-                    n_std: float = 2.0, title: str = "") -> Any:
+def bode_with_bands(
+    result: Any, freqs_hz: Sequence[float] | np.ndarray, true_model: Any = None, n_std: float = 2.0, title: str = ""
+) -> Any:
     """Magnitude of every entry: identified model, the Hankel-Toeplitz response with +-``n_std``
     posterior bands, and optionally the true model.
 
@@ -62,8 +64,9 @@ def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_mo
             mag = np.abs(Gh[:, i, j])
             upper = positive(mag + n_std * std[:, i, j])
             lo = np.fmin(np.clip(mag - n_std * std[:, i, j], 1e-300, None), upper)
-            ax.fill_between(positive(f), lo, upper, color="C0", alpha=0.25, lw=0,
-                            label=f"eq. 9 response +-{n_std:g} std")
+            ax.fill_between(
+                positive(f), lo, upper, color="C0", alpha=0.25, lw=0, label=f"eq. 9 response +-{n_std:g} std"
+            )
             loglog(ax, f, np.abs(G[:, i, j]), "C0", lw=1.2, label="identified model")
             if true_model is not None:
                 loglog(ax, f, np.abs(true_model.frequency_response(f)[:, i, j]), "k--", lw=1, label="true")
@@ -80,11 +83,20 @@ def bode_with_bands(result: Any, freqs_hz: Sequence[float] | np.ndarray, true_mo
 
 def selection_plot(table: Any, title: str = "") -> Any:
     """Held-out error versus horizon or order (a :class:`~stageid.subspace.selection.SelectionTable`)."""
-    return error_curve(table.values, {"held-out error": table.errors}, xlabel=table.kind, chosen=table.chosen, title=title)
+    return error_curve(
+        table.values, {"held-out error": table.errors}, xlabel=table.kind, chosen=table.chosen, title=title
+    )
 
 
-def error_curve(x: Sequence[float], curves: dict[str, Sequence[float]], xlabel: str, ylabel: str = "error",
-                chosen: float | None = None, title: str = "", logy: bool = True) -> Any:
+def error_curve(
+    x: Sequence[float],
+    curves: dict[str, Sequence[float]],
+    xlabel: str,
+    ylabel: str = "error",
+    chosen: float | None = None,
+    title: str = "",
+    logy: bool = True,
+) -> Any:
     """One or several error curves against a hyper-parameter (Fig. 4 / Tables 4-6 style)."""
     fig = _figure(4.5, 3.0)
     ax = fig.subplots()

@@ -11,4 +11,11 @@
 from .html import Report, write_metrics, write_report_folder
 from .model_report import hysteresis_model_report, lti_model_report, model_report
 
-__all__ = ["Report", "write_metrics", "write_report_folder", "model_report", "lti_model_report", "hysteresis_model_report"]
+__all__ = [
+    "Report",
+    "write_metrics",
+    "write_report_folder",
+    "model_report",
+    "lti_model_report",
+    "hysteresis_model_report",
+]

@@ -10,9 +10,10 @@ import math
 import os
 import shutil
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 __all__ = ["Report", "write_metrics", "write_report_folder"]
 
@@ -79,16 +80,24 @@ class Report:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
         self.n_figures += 1
-        self.blocks.append(_Block("figure", (base64.b64encode(buf.getvalue()).decode("ascii"), caption, self.n_figures)))
+        self.blocks.append(
+            _Block("figure", (base64.b64encode(buf.getvalue()).decode("ascii"), caption, self.n_figures))
+        )
 
     def to_html(self) -> str:
         """The whole report as one HTML document."""
-        out = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>",
-               f"<meta name='viewport' content='width=device-width, initial-scale=1'><style>{_CSS}</style></head><body>",
-               f"<h1>{html.escape(self.title)}</h1>"]
+        out = [
+            f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>",
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'><style>{_CSS}</style></head><body>",
+            f"<h1>{html.escape(self.title)}</h1>",
+        ]
         toc = [b.payload[1] for b in self.blocks if b.kind == "h" and b.payload[0] == 2]
         if len(toc) > 1:
-            out.append("<nav><ul>" + "".join(f"<li><a href='#s{k}'>{html.escape(t)}</a></li>" for k, t in enumerate(toc)) + "</ul></nav>")
+            out.append(
+                "<nav><ul>"
+                + "".join(f"<li><a href='#s{k}'>{html.escape(t)}</a></li>" for k, t in enumerate(toc))
+                + "</ul></nav>"
+            )
         k = 0
         for b in self.blocks:
             if b.kind == "h":
@@ -107,8 +116,10 @@ class Report:
             elif b.kind == "figure":
                 data, caption, number = b.payload
                 alt = html.escape(caption, quote=True)
-                out.append(f"<figure><img src='data:image/png;base64,{data}' alt='{alt}'>"
-                           f"<figcaption>Figure {number}. {html.escape(caption)}</figcaption></figure>")
+                out.append(
+                    f"<figure><img src='data:image/png;base64,{data}' alt='{alt}'>"
+                    f"<figcaption>Figure {number}. {html.escape(caption)}</figcaption></figure>"
+                )
         out.append("</body></html>\n")
         return "\n".join(out)
 

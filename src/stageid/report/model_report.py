@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +19,9 @@ def _band(model: Any, experiments: Sequence[Any]) -> np.ndarray:
     return np.geomspace(fmin, fmax, 400)
 
 
-def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "Identified model", notes: Sequence[str] = ()) -> tuple[Report, dict[str, Any]]:
+def lti_model_report(
+    model: Any, experiments: Sequence[Any] = (), title: str = "Identified model", notes: Sequence[str] = ()
+) -> tuple[Report, dict[str, Any]]:
     """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
 
     Returns the report and a metrics dictionary (fit % per experiment and output).  The fit
@@ -33,19 +36,30 @@ def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "
     report.section("Model")
     kind = "continuous" if model.dt is None else f"discrete, Ts = {model.dt:g} s"
     n_states = getattr(model, "n_states", None)
-    report.paragraph(f"{type(model).__name__}, {kind}; inputs {', '.join(model.inputs)}; outputs {', '.join(model.outputs)}"
-                     + (f"; {n_states} states." if n_states is not None else "."))
+    report.paragraph(
+        f"{type(model).__name__}, {kind}; inputs {', '.join(model.inputs)}; outputs {', '.join(model.outputs)}"
+        + (f"; {n_states} states." if n_states is not None else ".")
+    )
     for note in notes:
         report.paragraph(note)
     f = _band(model, experiments)
-    report.figure(bode_figure(f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"),
-                  "Bode magnitude and phase of the identified model.")
+    report.figure(
+        bode_figure(f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"),
+        "Bode magnitude and phase of the identified model.",
+    )
     poles, zeros = model.poles(), model.zeros()
-    report.figure(pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
-                  "Pole-zero map (x poles, o zeros).")
-    report.table(["pole", "|pole|" if model.dt is not None else "frequency [Hz]", "damping"],
-                 [[f"{p:.5g}", float(abs(p)) if model.dt is not None else float(abs(p) / (2 * np.pi)), _damping(p, model.dt)] for p in poles[:40]],
-                 caption="Poles (first 40)")
+    report.figure(
+        pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
+        "Pole-zero map (x poles, o zeros).",
+    )
+    report.table(
+        ["pole", "|pole|" if model.dt is not None else "frequency [Hz]", "damping"],
+        [
+            [f"{p:.5g}", float(abs(p)) if model.dt is not None else float(abs(p) / (2 * np.pi)), _damping(p, model.dt)]
+            for p in poles[:40]
+        ],
+        caption="Poles (first 40)",
+    )
     rows = []
     constant: list[str] = []
     for k, exp in enumerate(experiments):
@@ -57,15 +71,26 @@ def lti_model_report(model: Any, experiments: Sequence[Any] = (), title: str = "
             rows.append([exp.name or f"experiment {k}", name, float(value)])
             if np.isnan(value):
                 constant.append(f"{name} in {exp.name or f'experiment {k}'}")
-        report.figure(time_overlay_figure(exp.time, exp.y, {"simulated": y_hat}, exp.output_names, exp.output_units,
-                                          title=f"Simulation on {exp.name or f'experiment {k}'}"),
-                      f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.")
+        report.figure(
+            time_overlay_figure(
+                exp.time,
+                exp.y,
+                {"simulated": y_hat},
+                exp.output_names,
+                exp.output_units,
+                title=f"Simulation on {exp.name or f'experiment {k}'}",
+            ),
+            f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.",
+        )
     if rows:
         report.section("Validation")
-        report.table(["experiment", "output", "fit [%]"], rows, caption="Simulation fit, 100 (1 - |y - y_sim| / |y - mean y|)")
+        report.table(
+            ["experiment", "output", "fit [%]"], rows, caption="Simulation fit, 100 (1 - |y - y_sim| / |y - mean y|)"
+        )
         if constant:
-            report.paragraph("n/a: the fit is undefined for an output that does not move in the data ("
-                             + "; ".join(constant) + ").")
+            report.paragraph(
+                "n/a: the fit is undefined for an output that does not move in the data (" + "; ".join(constant) + ")."
+            )
     return report, metrics
 
 
@@ -75,7 +100,9 @@ def _damping(p: complex, dt: float | None) -> float:
     return float(-s.real / mag) if np.isfinite(mag) and mag > 0 else float("nan")
 
 
-def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model") -> tuple[Report, dict[str, Any]]:
+def hysteresis_model_report(
+    model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model"
+) -> tuple[Report, dict[str, Any]]:
     """Measured versus modelled input-output loops and the modelling error in % of range.
 
     When a record's output does not move its range is zero: the error in % of range is
@@ -95,7 +122,11 @@ def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str 
         y_range = float(np.ptp(y))
         if y_range > 0:
             err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
-            err_trace, err_label, err_text = 100 * (y - y_hat) / y_range, "error [% of range]", f"max {err:.2f} % of range"
+            err_trace, err_label, err_text = (
+                100 * (y - y_hat) / y_range,
+                "error [% of range]",
+                f"max {err:.2f} % of range",
+            )
         else:
             err = float("nan")
             unit = exp.output_units[0] or "-"
@@ -115,7 +146,9 @@ def hysteresis_model_report(model: Any, records: Sequence[Any] = (), title: str 
     return report, metrics
 
 
-def model_report(model: Any, experiments: Sequence[Any] = (), title: str | None = None) -> tuple[Report, dict[str, Any]]:
+def model_report(
+    model: Any, experiments: Sequence[Any] = (), title: str | None = None
+) -> tuple[Report, dict[str, Any]]:
     """A report for any stageid model: LTI models get Bode/pole-zero/simulation, hysteresis models loops."""
     if hasattr(model, "frequency_response"):
         return lti_model_report(model, experiments, title or "Identified LTI model")

@@ -84,9 +84,7 @@ def crest_factor(signal: np.ndarray) -> float:
     """
     x = np.asarray(signal, dtype=float)
     if x.ndim != 1 or x.size < 2:
-        raise SignalError(
-            f"crest_factor expects a 1-D signal with at least 2 samples; got shape {x.shape}."
-        )
+        raise SignalError(f"crest_factor expects a 1-D signal with at least 2 samples; got shape {x.shape}.")
     x = x - x.mean()
     rms = float(np.sqrt(np.mean(x**2)))
     if rms == 0.0:
@@ -94,9 +92,7 @@ def crest_factor(signal: np.ndarray) -> float:
     return float(np.max(np.abs(x)) / rms)
 
 
-def check_limits(
-    signal: np.ndarray, limits: tuple[float, float] | None, name: str, unit: str = ""
-) -> None:
+def check_limits(signal: np.ndarray, limits: tuple[float, float] | None, name: str, unit: str = "") -> None:
     """Raise :class:`SignalError` if ``signal`` leaves ``limits = (lo, hi)``.
 
     Signals are never clipped silently: a generator asked for a signal that would leave
@@ -137,9 +133,7 @@ def check_limits(
     slack = _LIMIT_RTOL * max(abs(lo), abs(hi), hi - lo, 1.0)
     if x_lo < lo - slack or x_hi > hi + slack:
         u = f" {unit}" if unit else ""
-        raise SignalError(
-            f"{name} spans [{x_lo:.6g}, {x_hi:.6g}]{u} but limits are [{lo:.6g}, {hi:.6g}]{u}."
-        )
+        raise SignalError(f"{name} spans [{x_lo:.6g}, {x_hi:.6g}]{u} but limits are [{lo:.6g}, {hi:.6g}]{u}.")
 
 
 def _parse_limits(limits: Any, name: str) -> tuple[float, float]:
@@ -147,13 +141,9 @@ def _parse_limits(limits: Any, name: str) -> tuple[float, float]:
         lo, hi = limits
         lo, hi = float(lo), float(hi)
     except (TypeError, ValueError):
-        raise SignalError(
-            f"`limits` of {name} must be a pair (lo, hi) of numbers; got {limits!r}."
-        ) from None
+        raise SignalError(f"`limits` of {name} must be a pair (lo, hi) of numbers; got {limits!r}.") from None
     if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
-        raise SignalError(
-            f"`limits` of {name} must be finite with lo < hi; got ({lo:g}, {hi:g})."
-        )
+        raise SignalError(f"`limits` of {name} must be finite with lo < hi; got ({lo:g}, {hi:g}).")
     return lo, hi
 
 
@@ -195,9 +185,7 @@ def check_finite(value: Any, param: str, name: str) -> float:
 def check_int(value: Any, param: str, name: str, minimum: int) -> int:
     """Return ``value`` as int if it is an integer >= ``minimum``, else raise SignalError."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise SignalError(
-            f"`{param}` of {name} must be an integer >= {minimum}; got {value!r}."
-        )
+        raise SignalError(f"`{param}` of {name} must be an integer >= {minimum}; got {value!r}.")
     v = int(value)
     if v < minimum:
         raise SignalError(f"`{param}` of {name} must be an integer >= {minimum}; got {v}.")
@@ -241,8 +229,7 @@ def check_nyquist(freq: float, param: str, dt: float, name: str, strict: bool = 
         )
     if freq > nyquist * (1 + 1e-12):
         raise SignalError(
-            f"`{param}` of {name} must be at most the Nyquist frequency 1/(2 dt) = "
-            f"{nyquist:g} Hz; got {freq:g} Hz."
+            f"`{param}` of {name} must be at most the Nyquist frequency 1/(2 dt) = {nyquist:g} Hz; got {freq:g} Hz."
         )
 
 
@@ -251,9 +238,7 @@ def check_seed(seed: Any, name: str) -> Any:
     if seed is None or isinstance(seed, np.random.Generator):
         return seed
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise SignalError(
-            f"`seed` of {name} must be an integer >= 0 or a numpy Generator; got {seed!r}."
-        )
+        raise SignalError(f"`seed` of {name} must be an integer >= 0 or a numpy Generator; got {seed!r}.")
     return int(seed)
 
 
@@ -295,17 +280,14 @@ def check_n_channels(n_channels: Any, name: str) -> int | None:
     return check_int(n_channels, "n_channels", name, 1)
 
 
-def scale_to(
-    x: np.ndarray, rms: Any, amplitude: Any, name: str
-) -> np.ndarray:
+def scale_to(x: np.ndarray, rms: Any, amplitude: Any, name: str) -> np.ndarray:
     """Scale zero-mean ``x`` (per column) to the requested RMS or peak value.
 
     Exactly one of ``rms`` / ``amplitude`` may be given; neither means peak amplitude 1.
     """
     if rms is not None and amplitude is not None:
         raise SignalError(
-            f"{name} takes either `rms` or `amplitude`, not both; got rms={rms!r}, "
-            f"amplitude={amplitude!r}."
+            f"{name} takes either `rms` or `amplitude`, not both; got rms={rms!r}, amplitude={amplitude!r}."
         )
     if rms is not None:
         target = check_positive(rms, "rms", name)

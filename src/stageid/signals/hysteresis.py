@@ -16,13 +16,12 @@ threshold are exercised:
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
 from .._errors import SignalError
 from ._common import (
-    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -31,6 +30,7 @@ from ._common import (
     check_nonnegative,
     check_nyquist,
     check_positive,
+    check_span,
 )
 from .periodic import _triangle_wave
 
@@ -96,10 +96,7 @@ def decay_envelope(
     else:
         ff = check_positive(final_fraction, "final_fraction", name)
         if ff >= 1.0:
-            raise SignalError(
-                f"`final_fraction` of {name} must be in (0, 1) so the amplitude decays; "
-                f"got {ff:g}."
-            )
+            raise SignalError(f"`final_fraction` of {name} must be in (0, 1) so the amplitude decays; got {ff:g}.")
     j = np.arange(n_c, dtype=float)
     if decay == "linear":
         return amp * (1.0 - j * (1.0 - ff) / (n_c - 1))

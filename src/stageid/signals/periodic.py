@@ -11,6 +11,7 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import (
+    add_offset,
     check_choice,
     check_dt,
     check_finite,
@@ -23,7 +24,6 @@ from ._common import (
     check_positive,
     check_seed,
     check_span,
-    add_offset,
     n_from_duration,
     scale_to,
 )
@@ -203,15 +203,10 @@ def multisine_lines(n_samples: int, dt: float, f_low: float, f_high: float, n_pe
     step = check_dt(dt, name)
     p = check_int(n_periods, "n_periods", name, 1)
     if n % p:
-        raise SignalError(
-            f"`n_samples` of {name} must be a multiple of n_periods = {p}; got {n}."
-        )
+        raise SignalError(f"`n_samples` of {name} must be a multiple of n_periods = {p}; got {n}.")
     period = n // p
     if period < 4:
-        raise SignalError(
-            f"{name} needs at least 4 samples per period; got {period} "
-            f"(n_samples {n} / n_periods {p})."
-        )
+        raise SignalError(f"{name} needs at least 4 samples per period; got {period} (n_samples {n} / n_periods {p}).")
     lo = check_nonnegative(f_low, "f_low", name)
     hi = check_positive(f_high, "f_high", name)
     if hi <= lo:
@@ -325,9 +320,7 @@ def multisine(
     one_period = np.fft.irfft(spectrum, n=period, axis=0)
     if kind == "schroeder" and n_ch > 1:
         shift = period // n_ch
-        one_period = np.stack(
-            [np.roll(one_period[:, 0], j * shift) for j in range(n_ch)], axis=1
-        )
+        one_period = np.stack([np.roll(one_period[:, 0], j * shift) for j in range(n_ch)], axis=1)
     x = np.tile(one_period, (int(n_periods), 1))
     x = add_offset(scale_to(x, rms, amplitude, name), off, name)
     if channels is None:

@@ -11,8 +11,6 @@ import numpy as np
 from .._errors import SignalError
 from ._common import (
     add_offset,
-    check_seed,
-    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -23,6 +21,8 @@ from ._common import (
     check_nonnegative,
     check_nyquist,
     check_positive,
+    check_seed,
+    check_span,
     scale_to,
 )
 
@@ -221,8 +221,7 @@ def prbs(
     if method == "random":
         if order is not None:
             raise SignalError(
-                f"`order` of prbs applies to method='mls' only; got order={order!r} with "
-                f"method='random'."
+                f"`order` of prbs applies to method='mls' only; got order={order!r} with method='random'."
             )
         bits = np.random.default_rng(seed).integers(0, 2, size=(n_bits, n_ch))
     else:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import inspect
 import typing
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -124,14 +125,9 @@ def generate(kind: str, /, **params: Any) -> np.ndarray:
     unknown = [p for p in params if p not in sig.parameters]
     if unknown:
         raise SignalError(
-            f"signal {kind!r} accepts parameters {', '.join(accepted)}; "
-            f"got unknown {', '.join(unknown)}."
+            f"signal {kind!r} accepts parameters {', '.join(accepted)}; got unknown {', '.join(unknown)}."
         )
-    missing = [
-        p.name
-        for p in sig.parameters.values()
-        if p.default is inspect.Parameter.empty and p.name not in params
-    ]
+    missing = [p.name for p in sig.parameters.values() if p.default is inspect.Parameter.empty and p.name not in params]
     if missing:
         raise SignalError(
             f"signal {kind!r} requires parameters "

@@ -11,7 +11,6 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import (
-    check_span,
     check_choice,
     check_dt,
     check_finite,
@@ -19,6 +18,7 @@ from ._common import (
     check_nonnegative,
     check_nyquist,
     check_positive,
+    check_span,
     n_from_duration,
 )
 
@@ -121,8 +121,7 @@ def chirp(
     else:
         if fa <= 0:
             raise SignalError(
-                f"`f0` of a logarithmic chirp must be > 0 Hz (log sweeps cannot start at DC); "
-                f"got {fa:g} Hz."
+                f"`f0` of a logarithmic chirp must be > 0 Hz (log sweeps cannot start at DC); got {fa:g} Hz."
             )
         log_ratio = np.log(fb / fa)
         # expm1 keeps the phase accurate near t = 0

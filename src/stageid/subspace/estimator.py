@@ -36,9 +36,10 @@ The horizon and the order are chosen by held-out prediction error when ``"auto"`
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -46,11 +47,24 @@ from .._errors import DataError, ExcitationWarning, IdentificationError, Stabili
 from .._threads import single_blas_thread
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import (WindowStatistics, _input_periodogram, record_statistics, segments_statistics, theta_frequency_response,
-                              theta_response_std)
+from .hankel_toeplitz import (
+    WindowStatistics,
+    _input_periodogram,
+    record_statistics,
+    segments_statistics,
+    theta_frequency_response,
+    theta_response_std,
+)
 from .map_estimator import Posterior, Prior, batch_posterior, default_prior, map_estimate
-from .realization import (_fit_cost, balanced_start, era, fit_input_matrices, frequency_realization,
-                          markov_from_theta, refine_frequency_fit)
+from .realization import (
+    _fit_cost,
+    balanced_start,
+    era,
+    fit_input_matrices,
+    frequency_realization,
+    markov_from_theta,
+    refine_frequency_fit,
+)
 from .selection import SelectionTable, default_horizons, prediction_error, row_residuals, simulation_error
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
@@ -139,7 +153,7 @@ class HankelMAPResult:
 
     model: StateSpaceModel
     channels: tuple[ChannelFit, ...]
-    estimator: "HankelMAP"
+    estimator: HankelMAP
     diagnostics: dict = field(default_factory=dict)
     input_scale: np.ndarray | None = None
     output_scale: np.ndarray | None = None
@@ -155,7 +169,7 @@ class HankelMAPResult:
 
     # -------------------------------------------------------------- online use
     @single_blas_thread
-    def update(self, data: "Experiment | Sequence[Experiment]") -> "HankelMAPResult":
+    def update(self, data: Experiment | Sequence[Experiment]) -> HankelMAPResult:
         """Fold new records into the posterior (eq. 17-18) and return a new result.
 
         The old information is discounted by ``forgetting^n_new_windows``; the horizon and
@@ -232,8 +246,16 @@ class HankelMAPResult:
             # in the noise-whitened outputs the realisation fits (theta_w = W theta diag(c))
             w = _output_weights(post)
             wp, c = _weight_scales(w, p, m)
-            G, S = theta_response_std(_weighted_theta(post.theta, w, p, m, q), post.covariance * p * np.outer(c, c),
-                                      post.noise_cov * np.outer(wp, wp), p, m, q, f, self.model.dt)
+            G, S = theta_response_std(
+                _weighted_theta(post.theta, w, p, m, q),
+                post.covariance * p * np.outer(c, c),
+                post.noise_cov * np.outer(wp, wp),
+                p,
+                m,
+                q,
+                f,
+                self.model.dt,
+            )
             G, S = G / w[None, :, None], S / w[None, :, None]
             if self.input_scale is not None and self.output_scale is not None:
                 su = self.input_scale[[self.model.inputs.index(n) for n in ch.inputs]]
@@ -246,13 +268,17 @@ class HankelMAPResult:
     def summary(self) -> str:
         """A short text summary (horizon, order, band, stability, selection tables)."""
         d = self.diagnostics
-        lines = [f"HankelMAP result: {self.model.n_states} states, inputs {list(self.model.inputs)}, "
-                 f"outputs {list(self.model.outputs)}, dt = {self.model.dt:g} s",
-                 f"method {self.estimator.method}, realization {self.estimator.realization}, "
-                 f"per_channel {self.estimator.per_channel}, forgetting {self.estimator.forgetting}"]
+        lines = [
+            f"HankelMAP result: {self.model.n_states} states, inputs {list(self.model.inputs)}, "
+            f"outputs {list(self.model.outputs)}, dt = {self.model.dt:g} s",
+            f"method {self.estimator.method}, realization {self.estimator.realization}, "
+            f"per_channel {self.estimator.per_channel}, forgetting {self.estimator.forgetting}",
+        ]
         for ch in self.channels:
-            lines.append(f"  inputs {list(ch.inputs)}: horizon {ch.horizon}, order {ch.order}, "
-                         f"band {ch.band[0]:.3g}-{ch.band[1]:.3g} Hz, windows {ch.scaled_posterior.n_windows:.0f}")
+            lines.append(
+                f"  inputs {list(ch.inputs)}: horizon {ch.horizon}, order {ch.order}, "
+                f"band {ch.band[0]:.3g}-{ch.band[1]:.3g} Hz, windows {ch.scaled_posterior.n_windows:.0f}"
+            )
             if ch.horizon_table is not None:
                 lines.append("    " + ch.horizon_table.to_text().replace("\n", "\n    "))
             if ch.order_table is not None:
@@ -352,11 +378,23 @@ class HankelMAP:
     True
     """
 
-    def __init__(self, horizon: int | str = "auto", order: int | Sequence[int] | str = "auto", method: str = "map",
-                 per_channel: bool = False, forgetting: float = 1.0, prior: "None | float | Prior" = None,
-                 realization: str = "frequency", band: tuple[float, float] | None = None, n_frequencies: int = 200,
-                 refine: bool = True, feedthrough: bool = False, detrend: bool = True,
-                 validation_fraction: float = 0.25, max_order: int = 20) -> None:
+    def __init__(
+        self,
+        horizon: int | str = "auto",
+        order: int | Sequence[int] | str = "auto",
+        method: str = "map",
+        per_channel: bool = False,
+        forgetting: float = 1.0,
+        prior: None | float | Prior = None,
+        realization: str = "frequency",
+        band: tuple[float, float] | None = None,
+        n_frequencies: int = 200,
+        refine: bool = True,
+        feedthrough: bool = False,
+        detrend: bool = True,
+        validation_fraction: float = 0.25,
+        max_order: int = 20,
+    ) -> None:
         self.horizon = horizon
         self.order = order
         self.method = method
@@ -378,8 +416,22 @@ class HankelMAP:
 
     def get_params(self) -> dict[str, Any]:
         """The hyper-parameters as a dict."""
-        keys = ("horizon", "order", "method", "per_channel", "forgetting", "prior", "realization", "band",
-                "n_frequencies", "refine", "feedthrough", "detrend", "validation_fraction", "max_order")
+        keys = (
+            "horizon",
+            "order",
+            "method",
+            "per_channel",
+            "forgetting",
+            "prior",
+            "realization",
+            "band",
+            "n_frequencies",
+            "refine",
+            "feedthrough",
+            "detrend",
+            "validation_fraction",
+            "max_order",
+        )
         return {k: getattr(self, k) for k in keys}
 
     # ------------------------------------------------------------------ checks
@@ -388,12 +440,16 @@ class HankelMAP:
         if not (h == "auto" or (isinstance(h, (int, np.integer)) and not isinstance(h, bool) and h >= 1)):
             raise DataError(f"`horizon` of HankelMAP must be a positive integer or 'auto'; got {h!r}.")
         o = self.order
-        if not (o == "auto" or _is_pos_int(o) or (isinstance(o, (list, tuple)) and o and all(_is_pos_int(v) for v in o))):
+        if not (
+            o == "auto" or _is_pos_int(o) or (isinstance(o, (list, tuple)) and o and all(_is_pos_int(v) for v in o))
+        ):
             raise DataError(f"`order` of HankelMAP must be a positive integer, a list of them, or 'auto'; got {o!r}.")
         if self.method not in _METHODS:
             raise DataError(f"`method` of HankelMAP must be one of {', '.join(_METHODS)}; got {self.method!r}.")
         if self.realization not in _REALIZATIONS:
-            raise DataError(f"`realization` of HankelMAP must be one of {', '.join(_REALIZATIONS)}; got {self.realization!r}.")
+            raise DataError(
+                f"`realization` of HankelMAP must be one of {', '.join(_REALIZATIONS)}; got {self.realization!r}."
+            )
         try:
             lam = float(self.forgetting)
         except (TypeError, ValueError):
@@ -406,8 +462,12 @@ class HankelMAP:
             raise DataError(f"`max_order` of HankelMAP must be a positive integer; got {self.max_order!r}.")
         if self.band is not None:
             b = self.band
-            if not (isinstance(b, (tuple, list, np.ndarray)) and len(b) == 2 and all(_is_real(v) for v in b)
-                    and 0 <= float(b[0]) < float(b[1]) < np.inf):
+            if not (
+                isinstance(b, (tuple, list, np.ndarray))
+                and len(b) == 2
+                and all(_is_real(v) for v in b)
+                and 0 <= float(b[0]) < float(b[1]) < np.inf
+            ):
                 raise DataError(f"`band` must be (f_low, f_high) in Hz with 0 <= f_low < f_high finite; got {b!r}.")
         if not (isinstance(self.n_frequencies, (int, np.integer)) and self.n_frequencies >= 8):
             raise DataError(f"`n_frequencies` must be an integer >= 8; got {self.n_frequencies!r}.")
@@ -419,7 +479,7 @@ class HankelMAP:
 
     # --------------------------------------------------------------------- fit
     @single_blas_thread
-    def fit(self, data: "Experiment | Sequence[Experiment]") -> HankelMAPResult:
+    def fit(self, data: Experiment | Sequence[Experiment]) -> HankelMAPResult:
         """Identify a model from one or several records.
 
         Parameters
@@ -449,14 +509,20 @@ class HankelMAP:
         notes: list[str] = []
         if previous is not None:
             if previous.model.inputs != first.input_names or previous.model.outputs != first.output_names:
-                raise DataError(f"new data must have inputs {list(previous.model.inputs)} and outputs "
-                                f"{list(previous.model.outputs)}; got {list(first.input_names)} and {list(first.output_names)}.")
+                raise DataError(
+                    f"new data must have inputs {list(previous.model.inputs)} and outputs "
+                    f"{list(previous.model.outputs)}; got {list(first.input_names)} and {list(first.output_names)}."
+                )
             if not np.isclose(dt, previous.model.dt, rtol=1e-9, atol=0.0):
-                raise DataError(f"new data must have the sample time of the fitted model, {previous.model.dt:g} s; got {dt:g} s.")
+                raise DataError(
+                    f"new data must have the sample time of the fitted model, {previous.model.dt:g} s; got {dt:g} s."
+                )
         nyq = 0.5 / dt
         if self.band is not None and float(self.band[1]) > nyq * (1 + 1e-12):
-            raise DataError(f"`band` must lie within 0-{nyq:g} Hz (Nyquist at dt = {dt:g} s); "
-                            f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz.")
+            raise DataError(
+                f"`band` must lie within 0-{nyq:g} Hz (Nyquist at dt = {dt:g} s); "
+                f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz."
+            )
         empty = [e.n_samples for e in exps if e.n_samples < 2]
         if empty:
             raise DataError(f"every record needs at least 2 samples; got {min(empty)}.")
@@ -466,11 +532,15 @@ class HankelMAP:
         # column by column: numpy reduces a (n, 3) array along axis 0 some 20x slower
         still = [all(np.ptp(r[0][:, j]) == 0 for r in records) for j in range(m_all)]
         if all(still):
-            raise DataError(f"at least one input must move in some record; got every input ({', '.join(first.input_names)}) "
-                            f"constant in all {len(records)} record(s).")
+            raise DataError(
+                f"at least one input must move in some record; got every input ({', '.join(first.input_names)}) "
+                f"constant in all {len(records)} record(s)."
+            )
         for j in range(m_all):
             if still[j]:
-                notes.append(f"input '{first.input_names[j]}' does not move in any record; its response cannot be identified.")
+                notes.append(
+                    f"input '{first.input_names[j]}' does not move in any record; its response cannot be identified."
+                )
         # every channel to unit RMS (the first fit's scales are kept for updates): thresholds,
         # floors, the default prior and the flat prior's minimum-norm solution are then
         # independent of the units of the inputs and of the outputs
@@ -489,8 +559,10 @@ class HankelMAP:
                     if moving[j] and sum(moving) == 1:
                         sel.append((u[:, [j]], y))
                 if not sel:
-                    raise DataError(f"per-channel identification needs, for input '{first.input_names[j]}', a record in "
-                                    f"which only that input moves; got none.")
+                    raise DataError(
+                        f"per-channel identification needs, for input '{first.input_names[j]}', a record in "
+                        f"which only that input moves; got none."
+                    )
                 groups.append(([j], sel))
         else:
             groups.append((list(range(m_all)), records))
@@ -503,8 +575,11 @@ class HankelMAP:
         stable = model.is_stable()
         if not stable:
             notes.append("the identified model is unstable (a pole on or outside the unit circle).")
-            warnings.warn(f"HankelMAP: the identified model is unstable (max |pole| = {np.max(np.abs(model.poles())):.4f}).",
-                          StabilityWarning, stacklevel=3)
+            warnings.warn(
+                f"HankelMAP: the identified model is unstable (max |pole| = {np.max(np.abs(model.poles())):.4f}).",
+                StabilityWarning,
+                stacklevel=3,
+            )
         diag = {
             "horizon": [f.horizon for f in fits] if len(fits) > 1 else fits[0].horizon,
             "order": [f.order for f in fits] if len(fits) > 1 else fits[0].order,
@@ -528,8 +603,10 @@ class HankelMAP:
         o = self.order
         if isinstance(o, (list, tuple)):
             if len(o) != n_groups:
-                raise DataError(f"`order` must give one order per {'input' if self.per_channel else 'model'} "
-                                f"({n_groups}); got {len(o)}.")
+                raise DataError(
+                    f"`order` must give one order per {'input' if self.per_channel else 'model'} "
+                    f"({n_groups}); got {len(o)}."
+                )
             return [int(v) for v in o]
         return [o if o == "auto" else int(o)] * n_groups
 
@@ -546,7 +623,7 @@ class HankelMAP:
             xs, ys = _regressor_scales(stats.horizon, su, sy)
             prec = np.asarray(self.prior.precision, dtype=float)
             if prec.shape == xs.shape:
-                prec = prec / xs ** 2
+                prec = prec / xs**2
             elif prec.shape == (xs.size, xs.size):
                 prec = prec / np.outer(xs, xs)  # other shapes: map_estimate reports them
             t0 = None if self.prior.theta0 is None else np.asarray(self.prior.theta0, dtype=float)
@@ -562,8 +639,18 @@ class HankelMAP:
         XX, YX, _ = stats.blocks()
         return map_estimate(XX, YX, self._prior_for(stats, su, sy))[0]
 
-    def _fit_group(self, recs, cols, order, dt, first: Experiment, prev: ChannelFit | None, notes: list[str],
-                   su: np.ndarray, sy: np.ndarray) -> ChannelFit:
+    def _fit_group(
+        self,
+        recs,
+        cols,
+        order,
+        dt,
+        first: Experiment,
+        prev: ChannelFit | None,
+        notes: list[str],
+        su: np.ndarray,
+        sy: np.ndarray,
+    ) -> ChannelFit:
         """One (sub-)model from records already scaled to unit RMS (``su``, ``sy`` undo it)."""
         m = len(cols)
         q = first.n_outputs
@@ -591,8 +678,13 @@ class HankelMAP:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
         stats = None
         full_count = sum(u.shape[0] - 2 * horizon + 1 for u, _ in recs)
-        if (prev is None and lam == 1.0 and horizon in train and horizon in val
-                and (train[horizon].count + val[horizon].count) >= 0.99 * full_count):
+        if (
+            prev is None
+            and lam == 1.0
+            and horizon in train
+            and horizon in val
+            and (train[horizon].count + val[horizon].count) >= 0.99 * full_count
+        ):
             # the held-out split already holds all but < 1 % of the windows (those straddling
             # segment boundaries): reuse it instead of a second pass over long records
             power = None
@@ -604,7 +696,7 @@ class HankelMAP:
         else:
             for u, y in recs:
                 s = record_statistics(u, y, [horizon], lam)[horizon]
-                stats = s if stats is None else stats.scaled(lam ** s.count) + s
+                stats = s if stats is None else stats.scaled(lam**s.count) + s
         assert stats is not None
         if prev is not None:
             post = prev.scaled_posterior.updated(stats, lam)
@@ -613,9 +705,11 @@ class HankelMAP:
             post = batch_posterior(stats, self._prior_for(stats, su, sy))
             pivot = _singular_pivot(stats) if self.method == "ls" else None
             if pivot is not None:
-                msg = (f"the least-squares normal equations of horizon {horizon} are singular (smallest relative pivot "
-                       f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
-                       f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate.")
+                msg = (
+                    f"the least-squares normal equations of horizon {horizon} are singular (smallest relative pivot "
+                    f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
+                    f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate."
+                )
                 notes.append(msg)
                 warnings.warn(msg, ExcitationWarning, stacklevel=4)
             band = self._band(stats, dt, notes, in_names)
@@ -624,30 +718,48 @@ class HankelMAP:
             order = prev.order
         if order == "auto":
             if horizon not in train:
-                raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
+                raise DataError(
+                    "the records are too short to hold out data for choosing the order; give `order` explicitly."
+                )
             post_train = batch_posterior(train[horizon], self._prior_for(train[horizon], su, sy))
             order, order_table = self._select_order(post_train, freqs, dt, recs)
         for table in (horizon_table, order_table):
             if table is not None:
                 err = table.errors[table.values.index(table.chosen)]
                 if err >= 1.0:
-                    msg = (f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1): the model "
-                           f"predicts the held-out data worse than zero (inputs {list(in_names)}); the records are too short "
-                           f"or too little excited for this model.")
+                    msg = (
+                        f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1): the model "
+                        f"predicts the held-out data worse than zero (inputs {list(in_names)}); the records are too short "
+                        f"or too little excited for this model."
+                    )
                     notes.append(msg)
                     warnings.warn(msg, ExcitationWarning, stacklevel=4)
         model, cost = self._realize(post, int(order), freqs, dt)
         # back to the data's units: u_s = u / su, y_s = y / sy
-        model = StateSpaceModel(model.A, model.B / su[None, :], model.C * sy[:, None],
-                                model.D * sy[:, None] / su[None, :], dt)
+        model = StateSpaceModel(
+            model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :], dt
+        )
         if model.n_states and self._excited_lines(stats, dt, band) * m < int(order) / 2:
-            msg = (f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
-                   f"the data are not persistently exciting.")
+            msg = (
+                f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
+                f"the data are not persistently exciting."
+            )
             notes.append(msg)
             warnings.warn(msg, ExcitationWarning, stacklevel=4)
         model = model.with_names(in_names, first.output_names)
-        return ChannelFit(in_names, first.output_names, post, horizon, int(order), band, model,
-                          horizon_table, order_table, cost, scales=(su.copy(), sy.copy()))
+        return ChannelFit(
+            in_names,
+            first.output_names,
+            post,
+            horizon,
+            int(order),
+            band,
+            model,
+            horizon_table,
+            order_table,
+            cost,
+            scales=(su.copy(), sy.copy()),
+        )
 
     min_segment = 20
 
@@ -686,7 +798,9 @@ class HankelMAP:
                     if weight == 1.0:
                         tops_ = [segments_statistics(u, y, rngs, ph)]
                     else:  # forgetting: each range weighted on its own, as a record of its own
-                        tops_ = [record_statistics(u[a:b], y[a:b], [ph], weight, with_spectrum=False)[ph] for a, b in rngs]
+                        tops_ = [
+                            record_statistics(u[a:b], y[a:b], [ph], weight, with_spectrum=False)[ph] for a, b in rngs
+                        ]
                     for top in tops_:
                         acc[ph] = top if ph not in acc else acc[ph] + top
         for acc, target in zip(tops, (train, val)):
@@ -697,7 +811,9 @@ class HankelMAP:
                         target[p] = sp if p not in target else target[p] + sp
         return train, val
 
-    def _select_horizon(self, train, val, cands: list[int], su: np.ndarray, sy: np.ndarray) -> tuple[int, SelectionTable]:
+    def _select_horizon(
+        self, train, val, cands: list[int], su: np.ndarray, sy: np.ndarray
+    ) -> tuple[int, SelectionTable]:
         usable = [p for p in cands if p in train and p in val]
         thetas = {p: self._theta(train[p], su, sy) for p in usable}
         # one set of output weights for every candidate: the noise of the largest horizon's
@@ -710,7 +826,9 @@ class HankelMAP:
                 continue
             errors.append(prediction_error(thetas[p], val[p], weights))
         if not np.isfinite(np.min(errors)):
-            raise DataError("the records are too short to hold out data for choosing the horizon; give `horizon` explicitly.")
+            raise DataError(
+                "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
+            )
         best = cands[int(np.argmin(errors))]
         return best, SelectionTable("horizon", tuple(cands), tuple(errors), best)
 
@@ -754,12 +872,13 @@ class HankelMAP:
     def _excited_lines(stats: WindowStatistics, dt: float, band) -> int:
         P = stats.input_power
         if P is None:
-            return 10 ** 6
+            return 10**6
         Pn = P / np.maximum(P.max(axis=0, keepdims=True), 1e-300)
         return int(np.sum(np.max(Pn, axis=1) >= 1e-2))
 
-    def _realize(self, post: Posterior, order: int, freqs: np.ndarray, dt: float, refine: bool | None = None,
-                 max_iter: int = 30) -> tuple[StateSpaceModel, float]:
+    def _realize(
+        self, post: Posterior, order: int, freqs: np.ndarray, dt: float, refine: bool | None = None, max_iter: int = 30
+    ) -> tuple[StateSpaceModel, float]:
         p, m, q = post.horizon, post.n_inputs, post.n_outputs
         refine = self.refine if refine is None else refine
         # noise-whitened outputs (see the class Notes): y_w = w y, undone on C and D at the end
@@ -804,7 +923,9 @@ class HankelMAP:
                 if k and best[4]["cost"] <= MULTI_START_MISFIT * energy:
                     break
                 # a step that lowers the cost by < 0.3 % ends the fit (REFINE_TOL)
-                out = refine_frequency_fit(*start, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=REFINE_TOL)
+                out = refine_frequency_fit(
+                    *start, Gs, zs, feedthrough=self.feedthrough, max_iter=max_iter, tol=REFINE_TOL
+                )
                 if best is None or out[4]["cost"] < best[4]["cost"]:
                     best = out
             assert best is not None
@@ -883,7 +1004,9 @@ def _check_freqs(freqs_hz: object, dt: float) -> np.ndarray:
     try:
         f = np.asarray(freqs_hz, dtype=float)
     except (TypeError, ValueError):
-        raise DataError(f"`freqs_hz` must be a 1-D array of frequencies in Hz; got {type(freqs_hz).__name__}.") from None
+        raise DataError(
+            f"`freqs_hz` must be a 1-D array of frequencies in Hz; got {type(freqs_hz).__name__}."
+        ) from None
     if f.ndim != 1 or f.size == 0:
         raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
     nyq = 0.5 / dt
@@ -921,9 +1044,18 @@ def _unscaled_posterior(post: Posterior, su: np.ndarray, sy: np.ndarray) -> Post
     YX_ = np.outer(ys, xs)
     YY_ = np.outer(ys, ys)
     sums = tuple(a * f for a, f in zip(post.data_sums, (XX_, YX_, YY_)))
-    return Posterior(post.information * XX_, post.moment * YX_, post.theta * (ys[:, None] / xs[None, :]),
-                     post.noise_cov * YY_, post.n_windows, post.horizon, post.n_inputs, post.n_outputs,
-                     post.residual * YY_, sums)
+    return Posterior(
+        post.information * XX_,
+        post.moment * YX_,
+        post.theta * (ys[:, None] / xs[None, :]),
+        post.noise_cov * YY_,
+        post.n_windows,
+        post.horizon,
+        post.n_inputs,
+        post.n_outputs,
+        post.residual * YY_,
+        sums,
+    )
 
 
 def _singular_pivot(stats: WindowStatistics) -> float | None:
@@ -945,7 +1077,9 @@ def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
     if horizon == stats.horizon:
         return stats
     k = 2 * horizon * (stats.n_inputs + stats.n_outputs)
-    return WindowStatistics(stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count)
+    return WindowStatistics(
+        stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count
+    )
 
 
 def _is_pos_int(v: object) -> bool:

@@ -107,7 +107,7 @@ class _Rows:
     gaps, read batch by batch (:meth:`fill`) without forming the joined array: the record is
     never copied whole (see the batch size in :func:`lag_correlations`)."""
 
-    def __init__(self, blocks: "list[np.ndarray]", ranges: "list[tuple[int, int]] | None" = None, gap: int = 0):
+    def __init__(self, blocks: list[np.ndarray], ranges: list[tuple[int, int]] | None = None, gap: int = 0):
         self.blocks = blocks
         self.r = sum(b.shape[1] for b in blocks)
         self.pieces: list[tuple[int, int, int]] = []  # (virtual start, a, b)
@@ -129,7 +129,7 @@ class _Rows:
             c = 0
             for blk in self.blocks:
                 w = blk.shape[1]
-                out[s - lo:e - lo, c:c + w] = blk[a + s - v:a + e - v]
+                out[s - lo : e - lo, c : c + w] = blk[a + s - v : a + e - v]
                 c += w
 
 
@@ -163,24 +163,43 @@ class WindowStatistics:
     freqs: np.ndarray | None = None
     count: int = 0
 
-    def __add__(self, other: "WindowStatistics") -> "WindowStatistics":
+    def __add__(self, other: WindowStatistics) -> WindowStatistics:
         if (self.horizon, self.n_inputs, self.n_outputs) != (other.horizon, other.n_inputs, other.n_outputs):
             raise DataError("window statistics can only be added for the same horizon and channels.")
         power = None
-        if self.input_power is not None and other.input_power is not None and self.input_power.shape == other.input_power.shape:
+        if (
+            self.input_power is not None
+            and other.input_power is not None
+            and self.input_power.shape == other.input_power.shape
+        ):
             power = self.input_power + other.input_power
         elif self.input_power is not None:
             power = self.input_power
         else:
             power = other.input_power
-        return WindowStatistics(self.W + other.W, self.n_windows + other.n_windows, self.horizon,
-                                self.n_inputs, self.n_outputs, power,
-                                self.freqs if self.freqs is not None else other.freqs, self.count + other.count)
+        return WindowStatistics(
+            self.W + other.W,
+            self.n_windows + other.n_windows,
+            self.horizon,
+            self.n_inputs,
+            self.n_outputs,
+            power,
+            self.freqs if self.freqs is not None else other.freqs,
+            self.count + other.count,
+        )
 
-    def scaled(self, factor: float) -> "WindowStatistics":
+    def scaled(self, factor: float) -> WindowStatistics:
         """The statistics with every window's weight multiplied by ``factor`` (forgetting)."""
-        return WindowStatistics(self.W * factor, self.n_windows * factor, self.horizon, self.n_inputs,
-                                self.n_outputs, self.input_power, self.freqs, self.count)
+        return WindowStatistics(
+            self.W * factor,
+            self.n_windows * factor,
+            self.horizon,
+            self.n_inputs,
+            self.n_outputs,
+            self.input_power,
+            self.freqs,
+            self.count,
+        )
 
     def blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(XX, YX, YY)``: ``sum x x^T``, ``sum y_p x^T`` and ``sum y_p y_p^T`` of eq. 9
@@ -271,10 +290,10 @@ def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.n
     # block (a, b) of the Toeplitz part is R_ext[b - a] (lags -(L-1) .. L-1, R[-c] = R[c]^T):
     # with Rc[i, L-1+c, j] = R_ext[c, i, j], row (a, i) of W is Rc[i, L-1-a : 2L-1-a, :]
     Rc = np.empty((r, 2 * L - 1, r))
-    Rc[:, L - 1:, :] = R.transpose(1, 0, 2)
-    Rc[:, :L - 1, :] = R[:0:-1].transpose(2, 0, 1)
+    Rc[:, L - 1 :, :] = R.transpose(1, 0, 2)
+    Rc[:, : L - 1, :] = R[:0:-1].transpose(2, 0, 1)
     s_i, s_c, s_j = Rc.strides
-    toeplitz = as_strided(Rc[:, L - 1:, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
+    toeplitz = as_strided(Rc[:, L - 1 :, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
     W = np.empty((L, r, L, r))
     W[...] = toeplitz
     W = W.reshape(Lr, Lr)
@@ -286,14 +305,14 @@ def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.n
         rows = range(1, L) if forward else range(L - 2, -1, -1)
         for a in rows:
             src = (a - 1) if forward else (a + 1)
-            Ms = H[:, src * r:(src + 1) * r].T @ H  # block row `src` of sum h h^T, (r, L r)
+            Ms = H[:, src * r : (src + 1) * r].T @ H  # block row `src` of sum h h^T, (r, L r)
             if forward:  # S[a, b] = S[a-1, b-1] + M[a-1, b-1]
                 np.add(prev[:, :-r], Ms[:, :-r], out=cur[:, r:])
                 cur[:, :r] = 0.0
             else:  # S[a, b] = S[a+1, b+1] + M[a+1, b+1]
                 np.add(prev[:, r:], Ms[:, r:], out=cur[:, :-r])
                 cur[:, -r:] = 0.0
-            W[a * r:(a + 1) * r] -= cur
+            W[a * r : (a + 1) * r] -= cur
             prev, cur = cur, prev
     return W
 
@@ -301,11 +320,12 @@ def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.n
 def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
     """Exact ``sum_k w(k) w(k)^T`` of one record from its lag correlations ``R`` (lags 0 .. 2p-1)."""
     L = 2 * int(horizon)
-    return _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L:])
+    return _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L :])
 
 
-def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0,
-                      with_spectrum: bool = True) -> WindowStatistics:
+def window_statistics(
+    u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0, with_spectrum: bool = True
+) -> WindowStatistics:
     """Normal-equation statistics of eq. 9 for one record, without forming the regressor matrix.
 
     Parameters
@@ -341,8 +361,13 @@ def window_statistics(u: np.ndarray, y: np.ndarray, horizon: int, forgetting: fl
     return record_statistics(u, y, [horizon], forgetting, with_spectrum)[horizon]
 
 
-def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple[int, ...]", forgetting: float = 1.0,
-                      with_spectrum: bool = True) -> dict[int, WindowStatistics]:
+def record_statistics(
+    u: np.ndarray,
+    y: np.ndarray,
+    horizons: list[int] | tuple[int, ...],
+    forgetting: float = 1.0,
+    with_spectrum: bool = True,
+) -> dict[int, WindowStatistics]:
     """:func:`window_statistics` for several horizons from one pass over the data.
 
     The lag correlations up to ``2 max(horizons) - 1`` are computed once; each horizon's
@@ -365,7 +390,7 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
         R = lag_correlations(z, Lmax - 1)
     else:  # no joined copy of the record: its ends are all the Gram corrections need
         R = lag_correlations(_Rows([u, y]), Lmax - 1)
-        z = np.vstack([np.hstack([u[:Lmax], y[:Lmax]]), np.hstack([u[n - Lmax:], y[n - Lmax:]])])
+        z = np.vstack([np.hstack([u[:Lmax], y[:Lmax]]), np.hstack([u[n - Lmax :], y[n - Lmax :]])])
     power = freqs = None
     if with_spectrum:
         power, freqs = _input_periodogram(u)
@@ -386,7 +411,9 @@ def record_statistics(u: np.ndarray, y: np.ndarray, horizons: "list[int] | tuple
     return out
 
 
-def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: "list[tuple[int, int]]", horizon: int) -> WindowStatistics:
+def segments_statistics(
+    u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, int]], horizon: int
+) -> WindowStatistics:
     """Statistics of eq. 9 summed over the windows lying inside sample ranges of one record.
 
     Equal to the sum of :func:`window_statistics` over ``u[a:b], y[a:b]`` for every range, but
@@ -431,10 +458,12 @@ def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: "list[tuple[int, i
     if short:
         raise DataError(f"horizon {p} needs ranges of more than {L} samples; got {short[0][1] - short[0][0]}.")
     R = lag_correlations(_Rows([u, y], ranges, gap=L), L - 1)
-    heads = np.stack([np.hstack([u[a:a + L], y[a:a + L]]) for a, _ in ranges])
-    tails = np.stack([np.hstack([u[b - L:b], y[b - L:b]]) for _, b in ranges])
+    heads = np.stack([np.hstack([u[a : a + L], y[a : a + L]]) for a, _ in ranges])
+    tails = np.stack([np.hstack([u[b - L : b], y[b - L : b]]) for _, b in ranges])
     count = int(sum(b - a - L + 1 for a, b in ranges))
-    return WindowStatistics(_gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count)
+    return WindowStatistics(
+        _gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count
+    )
 
 
 def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np.ndarray]:
@@ -449,7 +478,7 @@ def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np
     power = np.empty((n_bins, u.shape[1]))
     for j in range(u.shape[1]):  # column by column: no record-sized complex temporaries
         X = np.fft.rfft(u[:, j] - u[:, j].mean())
-        power[:, j] = np.bincount(idx, weights=X.real ** 2 + X.imag ** 2, minlength=n_bins)
+        power[:, j] = np.bincount(idx, weights=X.real**2 + X.imag**2, minlength=n_bins)
     centres = (np.arange(n_bins) + 0.5) / (2 * n_bins)
     return power, centres
 
@@ -479,7 +508,9 @@ def dense_regression(u: np.ndarray, y: np.ndarray, horizon: int) -> tuple[np.nda
     return X, stack(y, 0)
 
 
-def split_theta(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def split_theta(
+    theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``theta = [Gamma Phi D_p]`` (eq. 16) -> ``(Gamma, Phi, D_p)``."""
     p, m, q = horizon, n_inputs, n_outputs
     expected = (p * q, 2 * p * m + p * q)
@@ -488,20 +519,24 @@ def split_theta(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int) 
     return theta[:, : p * m], theta[:, p * m : p * m + p * q], theta[:, p * m + p * q :]
 
 
-def _response_system(theta: np.ndarray, horizon: int, m: int, q: int, zk: complex) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _response_system(
+    theta: np.ndarray, horizon: int, m: int, q: int, zk: complex
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     p = horizon
     Gam, Phi, Dp = split_theta(theta, p, m, q)
     e_past = zk ** (np.arange(p) - p)
     e_fut = zk ** np.arange(p)
-    rhs = (np.einsum("rim,i->rm", Gam.reshape(p * q, p, m), e_past)
-           + np.einsum("rim,i->rm", Dp.reshape(p * q, p, m), e_fut))
+    rhs = np.einsum("rim,i->rm", Gam.reshape(p * q, p, m), e_past) + np.einsum(
+        "rim,i->rm", Dp.reshape(p * q, p, m), e_fut
+    )
     Phiw = np.einsum("riq,i->rq", Phi.reshape(p * q, p, q), e_past)
     lhs = np.kron(e_fut[:, None], np.eye(q)) - Phiw
     return lhs, rhs, np.concatenate([np.repeat(e_past, m), np.repeat(e_past, q), np.repeat(e_fut, m)])
 
 
-def theta_frequency_response(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int,
-                             freqs: np.ndarray, dt: float) -> np.ndarray:
+def theta_frequency_response(
+    theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, freqs: np.ndarray, dt: float
+) -> np.ndarray:
     """Frequency response implied by the identified Hankel-Toeplitz model (eq. 9).
 
     For a sinusoid ``u(k) = U z^k``, ``y(k) = G U z^k`` (``z = exp(j 2 pi f dt)``) every
@@ -536,8 +571,16 @@ def theta_frequency_response(theta: np.ndarray, horizon: int, n_inputs: int, n_o
     return np.linalg.solve(lh @ lhs, lh @ rhs)
 
 
-def theta_response_std(theta: np.ndarray, column_cov: np.ndarray, noise_cov: np.ndarray, horizon: int,
-                       n_inputs: int, n_outputs: int, freqs: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def theta_response_std(
+    theta: np.ndarray,
+    column_cov: np.ndarray,
+    noise_cov: np.ndarray,
+    horizon: int,
+    n_inputs: int,
+    n_outputs: int,
+    freqs: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Response of :func:`theta_frequency_response` with its posterior standard deviation.
 
     With ``Cov(vec theta) = P (x) Sigma`` (matrix-normal posterior) and the first-order
@@ -562,7 +605,9 @@ def theta_response_std(theta: np.ndarray, column_cov: np.ndarray, noise_cov: np.
         G[i] = g
         e_past = zk ** (np.arange(p) - p)
         e_fut = zk ** np.arange(p)
-        V = np.concatenate([np.kron(e_past[:, None], np.eye(m)), np.kron(e_past[:, None], g), np.kron(e_fut[:, None], np.eye(m))])
+        V = np.concatenate(
+            [np.kron(e_past[:, None], np.eye(m)), np.kron(e_past[:, None], g), np.kron(e_fut[:, None], np.eye(m))]
+        )
         left = np.real(np.einsum("ir,rs,is->i", Lp, noise_cov, np.conj(Lp)))
         right = np.real(np.einsum("cj,cd,dj->j", np.conj(V), column_cov, V))
         std[i] = np.sqrt(np.clip(np.outer(left, right), 0.0, None))

@@ -38,7 +38,15 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from .hankel_toeplitz import WindowStatistics
 
-__all__ = ["Prior", "Posterior", "default_prior", "map_estimate", "batch_posterior", "recursive_map", "recursive_map_python"]
+__all__ = [
+    "Prior",
+    "Posterior",
+    "default_prior",
+    "map_estimate",
+    "batch_posterior",
+    "recursive_map",
+    "recursive_map_python",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,7 +66,7 @@ class Prior:
     precision: np.ndarray
 
     @classmethod
-    def from_covariance(cls, theta0: np.ndarray | None, covariance: np.ndarray, noise_variance: float) -> "Prior":
+    def from_covariance(cls, theta0: np.ndarray | None, covariance: np.ndarray, noise_variance: float) -> Prior:
         """The prior from an absolute parameter covariance and the measurement-error variance.
 
         Eq. 17 weighs the prior covariance ``P_0`` against the measurement-error variance
@@ -157,14 +165,15 @@ class Posterior:
         """Posterior standard deviation of each entry of ``theta``, shape (p q, d)."""
         return np.sqrt(np.outer(np.clip(np.diag(self.noise_cov), 0, None), np.clip(np.diag(self.covariance), 0, None)))
 
-    def updated(self, stats: WindowStatistics, forgetting: float = 1.0) -> "Posterior":
+    def updated(self, stats: WindowStatistics, forgetting: float = 1.0) -> Posterior:
         """The posterior after more windows (old information discounted by ``forgetting^n``)."""
         if (stats.horizon, stats.n_inputs, stats.n_outputs) != (self.horizon, self.n_inputs, self.n_outputs):
             raise DataError(
                 f"new data must have horizon {self.horizon}, {self.n_inputs} inputs and {self.n_outputs} outputs; "
-                f"got {stats.horizon}, {stats.n_inputs} and {stats.n_outputs}.")
+                f"got {stats.horizon}, {stats.n_inputs} and {stats.n_outputs}."
+            )
         XX, YX, YY = stats.blocks()
-        discount = forgetting ** stats.count
+        discount = forgetting**stats.count
         info = discount * self.information + XX
         moment = discount * self.moment + YX
         theta = _solve(info, moment)
@@ -288,11 +297,23 @@ def batch_posterior(stats: WindowStatistics, prior: Prior | None) -> Posterior:
     d = XX.shape[0]
     theta, info, moment = map_estimate(XX, YX, prior)
     if not np.all(np.isfinite(theta)):
-        raise IdentificationError("the Hankel-Toeplitz estimate is not finite; the data are not informative enough for this horizon.")
+        raise IdentificationError(
+            "the Hankel-Toeplitz estimate is not finite; the data are not informative enough for this horizon."
+        )
     residual = _residual(theta, XX, YX, YY)
     noise = residual / max(stats.n_windows - d, 1.0)
-    return Posterior(info, moment, theta, noise, stats.n_windows, stats.horizon, stats.n_inputs, stats.n_outputs,
-                     residual, (XX, YX, YY))
+    return Posterior(
+        info,
+        moment,
+        theta,
+        noise,
+        stats.n_windows,
+        stats.horizon,
+        stats.n_inputs,
+        stats.n_outputs,
+        residual,
+        (XX, YX, YY),
+    )
 
 
 # ------------------------------------------------------------------ recursion (eq. 17-18)
@@ -308,8 +329,9 @@ def _window(z: np.ndarray, k: int, p: int, m: int, q: int, x: np.ndarray, yv: np
     _ = r
 
 
-def recursive_map_python(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray, P: np.ndarray,
-                         forgetting: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def recursive_map_python(
+    u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray, P: np.ndarray, forgetting: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Plain-numpy reference of eq. 17-18 (one window at a time); see :func:`recursive_map`."""
     m, q = u.shape[1], y.shape[1]
     p = horizon
@@ -425,8 +447,27 @@ def _kernel():
 _DELAY = 4  # windows per delayed update (the unrolled width of _delayed_kernel)
 
 
-def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cover - numba
-                    X, Y, Xn, Yn, A, T, An, Tn, V, E):
+def _delayed_kernel(
+    uf,
+    yf,
+    n_samples,
+    p,
+    m,
+    q,
+    theta,
+    P,
+    lam,  # pragma: no cover - numba
+    X,
+    Y,
+    Xn,
+    Yn,
+    A,
+    T,
+    An,
+    Tn,
+    V,
+    E,
+):
     """Eq. 17-18 window by window with the rank-1 updates of theta and P applied 4 at a time.
 
     Within a group of four windows ``j = 0..3`` (theta_0, P_0 at the group start, A = P_0 X,
@@ -450,7 +491,7 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam,  # pragma: no cov
     tile on) and gets ``P X'`` from each stored element twice: in the row's dot product and in
     an axpy into the column's accumulator (a quarter fewer multiply-adds than the full
     matrix); the lower triangle outside the diagonal tiles is mirrored from the upper one at
-    the end.  The vector operations are those of :mod:`._simd` (numba's own vectoriser gives
+    the end.  The vector operations are those of :mod:`stageid.simd` (numba's own vectoriser gives
     up on loops touching this many arrays).
 
     ``theta`` (p q [+ 1], dp) and ``P`` (d [+ 1], dp) have an even number of rows (a zero row
@@ -776,10 +817,10 @@ def _delayed():
     if _DELAYED is None:
         import numba
 
-        from . import _simd
+        from .. import simd as _simd_module
 
-        # the kernel's vector operations (see _simd) resolve as module globals when it compiles
-        globals().update({name: getattr(_simd, name) for name in _simd.__all__})
+        # the kernel's vector operations (see stageid.simd) resolve as module globals when it compiles
+        globals().update({name: getattr(_simd_module, name) for name in _simd_module.__all__})
         _DELAYED = numba.njit(cache=True, nogil=True, fastmath=True)(_delayed_kernel)
     return _DELAYED
 
@@ -790,11 +831,12 @@ def _aligned_zeros(shape: tuple[int, int]) -> np.ndarray:
     n = shape[0] * shape[1]
     buf = np.zeros(n + 8)
     off = (-buf.ctypes.data % 64) // 8
-    return buf[off:off + n].reshape(shape)
+    return buf[off : off + n].reshape(shape)
 
 
-def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.ndarray,
-                   lam: float) -> tuple[np.ndarray, np.ndarray]:
+def _run_recursion(
+    z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.ndarray, lam: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 17-18 over all windows of ``z``: the first ``d`` windows and the last (< 4) in the
     one-window kernel, the others in groups of four in the delayed-update kernel.
 
@@ -828,8 +870,15 @@ def _run_recursion(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: 
     return _kernel()(z, p, m, q, theta, P, lam)
 
 
-def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray, P: np.ndarray,
-                  forgetting: float = 1.0, block: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def recursive_map(
+    u: np.ndarray,
+    y: np.ndarray,
+    horizon: int,
+    theta: np.ndarray,
+    P: np.ndarray,
+    forgetting: float = 1.0,
+    block: int = 1,
+) -> tuple[np.ndarray, np.ndarray]:
     """Recursive MAP estimation (eq. 17-18) over the windows of a record.
 
     ``block=1`` runs eq. 17-18 window by window: every window's gain ``g``, residual ``E`` and
@@ -881,7 +930,9 @@ def recursive_map(u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray,
     m, q = u.shape[1], y.shape[1]
     d = 2 * horizon * m + horizon * q
     if theta.shape != (horizon * q, d) or P.shape != (d, d):
-        raise DataError(f"`theta` must have shape {(horizon * q, d)} and `P` {(d, d)}; got {theta.shape} and {P.shape}.")
+        raise DataError(
+            f"`theta` must have shape {(horizon * q, d)} and `P` {(d, d)}; got {theta.shape} and {P.shape}."
+        )
     if not 0.0 < forgetting <= 1.0:
         raise DataError(f"`forgetting` must be in (0, 1]; got {forgetting}.")
     if not (isinstance(block, (int, np.integer)) and block >= 1):
@@ -910,8 +961,9 @@ def _window_offsets(p: int, m: int, q: int) -> tuple[np.ndarray, np.ndarray, np.
     return t_x, c_x, np.repeat(p + pos, q), m + np.tile(np.arange(q), p)
 
 
-def _blocked(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.ndarray, lam: float,
-             block: int) -> tuple[np.ndarray, np.ndarray]:
+def _blocked(
+    z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.ndarray, lam: float, block: int
+) -> tuple[np.ndarray, np.ndarray]:
     import scipy.linalg as sla
 
     t_x, c_x, t_y, c_y = _window_offsets(p, m, q)
@@ -928,6 +980,6 @@ def _blocked(z: np.ndarray, p: int, m: int, q: int, theta: np.ndarray, P: np.nda
         theta += (Y - theta @ X) @ K.T
         P -= K @ PX.T
         if lam != 1.0:
-            P /= lam ** B
+            P /= lam**B
         P = 0.5 * (P + P.T)
     return theta, P

@@ -103,13 +103,17 @@ def hankel_matrices(markov: np.ndarray, n1: int, n2: int) -> tuple[np.ndarray, n
     H0, H1 : ndarrays of shape ((n2 + 1) q, (n1 + 1) m)
     """
     if markov.shape[0] < n1 + n2 + 3:
-        raise IdentificationError(f"eq. 14 with n1={n1}, n2={n2} needs {n1 + n2 + 3} Markov parameters; got {markov.shape[0]}.")
+        raise IdentificationError(
+            f"eq. 14 with n1={n1}, n2={n2} needs {n1 + n2 + 3} Markov parameters; got {markov.shape[0]}."
+        )
     H0 = np.block([[markov[1 + i + j] for j in range(n1 + 1)] for i in range(n2 + 1)])
     H1 = np.block([[markov[2 + i + j] for j in range(n1 + 1)] for i in range(n2 + 1)])
     return H0, H1
 
 
-def era(markov: np.ndarray, order: int, n1: int | None = None, n2: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def era(
+    markov: np.ndarray, order: int, n1: int | None = None, n2: int | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Realisation of Lemma 1 (eq. 15) from Markov parameters.
 
     Parameters
@@ -166,8 +170,14 @@ def _resolvent_rows(A: np.ndarray, C: np.ndarray, zs: np.ndarray) -> np.ndarray:
     return np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in zs])
 
 
-def fit_input_matrices(A: np.ndarray, C: np.ndarray, G: np.ndarray, zs: np.ndarray, feedthrough: bool = True,
-                       weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def fit_input_matrices(
+    A: np.ndarray,
+    C: np.ndarray,
+    G: np.ndarray,
+    zs: np.ndarray,
+    feedthrough: bool = True,
+    weights: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares ``B``, ``D`` with ``C (zI - A)^-1 B + D ~= G`` at the given points.
 
     Parameters
@@ -202,8 +212,9 @@ def fit_input_matrices(A: np.ndarray, C: np.ndarray, G: np.ndarray, zs: np.ndarr
     return B, D
 
 
-def frequency_realization(G: np.ndarray, freqs: np.ndarray, dt: float, order: int, block_rows: int | None = None,
-                          feedthrough: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def frequency_realization(
+    G: np.ndarray, freqs: np.ndarray, dt: float, order: int, block_rows: int | None = None, feedthrough: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """State-space realisation from frequency-response samples (McKelvey et al. 1996).
 
     With ``W_r(z) = [1, z, ..., z^(r-1)]^T`` the data matrices ``Y = [W_r(z_k) (x) G_k]_k`` and
@@ -249,7 +260,8 @@ def frequency_realization(G: np.ndarray, freqs: np.ndarray, dt: float, order: in
     r = int(min(r, max(2, (2 * nf * m) // (m + q) - 1)))
     if r * q < order + q or 2 * nf * m < r * (m + q):
         raise IdentificationError(
-            f"frequency realisation of order {order} needs more frequency points than {nf} for {q} outputs and {m} inputs.")
+            f"frequency realisation of order {order} needs more frequency points than {nf} for {q} outputs and {m} inputs."
+        )
     zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
     Us, s = _observability_basis(G, zs, r)
     if order > Us.shape[1]:
@@ -306,8 +318,9 @@ def _discrete_gramian(A: np.ndarray, Q: np.ndarray, max_doublings: int = 64) -> 
     return None
 
 
-def balanced_truncation(A: np.ndarray, B: np.ndarray, C: np.ndarray, order: int
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+def balanced_truncation(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, order: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Balanced truncation of a stable discrete-time ``(A, B, C)`` to ``order`` states.
 
     Square-root method (Laub et al. 1987): with the Gramians ``P = Lp Lp^T`` (controllability)
@@ -347,8 +360,9 @@ def balanced_truncation(A: np.ndarray, B: np.ndarray, C: np.ndarray, order: int
     return Ti @ A @ T, Ti @ B, C @ T, hsv
 
 
-def balanced_start(G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feedthrough: bool = True
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+def balanced_start(
+    G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feedthrough: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """A starting realisation of ``order`` states: :func:`frequency_realization` of twice the
     order, reduced by :func:`balanced_truncation`, then ``B``, ``D`` fitted again on ``G``.
 
@@ -378,8 +392,14 @@ def balanced_start(G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feed
     return Ar, Br, Cr, Dr
 
 
-def _model_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, zs: np.ndarray,
-                    eig: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _model_response(
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    D: np.ndarray,
+    zs: np.ndarray,
+    eig: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``G = C R B + D`` with ``R = (zI - A)^-1``; also returns ``C R`` and ``R B``
     (``eig``: ``numpy.linalg.eig(A)`` when the caller has it already)."""
     lam, V = np.linalg.eig(A) if eig is None else eig
@@ -409,7 +429,9 @@ def _re_mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return out
 
 
-def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool) -> tuple[np.ndarray, np.ndarray]:
+def _normal_equations(
+    a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """``J^T J`` and ``J^T r`` of the frequency fit over ``vec(A), vec(B), vec(C), vec(D)``.
 
     Uses the product structure ``dG/dA_ij = (C R)[:, i] (R B)[j, :]`` so the Jacobian itself
@@ -434,9 +456,9 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     cb2 = cb.reshape(nz, n * m)
 
     def put(r0: int, c0: int, blk: np.ndarray) -> None:
-        JtJ[r0:r0 + blk.shape[0], c0:c0 + blk.shape[1]] = blk
+        JtJ[r0 : r0 + blk.shape[0], c0 : c0 + blk.shape[1]] = blk
         if r0 != c0:
-            JtJ[c0:c0 + blk.shape[1], r0:r0 + blk.shape[0]] = blk.T
+            JtJ[c0 : c0 + blk.shape[1], r0 : r0 + blk.shape[0]] = blk.T
 
     # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
     JtJ[:nA, :nA] = _re_mm(Ma2.T, Mb2).reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(nA, nA)
@@ -461,9 +483,18 @@ def _normal_equations(a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray
     return JtJ, np.concatenate(grads)
 
 
-def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, G: np.ndarray, zs: np.ndarray,
-                         weights: np.ndarray | None = None, feedthrough: bool = True, max_iter: int = 30,
-                         tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+def refine_frequency_fit(
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    D: np.ndarray,
+    G: np.ndarray,
+    zs: np.ndarray,
+    weights: np.ndarray | None = None,
+    feedthrough: bool = True,
+    max_iter: int = 30,
+    tol: float = 1e-6,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
     """Levenberg-Marquardt refinement of a realisation on the frequency-response fit.
 
     Minimises ``sum_k w_k ||C (z_k I - A)^-1 B + D - G_k||_F^2`` (an output-error criterion in
@@ -487,7 +518,7 @@ def refine_frequency_fit(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
         return Gm - G, CR, RB
 
     def cost_of(res):
-        return float(np.sum(w[:, None, None] * (res.real ** 2 + res.imag ** 2)))
+        return float(np.sum(w[:, None, None] * (res.real**2 + res.imag**2)))
 
     res, CR, RB = evaluate(A, B, C, D, eig0)
     cost0 = cost = cost_of(res)

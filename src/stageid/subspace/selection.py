@@ -17,8 +17,8 @@ on data not used for the fit.  Here:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -90,8 +90,9 @@ def _normalised(err: np.ndarray, energy: np.ndarray, weights: np.ndarray | None)
     return float(np.sum(w2 * err) / max(float(np.sum(w2 * energy)), 1e-300))
 
 
-def simulation_error(model, experiments: Sequence, scored: Sequence[Sequence[tuple[int, int]]],
-                     weights: np.ndarray | None = None) -> float:
+def simulation_error(
+    model, experiments: Sequence, scored: Sequence[Sequence[tuple[int, int]]], weights: np.ndarray | None = None
+) -> float:
     """Normalised simulation error of ``model`` on the held-out ranges of each (mean-removed) record.
 
     Each record is simulated from rest over its full length (so every held-out range starts
@@ -107,8 +108,8 @@ def simulation_error(model, experiments: Sequence, scored: Sequence[Sequence[tup
         for a, b in ranges:
             e = y[a:b] - yh[a:b]
             yy = y[a:b] - y[a:b].mean(axis=0)
-            num = num + np.sum(e ** 2, axis=0)
-            den = den + np.sum(yy ** 2, axis=0)
+            num = num + np.sum(e**2, axis=0)
+            den = den + np.sum(yy**2, axis=0)
     den = np.where(np.asarray(den) > 0, den, 1.0)
     val = _normalised(np.asarray(num), den, weights)
     return val if np.isfinite(val) else float("inf")

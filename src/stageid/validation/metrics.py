@@ -93,7 +93,9 @@ def relative_response_error(estimated: np.ndarray, true: np.ndarray, per: str = 
         ``max_f |G_est - G_true| / scale``.
     """
     if estimated.shape != true.shape or estimated.ndim != 3:
-        raise DataError(f"responses must both have shape (n_freqs, n_outputs, n_inputs); got {estimated.shape} and {true.shape}.")
+        raise DataError(
+            f"responses must both have shape (n_freqs, n_outputs, n_inputs); got {estimated.shape} and {true.shape}."
+        )
     err = np.max(np.abs(estimated - true), axis=0)
     mag = np.abs(true)
     if per == "column":

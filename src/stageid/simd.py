@@ -1,4 +1,4 @@
-"""Four-wide float64 vectors for numba kernels (private; imported only when a kernel compiles).
+"""Four-wide float64 vectors for numba kernels, shared by every compiled kernel of stageid.
 
 numba vectorises a loop only when LLVM can rule out aliasing between its arrays with at most
 eight run-time pointer checks; the recursive MAP kernels touch more arrays per loop than that
@@ -40,8 +40,13 @@ class _F64x4Model(models.PrimitiveModel):
 
 def _vector_array(ary, index) -> bool:
     """Typing guard: a contiguous 1-D float64 array and an integer index."""
-    return (isinstance(ary, types.Array) and ary.dtype == types.float64 and ary.ndim == 1 and ary.layout == "C"
-            and isinstance(index, types.Integer))
+    return (
+        isinstance(ary, types.Array)
+        and ary.dtype == types.float64
+        and ary.ndim == 1
+        and ary.layout == "C"
+        and isinstance(index, types.Integer)
+    )
 
 
 def _address(context, builder, aryty, ary, index):
@@ -57,6 +62,7 @@ def vload(typingctx, ary, index):
 
     def codegen(context, builder, sig, args):
         return builder.load(_address(context, builder, sig.args[0], args[0], args[1]), align=8)
+
     return f64x4(ary, index), codegen
 
 
@@ -69,57 +75,71 @@ def vstore(typingctx, ary, index, value):
     def codegen(context, builder, sig, args):
         builder.store(args[2], _address(context, builder, sig.args[0], args[0], args[1]), align=8)
         return context.get_dummy_value()
+
     return types.none(ary, index, value), codegen
 
 
 @intrinsic
 def vbcast(typingctx, x):
     """The vector ``(x, x, x, x)``."""
+
     def codegen(context, builder, sig, args):
         value = ir.Constant(_V, ir.Undefined)
         for i in range(4):
             value = builder.insert_element(value, args[0], ir.Constant(ir.IntType(32), i))
         return value
+
     return f64x4(types.float64), codegen
 
 
 @intrinsic
 def vzero(typingctx):
     """The vector ``(0, 0, 0, 0)``."""
+
     def codegen(context, builder, sig, args):
         return ir.Constant(_V, [0.0] * 4)
+
     return f64x4(), codegen
 
 
 @intrinsic
 def vfma(typingctx, a, b, c):
     """``a * b + c`` (one fused multiply-add)."""
+
     def codegen(context, builder, sig, args):
         return builder.fadd(builder.fmul(args[0], args[1], flags=_FAST), args[2], flags=_FAST)
+
     return f64x4(f64x4, f64x4, f64x4), codegen
 
 
 @intrinsic
 def vfnma(typingctx, a, b, c):
     """``c - a * b`` (one fused multiply-add)."""
+
     def codegen(context, builder, sig, args):
         return builder.fsub(args[2], builder.fmul(args[0], args[1], flags=_FAST), flags=_FAST)
+
     return f64x4(f64x4, f64x4, f64x4), codegen
 
 
 @intrinsic
 def vmul(typingctx, a, b):
     """``a * b``."""
+
     def codegen(context, builder, sig, args):
         return builder.fmul(args[0], args[1], flags=_FAST)
+
     return f64x4(f64x4, f64x4), codegen
 
 
 @intrinsic
 def vsum(typingctx, a):
     """The sum of the four lanes."""
+
     def codegen(context, builder, sig, args):
         lane = [builder.extract_element(args[0], ir.Constant(ir.IntType(32), i)) for i in range(4)]
-        return builder.fadd(builder.fadd(lane[0], lane[1], flags=_FAST), builder.fadd(lane[2], lane[3], flags=_FAST),
-                            flags=_FAST)
+        return builder.fadd(
+            builder.fadd(lane[0], lane[1], flags=_FAST), builder.fadd(lane[2], lane[3], flags=_FAST), flags=_FAST
+        )
+
     return types.float64(f64x4), codegen
