@@ -95,3 +95,18 @@ def test_repr_and_params():
     assert repr(t) == "_Toy(n=4, band=(1.0, 2.0))"
     assert t.get_params() == {"n": 4, "lam": 1.0, "mode": None, "flag": False, "band": (1.0, 2.0), "obj": "auto"}
     assert _Toy.parameter_names() == ("n", "lam", "mode", "flag", "band", "obj")
+
+
+def test_memory_guard_names_need_and_availability(monkeypatch):
+    from stageid import ResourceError
+    from stageid.resources import available_memory, require_memory, require_work
+
+    monkeypatch.setenv("STAGEID_MEMORY_LIMIT", "100M")
+    assert available_memory() <= 100 * 2**20
+    require_memory(10 * 2**20, "a small request")
+    with pytest.raises(ResourceError, match=r"^a big request would need about 1 GB of memory; 80 MB is available\.$"):
+        require_memory(2**30, "a big request")
+    monkeypatch.setenv("STAGEID_MEMORY_LIMIT", "")
+    assert available_memory() > 0
+    with pytest.raises(ResourceError, match="fewer time constants"):
+        require_work(1e13, 1e11, "the creep bank", "ask for fewer time constants")

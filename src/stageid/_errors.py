@@ -16,6 +16,7 @@ __all__ = [
     "SignalError",
     "IdentificationError",
     "ParameterError",
+    "ResourceError",
     "StageIdWarning",
     "ExcitationWarning",
     "StabilityWarning",
@@ -52,6 +53,14 @@ class ParameterError(StageIdError, ValueError):
     Every estimator raises it for a bad setting, from :meth:`fit` (where the settings are
     checked, see :class:`stageid.base.Estimator`); the message names the setting, what was
     expected and what came.
+    """
+
+
+class ResourceError(StageIdError, MemoryError):
+    """A request would need more memory (or work) than this machine can give; nothing was done.
+
+    Raised before the work starts (see :mod:`stageid.resources`), with what the request would
+    need and what is available.
     """
 
 
