@@ -15,6 +15,7 @@ Sub-packages, one capability each:
 ==============  =====================================================================
 """
 
+from . import numba_cache
 from ._errors import (
     DataError,
     ExcitationWarning,
@@ -28,6 +29,8 @@ from ._errors import (
     StageIdError,
     StageIdWarning,
 )
+
+numba_cache.configure()  # before any kernel is defined: a read-only install must still run
 
 __version__ = "0.1.0"
 
