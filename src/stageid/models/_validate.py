@@ -37,9 +37,14 @@ def _entry(value: object) -> float | None:
     """``value`` as a float by the one rule (complex with a zero imaginary part allowed); None if not."""
     if is_real(value):
         return float(value)
-    if isinstance(value, numbers.Complex) and not isinstance(value, (bool, np.bool_)) and value.imag == 0:
-        return _entry(value.real)
+    if _is_complex(value) and value.imag == 0:  # type: ignore[attr-defined]
+        return _entry(value.real)  # type: ignore[attr-defined]
     return None
+
+
+def _is_complex(value: object) -> bool:
+    """A complex number that is not real (so never a bool, an int or a float)."""
+    return isinstance(value, numbers.Complex) and not isinstance(value, (numbers.Real, np.bool_))
 
 
 def _numbers(
@@ -75,7 +80,7 @@ def _numbers(
     for k, v in enumerate(value):
         x = _entry(v)
         if x is None:
-            if isinstance(v, numbers.Complex) and not isinstance(v, (bool, np.bool_, numbers.Real)):
+            if _is_complex(v):
                 raise error(
                     f"`{name}` must be a real matrix; got complex entries (a state-space model has real matrices)."
                 )

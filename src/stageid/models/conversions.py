@@ -252,7 +252,8 @@ def rational_response(num: np.ndarray, den: np.ndarray, v: np.ndarray) -> np.nda
     """``num(v) / den(v)`` (descending coefficients); NaN/inf only at a pole, never a warning.
 
     High orders overflow ``v^n`` for large ``|v|``: there the ratio is evaluated in ``1/v``,
-    ``v^(n_num - n_den) num~(1/v) / den~(1/v)`` with the reversed coefficients.
+    ``v^(n_num - n_den) num~(1/v) / den~(1/v)`` with the reversed coefficients (the power
+    through logarithms).  Where the plain evaluation is finite it is returned unchanged.
     """
     with np.errstate(all="ignore"):
         out = np.polyval(num, v) / np.polyval(den, v)
@@ -261,8 +262,9 @@ def rational_response(num: np.ndarray, den: np.ndarray, v: np.ndarray) -> np.nda
         n = strip_leading_zeros(np.asarray(num, dtype=float))
         d = strip_leading_zeros(np.asarray(den, dtype=float))
         w = 1.0 / v[bad]
-        with np.errstate(all="ignore"):
-            out[bad] = v[bad] ** (n.size - d.size) * np.polyval(n[::-1], w) / np.polyval(d[::-1], w)
+        with np.errstate(all="ignore"):  # the power in logs: it alone may under- or overflow
+            ratio = np.polyval(n[::-1], w) / np.polyval(d[::-1], w)
+            out[bad] = np.exp(np.log(ratio) + (n.size - d.size) * np.log(v[bad]))
     return out
 
 
