@@ -90,7 +90,10 @@ class ClosedLoopIdentification(Estimator):
         "paper": [0, 2] diagonal, [1, 3] couplings; "full": the cancelled full-order
         deduction; a dict ``{(i, j): (n_zeros, n_poles)}`` for other fixed orders.
     band : (float, float)
-        Band of the reduction and of the reported errors, Hz (paper: 20-300 Hz).
+        Band of the reduction and of the reported errors, Hz (paper: 20-300 Hz), by the one
+        rule of :func:`stageid.checks.check_band`: ``0 <= f_low < f_high``, ``f_high`` at most
+        the data's Nyquist frequency.  With ``f_low = 0`` the band's log-spaced grids start at
+        the first positive line the records resolve, ``1 / duration`` of the longest record.
     cancel_tol : float
         Relative ``s``-plane distance below which a pole-zero pair is cancelled.
     continuous : bool
