@@ -216,22 +216,15 @@ def check_response(y: np.ndarray, poles: np.ndarray, dt: float | None) -> np.nda
     finite = np.isfinite(y).all(axis=1) if y.ndim == 2 else np.isfinite(y)
     if finite.all():
         return y
-    k = int(np.argmin(finite))
-    where = f"the simulation diverged at sample {k} of {y.shape[0]}"
-    if poles.size:
-        if dt is None and np.max(poles.real) >= 0:
-            p = poles[np.argmax(poles.real)]
-            return _raise(f"{where}: the model is unstable (pole at s = {p:.4g} rad/s) and its response overflowed.")
-        if dt is not None and np.max(np.abs(poles)) >= 1:
-            p = poles[np.argmax(np.abs(poles))]
-            return _raise(
-                f"{where}: the model is unstable (pole at z = {p:.4g}, |z| = {abs(p):.4g}) and its response overflowed."
-            )
-    return _raise(f"{where}: the response overflowed the floating-point range (input too large for the model's gain).")
-
-
-def _raise(message: str) -> np.ndarray:
-    raise ModelError(message)
+    where = f"the simulation diverged at sample {int(np.argmin(finite))} of {y.shape[0]}"
+    size = poles.real if dt is None else np.abs(poles)
+    if poles.size and size.max() >= (0.0 if dt is None else 1.0):
+        p = poles[np.argmax(size)]
+        pole = f"s = {p:.4g} rad/s" if dt is None else f"z = {p:.4g}, |z| = {abs(p):.4g}"
+        raise ModelError(f"{where}: the model is unstable (pole at {pole}) and its response overflowed.")
+    raise ModelError(
+        f"{where}: the response overflowed the floating-point range (input too large for the model's gain)."
+    )
 
 
 def input_samples(u: object, n_inputs: int) -> np.ndarray:
