@@ -39,7 +39,9 @@ def test_shifted_and_regressor_equal_the_stacked_copies(lags, start):
     a, b = rng.standard_normal(12), rng.standard_normal(12)
     c, d = rng.standard_normal(7), rng.standard_normal(7)
     assert np.array_equal(regression.shifted(a, lags, start), _reference_shifted(a, lags, start))
-    got = regression.regressor([[(a, lags, start, True), (b, 2, 1, False)], [(c, lags, start, True), (d, 2, 1, False)]], 19)
+    got = regression.regressor(
+        [[(a, lags, start, True), (b, 2, 1, False)], [(c, lags, start, True), (d, 2, 1, False)]], 19
+    )
     want = np.vstack(
         [
             np.hstack([-_reference_shifted(a, lags, start), _reference_shifted(b, 2, 1)]),
@@ -67,16 +69,18 @@ def test_jacobian_is_the_derivative_of_the_residual(structure, orders):
     A, B, C, D, F = polynomial.unpack(theta, full)
     u, y = us[0], ys[0]
     J = jacobian(A, B, C, D, F, 1, full, u, y)
-    J_cached = jacobian(
-        A, B, C, D, F, 1, full, u, y, parts=polynomial.residual_parts(A, B, C, D, F, 1, u, y), out=np.full(J.shape, np.nan)
-    )
+    parts = polynomial.residual_parts(A, B, C, D, F, 1, u, y)
+    J_cached = jacobian(A, B, C, D, F, 1, full, u, y, parts=parts, out=np.full(J.shape, np.nan))
     assert np.array_equal(J, J_cached)
     h = 1e-6
     for k in range(theta.size):
         tp, tm = theta.copy(), theta.copy()
         tp[k] += h
         tm[k] -= h
-        fd = (polynomial.residual(*polynomial.unpack(tp, full), 1, u, y) - polynomial.residual(*polynomial.unpack(tm, full), 1, u, y)) / (2 * h)
+        fd = (
+            polynomial.residual(*polynomial.unpack(tp, full), 1, u, y)
+            - polynomial.residual(*polynomial.unpack(tm, full), 1, u, y)
+        ) / (2 * h)
         assert np.max(np.abs(J[:, k] - fd)) <= 1e-6 * max(1.0, np.max(np.abs(fd))), k
 
 

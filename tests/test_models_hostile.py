@@ -22,7 +22,15 @@ from stageid.cli.main import main
 from stageid.data import write_csv
 from stageid.models import StateSpaceModel, TransferMatrix, loads, save_model
 
-_SS = {"format": "stageid.lti/1", "kind": "statespace", "dt": 0.002, "A": [[0.5]], "B": [[1.0]], "C": [[1.0]], "D": [[0.0]]}
+_SS = {
+    "format": "stageid.lti/1",
+    "kind": "statespace",
+    "dt": 0.002,
+    "A": [[0.5]],
+    "B": [[1.0]],
+    "C": [[1.0]],
+    "D": [[0.0]],
+}
 
 
 def _text(**change: object) -> str:
@@ -103,7 +111,9 @@ def _unstable_file(tmp_path: Path) -> Path:
     return path
 
 
-def test_simulating_an_unstable_model_says_where_it_diverged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulating_an_unstable_model_says_where_it_diverged(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     model = _unstable_file(tmp_path)
     n = 5000  # 1.5^k overflows near k = 1750
     write_csv(tmp_path / "u.csv", {"u1": np.ones(n)}, dt=0.002)
