@@ -70,7 +70,7 @@ def run(repeat: int = 3) -> list[dict]:
         ("ARMAX", "armax", {"na": n, "nb": n, "nc": n}),
         ("BJ", "bj", {"nb": n, "nf": n, "nc": 2, "nd": 2}),
     ):
-        m, t = _timed(lambda: pem(r_um, y_um, structure, orders, nk=1, dt=DT), repeat)
+        m, t = _timed(lambda s=structure, o=orders: pem(r_um, y_um, s, o, nk=1, dt=DT), repeat)
         rows.append(dict(tool="stageid", method=name, time=t, fit=fit_percent(yv0_um, m.simulate(rv_um))))
     try:
         from sippy_unipi import system_identification
@@ -89,16 +89,6 @@ def run(repeat: int = 3) -> list[dict]:
 
         try:
             mod, t = _timed(ident, repeat)
-            num = (
-                np.asarray(mod.NUMERATOR, dtype=float).ravel()
-                if hasattr(mod, "NUMERATOR")
-                else np.asarray(mod.G.num[0][0], float)
-            )
-            den = (
-                np.asarray(mod.DENOMINATOR, dtype=float).ravel()
-                if hasattr(mod, "DENOMINATOR")
-                else np.asarray(mod.G.den[0][0], float)
-            )
             g = mod.G
             bz, az = np.asarray(g.num[0][0], float), np.asarray(g.den[0][0], float)
             pad = az.size - bz.size

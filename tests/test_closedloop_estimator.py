@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stageid._errors import DataError, IdentificationError
+from stageid._errors import DataError, IdentificationError, ParameterError
 from stageid.closedloop import (
     ClosedLoopIdentification,
     direct_identification,
@@ -97,9 +97,9 @@ def test_empirical_transfer_and_reclosed_loop_match_the_data() -> None:
 
 def test_fit_errors() -> None:
     exp = _siso_experiment(0, duration=0.2)
-    with pytest.raises(IdentificationError, match="method"):
+    with pytest.raises(ParameterError, match="method"):
         ClosedLoopIdentification(_siso_controller(), method="nope").fit(exp)
-    with pytest.raises(IdentificationError, match="band"):
+    with pytest.raises(ParameterError, match="band"):
         ClosedLoopIdentification(_siso_controller(), band=(300, 20)).fit(exp)
     flat = Experiment(np.zeros((500, 1)), np.zeros((500, 1)), DT)
     with pytest.raises(DataError, match="no excited reference"):
@@ -130,10 +130,21 @@ def test_bad_arguments_are_one_line_errors() -> None:
         dict(max_nfev=None),
         dict(structure=5),
         dict(order_range=[]),
+        dict(order_range=[2.0, 3.0]),
+        dict(orders=0),
+        dict(orders={"na": 2, "nb": 2}),  # na is not free in an OE model
+        dict(orders={"nb": 0, "nf": 2}),
+        dict(structure={(0, 0): (3, 2)}),
+        dict(structure={(0, 1): (0, 2)}),  # no orders for the plant's entry (0, 0)
+        dict(controller=None),
+        dict(continuous=1),
+        dict(band=(-1.0, 300.0)),
     ]
     for kwargs in bad:
-        with pytest.raises(IdentificationError) as info:
-            ClosedLoopIdentification(K, **kwargs).fit(exp)
+        with pytest.raises(ParameterError) as info:
+            ClosedLoopIdentification(kwargs.pop("controller", K), **kwargs).fit(exp)
+        name = next(iter(kwargs), "controller")
+        assert str(info.value).startswith(f"`{name}` of ClosedLoopIdentification must be"), str(info.value)
         assert "\n" not in str(info.value) and "; got" in str(info.value)
 
 
@@ -147,5 +158,22 @@ def test_band_above_nyquist_is_rejected_before_any_fit(monkeypatch: pytest.Monke
     monkeypatch.setattr(est, "select_order", no_fit)
     monkeypatch.setattr(est, "pem", no_fit)
     exp = _siso_experiment(0, duration=0.2)  # Nyquist 2500 Hz
-    with pytest.raises(IdentificationError, match="below the Nyquist frequency 2500 Hz .*; got 20-3000 Hz"):
+    with pytest.raises(ParameterError, match="at or below the Nyquist frequency 2500 Hz .*; got 20-3000 Hz"):
         ClosedLoopIdentification(_siso_controller(), band=(20.0, 3000.0)).fit(exp)
+
+
+def test_band_from_0_hz_starts_its_grids_at_the_records_resolution() -> None:
+    # the one band rule allows a 0 Hz lower edge; the log grids of the reduction and of the
+    # band errors then start at the first positive line of the records, 1 / duration
+    exp = _siso_experiment(0)  # 1 s: 1 Hz resolution
+    K = _siso_controller()
+    res = ClosedLoopIdentification(K, order_range=range(2, 9), band=(0.0, 300.0)).fit(exp)
+    assert res.band == (0.0, 300.0)
+    ref = ClosedLoopIdentification(K, order_range=range(2, 9), band=(1.0, 300.0)).fit(exp)
+    np.testing.assert_array_equal(res.band_error, ref.band_error)  # the same grid: 1-300 Hz
+    f = np.geomspace(20.0, 300.0, 100)
+    err = np.abs(res.plant.frequency_response(f) - G_SISO.frequency_response(f)) / np.abs(G_SISO.frequency_response(f))
+    assert err.max() < 0.01  # the paper's 1 % over 20-300 Hz
+    assert np.isclose(res.unstable_poles.real.max(), 50.0, rtol=0.02)
+    with pytest.raises(ParameterError, match="frequency resolution 1 Hz"):
+        ClosedLoopIdentification(K, order_range=range(2, 9), band=(0.0, 0.5)).fit(exp)

@@ -7,13 +7,12 @@ equal the uninterrupted one, and the screened order selection must return exactl
 ``pem`` gives for the selected order.
 """
 
-import importlib
-
 import numpy as np
 import pytest
 import scipy.signal as ss
 
-P = importlib.import_module("stageid.closedloop.pem")
+from stageid.closedloop import initial, order_selection, polynomial, regression
+from stageid.closedloop.pem import jacobian, pem
 
 
 def _reference_shifted(x, lags, start):
@@ -39,8 +38,10 @@ def test_shifted_and_regressor_equal_the_stacked_copies(lags, start):
     rng = np.random.default_rng(lags * 31 + start)
     a, b = rng.standard_normal(12), rng.standard_normal(12)
     c, d = rng.standard_normal(7), rng.standard_normal(7)
-    assert np.array_equal(P._shifted(a, lags, start), _reference_shifted(a, lags, start))
-    got = P._regressor([[(a, lags, start, True), (b, 2, 1, False)], [(c, lags, start, True), (d, 2, 1, False)]], 19)
+    assert np.array_equal(regression.shifted(a, lags, start), _reference_shifted(a, lags, start))
+    got = regression.regressor(
+        [[(a, lags, start, True), (b, 2, 1, False)], [(c, lags, start, True), (d, 2, 1, False)]], 19
+    )
     want = np.vstack(
         [
             np.hstack([-_reference_shifted(a, lags, start), _reference_shifted(b, 2, 1)]),
@@ -62,31 +63,33 @@ def test_shifted_and_regressor_equal_the_stacked_copies(lags, start):
 )
 def test_jacobian_is_the_derivative_of_the_residual(structure, orders):
     us, ys = _records()
-    full = P._check_orders(structure, orders, 1)
+    full = polynomial.check_orders(structure, orders, 1)
     rng = np.random.default_rng(3)
     theta = 0.1 * rng.standard_normal(sum(full.values()))
-    A, B, C, D, F = P._unpack(theta, full)
+    A, B, C, D, F = polynomial.unpack(theta, full)
     u, y = us[0], ys[0]
-    J = P._jacobian(A, B, C, D, F, 1, full, u, y)
-    J_cached = P._jacobian(
-        A, B, C, D, F, 1, full, u, y, parts=P._residual_parts(A, B, C, D, F, 1, u, y), out=np.full(J.shape, np.nan)
-    )
+    J = jacobian(A, B, C, D, F, 1, full, u, y)
+    parts = polynomial.residual_parts(A, B, C, D, F, 1, u, y)
+    J_cached = jacobian(A, B, C, D, F, 1, full, u, y, parts=parts, out=np.full(J.shape, np.nan))
     assert np.array_equal(J, J_cached)
     h = 1e-6
     for k in range(theta.size):
         tp, tm = theta.copy(), theta.copy()
         tp[k] += h
         tm[k] -= h
-        fd = (P._residual(*P._unpack(tp, full), 1, u, y) - P._residual(*P._unpack(tm, full), 1, u, y)) / (2 * h)
+        fd = (
+            polynomial.residual(*polynomial.unpack(tp, full), 1, u, y)
+            - polynomial.residual(*polynomial.unpack(tm, full), 1, u, y)
+        ) / (2 * h)
         assert np.max(np.abs(J[:, k] - fd)) <= 1e-6 * max(1.0, np.max(np.abs(fd))), k
 
 
 def test_steiglitz_mcbride_continued_from_a_saved_F_equals_the_full_run():
     us, ys = _records()
-    segs = P._segments(us, ys)
-    B8, F8 = P._steiglitz_mcbride(segs, 3, 3, 1, n_iter=8)
-    _, F6 = P._steiglitz_mcbride(segs, 3, 3, 1, n_iter=6)
-    B, F = P._steiglitz_mcbride(segs, 3, 3, 1, n_iter=2, F0=F6)
+    segs = regression.records(us, ys)
+    B8, F8 = initial.steiglitz_mcbride(segs, 3, 3, 1, n_iter=8)
+    _, F6 = initial.steiglitz_mcbride(segs, 3, 3, 1, n_iter=6)
+    B, F = initial.steiglitz_mcbride(segs, 3, 3, 1, n_iter=2, F0=F6)
     assert np.array_equal(B, B8) and np.array_equal(F, F8)
     # and the continuation is not a no-op: two more iterations move F away from F6 here
     assert not np.array_equal(F6, F8)
@@ -95,10 +98,10 @@ def test_steiglitz_mcbride_continued_from_a_saved_F_equals_the_full_run():
 @pytest.mark.parametrize("structure", ["oe", "bj"])
 def test_screened_selection_returns_the_pem_model_of_the_selected_order(structure):
     us, ys = _records(seed=4, noise=0.05)
-    m, scores = P.select_order(us, ys, structure, orders=[1, 2, 3, 4, 5])
+    m, scores = order_selection.select_order(us, ys, structure, orders=[1, 2, 3, 4, 5])
     n = m.F.size - 1
     o = {"nb": n, "nf": n} if structure == "oe" else {"nb": n, "nf": n, "nc": 2, "nd": 2}
-    ref = P.pem(us, ys, structure, o)
+    ref = pem(us, ys, structure, o)
     assert list(scores) == [n]
     for name in "ABCDF":
         assert np.array_equal(getattr(m, name), getattr(ref, name)), name
@@ -108,6 +111,6 @@ def test_screened_selection_returns_the_pem_model_of_the_selected_order(structur
 def test_pem_does_not_modify_the_callers_records():
     us, ys = _records()
     copies = [a.copy() for a in us + ys]
-    P.select_order(us, ys, "oe", orders=[1, 2, 3, 4])
-    P.pem(us, ys, "bj", {"nb": 2, "nf": 2, "nc": 1, "nd": 1})
+    order_selection.select_order(us, ys, "oe", orders=[1, 2, 3, 4])
+    pem(us, ys, "bj", {"nb": 2, "nf": 2, "nc": 1, "nd": 1})
     assert all(np.array_equal(a, b) for a, b in zip(us + ys, copies))

@@ -142,7 +142,6 @@ def test_minimal_realization_removes_hidden_modes():
 def test_feedback_matches_python_control():
     import control
 
-    rng = np.random.default_rng(7)
     G = StateSpaceModel([[1.2, 0.1], [0.0, 0.8]], [[1.0], [0.5]], [[1.0, 0.0]], [[0.0]], dt=0.01)  # unstable
     K = StateSpaceModel([[0.3]], [[1.0]], [[-0.4]], [[0.9]], dt=0.01)
     cl = feedback(G, K)

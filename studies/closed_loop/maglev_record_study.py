@@ -71,7 +71,7 @@ def run() -> dict:
     n = u.shape[0]
     # longest unsaturated stretch for the controller fit
     ok = ~np.any(sat, axis=1)
-    runs, best, cur = [], (0, 0), 0
+    best, cur = (0, 0), 0
     for k in range(n):
         cur = cur + 1 if ok[k] else 0
         if cur > best[1] - best[0]:

@@ -66,7 +66,6 @@ def run(seed: int = 0, snr_db: float = 80.0) -> dict:
             fig.savefig(OUT / name, dpi=110)
     except ImportError:
         pass
-    names = [f"{i}->{o}" for o in outs for i in maglev.INPUTS]
     lines = [
         "# Maglev reproduction (Shakir & Kim), measured by studies/closed_loop/maglev_study.py",
         "",

@@ -4,9 +4,11 @@
 ==============================  ============================================================
 ``ClosedLoopIdentification``    configure-then-fit estimator of the whole method (Fig. 2)
 ``ClosedLoopResult``            its frozen result: plant, closed loop, poles, eps, diagnostics
-``pem``, ``arx``                prediction-error fits of eq. 12-14 (ARX, ARMAX, OE, BJ)
+``pem``                         prediction-error fit of eq. 12-14 (ARX, ARMAX, OE, BJ)
+``arx``                         least-squares ARX, the linear start of the fits
 ``select_order``                order selection by BIC/AIC
-``PolynomialModel``             A y = B/F u(t-nk) + C/D e
+``PolynomialModel``             A y = B/F u(t-nk) + C/D e (eq. 12)
+``excited_reference``           the one reference an experiment excites
 ``deduce_plant``                eq. 18 as a state-space model, G = T (M - M T)^-1
 ``deduce_response``             eq. 18 frequency by frequency (singularity checked)
 ``deduce_siso``                 SISO eq. 18 in polynomials with the paper's spurious factors
@@ -18,13 +20,25 @@
 ``reclose_loop``                identified plant closed with the known controller (Fig. 8)
 ``direct_identification``       the biased open-loop baseline from u to y
 ==============================  ============================================================
+
+Modules, in the order of the method: ``loop_model`` (the pairs of T, eq. 11-17) built on
+``polynomial`` (model structures), ``regression`` (lagged regressors, least squares),
+``initial`` (ARX / Steiglitz-McBride / Hannan-Rissanen starts), ``pem`` (eq. 13-14) and
+``order_selection`` (BIC/AIC); ``deduction`` (eq. 18); ``cancellation`` (sec. 3.2.3);
+``reduction`` (sec. 3.3); ``estimator`` and ``result`` (the whole method); ``validation``
+(simulation, re-closed loop and the direct baseline).
 """
 
 from .cancellation import CancelledPair, EntryPoleZero, cancel_entries, cancel_pairs
 from .deduction import deduce_plant, deduce_response, deduce_siso, unstable_plant_poles
-from .estimator import ClosedLoopIdentification, ClosedLoopResult, excited_reference
-from .pem import PolynomialModel, arx, pem, select_order
+from .estimator import ClosedLoopIdentification
+from .initial import arx
+from .loop_model import excited_reference
+from .order_selection import select_order
+from .pem import pem
+from .polynomial import PolynomialModel
 from .reduction import ReducedEntry, paper_orders, reduce_entry
+from .result import ClosedLoopResult
 from .validation import (
     controller_residual,
     direct_identification,

@@ -30,7 +30,18 @@ import scipy.linalg as sla
 from .._errors import IdentificationError, ModelError
 from ..models import StateSpaceModel, TransferMatrix
 
-__all__ = ["deduce_response", "deduce_plant", "deduce_siso", "unstable_plant_poles", "as_discrete_controller"]
+__all__ = [
+    "deduce_response",
+    "deduce_plant",
+    "deduce_siso",
+    "unstable_plant_poles",
+    "as_discrete_controller",
+    "discrete_controllers",
+    "check_grid",
+    "check_controller",
+    "check_deduction",
+    "plant_response",
+]
 
 
 def _as_ss(model: StateSpaceModel | TransferMatrix) -> StateSpaceModel:
@@ -61,6 +72,87 @@ def as_discrete_controller(
     if not np.isclose(K.dt, dt, rtol=1e-6, atol=0.0):
         raise ModelError(f"the controller's sample time {K.dt:g} s differs from the data's {dt:g} s.")
     return K
+
+
+def discrete_controllers(
+    controller: StateSpaceModel | TransferMatrix,
+    reference_filter: StateSpaceModel | TransferMatrix | None,
+    dt: float,
+    method: str,
+    p: int,
+) -> tuple[StateSpaceModel, StateSpaceModel | None]:
+    """``(M, M_r)`` discrete at ``dt`` (``M_r`` None for a one-degree-of-freedom law).
+
+    Raises
+    ------
+    IdentificationError
+        When a sample time differs from ``dt`` or ``M`` does not map ``p`` errors to ``p`` inputs.
+    """
+    try:
+        M = as_discrete_controller(controller, dt, method)
+        Mr = None if reference_filter is None else as_discrete_controller(reference_filter, dt, method)
+    except ModelError as exc:
+        raise IdentificationError(str(exc)) from None
+    if M.n_inputs != p or M.n_outputs != p:
+        raise IdentificationError(
+            f"the controller must have {p} inputs (tracking errors) and {p} outputs (plant inputs) for {p} outputs; "
+            f"got {M.n_inputs} inputs and {M.n_outputs} outputs."
+        )
+    return M, Mr
+
+
+def check_grid(f_low: float, dt: float) -> np.ndarray:
+    """Where eq. 18 is checked: 0 Hz, then 400 log-spaced lines from ``min(f_low / 10, 1 Hz)`` to 0.95 Nyquist."""
+    return np.concatenate([[0.0], np.geomspace(min(f_low / 10, 1.0), 0.95 * (0.5 / dt), 400)])
+
+
+def check_controller(controller: StateSpaceModel, freqs_hz: np.ndarray) -> None:
+    """IdentificationError when the controller is singular at some frequency of ``freqs_hz``.
+
+    A singular controller makes eq. 18 singular there whatever ``T`` is, so this is checked
+    before any fit.  Frequencies where the controller has a pole (infinite gain) are skipped.
+    """
+    with np.errstate(all="ignore"):
+        K = controller.frequency_response(freqs_hz)
+    ok = np.all(np.isfinite(K), axis=(1, 2))
+    sv = np.linalg.svd(K[ok], compute_uv=False)
+    bad = np.flatnonzero(sv[:, -1] <= 1e-6 * sv[:, 0].max())
+    if bad.size:
+        k = int(bad[0])
+        raise IdentificationError(
+            f"the plant deduction G = T (M - M T)^-1 is singular at {freqs_hz[ok][k]:.6g} Hz: the controller itself is singular "
+            f"there (smallest singular value {sv[k, -1]:.3g}, {sv[k, -1] / sv[:, 0].max():.2g} of its peak gain)."
+        )
+
+
+def check_deduction(
+    closed_loop: TransferMatrix,
+    controller: StateSpaceModel,
+    reference_filter: StateSpaceModel | None,
+    freqs_hz: np.ndarray,
+) -> None:
+    """Eq. 18 evaluated on ``freqs_hz`` (poles of ``T`` or the controllers skipped); IdentificationError where singular."""
+    with np.errstate(all="ignore"):
+        T = closed_loop.frequency_response(freqs_hz)
+        M = controller.frequency_response(freqs_hz)
+        Mr = M if reference_filter is None else reference_filter.frequency_response(freqs_hz)
+    ok = np.all(np.isfinite(T) & np.isfinite(M) & np.isfinite(Mr), axis=(1, 2))
+    deduce_response(T[ok], M[ok], Mr[ok], freqs_hz[ok])
+
+
+def plant_response(
+    closed_loop: TransferMatrix | StateSpaceModel,
+    controller: StateSpaceModel | TransferMatrix,
+    reference_filter: StateSpaceModel | TransferMatrix | None,
+    freqs_hz: np.ndarray,
+) -> np.ndarray:
+    """The full-order deduced plant's response (eq. 18) at ``freqs_hz``, shape (n_freqs, p, p)."""
+    return deduce_response(
+        closed_loop.frequency_response(freqs_hz),
+        controller.frequency_response(freqs_hz),
+        None if reference_filter is None else reference_filter.frequency_response(freqs_hz),
+        freqs_hz,
+    )
 
 
 def deduce_response(

@@ -24,9 +24,20 @@ import scipy.linalg as sla
 import scipy.signal as ss
 from scipy.optimize import least_squares
 
-from .._errors import IdentificationError
+from .._errors import IdentificationError, ModelError
+from ..models import TransferMatrix
+from .cancellation import EntryPoleZero, z_to_s
 
-__all__ = ["ReducedEntry", "reduce_entry", "zoh_response", "paper_orders"]
+__all__ = [
+    "ReducedEntry",
+    "reduce_entry",
+    "reduce_best",
+    "reduce_plant",
+    "keep_full_order",
+    "entry_unstable_poles",
+    "zoh_response",
+    "paper_orders",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +110,7 @@ def reduce_entry(
     dt: float,
     n_zeros: int,
     n_poles: int,
-    unstable_poles: np.ndarray = np.zeros(0),
+    unstable_poles: np.ndarray | None = None,
     max_nfev: int = 400,
     stable_free: bool = True,
 ) -> ReducedEntry:
@@ -110,13 +121,14 @@ def reduce_entry(
     response : ndarray of complex, shape (n_freqs,)
         Deduced (discrete) plant response ``P_i`` at ``freqs_hz``.
     freqs_hz : ndarray of shape (n_freqs,)
-        Frequencies of the band in Hz (at least ``n_zeros + n_poles + 1`` of them).
+        Frequencies of the band in Hz (at least ``n_zeros + n_free + 2`` of them, ``n_free``
+        the poles not kept fixed).
     dt : float
         Sample time of the data (for the ZOH comparison).
     n_zeros, n_poles : int
         Structure ``[n_zeros, n_poles]``, ``n_zeros <= n_poles``.
-    unstable_poles : ndarray of complex
-        Right-half-plane poles (rad/s) kept fixed; conjugate pairs must be complete.
+    unstable_poles : ndarray of complex, optional
+        Right-half-plane poles (rad/s) kept fixed; conjugate pairs must be complete (default none).
     max_nfev : int
         Evaluation limit of the nonlinear refinement.
     stable_free : bool
@@ -143,15 +155,44 @@ def reduce_entry(
     """
     P = np.asarray(response, dtype=complex).reshape(-1)
     f = np.asarray(freqs_hz, dtype=float).reshape(-1)
-    up = np.asarray(unstable_poles, dtype=complex).reshape(-1)
+    up = np.zeros(0, complex) if unstable_poles is None else np.asarray(unstable_poles, dtype=complex).reshape(-1)
     n_free = n_poles - up.size
+    _check_entry_fit(P, f, up.size, n_zeros, n_poles)
+    w0 = 2 * np.pi * np.sqrt(f.min() * f.max())  # frequency normalisation
+    du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
+    theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free)
+    fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles)
+    try:
+        sol = least_squares(
+            fit.residual,
+            theta,
+            method="lm" if theta.size * 2 <= 2 * f.size else "trf",
+            max_nfev=max_nfev,
+            xtol=1e-12,
+            ftol=1e-12,
+        )
+        theta = sol.x
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
+    if n_free and stable_free:
+        theta = _reflect_and_refit(fit, theta, max_nfev)
+    num, den = fit.polynomials(theta)
+    Pr = zoh_response(num, den, dt, f)
+    eps_mag = float(np.max(np.abs(np.abs(P) - np.abs(Pr)) / np.abs(P)))
+    eps_cplx = float(np.max(np.abs(P - Pr) / np.abs(P)))
+    return ReducedEntry(num, den, up, eps_mag, eps_cplx)
+
+
+def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
+    """IdentificationError unless the structure holds the fixed poles and the band has enough finite points."""
+    n_free = n_poles - n_fixed
     if n_zeros < 0 or n_poles < 1 or n_zeros > n_poles:
         raise IdentificationError(
             f"a reduced structure needs 0 <= n_zeros <= n_poles and n_poles >= 1; got [{n_zeros}, {n_poles}]."
         )
     if n_free < 0:
         raise IdentificationError(
-            f"structure [{n_zeros}, {n_poles}] cannot keep the entry's {up.size} unstable poles; give more poles."
+            f"structure [{n_zeros}, {n_poles}] cannot keep the entry's {n_fixed} unstable poles; give more poles."
         )
     if f.size < n_zeros + n_free + 2 or f.size != P.size:
         raise IdentificationError(
@@ -159,9 +200,23 @@ def reduce_entry(
         )
     if not np.all(np.isfinite(P)) or np.any(P == 0):
         raise IdentificationError("the deduced response must be finite and non-zero over the band.")
-    w0 = 2 * np.pi * np.sqrt(f.min() * f.max())  # frequency normalisation
-    du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
-    # --- linear (Levy) start on the continuous approximation P_c ~ P_d exp(+j w dt / 2)
+
+
+def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> np.ndarray:
+    """The free poles must stay stable: reflect right-half-plane roots of ``d_s`` and refit once."""
+    nb = fit.n_zeros + 1
+    roots = np.roots(_poly_from_params(theta[nb:]))
+    if not np.any(roots.real > 0):
+        return theta
+    roots = np.where(roots.real > 0, -np.conj(roots), roots)
+    theta = np.concatenate([theta[:nb], np.real(np.poly(roots))[1:]])
+    return least_squares(fit.residual, theta, method="trf", max_nfev=max_nfev).x
+
+
+def _levy_start(
+    P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int
+) -> np.ndarray:
+    """Linear (Levy) estimate of ``[b; a_1..a_nfree]`` on the continuous approximation ``P_c ~ P_d exp(+j w dt / 2)``."""
     s_n = 2j * np.pi * f / w0
     Pc = P * np.exp(1j * np.pi * f * dt)
     cols = [s_n**k for k in range(n_zeros, -1, -1)]  # numerator b
@@ -174,45 +229,141 @@ def reduce_entry(
     theta, *_ = np.linalg.lstsq(
         np.vstack([Phi_w.real, Phi_w.imag]), np.concatenate([(rhs * wgt).real, (rhs * wgt).imag]), rcond=None
     )
-    nb = n_zeros + 1
+    return theta
 
-    def build(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        b_n = th[:nb]
-        ds_n = _poly_from_params(th[nb:])
-        den_n = np.polymul(du_n, ds_n)
+
+class _RationalFit:
+    """``b(s) / (d_u(s) d_s(s))`` in the normalised variable ``s / w0``, and its relative ZOH error."""
+
+    def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles):
+        self.P, self.f, self.dt, self.w0, self.du_n = P, f, dt, w0, du_n
+        self.n_zeros, self.n_poles = n_zeros, n_poles
+
+    def polynomials(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(num, den)`` in ``s`` (descending, monic ``den``) of the parameters ``th``."""
+        nb = self.n_zeros + 1
+        den_n = np.polymul(self.du_n, _poly_from_params(th[nb:]))
         # undo the normalisation s_n = s / w0: multiply coefficient k (power p) by w0^-p
-        num = b_n * w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
-        den = den_n * w0 ** (-np.arange(n_poles, -1, -1, dtype=float))
+        num = th[:nb] * self.w0 ** (-np.arange(self.n_zeros, -1, -1, dtype=float))
+        den = den_n * self.w0 ** (-np.arange(self.n_poles, -1, -1, dtype=float))
         return num / den[0], den / den[0]
 
-    def resid(th: np.ndarray) -> np.ndarray:
-        num, den = build(th)
-        r = (zoh_response(num, den, dt, f) - P) / P
+    def residual(self, th: np.ndarray) -> np.ndarray:
+        """``(ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
+        num, den = self.polynomials(th)
+        r = (zoh_response(num, den, self.dt, self.f) - self.P) / self.P
         return np.concatenate([r.real, r.imag])
 
-    try:
-        sol = least_squares(
-            resid,
-            theta,
-            method="lm" if theta.size * 2 <= 2 * f.size else "trf",
-            max_nfev=max_nfev,
-            xtol=1e-12,
-            ftol=1e-12,
+
+def reduce_best(
+    P: np.ndarray, f: np.ndarray, dt: float, nz: int, n_p: int, keep: np.ndarray, diagonal: bool
+) -> ReducedEntry:
+    """Fit one entry three ways and keep the best.
+
+    * unstable poles fixed at the values the deduction gives (when they fit the structure);
+    * all poles free over the band (the zeros of ``M (I - T)`` that place the unstable poles
+      are fixed by data below the band, where a chirp spends little time, so in MIMO they are
+      often less accurate than the in-band response itself);
+    * all poles stable: preferred for a coupling when within 1.5 x of the best band error,
+      because an unstable pole that only one coupling carries is no feedback loop's to
+      stabilise (see the +9.74 rad/s pole of eq. 22c) and usually a displaced spurious doublet.
+    """
+    cands = []
+    if keep.size and keep.size <= n_p:
+        cands.append(reduce_entry(P, f, dt, nz, n_p, keep))
+    cands.append(reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=False))
+    stable = reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=True)
+    stable_ok = not np.any(stable.poles.real > 0)
+    if stable_ok:
+        cands.append(stable)
+    best = min(cands, key=lambda r: r.eps_complex)
+    if not diagonal and stable_ok and stable.eps_complex <= 1.5 * best.eps_complex:
+        return stable
+    return best
+
+
+def entry_unstable_poles(ent: EntryPoleZero, s_unstable: np.ndarray, dt: float, rel: float = 0.05) -> np.ndarray:
+    """Unstable poles (rad/s) the entry keeps after cancellation, snapped to the plant's deduced values."""
+    kept = z_to_s(ent.kept_poles[np.abs(ent.kept_poles) > 1.0 + 1e-9], dt)
+    out = []
+    pool = list(s_unstable)
+    for s in kept:
+        if pool:
+            k = int(np.argmin([abs(s - q) for q in pool]))
+            if abs(pool[k] - s) <= rel * abs(pool[k]):
+                out.append(pool.pop(k))
+                continue
+        out.append(s)
+    arr = np.array(out, dtype=complex)
+    # real poles as real
+    return np.where(np.abs(arr.imag) < 1e-9 * np.maximum(1, np.abs(arr)), arr.real, arr)
+
+
+def reduce_plant(
+    response: np.ndarray,
+    freqs_hz: np.ndarray,
+    dt: float,
+    orders: dict[tuple[int, int], tuple[int, int]],
+    entries: tuple[EntryPoleZero, ...],
+    unstable_poles: np.ndarray,
+    names: tuple[tuple[str, ...], tuple[str, ...]],
+    continuous: bool = True,
+) -> tuple[TransferMatrix, dict, np.ndarray, np.ndarray]:
+    """Every entry reduced to its ``(n_zeros, n_poles)`` of ``orders`` over the band (sec. 3.3).
+
+    ``response`` is the deduced plant over ``freqs_hz`` (n_freqs, p, p); ``names`` are the
+    plant's (inputs, outputs).  Returns ``(plant, reduced, eps, eps_complex)``: the continuous
+    (or ZOH-discretised) plant, ``{(i, j): ReducedEntry}`` and the band errors (p, p).
+    """
+    p = response.shape[1]
+    reduced: dict[tuple[int, int], ReducedEntry] = {}
+    eps, eps_c = np.zeros((p, p)), np.zeros((p, p))
+    nums, dens = [[None] * p for _ in range(p)], [[None] * p for _ in range(p)]
+    for i in range(p):
+        for j in range(p):
+            nz, n_p = orders[(i, j)]
+            ent = next(e for e in entries if e.output == i and e.input == j)
+            keep = entry_unstable_poles(ent, unstable_poles, dt)
+            red = reduce_best(response[:, i, j], freqs_hz, dt, nz, n_p, keep, diagonal=(i == j))
+            reduced[(i, j)] = red
+            eps[i, j], eps_c[i, j] = red.eps_magnitude, red.eps_complex
+            nums[i][j], dens[i][j] = red.num, red.den
+    plant = TransferMatrix(nums, dens, None, *names)
+    return (plant if continuous else plant.c2d(dt, "zoh")), reduced, eps, eps_c
+
+
+def keep_full_order(
+    cancelled: TransferMatrix, response: np.ndarray, freqs_hz: np.ndarray, continuous: bool = True
+) -> tuple[TransferMatrix, dict, np.ndarray, np.ndarray]:
+    """The cancelled full-order deduction as the plant (structure "full"), checked over the band.
+
+    Returns ``(plant, {}, eps, eps_complex)`` like :func:`reduce_plant`.
+
+    Raises
+    ------
+    IdentificationError
+        When the plant has no continuous ZOH equivalent (``continuous``), or an entry misses
+        the deduced response by more than 5 % somewhere in the band (unreliable cancellation).
+    """
+    plant, resp = cancelled, None
+    if continuous:
+        try:
+            plant = cancelled.d2c("zoh")
+        except ModelError as exc:
+            raise IdentificationError(
+                f"the full-order deduced plant has no continuous ZOH equivalent ({exc}); "
+                "ask for a discrete plant or a reduced structure."
+            ) from None
+        resp = plant.c2d(cancelled.dt, "zoh").frequency_response(freqs_hz)
+    else:
+        resp = plant.frequency_response(freqs_hz)
+    eps = np.max(np.abs(np.abs(response) - np.abs(resp)) / np.abs(response), axis=0)
+    eps_c = np.max(np.abs(response - resp) / np.abs(response), axis=0)
+    if eps_c.max() > 0.05:
+        i, j = np.unravel_index(int(np.argmax(eps_c)), eps_c.shape)
+        raise IdentificationError(
+            f"the cancelled full-order model of entry ({i}, {j}) misses the deduced response by {100 * eps_c[i, j]:.1f} % "
+            f"over {freqs_hz[0]:g}-{freqs_hz[-1]:g} Hz (expected < 5 %): its pole-zero cancellation is unreliable; "
+            "use a reduced structure."
         )
-        theta = sol.x
-    except (ValueError, np.linalg.LinAlgError) as exc:
-        raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
-    num, den = build(theta)
-    # the free part must stay stable: reflect any right-half-plane root and refit once
-    if n_free and stable_free:
-        roots = np.roots(_poly_from_params(theta[nb:]))
-        if np.any(roots.real > 0):
-            roots = np.where(roots.real > 0, -np.conj(roots), roots)
-            theta = np.concatenate([theta[:nb], np.real(np.poly(roots))[1:]])
-            sol = least_squares(resid, theta, method="trf", max_nfev=max_nfev)
-            theta = sol.x
-            num, den = build(theta)
-    Pr = zoh_response(num, den, dt, f)
-    eps_mag = float(np.max(np.abs(np.abs(P) - np.abs(Pr)) / np.abs(P)))
-    eps_cplx = float(np.max(np.abs(P - Pr) / np.abs(P)))
-    return ReducedEntry(num, den, up, eps_mag, eps_cplx)
+    return plant, {}, eps, eps_c

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._errors import DataError, ModelError
 from ..models import StateSpaceModel, TransferMatrix, feedback
+from .regression import lstsq, shifted
 
 __all__ = ["simulate_closed_loop", "empirical_transfer", "reclose_loop", "direct_identification", "controller_residual"]
 
@@ -208,8 +209,6 @@ def direct_identification(
     -------
     ndarray of shape (n_freqs, p, m): the frequency response of the direct estimate.
     """
-    from .pem import _lstsq, _shifted
-
     f = np.geomspace(1.0, 0.4 / dt, 200) if freqs_hz is None else np.asarray(freqs_hz, float)
     U = [np.asarray(u, float) for u in plant_inputs]
     Y = [np.asarray(y, float) for y in outputs]
@@ -219,10 +218,10 @@ def direct_identification(
     for i in range(p):
         rows, rhs = [], []
         for u, y in zip(U, Y):
-            cols = [-_shifted(y[:, i] - y[0, i], order, 1)] + [_shifted(u[:, j] - u[0, j], order, 1) for j in range(m)]
+            cols = [-shifted(y[:, i] - y[0, i], order, 1)] + [shifted(u[:, j] - u[0, j], order, 1) for j in range(m)]
             rows.append(np.hstack(cols))
             rhs.append(y[:, i] - y[0, i])
-        th = _lstsq(np.vstack(rows), np.concatenate(rhs), "direct ARX", strict=False)
+        th = lstsq(np.vstack(rows), np.concatenate(rhs), "direct ARX", strict=False)
         A = np.concatenate([[1.0], th[:order]])
         den = np.polynomial.polynomial.polyval(q, A)
         for j in range(m):

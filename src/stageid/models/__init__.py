@@ -9,14 +9,18 @@
 ``load_model``            read any stageid model file (LTI or registered formats)
 ``save_model``            write a model file atomically; ``dumps``/``loads`` for text
 ========================  ==================================================================
+
+Layers, each importing only those below it: ``_validate``, ``_kernels``, ``minimal``,
+``conversions`` (one-way functions on matrices), ``json_text`` (the file text) ->
+``lti`` (both model classes; ``statespace`` and ``transfer`` re-export them) ->
+``discretization``, ``interconnect``, ``serialization``.
 """
 
 from .discretization import c2d, d2c
 from .interconnect import feedback, series
+from .lti import StateSpaceModel, TransferMatrix
 from .minimal import minimal_realization
 from .serialization import LTI_FORMAT, dumps, load_model, loads, save_model
-from .statespace import StateSpaceModel
-from .transfer import TransferMatrix
 
 __all__ = [
     "StateSpaceModel",

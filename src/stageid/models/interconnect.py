@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import ModelError
-from .statespace import StateSpaceModel
+from .lti import StateSpaceModel
 
 __all__ = ["series", "feedback"]
 

@@ -1,14 +1,19 @@
-"""Minimal realisation by orthogonal staircase reduction (no slycot needed)."""
+"""Minimal realisation by orthogonal staircase reduction (no slycot needed).
+
+The reduction works on the matrices (:func:`minimal_matrices`); :func:`minimal_realization`
+applies it to any state-space model object with ``A, B, C, D`` fields.
+"""
 
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TypeVar
 
 import numpy as np
 
-from .statespace import StateSpaceModel
+__all__ = ["minimal_realization", "minimal_matrices", "controllable_basis"]
 
-__all__ = ["minimal_realization", "controllable_basis"]
+M = TypeVar("M")
 
 
 def controllable_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
@@ -35,7 +40,27 @@ def controllable_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
     return Q
 
 
-def minimal_realization(model: StateSpaceModel, tol: float | None = None) -> StateSpaceModel:
+def minimal_matrices(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, C)`` of the controllable and observable part (``D`` is unchanged).
+
+    ``tol`` is the rank threshold; default ``1e-9 * max(1, ||A||, ||B||, ||C||)``.
+    """
+    if A.shape[0] == 0:
+        return A, B, C
+    if tol is None:
+        scale = max(
+            1.0, np.linalg.norm(A, 2), np.linalg.norm(B, 2) if B.size else 0.0, np.linalg.norm(C, 2) if C.size else 0.0
+        )
+        tol = 1e-9 * scale
+    Qc = controllable_basis(A, B, tol)
+    Ac, Bc, Cc = Qc.T @ A @ Qc, Qc.T @ B, C @ Qc
+    Qo = controllable_basis(Ac.T, Cc.T, tol)
+    return Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo
+
+
+def minimal_realization(model: M, tol: float | None = None) -> M:
     """Return an equivalent model with no uncontrollable or unobservable states.
 
     Parameters
@@ -52,16 +77,7 @@ def minimal_realization(model: StateSpaceModel, tol: float | None = None) -> Sta
     >>> minimal_realization(g).n_states
     1
     """
-    A, B, C = model.A, model.B, model.C
-    if model.n_states == 0:
+    if model.A.shape[0] == 0:  # type: ignore[attr-defined]
         return model
-    if tol is None:
-        scale = max(
-            1.0, np.linalg.norm(A, 2), np.linalg.norm(B, 2) if B.size else 0.0, np.linalg.norm(C, 2) if C.size else 0.0
-        )
-        tol = 1e-9 * scale
-    Qc = controllable_basis(A, B, tol)
-    Ac, Bc, Cc = Qc.T @ A @ Qc, Qc.T @ B, C @ Qc
-    Qo = controllable_basis(Ac.T, Cc.T, tol)
-    Am, Bm, Cm = Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo
-    return replace(model, A=Am, B=Bm, C=Cm, D=model.D.copy())
+    A, B, C = minimal_matrices(model.A, model.B, model.C, tol)  # type: ignore[attr-defined]
+    return replace(model, A=A, B=B, C=C, D=model.D.copy())  # type: ignore[attr-defined, type-var]

@@ -12,25 +12,26 @@ Transfer matrix (``num``/``den`` nested [output][input], descending powers of s 
      "num": [[[b0, b1, ...], ...], ...], "den": [[[a0, a1, ...], ...], ...],
      "inputs": [...], "outputs": [...]}
 
-Writing is byte-stable: numbers are written with Python's shortest round-trip ``repr``,
-keys in a fixed order, one matrix row per line, so ``dumps(loads(text)) == text`` for any
-text this module wrote.  Other model formats (hysteresis models) register a loader in
+Writing is byte-stable and parsing is guarded (:mod:`~stageid.models.json_text`): numbers are
+written with Python's shortest round-trip ``repr``, keys in a fixed order, one matrix row per
+line, so ``dumps(loads(text)) == text`` for any text this module wrote.  Other model formats (hysteresis models) register a loader in
 ``_FORMATS`` so ``load_model`` and the CLI handle every stageid model file.
 """
 
 from __future__ import annotations
 
 import importlib
-import json
 import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from .._errors import ModelFormatError
+from .._errors import ModelError, ModelFormatError
+from ..checks import shown
+from ..resources import require_memory
+from .json_text import LTI_FORMAT, dumps, parse
+from .lti import StateSpaceModel, TransferMatrix
 
 __all__ = [
     "LTI_FORMAT",
@@ -42,8 +43,6 @@ __all__ = [
     "save_model",
     "register_format",
 ]
-
-LTI_FORMAT = "stageid.lti/1"
 
 # format name -> "module:function" turning the parsed dict into a model (imported lazily)
 _FORMATS: dict[str, str] = {
@@ -57,54 +56,13 @@ def register_format(name: str, loader: str) -> None:
     _FORMATS[name] = loader
 
 
-def _num(x: float) -> str:
-    x = float(x)
-    if not np.isfinite(x):
-        raise ModelFormatError(f"model files hold finite numbers only; got {x}.")
-    return repr(x)
-
-
-def _encode(value: Any, indent: int) -> str:
-    pad = " " * indent
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (list, tuple)):
-        if not value:
-            return "[]"
-        if all(isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) for v in value):
-            return "[" + ", ".join(_num(v) for v in value) + "]"
-        if all(isinstance(v, str) for v in value):
-            return "[" + ", ".join(json.dumps(v) for v in value) + "]"
-        inner = (",\n" + pad + "  ").join(_encode(v, indent + 2) for v in value)
-        return "[\n" + pad + "  " + inner + "\n" + pad + "]"
-    if isinstance(value, dict):
-        items = (",\n" + pad + "  ").join(json.dumps(k) + ": " + _encode(v, indent + 2) for k, v in value.items())
-        return "{\n" + pad + "  " + items + "\n" + pad + "}"
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        return _num(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    raise ModelFormatError(f"cannot write a value of type {type(value).__name__} to a model file.")
-
-
-def dumps(d: dict[str, Any]) -> str:
-    """Serialise a model dictionary as stable, human-readable JSON text (ends with a newline)."""
-    return _encode(d, 0) + "\n"
-
-
 def loads(text: str) -> Any:
-    """Parse a model file's text into a model object (any registered format)."""
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ModelFormatError(f"the model file is not valid JSON ({exc.msg} at line {exc.lineno}).") from None
-    return model_from_dict(d)
+    """Parse a model file's text into a model object (any registered format).
+
+    The text is parsed by :func:`~stageid.models.json_text.parse`, which refuses deep nesting,
+    over-long integers and text too large for memory with one line.
+    """
+    return model_from_dict(parse(text))
 
 
 def model_from_dict(d: Any) -> Any:
@@ -117,11 +75,11 @@ def model_from_dict(d: Any) -> Any:
             came = "`format`: null"
         else:
             keys = sorted(map(str, d))
-            shown = ", ".join(keys[:8]) + (", ..." if len(keys) > 8 else "")
-            came = f"an object without it (keys: {shown})" if keys else "an empty object"
+            listed = ", ".join(keys[:8]) + (", ..." if len(keys) > 8 else "")
+            came = f"an object without it (keys: {listed})" if keys else "an empty object"
         raise ModelFormatError(f"`format` is missing; expected one of {', '.join(sorted(_FORMATS))}; got {came}.")
     if fmt not in _FORMATS:
-        raise ModelFormatError(f"unknown model format {fmt!r}; expected one of {', '.join(sorted(_FORMATS))}.")
+        raise ModelFormatError(f"unknown model format {shown(fmt)}; expected one of {', '.join(sorted(_FORMATS))}.")
     module, func = _FORMATS[fmt].split(":")
     try:
         loader: Callable[[dict], Any] = getattr(importlib.import_module(module), func)
@@ -132,31 +90,8 @@ def model_from_dict(d: Any) -> Any:
 
 def lti_to_dict(model: Any) -> dict[str, Any]:
     """The ``stageid.lti/1`` dictionary of a StateSpaceModel or TransferMatrix (keys in file order)."""
-    from .statespace import StateSpaceModel
-    from .transfer import TransferMatrix
-
-    if isinstance(model, StateSpaceModel):
-        return {
-            "format": LTI_FORMAT,
-            "kind": "statespace",
-            "dt": model.dt,
-            "A": model.A.tolist(),
-            "B": model.B.tolist(),
-            "C": model.C.tolist(),
-            "D": model.D.tolist(),
-            "inputs": list(model.inputs),
-            "outputs": list(model.outputs),
-        }
-    if isinstance(model, TransferMatrix):
-        return {
-            "format": LTI_FORMAT,
-            "kind": "transfer",
-            "dt": model.dt,
-            "num": [[e.tolist() for e in row] for row in model.num],
-            "den": [[e.tolist() for e in row] for row in model.den],
-            "inputs": list(model.inputs),
-            "outputs": list(model.outputs),
-        }
+    if isinstance(model, (StateSpaceModel, TransferMatrix)):
+        return model.to_dict()
     raise ModelFormatError(f"expected a StateSpaceModel or TransferMatrix; got {type(model).__name__}.")
 
 
@@ -164,15 +99,16 @@ _REQUIRED = {"statespace": ("dt", "A", "B", "C", "D"), "transfer": ("dt", "num",
 
 
 def lti_from_dict(d: dict[str, Any]) -> Any:
-    """Build a model from a ``stageid.lti/1`` dictionary; :class:`ModelFormatError` names the bad field."""
-    from .statespace import StateSpaceModel
-    from .transfer import TransferMatrix
+    """Build a model from a ``stageid.lti/1`` dictionary; :class:`ModelFormatError` names the bad field.
 
+    Every number follows the one rule of :func:`stageid.checks.is_real` (no ``bool``, no
+    quoted numbers), as the constructors check it.
+    """
     if d.get("format") != LTI_FORMAT:
-        raise ModelFormatError(f"`format` must be {LTI_FORMAT!r}; got {d.get('format')!r}.")
+        raise ModelFormatError(f"`format` must be {LTI_FORMAT!r}; got {shown(d.get('format'))}.")
     kind = d.get("kind")
     if kind not in _REQUIRED:
-        raise ModelFormatError(f'`kind` must be "statespace" or "transfer"; got {kind!r}.')
+        raise ModelFormatError(f'`kind` must be "statespace" or "transfer"; got {shown(kind)}.')
     for key in _REQUIRED[kind]:
         if key not in d:
             raise ModelFormatError(f"`{key}` is missing from the {kind} model.")
@@ -182,15 +118,14 @@ def lti_from_dict(d: dict[str, Any]) -> Any:
     names = {k: d.get(k) for k in ("inputs", "outputs")}
     for k, v in names.items():
         if v is not None and (not isinstance(v, list) or not all(isinstance(s, str) for s in v)):
-            raise ModelFormatError(f"`{k}` must be a list of strings; got {v!r}.")
+            raise ModelFormatError(f"`{k}` must be a list of strings; got {shown(v)}.")
     cls = StateSpaceModel if kind == "statespace" else TransferMatrix
-    obj = object.__new__(cls)
     fields = {k: d[k] for k in _REQUIRED[kind]}
     fields.update(inputs=tuple(names["inputs"] or ()), outputs=tuple(names["outputs"] or ()))
-    for k, v in fields.items():
-        object.__setattr__(obj, k, v)
-    obj._init_fields(ModelFormatError)  # same checks as the constructor, reported as format errors
-    return obj
+    try:
+        return cls(**fields)
+    except ModelError as exc:  # the constructor's checks, reported as a format error of the file
+        raise ModelFormatError(str(exc)) from None
 
 
 def load_model(path: str | os.PathLike[str]) -> Any:
@@ -203,6 +138,8 @@ def load_model(path: str | os.PathLike[str]) -> Any:
     """
     p = Path(path)
     try:
+        # the parsed text needs a few times its size: refuse before reading a huge file
+        require_memory(4 * p.stat().st_size, f"reading model file '{p}'")
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ModelFormatError(f"model file '{p}' does not exist.") from None

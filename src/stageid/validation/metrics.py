@@ -55,13 +55,25 @@ def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     array([nan])
     """
     y, yh = _pair(measured, predicted)
-    den = np.linalg.norm(y - y.mean(axis=0), axis=0)
-    num = np.linalg.norm(y - yh, axis=0)
-    out = np.full(den.shape, np.nan)
-    # a constant channel leaves only the rounding of its mean, at most n eps |y| per sample
-    moving = den > y.shape[0] * np.finfo(float).eps * np.linalg.norm(y, axis=0)
-    out[moving] = 100.0 * (1.0 - num[moving] / den[moving])
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging prediction: -inf, no warning
+        den = _norm(y - y.mean(axis=0))
+        num = _norm(y - yh)
+        out = np.full(den.shape, np.nan)
+        # a constant channel leaves only the rounding of its mean, at most n eps |y| per sample
+        moving = den > y.shape[0] * np.finfo(float).eps * _norm(y)
+        out[moving] = 100.0 * (1.0 - num[moving] / den[moving])
     return out
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """2-norm of each column; a column whose squares overflow is scaled by its largest entry first."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        n = np.linalg.norm(x, axis=0)
+        big = np.isinf(n) & np.all(np.isfinite(x), axis=0)
+        if big.any():
+            scale = np.max(np.abs(x[:, big]), axis=0)
+            n[big] = scale * np.linalg.norm(x[:, big] / scale, axis=0)
+    return n
 
 
 def nrmse(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:

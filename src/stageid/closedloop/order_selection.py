@@ -1,0 +1,134 @@
+"""Order selection of the closed-loop models by an information criterion (BIC or AIC).
+
+Every candidate order ``n`` sets all free polynomials of the structure to order ``n``
+(:func:`~stageid.closedloop.polynomial.structure_orders`).  For output-error and Box-Jenkins
+models the candidates are first ranked by the criterion of cheap Steiglitz-McBride estimates
+(:func:`screen_orders`), and the prediction-error optimisation runs for the winner only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.signal as ss
+
+from .._errors import DataError, IdentificationError
+from .initial import steiglitz_mcbride
+from .pem import fit_pem
+from .polynomial import STRUCTURES, PolynomialModel, structure_orders
+from .regression import check_dt, check_moving, records
+
+__all__ = ["select_order", "screen_orders", "criterion_value", "SCREEN_ITERATIONS"]
+
+#: Steiglitz-McBride passes of the screen (the selected order's start continues from there)
+SCREEN_ITERATIONS = 6
+
+
+def criterion_value(criterion: str, n_samples: int, loss: float, n_parameters: int) -> float:
+    """``N log(V) + k log(N)`` (BIC) or ``N log(V) + 2 k`` (AIC)."""
+    penalty = n_parameters * np.log(n_samples) if criterion == "bic" else 2.0 * n_parameters
+    return n_samples * np.log(max(loss, 1e-300)) + penalty
+
+
+def screen_orders(segs, orders: Sequence[int], nk: int, criterion: str) -> tuple[dict[int, float], dict[int, tuple]]:
+    """Criterion of a Steiglitz-McBride estimate per order, and the state each run reached.
+
+    Returns ``(scores, states)``; ``states[n] = (SCREEN_ITERATIONS, F)`` lets the PEM start of
+    the selected order continue where the screen stopped.  Orders whose regression fails are
+    left out.
+    """
+    N = sum(s_[0].size for s_ in segs)
+    scores, states = {}, {}
+    for n in orders:
+        try:
+            B, F = steiglitz_mcbride(segs, n, n, nk, n_iter=SCREEN_ITERATIONS)
+        except IdentificationError:
+            continue
+        states[n] = (SCREEN_ITERATIONS, F)
+        bu = np.concatenate([np.zeros(nk), B])
+        res = np.concatenate([yy - ss.lfilter(bu, F, uu) for uu, yy in segs])
+        scores[n] = criterion_value(criterion, N, float(np.mean(res**2)), 2 * n)
+    return scores, states
+
+
+def select_order(
+    u: object,
+    y: object,
+    structure: str = "oe",
+    orders: Sequence[int] = tuple(range(1, 11)),
+    nk: int = 1,
+    dt: float = 1.0,
+    criterion: str = "bic",
+    max_nfev: int = 200,
+    screen: bool = True,
+) -> tuple[PolynomialModel, dict[int, float]]:
+    """Fit ``structure`` for each order ``n`` (all free polynomials of order ``n``) and keep the best.
+
+    Parameters
+    ----------
+    u, y : array_like or lists of arrays
+        As in :func:`~stageid.closedloop.pem.pem`.
+    structure : {"arx", "armax", "oe", "bj"}
+    orders : sequence of int
+        Candidate orders ``n``: ``nb = nf = n`` for OE, ``na = nb = n`` (``nc = n``) for
+        ARX/ARMAX, ``nb = nf = n`` and ``nc = nd = 2`` for BJ.
+    criterion : {"bic", "aic"}
+        ``N log(V) + k log(N)`` (BIC) or ``N log(V) + 2 k`` (AIC), ``k`` the number of parameters.
+    screen : bool
+        For OE and BJ with more than three candidates: rank the orders by the criterion of
+        cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
+        the winner; otherwise every order is optimised.
+
+    Returns
+    -------
+    (PolynomialModel, dict)
+        The selected model and the criterion value for each order optimised.
+
+    Raises
+    ------
+    DataError
+        ``dt`` not a positive finite number; ragged or non-finite records.
+    IdentificationError
+        When no order could be fitted, the criterion is unknown, or the input is constant in
+        every record (as in :func:`~stageid.closedloop.initial.arx`).
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.signal as ss
+    >>> u = np.random.default_rng(2).standard_normal(3000)
+    >>> y = ss.lfilter([0, 0.3, 0.1], [1, -1.2, 0.5], u) + 1e-3 * np.random.default_rng(3).standard_normal(3000)
+    >>> m, scores = select_order(u, y, "oe", orders=[1, 2, 3, 4])
+    >>> m.F.size - 1
+    2
+    """
+    if criterion not in ("bic", "aic"):
+        raise IdentificationError(f"`criterion` must be 'bic' or 'aic'; got {criterion!r}.")
+    if structure not in STRUCTURES:
+        raise IdentificationError(f"`structure` must be one of {', '.join(STRUCTURES)}; got {structure!r}.")
+    dt = check_dt(dt)
+    segs = records(u, y)
+    check_moving(segs, structure)
+    orders = [int(n) for n in orders]
+    states: dict[int, tuple] = {}
+    if screen and structure in ("oe", "bj") and len(orders) > 3:
+        screen_scores, states = screen_orders(segs, orders, nk, criterion)
+        if screen_scores:
+            orders = [min(screen_scores, key=screen_scores.get)]
+    scores: dict[int, float] = {}
+    best: PolynomialModel | None = None
+    best_score = np.inf
+    last_error: Exception | None = None
+    for n in orders:
+        try:
+            m = fit_pem(u, y, structure, structure_orders(structure, n), nk, dt, max_nfev, None, states.get(n))
+        except (IdentificationError, DataError) as exc:
+            last_error = exc
+            continue
+        score = criterion_value(criterion, m.n_samples, m.loss, m.n_parameters)
+        scores[int(n)] = float(score)
+        if score < best_score:
+            best, best_score = m, score
+    if best is None:
+        raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}: {last_error}")
+    return best, scores

@@ -1,0 +1,122 @@
+"""The frozen result of :class:`~stageid.closedloop.ClosedLoopIdentification`: plant, closed loop, diagnostics."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models import StateSpaceModel, TransferMatrix
+from .cancellation import CancelledPair, EntryPoleZero, z_to_s
+from .deduction import plant_response
+
+__all__ = ["ClosedLoopResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoopResult:
+    """Frozen result of :meth:`ClosedLoopIdentification.fit` (no training data kept).
+
+    Attributes
+    ----------
+    plant : TransferMatrix
+        The identified plant in the requested structure (continuous unless
+        ``continuous=False``); inputs named after the controller's outputs.
+    plant_full : StateSpaceModel
+        The full-order discrete deduction of eq. 18 (with its spurious pairs).
+    plant_cancelled : TransferMatrix
+        The discrete deduction after cancelling pole-zero pairs closer than ``cancel_tol``.
+    closed_loop : TransferMatrix
+        The identified discrete ``T`` (references to outputs).
+    controller : StateSpaceModel
+        The controller used, discrete at the data's sample time.
+    unstable_poles : ndarray
+        Continuous-time (rad/s) unstable poles of the deduced plant, ``ln(z) / dt``.
+    cancellations : tuple of CancelledPair
+        Every cancelled pair with its ``s``-plane distance.
+    entries : tuple of EntryPoleZero
+        Per-entry poles/zeros before and after cancellation (for pole-zero maps).
+    reduced : dict
+        ``(i, j) -> ReducedEntry`` for the fixed-structure fits (empty for ``"full"``).
+    band : (float, float)
+        Band of the reduction and of the errors, Hz.
+    band_error : ndarray of shape (p, p)
+        The paper's ``eps = max | |P_i| - |P_r| | / |P_i|`` over the band, per entry.
+    band_error_complex : ndarray of shape (p, p)
+        ``max |P_i - P_r| / |P_i|`` over the band.
+    pem_models : dict
+        ``(i, j) -> PolynomialModel`` of each closed-loop pair.
+    closed_loop_fit : ndarray of shape (p, p)
+        Simulation fit (percent) of each ``T_ij`` on its experiment(s).
+    dt : float
+        Sample time of the data.
+    structure : str
+        "paper", "full" or "custom" (a dict of orders).
+    diagnostics : dict
+        Free-form notes of the fit (empty by default).
+    """
+
+    plant: TransferMatrix
+    plant_full: StateSpaceModel
+    plant_cancelled: TransferMatrix
+    closed_loop: TransferMatrix
+    controller: StateSpaceModel
+    unstable_poles: np.ndarray
+    cancellations: tuple[CancelledPair, ...]
+    entries: tuple[EntryPoleZero, ...]
+    reduced: dict
+    band: tuple[float, float]
+    band_error: np.ndarray
+    band_error_complex: np.ndarray
+    pem_models: dict
+    closed_loop_fit: np.ndarray
+    dt: float
+    structure: str = "paper"
+    diagnostics: dict = field(default_factory=dict)
+
+    def deduced_response(self, freqs_hz: Sequence[float] | np.ndarray) -> np.ndarray:
+        """Full-order deduced plant response (eq. 18) at ``freqs_hz``, shape (n_freqs, p, p)."""
+        return plant_response(self.closed_loop, self.controller, None, np.asarray(freqs_hz, dtype=float))
+
+    @property
+    def plant_unstable_poles(self) -> np.ndarray:
+        """Right-half-plane poles of the returned plant's entries (rad/s; duplicates merged)."""
+        poles: list[complex] = []
+        for row in self.plant.den:
+            for d in row:
+                r = np.roots(d)
+                if self.plant.dt is not None:
+                    r = z_to_s(r, self.plant.dt)
+                for q in r[r.real > 0]:
+                    if not any(abs(q - o) <= 1e-9 * max(1.0, abs(q)) for o in poles):
+                        poles.append(complex(q))
+        return np.array(sorted(poles, key=lambda q: (q.real, q.imag)), dtype=complex)
+
+    def summary(self) -> str:
+        """A plain-text summary: orders, fits, unstable poles, band errors, cancellations."""
+        p = self.closed_loop.n_outputs
+        lines = [
+            f"closed-loop identification ({self.structure} structure), dt = {self.dt:g} s, band {self.band[0]:g}-{self.band[1]:g} Hz"
+        ]
+        for (i, j), m in sorted(self.pem_models.items()):
+            lines.append(
+                f"  T[{self.closed_loop.outputs[i]}<-{self.closed_loop.inputs[j]}]: {m.structure} order {m.F.size - 1 + m.A.size - 1}, "
+                f"fit {self.closed_loop_fit[i, j]:.2f} %"
+            )
+        lines.append("  unstable poles of M (I - T) [rad/s]: " + ", ".join(f"{p_:.4g}" for p_ in self.unstable_poles))
+        lines.append(
+            "  unstable poles of the plant returned [rad/s]: "
+            + ", ".join(f"{p_:.4g}" for p_ in self.plant_unstable_poles)
+        )
+        for i in range(p):
+            for j in range(p):
+                lines.append(
+                    f"  G[{self.plant.outputs[i]}<-{self.plant.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
+                    f"(complex {100 * self.band_error_complex[i, j]:.3f} %)"
+                )
+        lines.append(
+            f"  {len(self.cancellations)} pole-zero pairs cancelled; largest distance "
+            f"{max((c.distance for c in self.cancellations), default=0.0):.2e}"
+        )
+        return "\n".join(lines)
