@@ -87,11 +87,11 @@ def _inputs(n):
 
 
 def compare_with(path, n, repeat):
-    """Before/after table: the auto kernels of an older ``_kernels.py`` against the current
+    """Before/after table: the auto kernels of an older single-file ``_kernels.py`` against the current
     ones, in one process, same inputs, runs interleaved (old, new, old, new, ...), medians."""
     import importlib.util
 
-    from stageid.hysteresis import _kernels as K
+    from stageid.hysteresis import kernels as K
 
     spec = importlib.util.spec_from_file_location("kernels_before", path)
     old = importlib.util.module_from_spec(spec)
@@ -136,7 +136,8 @@ def main(argv=None) -> int:
         "--compare-with",
         metavar="KERNELS_PY",
         default=None,
-        help="an older copy of stageid/hysteresis/_kernels.py (e.g. from `git show`): time its "
+        help="an older copy of stageid/hysteresis/_kernels.py (the kernels before they became the "
+        "stageid.hysteresis.kernels package; e.g. from `git show`): time its "
         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop",
     )
     args = ap.parse_args(argv)
@@ -144,7 +145,7 @@ def main(argv=None) -> int:
         return compare_with(args.compare_with, args.samples, args.repeat)
 
     from stageid.hysteresis import Compensator, ModifiedPIModel
-    from stageid.hysteresis import _kernels as K
+    from stageid.hysteresis import kernels as K
     from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
     n = args.samples

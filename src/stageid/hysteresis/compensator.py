@@ -69,9 +69,9 @@ class Compensator:
     def __init__(
         self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None, dt: float | None = None
     ) -> None:
-        from . import _kernels
+        from . import kernels
 
-        self._k = _kernels
+        self._k = kernels
         self.model = model
         self._creep = None
         if getattr(model, "creep", None) is not None:  # rate dependent: delegate (see creep.py)

@@ -361,12 +361,12 @@ class CreepInverse:
 
     def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
         """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
-        from . import _kernels
+        from . import kernels
 
         if not yr.size:
             return yr.copy()
         inner = self._inner
-        u, z, x, s = _kernels.cp_invert_creep(
+        u, z, x, s = kernels.cp_invert_creep(
             yr,
             inner._P,
             inner._z,

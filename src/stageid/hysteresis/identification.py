@@ -632,7 +632,7 @@ class _Context:
         return 0.0 if classical or len(theta) < 8 else float(theta[7])
 
     def matrix(self, theta, kinds, classical):
-        from . import _kernels
+        from . import kernels
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
@@ -646,7 +646,7 @@ class _Context:
             down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
             z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
             # the state before the first sample: z0 is already consistent with x[0]
-            Z, _ = _kernels.cp_bank(np.ascontiguousarray(x), r, rc, ra, rb, np.ascontiguousarray(z0))
+            Z, _ = kernels.cp_bank(np.ascontiguousarray(x), r, rc, ra, rb, np.ascontiguousarray(z0))
             blocks.append(Z[rows])
         return blocks
 
@@ -664,7 +664,7 @@ class _Context:
         (not the linear term, creep weights or offsets: a CP operator whose thresholds leave it
         almost still over the data would otherwise get a huge weight that explodes outside the
         identified range), ``G_fit`` is without it."""
-        from . import _kernels
+        from . import kernels
 
         y = self.y
         p = columns[0].shape[1]
@@ -674,7 +674,7 @@ class _Context:
         start = 0
         for j, c in enumerate(columns):
             yb = np.ascontiguousarray(y[start : start + c.shape[0]])
-            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(c), yb)
+            Gb, gb, sb = kernels.gram(np.ascontiguousarray(c), yb)
             G[:p, :p] += Gb
             G[:p, p + j] = sb
             G[p + j, :p] = sb

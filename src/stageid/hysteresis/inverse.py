@@ -171,7 +171,7 @@ def invert(
     >>> bool(np.allclose(m.simulate(u)[:, 0], yd))
     True
     """
-    from . import _kernels
+    from . import kernels
 
     if getattr(model, "creep", None) is not None:  # rate dependent: per-sample inverse with creep state
         from .creep import CreepInverse
@@ -190,7 +190,7 @@ def invert(
         if lim is None
         else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
     )
-    x, zf, xf = _kernels.cp_invert(
+    x, zf, xf = kernels.cp_invert(
         target, _packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, _tolerance(model)
     )
     u = model.from_operator_input(x)

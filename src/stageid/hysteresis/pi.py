@@ -174,14 +174,14 @@ class _PIBase:
 
     def operator_outputs(self, u: object) -> tuple[np.ndarray, OperatorState]:
         """Outputs of every operator, shape (n_samples, n_operators), and the final state."""
-        from . import _kernels
+        from . import kernels
 
         x = np.ascontiguousarray(self.to_operator_input(_as_input(u, self.inputs[0])))
         r, rc, ra, rb = self._params()
         if self.kind == "pi":
-            z, zf = _kernels.play_bank(x, r, np.array(self.state.z))
+            z, zf = kernels.play_bank(x, r, np.array(self.state.z))
         else:
-            z, zf = _kernels.cp_bank(x, r, rc, ra, rb, np.array(self.state.z))
+            z, zf = kernels.cp_bank(x, r, rc, ra, rb, np.array(self.state.z))
         return z, OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, OperatorState]:
@@ -190,20 +190,20 @@ class _PIBase:
         ``dt`` [s] is used only by a creep term (default its ``sample_time``); the final state
         is the operator state (a creep term's final lags: ``model.creep.run(u, dt)[1]``).
         """
-        from . import _kernels
+        from . import kernels
 
         u_in = _as_input(u, self.inputs[0])
         x = np.ascontiguousarray(self.to_operator_input(u_in))
         r, rc, ra, rb = self._params()
         z0 = np.array(self.state.z)
         if self.kind == "pi":
-            y, zf = _kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
+            y, zf = kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
         else:
             up, down = gamma_up(self.state.x, r, rc), gamma_down(self.state.x, ra, rb)
             if np.all(up <= z0) and np.all(z0 <= down):  # a consistent state: events are exact
-                y, zf = _kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
+                y, zf = kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
             else:
-                y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
+                y, zf = kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         creep = getattr(self, "creep", None)
         if creep is not None and u_in.size:
             y = y + creep.run(u_in, dt)[0]  # no creep state: at rest at the first input
