@@ -183,7 +183,7 @@ def test_compensator_with_creep_respects_limits():
 
 
 def test_compiled_creep_inversion_equals_stepping_and_continues_its_state(monkeypatch):
-    from stageid.hysteresis.creep import CreepInverse
+    from stageid.hysteresis.compensator import CreepInverse
 
     creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
     m = ModifiedPIModel(

@@ -158,7 +158,7 @@ def cp_invert_creep(
     yref, P, z0, x0, lo, hi, smin, tol, out_off, in_off, a, ca, s0, u0, g, tol_fp
 ):  # pragma: no cover - compiled
     """Batch inversion of a modified-PI model with a creep term (no input warp), as
-    ``creep.CreepInverse.step`` does it sample by sample: the creep memory ``h = ca . s`` is
+    ``compensator.CreepInverse.step`` does it sample by sample: the creep memory ``h = ca . s`` is
     subtracted from the target, ``P`` carries the instantaneous creep gain ``g`` folded into
     the linear operator's weight, and the excess ``g (u - x(u))`` (the input offset, up to
     rounding) is resolved by the same fixed-point loop.  Returns (drives, z, x, s)."""
