@@ -35,6 +35,7 @@ import platform
 import statistics
 import sys
 import time
+from functools import partial
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -108,10 +109,14 @@ def compare_with(path, n, repeat):
             rb = 0.6 * ra
             w = rng.uniform(0.0, 1.0, m) / m
             z0 = np.zeros(m)
-            for label, mod_call in (
-                ("play auto", lambda M: M.play_sum_auto(x, r, w, z0, 0.0)),
-                ("CP auto", lambda M: M.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)),
+            for label, name_, args in (
+                ("play auto", "play_sum_auto", (x, r, w, z0, 0.0)),
+                ("CP auto", "cp_sum_auto", (x, r, rc, ra, rb, w, z0, 0.0)),
             ):
+
+                def mod_call(M, name_=name_, args=args):  # this row's kernel and arguments
+                    return getattr(M, name_)(*args)
+
                 yo, zo = mod_call(old)
                 yn, zn = mod_call(K)
                 diff = np.abs(yo - yn).max() / np.abs(yo).max()
@@ -175,20 +180,20 @@ def main(argv=None) -> int:
             z0 = np.zeros(m)
             yref = play_reference(x[:n_ref], r, z0)[0] @ w
             ycref = coupled_play_reference(x[:n_ref], r, rc, ra, rb, z0)[0] @ w
-            scale = np.abs(yref).max()
+            play_args, cp_args = (x, r, w, z0), (x, r, rc, ra, rb, w, z0)
             cases = [
-                ("play loop", lambda: K.play_sum(x, r, w, z0)[0], yref),
-                ("play events", lambda: K.play_sum_events(x, r, w, z0, 0.0)[0], yref),
-                ("play banded", lambda: K.play_sum_banded(x, r, w, z0, 0.0)[0], yref),
-                ("play auto", lambda: K.play_sum_auto(x, r, w, z0, 0.0)[0], yref),
-                ("CP loop", lambda: K.cp_sum(x, r, rc, ra, rb, w, z0)[0], ycref),
-                ("CP events", lambda: K.cp_sum_events(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
-                ("CP banded", lambda: K.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
-                ("CP auto", lambda: K.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
+                ("play loop", K.play_sum, play_args, yref),
+                ("play events", K.play_sum_events, (*play_args, 0.0), yref),
+                ("play banded", K.play_sum_banded, (*play_args, 0.0), yref),
+                ("play auto", K.play_sum_auto, (*play_args, 0.0), yref),
+                ("CP loop", K.cp_sum, cp_args, ycref),
+                ("CP events", K.cp_sum_events, (*cp_args, 0.0), ycref),
+                ("CP banded", K.cp_sum_banded, (*cp_args, 0.0), ycref),
+                ("CP auto", K.cp_sum_auto, (*cp_args, 0.0), ycref),
             ]
             loops = {}
-            for label, f, ref in cases:
-                sec, y = timed(f, args.repeat)
+            for label, kernel, kernel_args, ref in cases:
+                sec, (y, _) = timed(partial(kernel, *kernel_args), args.repeat)
                 diff = np.abs(y[:n_ref] - ref).max() / max(np.abs(ref).max(), 1e-300)
                 family = label.split()[0]
                 if label.endswith("loop"):
@@ -199,8 +204,8 @@ def main(argv=None) -> int:
                 rows.append((name, m, label, sec / n / m * 1e9, diff))
                 print(f"{name:12s} {m:4d} {label:14s} {sec / n / m * 1e9:13.4f} {diff:14.2e}")
             for label, f, ref in (
-                ("numpy play", lambda: numpy_play_sum(x[:n_np], r, w, z0), yref),
-                ("numpy CP", lambda: numpy_cp_sum(x[:n_np], r, rc, ra, rb, w, z0), ycref),
+                ("numpy play", partial(numpy_play_sum, x[:n_np], r, w, z0), yref),
+                ("numpy CP", partial(numpy_cp_sum, x[:n_np], r, rc, ra, rb, w, z0), ycref),
             ):
                 sec, y = timed(f, 1)
                 diff = np.abs(y[:n_ref] - ref).max() / max(np.abs(ref).max(), 1e-300)
