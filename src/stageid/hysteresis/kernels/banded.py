@@ -137,9 +137,9 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
 
     The first sample is the plain update of every block.  ``n_hot_blocks < 0`` re-chooses the
     number of hot blocks every ``BAND_BLOCK`` samples from a cost model of the measured band
-    exits and block updates (fitted to timings on the benchmark machine, ns: a hot block costs
-    ~1.35 (CP) or ~0.8 (play) at every sample, a band exit ~20 plus ~0.9 per cold block
-    scanned, a block update ~5.2 (CP) or ~4.2 (play)).  The cost with one more hot block is
+    exits and block updates: a hot block costs ``c_hot`` at every sample, a band exit
+    ``c_exit`` plus 0.9 per cold block scanned, a block update ``c_update`` (ns, fitted to
+    timings; ``benchmarks/RESULTS-hysteresis.md``).  The cost with one more hot block is
     predicted exactly from the counts; one block less is measured again every 32 choices.
     """
     n = x.shape[0]

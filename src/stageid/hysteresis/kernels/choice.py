@@ -29,7 +29,7 @@ def turn_fraction(x):
     """Fraction of samples where the input turns (``dx(k) * dx(k+1) < 0``), branch-free.
 
     A cheap stand-in for :func:`count_reversals` (which also counts turns across standing
-    still) for choosing a kernel: it vectorises, so it costs ~0.25 ns per sample.
+    still) for choosing a kernel: it has no branches, so it vectorises.
     """
     return turns_and_stills(x)[0] / max(x.shape[0], 1)
 
@@ -38,7 +38,7 @@ def is_smooth(x):
     """True when the input reverses in < 0.5 % of its samples (the event kernels' domain)."""
     n = x.shape[0]
     if n > 1 << 16 and turns_and_stills(x[: 1 << 16])[0] >= 0.005 * n:
-        return False  # a rough record is told from its head (the full scan costs ~0.4 ns a sample)
+        return False  # a rough record is told from its head, without scanning all of it
     turns, stills = turns_and_stills(x)
     if turns >= 0.005 * n:
         return False
@@ -50,11 +50,10 @@ def cp_sum_auto(x, r, rc, ra, rb, w, z0, x0):
     records; needs a state consistent at ``x0``), else the banded kernel (random walks and
     anything else; it falls back to updating every operator when that is cheaper).
 
-    The event kernel sorts the slope changes of every operator at each reversal (~0.7 us at
-    20 operators, ~3 us at 100 on the benchmark machine) and is then nearly free per sample;
-    the banded kernel costs 0.03-0.35 ns per sample and operator whatever the input does
-    (least on random walks, most when every operator moves at every sample): they break even
-    at about 0.3-0.7 % reversals.
+    The event kernel sorts the slope changes of every operator at each reversal and is then
+    nearly free per sample; the banded kernel costs about the same per sample whatever the
+    input does: they break even at a few reversals per thousand samples
+    (``benchmarks/RESULTS-hysteresis.md``).
     """
     n = x.shape[0]
     if n > 64 and is_smooth(x):
@@ -69,9 +68,8 @@ def play_sum_auto(x, r, w, z0, x0):
     operator outputs; the sums agree to rounding (~1e-15 relative).
 
     The event kernel's cost per reversal grows with the number of operators the last stroke
-    moved: on a random walk that turns at every other sample it takes 0.2-0.7 ns per sample
-    and operator on the benchmark machine, the banded kernel ~0.08-0.14; on smooth records the
-    event kernel is 1.5-8x faster than the banded one.
+    moved, so it loses to the banded kernel on inputs that turn often and wins on smooth
+    records (``benchmarks/RESULTS-hysteresis.md``).
     """
     n = x.shape[0]
     if n > 64 and is_smooth(x) and lipschitz_state(r, z0):
