@@ -87,9 +87,10 @@ def _inputs(n):
     return rng, inputs
 
 
-def compare_with(path, n, repeat):
-    """Before/after table: the auto kernels of an older single-file ``_kernels.py`` against the current
-    ones, in one process, same inputs, runs interleaved (old, new, old, new, ...), medians."""
+def compare_with(path, n, repeat, all_kernels=False):
+    """Before/after table: the auto kernels (with ``all_kernels`` every sum kernel) of an older
+    single-file ``_kernels.py`` against the current ones, in one process, same inputs, runs
+    interleaved (old, new, old, new, ...), medians: fair on a machine whose load changes."""
     import importlib.util
 
     from stageid.hysteresis import kernels as K
@@ -100,7 +101,7 @@ def compare_with(path, n, repeat):
     spec.loader.exec_module(old)
     rng, inputs = _inputs(n)
     print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; load average {os.getloadavg()[0]:.2f}")
-    print(f"{'input':12s} {'ops':>4s} {'kernel':10s} {'before':>8s} {'after':>8s}  ns/sample/op")
+    print(f"{'input':12s} {'ops':>4s} {'kernel':12s} {'before':>8s} {'after':>8s}  ns/sample/op")
     for name, x in inputs.items():
         x = np.ascontiguousarray(x)
         for m in (20, 100):
@@ -109,10 +110,18 @@ def compare_with(path, n, repeat):
             rb = 0.6 * ra
             w = rng.uniform(0.0, 1.0, m) / m
             z0 = np.zeros(m)
-            for label, name_, args in (
-                ("play auto", "play_sum_auto", (x, r, w, z0, 0.0)),
-                ("CP auto", "cp_sum_auto", (x, r, rc, ra, rb, w, z0, 0.0)),
-            ):
+            play_args, cp_args = (x, r, w, z0), (x, r, rc, ra, rb, w, z0)
+            rows = [("play auto", "play_sum_auto", (*play_args, 0.0)), ("CP auto", "cp_sum_auto", (*cp_args, 0.0))]
+            if all_kernels:
+                rows += [
+                    ("play loop", "play_sum", play_args),
+                    ("play events", "play_sum_events", (*play_args, 0.0)),
+                    ("play banded", "play_sum_banded", (*play_args, 0.0)),
+                    ("CP loop", "cp_sum", cp_args),
+                    ("CP events", "cp_sum_events", (*cp_args, 0.0)),
+                    ("CP banded", "cp_sum_banded", (*cp_args, 0.0)),
+                ]
+            for label, name_, args in rows:
 
                 def mod_call(M, name_=name_, args=args):  # this row's kernel and arguments
                     return getattr(M, name_)(*args)
@@ -128,7 +137,7 @@ def compare_with(path, n, repeat):
                         mod_call(M)
                         ts[M].append(time.perf_counter() - t0)
                 before, after = (statistics.median(ts[M]) / n / m * 1e9 for M in (old, K))
-                print(f"{name:12s} {m:4d} {label:10s} {before:8.3f} {after:8.3f}")
+                print(f"{name:12s} {m:4d} {label:12s} {before:8.3f} {after:8.3f}")
     print(f"# load average at the end {os.getloadavg()[0]:.2f}")
     return 0
 
@@ -145,9 +154,10 @@ def main(argv=None) -> int:
         "stageid.hysteresis.kernels package; e.g. from `git show`): time its "
         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop",
     )
+    ap.add_argument("--all-kernels", action="store_true", help="with --compare-with: every sum kernel, not only auto")
     args = ap.parse_args(argv)
     if args.compare_with:
-        return compare_with(args.compare_with, args.samples, args.repeat)
+        return compare_with(args.compare_with, args.samples, args.repeat, args.all_kernels)
 
     from stageid.hysteresis import Compensator, ModifiedPIModel
     from stageid.hysteresis import kernels as K
