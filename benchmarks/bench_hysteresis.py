@@ -90,7 +90,8 @@ def _inputs(n):
 def compare_with(path, n, repeat, all_kernels=False):
     """Before/after table: the auto kernels (with ``all_kernels`` every sum kernel) of an older
     single-file ``_kernels.py`` against the current ones, in one process, same inputs, runs
-    interleaved (old, new, old, new, ...), medians: fair on a machine whose load changes."""
+    interleaved (old/new, new/old, ...): medians, least times and the median ratio of the
+    paired rounds, fair on a machine whose load changes."""
     import importlib.util
 
     from stageid.hysteresis import kernels as K
@@ -101,7 +102,10 @@ def compare_with(path, n, repeat, all_kernels=False):
     spec.loader.exec_module(old)
     rng, inputs = _inputs(n)
     print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; load average {os.getloadavg()[0]:.2f}")
-    print(f"{'input':12s} {'ops':>4s} {'kernel':12s} {'before':>8s} {'after':>8s}  ns/sample/op")
+    print(
+        f"{'input':12s} {'ops':>4s} {'kernel':12s} {'before':>8s} {'after':>8s} {'least b':>8s} {'least a':>8s} "
+        f"{'ratio':>6s}  ns/sample/op (medians, least times, median of the per-round ratios after/before)"
+    )
     for name, x in inputs.items():
         x = np.ascontiguousarray(x)
         for m in (20, 100):
@@ -131,13 +135,19 @@ def compare_with(path, n, repeat, all_kernels=False):
                 diff = np.abs(yo - yn).max() / np.abs(yo).max()
                 assert diff <= 1e-12, f"{label}: before and after differ by {diff:.3g}"
                 ts = {old: [], K: []}
-                for _ in range(repeat):
-                    for M in (old, K):
+                for i in range(repeat):
+                    for M in (old, K) if i % 2 == 0 else (K, old):  # alternate who goes first
                         t0 = time.perf_counter()
                         mod_call(M)
                         ts[M].append(time.perf_counter() - t0)
-                before, after = (statistics.median(ts[M]) / n / m * 1e9 for M in (old, K))
-                print(f"{name:12s} {m:4d} {label:12s} {before:8.3f} {after:8.3f}")
+                before, after, least_before, least_after = (
+                    f(ts[M]) / n / m * 1e9 for f in (statistics.median, min) for M in (old, K)
+                )
+                ratio = statistics.median(a / b for a, b in zip(ts[K], ts[old]))
+                print(
+                    f"{name:12s} {m:4d} {label:12s} {before:8.3f} {after:8.3f} "
+                    f"{least_before:8.3f} {least_after:8.3f} {ratio:6.2f}"
+                )
     print(f"# load average at the end {os.getloadavg()[0]:.2f}")
     return 0
 
