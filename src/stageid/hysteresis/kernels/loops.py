@@ -118,8 +118,8 @@ def cp_sum(x, r, rc, ra, rb, w, z0):  # pragma: no cover - compiled
 
 @jit_exact
 def gram(Z, y):  # pragma: no cover - compiled
-    """``Z'Z``, ``Z'y`` and the column sums of Z, single-threaded (no BLAS thread pool: on a
-    busy machine the threaded BLAS made the identification 20x slower)."""
+    """``Z'Z``, ``Z'y`` and the column sums of Z, single-threaded: a BLAS thread pool on a busy
+    machine slows the many small weight fits of the identification down instead of up."""
     n, m = Z.shape
     G = np.zeros((m, m))
     g = np.zeros(m)
