@@ -35,6 +35,7 @@ import platform
 import statistics
 import sys
 import time
+from functools import partial
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -86,12 +87,14 @@ def _inputs(n):
     return rng, inputs
 
 
-def compare_with(path, n, repeat):
-    """Before/after table: the auto kernels of an older ``_kernels.py`` against the current
-    ones, in one process, same inputs, runs interleaved (old, new, old, new, ...), medians."""
+def compare_with(path, n, repeat, all_kernels=False):
+    """Before/after table: the auto kernels (with ``all_kernels`` every sum kernel) of an older
+    single-file ``_kernels.py`` against the current ones, in one process, same inputs, runs
+    interleaved (old/new, new/old, ...): medians, least times and the median ratio of the
+    paired rounds, fair on a machine whose load changes."""
     import importlib.util
 
-    from stageid.hysteresis import _kernels as K
+    from stageid.hysteresis import kernels as K
 
     spec = importlib.util.spec_from_file_location("kernels_before", path)
     old = importlib.util.module_from_spec(spec)
@@ -99,7 +102,10 @@ def compare_with(path, n, repeat):
     spec.loader.exec_module(old)
     rng, inputs = _inputs(n)
     print(f"# before: {path}; {n} samples, median of {repeat}, interleaved; load average {os.getloadavg()[0]:.2f}")
-    print(f"{'input':12s} {'ops':>4s} {'kernel':10s} {'before':>8s} {'after':>8s}  ns/sample/op")
+    print(
+        f"{'input':12s} {'ops':>4s} {'kernel':12s} {'before':>8s} {'after':>8s} {'least b':>8s} {'least a':>8s} "
+        f"{'ratio':>6s}  ns/sample/op (medians, least times, median of the per-round ratios after/before)"
+    )
     for name, x in inputs.items():
         x = np.ascontiguousarray(x)
         for m in (20, 100):
@@ -108,22 +114,40 @@ def compare_with(path, n, repeat):
             rb = 0.6 * ra
             w = rng.uniform(0.0, 1.0, m) / m
             z0 = np.zeros(m)
-            for label, mod_call in (
-                ("play auto", lambda M: M.play_sum_auto(x, r, w, z0, 0.0)),
-                ("CP auto", lambda M: M.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)),
-            ):
+            play_args, cp_args = (x, r, w, z0), (x, r, rc, ra, rb, w, z0)
+            rows = [("play auto", "play_sum_auto", (*play_args, 0.0)), ("CP auto", "cp_sum_auto", (*cp_args, 0.0))]
+            if all_kernels:
+                rows += [
+                    ("play loop", "play_sum", play_args),
+                    ("play events", "play_sum_events", (*play_args, 0.0)),
+                    ("play banded", "play_sum_banded", (*play_args, 0.0)),
+                    ("CP loop", "cp_sum", cp_args),
+                    ("CP events", "cp_sum_events", (*cp_args, 0.0)),
+                    ("CP banded", "cp_sum_banded", (*cp_args, 0.0)),
+                ]
+            for label, name_, args in rows:
+
+                def mod_call(M, name_=name_, args=args):  # this row's kernel and arguments
+                    return getattr(M, name_)(*args)
+
                 yo, zo = mod_call(old)
                 yn, zn = mod_call(K)
                 diff = np.abs(yo - yn).max() / np.abs(yo).max()
                 assert diff <= 1e-12, f"{label}: before and after differ by {diff:.3g}"
                 ts = {old: [], K: []}
-                for _ in range(repeat):
-                    for M in (old, K):
+                for i in range(repeat):
+                    for M in (old, K) if i % 2 == 0 else (K, old):  # alternate who goes first
                         t0 = time.perf_counter()
                         mod_call(M)
                         ts[M].append(time.perf_counter() - t0)
-                before, after = (statistics.median(ts[M]) / n / m * 1e9 for M in (old, K))
-                print(f"{name:12s} {m:4d} {label:10s} {before:8.3f} {after:8.3f}")
+                before, after, least_before, least_after = (
+                    f(ts[M]) / n / m * 1e9 for f in (statistics.median, min) for M in (old, K)
+                )
+                ratio = statistics.median(a / b for a, b in zip(ts[K], ts[old]))
+                print(
+                    f"{name:12s} {m:4d} {label:12s} {before:8.3f} {after:8.3f} "
+                    f"{least_before:8.3f} {least_after:8.3f} {ratio:6.2f}"
+                )
     print(f"# load average at the end {os.getloadavg()[0]:.2f}")
     return 0
 
@@ -136,15 +160,17 @@ def main(argv=None) -> int:
         "--compare-with",
         metavar="KERNELS_PY",
         default=None,
-        help="an older copy of stageid/hysteresis/_kernels.py (e.g. from `git show`): time its "
+        help="an older copy of stageid/hysteresis/_kernels.py (the kernels before they became the "
+        "stageid.hysteresis.kernels package; e.g. from `git show`): time its "
         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop",
     )
+    ap.add_argument("--all-kernels", action="store_true", help="with --compare-with: every sum kernel, not only auto")
     args = ap.parse_args(argv)
     if args.compare_with:
-        return compare_with(args.compare_with, args.samples, args.repeat)
+        return compare_with(args.compare_with, args.samples, args.repeat, args.all_kernels)
 
     from stageid.hysteresis import Compensator, ModifiedPIModel
-    from stageid.hysteresis import _kernels as K
+    from stageid.hysteresis import kernels as K
     from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
     n = args.samples
@@ -174,20 +200,20 @@ def main(argv=None) -> int:
             z0 = np.zeros(m)
             yref = play_reference(x[:n_ref], r, z0)[0] @ w
             ycref = coupled_play_reference(x[:n_ref], r, rc, ra, rb, z0)[0] @ w
-            scale = np.abs(yref).max()
+            play_args, cp_args = (x, r, w, z0), (x, r, rc, ra, rb, w, z0)
             cases = [
-                ("play loop", lambda: K.play_sum(x, r, w, z0)[0], yref),
-                ("play events", lambda: K.play_sum_events(x, r, w, z0, 0.0)[0], yref),
-                ("play banded", lambda: K.play_sum_banded(x, r, w, z0, 0.0)[0], yref),
-                ("play auto", lambda: K.play_sum_auto(x, r, w, z0, 0.0)[0], yref),
-                ("CP loop", lambda: K.cp_sum(x, r, rc, ra, rb, w, z0)[0], ycref),
-                ("CP events", lambda: K.cp_sum_events(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
-                ("CP banded", lambda: K.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
-                ("CP auto", lambda: K.cp_sum_auto(x, r, rc, ra, rb, w, z0, 0.0)[0], ycref),
+                ("play loop", K.play_sum, play_args, yref),
+                ("play events", K.play_sum_events, (*play_args, 0.0), yref),
+                ("play banded", K.play_sum_banded, (*play_args, 0.0), yref),
+                ("play auto", K.play_sum_auto, (*play_args, 0.0), yref),
+                ("CP loop", K.cp_sum, cp_args, ycref),
+                ("CP events", K.cp_sum_events, (*cp_args, 0.0), ycref),
+                ("CP banded", K.cp_sum_banded, (*cp_args, 0.0), ycref),
+                ("CP auto", K.cp_sum_auto, (*cp_args, 0.0), ycref),
             ]
             loops = {}
-            for label, f, ref in cases:
-                sec, y = timed(f, args.repeat)
+            for label, kernel, kernel_args, ref in cases:
+                sec, (y, _) = timed(partial(kernel, *kernel_args), args.repeat)
                 diff = np.abs(y[:n_ref] - ref).max() / max(np.abs(ref).max(), 1e-300)
                 family = label.split()[0]
                 if label.endswith("loop"):
@@ -198,8 +224,8 @@ def main(argv=None) -> int:
                 rows.append((name, m, label, sec / n / m * 1e9, diff))
                 print(f"{name:12s} {m:4d} {label:14s} {sec / n / m * 1e9:13.4f} {diff:14.2e}")
             for label, f, ref in (
-                ("numpy play", lambda: numpy_play_sum(x[:n_np], r, w, z0), yref),
-                ("numpy CP", lambda: numpy_cp_sum(x[:n_np], r, rc, ra, rb, w, z0), ycref),
+                ("numpy play", partial(numpy_play_sum, x[:n_np], r, w, z0), yref),
+                ("numpy CP", partial(numpy_cp_sum, x[:n_np], r, rc, ra, rb, w, z0), ycref),
             ):
                 sec, y = timed(f, 1)
                 diff = np.abs(y[:n_ref] - ref).max() / max(np.abs(ref).max(), 1e-300)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from stageid._errors import IdentificationError, ModelError, ModelFormatError
+from stageid._errors import ModelError, ModelFormatError, ParameterError
 from stageid.hysteresis import Compensator, ModifiedPIModel, PIIdentifier, PIModel, invert, pi_inverse
 from stageid.hysteresis.creep import CreepTerm
 from stageid.hysteresis.serialization import model_from_dict
@@ -183,7 +183,7 @@ def test_compensator_with_creep_respects_limits():
 
 
 def test_compiled_creep_inversion_equals_stepping_and_continues_its_state(monkeypatch):
-    from stageid.hysteresis.creep import CreepInverse
+    from stageid.hysteresis.compensator import CreepInverse
 
     creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
     m = ModifiedPIModel(
@@ -225,9 +225,9 @@ def test_bad_creep_arguments_raise_one_line_errors():
     with pytest.raises(ModelError, match="closed-form"):
         pi_inverse(_pi_truth(CreepTerm([1.0], [0.1], DT)))
     u = _drive()[:500]
-    with pytest.raises(IdentificationError, match="sample_time"):
+    with pytest.raises(ParameterError, match="^`sample_time` of PIIdentifier must be the sampling period"):
         PIIdentifier("pi", n_operators=3, creep_time_constants=(0.1,)).fit((u, u))
-    with pytest.raises(IdentificationError, match="creep_time_constants"):
+    with pytest.raises(ParameterError, match="creep_time_constants"):
         PIIdentifier("pi", n_operators=3, creep_time_constants=(-1.0,), sample_time=DT).fit((u, u))
 
 
@@ -317,3 +317,41 @@ def test_measured_piezo_forc_records_with_creep():
         errors[taus is not None] = (fit.max_error_percent[0], max_error_percent(yv, align_record(fit.model, uv, yv)[1]))
     assert errors[True][0] <= 2.0  # measured 1.10 % (without creep 2.70 %)
     assert errors[True][1] < errors[False][1]  # measured 1.46 % vs 3.09 %
+
+
+def test_too_many_creep_lags_refused_before_the_work(monkeypatch, tmp_path, capsys):
+    # 2000 time constants ran for many minutes (400 took 200 s) before the fit estimated its work
+    from stageid import ResourceError
+    from stageid.cli.main import main
+    from stageid.data.io import write_csv
+    from stageid.plants.piezo_actuator import EXPERIMENTS
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the creep lags were computed: the refusal must come before the work")
+
+    monkeypatch.setattr(CreepTerm, "lags", no_work)
+    exp = EXPERIMENTS["decaying-triangle"](0)
+    taus = np.logspace(-2, 2, 2000)
+    with pytest.raises(
+        ResourceError, match=r"modified-pi fit with 20 operators and 2000 creep lags would take"
+    ) as info:
+        PIIdentifier("modified-pi", creep_time_constants=taus).fit(exp)
+    assert "\n" not in str(info.value)
+    write_csv(tmp_path / "d.csv", {"V": exp.u[:, 0], "y": exp.y[:, 0]}, dt=exp.dt)
+    args = ["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y"]
+    assert main([*args, "--creep", ",".join(f"{t:.6g}" for t in taus), "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "2000 creep lags would take" in err and "\n" not in err
+    assert not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("weights", [1, True]), ("sample_time", "0.001"), ("sample_time", True), ("time_constants", [[0.1], [1.0]])],
+)
+def test_creep_json_numbers_are_json_numbers(field, value):
+    d = _pi_truth(CreepTerm((0.05, 0.5), [0.2, 0.1], DT)).to_dict()
+    d["creep"][field] = value
+    with pytest.raises(ModelFormatError, match=f"^`creep.{field}` must be a") as info:
+        model_from_dict(json.loads(json.dumps(d)))
+    assert "\n" not in str(info.value)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stageid import DataError, IdentificationError
+from stageid import DataError, ParameterError
 from stageid.hysteresis import ModifiedPIModel, PIIdentifier, PIModel, align_record
 from stageid.signals import decaying_triangle
 
@@ -84,9 +84,9 @@ def test_monotone_constraint_active():
 
 def test_bad_hyperparameters():
     u = _input()
-    with pytest.raises(IdentificationError, match="model"):
+    with pytest.raises(ParameterError, match="model"):
         PIIdentifier("preisach").fit((u, u))
-    with pytest.raises(IdentificationError, match="n_operators"):
+    with pytest.raises(ParameterError, match="n_operators"):
         PIIdentifier("pi", n_operators=1).fit((u, u))
 
 
@@ -143,7 +143,7 @@ def test_two_input_columns_refused():
         (dict(min_slope_fraction=float("nan")), "`min_slope_fraction`"),
         (
             dict(input_range=(10, -10)),
-            r"`input_range` of PIIdentifier must be \(low, high\) with finite low < high; got \(10, -10\)",
+            r"`input_range` of PIIdentifier must be \(low, high\) with finite low < high or None; got \(10, -10\)",
         ),
         (dict(input_range=(10,)), "`input_range`"),
         (dict(input_range="ab"), "`input_range`"),
@@ -159,7 +159,7 @@ def test_bad_hyperparameters_one_line(kwargs, match):
     # raw ZeroDivisionError / ValueError or misleading messages before
     u, y = _small()
     kwargs = {"model": "pi", "n_operators": 4, **kwargs}
-    with pytest.raises(IdentificationError, match=match) as info:
+    with pytest.raises(ParameterError, match=match) as info:
         PIIdentifier(**kwargs).fit((u, y))
     assert "\n" not in str(info.value)
 
@@ -168,10 +168,10 @@ def test_n_operators_bounded_by_the_records():
     u, y = _small()
     u, y = u[:200], y[:200]  # 200 samples: one operator per 5 samples, 40 at most
     PIIdentifier("pi", n_operators=4).fit((u, y))
-    with pytest.raises(IdentificationError, match="at most 40 for these records .* got 41"):
+    with pytest.raises(ParameterError, match="at most 40 for these records .* got 41"):
         PIIdentifier("pi", n_operators=41).fit((u, y))
     steps = np.repeat([0.0, 50.0, -50.0, 100.0, -100.0, 0.0], 20)  # 5 distinct input values
-    with pytest.raises(IdentificationError, match="their 5 distinct input values\\); got 6"):
+    with pytest.raises(ParameterError, match="their 5 distinct input values\\); got 6"):
         PIIdentifier("pi", n_operators=6).fit((steps, 0.01 * steps))
 
 

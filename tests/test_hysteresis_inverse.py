@@ -158,3 +158,28 @@ def test_malformed_limits_one_line(limits):
         compensate(m, [0.0, 1.0], limits=limits)
     with pytest.raises(ModelError, match=r"`limits` must be \(low, high\)"):
         invert(m.to_modified(), [0.0, 1.0], limits=limits)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_inversion_kernel_against_its_plain_python_twins(seed):
+    # the compiled batch inversion equals its loop run by Python (``py_func``, which calls the
+    # compiled per-sample step), and the inputs it finds drive the plain-Python CP bank (eq. 3-4,
+    # no compiled code) onto the targets to the kernel's tolerance
+    from stageid.hysteresis import kernels
+    from stageid.hysteresis.common import packed, tolerance
+    from stageid.hysteresis.operators import coupled_play_reference
+
+    rng = np.random.default_rng(seed)
+    m = _mpi(rng)
+    target = np.cumsum(rng.normal(0.0, 8.0, 300))
+    args = (target, packed(m), np.zeros(m.n_operators), 0.0, -np.inf, np.inf, m.min_slope(), tolerance(m))
+    x, z, xf = kernels.cp_invert(*args)
+    x_py, z_py, xf_py = kernels.cp_invert.py_func(*args)
+    np.testing.assert_array_equal(x, x_py)
+    np.testing.assert_array_equal(z, z_py)
+    assert xf == xf_py
+    r, rc, ra, rb = m.coupled_play_thresholds()
+    Z, zf = coupled_play_reference(x, r, rc, ra, rb, np.zeros(m.n_operators))
+    # the tolerance is 1e-12 of sum|w| (1 + max r); the weighted sum adds a few roundings
+    np.testing.assert_allclose(Z @ m.weights, target, rtol=0, atol=4 * tolerance(m))
+    np.testing.assert_array_equal(zf, z)

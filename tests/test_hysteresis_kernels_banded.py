@@ -13,7 +13,7 @@ identity-only model, partial, exact and one-over blocks, and more hot blocks tha
 import numpy as np
 import pytest
 
-from stageid.hysteresis import PIModel, _kernels
+from stageid.hysteresis import PIModel, kernels
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 N = 3000
@@ -85,7 +85,7 @@ def test_play_banded_equals_reference(kind, m):
     z0 = rng.uniform(-300, 300, m)  # not consistent with x[0]: the first sample fixes it
     Zr, zr = play_reference(x, r, z0)
     for n_hot in _n_hot_values(m):
-        y, z = _kernels.play_sum_banded(x, r, w, z0, 0.0, n_hot)
+        y, z = kernels.play_sum_banded(x, r, w, z0, 0.0, n_hot)
         assert np.array_equal(z, zr), f"n_hot={n_hot}: operator outputs differ by {np.abs(z - zr).max():.3g}"
         _check_sum(y, Zr @ w, f"play n_hot={n_hot}")
 
@@ -101,7 +101,7 @@ def test_cp_banded_block_edges(kind, m):
     z0 = rng.uniform(-300, 300, m)
     Zr, zr = coupled_play_reference(x, r, rc, ra, rb, z0)
     for n_hot in _n_hot_values(m):
-        y, z = _kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
+        y, z = kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
         assert np.array_equal(z, zr), f"n_hot={n_hot}: operator outputs differ by {np.abs(z - zr).max():.3g}"
         _check_sum(y, Zr @ w, f"CP n_hot={n_hot}")
 
@@ -125,7 +125,7 @@ def test_play_banded_at_the_activation_points():
     w = rng.normal(size=m)
     Zr, zr = play_reference(xs, r, np.zeros(m))
     for n_hot in (-1, 0, 1, 2):
-        y, zb = _kernels.play_sum_banded(xs, r, w, np.zeros(m), 0.0, n_hot)
+        y, zb = kernels.play_sum_banded(xs, r, w, np.zeros(m), 0.0, n_hot)
         assert np.array_equal(zb, zr), n_hot
         _check_sum(y, Zr @ w, f"n_hot={n_hot}")
 
@@ -137,7 +137,7 @@ def test_play_banded_resume_from_saved_state(kind):
     x = _input(kind, rng, r)
     w = rng.normal(size=13)
     Zr, zr = play_reference(x, r, np.zeros(13))
-    for call in (_kernels.play_sum_banded, _kernels.play_sum_auto):
+    for call in (kernels.play_sum_banded, kernels.play_sum_auto):
         z, x0, ys = np.zeros(13), 0.0, []
         for part in np.split(x, [1, 1200, 1201, 2500]):  # a one-sample record in between
             y, z = call(part, r, w, z, x0)
@@ -145,7 +145,7 @@ def test_play_banded_resume_from_saved_state(kind):
             x0 = float(part[-1])
         _check_sum(np.concatenate(ys), Zr @ w, call.__name__)
         np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 450)  # auto: events rebuild at reversals
-        if call is _kernels.play_sum_banded:
+        if call is kernels.play_sum_banded:
             assert np.array_equal(z, zr)
 
 
@@ -160,12 +160,12 @@ def test_long_records_with_adaptation_equal_the_loop_kernels():
         r, rc, ra, rb = _cp_thresholds(rng, m)
         w = rng.normal(size=m)
         z0 = rng.uniform(-100, 100, m)
-        yl, zl = _kernels.cp_sum(x, r, rc, ra, rb, w, z0)
-        y, z = _kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0)
+        yl, zl = kernels.cp_sum(x, r, rc, ra, rb, w, z0)
+        y, z = kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0)
         assert np.array_equal(z, zl)
         _check_sum(y, yl, f"CP m={m}")
-        yl, zl = _kernels.play_sum(x, r, w, z0)
-        y, z = _kernels.play_sum_banded(x, r, w, z0)
+        yl, zl = kernels.play_sum(x, r, w, z0)
+        y, z = kernels.play_sum_banded(x, r, w, z0)
         assert np.array_equal(z, zl)
         _check_sum(y, yl, f"play m={m}")
 
@@ -174,24 +174,24 @@ def test_play_banded_edge_cases():
     r = np.array([0.0, 1.0, 2.0])
     w = np.array([1.0, 2.0, 0.5])
     z0 = np.array([0.0, 1.0, -1.0])
-    y, z = _kernels.play_sum_banded(np.empty(0), r, w, z0)
+    y, z = kernels.play_sum_banded(np.empty(0), r, w, z0)
     assert y.shape == (0,) and np.array_equal(z, z0) and z is not z0
     x = np.array([3.0])
-    y, z = _kernels.play_sum_banded(x, r, w, z0)
+    y, z = kernels.play_sum_banded(x, r, w, z0)
     Zr, zr = play_reference(x, r, z0)
     assert np.array_equal(z, zr) and np.allclose(y, Zr @ w, rtol=0, atol=1e-12)
     # only identity operators (a linear term): y = sum(w) x
     zero = np.zeros(3)
     x = np.array([0.0, 2.0, -1.0, -1.0, 3.5])
-    y, z = _kernels.play_sum_banded(x, zero, w, zero)
+    y, z = kernels.play_sum_banded(x, zero, w, zero)
     assert np.array_equal(y, 3.5 * x) and np.array_equal(z, np.full(3, 3.5))
     # a strided input (a view) gives the same as its contiguous copy
     x = _walk(np.random.default_rng(1), 2000)
     r = np.linspace(0, 100, 6)
     w6 = np.linspace(1, 2, 6)
     for call in (
-        lambda xx: _kernels.play_sum_banded(xx, r, w6, np.zeros(6)),
-        lambda xx: _kernels.cp_sum_banded(xx, r, 0.5 * r, r, 0.5 * r, w6, np.zeros(6)),
+        lambda xx: kernels.play_sum_banded(xx, r, w6, np.zeros(6)),
+        lambda xx: kernels.cp_sum_banded(xx, r, 0.5 * r, r, 0.5 * r, w6, np.zeros(6)),
     ):
         ys, zs = call(x[::2])
         yc, zc = call(np.ascontiguousarray(x[::2]))
@@ -201,7 +201,7 @@ def test_play_banded_edge_cases():
     r = np.linspace(0, 100, 6)
     z0 = np.linspace(-5, 5, 6)
     keep = [a.copy() for a in (x, r, w, z0)]
-    _kernels.play_sum_banded(x, r, np.ones(6), z0)
+    kernels.play_sum_banded(x, r, np.ones(6), z0)
     assert all(np.array_equal(a, b) for a, b in zip((x, r, w, z0), keep))
 
 
@@ -221,9 +221,9 @@ def test_dispatch_on_long_records():
     # records longer than the 65536-sample head the dispatch looks at first
     rng = np.random.default_rng(9)
     n = 100_000
-    assert not _kernels._is_smooth(_walk(rng, n))
+    assert not kernels.is_smooth(_walk(rng, n))
     smooth = np.sin(np.linspace(0, 40, n))
-    assert _kernels._is_smooth(smooth)
+    assert kernels.is_smooth(smooth)
     late = smooth.copy()
     late[80_000:] += rng.normal(0, 1e-3, n - 80_000)  # rough only after the head
-    assert not _kernels._is_smooth(late)
+    assert not kernels.is_smooth(late)

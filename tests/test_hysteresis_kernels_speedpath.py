@@ -18,7 +18,7 @@ of hot blocks changes during the record.
 import numpy as np
 import pytest
 
-from stageid.hysteresis import ModifiedPIModel, OperatorState, _kernels
+from stageid.hysteresis import ModifiedPIModel, OperatorState, kernels
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 N = 5000  # > 2 adaptation blocks of the banded kernel; the reference takes ~0.1 s
@@ -99,10 +99,10 @@ def _consistent_state(rng, x0, r, rc, ra, rb):
 
 def _kernel_calls(x, r, rc, ra, rb, w, z0, x0):
     return {
-        "loop": lambda: _kernels.cp_sum(x, r, rc, ra, rb, w, z0),
-        "events": lambda: _kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0),
-        "banded": lambda: _kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, x0),
-        "auto": lambda: _kernels.cp_sum_auto(x, r, rc, ra, rb, w, z0, x0),
+        "loop": lambda: kernels.cp_sum(x, r, rc, ra, rb, w, z0),
+        "events": lambda: kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0),
+        "banded": lambda: kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, x0),
+        "auto": lambda: kernels.cp_sum_auto(x, r, rc, ra, rb, w, z0, x0),
     }
 
 
@@ -145,7 +145,7 @@ def test_every_kernel_at_the_activation_points(thresholds):
         y, z = call()
         _check(name, y, z, Zr, zr, w)
     for n_hot in (0, 1, 2):
-        y, z = _kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
+        y, z = kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
         _check(f"banded n_hot={n_hot}", y, z, Zr, zr, w)
 
 
@@ -160,7 +160,7 @@ def test_banded_every_number_of_hot_blocks(kind):
     z0 = rng.uniform(-100, 100, 21)  # not consistent with x[0]: the first sample fixes it
     Zr, zr = coupled_play_reference(x, r, rc, ra, rb, z0)
     for n_hot in (-1, 0, 1, 2, 3, 5):
-        y, z = _kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
+        y, z = kernels.cp_sum_banded(x, r, rc, ra, rb, w, z0, 0.0, n_hot)
         _check(f"banded n_hot={n_hot}", y, z, Zr, zr, w)
 
 
@@ -204,10 +204,10 @@ def test_play_sum_auto_equals_reference(kind):
     x0 = float(x[0])
     z0 = np.maximum(x0 - r, np.minimum(x0 + r, rng.uniform(-200, 200, 12)))
     Zr, zr = play_reference(x, r, z0)
-    y, z = _kernels.play_sum_auto(x, r, w, z0, x0)
+    y, z = kernels.play_sum_auto(x, r, w, z0, x0)
     np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
     np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 450)  # events: rebuilt at reversals
-    y, z = _kernels.cp_sum_banded(x, r, r, r, r, w, z0, x0)
+    y, z = kernels.cp_sum_banded(x, r, r, r, r, w, z0, x0)
     assert np.array_equal(z, zr)
 
 
@@ -221,19 +221,19 @@ def test_edge_cases():
     # only identity operators (a linear term): y = sum(w) x
     zero = np.zeros(3)
     x = np.array([0.0, 2.0, -1.0, -1.0, 3.5])
-    y, z = _kernels.cp_sum_banded(x, zero, zero, zero, zero, np.array([1.0, 2.0, 0.5]), zero, 0.0)
+    y, z = kernels.cp_sum_banded(x, zero, zero, zero, zero, np.array([1.0, 2.0, 0.5]), zero, 0.0)
     assert np.array_equal(y, 3.5 * x) and np.array_equal(z, np.full(3, 3.5))
 
 
 def test_turn_fraction():
-    assert _kernels.turn_fraction(np.array([0.0, 1.0, 0.0, 1.0, 0.0])) == 3 / 5
-    assert _kernels.turn_fraction(np.arange(10.0)) == 0.0
-    assert _kernels.turn_fraction(np.array([0.0, 1.0, 1.0, 0.0])) == 0.0  # turns across a plateau are not seen
-    assert _kernels.turn_fraction(np.empty(0)) == 0.0
+    assert kernels.turn_fraction(np.array([0.0, 1.0, 0.0, 1.0, 0.0])) == 3 / 5
+    assert kernels.turn_fraction(np.arange(10.0)) == 0.0
+    assert kernels.turn_fraction(np.array([0.0, 1.0, 1.0, 0.0])) == 0.0  # turns across a plateau are not seen
+    assert kernels.turn_fraction(np.empty(0)) == 0.0
     # the dispatch: a sine is smooth; a square wave turns only across plateaus, yet reverses often
-    assert _kernels._is_smooth(np.sin(np.linspace(0, 20, 10_000)))
-    assert not _kernels._is_smooth(np.repeat((-1.0) ** np.arange(1000), 10))
-    assert not _kernels._is_smooth(np.random.default_rng(0).normal(size=10_000))
+    assert kernels.is_smooth(np.sin(np.linspace(0, 20, 10_000)))
+    assert not kernels.is_smooth(np.repeat((-1.0) ** np.arange(1000), 10))
+    assert not kernels.is_smooth(np.random.default_rng(0).normal(size=10_000))
 
 
 @pytest.mark.parametrize("kind", ["random-walk", "smooth"])

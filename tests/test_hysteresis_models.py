@@ -1,5 +1,6 @@
 """PI and modified-PI model objects: simulation, state, immutability, JSON round trip."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -62,9 +63,9 @@ def test_resume_from_state():
 
 def test_immutable_and_inputs_untouched():
     m = _modified(np.random.default_rng(2))
-    with pytest.raises(Exception):
+    with pytest.raises(ValueError, match="read-only"):
         m.weights[0] = 5.0
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         m.r = np.zeros(8)
     u = np.linspace(-100, 100, 50)
     before = u.copy()
@@ -110,3 +111,61 @@ def test_constructor_errors():
         PIModel(r=[0.0], weights=[1.0], inputs=("a", "b"))
     with pytest.raises(ModelError, match="2 entries"):
         PIModel(r=[0.0, 1.0], weights=[1.0])
+
+
+@pytest.mark.parametrize(
+    "path, value",
+    [
+        (("weights", 1), True),
+        (("weights", 1), "0.5"),
+        (("r", 0), False),
+        (("rc",), [[0.0, 1.0], [2.0]]),
+        (("ra",), [0.0, [1.0]]),
+        (("input_offset",), "0.5"),
+        (("output_offset",), True),
+        (("input_warp",), "0.1"),
+        (("state", "x"), "1.0"),
+        (("state", "z", 2), True),
+        (("input_limits", 0), "-1"),
+        (("weights", 0), 1e400),
+    ],
+)
+def test_json_numbers_are_json_numbers(path, value):
+    # a boolean or a quoted number was accepted as a weight or threshold while `"dt": "0.002"`
+    # was refused; nested and ragged lists gave internal errors
+    d = json.loads(dumps(_modified(np.random.default_rng(0)).to_dict()))
+    d["input_limits"] = [-100.0, 100.0]
+    target = d
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    field = ".".join(str(p) for p in path if isinstance(p, str))
+    with pytest.raises(ModelFormatError, match=f"^`{field}` must be ") as info:
+        loads(json.dumps(d))
+    assert "\n" not in str(info.value) and len(str(info.value)) < 300
+
+
+def test_plant_kinds_are_registered_by_the_plants():
+    # the hysteresis loader does not import stageid.plants: the plant registers its kind, and a
+    # file read before any plant module was imported (the command line) still loads
+    import subprocess
+    import sys
+
+    from stageid.hysteresis.serialization import register_kind
+    from stageid.plants.piezo_actuator import PiezoActuator, model
+
+    act = model()
+    assert isinstance(loads(dumps(act.to_dict())), PiezoActuator)
+    with pytest.raises(ModelError, match="cannot be registered"):
+        register_kind("pi", lambda d: d)
+    bad = act.to_dict()
+    bad["parameters"]["gain"] = "0.95"
+    with pytest.raises(ModelFormatError, match=r"^`parameters.gain` must be a number"):
+        loads(json.dumps(bad))
+    code = (
+        "import sys; from stageid.models.serialization import loads; "
+        f"m = loads({dumps(act.to_dict())!r}); "
+        "print(type(m).__name__, 'stageid.plants' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["PiezoActuator", "True"]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from stageid import ModelError
-from stageid.hysteresis import OperatorState, _kernels, coupled_play, play
+from stageid.hysteresis import OperatorState, coupled_play, kernels, play
 from stageid.hysteresis.operators import coupled_play_reference, play_reference
 
 
@@ -22,14 +22,14 @@ def test_kernels_equal_reference(seed):
     x = np.cumsum(rng.normal(0, 20, 2000))
     r, rc, ra, rb = _cp_params(rng)
     z0 = rng.uniform(-10, 10, r.size)
-    Z, zf = _kernels.cp_bank(x, r, rc, ra, rb, z0)
+    Z, zf = kernels.cp_bank(x, r, rc, ra, rb, z0)
     Zr, zfr = coupled_play_reference(x, r, rc, ra, rb, z0)
     assert np.array_equal(Z, Zr) and np.array_equal(zf, zfr)  # same operations, same order: bit-equal
-    Z, zf = _kernels.play_bank(x, r, z0)
+    Z, zf = kernels.play_bank(x, r, z0)
     Zr, _ = play_reference(x, r, z0)
     assert np.array_equal(Z, Zr)
     w = rng.normal(size=r.size)
-    y, _ = _kernels.cp_sum(x, r, rc, ra, rb, w, z0)
+    y, _ = kernels.cp_sum(x, r, rc, ra, rb, w, z0)
     # the weighted sum may be reassociated by the compiler: 1e-12 relative
     np.testing.assert_allclose(
         y, Zr_sum := coupled_play_reference(x, r, rc, ra, rb, z0)[0] @ w, rtol=1e-12, atol=1e-12 * np.abs(Zr_sum).max()
@@ -150,10 +150,10 @@ def test_event_driven_play_sum_equals_reference(seed):
         up, down = x0 - r, x0 + r
         z0 = [np.maximum(up, np.minimum(down, 0.0)), up, down][kind_state]
         Zr, zr = play_reference(x, r, z0)
-        y, z = _kernels.play_sum_events(x, r, w, z0, x0)
+        y, z = kernels.play_sum_events(x, r, w, z0, x0)
         np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
         np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)
-        assert _kernels.lipschitz_state(r, z0)
+        assert kernels.lipschitz_state(r, z0)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
@@ -169,6 +169,6 @@ def test_event_driven_cp_sum_equals_reference(seed):
     down = np.minimum(x0 + ra, np.maximum(x0 + rb, 0.0))
     z0 = np.maximum(up, np.minimum(down, rng.uniform(-40, 40, 10)))  # any consistent state
     Zr, zr = coupled_play_reference(x, r, rc, ra, rb, z0)
-    y, z = _kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0)
+    y, z = kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0)
     np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
     np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)

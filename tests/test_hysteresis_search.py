@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stageid._errors import IdentificationError
+from stageid._errors import ParameterError
 from stageid.hysteresis import PIIdentifier
 from stageid.signals import decaying_triangle
 
@@ -45,5 +45,5 @@ def test_the_search_keeps_to_its_budget():
     y = bouc_wen(u)
     fit = PIIdentifier("modified-pi", n_operators=5, max_evaluations=200).fit((u, y))
     assert fit.n_evaluations <= 200 + 1
-    with pytest.raises(IdentificationError, match="max_evaluations"):
+    with pytest.raises(ParameterError, match="max_evaluations"):
         PIIdentifier("modified-pi", max_evaluations=0).fit((u, y))

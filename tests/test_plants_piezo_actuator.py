@@ -56,7 +56,7 @@ def test_not_a_pi_model():
 
 def test_experiments_and_registry():
     assert plant_module("piezo-actuator").model().inputs == ("V",)
-    for name, make in EXPERIMENTS.items():
+    for make in EXPERIMENTS.values():
         exp = make(seed=1)
         assert isinstance(exp, Experiment) and exp.input_names == ("V",) and exp.output_names == ("y",)
         assert np.abs(exp.u).max() <= 500.0

@@ -65,7 +65,7 @@ def reference_actuator(lines, figures: bool):
     u, y = ident.u[:, 0], ident.y[:, 0]
     h_major = hysteresis_percent(u[:1000], y[:1000])
     fits = {}
-    for kind, label in KINDS:
+    for kind, _label in KINDS:
         t0 = time.perf_counter()
         est = PIIdentifier(
             "pi" if kind == "pi" else "modified-pi", n_operators=20, input_warp=kind == "modified-pi+warp"

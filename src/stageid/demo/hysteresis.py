@@ -10,19 +10,48 @@ import numpy as np
 
 from ..report import Report
 
+DT = 1e-3  # the letter's 1 kHz sampling
 LETTER = {"pi_model": 5.31, "mpi_model": 1.02, "open_loop": 11.0, "pi_track": 4.8, "mpi_track": 2.6}
 
 
 def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[str], None]) -> list[list[Any]]:
-    from ..hysteresis import Compensator, PIIdentifier, hysteresis_percent, max_error_percent, tracking_error_percent
-    from ..models import save_model
-    from ..plants.piezo_actuator import EXPERIMENTS, model, open_loop_gain
-    from ..plots.hysteresis import loop_figure, model_errors_figure, tracking_figure
-    from ..signals import triangle
+    """Identify the three models, track a triangle with their inverses, write the report section."""
+    from ..plants.piezo_actuator import EXPERIMENTS, model
 
     actuator = model()
     ident = EXPERIMENTS["decaying-triangle"](seed=0)
     valid = EXPERIMENTS["triangle-1hz"](seed=1)
+    fits, preds, ident_err, model_err = _identify(ident, valid, out_dir, step)
+    y_ref, outputs, track, hyst = _track(actuator, fits, step)
+    metrics["hysteresis/model_error_percent_identification"] = ident_err
+    metrics["hysteresis/model_error_percent_validation"] = model_err
+    metrics["hysteresis/tracking_error_percent_fsr"] = track
+    metrics["hysteresis/hysteresis_percent"] = hyst
+
+    _tables(report, ident_err, model_err, track, hyst)
+    _figures(report, ident, valid, fits, preds, y_ref, outputs)
+    return [
+        [
+            "actuator hysteresis",
+            "model error PI / mod. PI / +warp",
+            f"{model_err['pi']:.2f} / {model_err['modified-pi']:.2f} / {model_err['modified-pi+warp']:.2f} % range",
+            "letter 5.31 / 1.02",
+        ],
+        [
+            "actuator hysteresis",
+            "tracking none / PI / mod. PI / +warp",
+            f"{track['no compensation']:.1f} / {track['classical-PI inverse']:.1f} / {track['modified-PI inverse']:.1f} / {track['modified-PI+warp inverse']:.1f} % FSR",
+            "letter 11 / 4.8 / 2.6",
+        ],
+    ]
+
+
+def _identify(ident: Any, valid: Any, out_dir: Path, step: Callable[[str], None]) -> tuple:
+    """The classical, the letter's modified and the warped modified PI models (saved), their
+    validation predictions and max errors on both records."""
+    from ..hysteresis import PIIdentifier, max_error_percent
+    from ..models import save_model
+
     fits = {}
     # "modified-pi" is the letter's model exactly; "modified-pi+warp" adds our monotone input warp
     for key, kind, warp in (
@@ -36,10 +65,17 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     preds = {k: fit.model.simulate(valid.u)[:, 0] for k, fit in fits.items()}
     model_err = {k: float(max_error_percent(valid.y, preds[k])) for k in fits}
     ident_err = {k: float(max_error_percent(ident.y, fits[k].model.simulate(ident.u))) for k in fits}
+    return fits, preds, ident_err, model_err
+
+
+def _track(actuator: Any, fits: dict, step: Callable[[str], None]) -> tuple:
+    """Feedforward tracking of a 1 Hz triangle with each model's inverse (and without)."""
+    from ..hysteresis import Compensator, hysteresis_percent, tracking_error_percent
+    from ..plants.piezo_actuator import open_loop_gain
+    from ..signals import triangle
 
     step("hysteresis: feedforward tracking of a 1 Hz, 3 um p-p triangle")
-    dt = 1e-3
-    y_ref = triangle(1.0, 3.0, dt, amplitude=1.5) + 0.5
+    y_ref = triangle(1.0, 3.0, DT, amplitude=1.5) + 0.5
     drives = {"no compensation": y_ref / open_loop_gain(actuator)}
     for kind, label in (
         ("pi", "classical-PI inverse"),
@@ -50,11 +86,10 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     outputs = {label: actuator.simulate(d)[:, 0] for label, d in drives.items()}
     track = {label: float(tracking_error_percent(y_ref, y)) for label, y in outputs.items()}
     hyst = {label: float(hysteresis_percent(y_ref, y)) for label, y in outputs.items()}
-    metrics["hysteresis/model_error_percent_identification"] = ident_err
-    metrics["hysteresis/model_error_percent_validation"] = model_err
-    metrics["hysteresis/tracking_error_percent_fsr"] = track
-    metrics["hysteresis/hysteresis_percent"] = hyst
+    return y_ref, outputs, track, hyst
 
+
+def _tables(report: Report, ident_err: dict, model_err: dict, track: dict, hyst: dict) -> None:
     report.section("3. Piezo actuator: modified Prandtl-Ishlinskii hysteresis and inverse feedforward")
     report.paragraph(
         "Data: the reference actuator (asymmetric, rate-independent hysteresis over -500...500 V, deliberately not a PI "
@@ -99,6 +134,11 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
         caption=f"Without compensation: tracking error {track['no compensation']:.2f} % FSR, hysteresis "
         f"{hyst['no compensation']:.2f} % (letter: 11 % and 8.3 %).",
     )
+
+
+def _figures(report: Report, ident: Any, valid: Any, fits: dict, preds: dict, y_ref: Any, outputs: dict) -> None:
+    from ..plots.hysteresis import loop_figure, model_errors_figure, tracking_figure
+
     u = ident.u[:, 0]
     report.figure(
         loop_figure(
@@ -120,7 +160,7 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
         ),
         "Modelling error [um] of the classical PI, the letter's modified PI and the modified PI with input warp on the 1 Hz validation triangle.",
     )
-    t = np.arange(y_ref.size) * dt
+    t = np.arange(y_ref.size) * DT
     report.figure(
         loop_figure(
             y_ref,
@@ -135,17 +175,3 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
         tracking_figure(t, y_ref, outputs["modified-PI inverse"], title="Modified-PI inverse feedforward"),
         "Desired and actual output with the modified-PI inverse compensator, tracking error and hysteresis curve.",
     )
-    return [
-        [
-            "actuator hysteresis",
-            "model error PI / mod. PI / +warp",
-            f"{model_err['pi']:.2f} / {model_err['modified-pi']:.2f} / {model_err['modified-pi+warp']:.2f} % range",
-            "letter 5.31 / 1.02",
-        ],
-        [
-            "actuator hysteresis",
-            "tracking none / PI / mod. PI / +warp",
-            f"{track['no compensation']:.1f} / {track['classical-PI inverse']:.1f} / {track['modified-PI inverse']:.1f} / {track['modified-PI+warp inverse']:.1f} % FSR",
-            "letter 11 / 4.8 / 2.6",
-        ],
-    ]

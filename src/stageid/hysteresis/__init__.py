@@ -22,6 +22,26 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``tracking_error_percent``
 ``hysteresis_percent``
 =========================  ==================================================================
+
+Modules, from the letter's sections down (each imports only the ones below it):
+
+=========================  ==================================================================
+:mod:`.identification`     ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
+                           thresholds, starting states, creep)
+:mod:`.weights`            step 2: constrained least-squares weights (invertibility bounds)
+:mod:`.threshold_search`   step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
+:mod:`.records`            records, starting states (step 4), per-record errors, ``align_record``
+:mod:`.compensator`        Fig. 9 feedforward: ``Compensator``, ``compensate``, ``CreepInverse``
+:mod:`.inverse`            eq. 5: ``invert`` (per-sample), re-exports the closed form
+:mod:`.closed_form`        the classical PI's inverse PI model (``pi_inverse``)
+:mod:`.serialization`      the ``stageid.hysteresis/1`` JSON format, ``register_kind``
+:mod:`.pi`                 eq. 4: ``PIModel``, ``ModifiedPIModel``
+:mod:`.creep`              ``CreepTerm`` (our extension)
+:mod:`.operators`          eq. 1-3: play and coupled-play operators, plain-Python references
+:mod:`.common`             helpers shared by models, inverse and compensator
+:mod:`.kernels`            the compiled loops (numba), imported on first use
+:mod:`.metrics`            the letter's error and hysteresis measures
+=========================  ==================================================================
 """
 
 from .compensator import Compensator, compensate

@@ -23,7 +23,7 @@ sample* of every simulation (records start after an idle stretch): the policy un
 :func:`~stageid.hysteresis.align_record` applies to other records.  The compensator follows it:
 its first drive is solved with the creep at rest at that drive (output ``(sum_j c_j) u``).
 
-Inversion with creep (:class:`CreepInverse`): per sample after the first, the memory part
+Inversion with creep (:class:`stageid.hysteresis.compensator.CreepInverse`): per sample after the first, the memory part
 ``h = sum_j c_j a_j s_j(k-1)`` is known, and the instantaneous gain ``g`` is folded into the
 linear operator's weight (``r_0 = 0``) of the rate-independent model, which is then inverted
 by the existing :class:`~stageid.hysteresis.Compensator`.  Without an input warp this is
@@ -34,16 +34,15 @@ remainder ``g (u - x)`` is resolved by fixed-point iteration (a contraction with
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .._errors import ModelError, ModelFormatError
-from .operators import OperatorState
+from ..checks import is_real, shown
 
-__all__ = ["CreepTerm", "CreepInverse"]
+__all__ = ["CreepTerm"]
 
 
 def _positive(name: str, value: object) -> float:
@@ -194,196 +193,12 @@ class CreepTerm:
             )
         for key in ("time_constants", "weights") + (("state",) if d.get("state") is not None else ()):
             v = d[key]
-            if not isinstance(v, list) or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v):
-                raise ModelFormatError(f"`creep.{key}` must be a list of numbers; got {v!r:.80}.")
+            if not isinstance(v, list) or not all(is_real(e) for e in v):
+                raise ModelFormatError(f"`creep.{key}` must be a list of numbers; got {shown(v)}.")
         dt = d["sample_time"]
-        if not isinstance(dt, (int, float)) or isinstance(dt, bool):
-            raise ModelFormatError(f"`creep.sample_time` must be a number; got {dt!r}.")
+        if not is_real(dt):
+            raise ModelFormatError(f"`creep.sample_time` must be a number; got {shown(dt)}.")
         try:
             return cls(time_constants=d["time_constants"], weights=d["weights"], sample_time=dt, state=d.get("state"))
         except ModelError as exc:
             raise ModelFormatError(str(exc)) from None
-
-
-class CreepInverse:
-    """Per-sample inverse of a PI / modified-PI model with a :class:`CreepTerm` (see module notes).
-
-    Used by :class:`~stageid.hysteresis.Compensator` and :func:`~stageid.hysteresis.invert`
-    when ``model.creep`` is set; not usually built directly.
-
-    Parameters
-    ----------
-    model : PIModel or ModifiedPIModel
-        With ``model.creep`` set.
-    limits : (float, float), optional
-        Drive limits (default ``model.input_limits``).
-    dt : float, optional
-        Sampling period [s] of the reference (default the creep term's ``sample_time``).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from stageid.hysteresis import PIModel
-    >>> from stageid.hysteresis.creep import CreepInverse, CreepTerm
-    >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
-    >>> yd = np.array([0.0, 1.0, 2.0, 1.5])
-    >>> u = CreepInverse(m).run(yd)
-    >>> bool(np.allclose(m.simulate(u)[:, 0], yd))
-    True
-    """
-
-    def __init__(self, model: Any, limits: tuple[float, float] | None = None, dt: float | None = None) -> None:
-        from .compensator import Compensator
-
-        creep = getattr(model, "creep", None)
-        if creep is None:
-            raise ModelError("CreepInverse needs a model with a creep term; got model.creep = None.")
-        self.model = model
-        self.creep = creep
-        self._a = creep.poles(dt)
-        self._ca = creep.weights * self._a
-        self._g = creep.instantaneous_gain(dt)
-        self._G = float(np.sum(creep.weights))
-        base = replace(model, creep=None)
-        # fold the instantaneous creep gain into the linear operator (r = 0: the identity); the
-        # first sample of a creep at rest at that sample's input has the whole static gain G
-        self._folded = bool(base.r[0] == 0.0)
-
-        def folded(gain: float):
-            if not self._folded:
-                return Compensator(base, limits)
-            w = np.array(base.weights)
-            w[0] += gain
-            return Compensator(replace(base, weights=w), limits)
-
-        self._inner = folded(self._g)
-        self._first = folded(self._G)
-        self.limits = self._inner.limits
-        scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)) + np.sum(creep.weights))
-        self._tol = 1e-12 * max(scale, 1e-300)
-        self.reset()
-
-    def reset(self, state: OperatorState | None = None, creep_state: object | None = None) -> None:
-        """Restart from an operator ``state`` (default the model's) and lag outputs ``creep_state``
-        (default the creep term's; ``None`` there: at rest at the first drive, as
-        :meth:`~stageid.hysteresis.PIModel.simulate` assumes)."""
-        self._inner.reset(state)
-        st = self.creep.state if creep_state is None else np.asarray(creep_state, dtype=float).reshape(-1)
-        x = (self.model.state if state is None else state).x
-        self._u_prev = float(self.model.from_operator_input(x))
-        self._fresh = st is None
-        if st is None:
-            st = np.full(self.creep.n_lags, self._u_prev)
-        if st.size != self.creep.n_lags:
-            raise ModelError(f"creep state must hold {self.creep.n_lags} lag outputs; got {st.size}.")
-        self._s = np.array(st, dtype=float)
-
-    @property
-    def state(self) -> OperatorState:
-        """Operator state after the last sample."""
-        return self._inner.state
-
-    @property
-    def creep_state(self) -> np.ndarray:
-        """Lag outputs after the last sample, shape (n_lags,)."""
-        return self._s.copy()
-
-    def _excess(self, u: float) -> float:
-        # the part of g*u the folded inner model does not produce: g*(u - x(u)), or g*u unfolded
-        return u - float(self.model.to_operator_input(u)) if self._folded else u
-
-    def step(self, y_ref: float) -> float:
-        """Drive for one desired output sample; advances the operator and creep states.
-
-        Raises :class:`ModelError` (state unchanged) if ``y_ref`` is not finite.
-        """
-        y_ref = float(y_ref)
-        if not math.isfinite(y_ref):
-            raise ModelError(
-                f"desired output `y_ref` must be finite; got {y_ref} (the compensator state is unchanged)."
-            )
-        if not self._fresh and self._compiled:
-            return float(self._run_compiled(np.array([y_ref]))[0])
-        if self._fresh:  # creep at rest at this sample's (unknown) input: output G*u, no memory
-            inner, g, h = self._first, self._G, 0.0
-            inner.reset(self._inner.state)
-        else:
-            inner, g, h = self._inner, self._g, float(self._ca @ self._s)
-        saved = inner.state
-        e = self._excess(self._u_prev)
-        u = float("nan")
-        for _ in range(100):
-            u = float(inner.step(float(y_ref) - h - g * e))
-            e_new = self._excess(u)
-            if abs(g * (e_new - e)) <= self._tol:
-                break
-            inner.reset(saved)
-            e = e_new
-        if self._fresh:
-            self._inner.reset(inner.state)
-            self._s = np.full(self.creep.n_lags, u)
-            self._fresh = False
-        else:
-            self._s = self._a * self._s + (1.0 - self._a) * u
-        self._u_prev = u
-        return u
-
-    def run(self, y_ref: object) -> np.ndarray:
-        """Drives for a block of desired outputs, shape (n_samples, 1); continues the state.
-
-        A modified-PI model without input warp runs in one compiled loop (the same arithmetic
-        as :meth:`step`); other models step sample by sample from Python.
-        """
-        from .pi import _as_input
-
-        yr = np.ascontiguousarray(_as_input(y_ref, self.model.outputs[0]), dtype=float)
-        out = np.empty(yr.size)
-        k = 0
-        if self._fresh and yr.size:
-            out[0] = self.step(yr[0])
-            k = 1
-        if self._compiled:
-            out[k:] = self._run_compiled(yr[k:])
-        else:
-            for i in range(k, yr.size):
-                out[i] = self.step(yr[i])
-        return out.reshape(-1, 1)
-
-    @property
-    def _compiled(self) -> bool:
-        inner = self._inner
-        return (
-            self._folded
-            and inner._creep is None
-            and inner._inverse is None
-            and getattr(self.model, "input_warp", 0.0) == 0.0
-        )
-
-    def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
-        """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
-        from . import _kernels
-
-        if not yr.size:
-            return yr.copy()
-        inner = self._inner
-        u, z, x, s = _kernels.cp_invert_creep(
-            yr,
-            inner._P,
-            inner._z,
-            inner._x,
-            inner._lo,
-            inner._hi,
-            inner._smin,
-            inner._tol,
-            float(self.model.output_offset),
-            float(self.model.input_offset),
-            self._a,
-            self._ca,
-            self._s,
-            float(self._u_prev),
-            float(self._g),
-            float(self._tol),
-        )
-        inner._z, inner._x, self._s = z, float(x), s
-        self._u_prev = float(u[-1])
-        return u

@@ -44,6 +44,9 @@ Procedure (the letter's, made explicit):
    creep that fit the identification record better and other records far worse
    (``studies/hysteresis/RESULTS.md`` section 2).
 
+Modules: step 2 :mod:`.weights`, step 3 :mod:`.threshold_search`, steps 4 and the errors
+:mod:`.records`; :meth:`PIIdentifier.fit` runs them in this order.
+
 The fitted model starts, like the letter's, from the zero state at 0 input (or at the nearest
 end of the identified range), with the output offset of the first record; use
 :func:`align_record` to compare it with another record (own offset and starting state).
@@ -52,36 +55,57 @@ end of the identified range), with the output offset of the first record; use
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError, ModelError
+from .._errors import DataError
 from .._threads import single_blas_thread
-from .pi import STATE_KINDS, ModifiedPIModel, PIModel
+from ..base import Boolean, Estimator, Interval, Options, Satisfies
+from ..checks import is_real
+from ..resources import require_memory, require_work
+from .creep import CreepTerm
+from .records import (
+    STATE_CHOICES,
+    align_record,
+    choose_initial_states,
+    read_records,
+    record_errors,
+    sampling_period,
+)
+from .threshold_search import search_thresholds
+from .weights import WeightProblem
 
 __all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
 
 MODEL_KINDS = ("pi", "modified-pi")
-_STATE_CHOICES = ("auto",) + STATE_KINDS
 #: Largest ``n_operators`` per model kind (the modified PI refits all weights for every step of
-#: its threshold search: 100 operators on 10000 samples already take about a minute).
+#: its threshold search).
 MAX_OPERATORS = {"pi": 1000, "modified-pi": 100}
 #: At least this many samples (summed over the records) per operator.
 SAMPLES_PER_OPERATOR = 5
+#: Most multiply-adds a fit may need (normal equations and bounded least squares of every
+#: weight fit); a few minutes of work.  More (thousands of creep lags) is refused up front.
+MAX_FIT_OPERATIONS = 3e11
 
 
-def _real(value: object) -> float | None:
-    """``float(value)`` for a finite real number (not a bool or a string), else None."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        return None
-    v = float(value)
-    return v if np.isfinite(v) else None
+def _is_range(value: Any) -> bool:
+    return (
+        isinstance(value, (tuple, list, np.ndarray))
+        and len(value) == 2
+        and all(is_real(v) for v in value)
+        and float(value[0]) < float(value[1])
+    )
 
 
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+def _positive_seconds(value: Any) -> bool:
+    return (
+        isinstance(value, (tuple, list, np.ndarray))
+        and np.ndim(value) == 1
+        and len(value) > 0
+        and all(is_real(v) and v > 0 for v in value)
+    )
 
 
 @dataclass(frozen=True)
@@ -141,61 +165,7 @@ def _ratio(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.median(a[k] / b[k])) if np.any(k) else float("nan")
 
 
-def _records(
-    data: Any, inputs: str | None, outputs: str | None
-) -> tuple[list[tuple[np.ndarray, np.ndarray]], str, str]:
-    from ..data import Experiment
-
-    if isinstance(data, Experiment):
-        data = [data]
-    if isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], Experiment):
-        data = [data]
-    recs = []
-    in_name, out_name = inputs or "V", outputs or "y"
-    for k, item in enumerate(data):
-        if isinstance(item, Experiment):
-            if item.n_inputs != 1 or item.n_outputs != 1:
-                raise DataError(
-                    f"hysteresis identification needs one input and one output; record {k} has {item.n_inputs} and {item.n_outputs}."
-                )
-            u, y = item.u[:, 0], item.y[:, 0]
-            if k == 0:
-                in_name = inputs or item.input_names[0]
-                out_name = outputs or item.output_names[0]
-        else:
-            try:
-                pair = [np.asarray(item[0], dtype=float), np.asarray(item[1], dtype=float)]
-            except (TypeError, ValueError, IndexError, KeyError):
-                raise DataError(
-                    f"record {k} must be an Experiment or a (u, y) pair of numeric arrays; got {type(item).__name__}."
-                ) from None
-            for j, what in enumerate(("input", "output")):
-                a = pair[j]
-                if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != 1):
-                    raise DataError(
-                        f"record {k}: one {what} column expected (shape (n_samples,) or (n_samples, 1)); "
-                        f"got shape {a.shape}."
-                    )
-            u, y = pair[0].reshape(-1), pair[1].reshape(-1)
-            if u.shape != y.shape:
-                raise DataError(f"record {k}: input and output must have equal length; got {u.size} and {y.size}.")
-        label = f"record {k}" + (f" ('{item.name}')" if isinstance(item, Experiment) and item.name else "")
-        if u.size < 10:
-            raise DataError(f"{label} has {u.size} samples; hysteresis identification needs at least 10.")
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
-            raise DataError(f"{label} has NaN or inf samples.")
-        if not np.ptp(y) > 0:
-            raise DataError(
-                f"{label}: the output is constant ({y[0]:g}); every record's output must vary "
-                "(errors are reported in % of each record's output range)."
-            )
-        recs.append((np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)))
-    if not recs:
-        raise DataError("no records given; expected at least one Experiment.")
-    return recs, in_name, out_name
-
-
-class PIIdentifier:
+class PIIdentifier(Estimator):
     """Identify a classical (``"pi"``) or modified (``"modified-pi"``) PI model.
 
     Parameters
@@ -252,6 +222,25 @@ class PIIdentifier:
     True
     """
 
+    parameter_constraints = {
+        "model": [Options(*MODEL_KINDS)],
+        "n_operators": [Interval(int, 2, None, closed="left")],
+        "input_range": [Satisfies(_is_range, "(low, high) with finite low < high"), None],
+        "initial_state": [Options(*STATE_CHOICES)],
+        "min_slope_fraction": [Interval(float, 0, 1, closed="neither")],
+        "max_rows": [Interval(int, 10, None, closed="left")],
+        "max_evaluations": [Interval(int, 1, None, closed="left"), None],
+        "ridge": [Interval(float, 0, None, closed="left")],
+        "input_warp": [Boolean()],
+        "creep_time_constants": [Satisfies(_positive_seconds, "a non-empty sequence of positive seconds"), None],
+        "sample_time": [Interval(float, 0, None, closed="neither"), None],
+    }
+
+    def check_together(self) -> None:
+        cap = MAX_OPERATORS[self.model]
+        if self.n_operators > cap:
+            raise self.invalid("n_operators", f"at most {cap} for a {self.model} model")
+
     def __init__(
         self,
         model: str = "pi",
@@ -278,65 +267,6 @@ class PIIdentifier:
         self.creep_time_constants = creep_time_constants
         self.sample_time = sample_time
 
-    # ------------------------------------------------------------------ checks
-    def _check(self) -> None:
-        if self.model not in MODEL_KINDS:
-            raise IdentificationError(
-                f"`model` of PIIdentifier must be one of {', '.join(MODEL_KINDS)}; got {self.model!r}."
-            )
-        if not _is_int(self.n_operators) or self.n_operators < 2:
-            raise IdentificationError(
-                f"`n_operators` of PIIdentifier must be an integer >= 2; got {self.n_operators!r}."
-            )
-        cap = MAX_OPERATORS[self.model]
-        if self.n_operators > cap:
-            raise IdentificationError(
-                f"`n_operators` of PIIdentifier must be at most {cap} for a {self.model} model; got {self.n_operators}."
-            )
-        if self.initial_state not in _STATE_CHOICES:
-            raise IdentificationError(
-                f"`initial_state` of PIIdentifier must be one of {', '.join(_STATE_CHOICES)}; got {self.initial_state!r}."
-            )
-        msf = _real(self.min_slope_fraction)
-        if msf is None or not 0 < msf < 1:
-            raise IdentificationError(
-                f"`min_slope_fraction` of PIIdentifier must be a number in (0, 1); got {self.min_slope_fraction!r}."
-            )
-        if not _is_int(self.max_rows) or self.max_rows < 10:
-            raise IdentificationError(f"`max_rows` of PIIdentifier must be an integer >= 10; got {self.max_rows!r}.")
-        if self.max_evaluations is not None and (not _is_int(self.max_evaluations) or self.max_evaluations < 1):
-            raise IdentificationError(
-                f"`max_evaluations` of PIIdentifier must be an integer >= 1; got {self.max_evaluations!r}."
-            )
-        ridge = _real(self.ridge)
-        if ridge is None or ridge < 0:
-            raise IdentificationError(f"`ridge` of PIIdentifier must be a number >= 0; got {self.ridge!r}.")
-        if not isinstance(self.input_warp, (bool, np.bool_)):
-            raise IdentificationError(f"`input_warp` of PIIdentifier must be True or False; got {self.input_warp!r}.")
-        if self.input_range is not None:
-            try:
-                lo, hi = (_real(v) for v in self.input_range)
-            except (TypeError, ValueError):
-                lo = hi = None
-            if lo is None or hi is None or not lo < hi:
-                raise IdentificationError(
-                    f"`input_range` of PIIdentifier must be (low, high) with finite low < high; "
-                    f"got {self.input_range!r}."
-                )
-        if self.sample_time is not None:
-            ts = _real(self.sample_time)
-            if ts is None or ts <= 0:
-                raise IdentificationError(
-                    f"`sample_time` of PIIdentifier must be a positive number of seconds; got {self.sample_time!r}."
-                )
-        if self.creep_time_constants is not None:
-            taus = np.asarray(self.creep_time_constants, dtype=float).reshape(-1)
-            if taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
-                raise IdentificationError(
-                    f"`creep_time_constants` of PIIdentifier must be positive seconds; got {self.creep_time_constants!r}."
-                )
-
-    # ------------------------------------------------------------------ fit
     @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
         """Identify the model from one or several records.
@@ -357,95 +287,50 @@ class PIIdentifier:
         DataError
             Malformed records (more than one input or output column, NaN/inf, fewer than 10
             samples), an input that does not move, or a record whose output is constant.
-        IdentificationError
+        ParameterError
             Bad hyper-parameters (also ``n_operators`` beyond the bounds the class docstring
-            gives for these records) or a singular least-squares problem.
+            gives for these records, or no ``sample_time`` for creep on (u, y) records).
+        ResourceError
+            When the fit would need more memory than is available or more than
+            ``MAX_FIT_OPERATIONS`` operations (many creep time constants, before any work).
+        IdentificationError
+            A failed least-squares problem.
         """
-        self._check()
-        recs, in_name, out_name = _records(data, inputs, outputs)
-        u_lo = min(float(u.min()) for u, _ in recs)
-        u_hi = max(float(u.max()) for u, _ in recs)
-        if not u_hi > u_lo:
-            raise DataError(f"the identification input must vary; got a constant {u_lo:g}.")
-        n_total = sum(u.size for u, _ in recs)
-        n_levels = int(np.unique(np.concatenate([u for u, _ in recs])).size)
-        bound = min(n_total // SAMPLES_PER_OPERATOR, n_levels)
-        if self.n_operators > bound:
-            raise IdentificationError(
-                f"`n_operators` of PIIdentifier must be at most {bound} for these records (one operator per "
-                f"{SAMPLES_PER_OPERATOR} of their {n_total} samples, no more than their {n_levels} distinct input "
-                f"values); got {self.n_operators}."
-            )
-        creep = None
-        if self.creep_time_constants is not None:
-            creep = (
-                np.asarray(self.creep_time_constants, dtype=float).reshape(-1),
-                _creep_sample_time(data, self.sample_time),
-            )
-        if self.input_range is not None:
-            lo, hi = (float(v) for v in self.input_range)
-        else:
-            lo, hi = u_lo, u_hi
+        self.validate_params()
+        recs, in_name, out_name = read_records(data, inputs, outputs)
+        u_lo, u_hi = self._check_records(recs)
+        creep = self._creep_lags(data)
+        lo, hi = (float(v) for v in self.input_range) if self.input_range is not None else (u_lo, u_hi)
+        classical = self.model == "pi"
+        self._check_cost(recs, creep)
+        # step 1: thresholds equally spaced over the half range, the linear term r_0 = 0
         n = int(self.n_operators)
         R = 0.5 * (hi - lo)
         r = np.arange(n) * R / n
-        yr = max(float(np.ptp(y)) for _, y in recs)  # > 0: _records refuses a constant output
+        yr = max(float(np.ptp(y)) for _, y in recs)  # > 0: read_records refuses a constant output
         eps = float(self.min_slope_fraction) * yr / (hi - lo)
-        stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
-        ctx = _Context(recs, r, eps, stride, self.model, float(self.ridge), R, creep)
-
-        # classical fit and starting-state choice
-        theta0 = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi), 0.0])
-        kinds = ["zero"] * len(recs) if self.initial_state == "auto" else [self.initial_state] * len(recs)
+        problem = WeightProblem(recs, r, eps, self._stride(recs), self.model, float(self.ridge), R, creep)
+        # step 4 (for the classical thresholds): the starting state of every record
+        theta = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.5 * (lo + hi), 0.0])
+        kinds = ["zero" if self.initial_state == "auto" else self.initial_state] * len(recs)
         at_rest = [abs(u[0]) <= 0.01 * (hi - lo) for u, _ in recs]
         if self.initial_state == "auto":
-            for j in range(len(recs)):
-                if at_rest[j]:
-                    continue  # starts at 0 input: the letter's x0 = z0 = 0
-                best = None
-                for kind in STATE_KINDS:
-                    trial = kinds.copy()
-                    trial[j] = kind
-                    sse = ctx.solve(theta0, trial, classical=self.model == "pi", creep=False)[0]
-                    if best is None or sse < best[0]:
-                        best = (sse, kind)
-                kinds[j] = best[1]
-        n_eval = 0
-        success, message = True, "classical PI: constrained least squares."
-        theta = theta0
-        if self.model == "modified-pi":
-            theta, n_eval, success, message = self._search(ctx, theta0, kinds, R, lo, hi)
-            if self.initial_state == "auto":  # re-check the starting states with the final thresholds
-                for j in range(len(recs)):
-                    if at_rest[j]:
-                        continue
-                    best = None
-                    for kind in STATE_KINDS:
-                        trial = kinds.copy()
-                        trial[j] = kind
-                        sse = ctx.solve(theta, trial, classical=False, creep=False)[0]
-                        if best is None or sse < best[0]:
-                            best = (sse, kind)
-                    kinds[j] = best[1]
-        sse, w, offsets = ctx.solve(theta, kinds, classical=self.model == "pi")
-        model = ctx.build(theta, w, offsets[0], in_name, out_name, lo, hi, (u_lo, u_hi))
+            kinds = choose_initial_states(problem, theta, kinds, at_rest, classical)
+        n_eval, success, message = 0, True, "classical PI: constrained least squares."
+        if not classical:  # step 3: the CP thresholds, then the starting states again
+            found = search_thresholds(problem, theta, kinds, R, lo, hi, bool(self.input_warp), self._budget())
+            theta, n_eval, success, message = found.theta, found.n_evaluations, found.success, found.message
+            if self.initial_state == "auto":
+                kinds = choose_initial_states(problem, theta, kinds, at_rest, False)
+        # step 2 for the final thresholds (and step 5, the creep weights, jointly)
+        sse, w, offsets = problem.solve(theta, kinds, classical=classical)
+        model = problem.build(theta, w, offsets[0], in_name, out_name, lo, hi, (u_lo, u_hi))
         if creep is not None:
-            from dataclasses import replace
-
-            from .creep import CreepTerm
-
-            c = ctx.solve_creep(theta, kinds, classical=self.model == "pi")[3]
+            c = problem.solve_creep(theta, kinds, classical=classical)[3]
             model = replace(
                 model, creep=CreepTerm(time_constants=creep[0], weights=np.maximum(c, 0.0), sample_time=creep[1])
             )
-        max_e, rms_e = [], []
-        for j, (u, y) in enumerate(recs):
-            m_j = model.with_state(model.consistent_state(u[0], kinds[j]))
-            m_j = _replace_offset(m_j, offsets[j])
-            yh = m_j.simulate(u)[:, 0]
-            e = y - yh
-            max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
-            rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
+        max_e, rms_e = record_errors(model, recs, kinds, offsets)
         return HysteresisFit(
             model=model,
             max_error_percent=tuple(max_e),
@@ -457,435 +342,61 @@ class PIIdentifier:
             message=message,
         )
 
-    def _search(self, ctx: _Context, theta0: np.ndarray, kinds: list[str], R: float, lo: float, hi: float):
-        from scipy.optimize import minimize
-
-        centre = 0.5 * (lo + hi)
-        qmax = 0.4 if self.input_warp else 0.0
-        lower = np.array([0.0, -1.0, 0.05, -2.0, 0.0, -1.0, centre - 0.25 * (hi - lo), -qmax])
-        upper = np.array([1.0, 1.0, 3.0, 2.0, 1.0, 1.0, centre + 0.25 * (hi - lo), qmax])
-        scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, R, 1.0])
-        active = np.flatnonzero(upper > lower)
-        count = [0]
-        cache: dict[tuple, float] = {}
-        budget = int(self.max_evaluations) if self.max_evaluations is not None else (1000 if self.input_warp else 500)
-
-        def full(v: np.ndarray) -> np.ndarray:
-            th = np.array(theta0, dtype=float)
-            th[active] = np.asarray(v) * scale[active]
-            return np.clip(th, lower, upper)
-
-        def objective(v: np.ndarray) -> float:
-            th = full(v)
-            key = tuple(np.round(th, 12))
-            if key not in cache:
-                count[0] += 1
-                cache[key] = ctx.solve(th, kinds, classical=False)[0]
-            return cache[key]
-
-        classical = np.array(theta0, dtype=float)
-        f_classical = objective(classical[active] / scale[active])
-        # coarse grid over the mean ratios (thresholds proportional to r) and the warp,
-        # then Nelder-Mead on all parameters from the two best grid points
-        grid = []
-        for q in (-0.2, 0.0, 0.2) if self.input_warp else (0.0,):
-            for c0 in (0.2, 0.5, 0.8, 1.0):
-                for a0 in (0.7, 1.0, 1.4, 2.0):
-                    for b0 in (0.4, 0.7, 1.0):
-                        th = np.array([c0, 0.0, a0, 0.0, b0, 0.0, centre, q])
-                        grid.append((objective(th[active] / scale[active]), th))
-        grid.sort(key=lambda item: item[0])
-        best_f, best_th = grid[0]
-        if f_classical < best_f:
-            best_f, best_th = f_classical, classical
-        steps_all = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
-
-        def descend(
-            th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int
-        ) -> tuple[float, np.ndarray, bool]:
-            """Nelder-Mead over the parameters ``free`` (indices into theta) from ``th_start``."""
-            base = np.array(th_start, dtype=float)
-
-            def sub(v: np.ndarray) -> float:
-                th = base.copy()
-                th[free] = np.asarray(v) * scale[free]
-                return objective(th[active] / scale[active])
-
-            x0 = base[free] / scale[free]
-            lb, ub = lower[free] / scale[free], upper[free] / scale[free]
-            steps = steps_all[free]
-            k = free.size
-            simplex = np.vstack(
-                [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
+    # ------------------------------------------------------------------ steps of fit
+    def _check_records(self, recs: list) -> tuple[float, float]:
+        """The identified input range; ParameterError when ``n_operators`` exceeds what the
+        records support (one operator per 5 samples, no more than their distinct inputs)."""
+        u_lo = min(float(u.min()) for u, _ in recs)
+        u_hi = max(float(u.max()) for u, _ in recs)
+        if not u_hi > u_lo:
+            raise DataError(f"the identification input must vary; got a constant {u_lo:g}.")
+        n_total = sum(u.size for u, _ in recs)
+        n_levels = int(np.unique(np.concatenate([u for u, _ in recs])).size)
+        bound = min(n_total // SAMPLES_PER_OPERATOR, n_levels)
+        if self.n_operators > bound:
+            raise self.invalid(
+                "n_operators",
+                f"at most {bound} for these records (one operator per {SAMPLES_PER_OPERATOR} of their "
+                f"{n_total} samples, no more than their {n_levels} distinct input values)",
             )
-            res = minimize(
-                sub,
-                x0,
-                method="Nelder-Mead",
-                bounds=list(zip(lb, ub)),
-                options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start},
-            )
-            th = base.copy()
-            th[free] = res.x * scale[free]
-            return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
+        return u_lo, u_hi
 
-        # 1. the simplex on every parameter from the best grid point, with half the budget left;
-        # 2. with the warp, the other half chains two simplexes: the best unwarped grid point
-        #    searched without the warp, then the warp released from there.  A warped fit can then
-        #    not end above the unwarped optimum the search finds (a plain 8-parameter simplex
-        #    from warped grid points stalled above it on asymmetric Bouc-Wen data).
-        remaining = budget - count[0]
-        if remaining > 20:
-            f_new, th_new, converged = descend(
-                best_th, best_f, active, remaining // 2 if self.input_warp else remaining
-            )
-            success = converged
-            if f_new < best_f:
-                best_f, best_th = f_new, th_new
-        else:
-            success = False
-        if self.input_warp:
-            f0, th0 = min(((f, th) for f, th in grid if th[7] == 0.0), key=lambda item: item[0])
-            remaining = budget - count[0]
-            if remaining > 40:
-                f0, th0, _ = descend(th0, f0, active[active != 7], remaining // 2)
-                f_new, th_new, converged = descend(th0, f0, active, budget - count[0])
-                success = success and converged
-                for f_c, th_c in ((f0, th0), (f_new, th_new)):
-                    if f_c < best_f:
-                        best_f, best_th = f_c, th_c
-            else:
-                success = False
-        msg = (
-            f"modified PI: {count[0]} weight fits in the threshold search; RMS residual "
-            f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's."
+    def _creep_lags(self, data: Any) -> tuple[np.ndarray, float] | None:
+        """(time constants, sampling period) of the creep term to fit, or None."""
+        if self.creep_time_constants is None:
+            return None
+        dt = sampling_period(data, self.sample_time)
+        if dt is None:
+            raise self.invalid("sample_time", "the sampling period in seconds when creep is fitted to (u, y) records")
+        return np.asarray(self.creep_time_constants, dtype=float).reshape(-1), dt
+
+    def _stride(self, recs: list) -> int:
+        """Sample stride of the least-squares rows (at most ``max_rows`` rows)."""
+        return max(1, int(np.ceil(sum(u.size for u, _ in recs) / int(self.max_rows))))
+
+    def _budget(self) -> int:
+        if self.max_evaluations is not None:
+            return int(self.max_evaluations)
+        return 1000 if self.input_warp else 500
+
+    def _check_cost(self, recs: list, creep: tuple[np.ndarray, float] | None) -> None:
+        """Refuse, before any work, a fit that needs too much memory or time.
+
+        Every weight fit forms the normal equations of ``rows x p`` columns (``p`` operators
+        plus creep lags) and solves a bounded problem of size ``p``; the modified PI does one
+        per step of its search, the classical about one per record and starting state.  The
+        operator and lag outputs of the longest record are held in memory.
+        """
+        n_lags = 0 if creep is None else creep[0].size
+        p = int(self.n_operators) + n_lags + len(recs)
+        rows = sum(u.size for u, _ in recs) / self._stride(recs)
+        n_fits = 3 * len(recs) + 2 + (0 if self.model == "pi" else self._budget())
+        longest = max(u.size for u, _ in recs)
+        what = f"a {self.model} fit with {self.n_operators} operators" + (f" and {n_lags} creep lags" if n_lags else "")
+        require_memory(8.0 * longest * (int(self.n_operators) + n_lags) * 2, what)
+        require_work(
+            n_fits * (rows * p * p / 2 + p**3),
+            MAX_FIT_OPERATIONS,
+            what,
+            "use fewer creep time constants (a few per decade) or fewer operators",
         )
-        return best_th, count[0], success, msg
-
-
-def _creep_sample_time(data: Any, sample_time: float | None) -> float:
-    """The one sampling period of the records (Experiment.dt, else ``sample_time``)."""
-    from ..data import Experiment
-
-    items = (
-        [data]
-        if isinstance(data, Experiment)
-        else (
-            [data] if isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], Experiment) else list(data)
-        )
-    )
-    dts = {float(e.dt) for e in items if isinstance(e, Experiment)}
-    if any(not isinstance(e, Experiment) for e in items):
-        if sample_time is None:
-            raise IdentificationError(
-                "fitting creep needs the sampling period: pass `sample_time` for (u, y) records; got None."
-            )
-        dts.add(float(sample_time))
-    elif sample_time is not None and dts != {float(sample_time)}:
-        raise IdentificationError(f"`sample_time` {sample_time!r} differs from the records' dt {sorted(dts)}.")
-    if len(dts) != 1:
-        raise IdentificationError(f"fitting creep needs one sampling period for all records; got {sorted(dts)}.")
-    dt = dts.pop()
-    if not (np.isfinite(dt) and dt > 0):
-        raise IdentificationError(f"the sampling period must be positive; got {dt!r}.")
-    return dt
-
-
-def _replace_offset(model, offset: float):
-    from dataclasses import replace
-
-    return replace(model, output_offset=float(offset))
-
-
-class _Context:
-    """Operator matrices and the constrained least-squares weight fit for fixed thresholds."""
-
-    def __init__(self, recs, r, eps, stride, kind, ridge=0.0, R=1.0, creep=None):
-        self.lags = None
-        if creep is not None:  # creep lag columns (independent of the thresholds), per record
-            from .creep import CreepTerm
-
-            term = CreepTerm(time_constants=creep[0], weights=np.zeros(creep[0].size), sample_time=creep[1])
-            self.lags = [np.ascontiguousarray(term.lags(u)[np.arange(0, u.size, stride)]) for u, _ in recs]
-        self.ridge = ridge
-        self.R = R
-        self.recs = recs
-        self.r = r
-        self.eps = eps
-        self.stride = stride
-        self.kind = kind
-        self.y = np.concatenate([y[::stride] for _, y in recs])
-        self.rows = [np.arange(0, u.size, stride) for u, _ in recs]
-
-    def thresholds(self, theta: np.ndarray, classical: bool):
-        r = self.r
-        if classical:
-            return r, r, r, r, float(theta[6])
-        t = np.arange(r.size) / max(r.size - 1, 1) - 0.5
-        c = np.clip(theta[0] + theta[1] * t, 0.0, 1.0)
-        a = np.clip(theta[2] + theta[3] * t, 0.0, None)
-        b = np.clip(theta[4] + theta[5] * t, 0.0, 1.0)
-        ra = a * r
-        return r, c * r, ra, b * ra, float(theta[6])
-
-    def warp(self, theta, classical):
-        return 0.0 if classical or len(theta) < 8 else float(theta[7])
-
-    def matrix(self, theta, kinds, classical):
-        from . import _kernels
-
-        r, rc, ra, rb, xc = self.thresholds(theta, classical)
-        q = self.warp(theta, classical)
-        blocks = []
-        for (u, _), kind, rows in zip(self.recs, kinds, self.rows):
-            x = u - xc
-            if q != 0.0:
-                t = np.abs(x) / self.R
-                x = x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
-            up = np.maximum(x[0] - r, np.minimum(x[0] - rc, 0.0))
-            down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
-            z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
-            # the state before the first sample: z0 is already consistent with x[0]
-            Z, _ = _kernels.cp_bank(np.ascontiguousarray(x), r, rc, ra, rb, np.ascontiguousarray(z0))
-            blocks.append(Z[rows])
-        return blocks
-
-    def _live(self, blocks) -> np.ndarray:
-        """Columns of the operators that move: one that (almost) never moves gets no weight
-        (its weight would be unbounded); the linear term always counts."""
-        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
-        live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
-        live[0] = True
-        return np.flatnonzero(live)
-
-    def _normal_equations(self, columns, m: int, classical: bool):
-        """``(G, G_fit, g, y'y)`` of the least-squares fit of ``y`` by the per-record column
-        blocks plus one offset per record; ``G`` adds the ridge on the CP weights ``1 .. m-1``
-        (not the linear term, creep weights or offsets: a CP operator whose thresholds leave it
-        almost still over the data would otherwise get a huge weight that explodes outside the
-        identified range), ``G_fit`` is without it."""
-        from . import _kernels
-
-        y = self.y
-        p = columns[0].shape[1]
-        J = len(columns)
-        G = np.zeros((p + J, p + J))
-        g = np.zeros(p + J)
-        start = 0
-        for j, c in enumerate(columns):
-            yb = np.ascontiguousarray(y[start : start + c.shape[0]])
-            Gb, gb, sb = _kernels.gram(np.ascontiguousarray(c), yb)
-            G[:p, :p] += Gb
-            G[:p, p + j] = sb
-            G[p + j, :p] = sb
-            G[p + j, p + j] = c.shape[0]
-            g[:p] += gb
-            g[p + j] = yb.sum()
-            start += c.shape[0]
-        Gfit = G
-        if self.ridge > 0 and not classical:
-            G = G.copy()
-            lam = self.ridge * float(np.mean(np.diag(G)[:m]))
-            G[np.arange(1, m), np.arange(1, m)] += lam
-        return G, Gfit, g, float(y @ y)
-
-    def solve(self, theta, kinds, classical, creep=True):
-        """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based);
-        with the creep columns when there are any and ``creep`` is true."""
-        if self.lags is not None and creep:
-            return self.solve_creep(theta, kinds, classical)[:3]
-
-        blocks = self.matrix(theta, kinds, classical)
-        n = self.r.size
-        J = len(blocks)
-        idx = self._live(blocks)
-        m = idx.size
-        G, Gfit, g, yy = self._normal_equations([b[:, idx] for b in blocks], m, classical)
-        if classical:
-            # w = D W with W the cumulative sums (over the live operators), bounds W >= eps
-            T = np.eye(m + J)
-            for i in range(m - 1):
-                T[i + 1, i] = -1.0
-            lb = np.concatenate([np.full(m, self.eps), np.full(J, -np.inf)])
-            v = _bounded_gram_lsq(T.T @ G @ T, T.T @ g, lb)
-            sol = T @ v
-        else:
-            sol = _gram_solve(G, g)
-            wl = sol[:m]
-            if not (wl[0] + np.sum(np.minimum(wl[1:], 0.0)) >= self.eps):
-                # w0 = eps + s + sum q, w_i = p_i - q_i (i >= 1), s, p, q >= 0: v = (s, p, q, offsets)
-                k = m - 1
-                T = np.zeros((m + J, 1 + 2 * k + J))
-                T[0, 0] = 1.0
-                T[0, 1 + k : 1 + 2 * k] = 1.0
-                T[1:m, 1 : 1 + k] = np.eye(k)
-                T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
-                T[m:, 1 + 2 * k :] = np.eye(J)
-                shift = np.zeros(m + J)
-                shift[0] = self.eps
-                g2 = T.T @ (g - G @ shift)
-                lb = np.concatenate([np.zeros(1 + 2 * k), np.full(J, -np.inf)])
-                v = _bounded_gram_lsq(T.T @ G @ T, g2, lb)
-                sol = T @ v + shift
-        w = np.zeros(n)
-        w[idx] = sol[:m]
-        offs = sol[m:]
-        sse = yy - 2.0 * float(sol @ g) + float(sol @ Gfit @ sol)
-        if self.ridge > 0 and not classical:
-            sse += float(sol @ (G - Gfit) @ sol)
-        return max(sse, 0.0), w, offs
-
-    def solve_creep(self, theta, kinds, classical):
-        """As :meth:`solve` with the creep lag columns (weights ``c >= 0``); also returns c."""
-        blocks = self.matrix(theta, kinds, classical)
-        n = self.r.size
-        J = len(blocks)
-        nc = self.lags[0].shape[1]
-        idx = self._live(blocks)
-        m = idx.size
-        p = m + nc  # operator weights, creep weights, then one offset per record
-        G, Gfit, g, yy = self._normal_equations(
-            [np.hstack([b[:, idx], self.lags[j]]) for j, b in enumerate(blocks)], m, classical
-        )
-        sol = _gram_solve(G, g)
-        wl, cl = sol[:m], sol[m:p]
-        if classical:
-            ok = bool(np.all(np.cumsum(wl) >= self.eps))
-        else:
-            ok = bool(wl[0] + np.sum(np.minimum(wl[1:], 0.0)) >= self.eps)
-        if not (ok and np.all(cl >= 0)):
-            shift = np.zeros(p + J)
-            if classical:
-                # w = D W (cumulative sums, W >= eps), c >= 0, offsets free
-                T = np.eye(p + J)
-                for i in range(m - 1):
-                    T[i + 1, i] = -1.0
-                lb = np.concatenate([np.full(m, self.eps), np.zeros(nc), np.full(J, -np.inf)])
-            else:
-                # w0 = eps + s + sum q, w_i = p_i - q_i, c >= 0: v = (s, p, q, c, offsets)
-                k = m - 1
-                T = np.zeros((p + J, 1 + 2 * k + nc + J))
-                T[0, 0] = 1.0
-                T[0, 1 + k : 1 + 2 * k] = 1.0
-                T[1:m, 1 : 1 + k] = np.eye(k)
-                T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
-                T[m:, 1 + 2 * k :] = np.eye(nc + J)
-                shift[0] = self.eps
-                lb = np.concatenate([np.zeros(1 + 2 * k + nc), np.full(J, -np.inf)])
-            v = _bounded_gram_lsq(T.T @ G @ T, T.T @ (g - G @ shift), lb)
-            sol = T @ v + shift
-        w = np.zeros(n)
-        w[idx] = sol[:m]
-        c = np.maximum(sol[m:p], 0.0)
-        offs = sol[p:]
-        sse = yy - 2.0 * float(sol @ g) + float(sol @ Gfit @ sol)
-        if self.ridge > 0 and not classical:
-            sse += float(sol @ (G - Gfit) @ sol)
-        return max(sse, 0.0), w, offs, c
-
-    def build(self, theta, w, offset, in_name, out_name, lo, hi, identified):
-        classical = self.kind == "pi"
-        r, rc, ra, rb, xc = self.thresholds(theta, classical)
-        # input_limits: the identified input range (the compensator's default drive limits)
-        common = dict(
-            weights=w,
-            input_offset=xc,
-            output_offset=float(offset),
-            inputs=(in_name,),
-            outputs=(out_name,),
-            input_limits=identified,
-        )
-        if classical:
-            model = PIModel(r=r, **common)
-        else:
-            model = ModifiedPIModel(
-                r=r, rc=rc, ra=ra, rb=rb, input_warp=self.warp(theta, False), warp_scale=self.R, **common
-            )
-        u_rest = min(max(0.0, lo), hi)
-        return model.with_state(model.consistent_state(u_rest, "zero"))
-
-
-def _gram_solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
-    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
-    Gs = G / np.outer(d, d)
-    try:
-        v = np.linalg.solve(Gs + 1e-12 * np.eye(G.shape[0]), g / d)
-    except np.linalg.LinAlgError:
-        v = np.linalg.lstsq(Gs, g / d, rcond=None)[0]
-    return v / d
-
-
-def _bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray:
-    """min v'Gv - 2 g'v subject to v >= lb, as a bounded least-squares problem on chol(G)."""
-    from scipy.optimize import lsq_linear
-
-    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
-    Gs = G / np.outer(d, d)
-    try:
-        Rm = np.linalg.cholesky(Gs + 1e-10 * np.eye(G.shape[0])).T
-        qy = np.linalg.solve(Rm.T, g / d)
-    except np.linalg.LinAlgError:
-        # collinear columns (e.g. operators that never move when ``input_range`` is wider than
-        # the data, or an operator constant like the offset): Gs is singular to rounding, so use
-        # its symmetric square root with the eigenvalues floored instead of the Cholesky factor
-        s, V = np.linalg.eigh(0.5 * (Gs + Gs.T))
-        s = np.maximum(s, 1e-10 * max(float(s.max()), 1e-300))
-        Rm = np.sqrt(s)[:, None] * V.T
-        qy = (V.T @ (g / d)) / np.sqrt(s)
-    lbs = np.where(np.isfinite(lb), lb * d, -np.inf)
-    res = lsq_linear(Rm, qy, bounds=(lbs, np.full_like(lbs, np.inf)), method="bvls", tol=1e-12, max_iter=2000)
-    if not np.all(np.isfinite(res.x)):
-        raise IdentificationError("the constrained least-squares weight fit failed (non-finite solution).")
-    return res.x / d
-
-
-def align_record(
-    model: PIModel | ModifiedPIModel, u: object, y: object, initial_state: str = "auto", fit_offset: bool = True
-) -> tuple[Any, np.ndarray]:
-    """Fit a record's own output offset and starting state, then simulate the model on it.
-
-    Records taken at other times have other sensor zeros and start from unknown hysteretic
-    states; this estimates only those two nuisance quantities (the mean residual and the best
-    of the starting-state kinds) -- the model's thresholds and weights are untouched.
-
-    Parameters
-    ----------
-    model : PIModel or ModifiedPIModel
-    u, y : array_like of shape (n_samples,) or (n_samples, 1)
-    initial_state : {"auto", "zero", "ascending", "descending", "model"}
-        ``"model"`` keeps the model's own state.
-    fit_offset : bool, default True
-
-    Returns
-    -------
-    model : the model with that record's state and offset
-    y_model : ndarray of shape (n_samples, 1)
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from stageid.hysteresis import PIModel, align_record
-    >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5])
-    >>> u = np.array([0.0, 2.0, -1.0, 1.0])
-    >>> _, yh = align_record(m, u, m.simulate(u) + 3.0)
-    >>> bool(np.allclose(yh, m.simulate(u) + 3.0))
-    True
-    """
-    uu = np.asarray(u, dtype=float).reshape(-1)
-    yy = np.asarray(y, dtype=float).reshape(-1)
-    if uu.shape != yy.shape:
-        raise DataError(f"input and output must have equal length; got {uu.size} and {yy.size}.")
-    choices = STATE_KINDS if initial_state == "auto" else (initial_state,)
-    if initial_state not in _STATE_CHOICES + ("model",):
-        raise ModelError(
-            f"`initial_state` must be one of auto, zero, ascending, descending, model; got {initial_state!r}."
-        )
-    best = None
-    for kind in choices:
-        m = model if kind == "model" else model.with_state(model.consistent_state(uu[0], kind))
-        yh = m.simulate(uu)[:, 0]
-        off = float(np.mean(yy - yh)) if fit_offset else 0.0
-        sse = float(np.sum((yy - yh - off) ** 2))
-        if best is None or sse < best[0]:
-            best = (sse, _replace_offset(m, m.output_offset + off), (yh + off)[:, None])
-    return best[1], best[2]

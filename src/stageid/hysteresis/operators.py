@@ -235,14 +235,14 @@ def play(x: object, r: object, state: OperatorState | None = None) -> tuple[np.n
     >>> z[:, 0].tolist()
     [0.0, 1.0, 1.0, -1.0]
     """
-    from . import _kernels
+    from . import kernels
 
     xx = _input(x)
     rr = _thresholds("r", r)
     st = state if state is not None else OperatorState.zeros(rr.size)
     if st.z.size != rr.size:
         raise ModelError(f"state must hold {rr.size} operator outputs; got {st.z.size}.")
-    z, zf = _kernels.play_bank(xx, rr, np.array(st.z))
+    z, zf = kernels.play_bank(xx, rr, np.array(st.z))
     return z, OperatorState(float(xx[-1]) if xx.size else st.x, zf)
 
 
@@ -278,12 +278,12 @@ def coupled_play(
     >>> z[:, 0].tolist()
     [0.0, 2.0, 1.0, -1.0, -0.5]
     """
-    from . import _kernels
+    from . import kernels
 
     xx = _input(x)
     r_, rc_, ra_, rb_ = check_cp_thresholds(r, rc, ra, rb)
     st = state if state is not None else OperatorState.zeros(r_.size)
     if st.z.size != r_.size:
         raise ModelError(f"state must hold {r_.size} operator outputs; got {st.z.size}.")
-    z, zf = _kernels.cp_bank(xx, r_, rc_, ra_, rb_, np.array(st.z))
+    z, zf = kernels.cp_bank(xx, r_, rc_, ra_, rb_, np.array(st.z))
     return z, OperatorState(float(xx[-1]) if xx.size else st.x, zf)

@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
+from .common import as_input
+from .creep import CreepTerm
 from .operators import OperatorState, check_cp_thresholds, gamma_down, gamma_up
 
 __all__ = ["PIModel", "ModifiedPIModel", "HYSTERESIS_FORMAT", "STATE_KINDS"]
@@ -50,18 +52,6 @@ def _vec(name: str, value: object, n: int | None = None) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ModelError(f"`{name}` must be finite; got {arr.tolist()}.")
     arr.setflags(write=False)
-    return arr
-
-
-def _as_input(u: object, name: str) -> np.ndarray:
-    arr = np.asarray(u, dtype=float)
-    if arr.ndim == 2 and arr.shape[1] == 1:
-        arr = arr[:, 0]
-    if arr.ndim != 1:
-        raise ModelError(f"input `{name}` must have shape (n_samples, 1) or (n_samples,); got {np.shape(u)}.")
-    if not np.all(np.isfinite(arr)):
-        i = int(np.flatnonzero(~np.isfinite(arr))[0])
-        raise ModelError(f"input `{name}` must be finite; got {arr[i]} at row {i}.")
     return arr
 
 
@@ -109,8 +99,6 @@ class _PIBase:
             set_(self, name, names)
         creep = getattr(self, "creep", None)
         if creep is not None:
-            from .creep import CreepTerm
-
             if not isinstance(creep, CreepTerm):
                 raise ModelError(f"`creep` must be a CreepTerm or None; got {type(creep).__name__}.")
         if self.input_limits is not None:
@@ -129,7 +117,9 @@ class _PIBase:
     def n_states(self) -> int:  # for generic code that asks models for their order
         return self.n_operators
 
-    def _params(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def coupled_play_thresholds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(r, rc, ra, rb)`` of the operators read as coupled plays (eq. 3); a play is the
+        coupled play with ``rc = ra = rb = r``."""
         raise NotImplementedError
 
     def to_operator_input(self, u: np.ndarray | float) -> np.ndarray:
@@ -146,7 +136,7 @@ class _PIBase:
 
     def boundaries(self, x: float) -> tuple[np.ndarray, np.ndarray]:
         """Ascending and descending boundary values of every operator at operator input ``x``."""
-        r, rc, ra, rb = self._params()
+        r, rc, ra, rb = self.coupled_play_thresholds()
         return gamma_up(x, r, rc), gamma_down(x, ra, rb)
 
     def consistent_state(self, u0: float, kind: str = "zero") -> OperatorState:
@@ -174,14 +164,14 @@ class _PIBase:
 
     def operator_outputs(self, u: object) -> tuple[np.ndarray, OperatorState]:
         """Outputs of every operator, shape (n_samples, n_operators), and the final state."""
-        from . import _kernels
+        from . import kernels  # numba: imported on first use
 
-        x = np.ascontiguousarray(self.to_operator_input(_as_input(u, self.inputs[0])))
-        r, rc, ra, rb = self._params()
+        x = np.ascontiguousarray(self.to_operator_input(as_input(u, self.inputs[0])))
+        r, rc, ra, rb = self.coupled_play_thresholds()
         if self.kind == "pi":
-            z, zf = _kernels.play_bank(x, r, np.array(self.state.z))
+            z, zf = kernels.play_bank(x, r, np.array(self.state.z))
         else:
-            z, zf = _kernels.cp_bank(x, r, rc, ra, rb, np.array(self.state.z))
+            z, zf = kernels.cp_bank(x, r, rc, ra, rb, np.array(self.state.z))
         return z, OperatorState(float(x[-1]) if x.size else self.state.x, zf)
 
     def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, OperatorState]:
@@ -190,20 +180,20 @@ class _PIBase:
         ``dt`` [s] is used only by a creep term (default its ``sample_time``); the final state
         is the operator state (a creep term's final lags: ``model.creep.run(u, dt)[1]``).
         """
-        from . import _kernels
+        from . import kernels  # numba: imported on first use
 
-        u_in = _as_input(u, self.inputs[0])
+        u_in = as_input(u, self.inputs[0])
         x = np.ascontiguousarray(self.to_operator_input(u_in))
-        r, rc, ra, rb = self._params()
+        r, rc, ra, rb = self.coupled_play_thresholds()
         z0 = np.array(self.state.z)
         if self.kind == "pi":
-            y, zf = _kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
+            y, zf = kernels.play_sum_auto(x, r, self.weights, z0, self.state.x)
         else:
             up, down = gamma_up(self.state.x, r, rc), gamma_down(self.state.x, ra, rb)
             if np.all(up <= z0) and np.all(z0 <= down):  # a consistent state: events are exact
-                y, zf = _kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
+                y, zf = kernels.cp_sum_auto(x, r, rc, ra, rb, self.weights, z0, self.state.x)
             else:
-                y, zf = _kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
+                y, zf = kernels.cp_sum(x, r, rc, ra, rb, self.weights, z0)
         creep = getattr(self, "creep", None)
         if creep is not None and u_in.size:
             y = y + creep.run(u_in, dt)[0]  # no creep state: at rest at the first input
@@ -323,7 +313,7 @@ class PIModel(_PIBase):
         if np.any(np.diff(self.r) <= 0):
             raise ModelError(f"thresholds `r` of a PI model must be strictly ascending; got {self.r.tolist()}.")
 
-    def _params(self):
+    def coupled_play_thresholds(self):
         return self.r, self.r, self.r, self.r
 
     def initial_loading_slopes(self) -> np.ndarray:
@@ -447,7 +437,7 @@ class ModifiedPIModel(_PIBase):
         object.__setattr__(self, "warp_scale", R)
         self._init_common()
 
-    def _params(self):
+    def coupled_play_thresholds(self):
         return self.r, self.rc, self.ra, self.rb
 
     def to_dict(self) -> dict[str, Any]:

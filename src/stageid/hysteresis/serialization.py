@@ -15,9 +15,13 @@
      "creep": {"time_constants": [...], "weights": [...],   # optional (absent: no creep),
                "sample_time": dt, "state": null | [...]}}   # see stageid.hysteresis.creep
 
-The reference actuator of :mod:`stageid.plants.piezo_actuator` (not a PI model) is stored as
+Other kinds in the same format (the reference actuator of :mod:`stageid.plants.piezo_actuator`,
 ``{"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs", "outputs",
-"parameters": {...}}``.
+"parameters": {...}}``) are read by loaders their packages register with :func:`register_kind`;
+this module imports none of them.
+
+Every numeric entry must be a JSON number: ``true``, ``"0.5"``, a nested or ragged list are
+refused with one line naming the field (the rule of :func:`stageid.checks.is_real`).
 
 Written by :func:`stageid.models.serialization.dumps`, which is byte-stable:
 ``dumps(model_from_dict(json.loads(text)).to_dict()) == text``.
@@ -25,11 +29,17 @@ Written by :func:`stageid.models.serialization.dumps`, which is byte-stable:
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import Callable
 from typing import Any
 
 from .._errors import ModelError, ModelFormatError
+from ..checks import is_real, shown
+from .creep import CreepTerm
+from .operators import OperatorState
+from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
 
-__all__ = ["model_from_dict"]
+__all__ = ["model_from_dict", "register_kind", "numbers", "number"]
 
 _KEYS = {
     "pi": ("r", "weights"),
@@ -49,23 +59,103 @@ _OPTIONAL = (
     "creep",
 )
 
+# kind -> loader of a parsed dict: a callable, or "module:attribute" imported when a file of
+# that kind is read.  Packages above hysteresis register their kinds (register_kind); the
+# one entry below lets the command line read a plant's file before any plant module was
+# imported, by name only -- this package never imports stageid.plants.
+_KINDS: dict[str, Callable[[dict], Any] | str] = {
+    "piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict",
+}
 
-def _numbers(d: dict, key: str) -> list[float]:
-    v = d[key]
-    if not isinstance(v, list) or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v):
-        raise ModelFormatError(f"`{key}` must be a list of numbers; got {v!r:.80}.")
-    return [float(e) for e in v]
+
+def register_kind(kind: str, loader: Callable[[dict], Any] | str) -> None:
+    """Register ``loader`` (a callable or ``"module:attribute"``) for files of ``kind``.
+
+    The loader gets the parsed JSON object and returns the model, raising
+    :class:`~stageid.ModelFormatError` for malformed fields.  PI kinds cannot be replaced.
+    """
+    if kind in _KEYS:
+        raise ModelError(f"`kind` {kind!r} is a PI model kind and cannot be registered again.")
+    _KINDS[kind] = loader
 
 
-def _number(d: dict, key: str, default: float) -> float:
-    v = d.get(key, default)
-    if not isinstance(v, (int, float)) or isinstance(v, bool):
-        raise ModelFormatError(f"`{key}` must be a number; got {v!r}.")
-    return float(v)
+def _loader(kind: str) -> Callable[[dict], Any]:
+    loader = _KINDS[kind]
+    if callable(loader):
+        return loader
+    module, _, attribute = loader.partition(":")
+    obj: Any = importlib.import_module(module)
+    for part in attribute.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def numbers(value: Any, key: str) -> list[float]:
+    """A JSON list of numbers as floats; ModelFormatError for anything else (nested lists,
+    booleans, quoted numbers, non-finite or out-of-range values)."""
+    if not isinstance(value, list) or not all(is_real(e) for e in value):
+        raise ModelFormatError(f"`{key}` must be a list of numbers; got {shown(value)}.")
+    return [float(e) for e in value]
+
+
+def number(value: Any, key: str) -> float:
+    """A JSON number as a float; ModelFormatError for a boolean, a string or anything else."""
+    if not is_real(value):
+        raise ModelFormatError(f"`{key}` must be a number; got {shown(value)}.")
+    return float(value)
+
+
+def _header(d: Any) -> str:
+    """The ``kind`` of a hysteresis model dict after checking the format and the fields."""
+    if not isinstance(d, dict):
+        raise ModelFormatError(f"a hysteresis model file must hold a JSON object; got {type(d).__name__}.")
+    if d.get("format") != HYSTERESIS_FORMAT:
+        raise ModelFormatError(f"`format` must be {HYSTERESIS_FORMAT!r}; got {shown(d.get('format'))}.")
+    kind = d.get("kind")
+    if kind in _KINDS:
+        return kind
+    if kind not in _KEYS:
+        expected = ", ".join(repr(k) for k in (*_KEYS, *_KINDS))
+        raise ModelFormatError(f"`kind` must be one of {expected}; got {shown(kind)}.")
+    for key in _KEYS[kind]:
+        if key not in d:
+            raise ModelFormatError(f"`{key}` is missing from the {kind} model.")
+    unknown = set(d) - {"format", "kind", *_KEYS[kind], *_OPTIONAL}
+    if unknown:
+        raise ModelFormatError(f"unknown field(s) {', '.join(sorted(map(str, unknown)))} in a {kind} model.")
+    return kind
+
+
+def _name(d: dict, key: str, default: str) -> tuple[str]:
+    v = d.get(key, [default])
+    if not isinstance(v, list) or len(v) != 1 or not isinstance(v[0], str):
+        raise ModelFormatError(f"`{key}` must be a list of one name; got {shown(v)}.")
+    return (v[0],)
+
+
+def _state(s: Any, n: int) -> OperatorState | None:
+    if s is None:
+        return None
+    if not isinstance(s, dict) or set(s) != {"x", "z"}:
+        raise ModelFormatError(f"`state` must be an object with `x` and `z`; got {shown(s)}.")
+    z = numbers(s["z"], "state.z")
+    if len(z) != n:
+        raise ModelFormatError(f"`state.z` must have {n} entries; got {len(z)}.")
+    return OperatorState(number(s["x"], "state.x"), z)
+
+
+def _limits(limits: Any) -> tuple[float, float] | None:
+    if limits is None:
+        return None
+    if not isinstance(limits, list) or len(limits) != 2 or not all(is_real(e) for e in limits):
+        raise ModelFormatError(f"`input_limits` must be [low, high] or null; got {shown(limits)}.")
+    return float(limits[0]), float(limits[1])
 
 
 def model_from_dict(d: dict[str, Any]) -> Any:
     """Build a :class:`PIModel` or :class:`ModifiedPIModel` from its ``stageid.hysteresis/1`` dict.
+
+    Other kinds go to the loader registered for them (:func:`register_kind`).
 
     Parameters
     ----------
@@ -74,7 +164,7 @@ def model_from_dict(d: dict[str, Any]) -> Any:
 
     Returns
     -------
-    PIModel or ModifiedPIModel
+    PIModel or ModifiedPIModel (or the model of a registered kind)
 
     Raises
     ------
@@ -89,80 +179,30 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     >>> model_from_dict(m.to_dict()).weights.tolist()
     [1.0, 0.5]
     """
-    from .operators import OperatorState
-    from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
-
-    if not isinstance(d, dict):
-        raise ModelFormatError(f"a hysteresis model file must hold a JSON object; got {type(d).__name__}.")
-    if d.get("format") != HYSTERESIS_FORMAT:
-        raise ModelFormatError(f"`format` must be {HYSTERESIS_FORMAT!r}; got {d.get('format')!r}.")
-    kind = d.get("kind")
-    if kind == "piezo-actuator":  # the reference actuator of stageid.plants (not a PI model)
-        from ..plants.piezo_actuator import PiezoActuator
-
-        return PiezoActuator.from_dict(d)
-    if kind not in _KEYS:
-        raise ModelFormatError(f'`kind` must be "pi" or "modified-pi"; got {kind!r}.')
-    for key in _KEYS[kind]:
-        if key not in d:
-            raise ModelFormatError(f"`{key}` is missing from the {kind} model.")
-    unknown = set(d) - {"format", "kind", *_KEYS[kind], *_OPTIONAL}
-    if unknown:
-        raise ModelFormatError(f"unknown field(s) {', '.join(sorted(unknown))} in a {kind} model.")
-    arrays = {k: _numbers(d, k) for k in _KEYS[kind]}
+    kind = _header(d)
+    if kind in _KINDS:
+        return _loader(kind)(d)
+    arrays = {k: numbers(d[k], k) for k in _KEYS[kind]}
     n = len(arrays["r"])
     for k, v in arrays.items():
         if len(v) != n:
             raise ModelFormatError(f"`{k}` must have {n} entries (one per threshold in `r`); got {len(v)}.")
-    names = {}
-    for key, default in (("inputs", ["V"]), ("outputs", ["y"])):
-        v = d.get(key, default)
-        if not isinstance(v, list) or len(v) != 1 or not isinstance(v[0], str):
-            raise ModelFormatError(f"`{key}` must be a list of one name; got {v!r}.")
-        names[key] = tuple(v)
-    state = None
-    if d.get("state") is not None:
-        s = d["state"]
-        if not isinstance(s, dict) or set(s) != {"x", "z"}:
-            raise ModelFormatError(f"`state` must be an object with `x` and `z`; got {s!r:.80}.")
-        z = _numbers(s, "z")
-        if len(z) != n:
-            raise ModelFormatError(f"`state.z` must have {n} entries; got {len(z)}.")
-        state = OperatorState(_number(s, "x", 0.0), z)
-    limits = d.get("input_limits")
-    if limits is not None:
-        if (
-            not isinstance(limits, list)
-            or len(limits) != 2
-            or not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in limits)
-        ):
-            raise ModelFormatError(f"`input_limits` must be [low, high] or null; got {limits!r}.")
-        limits = (float(limits[0]), float(limits[1]))
     common = dict(
-        weights=arrays["weights"],
-        input_offset=_number(d, "input_offset", 0.0),
-        output_offset=_number(d, "output_offset", 0.0),
-        state=state,
-        inputs=names["inputs"],
-        outputs=names["outputs"],
-        input_limits=limits,
+        weights=arrays.pop("weights"),
+        input_offset=number(d.get("input_offset", 0.0), "input_offset"),
+        output_offset=number(d.get("output_offset", 0.0), "output_offset"),
+        state=_state(d.get("state"), n),
+        inputs=_name(d, "inputs", "V"),
+        outputs=_name(d, "outputs", "y"),
+        input_limits=_limits(d.get("input_limits")),
     )
     if d.get("creep") is not None:  # optional: files written before the creep option have none
-        from .creep import CreepTerm
-
         common["creep"] = CreepTerm.from_dict(d["creep"])
+    if kind == "modified-pi":
+        common["input_warp"] = number(d.get("input_warp", 0.0), "input_warp")
+        common["warp_scale"] = number(d.get("warp_scale", 1.0), "warp_scale")
     try:
-        if kind == "pi":
-            return PIModel(r=arrays["r"], **common)
-        return ModifiedPIModel(
-            r=arrays["r"],
-            rc=arrays["rc"],
-            ra=arrays["ra"],
-            rb=arrays["rb"],
-            input_warp=_number(d, "input_warp", 0.0),
-            warp_scale=_number(d, "warp_scale", 1.0),
-            **common,
-        )
+        return (PIModel if kind == "pi" else ModifiedPIModel)(**arrays, **common)
     except ModelFormatError:
         raise
     except ModelError as exc:

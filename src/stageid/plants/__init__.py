@@ -14,10 +14,10 @@ Each module describes one stage and cites its equations. A plant module exposes
 from __future__ import annotations
 
 import importlib
-import numbers
 from types import ModuleType
 
 from .._errors import SignalError, StageIdError
+from ..checks import check_seed
 
 PLANTS: dict[str, str] = {
     "p558": "stageid.plants.piezo_stage",
@@ -33,17 +33,15 @@ def plant_module(name: str) -> ModuleType:
     return importlib.import_module(PLANTS[name])
 
 
-def _check_seed(seed: object, experiment: str) -> int:
-    """``seed`` as an int, or SignalError unless it is an integer >= 0.
+def experiment_seed(seed: object, experiment: str) -> int:
+    """``seed`` of plant experiment ``experiment`` as an int: an integer >= 0, else SignalError.
 
-    The experiment functions seed their excitation and noise with it (the CLI's
-    ``--seed`` is ``IntRange(min=0)``); the same rule and message shape as
-    :func:`stageid.signals` seeds, but a ``numpy.random.Generator`` is not accepted:
-    a plant record is reproducible from its integer seed alone.
+    The rule of :func:`stageid.checks.check_seed`, without a ``numpy.random.Generator`` (a
+    plant record is reproducible from its integer seed alone) and without ``None``.
     """
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise SignalError(f"`seed` of plant experiment '{experiment}' must be an integer >= 0; got {seed!r}.")
-    return int(seed)
+    return check_seed(
+        seed, "seed", f"plant experiment '{experiment}'", allow_generator=False, allow_none=False, error=SignalError
+    )
 
 
-__all__ = ["PLANTS", "plant_module"]
+__all__ = ["PLANTS", "plant_module", "experiment_seed"]

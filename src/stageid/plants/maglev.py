@@ -39,7 +39,7 @@ import numpy as np
 
 from .._errors import SignalError
 from ..models import StateSpaceModel, TransferMatrix
-from . import _check_seed
+from . import experiment_seed
 
 __all__ = [
     "model",
@@ -54,6 +54,7 @@ __all__ = [
     "INPUTS",
     "OUTPUTS",
 ]
+
 
 DT = 1.0 / 5000.0
 CROSSOVER_HZ = 110.0
@@ -169,7 +170,7 @@ def simulate_chirp(
 
     if not isinstance(axis, str) or axis not in OUTPUTS:
         raise SignalError(f"`axis` of the maglev chirp must be one of {', '.join(OUTPUTS)}; got {axis!r}.")
-    seed = _check_seed(seed, f"chirp-{axis}")
+    seed = experiment_seed(seed, f"chirp-{axis}")
     r1 = chirp(0.0, f1, duration=duration, dt=DT, amplitude=amplitude)
     R = np.zeros((r1.size, 3))
     R[:, OUTPUTS.index(axis)] = r1

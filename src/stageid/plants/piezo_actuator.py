@@ -41,11 +41,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import ModelError
+from .._errors import ModelError, ModelFormatError
+from ..checks import is_real, shown
 from ..data.experiment import Experiment
-from . import _check_seed
+from ..hysteresis.pi import ModifiedPIModel
+from ..hysteresis.serialization import register_kind
+from . import experiment_seed
 
 __all__ = ["PiezoActuator", "model", "EXPERIMENTS", "open_loop_gain"]
+
 
 V_MAX = 500.0
 
@@ -104,8 +108,6 @@ class PiezoActuator:
     def __post_init__(self) -> None:
         if int(self.n_fine) < 2:
             raise ModelError(f"`n_fine` of PiezoActuator must be >= 2; got {self.n_fine}.")
-        from ..hysteresis.pi import ModifiedPIModel
-
         n = int(self.n_fine)
         t = (np.arange(n) + 0.5) / n
         r = t * V_MAX
@@ -152,14 +154,19 @@ class PiezoActuator:
 
     @classmethod
     def from_dict(cls, d: dict) -> PiezoActuator:
-        """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field."""
-        from .._errors import ModelFormatError
+        """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field.
 
+        Registered with :func:`stageid.hysteresis.serialization.register_kind` for the kind
+        ``"piezo-actuator"``; every parameter is a JSON number, a list of two, or null.
+        """
         params = d.get("parameters")
         if not isinstance(params, dict) or set(params) - set(cls._PARAMS):
             raise ModelFormatError(
                 f"`parameters` of a piezo-actuator model must be an object with keys among {', '.join(cls._PARAMS)}."
             )
+        for key, v in params.items():
+            if not (v is None or is_real(v) or (isinstance(v, list) and len(v) == 2 and all(is_real(e) for e in v))):
+                raise ModelFormatError(f"`parameters.{key}` must be a number, a list of two or null; got {shown(v)}.")
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
         try:
             return cls(**kw, inputs=tuple(d.get("inputs", ["V"])), outputs=tuple(d.get("outputs", ["y"])))
@@ -237,21 +244,21 @@ def _experiment(u: np.ndarray, dt: float, name: str, seed: int, actuator: PiezoA
 def _decaying_triangle(seed: int = 0) -> Experiment:
     from ..signals import decaying_triangle
 
-    seed = _check_seed(seed, "decaying-triangle")
+    seed = experiment_seed(seed, "decaying-triangle")
     return _experiment(decaying_triangle(1.0, 10, 1e-3, amplitude=V_MAX), 1e-3, "decaying-triangle", seed)
 
 
 def _triangle(seed: int = 0) -> Experiment:
     from ..signals import triangle
 
-    seed = _check_seed(seed, "triangle-1hz")
+    seed = experiment_seed(seed, "triangle-1hz")
     return _experiment(triangle(1.0, 3, 1e-3, amplitude=450.0), 1e-3, "triangle-1hz", seed)
 
 
 def _decaying_sine(seed: int = 0) -> Experiment:
     from ..signals import decaying_sine
 
-    seed = _check_seed(seed, "decaying-sine")
+    seed = experiment_seed(seed, "decaying-sine")
     u = decaying_sine(0.5, 6, 1e-3, amplitude=480.0, decay="exponential", final_fraction=0.2)
     return _experiment(u, 1e-3, "decaying-sine", seed)
 
@@ -261,3 +268,6 @@ EXPERIMENTS: dict[str, Callable[..., Experiment]] = {
     "triangle-1hz": _triangle,
     "decaying-sine": _decaying_sine,
 }
+
+
+register_kind("piezo-actuator", PiezoActuator.from_dict)

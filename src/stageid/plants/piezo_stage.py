@@ -44,9 +44,10 @@ import numpy as np
 
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
-from . import _check_seed
+from . import experiment_seed
 
 __all__ = ["model", "channel_models", "EXPERIMENTS", "DT", "INPUTS", "OUTPUTS", "NOISE_STD"]
+
 
 DT = 0.002
 INPUTS = ("Z", "Rx", "Ry")
@@ -172,7 +173,7 @@ def _sine_input(channel: int, freq: float, amplitude: float, offset: float, dura
 
 def _chirp(channel: int, amplitude: float, offset: float) -> Callable[..., Experiment]:
     def make(seed: int = 0) -> Experiment:
-        seed = _check_seed(seed, f"chirp-{OUTPUTS[channel]}")
+        seed = experiment_seed(seed, f"chirp-{OUTPUTS[channel]}")
         return _record(_chirp_input(channel, amplitude, offset), f"chirp-{OUTPUTS[channel]}", seed)
 
     make.__doc__ = f"Chirp 1-100 Hz on {INPUTS[channel]} (amplitude {amplitude}, offset {offset}), 10 s."
@@ -181,7 +182,7 @@ def _chirp(channel: int, amplitude: float, offset: float) -> Callable[..., Exper
 
 def _random(channel: int, peak: float) -> Callable[..., Experiment]:
     def make(seed: int = 0) -> Experiment:
-        seed = _check_seed(seed, f"random-{OUTPUTS[channel]}")
+        seed = experiment_seed(seed, f"random-{OUTPUTS[channel]}")
         return _record(_random_input([channel], peak, seed, 10.0), f"random-{OUTPUTS[channel]}", seed)
 
     make.__doc__ = f"Band-limited random 1-100 Hz on {INPUTS[channel]}, peak {peak}, 10 s."
@@ -192,7 +193,7 @@ def _sine(channel: int, freq: float) -> Callable[..., Experiment]:
     amp, off = (10.0, 10.0) if channel == 0 else (200.0, 0.0)
 
     def make(seed: int = 0) -> Experiment:
-        seed = _check_seed(seed, f"sine-{freq:g}hz-{OUTPUTS[channel]}")
+        seed = experiment_seed(seed, f"sine-{freq:g}hz-{OUTPUTS[channel]}")
         return _record(_sine_input(channel, freq, amp, off), f"sine-{freq:g}hz-{OUTPUTS[channel]}", seed)
 
     make.__doc__ = f"{freq:g} Hz sinusoid on {INPUTS[channel]} (amplitude {amp}, offset {off}), 4 s."
@@ -201,13 +202,13 @@ def _sine(channel: int, freq: float) -> Callable[..., Experiment]:
 
 def _band_limited(seed: int = 0) -> Experiment:
     """All three inputs at once: independent band-limited random 1-100 Hz, 20 s."""
-    seed = _check_seed(seed, "band-limited")
+    seed = experiment_seed(seed, "band-limited")
     return _record(_random_input([0, 1, 2], [20.0, 200.0, 200.0], seed, 20.0), "band-limited", seed)
 
 
 def _prbs(seed: int = 0) -> Experiment:
     """All three inputs at once: random binary (white) sequences, 10 um / 100 urad, 20 s."""
-    seed = _check_seed(seed, "prbs")
+    seed = experiment_seed(seed, "prbs")
     n = int(round(20.0 / DT))
     rng = np.random.default_rng([seed, 200])
     u = np.where(rng.random((n, 3)) < 0.5, -1.0, 1.0) * np.array([10.0, 100.0, 100.0])
@@ -226,7 +227,7 @@ def combined_input(duration: float = 6.0) -> np.ndarray:
 
 def _combined(seed: int = 0) -> Experiment:
     """Section 3.4 experiment 1: the three references applied together, 6 s."""
-    seed = _check_seed(seed, "combined")
+    seed = experiment_seed(seed, "combined")
     return _record(combined_input(), "combined", seed)
 
 

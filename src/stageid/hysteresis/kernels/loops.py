@@ -1,0 +1,138 @@
+"""Operator banks and weighted sums that update every operator at every sample (eq. 1-4).
+
+The plain-Python twins are :func:`stageid.hysteresis.operators.play_reference` and
+:func:`~stageid.hysteresis.operators.coupled_play_reference`.  The loops over operators have
+no branches (``min``/``max`` only), so LLVM vectorises them.  Also :func:`gram`, the normal
+equations of the weight least squares.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: Fast-math flags of the loop kernels: no NaN/inf (inputs are checked finite first), no signed
+#: zeros, and reassociation for the weighted sums (~1e-16 relative, far inside the tests' 1e-12).
+FASTMATH = {"nnan", "ninf", "nsz", "reassoc", "contract"}
+jit = numba.njit(cache=True, nogil=True, fastmath=FASTMATH)
+jit_exact = numba.njit(cache=True, nogil=True)
+
+
+@jit
+def play_bank(x, r, z0):  # pragma: no cover - compiled
+    """Play outputs, shape (n_samples, n_operators), and the final outputs."""
+    n = x.shape[0]
+    m = r.shape[0]
+    out = np.empty((n, m))
+    z = z0.copy()
+    for k in range(n):
+        xk = x[k]
+        for i in range(m):
+            lo = xk - r[i]
+            hi = xk + r[i]
+            v = min(hi, z[i])
+            v = max(lo, v)
+            z[i] = v
+            out[k, i] = v
+    return out, z
+
+
+@jit
+def cp_bank(x, r, rc, ra, rb, z0):  # pragma: no cover - compiled
+    """Coupled-play outputs, shape (n_samples, n_operators), and the final outputs."""
+    n = x.shape[0]
+    m = r.shape[0]
+    out = np.empty((n, m))
+    z = z0.copy()
+    for k in range(n):
+        xk = x[k]
+        for i in range(m):
+            up = max(xk - r[i], min(xk - rc[i], 0.0))
+            down = min(xk + ra[i], max(xk + rb[i], 0.0))
+            v = max(up, min(down, z[i]))
+            z[i] = v
+            out[k, i] = v
+    return out, z
+
+
+@jit
+def play_sum(x, r, w, z0):  # pragma: no cover - compiled
+    """Weighted sum of plays ``y(k) = sum_i w_i z_i(k)`` and the final outputs."""
+    n = x.shape[0]
+    m = r.shape[0]
+    y = np.empty(n)
+    z = z0.copy()
+    for k in range(n):
+        xk = x[k]
+        acc = 0.0
+        for i in range(m):
+            v = max(xk - r[i], min(xk + r[i], z[i]))
+            z[i] = v
+            acc += w[i] * v
+        y[k] = acc
+    return y, z
+
+
+@jit
+def cp_sum(x, r, rc, ra, rb, w, z0):  # pragma: no cover - compiled
+    """Weighted sum of CP operators (eq. 4) and the final outputs; every operator, every sample.
+
+    Needs ``0 <= rc <= r`` and ``0 <= rb <= ra`` (what :func:`operators.check_cp_thresholds`
+    guarantees).  Written in the clamp form ``gamma_up(x) = x + clamp(-x, -r, -rc)``,
+    ``gamma_down(x) = x + clamp(-x, rb, ra)``: the same floating-point values as
+    ``max(x - r, min(x - rc, 0))`` / ``min(x + ra, max(x + rb, 0))`` (each branch is one
+    rounded addition of the same two numbers, the flat part is ``x + (-x) = 0``) with 9
+    instead of 11 operations per operator; the operators are padded to a multiple of 8 with
+    inert ones (zero weight) so the vectorised loop has no scalar remainder.
+    """
+    n = x.shape[0]
+    m = r.shape[0]
+    mp = (m + 7) // 8 * 8
+    nr = np.zeros(mp)
+    nrc = np.zeros(mp)
+    RA = np.zeros(mp)
+    RB = np.zeros(mp)
+    W = np.zeros(mp)
+    z = np.zeros(mp)
+    for i in range(m):
+        nr[i] = -r[i]
+        nrc[i] = -rc[i]
+        RA[i] = ra[i]
+        RB[i] = rb[i]
+        W[i] = w[i]
+        z[i] = z0[i]
+    y = np.empty(n)
+    for k in range(n):
+        xk = x[k]
+        t = -xk
+        acc = 0.0
+        for i in range(mp):
+            up = xk + max(nr[i], min(nrc[i], t))
+            down = xk + max(RB[i], min(RA[i], t))
+            v = max(up, min(down, z[i]))
+            z[i] = v
+            acc += W[i] * v
+        y[k] = acc
+    return y, z[:m].copy()
+
+
+@jit_exact
+def gram(Z, y):  # pragma: no cover - compiled
+    """``Z'Z``, ``Z'y`` and the column sums of Z, single-threaded: a BLAS thread pool on a busy
+    machine slows the many small weight fits of the identification down instead of up."""
+    n, m = Z.shape
+    G = np.zeros((m, m))
+    g = np.zeros(m)
+    s = np.zeros(m)
+    for k in range(n):
+        yk = y[k]
+        for i in range(m):
+            zi = Z[k, i]
+            s[i] += zi
+            g[i] += zi * yk
+            for j in range(i + 1):
+                G[i, j] += zi * Z[k, j]
+    for i in range(m):
+        for j in range(i):
+            G[j, i] = G[i, j]
+    return G, g, s
