@@ -5,7 +5,8 @@ import pytest
 
 from stageid._errors import DataError
 from stageid.subspace.hankel_toeplitz import dense_regression, window_statistics
-from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, recursive_map, recursive_map_python
+from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior
+from stageid.subspace.recursion import recursive_map, recursive_map_python
 
 
 def _data(seed, n=500, m=2, q=3):
@@ -134,7 +135,7 @@ def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, 
 @pytest.mark.parametrize("forgetting", [1.0, 0.97])
 def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     # the four-window delayed-update kernel on its own (no one-window warm-up), from a dense prior
-    from stageid.subspace import map_estimator as me
+    from stageid.subspace import map_kernels as mk
 
     p, m, q = 2, 2, 3
     d = 2 * p * m + p * q
@@ -144,12 +145,12 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     theta0 = rng.standard_normal((rows, d))
     P0 = _dense_prior(rng, d, 2.0)
     dp = -(-d // 4) * 4
-    th = me._aligned_zeros((rows, dp))
+    th = mk.aligned_zeros((rows, dp))
     th[:, :d] = theta0
-    Pw = me._aligned_zeros((d, dp))
+    Pw = mk.aligned_zeros((d, dp))
     Pw[:, :d] = P0
-    work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8) else np.zeros((4, rows)) for k in range(10)]
-    done = me._delayed()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
+    work = [mk.aligned_zeros((mk.DELAY, dp)) if k in (0, 2, 4, 6, 8) else np.zeros((mk.DELAY, rows)) for k in range(10)]
+    done = mk.delayed_kernel()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
     assert done == 100
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
     assert not th[:, d:].any() and not Pw[:, d:].any()  # the padding stays zero
