@@ -180,3 +180,32 @@ def test_vector_intrinsics_match_numpy():
     # fused multiply-adds round once where numpy rounds twice: a few ulps
     np.testing.assert_allclose(out, 0.5 * (a * b + c - 2.0 * b), rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(dot, a @ b, rtol=1e-14)
+
+
+def _register_sums(a, out):
+    # the shape of the delayed-update kernel's loops: a register list indexed by a written-out loop
+    acc = [0.0 for j in range(DELAY_FOR_TEST)]
+    for t in range(a.shape[1]):
+        for j in range(DELAY_FOR_TEST):
+            acc[j] = acc[j] + a[j, t] * (j + 1)
+    for j in range(DELAY_FOR_TEST):
+        out[j] = acc[j]
+
+
+DELAY_FOR_TEST = 3
+
+
+def test_written_out_loops_compute_what_the_rolled_source_does():
+    from stageid.subspace.unroll import written_out
+
+    a = np.arange(12.0).reshape(3, 4)
+    rolled, unrolled = np.zeros(3), np.zeros(3)
+    _register_sums(a, rolled)
+    fn = written_out(_register_sums, {"DELAY_FOR_TEST": DELAY_FOR_TEST})
+    fn(a, unrolled)
+    np.testing.assert_array_equal(unrolled, rolled)
+    np.testing.assert_array_equal(rolled, a.sum(axis=1) * [1, 2, 3])
+    # the constant-count loops are gone, the run-time loop over t stays; acc[j] became acc_0..acc_2
+    code = fn.__code__
+    assert {"acc_0", "acc_1", "acc_2"} <= set(code.co_varnames) and "acc" not in code.co_varnames
+    assert code.co_filename == __file__  # tracebacks and numba's cache point at the source as written

@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import DataError
-from .map_kernels import DELAY, aligned_zeros, delayed_kernel, one_window_kernel
 
 __all__ = ["recursive_map", "recursive_map_python", "run_recursion"]
 
@@ -61,6 +60,9 @@ def run_recursion(
     with a vague prior (huge ``P_0``) that difference cancels until the data dominate ``P``,
     so the first ``d`` windows always run one at a time (as in :func:`_blocked`).
     """
+    # numba loads with the kernels, only when a recursion runs (`stageid --help` stays fast)
+    from .map_kernels import DELAY, aligned_zeros, delayed_kernel, one_window_kernel
+
     d = P.shape[0]
     rows = theta.shape[0]
     n_windows = z.shape[0] - 2 * p + 1
