@@ -13,6 +13,7 @@ Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one n
                          (``map_posterior``); ``method`` -> prior (``METHODS``)
 ``recursion``            2.3 eq. 17-18 sample by sample (``recursive_map``) and its numpy twin
 ``map_kernels``          2.3 the compiled (numba) kernels of that recursion
+``unroll``               writes out the kernels' short constant-count loops before compiling
 ``realization``          2.1-2.2 H0 (eq. 10), H_i (eq. 12), H(0)/H(1) (eq. 14), Lemma 1
                          (eq. 15, ``era``); ``realize`` with ``realization`` -> route
                          (``REALIZATIONS``)

@@ -57,10 +57,9 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     nfft = 2 * block
     sign = np.where(np.arange(block + 1) % 2 == 0, 1.0, -1.0)[:, None]  # exp(-j pi f): shift by one block
     S = np.zeros((block + 1, r, r), dtype=complex)
-    # blocks per FFT batch: ~1 MB per batch array.  Larger batches are slower, not faster
-    # (P-558 benchmark record, N = 50 000, r = 6, lags < 120: 12 ms with ~5 MB batches, 3 ms
-    # with ~1 MB): each fresh multi-megabyte temporary costs page faults, small ones are
-    # reused from the allocator's free lists and stay in cache.
+    # blocks per FFT batch: ~1 MB per batch array.  Larger batches are slower, not faster: each
+    # fresh multi-megabyte temporary costs page faults, small ones are reused from the
+    # allocator's free lists and stay in cache (figures: benchmarks/RESULTS-subspace.md)
     chunk = min(n_blocks, max(1, (1 << 17) // (nfft * max(r, 1))))
     seg = np.zeros((chunk + 1, nfft, r))  # zero-padded blocks, reused by every batch
     rows = np.empty(((chunk + 1) * block, r))

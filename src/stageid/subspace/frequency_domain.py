@@ -240,10 +240,10 @@ def balanced_start(
     order, reduced by :func:`balanced_truncation`, then ``B``, ``D`` fitted again on ``G``.
 
     The over-sized subspace fit absorbs what an ``order``-state one cannot fit; the truncation
-    keeps the dominant part.  On white-input records of the P-558 benchmark the start is within
-    3-30 % of the refined cost (the direct ``order``-state realisation: 2.5-5x), so the
-    refinement takes 3-4 steps instead of 8-14; on band-limited records the truncation, which
-    weighs all frequencies alike, can start worse: the caller keeps the better start.
+    keeps the dominant part, so on white-input records the refinement starts far closer to
+    its end (figures: ``benchmarks/RESULTS-subspace.md``).  On band-limited records the
+    truncation, which weighs all frequencies alike, can start worse: the caller keeps the
+    better start.
 
     Returns None when the larger realisation is not possible (too few frequencies) or not stable.
     """

@@ -221,7 +221,7 @@ def _solve(info: np.ndarray, moment: np.ndarray, definite: bool = False) -> np.n
     persistently exciting) gives the minimum-norm least-squares solution; a Cholesky
     factorisation decides which, unless the caller knows ``info`` is definite (a prior
     with positive precision).  The solve itself is numpy's LU rather than scipy.linalg's
-    Cholesky solve: about 1.5x the flops, but importing scipy.linalg costs ~0.2 s, several
+    Cholesky solve: about 1.5x the flops, but importing scipy.linalg costs several
     times the whole solve in a command-line run.
     """
     try:

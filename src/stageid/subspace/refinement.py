@@ -121,6 +121,34 @@ def _normal_equations(
     return JtJ, np.concatenate(grads)
 
 
+def _stepped(A, B, C, D, step: np.ndarray, feedthrough: bool) -> tuple[np.ndarray, ...]:
+    """``A, B, C, D`` moved by ``step`` (their entries in that order; ``D`` only with feedthrough)."""
+    n, m, q = A.shape[0], B.shape[1], C.shape[0]
+    A1 = A + step[: n * n].reshape(n, n)
+    B1 = B + step[n * n : n * n + n * m].reshape(n, m)
+    C1 = C + step[n * n + n * m : n * n + n * m + q * n].reshape(q, n)
+    D1 = D + step[n * n + n * m + q * n :].reshape(q, m) if feedthrough else D
+    return A1, B1, C1, D1
+
+
+def _weighted_cost(res: np.ndarray, w: np.ndarray) -> float:
+    return float(np.sum(w[:, None, None] * (res.real**2 + res.imag**2)))
+
+
+def _trial(A, B, C, D, G, zs, w, was_stable: bool) -> tuple:
+    """``(cost, residual, C R, R B)`` of a candidate; the cost is inf when the candidate makes a
+    stable model unstable or its response fails."""
+    try:
+        eig = np.linalg.eig(A)  # the stability check's and the response's
+        if not (was_stable and np.max(np.abs(eig[0])) >= 1.0):
+            Gm, CR, RB = _model_response(A, B, C, D, zs, eig)
+            res = Gm - G
+            return _weighted_cost(res, w), res, CR, RB
+    except np.linalg.LinAlgError:
+        pass
+    return float("inf"), None, None, None
+
+
 def refine_frequency_fit(
     A: np.ndarray,
     B: np.ndarray,
@@ -145,27 +173,19 @@ def refine_frequency_fit(
     -------
     A, B, C, D, info : the refined matrices and ``{"cost0", "cost", "iterations"}``.
     """
-    n = A.shape[0]
-    nz, q, m = G.shape
+    nz = G.shape[0]
     w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
     eig0 = np.linalg.eig(A)  # the stability flag's and the first response's
     was_stable = np.max(np.abs(eig0[0])) < 1.0
 
-    def evaluate(A_, B_, C_, D_, eig=None):
-        Gm, CR, RB = _model_response(A_, B_, C_, D_, zs, eig)
-        return Gm - G, CR, RB
-
-    def cost_of(res):
-        return float(np.sum(w[:, None, None] * (res.real**2 + res.imag**2)))
-
-    res, CR, RB = evaluate(A, B, C, D, eig0)
-    cost0 = cost = cost_of(res)
+    Gm, CR, RB = _model_response(A, B, C, D, zs, eig0)
+    res = Gm - G
+    cost0 = cost = _weighted_cost(res, w)
     # Levenberg-Marquardt with Nielsen's damping update (Madsen, Nielsen & Tingleff 2004, "Methods
     # for non-linear least squares problems", eq. 3.16): the damping follows the gain ratio rho
     # (actual over predicted cost reduction) instead of fixed factors, and starts at the scale of
     # the curvature (mu = 1 relative to diag(J^T J)): the realisation is far from the Gauss-Newton
-    # regime at first.  On the P-558 benchmark record this reaches the same cost in ~10 solves
-    # where the fixed-factor update (start 1e-4, /5 and x10) needed ~19.
+    # regime at first.  It needs about half the solves of a fixed-factor update (RESULTS-subspace.md).
     mu = 1.0
     nu = 2.0
     it = 0  # steps taken
@@ -178,24 +198,14 @@ def refine_frequency_fit(
         rel = 0.0
         for _ in range(12):
             try:
-                # LU instead of Cholesky: numpy only (scipy.linalg costs ~0.2 s of start-up)
+                # LU instead of Cholesky: numpy only (importing scipy.linalg costs more than the fit)
                 step = np.linalg.solve(JtJ + mu * np.diag(dg), -g)
             except np.linalg.LinAlgError:
                 mu *= nu
                 nu *= 2.0
                 continue
-            A1 = A + step[: n * n].reshape(n, n)
-            B1 = B + step[n * n : n * n + n * m].reshape(n, m)
-            C1 = C + step[n * n + n * m : n * n + n * m + q * n].reshape(q, n)
-            D1 = D + step[n * n + n * m + q * n :].reshape(q, m) if feedthrough else D
-            c1 = float("inf")
-            try:
-                eig1 = np.linalg.eig(A1)  # the stability check's and the response's
-                if not (was_stable and np.max(np.abs(eig1[0])) >= 1.0):
-                    res1, CR1, RB1 = evaluate(A1, B1, C1, D1, eig1)
-                    c1 = cost_of(res1)
-            except np.linalg.LinAlgError:
-                pass
+            A1, B1, C1, D1 = _stepped(A, B, C, D, step, feedthrough)
+            c1, res1, CR1, RB1 = _trial(A1, B1, C1, D1, G, zs, w, was_stable)
             if np.isfinite(c1) and c1 < cost:
                 # predicted reduction of the Gauss-Newton model sum w|r + J s|^2
                 predicted = -float(2.0 * (step @ g) + step @ (JtJ @ step))
