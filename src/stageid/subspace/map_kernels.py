@@ -235,8 +235,9 @@ def _p_pass(P, V, lws, il4, Xn, An, dp):  # pragma: no cover - numba
     g = [V[j] for j in range(DELAY)]
     x = [Xn[j] for j in range(DELAY)]
     n = [An[j] for j in range(DELAY)]
-    scaled = il4 != 1.0  # forgetting: the old P shrinks by lambda^-DELAY
-    il4v = vbcast(il4)
+    # forgetting shrinks the old P by lambda^-DELAY; without it il4 is None and numba compiles
+    # this pass without the scaling (a branch on a None-typed argument is pruned)
+    il4v = vbcast(1.0 if il4 is None else il4)
     z = vzero()
     for t in range(0, dp, LANES):
         for j in range(DELAY):
@@ -250,7 +251,7 @@ def _p_pass(P, V, lws, il4, Xn, An, dp):  # pragma: no cover - numba
         for t in range(c, dp, LANES):
             v = vload(r0, t)
             w = vload(r1, t)
-            if scaled:
+            if il4 is not None:
                 v = vmul(il4v, v)
                 w = vmul(il4v, w)
             for j in range(DELAY):
@@ -347,7 +348,10 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, 
         else:
             Xn[:, :] = 0.0
         _theta_pass(theta, V, E, si, Xn, Tn, dp)
-        _p_pass(P, V, lws, il4, Xn, An, dp)
+        if lam == 1.0:
+            _p_pass(P, V, lws, None, Xn, An, dp)
+        else:
+            _p_pass(P, V, lws, il4, Xn, An, dp)
         X, Xn = Xn, X
         Y, Yn = Yn, Y
         A, An = An, A
