@@ -337,3 +337,13 @@ def test_a_misfit_refinement_also_runs_from_the_second_start_and_keeps_the_bette
     assert len(ends) == runs
     assert (ends[0] > est.MULTI_START_MISFIT) is (runs == 2)
     assert res.channels[0].fit_cost == pytest.approx(min(ends), rel=1e-12)
+
+
+def test_warnings_point_at_the_callers_line():
+    # stacklevel: past fit, the pipeline's helpers and the BLAS-thread wrapper (STYLE.md)
+    from stageid._errors import ExcitationWarning
+
+    exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
+    with pytest.warns(ExcitationWarning) as record:
+        HankelMAP().fit(exp)
+    assert {w.filename for w in record} == {__file__}

@@ -268,7 +268,7 @@ class HankelMAP(Estimator):
             warnings.warn(
                 f"HankelMAP: the identified model is unstable (max |pole| = {np.max(np.abs(model.poles())):.4f}).",
                 StabilityWarning,
-                stacklevel=3,
+                stacklevel=4,  # the caller of fit / update (past the BLAS-thread wrapper)
             )
         return HankelMAPResult(model, tuple(fits), self, _diagnostics(fits, stable, notes), su.copy(), sy.copy())
 
@@ -335,8 +335,7 @@ class HankelMAP(Estimator):
                 f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
                 f"the data are not persistently exciting."
             )
-            notes.append(msg)
-            warnings.warn(msg, ExcitationWarning, stacklevel=4)
+            _excitation_warning(msg, notes, stacklevel=6)
         return ChannelFit(
             in_names,
             first.output_names,
@@ -387,8 +386,13 @@ class HankelMAP(Estimator):
                 f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
                 f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate."
             )
-            notes.append(msg)
-            warnings.warn(msg, ExcitationWarning, stacklevel=5)
+            _excitation_warning(msg, notes, stacklevel=7)
+
+
+def _excitation_warning(msg: str, notes: list[str], stacklevel: int) -> None:
+    """Keep ``msg`` in the result's notes and warn with it (``stacklevel`` counted from here)."""
+    notes.append(msg)
+    warnings.warn(msg, ExcitationWarning, stacklevel=stacklevel)
 
 
 def _warn_held_out(horizon_table: SelectionTable | None, order_table: SelectionTable | None, in_names, notes) -> None:
@@ -402,8 +406,7 @@ def _warn_held_out(horizon_table: SelectionTable | None, order_table: SelectionT
                     f"predicts the held-out data worse than zero (inputs {list(in_names)}); the records are too short "
                     f"or too little excited for this model."
                 )
-                notes.append(msg)
-                warnings.warn(msg, ExcitationWarning, stacklevel=5)
+                _excitation_warning(msg, notes, stacklevel=7)
 
 
 def _diagnostics(fits: list[ChannelFit], stable: bool, notes: list[str]) -> dict:
