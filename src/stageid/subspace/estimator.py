@@ -38,7 +38,7 @@ import numpy as np
 from .._errors import DataError, ExcitationWarning, StabilityWarning
 from .._threads import single_blas_thread
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
-from ..checks import is_integer
+from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
@@ -56,12 +56,12 @@ from .map_estimator import (
 from .realization import REALIZATIONS, realize
 from .records import (
     as_records,
-    channel_scales,
     check_continuation,
     excited_band,
     excited_lines,
     prepared_records,
     still_inputs,
+    to_unit_rms,
 )
 from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
@@ -240,21 +240,12 @@ class HankelMAP(Estimator):
         dt = first.dt
         if previous is not None:
             check_continuation(previous.model, first)
-        if self.band is not None and float(self.band[1]) > 0.5 / dt * (1 + 1e-12):
-            raise DataError(
-                f"`band` must lie within 0-{0.5 / dt:g} Hz (Nyquist at dt = {dt:g} s); "
-                f"got {float(self.band[0]):g}-{float(self.band[1]):g} Hz."
-            )
+        if self.band is not None:  # the one band rule, now that the Nyquist frequency is known
+            check_band(self.band, "band", "HankelMAP", nyquist=0.5 / dt, error=DataError)
         records = prepared_records(exps, self.detrend)
         still_inputs(records, first.input_names, notes)
         # every channel to unit RMS (an update keeps the first fit's scales), see `records`
-        if previous is not None and previous.input_scale is not None and previous.output_scale is not None:
-            su, sy = previous.input_scale, previous.output_scale
-        else:
-            su, sy = channel_scales(records)
-        for u, y in records:  # in place: `prepared_records` made the copies
-            u /= su
-            y /= sy
+        su, sy = to_unit_rms(records, None if previous is None else (previous.input_scale, previous.output_scale))
         groups = channel_groups(records, first.input_names, self.per_channel)  # eq. 19
         orders = self._orders(len(groups))
         fits = []

@@ -23,6 +23,7 @@ __all__ = [
     "prepared_records",
     "still_inputs",
     "channel_scales",
+    "to_unit_rms",
     "unscaled_posterior",
     "excited_band",
     "excited_lines",
@@ -101,6 +102,21 @@ def channel_scales(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np
     ok_u = np.isfinite(su) & (su > 0)
     ok_y = np.isfinite(sy) & (sy > 0)
     return np.where(ok_u, su, 1.0), np.where(ok_y, sy, 1.0)
+
+
+def to_unit_rms(
+    records: Sequence[tuple[np.ndarray, np.ndarray]], scales: tuple[np.ndarray | None, np.ndarray | None] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Divide every channel of the (fresh, see :func:`prepared_records`) records in place by its
+    RMS over all records, or by the given ``(input, output)`` scales of an earlier fit; return them."""
+    if scales is not None and scales[0] is not None and scales[1] is not None:
+        su, sy = scales
+    else:
+        su, sy = channel_scales(records)
+    for u, y in records:
+        u /= su
+        y /= sy
+    return su, sy
 
 
 def unscaled_posterior(post: Posterior, su: np.ndarray, sy: np.ndarray) -> Posterior:
