@@ -294,14 +294,11 @@ def _delayed_kernel(uf, yf, n_samples, p, m, q, theta, P, lam, X, Y, Xn, Yn, A, 
     :func:`_group_gains`); then one pass over theta (:func:`_theta_pass`) and one over P
     (:func:`_p_pass`) apply the updates and form ``theta X'`` and ``P X'`` for the next group.
     The arithmetic per window is that of the one-window recursion; the matrices are read and
-    written once per ``DELAY`` windows instead of once per window.  ``g_j`` is not stored
-    (``1 / s_j`` goes into the rows' weights).  Both passes take rows in pairs and keep their
-    per-window factors and accumulators in registers (tuples over ``j``, unrolled by the
-    compiler).  ``P`` is symmetric, so its pass updates only the upper triangle and gets
-    ``P X'`` from each stored element twice (in the row's dot product and in an axpy into the
-    column's accumulator); the lower triangle outside the diagonal tiles is mirrored from the
-    upper one at the end.  The vector operations are those of :mod:`stageid.simd` (numba's own
-    vectoriser gives up on loops touching this many arrays).
+    written once per ``DELAY`` windows instead of once per window.  Both passes take rows in
+    pairs and keep the per-window factors and accumulators in registers (register lists,
+    :mod:`.unroll`).  ``P`` is symmetric: its pass updates only the upper triangle, which is
+    mirrored to the lower one at the end.  The vector operations are those of
+    :mod:`stageid.simd` (numba's own vectoriser gives up on loops touching this many arrays).
 
     ``theta`` (p q [+ 1], dp) and ``P`` (d [+ 1], dp) have an even number of rows (a zero row
     pads an odd count), rows padded with zeros to ``dp`` (a multiple of ``LANES``) and 32-byte
