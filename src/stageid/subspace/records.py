@@ -14,12 +14,14 @@ import numpy as np
 
 from .._errors import DataError
 from ..data.experiment import Experiment, as_experiments
+from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import WindowStatistics
 from .map_estimator import Posterior, regressor_scales
 
 __all__ = [
     "as_records",
     "check_continuation",
+    "check_band_below_nyquist",
     "prepared_records",
     "still_inputs",
     "channel_scales",
@@ -38,7 +40,7 @@ def as_records(data: object, where: str) -> tuple[Experiment, ...]:
     return as_experiments(data)
 
 
-def check_continuation(model, first: Experiment) -> None:
+def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
     """New records continuing a fit of ``model`` need its channels and its sample time (DataError)."""
     if model.inputs != first.input_names or model.outputs != first.output_names:
         raise DataError(
@@ -47,6 +49,17 @@ def check_continuation(model, first: Experiment) -> None:
         )
     if not np.isclose(first.dt, model.dt, rtol=1e-9, atol=0.0):
         raise DataError(f"new data must have the sample time of the fitted model, {model.dt:g} s; got {first.dt:g} s.")
+
+
+def check_band_below_nyquist(band: tuple[float, float] | None, dt: float) -> None:
+    """A given ``band`` (already a valid band, see ``HankelMAP.parameter_constraints``) must end at
+    or below the records' Nyquist frequency: it is refused, not clipped (DataError)."""
+    nyq = 0.5 / dt
+    if band is not None and float(band[1]) > nyq * (1 + 1e-12):
+        raise DataError(
+            f"`band` must lie within 0-{nyq:g} Hz (Nyquist at dt = {dt:g} s); "
+            f"got {float(band[0]):g}-{float(band[1]):g} Hz."
+        )
 
 
 def _column_means(x: np.ndarray) -> np.ndarray:
