@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from _subspace_systems import band_limited, column_errors, random_stage, record
-from stageid._errors import DataError, StageIdWarning
+from stageid._errors import DataError, ParameterError, StageIdWarning
 from stageid.data import Experiment
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP, HankelMAPResult, Prior
@@ -130,10 +130,10 @@ def test_hyper_parameters_are_checked_on_fit_not_init():
     est = HankelMAP(horizon=-3)
     assert est.horizon == -3  # __init__ stores only
     exp = _p558_band_limited(0, n=2000)
-    with pytest.raises(DataError, match="`horizon` of HankelMAP must be a positive integer"):
+    with pytest.raises(ParameterError, match=r"`horizon` of HankelMAP must be an integer >= 1 or 'auto'; got -3\."):
         est.fit(exp)
     for bad in (dict(method="svd"), dict(realization="x"), dict(forgetting=0.0), dict(order=[1, 2])):
-        with pytest.raises(DataError):
+        with pytest.raises(ParameterError, match=f"`{next(iter(bad))}` of HankelMAP must be "):
             HankelMAP(horizon=5, **({"order": 3} | bad)).fit(exp)
     with pytest.raises(DataError, match="needs records of more than"):
         HankelMAP(horizon=600, order=3).fit(exp.slice(0, 1000))
@@ -225,7 +225,7 @@ def test_update_with_another_sample_time_is_rejected():
 @pytest.mark.parametrize("prior", [-1.0, 0.0, float("nan"), float("inf")])
 def test_prior_strength_must_be_positive_and_finite(prior):
     _, exp = _two_pole_record()
-    with pytest.raises(DataError, match="prior strength must be > 0 and finite; got"):
+    with pytest.raises(ParameterError, match="`prior` of HankelMAP must be None, a number > 0 or a Prior; got"):
         HankelMAP(horizon=10, order=2, prior=prior).fit(exp)
 
 
@@ -246,15 +246,28 @@ def test_held_out_error_above_one_warns():
     assert any("held-out error" in w for w in res.diagnostics["warnings"])
 
 
+def test_bad_settings_are_one_line_parameter_errors():
+    _, exp = _two_pole_record()
+    calls = [
+        lambda: HankelMAP(max_order=0).fit(exp),
+        lambda: HankelMAP(band=5).fit(exp),
+        lambda: HankelMAP(band=(1.0, float("nan"))).fit(exp),
+        lambda: HankelMAP(validation_fraction="x").fit(exp),
+        lambda: HankelMAP(n_frequencies=7).fit(exp),
+        lambda: HankelMAP(per_channel=1).fit(exp),
+        lambda: HankelMAP(order=[2, 3]).fit(exp),  # several orders need per_channel
+    ]
+    for call in calls:
+        with pytest.raises(ParameterError) as info:
+            call()
+        assert "\n" not in str(info.value) and str(info.value).startswith("`") and "; got" in str(info.value)
+
+
 def test_bad_arguments_are_one_line_data_errors():
     _, exp = _two_pole_record()
     res = HankelMAP(horizon=10, order=2).fit(exp)
     calls = [
         lambda: HankelMAP().fit(Experiment(np.zeros((0, 1)), np.zeros((0, 1)), 0.01)),
-        lambda: HankelMAP(max_order=0).fit(exp),
-        lambda: HankelMAP(band=5).fit(exp),
-        lambda: HankelMAP(band=(1.0, float("nan"))).fit(exp),
-        lambda: HankelMAP(validation_fraction="x").fit(exp),
         lambda: HankelMAP().fit(None),
         lambda: res.update(None),
         lambda: res.response_bands([np.nan]),
@@ -271,7 +284,7 @@ def test_bad_arguments_are_one_line_data_errors():
 
 @pytest.mark.parametrize("alternative", ["worse", "better"])
 def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypatch, alternative):
-    import stageid.subspace.estimator as est
+    import stageid.subspace.frequency_domain as est
 
     g = random_stage(3, m=2, q=2, modes=3)
     exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)
@@ -280,7 +293,7 @@ def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypa
 
     def direct(G, freqs, dt, order, **kw):
         out = real_direct(G, freqs, dt, order, **kw)
-        seen["direct"] = est._fit_cost(out[:4], G, np.exp(2j * np.pi * freqs * dt))
+        seen["direct"] = est.fit_cost(out[:4], G, np.exp(2j * np.pi * freqs * dt))
         return out
 
     def alt(G, freqs, dt, order, feedthrough=True):
@@ -290,11 +303,11 @@ def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypa
             B = B * 3.0
         else:  # a few refinement steps ahead
             A, B, C, D, _ = real_refine(A, B, C, D, G, zs, feedthrough=feedthrough, max_iter=3)
-        seen["alt"] = est._fit_cost((A, B, C, D), G, zs)
+        seen["alt"] = est.fit_cost((A, B, C, D), G, zs)
         return A, B, C, D
 
     def refine(A, B, C, D, G, zs, **kw):
-        seen["start"] = est._fit_cost((A, B, C, D), G, zs)
+        seen["start"] = est.fit_cost((A, B, C, D), G, zs)
         return real_refine(A, B, C, D, G, zs, **kw)
 
     monkeypatch.setattr(est, "frequency_realization", direct)
@@ -307,7 +320,7 @@ def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypa
 
 @pytest.mark.parametrize("order, runs", [(6, 1), (2, 2)])
 def test_a_misfit_refinement_also_runs_from_the_second_start_and_keeps_the_better_end(monkeypatch, order, runs):
-    import stageid.subspace.estimator as est
+    import stageid.subspace.frequency_domain as est
 
     g = random_stage(3, m=2, q=2, modes=3)  # 6 states: order 6 fits, order 2 cannot
     exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)
@@ -324,3 +337,13 @@ def test_a_misfit_refinement_also_runs_from_the_second_start_and_keeps_the_bette
     assert len(ends) == runs
     assert (ends[0] > est.MULTI_START_MISFIT) is (runs == 2)
     assert res.channels[0].fit_cost == pytest.approx(min(ends), rel=1e-12)
+
+
+def test_warnings_point_at_the_callers_line():
+    # stacklevel: past fit, the pipeline's helpers and the BLAS-thread wrapper (STYLE.md)
+    from stageid._errors import ExcitationWarning
+
+    exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
+    with pytest.warns(ExcitationWarning) as record:
+        HankelMAP().fit(exp)
+    assert {w.filename for w in record} == {__file__}

@@ -5,9 +5,9 @@ import pytest
 
 from _subspace_systems import random_stage, record
 from stageid._errors import DataError
+from stageid.subspace.correlations import lag_correlations
 from stageid.subspace.hankel_toeplitz import (
     dense_regression,
-    lag_correlations,
     record_statistics,
     regressor_indices,
     theta_frequency_response,
@@ -101,11 +101,11 @@ def test_model_response_equals_truth_on_exact_data():
 
 
 def test_window_gram_from_lags_equals_reference():
-    from stageid.subspace.hankel_toeplitz import _window_gram, _window_gram_python
+    from stageid.subspace.correlations import window_gram, window_gram_python
 
     z = np.random.default_rng(2).standard_normal((90, 3))
     R = lag_correlations(z, 9)
-    np.testing.assert_allclose(_window_gram(z, R, 5), _window_gram_python(z, R, 5), atol=1e-11)
+    np.testing.assert_allclose(window_gram(z, R, 5), window_gram_python(z, R, 5), atol=1e-11)
 
 
 @pytest.mark.parametrize("horizon", [1, 4, 9])

@@ -5,7 +5,8 @@ import pytest
 
 from stageid._errors import DataError
 from stageid.subspace.hankel_toeplitz import dense_regression, window_statistics
-from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, recursive_map, recursive_map_python
+from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior
+from stageid.subspace.recursion import recursive_map, recursive_map_python
 
 
 def _data(seed, n=500, m=2, q=3):
@@ -134,7 +135,7 @@ def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, 
 @pytest.mark.parametrize("forgetting", [1.0, 0.97])
 def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     # the four-window delayed-update kernel on its own (no one-window warm-up), from a dense prior
-    from stageid.subspace import map_estimator as me
+    from stageid.subspace import map_kernels as mk
 
     p, m, q = 2, 2, 3
     d = 2 * p * m + p * q
@@ -144,12 +145,12 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     theta0 = rng.standard_normal((rows, d))
     P0 = _dense_prior(rng, d, 2.0)
     dp = -(-d // 4) * 4
-    th = me._aligned_zeros((rows, dp))
+    th = mk.aligned_zeros((rows, dp))
     th[:, :d] = theta0
-    Pw = me._aligned_zeros((d, dp))
+    Pw = mk.aligned_zeros((d, dp))
     Pw[:, :d] = P0
-    work = [me._aligned_zeros((4, dp)) if k in (0, 2, 4, 6, 8) else np.zeros((4, rows)) for k in range(10)]
-    done = me._delayed()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
+    work = [mk.aligned_zeros((mk.DELAY, dp)) if k in (0, 2, 4, 6, 8) else np.zeros((mk.DELAY, rows)) for k in range(10)]
+    done = mk.delayed_kernel()(u.ravel(), y.ravel(), u.shape[0], p, m, q, th, Pw, forgetting, *work)
     assert done == 100
     th_py, P_py = recursive_map_python(u, y, p, theta0, P0, forgetting)
     assert not th[:, d:].any() and not Pw[:, d:].any()  # the padding stays zero
@@ -179,3 +180,32 @@ def test_vector_intrinsics_match_numpy():
     # fused multiply-adds round once where numpy rounds twice: a few ulps
     np.testing.assert_allclose(out, 0.5 * (a * b + c - 2.0 * b), rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(dot, a @ b, rtol=1e-14)
+
+
+def _register_sums(a, out):
+    # the shape of the delayed-update kernel's loops: a register list indexed by a written-out loop
+    acc = [0.0 for j in range(DELAY_FOR_TEST)]
+    for t in range(a.shape[1]):
+        for j in range(DELAY_FOR_TEST):
+            acc[j] = acc[j] + a[j, t] * (j + 1)
+    for j in range(DELAY_FOR_TEST):
+        out[j] = acc[j]
+
+
+DELAY_FOR_TEST = 3
+
+
+def test_written_out_loops_compute_what_the_rolled_source_does():
+    from stageid.subspace.unroll import written_out
+
+    a = np.arange(12.0).reshape(3, 4)
+    rolled, unrolled = np.zeros(3), np.zeros(3)
+    _register_sums(a, rolled)
+    fn = written_out(_register_sums, {"DELAY_FOR_TEST": DELAY_FOR_TEST})
+    fn(a, unrolled)
+    np.testing.assert_array_equal(unrolled, rolled)
+    np.testing.assert_array_equal(rolled, a.sum(axis=1) * [1, 2, 3])
+    # the constant-count loops are gone, the run-time loop over t stays; acc[j] became acc_0..acc_2
+    code = fn.__code__
+    assert {"acc_0", "acc_1", "acc_2"} <= set(code.co_varnames) and "acc" not in code.co_varnames
+    assert code.co_filename == __file__  # tracebacks and numba's cache point at the source as written

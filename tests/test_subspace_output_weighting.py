@@ -14,7 +14,7 @@ from stageid.data import Experiment
 from stageid.models import StateSpaceModel
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
-from stageid.subspace.estimator import _output_weights
+from stageid.subspace.weighting import output_weights
 
 F = np.linspace(1.0, 100.0, 1000)
 
@@ -68,15 +68,15 @@ def test_equal_relative_noise_and_noise_free_records_weigh_the_outputs_alike():
     # 1 % noise on every output (the benchmark's case): the unit-RMS weighting within a few %
     # (measured 0.989-1)
     res = HankelMAP(horizon=40, order=15).fit(record(g, u, 0.01, 4))
-    w = _output_weights(res.channels[0].scaled_posterior)
+    w = output_weights(res.channels[0].scaled_posterior)
     assert w.max() == 1.0 and w.min() > 0.9
     # noise-free: every noise std (residual 0.7-3.3e-4 of the RMS) at the floor of 1e-3 of the
     # RMS over the windows, so the weights are those of unit RMS (measured 0.9983-1)
     res = HankelMAP(horizon=40, order=15).fit(Experiment(u, g.simulate(u), g.dt))
-    np.testing.assert_allclose(_output_weights(res.channels[0].scaled_posterior), 1.0, rtol=5e-3)
+    np.testing.assert_allclose(output_weights(res.channels[0].scaled_posterior), 1.0, rtol=5e-3)
     # and with a noisy coupling output (rx at 30 % noise) the clean outputs weigh more
     res = HankelMAP(horizon=40, order=15).fit(_noisy(g, u, [0.01, 0.3, 0.01]))
-    w = _output_weights(res.channels[0].scaled_posterior)
+    w = output_weights(res.channels[0].scaled_posterior)
     assert w[1] < 0.1 * min(w[0], w[2])
 
 

@@ -6,19 +6,17 @@ import pytest
 from _subspace_systems import random_stage, record
 from stageid._errors import IdentificationError
 from stageid.models import StateSpaceModel
+from stageid.subspace.frequency_domain import balanced_start, balanced_truncation, frequency_realization
 from stageid.subspace.hankel_toeplitz import window_statistics
 from stageid.subspace.map_estimator import batch_posterior
 from stageid.subspace.realization import (
-    balanced_start,
-    balanced_truncation,
     era,
-    frequency_realization,
     hankel_h0,
     hankel_hi,
     hankel_matrices,
     markov_from_theta,
-    refine_frequency_fit,
 )
+from stageid.subspace.refinement import refine_frequency_fit
 
 
 def _exact_theta(g, p, n=2500, seed=0):
@@ -92,7 +90,7 @@ def test_refinement_never_increases_the_cost_and_recovers_a_perturbed_model():
 
 @pytest.mark.parametrize("feedthrough", [True, False])
 def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough):
-    from stageid.subspace.realization import _normal_equations
+    from stageid.subspace.refinement import _normal_equations
 
     nz, q, n, m = 40, 3, 4, 2
     rng = np.random.default_rng(1)
@@ -113,7 +111,7 @@ def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough):
 
 
 def test_discrete_gramian_solves_the_stein_equation():
-    from stageid.subspace.realization import _discrete_gramian
+    from stageid.subspace.frequency_domain import _discrete_gramian
 
     rng = np.random.default_rng(3)
     A = rng.standard_normal((6, 6))
@@ -161,7 +159,7 @@ def test_balanced_start_recovers_an_exact_response():
 
 
 def test_observability_basis_spans_the_lq_subspace():
-    from stageid.subspace.realization import _observability_basis
+    from stageid.subspace.frequency_domain import _observability_basis
 
     rng = np.random.default_rng(7)
     nf, q, m, r = 40, 2, 3, 5
@@ -181,7 +179,7 @@ def test_observability_basis_spans_the_lq_subspace():
 
 
 def test_balanced_start_gives_none_when_the_truncation_fails(monkeypatch):
-    from stageid.subspace import realization
+    from stageid.subspace import frequency_domain
 
     g = random_stage(6, m=2, q=2, modes=3)
     f = np.linspace(0.0, 250.0, 200)
@@ -189,5 +187,5 @@ def test_balanced_start_gives_none_when_the_truncation_fails(monkeypatch):
     def broken(*args, **kwargs):
         raise np.linalg.LinAlgError("SVD did not converge")
 
-    monkeypatch.setattr(realization, "balanced_truncation", broken)
+    monkeypatch.setattr(frequency_domain, "balanced_truncation", broken)
     assert balanced_start(g.frequency_response(f), f, g.dt, g.n_states, feedthrough=False) is None

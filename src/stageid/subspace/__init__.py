@@ -2,17 +2,31 @@
 estimation of Cao & Chen (2013), "State space system identification of 3-DOF piezo-actuator-
 driven stages with unknown configuration", Actuators 2, 1-18.
 
-Modules follow the paper's sections:
+Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one named function:
 
 =======================  ===================================================================
-``hankel_toeplitz``      2.1 Simplified Hankel-Toeplitz model: regression eq. 9, its normal
-                         equations from lag correlations, the model's frequency response
-``map_estimator``        2.3 MAP online estimation: prior, posterior, eq. 17-18 recursion
+``hankel_toeplitz``      2.1 Simplified Hankel-Toeplitz model: eq. 9 statistics
+                         (``hankel_toeplitz_statistics``), ``theta`` split (eq. 16), the
+                         model's frequency response
+``correlations``         2.1 the window Gram matrix of eq. 9 from lag correlations (FFT)
+``map_estimator``        2.3 MAP online estimation: prior, posterior, eq. 17-18
+                         (``map_posterior``); ``method`` -> prior (``METHODS``)
+``recursion``            2.3 eq. 17-18 sample by sample (``recursive_map``) and its numpy twin
+``map_kernels``          2.3 the compiled (numba) kernels of that recursion
+``unroll``               writes out the kernels' short constant-count loops before compiling
 ``realization``          2.1-2.2 H0 (eq. 10), H_i (eq. 12), H(0)/H(1) (eq. 14), Lemma 1
-                         (eq. 15), frequency-domain realisation over the excited band
+                         (eq. 15, ``era``); ``realize`` with ``realization`` -> route
+                         (``REALIZATIONS``)
+``frequency_domain``     the frequency route: the eq. 9 response over the excited band
+                         realised (frequency counterpart of Lemma 1), two starts
+``refinement``           output-error refinement of a realisation on that response
+``weighting``            noise weighting of the outputs in the realisation and selection
 ``selection``            3.2 choice of p and of the order by held-out prediction error
-``estimator``            2.4 the whole method: ``HankelMAP(...).fit(data)`` -> result,
-                         per-channel stacking (eq. 19-22), ``result.update(new_data)``
+``channels``             2.4 per-input records (eq. 19), stacking (eq. 20-22,
+                         ``stack_channel_models``)
+``records``              mean removal, unit-RMS scaling, excited band of the records
+``estimator``            the whole method: ``HankelMAP(...).fit(data)`` -> result
+``result``               ``HankelMAPResult``: model, posterior, bands, ``update(new_data)``
 =======================  ===================================================================
 
 ``HankelMAP``            the estimator (configure, fit, get a frozen ``HankelMAPResult``)
@@ -21,9 +35,12 @@ Modules follow the paper's sections:
 ``recursive_map``        the sample-by-sample eq. 17-18 (compiled)
 """
 
-from .estimator import ChannelFit, HankelMAP, HankelMAPResult
-from .map_estimator import Posterior, Prior, batch_posterior, recursive_map
-from .realization import era, frequency_realization, markov_from_theta
+from .estimator import HankelMAP
+from .frequency_domain import frequency_realization
+from .map_estimator import Posterior, Prior, batch_posterior
+from .realization import era, markov_from_theta
+from .recursion import recursive_map
+from .result import ChannelFit, HankelMAPResult
 
 __all__ = [
     "HankelMAP",

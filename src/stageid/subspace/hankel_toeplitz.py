@@ -9,9 +9,9 @@ with ``u_p(k) = [u(k); u(k+1); ...; u(k+p-1)]`` (eq. 3, time ascending, channels
 Every regression sample is one *window* of ``2 p`` consecutive samples of
 ``z(t) = [u(t); y(t)]``, so the normal equations never need the (n_windows x n_regressors)
 matrix: the Gram matrix of the windows is assembled from the lag correlations of ``z``
-(computed in blocks with FFTs, cost independent of ``p``) plus exact corrections for the
-first and last samples.  This is :class:`WindowStatistics`, the sufficient statistic of
-both the batch least-squares and the MAP estimators.
+(:mod:`.correlations`).  This is :class:`WindowStatistics`, the sufficient statistic of
+both the batch least-squares and the MAP estimators; :func:`hankel_toeplitz_statistics`
+pools it over the records of a fit.
 """
 
 from __future__ import annotations
@@ -20,13 +20,16 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 
 from .._errors import DataError
+from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, window_gram
 
 __all__ = [
     "WindowStatistics",
-    "lag_correlations",
+    "hankel_toeplitz_statistics",
+    "statistics_bytes",
+    "response_bytes",
+    "row_residuals",
     "window_statistics",
     "record_statistics",
     "segments_statistics",
@@ -35,102 +38,6 @@ __all__ = [
     "split_theta",
     "theta_frequency_response",
 ]
-
-
-def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> np.ndarray:
-    """Lag correlations ``R[c] = sum_t z(t) z(t+c)^T`` for ``c = 0 .. max_lag``.
-
-    Computed with zero-padded FFTs of consecutive blocks (overlap-add of the cross-spectra),
-    so the cost is about ``n_samples (r^2 + r log block)`` whatever ``max_lag`` is, and the
-    memory is a few blocks.  The result is exact to rounding.
-
-    Parameters
-    ----------
-    z : ndarray of shape (n_samples, r)
-    max_lag : int
-        Largest lag, ``0 <= max_lag < n_samples``.
-    block : int, optional
-        Block length (>= max_lag); default the next power of two >= max(128, max_lag).
-
-    Returns
-    -------
-    ndarray of shape (max_lag + 1, r, r)
-        ``R[c, a, b] = sum_{t=0}^{N-1-c} z[t, a] z[t+c, b]``.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> z = np.arange(10.0).reshape(5, 2)
-    >>> R = lag_correlations(z, 1)
-    >>> bool(np.allclose(R[1], z[:-1].T @ z[1:]))
-    True
-    """
-    src = z if isinstance(z, _Rows) else _Rows([np.asarray(z, dtype=float)])
-    n, r = src.n, src.r
-    if not 0 <= max_lag < max(n, 1):
-        raise DataError(f"`max_lag` must satisfy 0 <= max_lag < n_samples = {n}; got {max_lag}.")
-    if block is None:
-        block = 1 << max(7, int(np.ceil(np.log2(max(max_lag, 1)))))
-    if block < max_lag:
-        raise DataError(f"`block` must be >= max_lag = {max_lag}; got {block}.")
-    n_blocks = -(-n // block)
-    nfft = 2 * block
-    sign = np.where(np.arange(block + 1) % 2 == 0, 1.0, -1.0)[:, None]  # exp(-j pi f): shift by one block
-    S = np.zeros((block + 1, r, r), dtype=complex)
-    # blocks per FFT batch: ~1 MB per batch array.  Larger batches are slower, not faster
-    # (P-558 benchmark record, N = 50 000, r = 6, lags < 120: 12 ms with ~5 MB batches, 3 ms
-    # with ~1 MB): each fresh multi-megabyte temporary costs page faults, small ones are
-    # reused from the allocator's free lists and stay in cache.
-    chunk = min(n_blocks, max(1, (1 << 17) // (nfft * max(r, 1))))
-    seg = np.zeros((chunk + 1, nfft, r))  # zero-padded blocks, reused by every batch
-    rows = np.empty(((chunk + 1) * block, r))
-    start = 0
-    # Spectra are computed batch by batch; the first spectrum of the next batch is needed
-    # for the last block of the current one, so batches overlap by one block.
-    while start < n_blocks:
-        stop = min(n_blocks, start + chunk)
-        k = stop - start + 1
-        src.fill(rows[: k * block], start * block)
-        seg[:k, :block, :] = rows[: k * block].reshape(k, block, r)
-        F = np.fft.rfft(seg[:k], axis=1)  # (k, block+1, r)
-        Fa = F[:-1]
-        Fb = F[:-1] + sign[None] * F[1:]
-        # S[f] += sum_k conj(Fa[k, f])^T Fb[k, f]
-        S += np.matmul(np.conj(Fa).transpose(1, 2, 0), Fb.transpose(1, 0, 2))
-        start = stop
-    R = np.fft.irfft(S, n=nfft, axis=0)[: max_lag + 1]
-    return np.ascontiguousarray(R)
-
-
-class _Rows:
-    """The rows of ``[u y]`` (column blocks side by side) over sample ranges joined by zero
-    gaps, read batch by batch (:meth:`fill`) without forming the joined array: the record is
-    never copied whole (see the batch size in :func:`lag_correlations`)."""
-
-    def __init__(self, blocks: list[np.ndarray], ranges: list[tuple[int, int]] | None = None, gap: int = 0):
-        self.blocks = blocks
-        self.r = sum(b.shape[1] for b in blocks)
-        self.pieces: list[tuple[int, int, int]] = []  # (virtual start, a, b)
-        v = 0
-        for i, (a, b) in enumerate(ranges if ranges is not None else [(0, blocks[0].shape[0])]):
-            v += gap if i else 0
-            self.pieces.append((v, a, b))
-            v += b - a
-        self.n = v
-
-    def fill(self, out: np.ndarray, lo: int) -> None:
-        """``out[:] =`` rows ``lo .. lo + len(out) - 1`` (zero in the gaps and past the end)."""
-        out[:] = 0.0
-        hi = lo + out.shape[0]
-        for v, a, b in self.pieces:
-            s, e = max(lo, v), min(hi, v + b - a)
-            if s >= e:
-                continue
-            c = 0
-            for blk in self.blocks:
-                w = blk.shape[1]
-                out[s - lo : e - lo, c : c + w] = blk[a + s - v : a + e - v]
-                c += w
 
 
 @dataclass(frozen=True, eq=False)
@@ -236,93 +143,6 @@ def regressor_indices(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.n
     return np.concatenate([u_past, y_past, u_fut]), y_fut
 
 
-def _window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
-    """Reference of :func:`_window_gram` (plain numpy)."""
-    n, r = z.shape
-    L = 2 * horizon
-    K = n - L + 1  # number of windows
-    W = np.zeros((L, L, r, r))
-    for c in range(L):
-        # W[0, c] = R[c] - tail terms t = K .. n-1-c
-        first = R[c] - z[K : n - c].T @ z[K + c : n]
-        count = L - c  # entries W[a, a+c], a = 0 .. L-1-c
-        vals = np.empty((count, r, r))
-        vals[0] = first
-        for a in range(1, count):
-            # W[a, a+c] = W[a-1, a-1+c] - z(a-1) z(a-1+c)^T + z(a-1+K) z(a-1+c+K)^T
-            vals[a] = vals[a - 1] - np.outer(z[a - 1], z[a - 1 + c]) + np.outer(z[a - 1 + K], z[a - 1 + c + K])
-        idx = np.arange(count)
-        W[idx, idx + c] = vals
-        if c:
-            W[idx + c, idx] = vals.transpose(0, 2, 1)
-    return W.transpose(0, 2, 1, 3).reshape(L * r, L * r)
-
-
-def _gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.ndarray:
-    """Exact window Gram matrix summed over segments, from their summed lag correlations.
-
-    For one segment ``s`` of ``n_s`` samples with ``K = n_s - L + 1`` windows of length
-    ``L``, block ``(a, b)`` (``b >= a``, ``c = b - a``) of ``sum_k w(k) w(k)^T`` is
-
-        R[c] - sum_{t < a} s(t) s(t+c)^T - sum_{t = K+a}^{n_s-1-c} s(t) s(t+c)^T,
-
-    i.e. the lag correlation minus products of the first and of the last ``L`` samples
-    only.  Both corrections are running sums along the block diagonals of
-    ``sum_segments h h^T`` (heads) and ``f f^T`` (tails): with ``M = sum h h^T``, the head
-    correction ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the
-    same recursion backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.
-    The recursion runs one block row at a time, so no ``(L r) x (L r)`` temporary besides
-    the result is formed.
-
-    Parameters
-    ----------
-    R : ndarray of shape (L, r, r)
-        Lag correlations (lags 0 .. L-1) summed over the segments.
-    heads, tails : ndarray of shape (n_segments, L, r)
-        The first and the last ``L`` samples of each segment.
-
-    Returns
-    -------
-    ndarray of shape (L r, L r)
-    """
-    L, r, _ = R.shape
-    Lr = L * r
-    # block (a, b) of the Toeplitz part is R_ext[b - a] (lags -(L-1) .. L-1, R[-c] = R[c]^T):
-    # with Rc[i, L-1+c, j] = R_ext[c, i, j], row (a, i) of W is Rc[i, L-1-a : 2L-1-a, :]
-    Rc = np.empty((r, 2 * L - 1, r))
-    Rc[:, L - 1 :, :] = R.transpose(1, 0, 2)
-    Rc[:, : L - 1, :] = R[:0:-1].transpose(2, 0, 1)
-    s_i, s_c, s_j = Rc.strides
-    toeplitz = as_strided(Rc[:, L - 1 :, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
-    W = np.empty((L, r, L, r))
-    W[...] = toeplitz
-    W = W.reshape(Lr, Lr)
-    prev = np.empty((r, Lr))
-    cur = np.empty((r, Lr))
-    for block, forward in ((heads, True), (tails, False)):
-        H = np.ascontiguousarray(block.reshape(block.shape[0], Lr))
-        prev[:] = 0.0
-        rows = range(1, L) if forward else range(L - 2, -1, -1)
-        for a in rows:
-            src = (a - 1) if forward else (a + 1)
-            Ms = H[:, src * r : (src + 1) * r].T @ H  # block row `src` of sum h h^T, (r, L r)
-            if forward:  # S[a, b] = S[a-1, b-1] + M[a-1, b-1]
-                np.add(prev[:, :-r], Ms[:, :-r], out=cur[:, r:])
-                cur[:, :r] = 0.0
-            else:  # S[a, b] = S[a+1, b+1] + M[a+1, b+1]
-                np.add(prev[:, r:], Ms[:, r:], out=cur[:, :-r])
-                cur[:, -r:] = 0.0
-            W[a * r : (a + 1) * r] -= cur
-            prev, cur = cur, prev
-    return W
-
-
-def _window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
-    """Exact ``sum_k w(k) w(k)^T`` of one record from its lag correlations ``R`` (lags 0 .. 2p-1)."""
-    L = 2 * int(horizon)
-    return _gram_from_lags(R[:L], z[None, :L], z[None, z.shape[0] - L :])
-
-
 def window_statistics(
     u: np.ndarray, y: np.ndarray, horizon: int, forgetting: float = 1.0, with_spectrum: bool = True
 ) -> WindowStatistics:
@@ -389,16 +209,16 @@ def record_statistics(
         z = np.hstack([u, y]) * (forgetting ** ((n - 1 - t) / 2.0))[:, None]
         R = lag_correlations(z, Lmax - 1)
     else:  # no joined copy of the record: its ends are all the Gram corrections need
-        R = lag_correlations(_Rows([u, y]), Lmax - 1)
+        R = lag_correlations(RecordRows([u, y]), Lmax - 1)
         z = np.vstack([np.hstack([u[:Lmax], y[:Lmax]]), np.hstack([u[n - Lmax :], y[n - Lmax :]])])
     power = freqs = None
     if with_spectrum:
-        power, freqs = _input_periodogram(u)
+        power, freqs = input_periodogram(u)
     out = {}
     for p in usable:
         L = 2 * p
         K = n - L + 1
-        W = _window_gram(z, R[:L], p)
+        W = window_gram(z, R[:L], p)
         if forgetting != 1.0:
             # z~(t) = lam^((n-1-t)/2) z(t): the weighted window sum is the unweighted one of z~
             # times lam^((K-1) - (n-1) + (a+b)/2) for window positions a, b.
@@ -411,9 +231,43 @@ def record_statistics(
     return out
 
 
-def segments_statistics(
-    u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, int]], horizon: int
+def hankel_toeplitz_statistics(
+    records: list[tuple[np.ndarray, np.ndarray]], horizon: int, forgetting: float = 1.0
 ) -> WindowStatistics:
+    """Eq. 9: the normal-equation statistics of ``y_p(k) = [Gamma Phi D_p] [u_p(k-p); y_p(k-p); u_p(k)]``
+    pooled over records ``(u, y)``.
+
+    No window straddles two records; with forgetting, the earlier records' windows are
+    discounted by ``forgetting`` to the power of the later records' window counts, as if the
+    records had been fed one after the other to the recursion of eq. 17-18.
+    """
+    stats = None
+    for u, y in records:
+        s = record_statistics(u, y, [horizon], forgetting)[horizon]
+        stats = s if stats is None else stats.scaled(forgetting**s.count) + s
+    if stats is None:
+        raise DataError("eq. 9 needs at least one record; got none.")
+    return stats
+
+
+def statistics_bytes(horizon: int, n_inputs: int, n_outputs: int) -> float:
+    """Memory the statistics of eq. 9 and the posterior of eq. 16-18 take at one horizon.
+
+    The window Gram matrix (``2 p r`` square, ``r = m + q``), its blocks ``XX``, ``YX``, ``YY``,
+    and the posterior's information matrix with the solver's copies of it: about five
+    float64 matrices of the Gram matrix's size.
+    """
+    side = 2.0 * horizon * (n_inputs + n_outputs)
+    return 5.0 * 8.0 * side * side
+
+
+def row_residuals(theta: np.ndarray, stats: WindowStatistics) -> np.ndarray:
+    """``sum ||y_p - theta x||^2`` over the windows of ``stats``, per row of ``y_p`` (``p q`` values)."""
+    XX, YX, YY = stats.blocks()
+    return np.diag(YY) - 2.0 * np.einsum("rd,rd->r", theta, YX) + np.einsum("rd,rd->r", theta @ XX, theta)
+
+
+def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, int]], horizon: int) -> WindowStatistics:
     """Statistics of eq. 9 summed over the windows lying inside sample ranges of one record.
 
     Equal to the sum of :func:`window_statistics` over ``u[a:b], y[a:b]`` for every range, but
@@ -457,30 +311,11 @@ def segments_statistics(
     short = [(a, b) for a, b in ranges if b - a <= L]
     if short:
         raise DataError(f"horizon {p} needs ranges of more than {L} samples; got {short[0][1] - short[0][0]}.")
-    R = lag_correlations(_Rows([u, y], ranges, gap=L), L - 1)
+    R = lag_correlations(RecordRows([u, y], ranges, gap=L), L - 1)
     heads = np.stack([np.hstack([u[a : a + L], y[a : a + L]]) for a, _ in ranges])
     tails = np.stack([np.hstack([u[b - L : b], y[b - L : b]]) for _, b in ranges])
     count = int(sum(b - a - L + 1 for a, b in ranges))
-    return WindowStatistics(
-        _gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count
-    )
-
-
-def _input_periodogram(u: np.ndarray, n_bins: int = 512) -> tuple[np.ndarray, np.ndarray]:
-    """Periodogram of each (mean-removed) input summed into ``n_bins`` equal bins over
-    ``[0, 1/2]`` cycles per sample, so records of any length can be added.
-
-    Returns ``(power of shape (n_bins, n_inputs), bin centres in cycles per sample)``.
-    """
-    n = u.shape[0]
-    f = np.fft.rfftfreq(n)
-    idx = np.minimum((f * 2 * n_bins).astype(int), n_bins - 1)
-    power = np.empty((n_bins, u.shape[1]))
-    for j in range(u.shape[1]):  # column by column: no record-sized complex temporaries
-        X = np.fft.rfft(u[:, j] - u[:, j].mean())
-        power[:, j] = np.bincount(idx, weights=X.real**2 + X.imag**2, minlength=n_bins)
-    centres = (np.arange(n_bins) + 0.5) / (2 * n_bins)
-    return power, centres
+    return WindowStatistics(gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count)
 
 
 def dense_regression(u: np.ndarray, y: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
@@ -532,6 +367,13 @@ def _response_system(
     Phiw = np.einsum("riq,i->rq", Phi.reshape(p * q, p, q), e_past)
     lhs = np.kron(e_fut[:, None], np.eye(q)) - Phiw
     return lhs, rhs, np.concatenate([np.repeat(e_past, m), np.repeat(e_past, q), np.repeat(e_fut, m)])
+
+
+def response_bytes(horizon: int, n_inputs: int, n_outputs: int, n_frequencies: int) -> float:
+    """Memory :func:`theta_frequency_response` takes: its complex ``(n_freqs, p q, m + q)``
+    systems, their normal equations and temporaries (about six of them)."""
+    p, m, q = float(horizon), float(n_inputs), float(n_outputs)
+    return 16.0 * 6.0 * n_frequencies * (p * q * (m + q) + 2.0 * p)
 
 
 def theta_frequency_response(

@@ -3,9 +3,10 @@
 Cao & Chen (2013) choose ``p`` (Fig. 4) and the order (Tables 4-6) by the prediction error
 on data not used for the fit.  Here:
 
-* every record is cut into 8 equal segments and 2 of them (the 3rd and 7th for the default
-  ``validation_fraction`` 0.25) are held out: interleaving keeps the held-out part
-  representative of chirps, whose frequency changes with time;
+* every record of ``n`` samples is cut into ``k = n // 160`` equal segments (at least 4, at
+  most 32) and ``round(validation_fraction k)`` of them, spread evenly, are held out
+  (:func:`held_out_segments`; with the default 0.25, 1 of 4, ..., 8 of 32): interleaving
+  keeps the held-out part representative of chirps, whose frequency changes with time;
 * the horizon is chosen by the normalised multi-step prediction error of eq. 9 on the
   held-out windows, which follows from the held-out :class:`WindowStatistics` alone
   (no pass over the data per candidate);
@@ -17,14 +18,33 @@ on data not used for the fit.  Here:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from .hankel_toeplitz import WindowStatistics
+from .._errors import DataError, IdentificationError
+from .correlations import input_periodogram
+from .hankel_toeplitz import WindowStatistics, record_statistics, row_residuals, segments_statistics
+from .map_estimator import Posterior
+from .realization import realize
+from .weighting import output_weights, training_weights
 
-__all__ = ["SelectionTable", "prediction_error", "default_horizons", "simulation_error"]
+__all__ = [
+    "SelectionTable",
+    "prediction_error",
+    "default_horizons",
+    "horizon_candidates",
+    "simulation_error",
+    "held_out_segments",
+    "split_statistics",
+    "pooled_split",
+    "select_horizon",
+    "select_order",
+]
+
+#: Shortest held-out segment, in samples: records are cut into at most ``n / (8 MIN_SEGMENT)`` segments.
+MIN_SEGMENT = 20
 
 
 @dataclass(frozen=True)
@@ -76,12 +96,6 @@ def prediction_error(theta: np.ndarray, stats: WindowStatistics, weights: np.nda
     return _normalised(np.clip(res_c, 0.0, None), energy, weights)
 
 
-def row_residuals(theta: np.ndarray, stats: WindowStatistics) -> np.ndarray:
-    """``sum ||y_p - theta x||^2`` over the windows of ``stats``, per row of ``y_p`` (``p q`` values)."""
-    XX, YX, YY = stats.blocks()
-    return np.diag(YY) - 2.0 * np.einsum("rd,rd->r", theta, YX) + np.einsum("rd,rd->r", theta @ XX, theta)
-
-
 def _normalised(err: np.ndarray, energy: np.ndarray, weights: np.ndarray | None) -> float:
     """``mean(err / energy)``, or ``sum(w^2 err) / sum(w^2 energy)`` with weights."""
     if weights is None:
@@ -113,3 +127,172 @@ def simulation_error(
     den = np.where(np.asarray(den) > 0, den, 1.0)
     val = _normalised(np.asarray(num), den, weights)
     return val if np.isfinite(val) else float("inf")
+
+
+def horizon_candidates(n_inputs: int, n_outputs: int, lengths: Sequence[int]) -> list[int]:
+    """:func:`default_horizons` for records of ``lengths`` samples, keeping those whose
+    windows fit in every held-out segment (or the smallest when none does)."""
+    cands = default_horizons(n_inputs, n_outputs, sum(lengths))
+    return [p for p in cands if all(n / 32 > 2 * p + 1 for n in lengths)] or cands[:1]
+
+
+def held_out_segments(n: int, validation_fraction: float) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+    """Training and held-out sample ranges of one record of ``n`` samples (interleaved).
+
+    ``k = n // (8 MIN_SEGMENT)`` equal segments, at least 4 and at most 32, of which
+    ``round(validation_fraction k)`` spread evenly over the record are held out; adjacent
+    segments of one kind are merged into one range.
+    """
+    k = int(max(4, min(32, n // max(8 * MIN_SEGMENT, 1))))
+    n_val = max(1, int(round(validation_fraction * k)))
+    val_idx = sorted({int(np.floor((i + 0.5) * k / n_val)) % k for i in range(n_val)})
+    edges = [int(round(i * n / k)) for i in range(k + 1)]
+    train, val = [], []
+    for i in range(k):
+        rng = (edges[i], edges[i + 1])
+        target = val if i in val_idx else train
+        if target and target[-1][1] == rng[0]:
+            target[-1] = (target[-1][0], rng[1])
+        else:
+            target.append(rng)
+    return train, val
+
+
+def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
+    """Statistics of horizon ``horizon`` from those of a larger one (windows of the larger one)."""
+    if horizon == stats.horizon:
+        return stats
+    k = 2 * horizon * (stats.n_inputs + stats.n_outputs)
+    return WindowStatistics(
+        stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count
+    )
+
+
+def split_statistics(
+    records: Sequence[tuple[np.ndarray, np.ndarray]], cands: list[int], forgetting: float, validation_fraction: float
+) -> tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]]:
+    """Eq. 9 statistics of the training and of the held-out segments, per candidate horizon.
+
+    One Gram matrix per segment at its largest usable horizon, summed per horizon; smaller
+    horizons use its leading block (exact statistics over a slightly smaller window set).
+    The training windows are weighted by ``forgetting`` (each range as a record of its own).
+    """
+    train: dict[int, WindowStatistics] = {}
+    val: dict[int, WindowStatistics] = {}
+    tops: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
+    for u, y in records:
+        tr, va = held_out_segments(u.shape[0], validation_fraction)
+        for ranges, acc, weight in ((tr, tops[0], forgetting), (va, tops[1], 1.0)):
+            groups: dict[int, list[tuple[int, int]]] = {}
+            for a, b in ranges:
+                usable = [p for p in cands if 2 * p + 1 <= b - a]
+                if usable:
+                    groups.setdefault(usable[-1], []).append((a, b))
+            for ph, rngs in groups.items():
+                if weight == 1.0:
+                    tops_ = [segments_statistics(u, y, rngs, ph)]
+                else:  # forgetting: each range weighted on its own, as a record of its own
+                    tops_ = [record_statistics(u[a:b], y[a:b], [ph], weight, with_spectrum=False)[ph] for a, b in rngs]
+                for top in tops_:
+                    acc[ph] = top if ph not in acc else acc[ph] + top
+    for acc, target in zip(tops, (train, val)):
+        for p in cands:
+            for ph, top in acc.items():
+                if ph >= p:
+                    sp = _leading(top, p)
+                    target[p] = sp if p not in target else target[p] + sp
+    return train, val
+
+
+def pooled_split(
+    train: dict[int, WindowStatistics],
+    val: dict[int, WindowStatistics],
+    horizon: int,
+    records: Sequence[tuple[np.ndarray, np.ndarray]],
+) -> WindowStatistics | None:
+    """The whole records' eq. 9 statistics from the held-out split, when it holds all but < 1 %
+    of their windows (those straddling segment boundaries); None otherwise.
+
+    Saves a second pass over long records; the input spectrum is added (the split has none).
+    """
+    if horizon not in train or horizon not in val:
+        return None
+    full_count = sum(u.shape[0] - 2 * horizon + 1 for u, _ in records)
+    if train[horizon].count + val[horizon].count < 0.99 * full_count:
+        return None
+    power = None
+    for u, _ in records:
+        pw, fq = input_periodogram(u)
+        power = pw if power is None else power + pw
+    s_all = train[horizon] + val[horizon]
+    return WindowStatistics(s_all.W, s_all.n_windows, horizon, s_all.n_inputs, s_all.n_outputs, power, fq, s_all.count)
+
+
+def select_horizon(
+    train: dict[int, WindowStatistics],
+    val: dict[int, WindowStatistics],
+    cands: list[int],
+    estimate: Callable[[WindowStatistics], np.ndarray],
+) -> tuple[int, SelectionTable]:
+    """The candidate horizon with the least held-out prediction error of eq. 9.
+
+    ``estimate`` gives ``theta`` from training statistics (the fit's method and prior).  One
+    set of output weights serves every candidate: the noise of the largest horizon's training
+    residual (see :mod:`.weighting`).
+
+    Raises
+    ------
+    DataError
+        When no candidate has both training and held-out windows.
+    """
+    usable = [p for p in cands if p in train and p in val]
+    thetas = {p: estimate(train[p]) for p in usable}
+    weights = training_weights(thetas[usable[-1]], train[usable[-1]]) if usable else None
+    errors = []
+    for p in cands:
+        if p not in thetas:
+            errors.append(float("inf"))
+            continue
+        errors.append(prediction_error(thetas[p], val[p], weights))
+    if not np.isfinite(np.min(errors)):
+        raise DataError(
+            "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
+        )
+    best = cands[int(np.argmin(errors))]
+    return best, SelectionTable("horizon", tuple(cands), tuple(errors), best)
+
+
+def select_order(
+    post: Posterior,
+    max_order: int,
+    freqs: np.ndarray,
+    dt: float,
+    records: Sequence[tuple[np.ndarray, np.ndarray]],
+    validation_fraction: float,
+    **realize_settings,
+) -> tuple[int, SelectionTable]:
+    """The smallest order within 0.1 % of the least held-out simulation error (noise makes
+    larger ties unreliable), over orders ``1 .. max_order`` realised from the training
+    posterior ``post`` with ``realize_settings`` (at most 8 refinement steps each).
+
+    Raises
+    ------
+    IdentificationError
+        When no candidate order gives a stable model.
+    """
+    cands = list(range(1, max_order + 1))
+    weights = output_weights(post)
+    scored = [held_out_segments(u.shape[0], validation_fraction)[1] for u, _ in records]
+    errors = []
+    for n in cands:
+        try:
+            mdl, _ = realize(post, n, freqs, dt, max_iter=8, **realize_settings)
+        except (IdentificationError, np.linalg.LinAlgError):
+            errors.append(float("inf"))
+            continue
+        errors.append(simulation_error(mdl, records, scored, weights))
+    if not np.isfinite(np.min(errors)):
+        raise IdentificationError("no candidate order gave a stable model; give `order` explicitly.")
+    best_err = float(np.min(errors))
+    chosen = next(n for n, e in zip(cands, errors) if e <= best_err * 1.001 + 1e-15)
+    return chosen, SelectionTable("order", tuple(cands), tuple(errors), chosen)

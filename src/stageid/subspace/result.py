@@ -1,0 +1,219 @@
+"""The frozen result of ``HankelMAP.fit``: model, posterior, diagnostics, uncertainty, update.
+
+``HankelMAPResult.update`` folds new records into the posterior (eq. 17-18) and realises the
+model again; :meth:`~HankelMAPResult.markov_parameters` and
+:meth:`~HankelMAPResult.response_bands` carry the posterior's uncertainty to the Markov
+parameters of eq. 4 and to the frequency response of eq. 9.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .._errors import DataError
+from .._threads import single_blas_thread
+from ..base import Estimator
+from ..checks import is_integer
+from ..data.experiment import Experiment
+from ..models.statespace import StateSpaceModel
+from .hankel_toeplitz import theta_response_std
+from .map_estimator import Posterior
+from .records import as_records, check_freqs, unscaled_posterior
+from .selection import SelectionTable
+from .weighting import output_weights, weight_scales, weighted_theta
+
+__all__ = ["ChannelFit", "HankelMAPResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelFit:
+    """One identified (sub-)model: its posterior, horizon, order, band and selection tables.
+
+    For a direct MIMO fit there is one; for ``per_channel=True`` one per input (eq. 19).
+    """
+
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    scaled_posterior: Posterior
+    horizon: int
+    order: int
+    band: tuple[float, float]
+    model: StateSpaceModel
+    horizon_table: SelectionTable | None
+    order_table: SelectionTable | None
+    fit_cost: float
+    offsets: tuple[np.ndarray, np.ndarray] | None = None
+    scales: tuple[np.ndarray, np.ndarray] | None = None
+
+    @cached_property
+    def posterior(self) -> Posterior:
+        """The posterior in the data's units (``scaled_posterior`` is the one the fit worked
+        with, every channel divided by ``scales = (input scales, output scales)``).  Built on
+        first use: a fit that nobody asks for uncertainty does not pay for rescaling the
+        ``d x d`` information matrix."""
+        if self.scales is None:
+            return self.scaled_posterior
+        return unscaled_posterior(self.scaled_posterior, *self.scales)
+
+
+@dataclass(frozen=True, eq=False)
+class HankelMAPResult:
+    """The frozen result of :meth:`HankelMAP.fit` (no training data are kept).
+
+    Attributes
+    ----------
+    model : StateSpaceModel
+        The identified discrete-time model with the records' channel names.
+    channels : tuple of ChannelFit
+        The sub-fits (one for a direct MIMO fit).  ``posterior`` is in the data's units;
+        ``scaled_posterior`` is the one the fit worked with (every channel divided by
+        ``input_scale`` / ``output_scale``), which :meth:`update` continues.
+    estimator : HankelMAP
+        The configuration that produced this result (used by :meth:`update`).
+    diagnostics : dict
+        ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings`` (texts).
+    input_scale, output_scale : ndarray of shape (n_inputs,) and (n_outputs,)
+        RMS of each (mean-removed) channel of the first fit's records: the fit works on
+        channels scaled to unit RMS so that its result does not depend on the units.
+    """
+
+    model: StateSpaceModel
+    channels: tuple[ChannelFit, ...]
+    estimator: Estimator
+    diagnostics: dict = field(default_factory=dict)
+    input_scale: np.ndarray | None = None
+    output_scale: np.ndarray | None = None
+
+    @property
+    def posterior(self) -> Posterior:
+        """The posterior of the direct fit (the first channel's for per-channel fits)."""
+        return self.channels[0].posterior
+
+    @property
+    def horizon(self) -> int:
+        return self.channels[0].horizon
+
+    # -------------------------------------------------------------- online use
+    @single_blas_thread
+    def update(self, data: Experiment | Sequence[Experiment]) -> HankelMAPResult:
+        """Fold new records into the posterior (eq. 17-18) and return a new result.
+
+        The old information is discounted by ``forgetting^n_new_windows``; the horizon and
+        the order stay those of this result; the model is realised again from the updated
+        posterior.  New records are treated as separate records (no window straddles the
+        boundary between the old and the new data).
+
+        Raises
+        ------
+        DataError
+            When the new records have other channels or another sample time than this result.
+        """
+        return self.estimator._fit(as_records(data, "HankelMAPResult.update"), previous=self)
+
+    # --------------------------------------------------------- uncertainty
+    def markov_parameters(self, n_parameters: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Markov parameters ``Y_0 .. Y_(p-1)`` identified in ``D_p`` (eq. 4, 9) and their std.
+
+        Returns
+        -------
+        mean, std : ndarrays of shape (n_parameters, n_outputs, n_inputs)
+            Posterior mean and standard deviation (``P (x) Sigma``); ``n_parameters`` is at
+            most the horizon.  Per-channel fits are assembled column by column.
+        """
+        outs = []
+        for ch in self.channels:
+            post = ch.posterior
+            p, m, q = post.horizon, post.n_inputs, post.n_outputs
+            if n_parameters is not None and not (is_integer(n_parameters) and n_parameters >= 1):
+                raise DataError(f"`n_parameters` must be a positive integer or None; got {n_parameters!r}.")
+            k = p if n_parameters is None else min(int(n_parameters), p)
+            cols = 2 * p * m + p * q - p * m + np.arange(m)  # u(k) columns of D_p
+            rows = np.arange(k * q)
+            mean = post.theta[np.ix_(rows, cols)].reshape(k, q, m)
+            P = post.covariance * p  # overlap inflation, see response_bands
+            var = np.outer(np.diag(post.noise_cov)[rows], np.diag(P)[cols]).reshape(k, q, m)
+            outs.append((mean, np.sqrt(np.clip(var, 0, None))))
+        if len(outs) == 1:
+            return outs[0]
+        k = min(o[0].shape[0] for o in outs)
+        return (np.concatenate([o[0][:k] for o in outs], axis=2), np.concatenate([o[1][:k] for o in outs], axis=2))
+
+    def response_bands(self, freqs_hz: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Frequency response of the identified Hankel-Toeplitz model and its posterior std.
+
+        This is the response the realisation fits (``theta_frequency_response`` with the
+        outputs weighted by their inverse noise std, see the Notes of :class:`HankelMAP`); the
+        standard deviation propagates ``Cov(vec theta) = P (x) Sigma`` to first order.
+        Consecutive windows of eq. 9 share ``2p - 1`` samples, so their errors are not
+        independent as the recursion of eq. 17 assumes: the posterior covariance is too small
+        by about the overlap, and the bands (like those of :meth:`markov_parameters`) use
+        ``p P`` (an effective sample size of ``n_windows / p``).  They do not include the
+        bias of the realisation step.
+
+        Parameters
+        ----------
+        freqs_hz : array_like of shape (n_freqs,)
+            Frequencies in Hz, finite and within ``[0, 1 / (2 dt)]``.
+
+        Returns
+        -------
+        G, std : ndarrays of shape (n_freqs, n_outputs, n_inputs) (complex and real)
+
+        Raises
+        ------
+        DataError
+            When ``freqs_hz`` is not a 1-D array of finite frequencies up to Nyquist.
+        """
+        f = check_freqs(freqs_hz, self.model.dt)
+        Gs, Ss = [], []
+        for ch in self.channels:
+            post = ch.scaled_posterior
+            p, m, q = post.horizon, post.n_inputs, post.n_outputs
+            # in the noise-whitened outputs the realisation fits (theta_w = W theta diag(c))
+            w = output_weights(post)
+            wp, c = weight_scales(w, p, m)
+            G, S = theta_response_std(
+                weighted_theta(post.theta, w, p, m, q),
+                post.covariance * p * np.outer(c, c),
+                post.noise_cov * np.outer(wp, wp),
+                p,
+                m,
+                q,
+                f,
+                self.model.dt,
+            )
+            G, S = G / w[None, :, None], S / w[None, :, None]
+            if self.input_scale is not None and self.output_scale is not None:
+                su = self.input_scale[[self.model.inputs.index(n) for n in ch.inputs]]
+                unit = self.output_scale[:, None] / su[None, :]
+                G, S = G * unit[None], S * unit[None]
+            Gs.append(G)
+            Ss.append(S)
+        return np.concatenate(Gs, axis=2), np.concatenate(Ss, axis=2)
+
+    def summary(self) -> str:
+        """A short text summary (horizon, order, band, stability, selection tables)."""
+        d = self.diagnostics
+        lines = [
+            f"HankelMAP result: {self.model.n_states} states, inputs {list(self.model.inputs)}, "
+            f"outputs {list(self.model.outputs)}, dt = {self.model.dt:g} s",
+            f"method {self.estimator.method}, realization {self.estimator.realization}, "
+            f"per_channel {self.estimator.per_channel}, forgetting {self.estimator.forgetting}",
+        ]
+        for ch in self.channels:
+            lines.append(
+                f"  inputs {list(ch.inputs)}: horizon {ch.horizon}, order {ch.order}, "
+                f"band {ch.band[0]:.3g}-{ch.band[1]:.3g} Hz, windows {ch.scaled_posterior.n_windows:.0f}"
+            )
+            if ch.horizon_table is not None:
+                lines.append("    " + ch.horizon_table.to_text().replace("\n", "\n    "))
+            if ch.order_table is not None:
+                lines.append("    " + ch.order_table.to_text().replace("\n", "\n    "))
+        lines.append(f"stable: {d.get('stable')}")
+        for w in d.get("warnings", []):
+            lines.append(f"warning: {w}")
+        return "\n".join(lines)
