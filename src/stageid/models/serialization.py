@@ -23,7 +23,6 @@ from __future__ import annotations
 import importlib
 import json
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelFormatError
+from ..atomic import atomic_write_text
 
 __all__ = [
     "LTI_FORMAT",
@@ -218,24 +218,3 @@ def save_model(model: Any, path: str | os.PathLike[str]) -> None:
     """Write a model file atomically (a temporary file renamed into place)."""
     text = dumps(model.to_dict())
     atomic_write_text(path, text)
-
-
-def _default_mode() -> int:
-    """The mode a plain ``open(path, "w")`` would give (mkstemp makes files private)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder, then rename."""
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent if str(p.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.chmod(tmp, _default_mode())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
