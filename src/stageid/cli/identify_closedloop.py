@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, split_names, write_model_output
+from ._common import check_output, check_output_folder, say, split_names, write_model_output
 
 
 def _band(text: str) -> tuple[float, float]:
@@ -180,7 +180,7 @@ def closedloop_command(
                 "not closed by this controller (or the plant is not of this structure: try --structure full)."
             )
     write_model_output(output, result.plant)
-    click.echo(result.summary(), err=True)
+    say(result.summary(), err=True)
     if report_dir is not None:
         _write_report(result, exps, result.controller, report_dir)
 
@@ -240,4 +240,4 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
             f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
         )
     path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
-    click.echo(f"report written to {path}", err=True)
+    say(f"report written to {path}", err=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, read_experiments, split_names, write_model_output
+from ._common import check_output, check_output_folder, read_experiments, say, split_names, write_model_output
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -104,8 +104,6 @@ def statespace_command(
     Several DATA files are several records of the same stage (e.g. one per excited input).
     Writes the model with the data's channel names; prints a summary on stderr.
     """
-    import warnings
-
     from ..subspace.estimator import HankelMAP
 
     # a bad -o or --report is refused before the records are read or any model is fitted
@@ -138,17 +136,9 @@ def statespace_command(
         realization=realization,
         band=band,
     )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = est.fit(exps)
-    write_model_output(output, result.model)
-    seen = set()
-    for w in caught:
-        text = " ".join(str(w.message).split())  # one line per warning, each once
-        if text not in seen:
-            seen.add(text)
-            click.echo(f"stageid: warning: {text}", err=True)
-    click.echo(result.summary(), err=True)
+    result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
+    write_model_output(output, result.model)  # committed with the report, after both succeeded
+    say(result.summary(), err=True)
     if report_dir is not None:
         from .report import write_report
 
@@ -174,4 +164,4 @@ def statespace_command(
                         )
 
         path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra)
-        click.echo(f"report written to {path}", err=True)
+        say(f"report written to {path}", err=True)

@@ -128,10 +128,10 @@ def _make_command(kind: str) -> click.Command:
 
         from ..data.table import TIME_COLUMN
         from ..signals import generate
-        from ._common import check_output, write_table_output
+        from ._common import check_output, split_names, write_table_output
 
         output = check_output(kwargs.pop("output"), "table")
-        names = [s.strip() for s in kwargs.pop("names").split(",")]
+        names = list(split_names(kwargs.pop("names"), "--names") or ())
         if TIME_COLUMN in names:
             raise DataError(f"--name '{TIME_COLUMN}' is reserved for the time column; expected another column name.")
         dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
