@@ -15,9 +15,8 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from stageid import DataError
-from stageid.data import Experiment, Table, read_table, write_csv, write_npz
+from stageid.data import Experiment, Table, files, read_table, write_csv, write_npz
 from stageid.data import csv_format as csvf
-from stageid.data import files
 from stageid.data import io as dio
 
 HYPO = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
