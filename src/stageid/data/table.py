@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError
+from ..checks import shown
 from .experiment import Experiment, check_samples
 
 __all__ = [
@@ -244,7 +245,9 @@ class Table:
         try:
             return self.names.index(name)
         except ValueError:
-            raise DataError(f"unknown column '{name}'; expected one of {', '.join(self.names)}") from None
+            listed = ", ".join(n if len(n) <= 40 else shown(n, 40) for n in self.names[:50])
+            more = f" and {len(self.names) - 50} more" if len(self.names) > 50 else ""
+            raise DataError(f"unknown column {shown(name)}; expected one of {listed}{more}") from None
 
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:

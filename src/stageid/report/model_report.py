@@ -62,9 +62,16 @@ def lti_model_report(
     )
     rows = []
     constant: list[str] = []
+    diverged: list[str] = []
     for k, exp in enumerate(experiments):
         exp = exp.select(inputs=list(model.inputs), outputs=list(model.outputs))
         y_hat = model.simulate(exp.u, dt=exp.dt)
+        if _diverges(y_hat):  # an unstable model: no fit, and no plot of numbers beyond float range
+            diverged.append(exp.name or f"experiment {k}")
+            for name in model.outputs:
+                metrics[f"fit_percent/{exp.name or k}/{name}"] = float("nan")
+                rows.append([exp.name or f"experiment {k}", name, float("nan")])
+            continue
         fit = fit_percent(exp.y, y_hat)
         for name, value in zip(model.outputs, fit):
             metrics[f"fit_percent/{exp.name or k}/{name}"] = float(value)
@@ -91,7 +98,20 @@ def lti_model_report(
             report.paragraph(
                 "n/a: the fit is undefined for an output that does not move in the data (" + "; ".join(constant) + ")."
             )
+        if diverged:
+            report.paragraph(
+                "n/a: the model's simulation diverges on "
+                + "; ".join(diverged)
+                + " (an unstable model): no fit, no plot."
+            )
     return report, metrics
+
+
+def _diverges(y: np.ndarray) -> bool:
+    """True when a simulation left the range samples may have (non-finite or beyond MAX_ABS_SAMPLE)."""
+    from ..data.experiment import MAX_ABS_SAMPLE
+
+    return bool(y.size) and not (np.all(np.isfinite(y)) and float(np.max(np.abs(y))) <= MAX_ABS_SAMPLE)
 
 
 def _damping(p: complex, dt: float | None) -> float:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import SignalError
+from ..resources import require_memory
 
 __all__ = ["time_vector", "crest_factor", "check_limits"]
 
@@ -198,20 +199,36 @@ def check_dt(dt: Any, name: str) -> float:
 
 
 def check_n_samples(n_samples: Any, name: str) -> int:
-    """Return ``n_samples`` if it is an integer >= 2, else raise SignalError."""
-    return check_int(n_samples, "n_samples", name, 2)
+    """Return ``n_samples`` if it is an integer >= 2 that fits in memory, else raise SignalError.
+
+    Raises :class:`~stageid.ResourceError` when the record would not fit in memory.
+    """
+    return require_samples(check_int(n_samples, "n_samples", name, 2), name)
+
+
+#: Bytes per sample a generator may hold at once: the signal, its time axis and the
+#: temporaries of the synthesis (phases, spectra, filter states).
+BYTES_PER_SAMPLE = 128
+
+
+def require_samples(n: int, name: str, n_channels: int = 1) -> int:
+    """``n``, after refusing with :class:`~stageid.ResourceError` a record that would not fit in memory."""
+    require_memory(float(n) * n_channels * BYTES_PER_SAMPLE, f"{name} with {n} samples")
+    return n
 
 
 def n_from_duration(duration: Any, dt: float, name: str) -> int:
     """Number of samples ``round(duration / dt)`` of a record; at least 2."""
     d = check_positive(duration, "duration", name)
-    n = int(round(d / dt))
-    if n < 2:
+    ratio = d / dt
+    if not ratio >= 2:
         raise SignalError(
             f"{name} needs at least 2 samples (duration / dt >= 2); "
-            f"got duration {d:g} s with dt {dt:g} s ({d / dt:.3g} samples)."
+            f"got duration {d:g} s with dt {dt:g} s ({ratio:.3g} samples)."
         )
-    return n
+    if not math.isfinite(ratio):
+        raise SignalError(f"{name} with duration {d:g} s and dt {dt:g} s would have infinitely many samples.")
+    return require_samples(int(round(ratio)), name)
 
 
 def check_nyquist(freq: float, param: str, dt: float, name: str, strict: bool = False) -> None:
