@@ -88,8 +88,10 @@ class _Transaction:
         self.staged.append((tmp, target, folder))
 
     def commit(self) -> None:
-        for _, target, _ in self.staged:  # inputs read after an output was staged are checked too
+        for tmp, target, folder in self.staged:  # inputs read after an output was staged are checked too
             check_not_input(target)
+            for entry in tmp.iterdir() if folder and target.is_dir() else ():
+                check_not_input(target / entry.name)
         for tmp, target, folder in self.staged:
             _move_into_place(tmp, target, folder)
         self.staged = []
