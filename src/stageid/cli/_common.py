@@ -28,6 +28,7 @@ from ..checks import shown
 
 __all__ = [
     "split_names",
+    "parse_band",
     "read_experiments",
     "read_table_checked",
     "say",
@@ -59,6 +60,17 @@ def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
     if repeated:
         raise click.UsageError(f"{option} names {shown(repeated[0])} more than once; expected distinct names.")
     return names
+
+
+def parse_band(text: str, option: str = "--band") -> tuple[float, float]:
+    """``"FMIN:FMAX"`` in Hz -> ``(fmin, fmax)`` by the package's one band rule (:func:`stageid.checks.check_band`)."""
+    from ..checks import check_band
+
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise click.UsageError(f"{option} must be FMIN:FMAX in Hz, e.g. 20:300; got {shown(text)}.") from None
+    return check_band((lo, hi), option, error=click.UsageError)
 
 
 _MESSAGES: list[tuple[str, bool]] = []

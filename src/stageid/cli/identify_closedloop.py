@@ -5,17 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, say, split_names, write_model_output
-
-
-def _band(text: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(x) for x in text.split(":"))
-    except ValueError:
-        raise click.UsageError(f"--band must be FMIN:FMAX in Hz, e.g. 20:300; got {text!r}.") from None
-    if not (0 < lo < hi):
-        raise click.UsageError(f"--band must satisfy 0 < FMIN < FMAX; got {text!r}.")
-    return lo, hi
+from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
 
 
 @click.command(
@@ -113,7 +103,7 @@ def closedloop_command(
         raise click.UsageError(
             f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}."
         )
-    band = _band(band_text)
+    band = parse_band(band_text)
     K = load_model(controller_path)
     if not hasattr(K, "n_inputs") or not hasattr(K, "frequency_response"):
         raise IdentificationError(f"'{controller_path}' is not an LTI controller (stageid.lti/1).")

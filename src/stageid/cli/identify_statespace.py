@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, read_experiments, say, split_names, write_model_output
+from ._common import (
+    check_output,
+    check_output_folder,
+    parse_band,
+    read_experiments,
+    say,
+    split_names,
+    write_model_output,
+)
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -117,15 +125,7 @@ def statespace_command(
     horizon = _int_or_auto(horizon_text, "--horizon")
     if isinstance(horizon, list):
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
-    band = None
-    if band_text is not None:
-        try:
-            lo, hi = (float(x) for x in band_text.split(":"))
-        except ValueError:
-            raise click.UsageError(f"--band must be FMIN:FMAX in Hz, e.g. 1:100; got {band_text!r}.") from None
-        if not 0 <= lo < hi:
-            raise click.UsageError(f"--band must satisfy 0 <= FMIN < FMAX; got {band_text!r}.")
-        band = (lo, hi)
+    band = None if band_text is None else parse_band(band_text)
     exps = read_experiments(data, ins, outs, ts)
     est = HankelMAP(
         horizon=horizon,

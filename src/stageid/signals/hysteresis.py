@@ -33,7 +33,7 @@ from ._common import (
     check_span,
     n_from_duration,
 )
-from .periodic import _triangle_wave
+from .periodic import triangle_wave
 
 __all__ = ["decaying_sine", "decaying_triangle", "forc_staircase", "decay_envelope"]
 
@@ -257,7 +257,7 @@ def decaying_triangle(
     """
     return _decaying(
         "decaying triangle",
-        _triangle_wave,
+        triangle_wave,
         freq,
         n_cycles,
         dt,
