@@ -28,8 +28,7 @@ def lti_model_report(
     of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
     in ``metrics.json``), "n/a" in the table.
     """
-    from ..plots import bode_figure, pzmap_figure, time_overlay_figure
-    from ..validation import fit_percent
+    from ..plots import bode_figure, pzmap_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
@@ -60,6 +59,18 @@ def lti_model_report(
         ],
         caption="Poles (first 40)",
     )
+    _validation_section(report, metrics, model, experiments)
+    return report, metrics
+
+
+def _validation_section(report: Report, metrics: dict[str, Any], model: Any, experiments: Sequence[Any]) -> None:
+    """Simulate the model on each experiment: an overlay figure and the fit % per output.
+
+    A simulation that diverges (an unstable model) gets no fit and no figure, and says so.
+    """
+    from ..plots import time_overlay_figure
+    from ..validation import fit_percent
+
     rows = []
     constant: list[str] = []
     diverged: list[str] = []
@@ -104,7 +115,6 @@ def lti_model_report(
                 + "; ".join(diverged)
                 + " (an unstable model): no fit, no plot."
             )
-    return report, metrics
 
 
 def _diverges(y: np.ndarray) -> bool:
