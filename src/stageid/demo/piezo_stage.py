@@ -89,11 +89,9 @@ def _validate_on_sines(model, metrics: dict[str, Any]) -> tuple[list[list[Any]],
 
 def _add_section(report, metrics, f, true, sweep, result, updated, errors, val_rows, overlays) -> None:
     """The workflow's report section: data and method, error table, Bode, bands, selection, poles, validation."""
-    from ..plots import bode_figure, pzmap_figure, time_overlay_figure
-    from ..plots.subspace import bode_with_bands, selection_plot
+    from ..plots import time_overlay_figure
 
     err_first, err_upd = errors
-    G_true = true.frequency_response(f)
     report.section("1. P-558 3-DOF piezo stage: Hankel-MAP identification (Cao & Chen 2013)")
     report.paragraph(
         "Data: three simulated chirp experiments on the reference stage of eq. 23-25 (Ts = 2 ms, 10 s each, 1-100 Hz): "
@@ -123,6 +121,32 @@ def _add_section(report, metrics, f, true, sweep, result, updated, errors, val_r
         ],
         caption="Frequency-response error of the identified model against the reference (issue target: 2 % diagonal, 1 % couplings).",
     )
+    _add_model_figures(report, metrics, f, true, sweep, updated)
+    exp, y_hat = overlays[0]
+    report.figure(
+        time_overlay_figure(
+            exp.time,
+            exp.y,
+            {"identified model": y_hat},
+            exp.output_names,
+            exp.output_units,
+            title="Validation: 5 Hz sine on Z (Table 7)",
+        ),
+        "Measured (simulated reference with noise) and predicted outputs for a 5 Hz sine on Z, with the error trace.",
+    )
+    report.table(
+        ["validation record", "output", "fit [%]", "error 2-norm"],
+        val_rows,
+        caption="Time-domain validation (the paper's Tables 7-8 use the 2-norm of the error).",
+    )
+
+
+def _add_model_figures(report, metrics, f, true, sweep, updated) -> None:
+    """Bode against the truth, posterior bands, the Z-channel order selection and the poles."""
+    from ..plots import bode_figure, pzmap_figure
+    from ..plots.subspace import bode_with_bands, selection_plot
+
+    G_true = true.frequency_response(f)
     report.figure(
         bode_figure(
             f,
@@ -153,21 +177,4 @@ def _add_section(report, metrics, f, true, sweep, result, updated, errors, val_r
             title="P-558 poles (z-plane)",
         ),
         "Poles of the identified and the reference model in the z-plane (Ts = 2 ms).",
-    )
-    exp, y_hat = overlays[0]
-    report.figure(
-        time_overlay_figure(
-            exp.time,
-            exp.y,
-            {"identified model": y_hat},
-            exp.output_names,
-            exp.output_units,
-            title="Validation: 5 Hz sine on Z (Table 7)",
-        ),
-        "Measured (simulated reference with noise) and predicted outputs for a 5 Hz sine on Z, with the error trace.",
-    )
-    report.table(
-        ["validation record", "output", "fit [%]", "error 2-norm"],
-        val_rows,
-        caption="Time-domain validation (the paper's Tables 7-8 use the 2-norm of the error).",
     )
