@@ -194,7 +194,8 @@ BYTES_PER_SAMPLE = 128
 
 def require_samples(n: int, name: str, n_channels: int = 1) -> int:
     """``n``, after refusing with :class:`~stageid.ResourceError` a record that would not fit in memory."""
-    require_memory(float(n) * n_channels * BYTES_PER_SAMPLE, f"{name} with {n} samples")
+    on = f" on {n_channels} channels" if n_channels > 1 else ""
+    require_memory(float(n) * n_channels * BYTES_PER_SAMPLE, f"{name} with {n} samples{on}")
     return n
 
 
@@ -264,11 +265,17 @@ def check_choice(value: Any, param: str, name: str, choices: tuple[str, ...]) ->
     return checks.check_choice(value, param, name, choices, error=SignalError)
 
 
-def check_n_channels(n_channels: Any, name: str) -> int | None:
-    """``None`` (one channel, 1-D output) or an integer >= 1 (2-D output)."""
+def check_n_channels(n_channels: Any, name: str, n_samples: int = 0) -> int | None:
+    """``None`` (one channel, 1-D output) or an integer >= 1 (2-D output).
+
+    With ``n_samples``, a record of that many samples on all channels must fit in memory
+    (:class:`~stageid.ResourceError` otherwise).
+    """
     if n_channels is None:
         return None
-    return check_int(n_channels, "n_channels", name, 1)
+    n_ch = check_int(n_channels, "n_channels", name, 1)
+    require_samples(n_samples, name, n_ch)
+    return n_ch
 
 
 def scale_to(x: np.ndarray, rms: Any, amplitude: Any, name: str) -> np.ndarray:

@@ -307,9 +307,9 @@ def multisine(
     lines = multisine_lines(n_samples, dt, f_low, f_high, n_periods)
     kind = check_choice(kind, "kind", name, _MULTISINE_KINDS)
     off = check_finite(offset, "offset", name)
-    channels = check_n_channels(n_channels, name)
-    n_ch = 1 if channels is None else channels
     n = int(n_samples)
+    channels = check_n_channels(n_channels, name, n)
+    n_ch = 1 if channels is None else channels
     period = n // int(n_periods)
 
     n_lines = lines.size
