@@ -24,7 +24,6 @@ import click
 
 from .._errors import DataError
 from ..atomic import check_not_input, check_parent, note_input
-from ..checks import shown
 
 __all__ = [
     "split_names",
@@ -53,6 +52,8 @@ def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
     """``"A,B, C"`` -> ``("A", "B", "C")``; ``None`` stays None. Empty or repeated items are an error."""
     if text is None:
         return None
+    from ..checks import shown  # numpy: imported on use, so `stageid --help` starts fast
+
     names = tuple(s.strip() for s in text.split(","))
     if not names or any(not s for s in names):
         raise click.UsageError(f"{option} must be a comma-separated list of column names; got {shown(text)}.")
@@ -64,7 +65,7 @@ def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
 
 def parse_band(text: str, option: str = "--band") -> tuple[float, float]:
     """``"FMIN:FMAX"`` in Hz -> ``(fmin, fmax)`` by the package's one band rule (:func:`stageid.checks.check_band`)."""
-    from ..checks import check_band
+    from ..checks import check_band, shown
 
     try:
         lo, hi = (float(x) for x in text.split(":"))
