@@ -49,7 +49,10 @@ def base(tmp_path_factory):
     save_model(g, d / "g.json")
     u = np.random.default_rng(1).standard_normal(300)
     write_csv(d / "rec.csv", {"u": u, "y": g.simulate(u[:, None])[:, 0]}, dt=DT)
-    save_model(PIModel(r=[0.0, 20.0, 40.0], weights=[0.01, 0.005, 0.002]), d / "h.json")
+    h = PIModel(r=[0.0, 20.0, 40.0], weights=[0.01, 0.005, 0.002])
+    save_model(h, d / "h.json")
+    v = 50.0 * (1 - np.cos(np.linspace(0, 6 * np.pi, 400)))
+    write_csv(d / "hyst.csv", {"V": v, "y": h.simulate(v)[:, 0]}, dt=DT)
     write_csv(d / "ref.csv", {"y": 0.2 * np.sin(np.linspace(0, 6, 100))}, dt=DT)
     return d
 
@@ -345,6 +348,40 @@ def test_identify_statespace_verb_keeps_the_contract(folder, order, horizon, out
     args = ["identify", "statespace", "rec.csv", "--inputs", "u", "--outputs", "y", "--order", order]
     rc = check_contract([*args, "--horizon", horizon, *extra, "-o", out], folder(), [out])
     assert rc == 2 or out not in ("rec.csv",)  # an input is never overwritten
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    st.sampled_from(["pi", "pi", "modified-pi"]),
+    st.sampled_from(["3", "3", "2", "1", "1000", "x"]),
+    st.sampled_from([[], [], ["--creep", "0.1,1"], ["--creep", "-1"], ["--creep", "1e308"], ["--creep", ","]]),
+    st.sampled_from(["hy.json", "hy.json", "hyst.csv", "h.json", "o.csv"]),
+    st.sampled_from([[], [], ["--report", "rep"], ["--initial-state", "ascending"], ["--no-input-warp"]]),
+)
+def test_identify_hysteresis_verb_keeps_the_contract(folder, kind, n_operators, creep, out, extra):
+    args = ["identify", "hysteresis", "hyst.csv", "--input", "V", "--output", "y", "--model", kind]
+    check_contract([*args, "--operators", n_operators, *creep, *extra, "-o", out], folder(), [out])
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    st.sampled_from(["g.json", "h.json", "rec.csv"]),
+    st.sampled_from([["rec.csv"], ["hyst.csv", "--inputs", "V", "--outputs", "y"], [], ["ref.csv"]]),
+    st.sampled_from(["rep", "rep", "existing.csv", "no/rep"]),
+)
+def test_report_verb_keeps_the_contract(folder, model, data, out):
+    d = folder()
+    before = snapshot(d)
+    rc, out_text, err = run_main(["report", model, *data, "--out", out], d)
+    event(f"exit {rc}")
+    assert rc in (0, 2), err
+    if rc == 2:
+        assert len(err.splitlines()) == 1 and out_text == "" and snapshot(d) == before, err
+        assert not (d / "rep").exists()
+    else:
+        assert (d / out / "index.html").is_file() and (d / out / "metrics.json").is_file()
+        assert snapshot(d) == before  # the inputs and other files untouched
+    assert not [p for p in d.iterdir() if p.name.startswith(".")]
 
 
 # ----------------------------------------------------------------------------- hostile files
