@@ -71,8 +71,11 @@ def test_decaying_triangle_values_at_known_times():
         (dict(freq=1.0, n_cycles=5, dt=1e-3, final_fraction=1.0), "must be in (0, 1) so the amplitude decays; got 1"),
         (dict(freq=1.0, n_cycles=5, dt=1e-3, decay="cosine"), "'linear', 'exponential'; got 'cosine'"),
         (dict(freq=600.0, n_cycles=5, dt=1e-3), "Nyquist frequency 1/(2 dt) = 500 Hz; got 600 Hz"),
-        (dict(freq=1.0, n_cycles=5, dt=0.0), "`dt` of decaying sine must be > 0; got 0"),
-        (dict(freq=1.0, n_cycles=5, dt=1e-3, amplitude=-3.0), "`amplitude` of decaying signal must be > 0; got -3"),
+        (dict(freq=1.0, n_cycles=5, dt=0.0), "`dt` of decaying sine must be a number > 0; got 0"),
+        (
+            dict(freq=1.0, n_cycles=5, dt=1e-3, amplitude=-3.0),
+            "`amplitude` of decaying signal must be a number > 0; got -3",
+        ),
     ],
 )
 def test_decaying_parameter_errors(kwargs, fragment):
@@ -167,7 +170,7 @@ def test_forc_triangle_has_straight_ramps():
         ),
         (
             dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1.0, dt=1e-3, idle=-1.0),
-            "`idle` of forc staircase must be >= 0; got -1",
+            "`idle` of forc staircase must be a number >= 0; got -1",
         ),
         (dict(minimum=0.0, maximum=1.0, n_reversals=5, freq=1e4, dt=1e-3), "Nyquist"),
     ],

@@ -42,11 +42,11 @@ def test_triangle_values_at_known_times_and_straight_ramps():
 @pytest.mark.parametrize("func", [sine, triangle])
 def test_periodic_parameter_errors_and_limits(func):
     name = func.__name__
-    with pytest.raises(SignalError, match=re.escape(f"`freq` of {name} must be > 0; got 0")):
+    with pytest.raises(SignalError, match=re.escape(f"`freq` of {name} must be a number > 0; got 0")):
         func(0.0, 1.0, 1e-3)
     with pytest.raises(SignalError, match=re.escape("Nyquist frequency 1/(2 dt) = 500 Hz; got 501 Hz")):
         func(501.0, 1.0, 1e-3)
-    with pytest.raises(SignalError, match=re.escape(f"`duration` of {name} must be > 0; got -2")):
+    with pytest.raises(SignalError, match=re.escape(f"`duration` of {name} must be a number > 0; got -2")):
         func(1.0, -2.0, 1e-3)
     with pytest.raises(SignalError, match=rf"^{name} spans \[-1, 1\] but limits are \[0, 2\]\.$"):
         func(1.0, 1.0, 1e-3, limits=(0.0, 2.0))
@@ -125,7 +125,10 @@ def test_multisine_scaling_determinism_and_channels():
         (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=501.0), "Nyquist frequency 1/(2 dt) = 500 Hz; got 501 Hz"),
         (dict(n_samples=1000, dt=1e-3, f_low=100.0, f_high=100.0), "greater than f_low = 100 Hz; got 100 Hz"),
         (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, rms=1.0, amplitude=2.0), "either `rms` or `amplitude`"),
-        (dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, rms=-1.0), "`rms` of multisine must be > 0; got -1"),
+        (
+            dict(n_samples=1000, dt=1e-3, f_low=1.0, f_high=100.0, rms=-1.0),
+            "`rms` of multisine must be a number > 0; got -1",
+        ),
     ],
 )
 def test_multisine_parameter_errors(kwargs, fragment):

@@ -77,7 +77,10 @@ def test_band_limited_random_multichannel_independent_and_band_limited():
         ),
         (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=5.0), "at least one FFT line"),
         (dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=50.0, rms=1.0, amplitude=1.0), "either `rms` or `amplitude`"),
-        (dict(n_samples=100, dt=-1e-3, f_low=1.0, f_high=50.0), "`dt` of band-limited random signal must be > 0"),
+        (
+            dict(n_samples=100, dt=-1e-3, f_low=1.0, f_high=50.0),
+            "`dt` of band-limited random signal must be a number > 0",
+        ),
         (
             dict(n_samples=100, dt=1e-3, f_low=1.0, f_high=50.0, n_channels=0),
             "`n_channels` of band-limited random signal must be an integer >= 1; got 0",
@@ -170,7 +173,7 @@ def test_random_binary_values_and_seed():
         (dict(n_samples=100, method="random", order=5), "applies to method='mls' only"),
         (dict(n_samples=100, clock_period=0), "`clock_period` of prbs must be an integer >= 1; got 0"),
         (dict(n_samples=100, method="gold"), "'mls', 'random'; got 'gold'"),
-        (dict(n_samples=100, amplitude=0.0), "`amplitude` of prbs must be > 0; got 0"),
+        (dict(n_samples=100, amplitude=0.0), "`amplitude` of prbs must be a number > 0; got 0"),
         (dict(n_samples=1), "`n_samples` of prbs must be an integer >= 2; got 1"),
         (dict(n_samples=100, order=32, n_channels=2), "would generate"),
     ],

@@ -93,7 +93,7 @@ def test_signal_parameters_lists_required_first():
 
 def test_helpers():
     np.testing.assert_array_equal(time_vector(3, 0.1), [0.0, 0.1, 0.2])
-    with pytest.raises(SignalError, match=re.escape("`dt` of time_vector must be > 0; got -1")):
+    with pytest.raises(SignalError, match=re.escape("`dt` of time_vector must be a number > 0; got -1")):
         time_vector(3, -1.0)
     with pytest.raises(SignalError, match=re.escape("`n_samples` of time_vector must be an integer >= 2; got 1")):
         time_vector(1, 0.1)

@@ -97,16 +97,19 @@ def test_chirp_limits_error_names_span_and_limits():
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [
-        (dict(f0=0.0, f1=10.0, duration=1.0, dt=1e-3, method="logarithmic"), "`f0` of a logarithmic chirp must be > 0"),
+        (
+            dict(f0=0.0, f1=10.0, duration=1.0, dt=1e-3, method="logarithmic"),
+            "`f0` of a logarithmic chirp must be > 0 Hz",
+        ),
         (dict(f0=1.0, f1=600.0, duration=1.0, dt=1e-3), "Nyquist frequency 1/(2 dt) = 500 Hz; got 600 Hz"),
         (dict(f0=10.0, f1=5.0, duration=1.0, dt=1e-3), "greater than f0 = 10 Hz; got 5 Hz"),
-        (dict(f0=1.0, f1=5.0, duration=-1.0, dt=1e-3), "`duration` of chirp must be > 0; got -1"),
-        (dict(f0=1.0, f1=5.0, duration=1.0, dt=0.0), "`dt` of chirp must be > 0; got 0"),
+        (dict(f0=1.0, f1=5.0, duration=-1.0, dt=1e-3), "`duration` of chirp must be a number > 0; got -1"),
+        (dict(f0=1.0, f1=5.0, duration=1.0, dt=0.0), "`dt` of chirp must be a number > 0; got 0"),
         (dict(f0=1.0, f1=5.0, duration=1.0, dt=0.8), "at least 2 samples"),
-        (dict(f0=1.0, f1=5.0, duration=1.0, dt=1e-3, amplitude=-1.0), "`amplitude` of chirp must be > 0"),
+        (dict(f0=1.0, f1=5.0, duration=1.0, dt=1e-3, amplitude=-1.0), "`amplitude` of chirp must be a number > 0"),
         (dict(f0=1.0, f1=5.0, duration=1.0, dt=1e-3, method="cubic"), "'linear', 'logarithmic'; got 'cubic'"),
-        (dict(f0=-1.0, f1=5.0, duration=1.0, dt=1e-3), "`f0` of chirp must be >= 0; got -1"),
-        (dict(f0=1.0, f1=float("nan"), duration=1.0, dt=1e-3), "`f1` of chirp must be finite"),
+        (dict(f0=-1.0, f1=5.0, duration=1.0, dt=1e-3), "`f0` of chirp must be a number >= 0; got -1"),
+        (dict(f0=1.0, f1=float("nan"), duration=1.0, dt=1e-3), "`f1` of chirp must be a number >= 0; got nan"),
     ],
 )
 def test_chirp_parameter_errors(kwargs, fragment):

@@ -6,9 +6,8 @@ its heap to the kernel once more than ``M_TRIM_THRESHOLD`` is free there, and se
 above ``M_MMAP_THRESHOLD`` by fresh mappings; both thresholds start at 128 kB and adapt
 upwards only after the process frees a large mapped block (to that block's size, at most
 32 MB, and twice that for the trim threshold: glibc ``malloc.c``, ``__libc_free``).  Until then
-every fit faults the same pages in again, at about 3-4 us per 4 kB page on the
-virtual machines this project is benchmarked on: 5 000-8 000 faults, 20-30 ms, in a 60 ms
-fit of the P-558 benchmark record.
+every fit faults the same pages in again, a large share of a short fit's time (measured in
+``benchmarks/RESULTS-subspace.md``, "Page faults").
 
 :func:`prime_heap` allocates and frees one untouched 16 MB block at the first fit of a
 process, which moves glibc to the state any process that has freed a 16 MB array is in

@@ -40,10 +40,9 @@ _controller: tuple[bool, Any] | None = None
 def _blas_controller() -> Any:
     """A ``threadpoolctl.ThreadpoolController`` over the BLAS libraries loaded now.
 
-    Building one scans the process's shared libraries (1.2 ms here, against 0.02 ms for a
-    limit through a kept controller, which matters for ``HankelMAPResult.update`` on short
-    chunks); it is kept and built again once scipy (whose wheels bring their own OpenBLAS)
-    has been imported since.
+    Building one scans the process's shared libraries, far slower than a limit through a kept
+    controller, which matters for ``HankelMAPResult.update`` on short chunks; it is kept and
+    built again once scipy (whose wheels bring their own OpenBLAS) has been imported since.
     """
     global _controller
     scipy_loaded = "scipy.linalg" in sys.modules

@@ -1,32 +1,37 @@
 """Helpers shared by the ``stageid`` commands: name lists, reading experiments, safe outputs.
 
 Rules every command follows: bad input raises a :class:`~stageid.StageIdError` (or
-``click.UsageError``); ``main`` turns it into one line on stderr and exit code 2. Outputs
-are written through :func:`atomic_output` so a failed command never leaves a file behind.
+``click.UsageError``); ``main`` turns it into one line on stderr and exit code 2.  ``main``
+runs every command in one :func:`stageid.atomic.transaction`: the outputs are written to
+temporaries and moved into place together when the command has succeeded, and what the
+command prints (:func:`say`) is printed after that, so a failed command leaves no file and
+prints only its error.
 
 Output files, one rule for every verb: check ``-o`` with :func:`check_output` *before any
-work* (its extension picks the format, its directory must exist, ``-`` is refused), then
-write with :func:`write_table_output` (tables: ``.csv`` or ``.npz``) or
-:func:`write_model_output` (models: ``.json``).  Report folders: :func:`check_output_folder`.
+work* (its extension picks the format, its directory must exist and is never created, ``-``
+is refused, an input of the command is refused), then write with :func:`write_table_output`
+(tables: ``.csv`` or ``.npz``) or :func:`write_model_output` (models: ``.json``).  Report
+folders: :func:`check_output_folder` (the same rules; the folder itself may be created).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import click
 
 from .._errors import DataError
+from ..atomic import check_not_input, check_parent, note_input
 
 __all__ = [
     "split_names",
+    "parse_band",
     "read_experiments",
     "read_table_checked",
-    "atomic_output",
+    "say",
+    "flush_messages",
     "check_output",
     "check_output_folder",
     "write_table_output",
@@ -44,13 +49,50 @@ MODEL_SUFFIXES = (".json",)
 
 
 def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
-    """``"A,B, C"`` -> ``("A", "B", "C")``; ``None`` stays None. Empty items are an error."""
+    """``"A,B, C"`` -> ``("A", "B", "C")``; ``None`` stays None. Empty or repeated items are an error."""
     if text is None:
         return None
+    from ..checks import shown  # numpy: imported on use, so `stageid --help` starts fast
+
     names = tuple(s.strip() for s in text.split(","))
     if not names or any(not s for s in names):
-        raise click.UsageError(f"{option} must be a comma-separated list of column names; got {text!r}.")
+        raise click.UsageError(f"{option} must be a comma-separated list of column names; got {shown(text)}.")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise click.UsageError(f"{option} names {shown(repeated[0])} more than once; expected distinct names.")
     return names
+
+
+def parse_band(text: str, option: str = "--band") -> tuple[float, float]:
+    """``"FMIN:FMAX"`` in Hz -> ``(fmin, fmax)`` by the package's one band rule (:func:`stageid.checks.check_band`)."""
+    from ..checks import check_band, shown
+
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise click.UsageError(f"{option} must be FMIN:FMAX in Hz, e.g. 20:300; got {shown(text)}.") from None
+    return check_band((lo, hi), option, error=click.UsageError)
+
+
+_MESSAGES: list[tuple[str, bool]] = []
+
+
+def say(text: str, err: bool = False) -> None:
+    """Print ``text`` (stdout, or stderr with ``err``) once the command has succeeded.
+
+    Results and warnings wait for the outputs to be committed, so a command that fails
+    later prints its one error line and nothing else.
+    """
+    _MESSAGES.append((text, err))
+
+
+def flush_messages(print_them: bool = True) -> None:
+    """Print (or drop, after a failure) the messages :func:`say` collected."""
+    messages = list(_MESSAGES)
+    _MESSAGES.clear()
+    if print_them:
+        for text, err in messages:
+            click.echo(text, err=err)
 
 
 # Data loggers often store time stamps in single precision: their steps scatter by ~1e-4 of dt
@@ -80,34 +122,27 @@ def read_experiments(paths: Sequence[str], inputs: Sequence[str], outputs: Seque
     return as_experiments(exps)
 
 
-@contextlib.contextmanager
-def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; rename it into place only if the block succeeds.
-
-    Example: ``with atomic_output(out) as tmp: write_csv(tmp, ...)``. Directories work too
-    (the caller creates files inside the yielded folder).
-    """
-    target = Path(path)
-    _check_parent(target)
-    parent = target.parent if str(target.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix or ".tmp", dir=parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        from ..models.serialization import _default_mode
-
-        if tmp_path.exists():
-            os.chmod(tmp_path, _default_mode())
-        os.replace(tmp_path, target)
-    finally:
-        tmp_path.unlink(missing_ok=True)
+def _command_inputs() -> list[str]:
+    """The files the running command reads: its path arguments and its ``*_path`` options."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return []
+    paths: list[str] = []
+    for param in ctx.command.params:
+        if not isinstance(param.type, click.Path) or not (
+            isinstance(param, click.Argument) or (param.name or "").endswith("_path")
+        ):
+            continue
+        value = ctx.params.get(param.name or "")
+        paths += [str(v) for v in (value if isinstance(value, tuple) else (value,)) if v]
+    return paths
 
 
-def _check_parent(target: Path) -> None:
-    parent = target.parent if str(target.parent) else Path(".")
-    if not parent.is_dir():
-        raise DataError(f"cannot write '{target}': directory '{parent}' does not exist.")
+def _protect_inputs(target: Path) -> None:
+    """Register the command's input files with the output transaction; refuse ``target`` if it is one."""
+    for source in _command_inputs():
+        note_input(source)
+    check_not_input(target)
 
 
 def check_output(path: str | os.PathLike[str], kind: str) -> Path:
@@ -149,9 +184,10 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     if suffix not in allowed:
         shown = f"extension '{suffix}'" if suffix else "no extension"
         raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for a {kind}.")
-    _check_parent(target)
+    check_parent(target)
     if target.is_dir():
         raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")
+    _protect_inputs(target)
     return target
 
 
@@ -165,10 +201,10 @@ def check_output_folder(path: str | os.PathLike[str]) -> Path:
     """
     if str(path) == "-":
         raise DataError("a report folder cannot be '-' (standard output); expected a folder name.")
-    target = Path(path)
-    _check_parent(target)
+    target = check_parent(path)
     if target.exists() and not target.is_dir():
         raise DataError(f"cannot write a report into '{target}': it is a file; expected a folder.")
+    _protect_inputs(target)
     return target
 
 
@@ -190,8 +226,7 @@ def write_model_output(path: str | os.PathLike[str], model) -> Path:
     from ..models.serialization import save_model
 
     target = check_output(path, "model")
-    with atomic_output(target) as tmp:
-        save_model(model, tmp)
+    save_model(model, target)
     return target
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError
+from ._common import say
 
 
 @click.command(
@@ -82,7 +83,7 @@ def _warn_outside_range(model, limits: tuple[float, float] | None, u) -> None:
         tol = 1e-9 * (hi - lo)
         n = int(np.count_nonzero((u <= lo + tol) | (u >= hi - tol)))
         if n:
-            click.echo(
+            say(
                 f"stageid: warning: the reference needs drives outside the model's input_limits "
                 f"[{lo:g}, {hi:g}] {name} (identified range): {n} of {u.size} drive samples clipped there; "
                 f"give --limits to extrapolate.",
@@ -91,7 +92,7 @@ def _warn_outside_range(model, limits: tuple[float, float] | None, u) -> None:
     else:
         n = int(np.count_nonzero((u < lo) | (u > hi)))
         if n:
-            click.echo(
+            say(
                 f"stageid: warning: {n} of {u.size} drive samples lie outside the model's input_limits "
                 f"[{lo:g}, {hi:g}] {name} (identified range); the model is extrapolated there.",
                 err=True,

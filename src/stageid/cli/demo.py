@@ -23,7 +23,7 @@ Examples:
     default="demo-out",
     show_default=True,
     type=click.Path(file_okay=False),
-    help="Folder for index.html, metrics.json and the identified models.",
+    help="Folder for index.html, metrics.json and the identified models (its parent must exist).",
 )
 @click.option(
     "--only",
@@ -37,8 +37,9 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
     from tqdm.auto import tqdm
 
     from ..demo import WORKFLOWS, run_demo
-    from ._common import is_interactive
+    from ._common import check_output_folder, is_interactive, say
 
+    check_output_folder(out_dir)  # one rule for every verb: the parent folder must exist
     workflows = only or WORKFLOWS
     stages = {"piezo_stage": 5, "maglev": 2, "hysteresis": 4}
     bar = tqdm(
@@ -69,10 +70,8 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
         max(len(str(r[k])) for r in result.rows + (("workflow", "metric", "measured", "reference"),)) for k in range(4)
     ]
     header = ("workflow", "metric", "measured", "reference")
-    click.echo("  ".join(h.ljust(w) for h, w in zip(header, width)))
-    click.echo("  ".join("-" * w for w in width))
+    say("  ".join(h.ljust(w) for h, w in zip(header, width)))
+    say("  ".join("-" * w for w in width))
     for row in result.rows:
-        click.echo("  ".join(str(c).ljust(w) for c, w in zip(row, width)))
-    click.echo(
-        f"\nreport: {result.report}   metrics: {result.report.parent / 'metrics.json'}   ({result.seconds:.0f} s)"
-    )
+        say("  ".join(str(c).ljust(w) for c, w in zip(row, width)))
+    say(f"\nreport: {result.report}   metrics: {result.report.parent / 'metrics.json'}   ({result.seconds:.0f} s)")

@@ -5,17 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, split_names, write_model_output
-
-
-def _band(text: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(x) for x in text.split(":"))
-    except ValueError:
-        raise click.UsageError(f"--band must be FMIN:FMAX in Hz, e.g. 20:300; got {text!r}.") from None
-    if not (0 < lo < hi):
-        raise click.UsageError(f"--band must satisfy 0 < FMIN < FMAX; got {text!r}.")
-    return lo, hi
+from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
 
 
 @click.command(
@@ -94,12 +84,8 @@ def closedloop_command(
     the plant deduced as G = T (M - M T)^-1, spurious pole-zero pairs cancelled and every
     entry reduced over the band keeping its unstable poles.
     """
-    import numpy as np
-
     from ..closedloop import ClosedLoopIdentification
-    from ..closedloop.validation import controller_residual
     from ..data import as_experiments
-    from ..models import load_model
     from ._common import read_table_checked
 
     # a bad -o or --report is refused before the records are read or any loop is fitted
@@ -113,76 +99,102 @@ def closedloop_command(
         raise click.UsageError(
             f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}."
         )
-    band = _band(band_text)
-    K = load_model(controller_path)
-    if not hasattr(K, "n_inputs") or not hasattr(K, "frequency_response"):
-        raise IdentificationError(f"'{controller_path}' is not an LTI controller (stageid.lti/1).")
-    p = len(outs)
-    if K.n_inputs != p or K.n_outputs != p:
-        raise IdentificationError(
-            f"the controller must map {p} tracking errors to {p} plant inputs for outputs {','.join(outs)}; "
-            f"'{controller_path}' has {K.n_inputs} inputs and {K.n_outputs} outputs."
-        )
+    band = parse_band(band_text)
+    K = _load_controller(controller_path, outs)
     tables = [read_table_checked(path, ts) for path in experiments]
     exps = as_experiments(
         [t.experiment(inputs=list(refs), outputs=list(outs), name=str(path)) for t, path in zip(tables, experiments)]
     )
-    dt = exps[0].dt
     u_names = split_names(plant_inputs, "--plant-inputs")
     if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
         u_names = tuple(K.outputs)
-    if u_names is not None:
-        if len(u_names) != K.n_outputs:
-            raise click.UsageError(
-                f"--plant-inputs must name {K.n_outputs} columns (the controller's outputs); got {len(u_names)}."
-            )
-        for t, e, path in zip(tables, exps, experiments):
-            for name in u_names:
-                if name not in t.names:
-                    raise DataError(
-                        f"{path}: plant-input column '{name}' is missing; expected one of {', '.join(t.names)}."
-                    )
-            U = np.column_stack([t.column(n) for n in u_names])
-            best = None
-            kinds = ("discrete",) if K.dt is not None else ("tustin", "zoh")
-            for kind in kinds:
-                Kd = (
-                    K
-                    if K.dt is not None
-                    else (K.to_statespace(minimal=False) if hasattr(K, "to_statespace") else K).c2d(dt, kind)
-                )
-                res = controller_residual(Kd, e.u, e.y, U, dt)
-                if best is None or res.max() < best[0].max():
-                    best = (res, kind)
-            assert best is not None
-            if best[0].max() > 0.05:
-                worst = int(np.argmax(best[0]))
-                raise IdentificationError(
-                    f"{path}: the loop was not closed by this controller: plant input '{u_names[worst]}' differs from "
-                    f"M (r - y) by {100 * best[0][worst]:.1f} % (expected < 5 %)."
-                )
-            disc = "tustin" if best[1] == "discrete" else best[1]
-    else:
-        disc = "tustin"
+    disc = "tustin" if u_names is None else _check_loop_closed_by(K, u_names, tables, exps, experiments)
     est = ClosedLoopIdentification(
         K, method=method, structure=structure, band=band, continuous=not discrete, controller_discretization=disc
     )
     result = est.fit(exps)
     if structure == "paper":
-        # without plant-input columns a wrong controller cannot be seen in u; it shows as a deduced
-        # plant that the [0, 2] diagonal cannot follow (G' = G M_true M^-1 carries controller dynamics)
-        diag = np.diag(result.band_error_complex)
-        if diag.max() > 0.05:
-            k = int(np.argmax(diag))
-            raise IdentificationError(
-                f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
-                f"misses [0, 2] by {100 * diag[k]:.1f} % over {band[0]:g}-{band[1]:g} Hz (expected < 5 %); the loop was probably "
-                "not closed by this controller (or the plant is not of this structure: try --structure full)."
-            )
+        _check_paper_structure(result, band)
     write_model_output(output, result.plant)
-    click.echo(result.summary(), err=True)
+    say(result.summary(), err=True)
     if report_dir is not None:
         _write_report(result, exps, result.controller, report_dir)
+
+
+def _load_controller(path: str, outs: tuple[str, ...]):
+    """The controller file: an LTI model mapping one tracking error per output to as many plant inputs."""
+    from ..models import load_model
+
+    K = load_model(path)
+    if not hasattr(K, "n_inputs") or not hasattr(K, "frequency_response"):
+        raise IdentificationError(f"'{path}' is not an LTI controller (stageid.lti/1).")
+    p = len(outs)
+    if K.n_inputs != p or K.n_outputs != p:
+        raise IdentificationError(
+            f"the controller must map {p} tracking errors to {p} plant inputs for outputs {','.join(outs)}; "
+            f"'{path}' has {K.n_inputs} inputs and {K.n_outputs} outputs."
+        )
+    return K
+
+
+def _check_loop_closed_by(K, u_names, tables, exps, paths) -> str:
+    """Check ``u = M (r - y)`` on the plant-input columns of every record; return the discretisation.
+
+    A continuous controller is tried under Tustin and ZOH: the one that explains the recorded
+    plant inputs is how the loop ran, and the estimator must use it too.
+    """
+    import numpy as np
+
+    from ..closedloop.validation import controller_residual
+
+    if len(u_names) != K.n_outputs:
+        raise click.UsageError(
+            f"--plant-inputs must name {K.n_outputs} columns (the controller's outputs); got {len(u_names)}."
+        )
+    dt = exps[0].dt
+    kinds = ("discrete",) if K.dt is not None else ("tustin", "zoh")
+    controllers = {
+        kind: K
+        if K.dt is not None
+        else (K.to_statespace(minimal=False) if hasattr(K, "to_statespace") else K).c2d(dt, kind)
+        for kind in kinds
+    }
+    best_kind = kinds[0]
+    for t, e, path in zip(tables, exps, paths):
+        for name in u_names:
+            if name not in t.names:
+                raise DataError(
+                    f"{path}: plant-input column '{name}' is missing; expected one of {', '.join(t.names)}."
+                )
+        U = np.column_stack([t.column(n) for n in u_names])
+        residuals = {kind: controller_residual(Kd, e.u, e.y, U, dt) for kind, Kd in controllers.items()}
+        best_kind = min(kinds, key=lambda kind: residuals[kind].max())
+        best = residuals[best_kind]
+        if best.max() > 0.05:
+            worst = int(np.argmax(best))
+            raise IdentificationError(
+                f"{path}: the loop was not closed by this controller: plant input '{u_names[worst]}' differs from "
+                f"M (r - y) by {100 * best[worst]:.1f} % (expected < 5 %)."
+            )
+    return "tustin" if best_kind == "discrete" else best_kind
+
+
+def _check_paper_structure(result, band: tuple[float, float]) -> None:
+    """Refuse a deduced plant whose diagonal the paper's [0, 2] structure cannot follow.
+
+    Without plant-input columns a wrong controller cannot be seen in u; it shows as a deduced
+    plant that the [0, 2] diagonal cannot follow (G' = G M_true M^-1 carries controller dynamics).
+    """
+    import numpy as np
+
+    diag = np.diag(result.band_error_complex)
+    if diag.max() > 0.05:
+        k = int(np.argmax(diag))
+        raise IdentificationError(
+            f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
+            f"misses [0, 2] by {100 * diag[k]:.1f} % over {band[0]:g}-{band[1]:g} Hz (expected < 5 %); the loop was probably "
+            "not closed by this controller (or the plant is not of this structure: try --structure full)."
+        )
 
 
 def _write_report(result, exps, controller, report_dir: str) -> None:
@@ -240,4 +252,4 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
             f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
         )
     path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
-    click.echo(f"report written to {path}", err=True)
+    say(f"report written to {path}", err=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, write_model_output
+from ._common import check_output, check_output_folder, say, write_model_output
 
 
 def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | None:
@@ -126,7 +126,7 @@ def identify(
     ).fit(list(exps))
     write_model_output(out, fit.model)
     if not quiet:
-        click.echo(fit.summary())
+        say(fit.summary())
     if report_dir is not None:
         from .report import write_report
 
@@ -145,4 +145,4 @@ def identify(
             for e, off in zip(exps, fit.output_offsets)
         ]
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra)
-        click.echo(f"report written to {path}", err=True)
+        say(f"report written to {path}", err=True)

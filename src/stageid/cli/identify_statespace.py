@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, read_experiments, split_names, write_model_output
+from ._common import (
+    check_output,
+    check_output_folder,
+    parse_band,
+    read_experiments,
+    say,
+    split_names,
+    write_model_output,
+)
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -104,8 +112,6 @@ def statespace_command(
     Several DATA files are several records of the same stage (e.g. one per excited input).
     Writes the model with the data's channel names; prints a summary on stderr.
     """
-    import warnings
-
     from ..subspace.estimator import HankelMAP
 
     # a bad -o or --report is refused before the records are read or any model is fitted
@@ -119,15 +125,7 @@ def statespace_command(
     horizon = _int_or_auto(horizon_text, "--horizon")
     if isinstance(horizon, list):
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
-    band = None
-    if band_text is not None:
-        try:
-            lo, hi = (float(x) for x in band_text.split(":"))
-        except ValueError:
-            raise click.UsageError(f"--band must be FMIN:FMAX in Hz, e.g. 1:100; got {band_text!r}.") from None
-        if not 0 <= lo < hi:
-            raise click.UsageError(f"--band must satisfy 0 <= FMIN < FMAX; got {band_text!r}.")
-        band = (lo, hi)
+    band = None if band_text is None else parse_band(band_text)
     exps = read_experiments(data, ins, outs, ts)
     est = HankelMAP(
         horizon=horizon,
@@ -138,17 +136,9 @@ def statespace_command(
         realization=realization,
         band=band,
     )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = est.fit(exps)
-    write_model_output(output, result.model)
-    seen = set()
-    for w in caught:
-        text = " ".join(str(w.message).split())  # one line per warning, each once
-        if text not in seen:
-            seen.add(text)
-            click.echo(f"stageid: warning: {text}", err=True)
-    click.echo(result.summary(), err=True)
+    result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
+    write_model_output(output, result.model)  # committed with the report, after both succeeded
+    say(result.summary(), err=True)
     if report_dir is not None:
         from .report import write_report
 
@@ -174,4 +164,4 @@ def statespace_command(
                         )
 
         path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra)
-        click.echo(f"report written to {path}", err=True)
+        say(f"report written to {path}", err=True)

@@ -127,6 +127,7 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
             f"{fmax:g} Hz exceeds the Nyquist frequency {0.5 / model.dt:g} Hz of this discrete model.",
             param_hint="--fmax",
         )
+    _require_frequency_work(model, n_points)
     f = np.geomspace(fmin, fmax, n_points) if n_points > 1 else np.array([fmin])
     fr = model.frequency_response(f)
     columns: dict[str, np.ndarray] = {"f_hz": f}
@@ -135,3 +136,20 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
             columns[f"re_{out_name}_{in_name}"] = fr[:, i, j].real
             columns[f"im_{out_name}_{in_name}"] = fr[:, i, j].imag
     write_table_output(output, columns)
+
+
+#: Work limit of one frequency response: a solve per frequency, about n_states**3 operations
+#: plus a fixed Python overhead per frequency; beyond it the command would run for many minutes.
+FREQRESP_WORK_LIMIT = 2e10
+
+
+def _require_frequency_work(model, n_points: int) -> None:
+    """Refuse an ``--n`` whose response would not fit in memory or would run for many minutes."""
+    from ..resources import require_memory, require_work
+
+    n_states = int(getattr(model, "n_states", 0) or 0)  # transfer matrices: polynomial evaluation, cheap
+    pairs = model.n_outputs * model.n_inputs
+    what = f"--n {n_points} frequencies of a {model.n_outputs}x{model.n_inputs} model"
+    # the complex response, its real and imaginary columns, and the table written from them
+    require_memory(n_points * (pairs * 64.0 + 32.0), what)
+    require_work(n_points * (n_states**3 + 2000.0), FREQRESP_WORK_LIMIT, what, "ask for fewer frequencies")

@@ -2,13 +2,16 @@
 
 Every command is a click command in its own module of this package, registered below.
 Bad input of any kind ends with exit code 2 and exactly one line on stderr; ``--debug``
-shows the traceback instead.
+shows the traceback instead.  Every command runs in one output transaction
+(:func:`stageid.atomic.transaction`): its files appear together, after everything that can
+fail, and what it prints appears after them; warnings become one-line messages.
 """
 
 from __future__ import annotations
 
 import importlib
 import sys
+import warnings
 
 import click
 
@@ -40,7 +43,21 @@ _COMMANDS: list[tuple[str, str, str]] = [
 ]
 
 
-@click.group(epilog=EXAMPLES, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class _Interrupted(Exception):
+    """Ctrl-C, carried past click (which would print an empty line and call it "aborted")."""
+
+
+class _RootGroup(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            raise _Interrupted() from exc
+
+
+@click.group(
+    cls=_RootGroup, epilog=EXAMPLES, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100}
+)
 @click.version_option(package_name="stageid")
 @click.option("--debug", is_flag=True, help="Show full tracebacks instead of one-line errors.")
 @click.pass_context
@@ -76,41 +93,77 @@ _register()
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``stageid`` script; returns the exit code."""
+    """Entry point of the ``stageid`` script; returns the exit code.
+
+    Exit codes: 0 success; 2 bad input, settings or resources (one line on stderr, no output
+    written); 130 interrupted; 3 a bug in stageid (one line; ``--debug`` shows the traceback).
+    """
+    from ..atomic import transaction
+    from ._common import flush_messages
+
     args = sys.argv[1:] if argv is None else argv
     debug = "--debug" in args
+    flush_messages(print_them=False)  # nothing left over from an earlier call in this process
     try:
-        cli.main(args=args, prog_name="stageid", standalone_mode=False)
+        with warnings.catch_warnings(), transaction():
+            warnings.showwarning = _warning_as_message
+            warnings.simplefilter("default")
+            warnings.filterwarnings("ignore", category=RuntimeWarning)  # numpy's floating-point notes
+            cli.main(args=args, prog_name="stageid", standalone_mode=False)
     except click.exceptions.Exit as exc:
+        flush_messages()
         return int(exc.exit_code or 0)
-    except click.exceptions.Abort:
-        click.echo("stageid: aborted", err=True)
-        return 130
-    except click.ClickException as exc:
-        click.echo(f"stageid: error: {_one_line(exc.format_message())}", err=True)
-        return 2
-    except StageIdError as exc:
-        if debug:
+    except BaseException as exc:
+        flush_messages(print_them=False)
+        code, text = _failure(exc)
+        if code is None or (debug and code != 130 and not isinstance(exc, click.ClickException)):
             raise
-        click.echo(f"stageid: error: {_one_line(str(exc))}", err=True)
-        return 2
-    except (OSError, MemoryError) as exc:
-        if debug:
-            raise
-        click.echo(f"stageid: error: {_one_line(str(exc) or type(exc).__name__)}", err=True)
-        return 2
-    except KeyboardInterrupt:
-        click.echo("stageid: interrupted", err=True)
-        return 130
-    except Exception as exc:  # a bug: still one line, with a hint how to see more
-        if debug:
-            raise
-        click.echo(
-            f"stageid: internal error: {type(exc).__name__}: {_one_line(str(exc))} (rerun with --debug for details)",
-            err=True,
-        )
-        return 3
+        click.echo(text, err=True)
+        return code
+    flush_messages()
     return 0
+
+
+def _failure(exc: BaseException) -> tuple[int | None, str]:
+    """The exit code and the one stderr line for an exception ending a command (None: re-raise)."""
+    if _interrupted(exc):
+        return 130, "stageid: interrupted"
+    if isinstance(exc, click.exceptions.Abort):
+        return 130, "stageid: aborted"
+    if isinstance(exc, click.ClickException):
+        return 2, f"stageid: error: {_one_line(exc.format_message())}"
+    if isinstance(exc, StageIdError):
+        return 2, f"stageid: error: {_one_line(str(exc))}"
+    if isinstance(exc, (OSError, MemoryError)):
+        return 2, f"stageid: error: {_one_line(str(exc) or type(exc).__name__)}"
+    if isinstance(exc, Exception):  # a bug: still one line, with a hint how to see more
+        return 3, (
+            f"stageid: internal error: {type(exc).__name__}: {_one_line(str(exc))} "
+            "(rerun with --debug for the traceback and report it at the project's issue tracker)"
+        )
+    return None, ""
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """True for Ctrl-C, also when a compiled kernel turned it into a ``SystemError``.
+
+    A KeyboardInterrupt raised while numba code runs surfaces as "SystemError: ... returned a
+    result with an exception set", holding the KeyboardInterrupt as its cause or context.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _warning_as_message(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as one ``stageid: warning: ...`` line, printed after the command succeeded."""
+    from ._common import say
+
+    say(f"stageid: warning: {_one_line(str(message))}", err=True)
 
 
 def _one_line(text: str) -> str:

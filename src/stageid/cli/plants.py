@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import StageIdError
-from ._common import check_output, write_model_output, write_table_output
+from ._common import check_output, say, write_model_output, write_table_output
 
 
 @click.command(
@@ -43,12 +43,15 @@ def plants_command(name: str | None, experiment: str | None, controller: bool, s
     from ..plants import PLANTS, plant_module
 
     if name is None:
+        if experiment is not None or controller or output is not None:
+            given = "--experiment" if experiment is not None else "--controller" if controller else "-o"
+            raise click.UsageError(f"{given} needs a plant NAME (one of {', '.join(PLANTS)}); got none.")
         for plant in PLANTS:
             try:
                 exps = ", ".join(getattr(plant_module(plant), "EXPERIMENTS", {}))
             except ImportError:
                 exps = "(not installed)"
-            click.echo(f"{plant:16s} experiments: {exps}")
+            say(f"{plant:16s} experiments: {exps}")
         return
     if output is None:
         raise click.UsageError("Missing option '-o' / '--output'.")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ._common import check_output_folder, read_experiments, split_names
+from ._common import check_output_folder, read_experiments, say, split_names
 
 
 def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None) -> Path:
@@ -72,7 +72,7 @@ def report_command(
         renamed = [e.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs)) for e in experiments]
         experiments = tuple(renamed)
     path = write_report(model, experiments, out_dir, title)
-    click.echo(f"report written to {path}")
+    say(f"report written to {path}")
 
 
 def _check_count(option: str, given: tuple[str, ...], side: str, model_names: tuple[str, ...]) -> None:

@@ -68,37 +68,32 @@ def _param_help(func: Any) -> dict[str, str]:
     return helps
 
 
-def _make_command(kind: str) -> click.Command:
+def _generator_option(name: str, p: inspect.Parameter, help_text: str | None) -> click.Option:
+    """The option of one generator parameter: required when it has no default."""
+    flag = "--" + name.replace("_", "-")
+    if name == "limits":
+        return click.Option(
+            [flag], type=str, default=None, help="Allowed range LO:HI; exceeding it is an error (never clipped)."
+        )
+    required = p.default is inspect.Parameter.empty
+    default = None if required else p.default
+    return click.Option(
+        [flag, name],
+        type=click.IntRange(min=0) if name == "seed" else _click_type(p),
+        required=required,
+        default=default,
+        show_default=not required and default is not None,
+        help=help_text,
+    )
+
+
+def _options(kind: str) -> list[click.Parameter]:
+    """The generator's parameters as options, then ``--dt`` (if the generator has none), names and ``-o``."""
     from ..signals import SIGNAL_KINDS, signal_parameters
 
     params = signal_parameters(kind)
     helps = _param_help(SIGNAL_KINDS[kind])
-    options: list[click.Parameter] = []
-    for name, p in params.items():
-        flag = "--" + name.replace("_", "-")
-        if name == "limits":
-            options.append(
-                click.Option(
-                    [flag],
-                    type=str,
-                    default=None,
-                    help="Allowed range LO:HI; exceeding it is an error (never clipped).",
-                )
-            )
-            continue
-        required = p.default is inspect.Parameter.empty
-        default = None if required else p.default
-        kind_type = click.IntRange(min=0) if name == "seed" else _click_type(p)
-        options.append(
-            click.Option(
-                [flag, name],
-                type=kind_type,
-                required=required,
-                default=default,
-                show_default=not required and default is not None,
-                help=helps.get(name),
-            )
-        )
+    options: list[click.Parameter] = [_generator_option(name, p, helps.get(name)) for name, p in params.items()]
     if "dt" not in params:
         options.append(
             click.Option(
@@ -122,35 +117,46 @@ def _make_command(kind: str) -> click.Command:
             ["-o", "--output", "output"], required=True, type=click.Path(dir_okay=False), help="Output .csv or .npz."
         )
     )
+    return options
+
+
+def _write_signal(kind: str, kwargs: dict[str, Any]) -> None:
+    """Generate the signal from the parsed options and write it with one column per channel."""
+    import numpy as np
+
+    from ..data.table import TIME_COLUMN
+    from ..signals import generate, signal_parameters
+    from ._common import check_output, split_names, write_table_output
+
+    params = signal_parameters(kind)
+    output = check_output(kwargs.pop("output"), "table")
+    names = list(split_names(kwargs.pop("names"), "--names") or ())
+    if TIME_COLUMN in names:
+        raise DataError(f"--name '{TIME_COLUMN}' is reserved for the time column; expected another column name.")
+    dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
+    if "limits" in kwargs:
+        kwargs["limits"] = _limits(kwargs["limits"])
+    kwargs = {k: v for k, v in kwargs.items() if not (v is None and params[k].default is None)}
+    x = np.asarray(generate(kind, **kwargs))
+    x2 = x[:, None] if x.ndim == 1 else x
+    if len(names) == 1 and x2.shape[1] > 1:
+        names = [f"{names[0]}{i + 1}" for i in range(x2.shape[1])]
+    if len(names) != x2.shape[1]:
+        raise SignalError(f"--names must give {x2.shape[1]} column names; got {len(names)}.")
+    write_table_output(output, {n: x2[:, i] for i, n in enumerate(names)}, dt=dt_for_file)
+
+
+def _make_command(kind: str) -> click.Command:
+    from ..signals import SIGNAL_KINDS
 
     def callback(**kwargs: Any) -> None:
-        import numpy as np
+        _write_signal(kind, kwargs)
 
-        from ..data.table import TIME_COLUMN
-        from ..signals import generate
-        from ._common import check_output, write_table_output
-
-        output = check_output(kwargs.pop("output"), "table")
-        names = [s.strip() for s in kwargs.pop("names").split(",")]
-        if TIME_COLUMN in names:
-            raise DataError(f"--name '{TIME_COLUMN}' is reserved for the time column; expected another column name.")
-        dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
-        if "limits" in kwargs:
-            kwargs["limits"] = _limits(kwargs["limits"])
-        kwargs = {k: v for k, v in kwargs.items() if not (v is None and params[k].default is None)}
-        x = np.asarray(generate(kind, **kwargs))
-        x2 = x[:, None] if x.ndim == 1 else x
-        if len(names) == 1 and x2.shape[1] > 1:
-            names = [f"{names[0]}{i + 1}" for i in range(x2.shape[1])]
-        if len(names) != x2.shape[1]:
-            raise SignalError(f"--names must give {x2.shape[1]} column names; got {len(names)}.")
-        columns = {n: x2[:, i] for i, n in enumerate(names)}
-        write_table_output(output, columns, dt=dt_for_file)
-
-    func = SIGNAL_KINDS[kind]
-    summary = (inspect.getdoc(func) or kind).splitlines()[0]
+    summary = (inspect.getdoc(SIGNAL_KINDS[kind]) or kind).splitlines()[0]
     epilog = f"\b\nExample:\n  {_EXAMPLES[kind]}" if kind in _EXAMPLES else None
-    return click.Command(kind, params=options, callback=callback, help=summary, short_help=summary, epilog=epilog)
+    return click.Command(
+        kind, params=_options(kind), callback=callback, help=summary, short_help=summary, epilog=epilog
+    )
 
 
 class _SignalGroup(click.Group):

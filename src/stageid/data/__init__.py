@@ -19,7 +19,8 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 =====================  ==========================================================
 
 Loaders for the real records in ``../shared/data`` live in :mod:`stageid.data.datasets`;
-the per-format readers are implemented in :mod:`stageid.data.io`.
+the readers and writers are in :mod:`stageid.data.io` (one module per format family:
+:mod:`~stageid.data.csv_format`, :mod:`~stageid.data.npz_format`, :mod:`~stageid.data.mat_format`).
 """
 
 from .experiment import Experiment, as_experiments

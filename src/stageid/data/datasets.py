@@ -24,7 +24,7 @@ import numpy as np
 from .._errors import DataError
 from .experiment import Experiment
 from .io import PathLike
-from .table import Table, _time_axis
+from .table import Table, time_axis
 
 __all__ = [
     "SHARED_DATA",
@@ -155,7 +155,7 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
         except (KeyError, ValueError, IndexError, TypeError):
             nominal = None
     _check_time(t, where)
-    t0, dt = _time_axis(t, where, nominal, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(t, where, nominal, _LOGGER_TIME_RTOL)
     return Experiment(
         u=volt[:, None],
         y=disp[:, None],
@@ -215,7 +215,7 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
     if data.shape[0] == 0:
         raise DataError(f"file '{p.name}' is empty; expected lines of index, time, displacement, voltage.")
     _check_time(data[:, 0], where)
-    t0, dt = _time_axis(data[:, 0], where, None, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(data[:, 0], where, None, _LOGGER_TIME_RTOL)
     return Experiment(
         u=data[:, 2:3],
         y=data[:, 1:2],
@@ -276,7 +276,7 @@ def load_emps(path: PathLike) -> Table:
     for k, col in zip(names, columns):
         if col.size != t.size:
             raise DataError(f"{where}variable '{k}' has {col.size} samples but t has {t.size}; expected one length.")
-    t0, dt = _time_axis(t, where, None, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(t, where, None, _LOGGER_TIME_RTOL)
     return Table(
         names=tuple(names),
         values=np.column_stack(columns),

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["Experiment", "as_experiments"]
+__all__ = ["Experiment", "as_experiments", "check_samples", "MAX_ABS_SAMPLE"]
 
 
 def _as_2d(name: str, values: object) -> np.ndarray:
@@ -27,12 +27,38 @@ def _as_2d(name: str, values: object) -> np.ndarray:
     return arr
 
 
-def _check_finite(kind: str, arr: np.ndarray, names: Sequence[str]) -> None:
-    bad = ~np.isfinite(arr)
+#: Largest sample magnitude accepted: squares and sums of products of samples (the statistics
+#: every estimator forms) must stay inside float64.
+MAX_ABS_SAMPLE = 1e150
+
+
+def check_samples(
+    values: np.ndarray,
+    names: Sequence[str],
+    label: str = "column",
+    where: str = "",
+    rows: str = "",
+    max_abs: float = MAX_ABS_SAMPLE,
+) -> None:
+    """Raise :class:`DataError` for the first NaN, inf or sample beyond ``max_abs`` in magnitude.
+
+    ``label`` names the column kind (``"input column"``), ``where`` prefixes the message (a file
+    name) and ``rows`` follows the row number (``" (data rows counted from 0)"``).  Tables
+    (files) accept any finite float64 (``max_abs=inf``); an :class:`Experiment`, the input of
+    every estimator, holds :data:`MAX_ABS_SAMPLE`.
+    """
+    bad = ~np.isfinite(values)
     if bad.any():
         row, col = (int(i) for i in np.argwhere(bad)[0])
-        value = "NaN" if np.isnan(arr[row, col]) else "inf"
-        raise DataError(f"{kind} column '{names[col]}' has {value} at row {row}; every sample must be finite.")
+        what = "NaN" if np.isnan(values[row, col]) else "inf"
+        raise DataError(f"{where}{label} '{names[col]}' has {what} at row {row}{rows}; every sample must be finite.")
+    huge = np.abs(values) > max_abs
+    if huge.any():
+        row, col = (int(i) for i in np.argwhere(huge)[0])
+        raise DataError(
+            f"{where}{label} '{names[col]}' has {float(values[row, col]):g} at row {row}{rows}; expected magnitudes "
+            f"below {max_abs:g} (products of such samples overflow): rescale the data."
+        )
 
 
 def _default_names(prefix: str, count: int) -> tuple[str, ...]:
@@ -115,8 +141,8 @@ class Experiment:
                 f"units must be given for every channel: expected {u.shape[1]} input and {y.shape[1]} output units; "
                 f"got {len(in_units)} and {len(out_units)}."
             )
-        _check_finite("input", u, in_names)
-        _check_finite("output", y, out_names)
+        check_samples(u, in_names, "input column")
+        check_samples(y, out_names, "output column")
         u.setflags(write=False)
         y.setflags(write=False)
         set_ = object.__setattr__

@@ -1,6 +1,7 @@
 """The :class:`Table`: named float columns on a uniform time grid, as read from a file.
 
-Shared conventions (used by every reader in :mod:`stageid.data.io`):
+Shared conventions (used by every reader in :mod:`stageid.data.io`), and the helpers the
+readers share to keep them (:func:`assemble_table`, :func:`time_axis`, ...):
 
 * **Rows are data rows counted from 0**: row 0 is the first sample.
 * The column named ``t`` (seconds) is the time axis, not a data column: it must be strictly
@@ -16,9 +17,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError
-from .experiment import Experiment
+from ..checks import shown
+from .experiment import Experiment, check_samples
 
-__all__ = ["Table"]
+__all__ = [
+    "Table",
+    "TIME_COLUMN",
+    "DEFAULT_TIME_RTOL",
+    "file_prefix",
+    "positive_seconds",
+    "check_unique_names",
+    "check_finite",
+    "time_axis",
+    "assemble_table",
+    "stack_columns",
+]
 
 TIME_COLUMN = "t"
 DEFAULT_TIME_RTOL = 1e-6
@@ -70,7 +83,7 @@ class Table:
     source: str = ""
 
     def __post_init__(self) -> None:
-        where = _where(str(self.source))
+        where = file_prefix(str(self.source))
         names = tuple(self.names) if not isinstance(self.names, str) else (self.names,)
         for i, n in enumerate(names):
             if not isinstance(n, str) or not n or n != n.strip() or "\n" in n or "\r" in n:
@@ -79,7 +92,7 @@ class Table:
                 )
         if not names:
             raise DataError(f"{where}a table needs at least one named column; got none.")
-        _check_unique(names, where)
+        check_unique_names(names, where)
         if TIME_COLUMN in names:
             raise DataError(
                 f"{where}the column name '{TIME_COLUMN}' is reserved for the time axis; pass dt and t0 instead."
@@ -96,10 +109,10 @@ class Table:
             )
         if values.shape[0] == 0:
             raise DataError(f"{where}the table has no data rows; expected at least one sample.")
-        _check_finite(values, names, where)
+        check_finite(values, names, where)
         dt = self.dt
         if dt is not None:
-            dt = _positive_seconds("dt", dt, where)
+            dt = positive_seconds("dt", dt, where)
         try:
             t0 = float(self.t0)
         except (TypeError, ValueError):
@@ -232,12 +245,14 @@ class Table:
         try:
             return self.names.index(name)
         except ValueError:
-            raise DataError(f"unknown column '{name}'; expected one of {', '.join(self.names)}") from None
+            listed = ", ".join(n if len(n) <= 40 else shown(n, 40) for n in self.names[:50])
+            more = f" and {len(self.names) - 50} more" if len(self.names) > 50 else ""
+            raise DataError(f"unknown column {shown(name)}; expected one of {listed}{more}") from None
 
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:
             raise DataError(
-                f"{_where(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading)."
+                f"{file_prefix(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading)."
             )
         return self.dt
 
@@ -247,11 +262,14 @@ class Table:
 
 
 # ====================================================================== helpers
-def _where(source: str) -> str:
+# Shared by the readers and writers of stageid.data (csv_format, npz_format, mat_format, datasets).
+def file_prefix(source: str) -> str:
+    """``"file 'x.csv': "`` for messages about a table read from ``source``; ``""`` without one."""
     return f"file '{source}': " if source else ""
 
 
-def _positive_seconds(label: str, value: object, where: str = "") -> float:
+def positive_seconds(label: str, value: object, where: str = "") -> float:
+    """``value`` as a positive finite float (a sample time), else :class:`DataError` naming ``label``."""
     try:
         out = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
@@ -261,7 +279,8 @@ def _positive_seconds(label: str, value: object, where: str = "") -> float:
     return out
 
 
-def _check_unique(names: Sequence[str], where: str) -> None:
+def check_unique_names(names: Sequence[str], where: str) -> None:
+    """Raise :class:`DataError` for the first name that occurs twice."""
     first: dict[str, int] = {}
     for i, n in enumerate(names):
         if n in first:
@@ -269,17 +288,12 @@ def _check_unique(names: Sequence[str], where: str) -> None:
         first[n] = i
 
 
-def _check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row, col = (int(i) for i in np.argwhere(bad)[0])
-        what = "NaN" if np.isnan(values[row, col]) else "inf"
-        raise DataError(
-            f"{where}column '{names[col]}' has {what} at row {row} (data rows counted from 0); every sample must be finite."
-        )
+def check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
+    """Raise :class:`DataError` naming the first NaN or inf of a table."""
+    check_samples(values, names, "column", where, " (data rows counted from 0)", max_abs=math.inf)
 
 
-def _time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
+def time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
     """Check a time column (finite already) and return ``(t0, dt)``."""
     n = t.shape[0]
     if n < 2:
@@ -329,7 +343,7 @@ def _stamp_rounding(t: np.ndarray) -> float:
     return 4.0 * float(np.finfo(float).eps) * float(np.max(np.abs(t)))
 
 
-def _assemble(
+def assemble_table(
     source: str,
     names: Sequence[str],
     values: np.ndarray,
@@ -338,18 +352,18 @@ def _assemble(
     time_rtol: float,
 ) -> Table:
     """Validate columns (names, finiteness, time axis) and build the Table."""
-    where = _where(source)
-    _check_unique(names, where)
+    where = file_prefix(source)
+    check_unique_names(names, where)
     if values.shape[0] == 0:
         raise DataError(f"{where}no data rows; expected at least one sample.")
-    _check_finite(values, names, where)
+    check_finite(values, names, where)
     names = list(names)
     units = list(units)
     if TIME_COLUMN in names:
         i = names.index(TIME_COLUMN)
         if units[i] not in ("", "s"):
             raise DataError(f"{where}the time column '{TIME_COLUMN}' must be in seconds; got unit '{units[i]}'.")
-        t0, dt = _time_axis(values[:, i], where, ts, time_rtol)
+        t0, dt = time_axis(values[:, i], where, ts, time_rtol)
         keep = [j for j in range(len(names)) if j != i]
         values = values[:, keep]
         names = [names[j] for j in keep]
@@ -363,7 +377,8 @@ def _assemble(
     return Table(names=tuple(names), values=values, dt=dt, t0=t0, units=tuple(units), source=source)
 
 
-def _stack_equal_length(names: Sequence[str], columns: Sequence[np.ndarray], where: str) -> np.ndarray:
+def stack_columns(names: Sequence[str], columns: Sequence[np.ndarray], where: str) -> np.ndarray:
+    """Columns of one length as an (n_samples, n_columns) array, else :class:`DataError`."""
     n0 = columns[0].shape[0]
     for name, col in zip(names, columns):
         if col.shape[0] != n0:

@@ -32,13 +32,17 @@ class DemoResult:
 def run_demo(
     out_dir: str | Path, step: Callable[[str], None] | None = None, workflows: tuple[str, ...] = WORKFLOWS
 ) -> DemoResult:
-    """Run the workflows and write the report; ``step`` is called with a description before each stage."""
+    """Run the workflows and write the report; ``step`` is called with a description before each stage.
+
+    Everything is written into a temporary folder next to ``out_dir`` and moved into place at
+    the end (:func:`stageid.atomic.staged_folder`), so an error or an interrupt leaves no
+    partial models behind.  The parent of ``out_dir`` must exist.
+    """
     import importlib
 
+    from ..atomic import staged_folder
     from ..report import Report, write_metrics
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     step = step or (lambda text: None)
     report = Report("stageid demo: identification of precision positioning stages")
     report.paragraph(
@@ -50,15 +54,16 @@ def run_demo(
     metrics: dict[str, Any] = {}
     rows: list[list[Any]] = []
     t0 = time.perf_counter()
-    for name in workflows:
-        module = importlib.import_module(f"{__name__}.{name}")
-        t1 = time.perf_counter()
-        rows += module.run(report, metrics, out, step)
-        metrics[f"seconds/{name}"] = round(time.perf_counter() - t1, 2)
-    seconds = time.perf_counter() - t0
-    report.section("Summary")
-    report.table(["workflow", "metric", "measured", "reference"], rows, caption=f"Run time {seconds:.0f} s.")
-    metrics["seconds/total"] = round(seconds, 2)
-    path = report.write(out)
-    write_metrics(out, metrics)
-    return DemoResult(tuple(tuple(r) for r in rows), metrics, path, seconds)
+    with staged_folder(out_dir) as tmp:
+        for name in workflows:
+            module = importlib.import_module(f"{__name__}.{name}")
+            t1 = time.perf_counter()
+            rows += module.run(report, metrics, tmp, step)
+            metrics[f"seconds/{name}"] = round(time.perf_counter() - t1, 2)
+        seconds = time.perf_counter() - t0
+        report.section("Summary")
+        report.table(["workflow", "metric", "measured", "reference"], rows, caption=f"Run time {seconds:.0f} s.")
+        metrics["seconds/total"] = round(seconds, 2)
+        report.write(tmp)
+        write_metrics(tmp, metrics)
+    return DemoResult(tuple(tuple(r) for r in rows), metrics, Path(out_dir) / "index.html", seconds)

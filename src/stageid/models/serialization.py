@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import importlib
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from .._errors import ModelError, ModelFormatError
+from ..atomic import atomic_write_text
 from ..checks import shown
 from ..resources import require_memory
 from .json_text import LTI_FORMAT, dumps, parse
@@ -155,24 +155,3 @@ def save_model(model: Any, path: str | os.PathLike[str]) -> None:
     """Write a model file atomically (a temporary file renamed into place)."""
     text = dumps(model.to_dict())
     atomic_write_text(path, text)
-
-
-def _default_mode() -> int:
-    """The mode a plain ``open(path, "w")`` would give (mkstemp makes files private)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder, then rename."""
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent if str(p.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.chmod(tmp, _default_mode())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

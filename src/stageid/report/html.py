@@ -8,12 +8,12 @@ import io
 import json
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from ..atomic import atomic_write_text, check_parent, staged_folder
 
 __all__ = ["Report", "write_metrics", "write_report_folder"]
 
@@ -124,14 +124,9 @@ class Report:
         return "\n".join(out)
 
     def write(self, folder: str | os.PathLike[str], name: str = "index.html") -> Path:
-        """Write the report into ``folder`` (created if needed) atomically; returns the file path."""
-        from ..models.serialization import atomic_write_text
-
-        path = Path(folder)
-        path.mkdir(parents=True, exist_ok=True)
-        target = path / name
-        atomic_write_text(target, self.to_html())
-        return target
+        """Write the report into ``folder`` (created if needed; its parent must exist) atomically; returns the file path."""
+        check_parent(folder).mkdir(exist_ok=True)
+        return atomic_write_text(Path(folder) / name, self.to_html())
 
 
 def _cell(value: Any) -> str:
@@ -164,21 +159,17 @@ def write_metrics(folder: str | os.PathLike[str], metrics: dict[str, Any], name:
     Undefined values (NaN, +-inf, e.g. the fit % of a constant channel) are written as
     ``null``: strict JSON has no NaN.
     """
-    from ..models.serialization import atomic_write_text
-
-    path = Path(folder)
-    path.mkdir(parents=True, exist_ok=True)
-    target = path / name
-    atomic_write_text(target, metrics_json(metrics))
-    return target
+    check_parent(folder).mkdir(exist_ok=True)
+    return atomic_write_text(Path(folder) / name, metrics_json(metrics))
 
 
 def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics: dict[str, Any] | None = None) -> Path:
     """Write ``index.html`` (and ``metrics.json``) into ``folder`` all at once; returns the HTML path.
 
     Both files are rendered in memory, written into a temporary folder next to ``folder``
-    and then moved into place (the folder is renamed when it does not exist yet), so a
-    failure leaves neither a new folder nor half a report behind.
+    and then moved into place (:func:`stageid.atomic.staged_folder`: the folder is renamed
+    when it does not exist yet), so a failure leaves neither a new folder nor half a report
+    behind.
 
     Parameters
     ----------
@@ -208,31 +199,10 @@ def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics:
     >>> open(os.path.join(out, "metrics.json")).read()
     '{\\n  "fit": null\\n}\\n'
     """
-    from .._errors import DataError
-    from ..models.serialization import _default_mode
-
-    target = Path(folder)
-    parent = target.parent if str(target.parent) else Path(".")
-    if not parent.is_dir():
-        raise DataError(f"cannot write report '{target}': directory '{parent}' does not exist.")
-    if target.exists() and not target.is_dir():
-        raise DataError(f"cannot write report into '{target}': it is a file; expected a folder.")
     files = {"index.html": report.to_html()}
     if metrics is not None:
         files["metrics.json"] = metrics_json(metrics)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent))
-    try:
+    with staged_folder(folder) as tmp:
         for name, text in files.items():
-            (tmp / name).write_text(text, encoding="utf-8")
-            os.chmod(tmp / name, _default_mode())
-        if not target.exists():
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes the folder private
-            os.replace(tmp, target)
-        else:
-            for name in files:
-                os.replace(tmp / name, target / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return target / "index.html"
+            atomic_write_text(tmp / name, text)
+    return Path(folder) / "index.html"

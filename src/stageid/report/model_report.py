@@ -28,8 +28,7 @@ def lti_model_report(
     of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
     in ``metrics.json``), "n/a" in the table.
     """
-    from ..plots import bode_figure, pzmap_figure, time_overlay_figure
-    from ..validation import fit_percent
+    from ..plots import bode_figure, pzmap_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
@@ -60,11 +59,30 @@ def lti_model_report(
         ],
         caption="Poles (first 40)",
     )
+    _validation_section(report, metrics, model, experiments)
+    return report, metrics
+
+
+def _validation_section(report: Report, metrics: dict[str, Any], model: Any, experiments: Sequence[Any]) -> None:
+    """Simulate the model on each experiment: an overlay figure and the fit % per output.
+
+    A simulation that diverges (an unstable model) gets no fit and no figure, and says so.
+    """
+    from ..plots import time_overlay_figure
+    from ..validation import fit_percent
+
     rows = []
     constant: list[str] = []
+    diverged: list[str] = []
     for k, exp in enumerate(experiments):
         exp = exp.select(inputs=list(model.inputs), outputs=list(model.outputs))
         y_hat = model.simulate(exp.u, dt=exp.dt)
+        if _diverges(y_hat):  # an unstable model: no fit, and no plot of numbers beyond float range
+            diverged.append(exp.name or f"experiment {k}")
+            for name in model.outputs:
+                metrics[f"fit_percent/{exp.name or k}/{name}"] = float("nan")
+                rows.append([exp.name or f"experiment {k}", name, float("nan")])
+            continue
         fit = fit_percent(exp.y, y_hat)
         for name, value in zip(model.outputs, fit):
             metrics[f"fit_percent/{exp.name or k}/{name}"] = float(value)
@@ -91,7 +109,17 @@ def lti_model_report(
             report.paragraph(
                 "n/a: the fit is undefined for an output that does not move in the data (" + "; ".join(constant) + ")."
             )
-    return report, metrics
+        if diverged:
+            report.paragraph(
+                "n/a: the model's simulation diverges on "
+                + "; ".join(diverged)
+                + " (an unstable model): no fit, no plot."
+            )
+
+
+def _diverges(y: np.ndarray) -> bool:
+    """True when a simulation did not stay finite (an unstable model): nothing to fit or plot."""
+    return not np.all(np.isfinite(y))
 
 
 def _damping(p: complex, dt: float | None) -> float:

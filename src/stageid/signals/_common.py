@@ -12,12 +12,13 @@ periodic record, which is what FFT-based analysis wants.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Any
 
 import numpy as np
 
+from .. import checks
 from .._errors import SignalError
+from ..resources import require_memory
 
 __all__ = ["time_vector", "crest_factor", "check_limits"]
 
@@ -148,48 +149,29 @@ def _parse_limits(limits: Any, name: str) -> tuple[float, float]:
 
 
 # --------------------------------------------------------------------------------------
-# Parameter checks (private; each raises SignalError naming expected vs got)
+# Parameter checks: the package's one rule per kind of setting (stageid.checks), raising
+# SignalError so callers of the generators keep catching one type.
 # --------------------------------------------------------------------------------------
-
-
-def _real(value: Any, param: str, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise SignalError(f"`{param}` of {name} must be a real number; got {value!r}.")
-    v = float(value)
-    if not math.isfinite(v):
-        raise SignalError(f"`{param}` of {name} must be finite; got {v!r}.")
-    return v
 
 
 def check_positive(value: Any, param: str, name: str) -> float:
     """Return ``value`` as float if it is finite and > 0, else raise SignalError."""
-    v = _real(value, param, name)
-    if v <= 0:
-        raise SignalError(f"`{param}` of {name} must be > 0; got {v:g}.")
-    return v
+    return checks.check_real(value, param, name, low=0.0, closed="right", error=SignalError)
 
 
 def check_nonnegative(value: Any, param: str, name: str) -> float:
     """Return ``value`` as float if it is finite and >= 0, else raise SignalError."""
-    v = _real(value, param, name)
-    if v < 0:
-        raise SignalError(f"`{param}` of {name} must be >= 0; got {v:g}.")
-    return v
+    return checks.check_real(value, param, name, low=0.0, error=SignalError)
 
 
 def check_finite(value: Any, param: str, name: str) -> float:
     """Return ``value`` as float if it is a finite real number, else raise SignalError."""
-    return _real(value, param, name)
+    return checks.check_real(value, param, name, error=SignalError)
 
 
 def check_int(value: Any, param: str, name: str, minimum: int) -> int:
     """Return ``value`` as int if it is an integer >= ``minimum``, else raise SignalError."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise SignalError(f"`{param}` of {name} must be an integer >= {minimum}; got {value!r}.")
-    v = int(value)
-    if v < minimum:
-        raise SignalError(f"`{param}` of {name} must be an integer >= {minimum}; got {v}.")
-    return v
+    return checks.check_integer(value, param, name, low=minimum, error=SignalError)
 
 
 def check_dt(dt: Any, name: str) -> float:
@@ -198,20 +180,37 @@ def check_dt(dt: Any, name: str) -> float:
 
 
 def check_n_samples(n_samples: Any, name: str) -> int:
-    """Return ``n_samples`` if it is an integer >= 2, else raise SignalError."""
-    return check_int(n_samples, "n_samples", name, 2)
+    """Return ``n_samples`` if it is an integer >= 2 that fits in memory, else raise SignalError.
+
+    Raises :class:`~stageid.ResourceError` when the record would not fit in memory.
+    """
+    return require_samples(check_int(n_samples, "n_samples", name, 2), name)
+
+
+#: Bytes per sample a generator may hold at once: the signal, its time axis and the
+#: temporaries of the synthesis (phases, spectra, filter states).
+BYTES_PER_SAMPLE = 128
+
+
+def require_samples(n: int, name: str, n_channels: int = 1) -> int:
+    """``n``, after refusing with :class:`~stageid.ResourceError` a record that would not fit in memory."""
+    on = f" on {n_channels} channels" if n_channels > 1 else ""
+    require_memory(float(n) * n_channels * BYTES_PER_SAMPLE, f"{name} with {n} samples{on}")
+    return n
 
 
 def n_from_duration(duration: Any, dt: float, name: str) -> int:
     """Number of samples ``round(duration / dt)`` of a record; at least 2."""
     d = check_positive(duration, "duration", name)
-    n = int(round(d / dt))
-    if n < 2:
+    ratio = d / dt
+    if not ratio >= 2:
         raise SignalError(
             f"{name} needs at least 2 samples (duration / dt >= 2); "
-            f"got duration {d:g} s with dt {dt:g} s ({d / dt:.3g} samples)."
+            f"got duration {d:g} s with dt {dt:g} s ({ratio:.3g} samples)."
         )
-    return n
+    if not math.isfinite(ratio):
+        raise SignalError(f"{name} with duration {d:g} s and dt {dt:g} s would have infinitely many samples.")
+    return require_samples(int(round(ratio)), name)
 
 
 def check_nyquist(freq: float, param: str, dt: float, name: str, strict: bool = False) -> None:
@@ -235,11 +234,7 @@ def check_nyquist(freq: float, param: str, dt: float, name: str, strict: bool = 
 
 def check_seed(seed: Any, name: str) -> Any:
     """``None``, a ``numpy.random.Generator`` or an integer >= 0, else raise SignalError."""
-    if seed is None or isinstance(seed, np.random.Generator):
-        return seed
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise SignalError(f"`seed` of {name} must be an integer >= 0 or a numpy Generator; got {seed!r}.")
-    return int(seed)
+    return checks.check_seed(seed, "seed", name, error=SignalError)
 
 
 _FLOAT_MAX = float(np.finfo(float).max)
@@ -267,17 +262,20 @@ def add_offset(x: np.ndarray, offset: float, name: str) -> np.ndarray:
 
 def check_choice(value: Any, param: str, name: str, choices: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``choices``, else raise SignalError listing them."""
-    if not isinstance(value, str) or value not in choices:
-        listed = ", ".join(repr(c) for c in choices)
-        raise SignalError(f"`{param}` of {name} must be one of {listed}; got {value!r}.")
-    return value
+    return checks.check_choice(value, param, name, choices, error=SignalError)
 
 
-def check_n_channels(n_channels: Any, name: str) -> int | None:
-    """``None`` (one channel, 1-D output) or an integer >= 1 (2-D output)."""
+def check_n_channels(n_channels: Any, name: str, n_samples: int = 0) -> int | None:
+    """``None`` (one channel, 1-D output) or an integer >= 1 (2-D output).
+
+    With ``n_samples``, a record of that many samples on all channels must fit in memory
+    (:class:`~stageid.ResourceError` otherwise).
+    """
     if n_channels is None:
         return None
-    return check_int(n_channels, "n_channels", name, 1)
+    n_ch = check_int(n_channels, "n_channels", name, 1)
+    require_samples(n_samples, name, n_ch)
+    return n_ch
 
 
 def scale_to(x: np.ndarray, rms: Any, amplitude: Any, name: str) -> np.ndarray:

@@ -31,8 +31,9 @@ from ._common import (
     check_nyquist,
     check_positive,
     check_span,
+    n_from_duration,
 )
-from .periodic import _triangle_wave
+from .periodic import triangle_wave
 
 __all__ = ["decaying_sine", "decaying_triangle", "forc_staircase", "decay_envelope"]
 
@@ -122,7 +123,7 @@ def _decaying(
     env = decay_envelope(n_cycles, amplitude, decay, final_fraction)
     check_span(off, float(env[0]), name)
     n_c = env.size
-    n = int(round(n_c / (f * step)))
+    n = n_from_duration(n_c / f, step, name)
     cycles = np.arange(n, dtype=float) * step * f
     # a sample a rounding error below a cycle boundary belongs to the next cycle; the
     # wave is zero there, so either choice keeps the signal continuous
@@ -256,7 +257,7 @@ def decaying_triangle(
     """
     return _decaying(
         "decaying triangle",
-        _triangle_wave,
+        triangle_wave,
         freq,
         n_cycles,
         dt,
@@ -338,7 +339,7 @@ def forc_staircase(
     shape = check_choice(shape, "shape", name, _FORC_SHAPES)
     wait = check_nonnegative(idle, "idle", name)
 
-    n = int(round((wait + n_r / f) / step))
+    n = n_from_duration(wait + n_r / f, step, name)
     n_idle = int(round(wait / step))
     cycles = (np.arange(n, dtype=float) * step - n_idle * step) * f
     index = np.clip(np.floor(cycles + 1e-9).astype(int), 0, n_r - 1)

@@ -33,8 +33,11 @@ __all__ = ["sine", "triangle", "multisine", "multisine_lines"]
 _MULTISINE_KINDS = ("random-phase", "schroeder")
 
 
-def _triangle_wave(cycles: np.ndarray) -> np.ndarray:
-    """Unit triangle in phase with ``sin(2 pi cycles)``: 0 at 0, +1 at 1/4, -1 at 3/4."""
+def triangle_wave(cycles: np.ndarray) -> np.ndarray:
+    """Unit triangle in phase with ``sin(2 pi cycles)``: 0 at 0, +1 at 1/4, -1 at 3/4.
+
+    Shared with the hysteresis drives (:mod:`stageid.signals.hysteresis`).
+    """
     u = np.mod(cycles + 0.25, 1.0)
     return 1.0 - 4.0 * np.abs(u - 0.5)
 
@@ -163,7 +166,7 @@ def triangle(
     step, n, f, amp, off = _check_periodic(name, freq, duration, dt, amplitude, offset)
     ph = check_finite(phase, "phase", name)
     cycles = np.arange(n, dtype=float) * step * f + ph / (2.0 * np.pi)
-    x = off + amp * _triangle_wave(cycles)
+    x = off + amp * triangle_wave(cycles)
     check_limits(x, limits, name)
     return x
 
@@ -304,9 +307,9 @@ def multisine(
     lines = multisine_lines(n_samples, dt, f_low, f_high, n_periods)
     kind = check_choice(kind, "kind", name, _MULTISINE_KINDS)
     off = check_finite(offset, "offset", name)
-    channels = check_n_channels(n_channels, name)
-    n_ch = 1 if channels is None else channels
     n = int(n_samples)
+    channels = check_n_channels(n_channels, name, n)
+    n_ch = 1 if channels is None else channels
     period = n // int(n_periods)
 
     n_lines = lines.size

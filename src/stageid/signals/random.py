@@ -6,6 +6,8 @@ the same signal comes back; they draw from ``np.random.default_rng(seed)`` only.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .._errors import SignalError
@@ -105,7 +107,7 @@ def band_limited_random(
         raise SignalError(f"`f_high` of {name} must be greater than f_low = {lo:g} Hz; got {hi:g} Hz.")
     check_nyquist(hi, "f_high", step, name)
     off = check_finite(offset, "offset", name)
-    channels = check_n_channels(n_channels, name)
+    channels = check_n_channels(n_channels, name, n)
     n_ch = 1 if channels is None else channels
 
     freqs = np.fft.rfftfreq(n, step)
@@ -213,7 +215,7 @@ def prbs(
     check_span(off, amp, name)
     seed = check_seed(seed, name)
     method = check_choice(method, "method", name, _PRBS_METHODS)
-    channels = check_n_channels(n_channels, name)
+    channels = check_n_channels(n_channels, name, n)
     n_ch = 1 if channels is None else channels
     hold = check_int(clock_period, "clock_period", name, 1)
     n_bits = -(-n // hold)  # bits needed to cover n samples
@@ -225,37 +227,44 @@ def prbs(
             )
         bits = np.random.default_rng(seed).integers(0, 2, size=(n_bits, n_ch))
     else:
-        if order is None:
-            m = 2
-            while (2**m - 1) < n_bits and m < _MAX_ORDER:
-                m += 1
-        else:
-            m = check_int(order, "order", name, 2)
-            if m > _MAX_ORDER:
-                raise SignalError(f"`order` of prbs must be an integer in 2..32; got {m}.")
-        period = 2**m - 1
-        if seed is None:
-            state = np.ones(m, dtype=np.int8)
-        else:
-            start = int(np.random.default_rng(seed).integers(1, 2**m))
-            state = np.array([(start >> i) & 1 for i in range(m)], dtype=np.int8)
-        shift = period // n_ch
-        # bits actually read: n_bits from each of n_ch shifted starts (at most one period)
-        length = min(period, n_bits + (n_ch - 1) * shift)
-        if length > _MAX_GENERATED_BITS:
-            raise SignalError(
-                f"prbs of order {m} with {n_ch} channels would generate {length} register "
-                f"bits (limit {_MAX_GENERATED_BITS}); got too large an `order` for "
-                f"n_samples={n} (use a smaller order or the default)."
-            )
-        from scipy.signal import max_len_seq  # imported here: scipy.signal is slow to import
-
-        base, _ = max_len_seq(m, state=state, length=length)
-        idx = np.arange(n_bits)
-        bits = np.stack([base[(idx + j * shift) % period] for j in range(n_ch)], axis=1)
+        bits = _mls_bits(n_bits, n_ch, order, seed, n)
 
     x = off + amp * (2.0 * np.repeat(bits, hold, axis=0)[:n].astype(float) - 1.0)
     if channels is None:
         x = x[:, 0]
     check_limits(x, limits, name)
     return x
+
+
+def _mls_bits(n_bits: int, n_ch: int, order: Any, seed: Any, n: int) -> np.ndarray:
+    """``n_bits`` bits per channel of one maximum-length sequence, channels shifted by period / n_ch."""
+    name = "prbs"
+    if order is None:
+        m = 2
+        while (2**m - 1) < n_bits and m < _MAX_ORDER:
+            m += 1
+    else:
+        m = check_int(order, "order", name, 2)
+        if m > _MAX_ORDER:
+            raise SignalError(f"`order` of prbs must be an integer in 2..32; got {m}.")
+    period = 2**m - 1
+    if seed is None:
+        state = np.ones(m, dtype=np.int8)
+    else:
+        start = int(np.random.default_rng(seed).integers(1, 2**m))
+        state = np.array([(start >> i) & 1 for i in range(m)], dtype=np.int8)
+    shift = period // n_ch
+    # bits actually read: n_bits from each of n_ch shifted starts (at most one period)
+    length = min(period, n_bits + (n_ch - 1) * shift)
+    if length > _MAX_GENERATED_BITS:
+        raise SignalError(
+            f"prbs of order {m} with {n_ch} channels would generate {length} register "
+            f"bits (limit {_MAX_GENERATED_BITS}); got too large an `order` for "
+            f"n_samples={n} (use a smaller order or the default)."
+        )
+    from scipy.signal import max_len_seq  # imported here: scipy.signal is slow to import
+
+    base, _ = max_len_seq(m, state=state, length=length)
+    idx = np.arange(n_bits)
+    bits = np.stack([base[(idx + j * shift) % period] for j in range(n_ch)], axis=1)
+    return bits
