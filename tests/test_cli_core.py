@@ -1,30 +1,15 @@
 """The `stageid` command line: simulate, freqresp, signal, plants and its error contract."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+import conftest
+from conftest import assert_one_line_error, run_cli
 from stageid.cli.main import main
 from stageid.data.io import read_table, write_csv
 from stageid.models import StateSpaceModel, TransferMatrix, save_model
-
-
-def run_cli(*args, cwd=None):
-    """Run the real `stageid` process (exit code, stdout, stderr)."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "stageid", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=120
-    )
-    return proc.returncode, proc.stdout, proc.stderr
-
-
-def assert_one_line_error(rc, err):
-    assert rc != 0
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
 
 
 @pytest.fixture
@@ -259,16 +244,9 @@ def test_logger_time_jitter_is_accepted_but_a_missing_sample_is_not(tmp_path, di
 
 # ----------------------------------------------------------------- regressions of the bug hunt
 def run_main(*args):
-    """Run `stageid` in this process with warnings as errors: (exit code, stdout, stderr)."""
-    import contextlib
-    import io
-    import warnings
-
-    out, err = io.StringIO(), io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        warnings.simplefilter("error")  # a RuntimeWarning leaking before the error fails the contract
-        rc = main([str(a) for a in args])
-    return rc, out.getvalue(), err.getvalue()
+    """Run `stageid` in this process with warnings as errors: a RuntimeWarning leaking before
+    the error fails the contract."""
+    return conftest.run_main(*args, warnings_as_errors=True)
 
 
 _CHIRP = ["signal", "chirp", "--f0", "1", "--f1", "10", "--duration", "1", "--dt", "0.01"]

@@ -11,33 +11,14 @@ import json
 import numpy as np
 import pytest
 
+from conftest import assert_one_line_error, run_main
 from stageid._errors import ModelFormatError
-from stageid.cli.main import main
 from stageid.data.io import read_table, write_csv
 from stageid.hysteresis import PIModel
 from stageid.models import StateSpaceModel, save_model
 from stageid.models.serialization import loads
 
 DT = 0.01
-
-
-def run_main(*args):
-    """Run `stageid` in this process: (exit code, stdout, stderr)."""
-    import contextlib
-    import io
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main([str(a) for a in args])
-    return rc, out.getvalue(), err.getvalue()
-
-
-def assert_one_line_error(rc, err, fragment):
-    assert rc == 2, err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err and "internal error" not in err
-    assert fragment in err, err
 
 
 @pytest.fixture

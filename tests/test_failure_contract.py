@@ -8,10 +8,8 @@ address-space limit, so a missing guard fails the test instead of the machine.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import os
-import resource
 import signal
 import subprocess
 import sys
@@ -23,54 +21,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stageid.cli.main import main
+from conftest import AS_LIMIT, assert_one_line_error, run_cli, run_main, snapshot
 from stageid.data import write_csv
 from stageid.hysteresis import PIModel
 from stageid.models import StateSpaceModel, save_model
 
 DT = 0.01
-#: Address-space limit of the subprocesses running hostile inputs: numpy, scipy, numba and
-#: h5py loaded take ~1.5 GB of address space; a 16 GB allocation must fail, not swap.
-AS_LIMIT = 3 * 2**30
-
-
-def run_main(*args):
-    """Run `stageid` in this process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main([str(a) for a in args])
-    return rc, out.getvalue(), err.getvalue()
 
 
 def run_limited(*args, env_extra=None, timeout=120):
-    """Run `stageid` in a subprocess under AS_LIMIT: (exit code, stdout, stderr)."""
-
-    def limit():
-        resource.setrlimit(resource.RLIMIT_AS, (AS_LIMIT, AS_LIMIT))
-
-    env = dict(os.environ, OMP_NUM_THREADS="1", **(env_extra or {}))
-    proc = subprocess.run(
-        [sys.executable, "-m", "stageid.cli.main", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        preexec_fn=limit,
-        env=env,
-    )
-    return proc.returncode, proc.stdout, proc.stderr
-
-
-def assert_one_line_error(rc, err, *fragments):
-    assert rc == 2, err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("stageid: error: "), err
-    for fragment in fragments:
-        assert fragment in err, err
-
-
-def snapshot(folder: Path) -> dict[str, bytes]:
-    """Every file under ``folder`` (names relative) with its bytes: 'unchanged' is equality."""
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    """Run `stageid` in a subprocess under conftest.AS_LIMIT: (exit code, stdout, stderr)."""
+    return run_cli(*args, env=env_extra, memory_limit=AS_LIMIT, timeout=timeout)
 
 
 @pytest.fixture

@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -25,8 +24,8 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
+from conftest import run_main
 from stageid import StageIdError
-from stageid.cli.main import main
 from stageid.data import read_table, write_csv
 from stageid.hysteresis import PIModel
 from stageid.models import StateSpaceModel, load_model, save_model
@@ -58,25 +57,14 @@ def base(tmp_path_factory):
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
+    """The files directly in ``folder`` (an output folder a verb adds is not compared)."""
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
-
-
-def run_main(args: list[str], cwd: Path) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    old = os.getcwd()
-    os.chdir(cwd)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            rc = main([str(a) for a in args])
-    finally:
-        os.chdir(old)
-    return rc, out.getvalue(), err.getvalue()
 
 
 def check_contract(args: list[str], folder: Path, outputs: list[str]) -> int:
     """Run a verb in ``folder`` and assert the contract; returns the exit code."""
     before = snapshot(folder)
-    rc, out, err = run_main(args, folder)
+    rc, out, err = run_main(*args, cwd=folder)
     event(f"exit {rc}")
     assert rc in (0, 2), (args, rc, err)
     if rc == 2:
@@ -372,7 +360,7 @@ def test_identify_hysteresis_verb_keeps_the_contract(folder, kind, n_operators, 
 def test_report_verb_keeps_the_contract(folder, model, data, out):
     d = folder()
     before = snapshot(d)
-    rc, out_text, err = run_main(["report", model, *data, "--out", out], d)
+    rc, out_text, err = run_main("report", model, *data, "--out", out, cwd=d)
     event(f"exit {rc}")
     assert rc in (0, 2), err
     if rc == 2:
