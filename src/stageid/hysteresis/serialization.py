@@ -29,12 +29,12 @@ Written by :func:`stageid.models.serialization.dumps`, which is byte-stable:
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 from typing import Any
 
 from .._errors import ModelError, ModelFormatError
 from ..checks import is_real, shown
+from ..plugins import HYSTERESIS_KINDS, declared, load_object
 from .creep import CreepTerm
 from .operators import OperatorState
 from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
@@ -60,12 +60,13 @@ _OPTIONAL = (
 )
 
 # kind -> loader of a parsed dict: a callable, or "module:attribute" imported when a file of
-# that kind is read.  Packages above hysteresis register their kinds (register_kind); the
-# one entry below lets the command line read a plant's file before any plant module was
-# imported, by name only -- this package never imports stageid.plants.
-_KINDS: dict[str, Callable[[dict], Any] | str] = {
-    "piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict",
-}
+# that kind is read.  Packages above hysteresis declare their kinds as entry points
+# (stageid.plugins.HYSTERESIS_KINDS, read in _kinds) or call register_kind at import.
+_KINDS: dict[str, Callable[[dict], Any] | str] = {}
+
+
+def _kinds() -> dict[str, Callable[[dict], Any] | str]:
+    return {**declared(HYSTERESIS_KINDS), **_KINDS}
 
 
 def register_kind(kind: str, loader: Callable[[dict], Any] | str) -> None:
@@ -80,14 +81,8 @@ def register_kind(kind: str, loader: Callable[[dict], Any] | str) -> None:
 
 
 def _loader(kind: str) -> Callable[[dict], Any]:
-    loader = _KINDS[kind]
-    if callable(loader):
-        return loader
-    module, _, attribute = loader.partition(":")
-    obj: Any = importlib.import_module(module)
-    for part in attribute.split("."):
-        obj = getattr(obj, part)
-    return obj
+    loader = _kinds()[kind]
+    return loader if callable(loader) else load_object(loader)
 
 
 def numbers(value: Any, key: str) -> list[float]:
@@ -112,10 +107,10 @@ def _header(d: Any) -> str:
     if d.get("format") != HYSTERESIS_FORMAT:
         raise ModelFormatError(f"`format` must be {HYSTERESIS_FORMAT!r}; got {shown(d.get('format'))}.")
     kind = d.get("kind")
-    if kind in _KINDS:
+    if kind in _kinds():
         return kind
     if kind not in _KEYS:
-        expected = ", ".join(repr(k) for k in (*_KEYS, *_KINDS))
+        expected = ", ".join(repr(k) for k in (*_KEYS, *_kinds()))
         raise ModelFormatError(f"`kind` must be one of {expected}; got {shown(kind)}.")
     for key in _KEYS[kind]:
         if key not in d:
@@ -180,7 +175,7 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     [1.0, 0.5]
     """
     kind = _header(d)
-    if kind in _KINDS:
+    if kind in _kinds():
         return _loader(kind)(d)
     arrays = {k: numbers(d[k], k) for k in _KEYS[kind]}
     n = len(arrays["r"])

@@ -20,7 +20,6 @@ line, so ``dumps(loads(text)) == text`` for any text this module wrote.  Other m
 
 from __future__ import annotations
 
-import importlib
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -29,6 +28,7 @@ from typing import Any
 from .._errors import ModelError, ModelFormatError
 from ..atomic import atomic_write_text
 from ..checks import shown
+from ..plugins import MODEL_FORMATS, declared, load_object
 from ..resources import require_memory
 from .json_text import LTI_FORMAT, dumps, parse
 from .lti import StateSpaceModel, TransferMatrix
@@ -44,16 +44,21 @@ __all__ = [
     "register_format",
 ]
 
-# format name -> "module:function" turning the parsed dict into a model (imported lazily)
-_FORMATS: dict[str, str] = {
-    LTI_FORMAT: "stageid.models.serialization:lti_from_dict",
-    "stageid.hysteresis/1": "stageid.hysteresis.serialization:model_from_dict",
-}
+# format name -> "module:function" turning the parsed dict into a model (imported lazily);
+# formats of higher packages (hysteresis) come from their entry points (stageid.plugins)
+_FORMATS: dict[str, str] = {LTI_FORMAT: "stageid.models.serialization:lti_from_dict"}
 
 
 def register_format(name: str, loader: str) -> None:
-    """Register ``"module:function"`` as the loader of model files whose ``format`` is ``name``."""
+    """Register ``"module:function"`` as the loader of model files whose ``format`` is ``name``.
+
+    Installed packages declare theirs as entry points of :data:`stageid.plugins.MODEL_FORMATS`.
+    """
     _FORMATS[name] = loader
+
+
+def _formats() -> dict[str, str]:
+    return {**declared(MODEL_FORMATS), **_FORMATS}
 
 
 def loads(text: str) -> Any:
@@ -77,12 +82,12 @@ def model_from_dict(d: Any) -> Any:
             keys = sorted(map(str, d))
             listed = ", ".join(keys[:8]) + (", ..." if len(keys) > 8 else "")
             came = f"an object without it (keys: {listed})" if keys else "an empty object"
-        raise ModelFormatError(f"`format` is missing; expected one of {', '.join(sorted(_FORMATS))}; got {came}.")
-    if fmt not in _FORMATS:
-        raise ModelFormatError(f"unknown model format {shown(fmt)}; expected one of {', '.join(sorted(_FORMATS))}.")
-    module, func = _FORMATS[fmt].split(":")
+        raise ModelFormatError(f"`format` is missing; expected one of {', '.join(sorted(_formats()))}; got {came}.")
+    formats = _formats()
+    if fmt not in formats:
+        raise ModelFormatError(f"unknown model format {shown(fmt)}; expected one of {', '.join(sorted(formats))}.")
     try:
-        loader: Callable[[dict], Any] = getattr(importlib.import_module(module), func)
+        loader: Callable[[dict], Any] = load_object(formats[fmt])
     except (ImportError, AttributeError):
         raise ModelFormatError(f"model format {fmt!r} is not supported by this installation.") from None
     return loader(d)
