@@ -158,7 +158,7 @@ def test_band_above_nyquist_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
     )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
-    assert len(err.splitlines()) == 1 and "0-250 Hz" in err and "got 300-1000 Hz" in err
+    assert len(err.splitlines()) == 1 and "Nyquist frequency 250 Hz" in err and "got 300-1000 Hz" in err
 
 
 def test_no_moving_input_is_a_one_line_error(chirp_z_file, tmp_path, capsys):

@@ -210,7 +210,9 @@ def test_least_squares_on_noise_free_mimo_data_finds_the_poles_and_warns():
 def test_band_above_nyquist_is_rejected():
     _, exp = _two_pole_record()  # Nyquist 50 Hz
     for band in [(60.0, 100.0), (50.0, 60.0), (10.0, 60.0)]:
-        with pytest.raises(DataError, match=r"`band` must lie within 0-50 Hz .*; got"):
+        with pytest.raises(
+            ParameterError, match=r"^`band` of HankelMAP must be .* <= the Nyquist frequency 50 Hz; got"
+        ):
             HankelMAP(horizon=10, order=2, band=band).fit(exp)
     assert HankelMAP(horizon=10, order=2, band=(1.0, 50.0)).fit(exp).channels[0].band == (1.0, 50.0)
 

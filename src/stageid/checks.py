@@ -157,8 +157,18 @@ def check_band(
         raise _fail(error, param, owner, expected, band)
     lo, hi = float(pair[0]), float(pair[1])
     if not 0.0 <= lo < hi or (nyquist is not None and hi > nyquist * (1 + 1e-12)):
-        raise _fail(error, param, owner, expected, band)
+        raise _fail(error, param, owner, expected, _Hz(lo, hi))
     return lo, hi
+
+
+class _Hz:
+    """A numeric band as messages show it: ``20-3000 Hz``."""
+
+    def __init__(self, lo: float, hi: float) -> None:
+        self.lo, self.hi = lo, hi
+
+    def __repr__(self) -> str:
+        return f"{self.lo:g}-{self.hi:g} Hz"
 
 
 def check_seed(

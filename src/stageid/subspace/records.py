@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError
+from ..checks import check_band
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import WindowStatistics
@@ -52,14 +53,10 @@ def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
 
 
 def check_band_below_nyquist(band: tuple[float, float] | None, dt: float) -> None:
-    """A given ``band`` (already a valid band, see ``HankelMAP.parameter_constraints``) must end at
-    or below the records' Nyquist frequency: it is refused, not clipped (DataError)."""
-    nyq = 0.5 / dt
-    if band is not None and float(band[1]) > nyq * (1 + 1e-12):
-        raise DataError(
-            f"`band` must lie within 0-{nyq:g} Hz (Nyquist at dt = {dt:g} s); "
-            f"got {float(band[0]):g}-{float(band[1]):g} Hz."
-        )
+    """A given ``band`` must end at or below the records' Nyquist frequency: it is refused
+    (ParameterError, the one band rule of :func:`stageid.checks.check_band`), not clipped."""
+    if band is not None:
+        check_band(band, "band", "HankelMAP", nyquist=0.5 / dt)
 
 
 def _column_means(x: np.ndarray) -> np.ndarray:
