@@ -13,11 +13,13 @@ Transfer matrix
     ``Z[i] = Z[i+1] + u b[i+1] - y a[i+1]``), and each output sums its entries over the inputs in
     order, as :meth:`stageid.models.TransferMatrix.simulate` does.
 
-In single precision the polynomial coefficients of a transfer entry are too coarse (a pole at
-0.999 moves visibly when its polynomial is rounded to ``float``), so a stable transfer matrix is
-exported as a block-diagonal state space of *balanced* realisations of its entries
-(:func:`balanced_blocks`), whose coefficients are well conditioned; an entry without a
-balanced realisation (unstable, or not minimal) keeps the direct form.
+Single precision: rounding the coefficients to ``float`` moves slow poles visibly unless the
+realisation is well conditioned.  A stable, minimal state-space model is therefore exported in
+balanced coordinates (equal diagonal Gramians; the state starts at 0 in any basis), and a stable
+transfer matrix as a block-diagonal state space of balanced realisations of its entries
+(:func:`balanced_blocks`) instead of polynomial filters.  A model without a balanced
+realisation (unstable or not minimal) keeps its own form.  Double precision always keeps the
+model's own form and order of operations.
 
 Examples
 --------
@@ -179,7 +181,12 @@ def lti_fields(model: Any, ctype: CType) -> dict[str, str]:
     if model.dt is None:
         raise ModelError("a continuous model cannot be exported as it is; discretise it first (c2d).")
     if isinstance(model, StateSpaceModel):
+        balanced = _balanced(model.A, model.B, model.C) if ctype.is_float else None
+        if balanced is not None:
+            model = StateSpaceModel(*balanced, model.D, dt=model.dt, inputs=model.inputs, outputs=model.outputs)
         fields = _statespace(model, ctype)
+        if balanced is not None:
+            fields["summary"] = f"Discrete state space in balanced coordinates, {model.n_states} states, sample time {model.dt!r} s."
         title = "discrete state space"
     elif isinstance(model, TransferMatrix):
         blocks = balanced_blocks(model) if ctype.is_float else None
