@@ -71,97 +71,144 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 }
 """
 
-_CP_EVAL = """\
-/* F(x) = sum_i w_i CP_i(x; z_i) and its slopes on the pieces right (sp) and left (sm) of x. */
-static ${T} ${p}_eval(${T} x, const ${T} *z, ${T} *sp_out, ${T} *sm_out)
+_CP_FUNCTIONS = """\
+static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
+
+/* F(x) = sum_i w_i CP_i(x; z_i), summed in operator order (the package's order). */
+static ${T} ${p}_value(${T} x, const ${T} *z)
 {
-    ${T} f = 0.0${f}, sp = 0.0${f}, sm = 0.0${f};
+    ${T} f = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
-        const ${T} lo = ${p}_min(b, 0.0${f}), hi = ${p}_max(d, 0.0${f});
-        const ${T} up = a > lo ? a : lo, down = c < hi ? c : hi;
-        const int up_sp = a >= 0.0${f} || b < 0.0${f};  /* 0/1 slopes of the branches */
-        const int up_sm = a > 0.0${f} || b <= 0.0${f};
-        const int dn_sp = c < 0.0${f} || d >= 0.0${f};
-        const int dn_sm = c <= 0.0${f} || d > 0.0${f};
-        const ${T} zi = z[i];
-        ${T} inner, v;
-        int in_sp, in_sm, v_sp, v_sm;
-        if (down < zi) {
-            inner = down; in_sp = dn_sp; in_sm = dn_sm;
-        } else if (down > zi) {
-            inner = zi; in_sp = 0; in_sm = 0;
-        } else {
-            inner = zi; in_sp = 0; in_sm = dn_sm;
-        }
-        if (up > inner) {
-            v = up; v_sp = up_sp; v_sm = up_sm;
-        } else if (up < inner) {
-            v = inner; v_sp = in_sp; v_sm = in_sm;
-        } else {
-            v = up; v_sp = up_sp | in_sp; v_sm = up_sm & in_sm;
-        }
-        f += ${p}_w[i] * v;
-        if (v_sp) sp += ${p}_w[i];  /* (int flags, not 0/1 doubles: gcc 12 -O2 crashed vectorising those) */
-        if (v_sm) sm += ${p}_w[i];
+        const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
+        const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
+        f += ${p}_w[i] * ${p}_max(up, ${p}_min(down, z[i]));
     }
-    *sp_out = sp;
-    *sm_out = sm;
     return f;
 }
 
-static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
-
-/* The input x with F(x) = target (to TOL), starting from the last input x_prev. */
-static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} target)
+/* The operators follow x (eq. 3); returns F(x) at the new state (= sum_i w_i z_i). */
+static ${T} ${p}_follow(${T} x, ${T} *z)
 {
-    ${T} sp, sm, s1, s2, a, b, fa, fb, xc, fc, sc;
-    const ${T} f = ${p}_eval(x_prev, z, &sp, &sm);
-    ${T} x = x_prev;
-    int it;
+    ${T} f = 0.0${f};
+    int i;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+        const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
+        const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
+        z[i] = ${p}_max(up, ${p}_min(down, z[i]));
+        f += ${p}_w[i] * z[i];
+    }
+    return f;
+}
+
+/* Slopes of F on the pieces right and left of x: the sums, in operator order, of the weights
+   of the operators that move there.  An operator's output max(up, min(down, z)) moves with x
+   where the branch it sits on does: the ascending branch up (slope 1 except on its flat zero
+   stretch rc <= x <= r) where up >= min(down, z), the descending branch down where down < z.
+   At a tie between branches the rules of the package's kernel apply, so the sums are its sums. */
+static ${T} ${p}_slope_right(${T} x, const ${T} *z)
+{
+    ${T} s = 0.0${f};
+    int i;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
+        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
+        const ${T} inner = ${p}_min(down, z[i]);
+        const int up_moves = (a >= 0.0${f}) | (b < 0.0${f}), down_moves = (c < 0.0${f}) | (d >= 0.0${f});
+        const int moves = ((up >= inner) & up_moves) | ((up <= inner) & (down < z[i]) & down_moves);
+        s += ${p}_wz[moves][i];  /* w_i or 0: exactly what w_i * (0 or 1) adds */
+    }
+    return s;
+}
+
+static ${T} ${p}_slope_left(${T} x, const ${T} *z)
+{
+    ${T} s = 0.0${f};
+    int i;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
+        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
+        const ${T} inner = ${p}_min(down, z[i]);
+        const int up_moves = (a > 0.0${f}) | (b <= 0.0${f});
+        const int in_moves = (down <= z[i]) & ((c <= 0.0${f}) | (d > 0.0${f}));
+        const int gt = up > inner, lt = up < inner;
+        const int moves = (gt & up_moves) | (lt & in_moves) | (!gt & !lt & up_moves & in_moves);
+        s += ${p}_wz[moves][i];
+    }
+    return s;
+}
+
+/* A bound of the rounding error of the computed F at x (see the module notes). */
+static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MAX); }
+
+/* The input x with F(x) = target (to TOL), from the last input x_prev where F = f.  The package's
+   iteration: the bracket [x_prev, x_prev + (target - f) / smin] (or its mirror); if F at its far
+   end does not pass the target the far end is the answer (a drive limit), else Newton on the
+   pieces from the near end, with regula falsi / bisection inside the bracket as safeguards.
+   Work is done only where its result is used: slopes only for a Newton step, the far end only
+   when it can matter -- F rises at least smin per unit, so once an iterate lands past the target
+   by more than the rounding error allows, the far end cannot be the answer. */
+static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target)
+{
+    const int rising = target > f;
+    ${T} a, b, fa = f, fb = f, xc = x_prev, fc = f, sc, x = x_prev, far;
+    int known = 0, decided = 0, it;  /* far end: value computed / known not to be the answer */
     if (${p}_abs(f - target) <= ${p}_TOL) return x_prev;
-    if (target > f) {  /* bracket [x_prev, x_prev + (target - f) / smin] */
-        a = x_prev; fa = f;
+    if (rising) {
+        a = x_prev;
         b = x_prev + (target - f) / ${p}_SMIN;
         if (b > ${p}_HIGH) b = ${p}_HIGH;
-        fb = ${p}_eval(b, z, &s1, &s2);
-        if (fb <= target) { x = b; fa = fb; a = b; }
     } else {
-        b = x_prev; fb = f;
+        b = x_prev;
         a = x_prev - (f - target) / ${p}_SMIN;
         if (a < ${p}_LOW) a = ${p}_LOW;
-        fa = ${p}_eval(a, z, &s1, &s2);
-        if (fa >= target) { x = a; fb = fa; b = a; }
     }
-    if (!(a < b)) return x;
-    if (target > f) { xc = a; fc = fa; sc = sp; } else { xc = b; fc = fb; sc = sm; }
-    for (it = 0; it < 200; ++it) {  /* Newton on the pieces, safeguarded inside [a, b] */
+    far = rising ? b : a;
+#define ${p}_FAR_END()                                                         \\
+    do {                                                                        \\
+        if (!known) {                                                           \\
+            known = decided = 1;                                                \\
+            if (rising) { fb = ${p}_value(b, z); if (fb <= target) return b; }   \\
+            else { fa = ${p}_value(a, z); if (fa >= target) return a; }          \\
+        }                                                                       \\
+    } while (0)
+    if (!(a < b)) {
+        ${p}_FAR_END();
+        return x_prev;
+    }
+    sc = rising ? ${p}_slope_right(x_prev, z) : ${p}_slope_left(x_prev, z);
+    for (it = 0; it < 200; ++it) {
         ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (a + b);
-        ${T} fn, snp, snm;
+        ${T} fn;
         if (!(xn > a && xn < b)) {
+            ${p}_FAR_END();
             if (fb > fa) xn = a + (target - fa) * (b - a) / (fb - fa);
             if (!(xn > a && xn < b)) xn = 0.5${f} * (a + b);
         }
-        fn = ${p}_eval(xn, z, &snp, &snm);
+        fn = ${p}_value(xn, z);
         x = xn;
+        if (!decided) {
+            const ${T} gap = rising ? fn + ${p}_SMIN * (far - xn) - target : target - (fn - ${p}_SMIN * (xn - far));
+            if (gap > ${p}_error(xn) + ${p}_error(far)) decided = 1;
+        }
         if (${p}_abs(fn - target) <= ${p}_TOL) break;
-        if (fn < target) { a = xn; fa = fn; xc = xn; fc = fn; sc = snp; }
-        else { b = xn; fb = fn; xc = xn; fc = fn; sc = snm; }
+        if (fn < target) { a = xn; fa = fn; }
+        else { b = xn; fb = fn; }
+        xc = xn;
+        fc = fn;
+        if (rising ? b != far : a != far) known = decided = 1;  /* the far end was replaced */
         if (b - a <= ${p}_BRACKET * (1.0${f} + ${p}_abs(a) + ${p}_abs(b))) break;
+        sc = fn < target ? ${p}_slope_right(xn, z) : ${p}_slope_left(xn, z);
     }
+    if (!decided) ${p}_FAR_END();
+#undef ${p}_FAR_END
     return x;
 }
 """
 
 _CP_STEP = """\
-    const ${T} x = ${p}_solve(s->z, s->x, in[0] - ${p}_OUTPUT_OFFSET);
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {  /* operators follow the chosen input, eq. 3 */
-        const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
-        const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
-        s->z[i] = ${p}_max(up, ${p}_min(down, s->z[i]));
-    }
+    const ${T} x = ${p}_solve(s->z, s->x, s->f, in[0] - ${p}_OUTPUT_OFFSET);
+    s->f = ${p}_follow(x, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
     s->x = x;
 ${drive}"""
 
@@ -237,41 +284,64 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
+def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str) -> tuple[list[str], str]:
+    """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
+    q = model.input_warp
+    if q == 0.0:
+        return [], f"    out[0] = x + {p}_INPUT_OFFSET;\n"
+    consts = [_define(p, "WARP_SCALE", model.warp_scale, ctype), _define(p, "WARP_Q", q, ctype)]
+    consts += [_define(p, "WARP_4Q", 4.0 * q, ctype), _define(p, "WARP_UP", 1.0 + q, ctype)]
+    consts += [_define(p, "WARP_DOWN", -1.0 + q, ctype), _define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
+    consts += [_define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
+    drive = _sub(_UNWARP, ctype, p)
+    if limits is not None:  # the warp's inverse may round a clipped value a hair outside
+        consts += [_define(p, "DRIVE_LOW", limits[0], ctype), _define(p, "DRIVE_HIGH", limits[1], ctype)]
+        drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
+    return consts, drive
+
+
 def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: CType, prefix: str) -> dict[str, str]:
-    """Fields of the per-sample inversion of a modified PI model (drive ``limits`` or None)."""
+    """Fields of the per-sample inversion of a modified PI model (drive ``limits`` or None).
+
+    Operators of weight 0 are left out: they add exactly 0 to F and its slopes, and their state
+    is never seen.  The tolerance, ``smin`` and the bracket rules are the package's (in single
+    precision those a ``float`` resolves); ``ROUNDING`` bounds the rounding error of the computed
+    F, ``4 (m + 2) u sum|w| (|x| + max threshold)``, used only to prove the far end of a bracket
+    is not the answer without evaluating it.
+    """
     p = prefix
     lo, hi = _limits(model, limits)
-    # tolerances of the package's inversion; a float resolves about 1e-7 of the output scale
     scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)))
     tol = 1e-12 * max(scale, 1e-300)
-    consts = [f"#define {p}_N_OPERATORS {model.n_operators}"]
+    keep = model.weights != 0.0
+    m = int(np.count_nonzero(keep))
+    unit = 2.0**-24 if ctype.is_float else 2.0**-53
+    consts = [f"#define {p}_N_OPERATORS {m}"]
     consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
     consts += [_define(p, "TOL", max(tol, 2e-7 * scale) if ctype.is_float else tol, ctype)]
     consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
+    consts += [_define(p, "ROUNDING", 4.0 * (m + 2) * unit * float(np.sum(np.abs(model.weights))), ctype)]
+    consts += [_define(p, "R_MAX", float(max(np.max(model.r), np.max(model.ra))), ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
-    consts += _tables(p, ctype, r=model.r, rc=model.rc, ra=model.ra, rb=model.rb, w=model.weights)
-    q = model.input_warp
-    if q != 0.0:
-        R = model.warp_scale
-        consts += [_define(p, "WARP_SCALE", R, ctype), _define(p, "WARP_Q", q, ctype), _define(p, "WARP_4Q", 4.0 * q, ctype)]
-        consts += [_define(p, "WARP_UP", 1.0 + q, ctype), _define(p, "WARP_DOWN", -1.0 + q, ctype)]
-        consts += [_define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype), _define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
-        drive = _sub(_UNWARP, ctype, p)
-        if limits is not None:
-            consts += [_define(p, "DRIVE_LOW", limits[0], ctype), _define(p, "DRIVE_HIGH", limits[1], ctype)]
-            drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
-    else:
-        drive = f"    out[0] = x + {p}_INPUT_OFFSET;\n"
-    uses_math = q != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
+    tables = {k: getattr(model, k)[keep] for k in ("r", "rc", "ra", "rb")}
+    consts += _tables(p, ctype, **tables, w=model.weights[keep])
+    wz = f"{{{{0}}, {array(model.weights[keep], ctype)}}}"
+    consts.append(f"static const {ctype.name} {p}_wz[2][{p}_N_OPERATORS] = {wz};  /* 0 and w */")
+    warp_consts, drive = _drive(model, limits, ctype, p)
+    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
-        "members": f"    {ctype.name} z[{model.n_operators}];  /* operator outputs */\n"
-        f"    {ctype.name} x;  /* last operator input */",
-        "constants": "\n".join(consts) + "\n",
-        "helpers": "\n" + _sub(_CP_EVAL, ctype, p),
+        "members": f"    {ctype.name} z[{m}];  /* outputs of the operators of nonzero weight */\n"
+        f"    {ctype.name} x;  /* last operator input */\n"
+        f"    {ctype.name} f;  /* F(x) at this state */",
+        "constants": "\n".join(consts + warp_consts) + "\n",
+        "helpers": "\n" + _sub(_CP_FUNCTIONS, ctype, p),
         "includes": "#include <math.h>\n" if uses_math else "",
-        "init_body": "\n".join(_init("z", model.state.z, ctype) + [f"    s->x = {literal(model.state.x, ctype)};"]),
+        "init_body": "\n".join(
+            _init("z", model.state.z[keep], ctype)
+            + [f"    s->x = {literal(model.state.x, ctype)};", f"    s->f = {p}_value(s->x, s->z);"]
+        ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
     }
