@@ -74,15 +74,17 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 _CP_FUNCTIONS = """\
 static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
 
-/* F(x) = sum_i w_i CP_i(x; z_i), summed in operator order (the package's order). */
-static ${T} ${p}_value(${T} x, const ${T} *z)
+/* F(x) = sum_i w_i CP_i(x; z_i), summed in operator order (the package's order); zn receives
+   the operator outputs at x, the state should x be the answer. */
+static ${T} ${p}_value(${T} x, const ${T} *z, ${T} *zn)
 {
     ${T} f = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
         const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
         const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
-        f += ${p}_w[i] * ${p}_max(up, ${p}_min(down, z[i]));
+        zn[i] = ${p}_max(up, ${p}_min(down, z[i]));
+        f += ${p}_w[i] * zn[i];
     }
     return f;
 }
@@ -141,6 +143,13 @@ static ${T} ${p}_slope_left(${T} x, const ${T} *z)
 /* A bound of the rounding error of the computed F at x (see the module notes). */
 static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MAX); }
 
+/* Where a solve leaves the operators: z points to their outputs at the answer and f to F there
+   when the solve evaluated F at the answer (z = 0: not evaluated, the operators must follow). */
+typedef struct {
+    ${T} z_new[${p}_N_OPERATORS], z_far[${p}_N_OPERATORS], f;
+    const ${T} *z;
+} ${p}_next;
+
 /* The input x with F(x) = target (to TOL), from the last input x_prev where F = f.  The package's
    iteration: the bracket [x_prev, x_prev + (target - f) / smin] (or its mirror); if F at its far
    end does not pass the target the far end is the answer (a drive limit), else Newton on the
@@ -148,11 +157,12 @@ static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MA
    Work is done only where its result is used: slopes only for a Newton step, the far end only
    when it can matter -- F rises at least smin per unit, so once an iterate lands past the target
    by more than the rounding error allows, the far end cannot be the answer. */
-static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target)
+static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target, ${p}_next *next)
 {
     const int rising = target > f;
     ${T} a, b, fa = f, fb = f, xc = x_prev, fc = f, sc, x = x_prev, far;
     int known = 0, decided = 0, it;  /* far end: value computed / known not to be the answer */
+    next->z = 0;
     if (${p}_abs(f - target) <= ${p}_TOL) return x_prev;
     if (rising) {
         a = x_prev;
@@ -168,8 +178,13 @@ static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target)
     do {                                                                        \\
         if (!known) {                                                           \\
             known = decided = 1;                                                \\
-            if (rising) { fb = ${p}_value(b, z); if (fb <= target) return b; }   \\
-            else { fa = ${p}_value(a, z); if (fa >= target) return a; }          \\
+            if (rising) fb = ${p}_value(b, z, next->z_far);                     \\
+            else fa = ${p}_value(a, z, next->z_far);                            \\
+            if (rising ? fb <= target : fa >= target) {                         \\
+                next->z = next->z_far;                                          \\
+                next->f = rising ? fb : fa;                                     \\
+                return rising ? b : a;                                          \\
+            }                                                                   \\
         }                                                                       \\
     } while (0)
     if (!(a < b)) {
@@ -185,8 +200,10 @@ static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target)
             if (fb > fa) xn = a + (target - fa) * (b - a) / (fb - fa);
             if (!(xn > a && xn < b)) xn = 0.5${f} * (a + b);
         }
-        fn = ${p}_value(xn, z);
+        fn = ${p}_value(xn, z, next->z_new);
         x = xn;
+        next->z = next->z_new;
+        next->f = fn;
         if (!decided) {
             const ${T} gap = rising ? fn + ${p}_SMIN * (far - xn) - target : target - (fn - ${p}_SMIN * (xn - far));
             if (gap > ${p}_error(xn) + ${p}_error(far)) decided = 1;
@@ -207,8 +224,15 @@ static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target)
 """
 
 _CP_STEP = """\
-    const ${T} x = ${p}_solve(s->z, s->x, s->f, in[0] - ${p}_OUTPUT_OFFSET);
-    s->f = ${p}_follow(x, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
+    ${p}_next next;
+    const ${T} x = ${p}_solve(s->z, s->x, s->f, in[0] - ${p}_OUTPUT_OFFSET, &next);
+    if (next.z) {  /* F was evaluated at x: its operator outputs are the new state */
+        int i;
+        for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = next.z[i];
+        s->f = next.f;
+    } else {
+        s->f = ${p}_follow(x, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
+    }
     s->x = x;
 ${drive}"""
 
@@ -341,7 +365,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", model.state.z[keep], ctype)
-            + [f"    s->x = {literal(model.state.x, ctype)};", f"    s->f = {p}_value(s->x, s->z);"]
+            + [f"    s->x = {literal(model.state.x, ctype)};", f"    {{\n        {ctype.name} scratch[{p}_N_OPERATORS];\n        s->f = {p}_value(s->x, s->z, scratch);\n    }}"]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
     }
