@@ -251,17 +251,39 @@ def main(argv=None) -> int:
         for name, ref in refs.items():
             drive = build(comp, folder).run(ref[:5000])
             assert np.max(np.abs(drive - Compensator(mpi).run(ref[:5000]))) <= 1e-12 * np.max(np.abs(drive))
-            rows.append((f"modified-PI compensator, 20 operators ({origin})", name, time_case(comp, ref[:, None], args.runs, cflags, folder)))
+            rows.append(
+                (
+                    f"modified-PI compensator, 20 operators ({origin})",
+                    name,
+                    time_case(comp, ref[:, None], args.runs, cflags, folder),
+                )
+            )
         fwd = export_c(mpi, "fwd")
-        rows.append(("modified-PI forward, 20 operators", "random walk", time_case(fwd, drives["random walk"][:, None], args.runs, cflags, folder)))
+        rows.append(
+            (
+                "modified-PI forward, 20 operators",
+                "random walk",
+                time_case(fwd, drives["random walk"][:, None], args.runs, cflags, folder),
+            )
+        )
         picomp = export_c(pi, "picomp", inverse=True)
         ref = pi.simulate(drives["random walk"])[:, 0]
-        rows.append(("classical-PI compensator, 20 operators", "random walk", time_case(picomp, ref[:, None], args.runs, cflags, folder)))
-    print("| case | input | median ns/step | p50 ns/step | p99.9 ns/step | timer ns | naive C ns/step | ratio naive/ours |")
+        rows.append(
+            (
+                "classical-PI compensator, 20 operators",
+                "random walk",
+                time_case(picomp, ref[:, None], args.runs, cflags, folder),
+            )
+        )
+    print(
+        "| case | input | median ns/step | p50 ns/step | p99.9 ns/step | timer ns | naive C ns/step | ratio naive/ours |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for case, name, r in rows:
         naive = f"{r['naive']:.1f} | {r['naive'] / r['median']:.2f}" if "naive" in r else "- | -"
-        print(f"| {case} | {name} | {r['median']:.1f} | {r['p50']:.1f} | {r['p999']:.1f} | {r['timer']:.1f} | {naive} |")
+        print(
+            f"| {case} | {name} | {r['median']:.1f} | {r['p50']:.1f} | {r['p999']:.1f} | {r['timer']:.1f} | {naive} |"
+        )
     return 0
 
 

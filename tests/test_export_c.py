@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from stageid.export import export_c
-from stageid.export.host import STRICT_FLAGS, build, compile_files, find_compiler
+from stageid.export.host import build, compile_files, find_compiler
 from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, PIModel
 from stageid.models import StateSpaceModel, TransferMatrix, c2d
 
@@ -164,7 +164,14 @@ def test_stored_operator_state_is_the_start(run_c):
 # ------------------------------------------------------------------ compensator (--inverse)
 @pytest.mark.parametrize(
     "kind, limits",
-    [("pi", None), ("pi", (-5.0, 6.0)), ("mpi", None), ("mpi", (-5.0, 6.0)), ("mpi-warp", None), ("mpi-warp", (-5.0, 6.0))],
+    [
+        ("pi", None),
+        ("pi", (-5.0, 6.0)),
+        ("mpi", None),
+        ("mpi", (-5.0, 6.0)),
+        ("mpi-warp", None),
+        ("mpi-warp", (-5.0, 6.0)),
+    ],
 )
 @pytest.mark.parametrize("single", [False, True])
 def test_compensator_matches_compensate(run_c, kind, limits, single):

@@ -112,7 +112,22 @@ def test_continuous_model_needs_dt(tmp_path, models):
     rc, out, err = run("export", "c", models["continuous"], "--prefix", "g", "-o", tmp_path / "o")
     assert rc == 2 and err.count("\n") == 1 and "--dt S [--method zoh|tustin]" in err
     assert not (tmp_path / "o").exists()
-    assert run("export", "c", models["continuous"], "--prefix", "g", "--dt", "0.001", "--method", "tustin", "-o", tmp_path / "o")[0] == 0
+    assert (
+        run(
+            "export",
+            "c",
+            models["continuous"],
+            "--prefix",
+            "g",
+            "--dt",
+            "0.001",
+            "--method",
+            "tustin",
+            "-o",
+            tmp_path / "o",
+        )[0]
+        == 0
+    )
     assert listing(tmp_path / "o") == ["g.c", "g.h"]
 
 

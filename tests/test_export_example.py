@@ -30,7 +30,9 @@ def test_stream_example_builds_and_matches_compensate(tmp_path):
     )  # fmt: skip
     save_model(model, tmp_path / "hyst.json")
     t = np.arange(3000) * 1e-3
-    write_csv(tmp_path / "ref.csv", {"y_ref": model.simulate(80 * np.sin(2 * np.pi * 2 * t) * (1 - t / 4))[:, 0]}, dt=1e-3)
+    write_csv(
+        tmp_path / "ref.csv", {"y_ref": model.simulate(80 * np.sin(2 * np.pi * 2 * t) * (1 - t / 4))[:, 0]}, dt=1e-3
+    )
     build = tmp_path / "build"
     cc = find_compiler()
     if shutil.which("make"):
@@ -39,9 +41,14 @@ def test_stream_example_builds_and_matches_compensate(tmp_path):
         res = subprocess.run(cmd, capture_output=True, text=True, check=False)
         assert res.returncode == 0, res.stderr
     else:  # the build line of stream.c's header
-        assert main(["export", "c", str(tmp_path / "hyst.json"), "--prefix", "comp", "--inverse", "-o", str(build)]) == 0
+        assert (
+            main(["export", "c", str(tmp_path / "hyst.json"), "--prefix", "comp", "--inverse", "-o", str(build)]) == 0
+        )
         flags = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O2", f"-I{build}"]
-        subprocess.run([cc, *flags, str(EXAMPLE / "stream.c"), str(build / "comp.c"), "-o", str(build / "stream"), "-lm"], check=True)
+        subprocess.run(
+            [cc, *flags, str(EXAMPLE / "stream.c"), str(build / "comp.c"), "-o", str(build / "stream"), "-lm"],
+            check=True,
+        )
     with open(tmp_path / "ref.csv") as stdin, open(tmp_path / "drive_c.csv", "w") as stdout:
         subprocess.run([str(build / "stream"), "V"], stdin=stdin, stdout=stdout, check=True)
     assert main(["compensate", str(tmp_path / "hyst.json"), str(tmp_path / "ref.csv"), "--column", "y_ref",

@@ -80,6 +80,48 @@ def discretised(model: Any, dt: float | None, method: str | None) -> Any:
     return c2d(model, dt, method or "zoh")
 
 
+def _model_fields(
+    model: Any,
+    prefix: str,
+    ctype: CType,
+    inverse: bool,
+    dt: float | None,
+    method: str | None,
+    limits: tuple[float, float] | None,
+) -> dict[str, str]:
+    """The template fields of ``model`` from the module that knows its kind (see the table above)."""
+    from .c_hysteresis import forward_fields, inverse_fields
+    from .c_lti import lti_fields
+
+    if _is_lti(model):
+        if inverse:
+            raise ModelError(
+                "--inverse needs a hysteresis model (PI or modified PI); an LTI model has no exported causal inverse."
+            )
+        if limits is not None:
+            raise ModelError(
+                "drive limits apply to the compensator of a hysteresis model (--inverse); got an LTI model."
+            )
+        fields = lti_fields(discretised(model, dt, method), ctype)
+    elif _is_hysteresis(model):
+        if method is not None:
+            raise ModelError("--method discretises a continuous LTI model; got a hysteresis model.")
+        if limits is not None and not inverse:
+            raise ModelError("drive limits apply to the compensator (--inverse); got the forward model.")
+        if inverse:
+            fields = inverse_fields(model, ctype, prefix, limits)
+        else:
+            if dt is not None and model.creep is None:
+                raise ModelError("--dt sets the creep lags' sample time; this hysteresis model has no creep term.")
+            fields = forward_fields(model, ctype, prefix, dt)
+    else:
+        raise ModelError(
+            f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model or a PI / modified-PI "
+            "hysteresis model."
+        )
+    return fields
+
+
 def export_c(
     model: Any,
     prefix: str,
@@ -135,35 +177,9 @@ def export_c(
     >>> "void act_step(act_state *s, const double *in, double *out);" in code.header
     True
     """
-    from .c_hysteresis import forward_fields, inverse_fields
-    from .c_lti import lti_fields
-
     prefix = check_prefix(prefix)
     ctype = CType("float" if single else "double")
-    if _is_lti(model):
-        if inverse:
-            raise ModelError(
-                "--inverse needs a hysteresis model (PI or modified PI); an LTI model has no exported causal inverse."
-            )
-        if limits is not None:
-            raise ModelError("drive limits apply to the compensator of a hysteresis model (--inverse); got an LTI model.")
-        fields = lti_fields(discretised(model, dt, method), ctype)
-    elif _is_hysteresis(model):
-        if method is not None:
-            raise ModelError("--method discretises a continuous LTI model; got a hysteresis model.")
-        if limits is not None and not inverse:
-            raise ModelError("drive limits apply to the compensator (--inverse); got the forward model.")
-        if inverse:
-            fields = inverse_fields(model, ctype, prefix, limits)
-        else:
-            if dt is not None and model.creep is None:
-                raise ModelError("--dt sets the creep lags' sample time; this hysteresis model has no creep term.")
-            fields = forward_fields(model, ctype, prefix, dt)
-    else:
-        raise ModelError(
-            f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model or a PI / modified-PI "
-            "hysteresis model."
-        )
+    fields = _model_fields(model, prefix, ctype, inverse, dt, method, limits)
     fields = {"includes": "", "helpers": "", "constants": "", **fields}
     fields.update(prefix=prefix, ctype=ctype.name, source=comment(source))
     for key in ("input_names", "output_names", "summary", "title"):

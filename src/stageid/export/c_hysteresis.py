@@ -182,7 +182,9 @@ def inverse_fields(model: Any, ctype: CType, prefix: str, limits: tuple[float, f
     comp = Compensator(model, limits)  # the package's own checks: invertible, limits well formed
     from .c_inverse import modified_pi_inverse, pi_inverse_fields
 
-    fields = (pi_inverse_fields if isinstance(model, PIModel) else modified_pi_inverse)(model, comp.limits, ctype, prefix)
+    fields = (pi_inverse_fields if isinstance(model, PIModel) else modified_pi_inverse)(
+        model, comp.limits, ctype, prefix
+    )
     lim = "unlimited drive" if comp.limits is None else f"drive limited to [{comp.limits[0]!r}, {comp.limits[1]!r}]"
     fields.update(_names(model))
     fields["input_names"], fields["output_names"] = model.outputs[0] + " (desired output)", model.inputs[0] + " (drive)"

@@ -71,11 +71,39 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 }
 """
 
+_SLOPE = """\
+static ${T} ${p}_slope_${side}(${T} x, const ${T} *z)
+{
+    ${T} s = 0.0${f};
+    int i;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
+        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
+        const ${T} inner = ${p}_min(down, z[i]);
+${moves}
+        s += ${p}_wz[moves][i];  /* w_i or 0: exactly what w_i * (0 or 1) adds */
+    }
+    return s;
+}
+"""
+
+# which operators move right / left of x (the tie rules of the package's kernel)
+_MOVES = {
+    "right": """\
+        const int up_moves = (a >= 0.0${f}) | (b < 0.0${f}), down_moves = (c < 0.0${f}) | (d >= 0.0${f});
+        const int moves = ((up >= inner) & up_moves) | ((up <= inner) & (down < z[i]) & down_moves);""",
+    "left": """\
+        const int up_moves = (a > 0.0${f}) | (b <= 0.0${f});
+        const int in_moves = (down <= z[i]) & ((c <= 0.0${f}) | (d > 0.0${f}));
+        const int gt = up > inner, lt = up < inner;
+        const int moves = (gt & up_moves) | (lt & in_moves) | (!gt & !lt & up_moves & in_moves);""",
+}
+
 _CP_FUNCTIONS = """\
 static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
 
 /* F(x) = sum_i w_i CP_i(x; z_i), summed in operator order (the package's order); zn receives
-   the operator outputs at x, the state should x be the answer. */
+   the operator outputs at x, the state should x be the answer (zn = z: the operators follow x). */
 static ${T} ${p}_value(${T} x, const ${T} *z, ${T} *zn)
 {
     ${T} f = 0.0${f};
@@ -89,57 +117,13 @@ static ${T} ${p}_value(${T} x, const ${T} *z, ${T} *zn)
     return f;
 }
 
-/* The operators follow x (eq. 3); returns F(x) at the new state (= sum_i w_i z_i). */
-static ${T} ${p}_follow(${T} x, ${T} *z)
-{
-    ${T} f = 0.0${f};
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
-        const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
-        z[i] = ${p}_max(up, ${p}_min(down, z[i]));
-        f += ${p}_w[i] * z[i];
-    }
-    return f;
-}
-
 /* Slopes of F on the pieces right and left of x: the sums, in operator order, of the weights
    of the operators that move there.  An operator's output max(up, min(down, z)) moves with x
    where the branch it sits on does: the ascending branch up (slope 1 except on its flat zero
    stretch rc <= x <= r) where up >= min(down, z), the descending branch down where down < z.
    At a tie between branches the rules of the package's kernel apply, so the sums are its sums. */
-static ${T} ${p}_slope_right(${T} x, const ${T} *z)
-{
-    ${T} s = 0.0${f};
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
-        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
-        const ${T} inner = ${p}_min(down, z[i]);
-        const int up_moves = (a >= 0.0${f}) | (b < 0.0${f}), down_moves = (c < 0.0${f}) | (d >= 0.0${f});
-        const int moves = ((up >= inner) & up_moves) | ((up <= inner) & (down < z[i]) & down_moves);
-        s += ${p}_wz[moves][i];  /* w_i or 0: exactly what w_i * (0 or 1) adds */
-    }
-    return s;
-}
-
-static ${T} ${p}_slope_left(${T} x, const ${T} *z)
-{
-    ${T} s = 0.0${f};
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
-        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
-        const ${T} inner = ${p}_min(down, z[i]);
-        const int up_moves = (a > 0.0${f}) | (b <= 0.0${f});
-        const int in_moves = (down <= z[i]) & ((c <= 0.0${f}) | (d > 0.0${f}));
-        const int gt = up > inner, lt = up < inner;
-        const int moves = (gt & up_moves) | (lt & in_moves) | (!gt & !lt & up_moves & in_moves);
-        s += ${p}_wz[moves][i];
-    }
-    return s;
-}
-
+${slope_right}
+${slope_left}
 /* A bound of the rounding error of the computed F at x (see the module notes). */
 static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MAX); }
 
@@ -231,7 +215,7 @@ _CP_STEP = """\
         for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = next.z[i];
         s->f = next.f;
     } else {
-        s->f = ${p}_follow(x, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
+        s->f = ${p}_value(x, s->z, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
     }
     s->x = x;
 ${drive}"""
@@ -308,6 +292,15 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
+def _cp_functions(ctype: CType, prefix: str) -> str:
+    """value, the two slopes (one template, two rules) and solve."""
+    slopes = {
+        f"slope_{side}": _sub(_SLOPE, ctype, prefix, side=side, moves=_sub(moves, ctype, prefix)).rstrip("\n")
+        for side, moves in _MOVES.items()
+    }
+    return _sub(_CP_FUNCTIONS, ctype, prefix, **slopes)
+
+
 def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str) -> tuple[list[str], str]:
     """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
     q = model.input_warp
@@ -361,11 +354,14 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         f"    {ctype.name} x;  /* last operator input */\n"
         f"    {ctype.name} f;  /* F(x) at this state */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _sub(_CP_FUNCTIONS, ctype, p),
+        "helpers": "\n" + _cp_functions(ctype, p),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", model.state.z[keep], ctype)
-            + [f"    s->x = {literal(model.state.x, ctype)};", f"    {{\n        {ctype.name} scratch[{p}_N_OPERATORS];\n        s->f = {p}_value(s->x, s->z, scratch);\n    }}"]
+            + [
+                f"    s->x = {literal(model.state.x, ctype)};",
+                f"    {{\n        {ctype.name} scratch[{p}_N_OPERATORS];\n        s->f = {p}_value(s->x, s->z, scratch);\n    }}",
+            ]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
     }

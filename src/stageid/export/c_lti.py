@@ -48,9 +48,7 @@ __all__ = ["lti_fields", "weighted_sum"]
 
 def weighted_sum(coefficients: object, names: list[str], ctype: CType) -> str:
     """``c0 * v0 + c1 * v1 + ...`` left to right, exact zeros left out (``0.0`` if all are)."""
-    terms = [
-        f"{literal(c, ctype)} * {v}" for c, v in zip(np.asarray(coefficients, dtype=float), names) if c != 0.0
-    ]
+    terms = [f"{literal(c, ctype)} * {v}" for c, v in zip(np.asarray(coefficients, dtype=float), names) if c != 0.0]
     return " + ".join(terms) if terms else literal(0.0, ctype)
 
 
@@ -68,7 +66,9 @@ def _statespace(model: Any, ctype: CType) -> dict[str, str]:
     if n == 0:
         lines.append("    (void)s;")
     return {
-        "members": f"    {t} x[{n}];      /* state x(k) */" if n else "    char unused;  /* a static gain has no state */",
+        "members": f"    {t} x[{n}];      /* state x(k) */"
+        if n
+        else "    char unused;  /* a static gain has no state */",
         "init_body": "\n".join([f"    s->x[{i}] = {literal(0.0, ctype)};" for i in range(n)] or ["    (void)s;"]),
         "step_body": "\n".join(lines),
         "init_doc": "to rest (x = 0), where `stageid simulate` starts",
@@ -186,13 +186,17 @@ def lti_fields(model: Any, ctype: CType) -> dict[str, str]:
             model = StateSpaceModel(*balanced, model.D, dt=model.dt, inputs=model.inputs, outputs=model.outputs)
         fields = _statespace(model, ctype)
         if balanced is not None:
-            fields["summary"] = f"Discrete state space in balanced coordinates, {model.n_states} states, sample time {model.dt!r} s."
+            fields["summary"] = (
+                f"Discrete state space in balanced coordinates, {model.n_states} states, sample time {model.dt!r} s."
+            )
         title = "discrete state space"
     elif isinstance(model, TransferMatrix):
         blocks = balanced_blocks(model) if ctype.is_float else None
         if blocks is not None:
             fields = _statespace(blocks, ctype)
-            fields["summary"] = f"Discrete transfer matrix as balanced state-space blocks per entry, sample time {model.dt!r} s."
+            fields["summary"] = (
+                f"Discrete transfer matrix as balanced state-space blocks per entry, sample time {model.dt!r} s."
+            )
         else:
             fields = _transfer(model, ctype)
         title = "discrete transfer matrix"

@@ -110,7 +110,7 @@ def build(
     folder = Path(folder)
     for name, text in code.files().items():
         (folder / name).write_text(text)
-    single = f"const float *in" in code.header
+    single = "const float *in" in code.header
     driver = folder / f"{code.prefix}_host.c"
     driver.write_text(_DRIVER.format(p=code.prefix, t="float" if single else "double"))
     lib = folder / f"lib{code.prefix}.so"
