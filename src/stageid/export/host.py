@@ -25,6 +25,7 @@ Examples
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import re
 import shutil
@@ -113,7 +114,9 @@ def build(
     single = "const float *in" in code.header
     driver = folder / f"{code.prefix}_host.c"
     driver.write_text(_DRIVER.format(p=code.prefix, t="float" if single else "double"))
-    lib = folder / f"lib{code.prefix}.so"
+    # one file per distinct code: the loader reuses a library already loaded from the same path
+    digest = hashlib.sha256((code.header + code.source).encode()).hexdigest()[:16]
+    lib = folder / f"lib{code.prefix}_{digest}.so"
     compile_files([folder / f"{code.prefix}.c", driver], lib, compiler, (*flags, "-fPIC", "-shared", f"-I{folder}"))
     n_in = int(re.search(rf"#define {code.prefix}_N_INPUTS (\d+)", code.header).group(1))
     n_out = int(re.search(rf"#define {code.prefix}_N_OUTPUTS (\d+)", code.header).group(1))
