@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 
+from stageid import ModelError
 from stageid.export import export_c
 from stageid.export.host import build, compile_files, find_compiler
 from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, PIModel
@@ -272,3 +273,24 @@ def test_two_instances_never_interfere(tmp_path):
     fn(a.size, a.ctypes.data, b.ctypes.data, ya.ctypes.data, yb.ctypes.data)
     assert_double(ya, Compensator(model).run(a)[:, 0])
     assert_double(yb, Compensator(model).run(b)[:, 0])
+
+
+def test_constants_round_trip_exactly(run_c):
+    from stageid.export.c_writer import CType, literal
+
+    rng = np.random.default_rng(13)
+    values = [0.1, -0.0, 5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, 1 / 3, *rng.normal(size=50) * 1e5]
+    for v in values:
+        assert float(literal(v, CType("double"))) == v
+        if abs(v) < 3e38:
+            text = literal(v, CType("float"))
+            assert text.endswith("f") and np.float32(text[:-1]) == np.float32(v)
+    with pytest.raises(ModelError, match="does not fit a float"):
+        literal(1.7976931348623157e308, CType("float"))
+    # through the compiler: a static gain returns its constants bit for bit (u = 1)
+    gains = np.array([[v for v in values[:6] if abs(v) < 1e300] + [1 / 7]])
+    model = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, gains.shape[1])), np.zeros((1, 0)), gains, dt=1.0)
+    for j in range(gains.shape[1]):
+        u = np.zeros((1, gains.shape[1]))
+        u[0, j] = 1.0
+        assert run_c(model, u)[0, 0] == gains[0, j] or gains[0, j] == 0.0

@@ -189,6 +189,6 @@ def inverse_fields(model: Any, ctype: CType, prefix: str, limits: tuple[float, f
     fields.update(_names(model))
     fields["input_names"], fields["output_names"] = model.outputs[0] + " (desired output)", model.inputs[0] + " (drive)"
     fields["summary"] = f"{model.n_operators} operators, {lim}."
-    fields["init_doc"] = "the model's stored operator state, where `stageid compensate` starts"
+    fields["init_doc"] = "to the model's stored operator state, where `stageid compensate` starts"
     fields["helpers"] = _sub(_MINMAX, ctype, prefix) + fields.get("helpers", "")
     return fields

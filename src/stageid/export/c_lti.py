@@ -57,10 +57,13 @@ def _statespace(model: Any, ctype: CType) -> dict[str, str]:
     n, m, p = model.n_states, model.n_inputs, model.n_outputs
     u = [f"u{j}" for j in range(m)]
     x = [f"x{i}" for i in range(n)]
-    lines = [f"    const {t} u{j} = in[{j}];" for j in range(m)]
-    lines += [f"    const {t} x{i} = s->x[{i}];" for i in range(n)]
     CD = np.hstack([model.C, model.D])
     AB = np.hstack([model.A, model.B])
+    used = np.any(CD != 0.0, axis=0) | np.any(AB != 0.0, axis=0)  # an unused local would be a warning
+    lines = [f"    const {t} u{j} = in[{j}];" for j in range(m) if used[n + j]]
+    lines += [f"    const {t} x{i} = s->x[{i}];" for i in range(n) if used[i]]
+    if not used[n:].any():
+        lines.append("    (void)in;")
     lines += [f"    out[{i}] = {weighted_sum(CD[i], x + u, ctype)};" for i in range(p)]
     lines += [f"    s->x[{i}] = {weighted_sum(AB[i], x + u, ctype)};" for i in range(n)]
     if n == 0:

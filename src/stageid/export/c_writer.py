@@ -58,13 +58,17 @@ class CType:
 def literal(value: float, ctype: CType) -> str:
     """C literal that parses back to exactly ``value`` (rounded to ``ctype``).
 
-    Raises :class:`ModelError` for NaN or infinity (model constants are finite).
+    Raises :class:`ModelError` for NaN or infinity (model constants are finite) and for a value
+    beyond the range of ``float`` in single precision.
     """
     v = float(value)
     if not math.isfinite(v):
         raise ModelError(f"a model constant must be finite to be exported to C; got {v}.")
-    v = ctype.round(v)
-    text = repr(v)
+    with np.errstate(over="ignore"):
+        r = ctype.round(v)
+    if not math.isfinite(r):
+        raise ModelError(f"the model constant {v!r} does not fit a {ctype.name}; export it without --float.")
+    text = repr(r)
     return text + "f" if ctype.is_float else text
 
 
