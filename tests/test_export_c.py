@@ -17,7 +17,7 @@ import pytest
 from stageid import ModelError
 from stageid.export import export_c
 from stageid.export.host import build, compile_files, find_compiler
-from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, PIModel
+from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, OperatorState, PIModel
 from stageid.models import StateSpaceModel, TransferMatrix, c2d
 
 pytestmark = pytest.mark.skipif(find_compiler() is None, reason="no C compiler (gcc, clang or cc) on PATH")
@@ -294,3 +294,43 @@ def test_constants_round_trip_exactly(run_c):
         u = np.zeros((1, gains.shape[1]))
         u[0, j] = 1.0
         assert run_c(model, u)[0, 0] == gains[0, j] or gains[0, j] == 0.0
+
+
+def _random_invertible(rng):
+    """A random PI or modified-PI model: 2-24 operators, some weights 0 or negative, a random
+    (often inconsistent) operator state, offsets, an input warp; None if not invertible."""
+    m = int(rng.integers(2, 25))
+    offsets = {"input_offset": rng.normal(), "output_offset": rng.normal()}
+    z = rng.normal(size=m) * 3 if rng.random() < 0.5 else np.zeros(m)
+    state = OperatorState(rng.normal(), z)
+    if rng.random() < 0.4:
+        r = np.r_[0.0, np.cumsum(rng.uniform(0.05, 2, m - 1))]
+        w = np.r_[rng.uniform(0.2, 2), rng.uniform(-0.05, 0.5, m - 1)]
+        return PIModel(r=r, weights=w, state=state, **offsets) if np.all(np.cumsum(w) > 0) else None
+    r = np.r_[0.0, np.sort(rng.uniform(0.05, 10, m - 1))]
+    ra = r * rng.uniform(1, 2, m)
+    w = np.r_[rng.uniform(0.05, 2), rng.uniform(-0.01, 0.5, m - 1)]
+    w[1:][rng.random(m - 1) < 0.15] = 0.0
+    warp = float(rng.choice([0.0, rng.uniform(-0.45, 0.45)]))
+    model = ModifiedPIModel(
+        r=r, rc=r * rng.uniform(0, 1, m), ra=ra, rb=ra * rng.uniform(0, 1, m), weights=w, state=state,
+        input_warp=warp, warp_scale=rng.uniform(1, 10), **offsets,
+    )  # fmt: skip
+    return model if model.min_slope() > 0 else None
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compensator_random_models_double(run_c, seed):
+    # random models, states, limits and references: the generated compensator takes the
+    # package's path sample for sample, so any disagreement beyond rounding is a bug
+    rng = np.random.default_rng(100 + seed)
+    done = 0
+    while done < 6:
+        model = _random_invertible(rng)
+        if model is None:
+            continue
+        limits = None if rng.random() < 0.4 else tuple(sorted(rng.uniform(-8, 8, 2)))
+        u = list(inputs(rng, 2000).values())[done % 3]
+        y_ref = model.with_state(None).simulate(u)[:, 0]
+        assert_double(run_c(model, y_ref, inverse=True, limits=limits), Compensator(model, limits).run(y_ref))
+        done += 1
