@@ -52,9 +52,13 @@ Examples:
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.option("--prefix", required=True, help="C identifier starting every exported name: P.h, P.c, P_step ...")
 @click.option("-o", "--output", "out_dir", required=True, help="Folder for P.h and P.c (created if missing).")
-@click.option("--inverse", is_flag=True, help="The streaming compensator (desired output -> drive) of a hysteresis model.")
+@click.option(
+    "--inverse", is_flag=True, help="The streaming compensator (desired output -> drive) of a hysteresis model."
+)
 @click.option("--float", "single", is_flag=True, help="Single-precision arithmetic (default double).")
-@click.option("--limits", default=None, help="Drive limits LOW,HIGH of the compensator (default the model's input_limits).")
+@click.option(
+    "--limits", default=None, help="Drive limits LOW,HIGH of the compensator (default the model's input_limits)."
+)
 @_dt_option
 def c_command(
     model_path: str,
@@ -78,7 +82,14 @@ def c_command(
     step = _check_dt(dt)
     model = load_model(model_path)
     code = export_c(
-        model, prefix, inverse=inverse, single=single, dt=step, method=method, limits=drive_limits, source=Path(model_path).name
+        model,
+        prefix,
+        inverse=inverse,
+        single=single,
+        dt=step,
+        method=method,
+        limits=drive_limits,
+        source=Path(model_path).name,
     )
     _write_files(folder, code.files())
     click.echo(f"wrote {folder / (prefix + '.h')} and {folder / (prefix + '.c')}")
@@ -99,15 +110,13 @@ Examples:
 def mat_command(model_path: str, out: str, dt: float | None, method: str | None) -> None:
     """Write MODEL.json as a MATLAB v5 MAT file: A, B, C, D, Ts, InputName, OutputName as `ss()`
     takes them, or a struct `hysteresis` of a hysteresis model's parameters."""
-    from ..export.matlab import export_mat
+    from ..export.matlab import export_mat, mat_variables
     from ..models import load_model
     from ._common import atomic_output
 
     target = _check_mat(out)
     step = _check_dt(dt)
     model = load_model(model_path)
-    from ..export.matlab import mat_variables
-
     mat_variables(model, step, method)  # every check before anything is written
     with atomic_output(target) as tmp, open(tmp, "wb") as fh:
         export_mat(model, fh, step, method)
