@@ -81,7 +81,7 @@ static ${T} ${p}_slope_${side}(${T} x, const ${T} *z)
         const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
         const ${T} inner = ${p}_min(down, z[i]);
 ${moves}
-        s += ${p}_wz[moves][i];  /* w_i or 0: exactly what w_i * (0 or 1) adds */
+        s += moves ? ${p}_w[i] : 0.0${f};  /* w_i or 0: exactly what w_i * (0 or 1) adds */
     }
     return s;
 }
@@ -344,8 +344,6 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     tables = {k: getattr(model, k)[keep] for k in ("r", "rc", "ra", "rb")}
     consts += _tables(p, ctype, **tables, w=model.weights[keep])
-    wz = f"{{{{0}}, {array(model.weights[keep], ctype)}}}"
-    consts.append(f"static const {ctype.name} {p}_wz[2][{p}_N_OPERATORS] = {wz};  /* 0 and w */")
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     return {
