@@ -5,7 +5,7 @@
  * with the drive.  Build (see the Makefile):
  *
  *   stageid export c hyst.json --prefix comp --inverse -o build
- *   cc -std=c99 -O2 -Ibuild stream.c build/comp.c -o build/stream -lm
+ *   cc -std=c99 -O3 -Ibuild stream.c build/comp.c -o build/stream -lm
  *   ./build/stream V < reference.csv > drive.csv
  *
  * comp_step is all a real-time loop needs: comp_init(&s) once, comp_step(&s, &y_ref, &u) per
