@@ -6,7 +6,8 @@ The C mirrors :class:`stageid.hysteresis.Compensator` step for step (see
 * classical PI -- the inverse PI model of :func:`stageid.hysteresis.pi_inverse` (thresholds
   ``r'``, weights ``w'``, state ``z'``); a drive outside the limits is clipped and the state
   rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play update at the
-  clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i`` (``W = cumsum(w)``);
+  clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i`` (``W = cumsum(w)``).  This
+  rebuild runs in double precision also in single-precision code: its sums cancel;
 * modified PI -- ``F(x) = sum_i w_i CP_i(x; z_i)`` is piecewise linear and nondecreasing with
   slope at least ``smin``; each sample brackets the solution of ``F(x) = y_ref - y0`` from the
   last input and refines it by Newton steps on the pieces (regula falsi / bisection inside the
@@ -49,25 +50,32 @@ _PI_CLIP = """\
 
 _PI_REBASE = """\
 /* Dual state: out_j = W_j z_j + sum_{i>j} w_i z_i (W = cumsum(w)), summed from the last operator. */
-static void ${p}_dual(const ${T} *W, const ${T} *w, const ${T} *z, ${T} *out)
+static void ${p}_dual(const ${R} *W, const ${R} *w, const ${R} *z, ${R} *out)
 {
-    ${T} tail = 0.0${f};
+    ${R} tail = 0.0;
     int i;
     for (i = ${p}_N_OPERATORS - 1; i >= 0; --i) {
-        const ${T} wz = w[i] * z[i];
+        const ${R} wz = w[i] * z[i];
         out[i] = W[i] * z[i] + tail;
         tail = i == ${p}_N_OPERATORS - 1 ? wz : tail + wz;
     }
 }
 
-/* The inverse state after the forward model is driven to x from the inverse state z_inv. */
+/* The inverse state after the forward model is driven to x from the inverse state z_inv
+   (the package's rebuild: forward state by duality, one play update at x, back by duality). */
 static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 {
-    ${T} zf[${p}_N_OPERATORS];
+    ${R} zi[${p}_N_OPERATORS], zf[${p}_N_OPERATORS], zo[${p}_N_OPERATORS];
     int i;
-    ${p}_dual(${p}_W_inv, ${p}_w_inv, z_inv, zf);
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) zf[i] = ${p}_max(x - ${p}_r[i], ${p}_min(x + ${p}_r[i], zf[i]));
-    ${p}_dual(${p}_W, ${p}_w, zf, out);
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) zi[i] = z_inv[i];
+    ${p}_dual(${p}_W_inv${d}, ${p}_w_inv${d}, zi, zf);
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {  /* play update at x: min(x + r, z), then max(x - r, .) */
+        const ${R} hi = x + ${p}_r${d}[i], lo = x - ${p}_r${d}[i];
+        const ${R} v = zf[i] < hi ? zf[i] : hi;
+        zf[i] = v > lo ? v : lo;
+    }
+    ${p}_dual(${p}_W${d}, ${p}_w${d}, zf, zo);
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) out[i] = (${T})zo[i];
 }
 """
 
@@ -277,10 +285,15 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     clip, helpers = "", ""
     if limits is not None:
         consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
-        consts += _tables(p, ctype, r=model.r, w=model.weights)
-        consts += _tables(p, ctype, W=np.cumsum(model.weights), W_inv=np.cumsum(inv.weights))
+        # the rebuild runs in double also with --float: the duality sums cancel (terms up to
+        # sum|w| / w0 times the output), which cost single precision up to 6e-4 of the drive range
+        rebuild, suffix = CType("double"), "_d" if ctype.is_float else ""
+        tables = {"r": model.r, "w": model.weights, "W": np.cumsum(model.weights), "W_inv": np.cumsum(inv.weights)}
+        if ctype.is_float:
+            tables["w_inv"] = inv.weights
+        consts += _tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
         clip = _sub(_PI_CLIP, ctype, p)
-        helpers = "\n" + _sub(_PI_REBASE, ctype, p)
+        helpers = "\n" + _sub(_PI_REBASE, ctype, p, R="double", d=suffix)
     return {
         "title": "compensator of a classical Prandtl-Ishlinskii model (closed-form inverse)",
         "members": f"    {ctype.name} z[{model.n_operators}];  /* operator outputs of the inverse PI model */",
