@@ -350,7 +350,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
-    consts += [_define(p, "TOL", max(tol, 2e-7 * scale) if ctype.is_float else tol, ctype)]
+    consts += [_define(p, "TOL", max(tol, 5e-8 * scale) if ctype.is_float else tol, ctype)]
     consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
     consts += [_define(p, "ROUNDING", 4.0 * (m + 2) * unit * float(np.sum(np.abs(model.weights))), ctype)]
     consts += [_define(p, "R_MAX", float(max(np.max(model.r), np.max(model.ra))), ctype)]
