@@ -1,0 +1,186 @@
+"""``stageid export c`` and ``stageid export mat``: models for real-time targets and MATLAB."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import click
+
+from .._errors import DataError
+
+_METHODS = click.Choice(["zoh", "tustin"])
+
+
+@click.group(
+    "export",
+    epilog="""
+\b
+Examples:
+  stageid export c hyst.json --prefix comp --inverse -o build/     # build/comp.h, build/comp.c
+  stageid export c stage.json --prefix stage --float -o build/
+  stageid export c plant.json --prefix plant --dt 1e-4 --method tustin -o build/
+  stageid export mat stage.json -o stage.mat
+""",
+)
+def export_group() -> None:
+    """Export a model: self-contained C99 code, or a MATLAB v5 MAT file."""
+
+
+def _dt_option(f):
+    f = click.option(
+        "--method", type=_METHODS, default=None, help="Discretisation of a continuous LTI model (default zoh)."
+    )(f)
+    return click.option(
+        "--dt",
+        type=float,
+        default=None,
+        help="Sample time [s]: discretises a continuous LTI model; for a hysteresis model with creep, the "
+        "sampling period of its lags (default the creep's sample_time).",
+    )(f)
+
+
+@export_group.command(
+    "c",
+    epilog="""
+\b
+Examples:
+  stageid export c hyst.json --prefix comp --inverse -o build/
+  gcc -std=c99 -O2 -c build/comp.c      # then comp_init(&s) once, comp_step(&s, &y_ref, &u) per sample
+""",
+)
+@click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
+@click.option("--prefix", required=True, help="C identifier starting every exported name: P.h, P.c, P_step ...")
+@click.option("-o", "--output", "out_dir", required=True, help="Folder for P.h and P.c (created if missing).")
+@click.option(
+    "--inverse", is_flag=True, help="The streaming compensator (desired output -> drive) of a hysteresis model."
+)
+@click.option("--float", "single", is_flag=True, help="Single-precision arithmetic (default double).")
+@click.option(
+    "--limits", default=None, help="Drive limits LOW,HIGH of the compensator (default the model's input_limits)."
+)
+@_dt_option
+def c_command(
+    model_path: str,
+    prefix: str,
+    out_dir: str,
+    inverse: bool,
+    single: bool,
+    limits: str | None,
+    dt: float | None,
+    method: str | None,
+) -> None:
+    """Write self-contained C99 code of MODEL.json: P.h (P_N_INPUTS, P_N_OUTPUTS, P_state, P_init,
+    P_step) and P.c. No heap, no I/O, no mutable globals; reproduces `stageid simulate` (or, with
+    --inverse, `stageid compensate`) to rounding in double precision."""
+    from ..export import check_prefix, export_c
+    from ..models import load_model
+
+    check_prefix(prefix)
+    folder = _check_folder(out_dir)
+    drive_limits = _parse_limits(limits)
+    step = _check_dt(dt)
+    model = load_model(model_path)
+    code = export_c(
+        model,
+        prefix,
+        inverse=inverse,
+        single=single,
+        dt=step,
+        method=method,
+        limits=drive_limits,
+        source=Path(model_path).name,
+    )
+    _write_files(folder, code.files())
+    click.echo(f"wrote {folder / (prefix + '.h')} and {folder / (prefix + '.c')}")
+
+
+@export_group.command(
+    "mat",
+    epilog="""
+\b
+Examples:
+  stageid export mat stage.json -o stage.mat
+  % MATLAB: m = load('stage.mat'); sys = ss(m.A, m.B, m.C, m.D, m.Ts, 'InputName', m.InputName, 'OutputName', m.OutputName);
+""",
+)
+@click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, help="The .mat file (MATLAB v5).")
+@_dt_option
+def mat_command(model_path: str, out: str, dt: float | None, method: str | None) -> None:
+    """Write MODEL.json as a MATLAB v5 MAT file: A, B, C, D, Ts, InputName, OutputName as `ss()`
+    takes them, or a struct `hysteresis` of a hysteresis model's parameters."""
+    from ..export.matlab import export_mat, mat_variables
+    from ..models import load_model
+    from ._common import atomic_output
+
+    target = _check_mat(out)
+    step = _check_dt(dt)
+    model = load_model(model_path)
+    mat_variables(model, step, method)  # every check before anything is written
+    with atomic_output(target) as tmp, open(tmp, "wb") as fh:
+        export_mat(model, fh, step, method)
+    click.echo(f"wrote {target}")
+
+
+def _check_dt(dt: float | None) -> float | None:
+    from ..checks import check_real
+
+    return None if dt is None else check_real(dt, "--dt", "export", low=0.0, closed="right", error=DataError)
+
+
+def _parse_limits(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        lim = tuple(float(p) for p in parts)
+    except ValueError:
+        raise click.UsageError(f"--limits must be two numbers LOW,HIGH; got {text!r}.") from None
+    if len(lim) != 2 or not lim[0] < lim[1]:
+        raise click.UsageError(f"--limits must be two numbers LOW,HIGH with LOW < HIGH; got {text!r}.")
+    return lim
+
+
+def _check_folder(path: str) -> Path:
+    """``-o`` of ``export c``: a folder (existing, or to be created in an existing parent)."""
+    if path == "-":
+        raise DataError("-o '-' (standard output) is not supported; expected a folder for the .h and .c files.")
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise DataError(f"-o '{folder}' is a file; expected a folder for the .h and .c files.")
+    parent = folder.parent if str(folder.parent) else Path(".")
+    if not parent.is_dir():
+        raise DataError(f"cannot write into '{folder}': directory '{parent}' does not exist.")
+    return folder
+
+
+def _check_mat(path: str) -> Path:
+    target = Path(path)
+    if path == "-" or target.suffix.lower() != ".mat":
+        raise DataError(f"output '{path}' must be a file name ending in .mat.")
+    parent = target.parent if str(target.parent) else Path(".")
+    if not parent.is_dir():
+        raise DataError(f"cannot write '{target}': directory '{parent}' does not exist.")
+    if target.is_dir():
+        raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")
+    return target
+
+
+def _write_files(folder: Path, files: dict[str, str]) -> None:
+    """Write every file or none: each goes to a temporary file next to its destination
+    (``atomic_output``) and all are renamed into place only after every write succeeded."""
+    from ._common import atomic_output
+
+    created = not folder.exists()
+    folder.mkdir(exist_ok=True)
+    try:
+        with contextlib.ExitStack() as stack:
+            tmps = {name: stack.enter_context(atomic_output(folder / name)) for name in files}
+            for name, text in files.items():
+                tmps[name].write_text(text)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
