@@ -74,6 +74,23 @@ def parse_band(text: str, option: str = "--band") -> tuple[float, float]:
     return check_band((lo, hi), option, error=click.UsageError)
 
 
+def parse_limits(text: str | None, option: str = "--limits") -> tuple[float, float] | None:
+    """``"LOW,HIGH"`` -> ``(low, high)``: two finite numbers with ``low < high`` (None stays None)."""
+    if text is None:
+        return None
+    import math
+
+    from ..checks import shown
+
+    try:
+        lim = tuple(float(p) for p in text.split(","))
+    except ValueError:
+        raise click.UsageError(f"{option} must be two numbers LOW,HIGH; got {shown(text)}.") from None
+    if len(lim) != 2 or not all(math.isfinite(v) for v in lim) or not lim[0] < lim[1]:
+        raise click.UsageError(f"{option} must be two finite numbers LOW,HIGH with LOW < HIGH; got {shown(text)}.")
+    return lim[0], lim[1]
+
+
 _MESSAGES: list[tuple[str, bool]] = []
 
 

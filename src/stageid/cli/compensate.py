@@ -46,21 +46,13 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
     from ..models import load_model
-    from ._common import check_output, read_table_checked, split_names, write_table_output
+    from ._common import check_output, parse_limits, read_table_checked, write_table_output
 
     check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)
     if not isinstance(model, (PIModel, ModifiedPIModel)):
         raise DataError(f"'{model_path}' is not a hysteresis model (stageid.hysteresis/1); got {type(model).__name__}.")
-    lim = None
-    if limits is not None:
-        parts = split_names(limits, "--limits")
-        try:
-            lim = tuple(float(p) for p in parts)
-        except ValueError:
-            raise click.UsageError(f"--limits must be two numbers LOW,HIGH; got {limits!r}.") from None
-        if len(lim) != 2 or not lim[0] < lim[1]:
-            raise click.UsageError(f"--limits must be two numbers LOW,HIGH with LOW < HIGH; got {limits!r}.")
+    lim = parse_limits(limits)
     table = read_table_checked(ref_path, ts=ts)
     yref = table.column(column)
     if table.dt is None:

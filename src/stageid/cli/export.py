@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 
 import click
 
 from .._errors import DataError
+from ._common import parse_limits
 
 _METHODS = click.Choice(["zoh", "tustin"])
 
@@ -78,7 +78,7 @@ def c_command(
 
     check_prefix(prefix)
     folder = _check_folder(out_dir)
-    drive_limits = _parse_limits(limits)
+    drive_limits = parse_limits(limits)
     step = _check_dt(dt)
     model = load_model(model_path)
     code = export_c(
@@ -110,16 +110,15 @@ Examples:
 def mat_command(model_path: str, out: str, dt: float | None, method: str | None) -> None:
     """Write MODEL.json as a MATLAB v5 MAT file: A, B, C, D, Ts, InputName, OutputName as `ss()`
     takes them, or a struct `hysteresis` of a hysteresis model's parameters."""
+    from ..atomic import atomic_write
     from ..export.matlab import export_mat, mat_variables
     from ..models import load_model
-    from ._common import atomic_output
 
     target = _check_mat(out)
     step = _check_dt(dt)
     model = load_model(model_path)
     mat_variables(model, step, method)  # every check before anything is written
-    with atomic_output(target) as tmp, open(tmp, "wb") as fh:
-        export_mat(model, fh, step, method)
+    atomic_write(target, lambda fh: export_mat(model, fh, step, method), binary=True)
     click.echo(f"wrote {target}")
 
 
@@ -127,19 +126,6 @@ def _check_dt(dt: float | None) -> float | None:
     from ..checks import check_real
 
     return None if dt is None else check_real(dt, "--dt", "export", low=0.0, closed="right", error=DataError)
-
-
-def _parse_limits(text: str | None) -> tuple[float, float] | None:
-    if text is None:
-        return None
-    parts = text.split(",")
-    try:
-        lim = tuple(float(p) for p in parts)
-    except ValueError:
-        raise click.UsageError(f"--limits must be two numbers LOW,HIGH; got {text!r}.") from None
-    if len(lim) != 2 or not lim[0] < lim[1]:
-        raise click.UsageError(f"--limits must be two numbers LOW,HIGH with LOW < HIGH; got {text!r}.")
-    return lim
 
 
 def _check_folder(path: str) -> Path:
@@ -168,19 +154,10 @@ def _check_mat(path: str) -> Path:
 
 
 def _write_files(folder: Path, files: dict[str, str]) -> None:
-    """Write every file or none: each goes to a temporary file next to its destination
-    (``atomic_output``) and all are renamed into place only after every write succeeded."""
-    from ._common import atomic_output
+    """Write every file or none (:func:`stageid.atomic.staged_folder`): the files go to a
+    temporary folder next to ``folder`` and move into place together at the command's end."""
+    from ..atomic import staged_folder
 
-    created = not folder.exists()
-    folder.mkdir(exist_ok=True)
-    try:
-        with contextlib.ExitStack() as stack:
-            tmps = {name: stack.enter_context(atomic_output(folder / name)) for name in files}
-            for name, text in files.items():
-                tmps[name].write_text(text)
-    except BaseException:
-        if created:
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        raise
+    with staged_folder(folder) as tmp:
+        for name, text in files.items():
+            (tmp / name).write_text(text)
