@@ -97,22 +97,25 @@ def cancel_pairs(
     >>> p.tolist(), z.size, len(pairs)
     ([(0.9+0j)], 0, 1)
     """
-    P = list(np.asarray(poles, dtype=complex))
-    Z = list(np.asarray(zeros, dtype=complex))
+    P = np.asarray(poles, dtype=complex).reshape(-1)
+    Z = np.asarray(zeros, dtype=complex).reshape(-1)
+    sp, sz = z_to_s(P, dt), z_to_s(Z, dt)
+    # distances once; a cancelled pair's row and column are masked with inf (elementwise the same
+    # numbers as recomputing them for the remaining roots, and argmin keeps their order)
+    d = np.abs(sp[:, None] - sz[None, :]) / np.maximum(np.abs(sp), 1.0)[:, None]
+    limit = np.where((sp.real[:, None] > 0) & (sz.real[None, :] > 0), unstable_tol, tol)
+    ratio = d / limit
+    keep_p, keep_z = np.ones(P.size, bool), np.ones(Z.size, bool)
     pairs: list[CancelledPair] = []
-    while P and Z:
-        sp = z_to_s(np.array(P), dt)
-        sz = z_to_s(np.array(Z), dt)
-        d = np.abs(sp[:, None] - sz[None, :]) / np.maximum(np.abs(sp), 1.0)[:, None]
-        both_rhp = (sp.real[:, None] > 0) & (sz.real[None, :] > 0)
-        limit = np.where(both_rhp, unstable_tol, tol)
-        i, j = np.unravel_index(int(np.argmin(d / limit)), d.shape)
+    while keep_p.any() and keep_z.any():
+        i, j = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
         if d[i, j] >= limit[i, j]:
             break
         pairs.append(CancelledPair(output, input, complex(sp[i]), complex(sz[j]), float(d[i, j])))
-        P.pop(i)
-        Z.pop(j)
-    return np.array(P, dtype=complex), np.array(Z, dtype=complex), tuple(pairs)
+        keep_p[i] = keep_z[j] = False
+        ratio[i, :] = np.inf
+        ratio[:, j] = np.inf
+    return P[keep_p], Z[keep_z], tuple(pairs)
 
 
 def _siso_pz(g: StateSpaceModel) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,172 @@
+"""Closed-loop identification, two source trees side by side: alternating rounds, medians, ratios.
+
+Each tree gets one long-lived worker process (``PYTHONPATH=<tree>/src``, one BLAS thread) that
+builds the cases once and then times ``ClosedLoopIdentification.fit`` on request; the workers
+take turns case by case and round by round, so that the load of a shared machine falls on both
+alike.  Besides the times (wall and process CPU) every worker reports the accuracy of its model
+against the true plant (basis-invariant: frequency responses over 20-300 Hz and the unstable
+poles), and the report says whether the two trees' plant responses are equal.
+
+Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo)
+and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
+axis at 70 dB SNR, as in the CLI test).
+
+    .venv/bin/python benchmarks/bench_closedloop_sidebyside.py --old /tmp/old/src --new src [--rounds 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+CASES = ("maglev", "2x2-s10", "2x2-s20")
+
+
+# ------------------------------------------------------------------------------ worker side
+def _build(case: str):
+    """``(estimator, experiments, true continuous plant)`` of one case."""
+    from stageid.closedloop import ClosedLoopIdentification, simulate_closed_loop
+    from stageid.data import Experiment
+
+    if case == "maglev":
+        from stageid.plants import maglev
+
+        outs = list(maglev.OUTPUTS)
+        refs = [f"r_{o}" for o in outs]
+        tables = [maglev.simulate_chirp(a, seed=k) for k, a in enumerate(outs)]
+        exps = [t.experiment(refs, outs, name=f"chirp-{a}") for t, a in zip(tables, outs)]
+        return ClosedLoopIdentification(maglev.controller(), band=(20.0, 300.0)), exps, maglev.model()
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    import _closedloop_plant2x2 as p2
+    from stageid.signals import chirp
+
+    seed = int(case.split("-s")[1])
+    r = chirp(0.0, 2500.0, duration=2.0, dt=p2.DT, amplitude=1e-6)
+    exps = []
+    for j in range(2):
+        R = np.zeros((r.size, 2))
+        R[:, j] = r
+        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, 70.0, seed=seed + j)
+        exps.append(Experiment(R, y, p2.DT))
+    return ClosedLoopIdentification(p2.controller(), band=(20.0, 300.0)), exps, p2.plant()
+
+
+def _accuracy(res, true) -> dict:
+    f = np.geomspace(20.0, 300.0, 300)
+    Gt, Gh = true.frequency_response(f), res.plant.frequency_response(f)
+    rel = np.max(np.abs(Gh - Gt) / np.abs(Gt), axis=0)
+    peak = np.max(np.abs(Gh - Gt), axis=0) / np.max(np.abs(Gt), axis=0)
+    off = ~np.eye(rel.shape[0], dtype=bool)
+    rhp = np.sort(np.asarray(res.plant_unstable_poles).real)
+    true_rhp = np.sort([p.real for p in true.poles() if p.real > 1e-6])
+    return {
+        "diag_error_percent": [float(100 * rel[k, k]) for k in range(rel.shape[0])],
+        "coupling_error_of_peak_max_percent": float(100 * np.max(peak[off])),
+        "rhp_pole_error_max_percent": float(100 * max(np.min(np.abs(rhp - t)) / t for t in true_rhp)),
+        "response": [Gh.real.tolist(), Gh.imag.tolist()],
+    }
+
+
+def worker() -> None:
+    """Answer ``case`` lines on stdin with one JSON line of timings and accuracy."""
+    built = {}
+    for line in sys.stdin:
+        case = line.strip()
+        if not case:
+            continue
+        if case not in built:
+            built[case] = _build(case)
+        est, exps, true = built[case]
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = est.fit(exps)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        print(json.dumps({"case": case, "wall": wall, "cpu": cpu, **_accuracy(res, true)}), flush=True)
+
+
+# ------------------------------------------------------------------------------ driver side
+def _spawn(src: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(Path(src).resolve()), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    return subprocess.Popen(
+        [sys.executable, __file__, "--worker"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
+    )
+
+
+def _ask(proc: subprocess.Popen, case: str) -> dict:
+    proc.stdin.write(case + "\n")
+    proc.stdin.flush()
+    return json.loads(proc.stdout.readline())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--old", help="the old tree's src directory")
+    ap.add_argument("--new", default=str(HERE.parent / "src"), help="the new tree's src directory")
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--cases", nargs="+", default=list(CASES))
+    args = ap.parse_args()
+    if args.worker:
+        worker()
+        return
+    if not args.old:
+        ap.error("--old is required")
+    procs = {"old": _spawn(args.old), "new": _spawn(args.new)}
+    load = [os.getloadavg()[0]]
+    runs: dict[tuple[str, str], list[dict]] = {}
+    for case in args.cases:  # one untimed warm-up per worker and case (imports, numba cache, first calls)
+        for name in ("old", "new"):
+            _ask(procs[name], case)
+    for rnd in range(args.rounds):
+        for case in args.cases:
+            order = ("old", "new") if rnd % 2 == 0 else ("new", "old")
+            for name in order:
+                runs.setdefault((case, name), []).append(_ask(procs[name], case))
+                load.append(os.getloadavg()[0])
+        print(f"round {rnd + 1}/{args.rounds} done, load {load[-1]:.1f}", file=sys.stderr, flush=True)
+    for p in procs.values():
+        p.stdin.close()
+        p.wait()
+    print(report(runs, args, load))
+
+
+def report(runs, args, load) -> str:
+    lines = [
+        f"Side by side, {args.rounds} alternating rounds (1 untimed warm-up each), one BLAS thread; "
+        f"1-minute load average {min(load):.1f}-{max(load):.1f} (median {np.median(load):.1f}) on {os.cpu_count()} cores.",
+        "",
+        "| case | old wall [s] | new wall [s] | old/new wall | median paired ratio | old CPU [s] | new CPU [s] | old/new CPU |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for case in args.cases:
+        o, n = runs[(case, "old")], runs[(case, "new")]
+        ow, nw = np.median([r["wall"] for r in o]), np.median([r["wall"] for r in n])
+        oc, nc = np.median([r["cpu"] for r in o]), np.median([r["cpu"] for r in n])
+        paired = np.median([a["wall"] / b["wall"] for a, b in zip(o, n)])
+        lines.append(
+            f"| {case} | {ow:.2f} | {nw:.2f} | {ow / nw:.2f}x | {paired:.2f}x | {oc:.2f} | {nc:.2f} | {oc / nc:.2f}x |"
+        )
+    lines += ["", "| case | tree | diagonal error [%] | coupling error of peak, max [%] | RHP pole error, max [%] |"]
+    lines.append("|---|---|---|---|---|")
+    for case in args.cases:
+        for name in ("old", "new"):
+            r = runs[(case, name)][-1]
+            diag = ", ".join(f"{v:.4f}" for v in r["diag_error_percent"])
+            lines.append(
+                f"| {case} | {name} | {diag} | {r['coupling_error_of_peak_max_percent']:.3f} | "
+                f"{r['rhp_pole_error_max_percent']:.4f} |"
+            )
+        same = runs[(case, "old")][-1]["response"] == runs[(case, "new")][-1]["response"]
+        lines.append(f"| {case} | | plant responses of the two trees {'bitwise equal' if same else 'DIFFER'} | | |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    main()
