@@ -26,6 +26,8 @@ Examples:
   stageid freqresp p558.json --fmin 1 --fmax 200 --n 300 -o fr.csv
   stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 -o u.csv
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry -o model.json
+  stageid frf noise.csv --inputs u --outputs y -o frf.csv   # measured FRF + coherence + std
+  stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
 """
 
 # (module, attribute, parent group): each command lives in its own module.
@@ -40,6 +42,8 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.demo", "demo_command", "cli"),
     ("stageid.cli.identify_statespace", "statespace_command", "identify"),
     ("stageid.cli.identify_closedloop", "closedloop_command", "identify"),
+    ("stageid.cli.frf", "frf_command", "cli"),
+    ("stageid.cli.identify_frd", "frd_command", "identify"),
 ]
 
 

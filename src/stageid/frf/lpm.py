@@ -39,7 +39,9 @@ def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
     return max(1, int(np.ceil((rows_needed / n_records - 1) / 2)))
 
 
-def lpm_frf(data: Experiment | Sequence[Experiment], degree: int = 2, half_width: int | None = None) -> FrequencyResponse:
+def lpm_frf(
+    data: Experiment | Sequence[Experiment], degree: int = 2, half_width: int | None = None
+) -> FrequencyResponse:
     """LPM estimate of the FRF with its standard deviation and coherence.
 
     Parameters
@@ -77,11 +79,13 @@ def lpm_frf(data: Experiment | Sequence[Experiment], degree: int = 2, half_width
     degree = check_integer(degree, "degree", "lpm_frf", low=0, high=6)
     N = exps[0].n_samples
     if any(e.n_samples != N for e in exps):
-        raise DataError(
-            f"the LPM needs records of one length; got {sorted({e.n_samples for e in exps})} samples."
-        )
+        raise DataError(f"the LPM needs records of one length; got {sorted({e.n_samples for e in exps})} samples.")
     m, q, ne = exps[0].n_inputs, exps[0].n_outputs, len(exps)
-    n = lpm_half_width(m, ne, degree) if half_width is None else check_integer(half_width, "half_width", "lpm_frf", low=1)
+    n = (
+        lpm_half_width(m, ne, degree)
+        if half_width is None
+        else check_integer(half_width, "half_width", "lpm_frf", low=1)
+    )
     K_last = N // 2
     if K_last + 1 < 2 * n + 1 or K_last < 2:
         raise DataError(f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}.")

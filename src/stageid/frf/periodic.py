@@ -68,11 +68,13 @@ def periodic_frf(
     periods = check_integer(periods, "periods", "periodic_frf", low=1)
     transient_periods = check_integer(transient_periods, "transient_periods", "periodic_frf", low=0)
     N = exps[0].n_samples
-    m, q, ne = exps[0].n_inputs, exps[0].n_outputs, len(exps)
+    m, ne = exps[0].n_inputs, len(exps)
     if any(e.n_samples != N for e in exps):
         raise DataError(f"periodic averaging needs records of one length; got {sorted({e.n_samples for e in exps})}.")
     if N % periods:
-        raise DataError(f"a record of {N} samples does not hold {periods} whole periods ({N} / {periods} is not whole).")
+        raise DataError(
+            f"a record of {N} samples does not hold {periods} whole periods ({N} / {periods} is not whole)."
+        )
     kept = periods - transient_periods
     if kept < 2:
         raise DataError(
@@ -88,6 +90,16 @@ def periodic_frf(
 
     Up = np.stack([per_period(e.u) for e in exps], axis=-1)  # (P, lines, m, ne)
     Yp = np.stack([per_period(e.y) for e in exps], axis=-1)  # (P, lines, q, ne)
+    lines, G, std, coh = _average(Up, Yp, kept)
+    freqs = lines / (L * exps[0].dt)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+
+
+def _average(Up: np.ndarray, Yp: np.ndarray, kept: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Excited lines, ``G``, its std and the coherence from per-period spectra (eq. 2-41 to 2-43).
+
+    ``Up`` (P, lines, m, ne), ``Yp`` (P, lines, q, ne): the DFT of every period of every record.
+    """
     Um, Ym = Up.mean(axis=0), Yp.mean(axis=0)
     power = np.sum(np.abs(Um) ** 2, axis=(1, 2))
     lines = np.flatnonzero(power > EXCITED_FRACTION * power.max(initial=0.0))
@@ -106,5 +118,4 @@ def periodic_frf(
     ypow = np.mean(np.abs(Ym) ** 2, axis=2)
     with np.errstate(invalid="ignore", divide="ignore"):
         coh = np.where(ypow > 0, 1.0 - sigma2.mean(axis=2) / np.where(ypow > 0, ypow, 1.0), 0.0)
-    freqs = lines / (L * exps[0].dt)
-    return FrequencyResponse(freqs, G, np.sqrt(var), np.clip(coh, 0.0, 1.0), exps[0].input_names, exps[0].output_names)
+    return lines, G, np.sqrt(var), np.clip(coh, 0.0, 1.0)

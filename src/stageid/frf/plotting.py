@@ -6,13 +6,11 @@ from typing import Any
 
 import numpy as np
 
-from .frd import FrequencyResponse
-
 __all__ = ["bode_figure"]
 
 
-def bode_figure(frd: FrequencyResponse, model: Any = None):
-    """Magnitude (with ``|H| +- 2 std`` shaded), phase, and coherence when the FRF has it.
+def bode_figure(frd: Any, model: Any = None):
+    """A :class:`~stageid.frf.FrequencyResponse` as magnitude (with ``|H| +- 2 std`` shaded), phase, and coherence when the FRF has it.
 
     One column per input, outputs overlaid; ``model`` (anything with
     ``frequency_response(freqs)`` and the same channels) is drawn dashed.  Returns the figure.
@@ -48,4 +46,3 @@ def bode_figure(frd: FrequencyResponse, model: Any = None):
         axes[-1, j].set_xlabel("frequency [Hz]")
         axes[0, j].legend(fontsize=7)
     return fig
-
