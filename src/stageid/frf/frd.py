@@ -153,7 +153,7 @@ class FrequencyResponse:
     @classmethod
     def from_control(cls, sys: Any) -> FrequencyResponse:
         """From a python-control ``FrequencyResponseData`` (its ``omega`` in rad/s)."""
-        data = np.asarray(sys.fresp)
+        data = np.asarray(getattr(sys, "frdata", None) if hasattr(sys, "frdata") else sys.fresp)
         if data.ndim == 1:
             data = data[None, None, :]
         return cls(
