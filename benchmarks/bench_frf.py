@@ -59,7 +59,11 @@ def scipy_reference(u: np.ndarray, y: np.ndarray, segment: int) -> np.ndarray:
     explained = np.real(np.einsum("kaq,kaq->kq", np.conj(Suy[1:]), HT))
     coh = 1.0 - (Syy[1:] - explained) / Syy[1:]
     L = 2 * (u.shape[0] // segment) - 1
-    std = np.sqrt((Syy[1:] - explained)[:, :, None] * np.real(np.diagonal(np.linalg.inv(Suu[1:]), axis1=1, axis2=2))[:, None, :] / L)
+    std = np.sqrt(
+        (Syy[1:] - explained)[:, :, None]
+        * np.real(np.diagonal(np.linalg.inv(Suu[1:]), axis1=1, axis2=2))[:, None, :]
+        / L
+    )
     return HT.transpose(0, 2, 1), coh, std
 
 

@@ -56,7 +56,9 @@ def test_welch_h1_and_coherence_equal_scipy_siso():
 def test_welch_pools_one_record_per_input():
     # two records, each exciting one input: pooled spectra are invertible, one alone is not
     rng = np.random.default_rng(1)
-    g = StateSpaceModel([[0.8, 0.1], [0.0, 0.5]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.3, 1.0]], np.zeros((2, 2)), dt=DT)
+    g = StateSpaceModel(
+        [[0.8, 0.1], [0.0, 0.5]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.3, 1.0]], np.zeros((2, 2)), dt=DT
+    )
     recs = []
     for k in range(2):
         u = np.zeros((40000, 2))
@@ -154,14 +156,28 @@ def test_periodic_std_is_calibrated():
     "make, fragment",
     [
         (lambda: welch_frf(Experiment(np.ones(100), np.arange(100.0), DT), 64), "singular"),  # constant input
-        (lambda: welch_frf(Experiment(np.random.default_rng(0).standard_normal(50), np.zeros(50), DT), 64), "fewer than one segment"),
         (
-            lambda: welch_frf(Experiment(np.repeat(np.random.default_rng(0).standard_normal((500, 1)), 2, 1), np.zeros((500, 1)), DT), 64),
+            lambda: welch_frf(Experiment(np.random.default_rng(0).standard_normal(50), np.zeros(50), DT), 64),
+            "fewer than one segment",
+        ),
+        (
+            lambda: welch_frf(
+                Experiment(np.repeat(np.random.default_rng(0).standard_normal((500, 1)), 2, 1), np.zeros((500, 1)), DT),
+                64,
+            ),
             "proportional",
         ),
         (lambda: periodic_frf(Experiment(np.ones(100), np.ones(100), DT), periods=3), "whole periods"),
-        (lambda: periodic_frf(Experiment(np.ones(100), np.ones(100), DT), periods=4, transient_periods=3), "at least 2"),
-        (lambda: welch_frf(Experiment(np.random.default_rng(0).standard_normal(500), np.zeros(500), DT), 64, window="nope"), "window"),
+        (
+            lambda: periodic_frf(Experiment(np.ones(100), np.ones(100), DT), periods=4, transient_periods=3),
+            "at least 2",
+        ),
+        (
+            lambda: welch_frf(
+                Experiment(np.random.default_rng(0).standard_normal(500), np.zeros(500), DT), 64, window="nope"
+            ),
+            "window",
+        ),
     ],
 )
 def test_bad_records_are_one_line_errors(make, fragment):

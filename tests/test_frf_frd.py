@@ -40,7 +40,23 @@ def test_reads_a_freqresp_file(tmp_path):
 
     g = StateSpaceModel([[0.9]], [[1.0]], [[1.0]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",))
     save_model(g, tmp_path / "g.json")
-    assert main(["freqresp", str(tmp_path / "g.json"), "--fmin", "1", "--fmax", "40", "--n", "30", "-o", str(tmp_path / "fr.csv")]) == 0
+    assert (
+        main(
+            [
+                "freqresp",
+                str(tmp_path / "g.json"),
+                "--fmin",
+                "1",
+                "--fmax",
+                "40",
+                "--n",
+                "30",
+                "-o",
+                str(tmp_path / "fr.csv"),
+            ]
+        )
+        == 0
+    )
     frd = read_frd(tmp_path / "fr.csv")
     np.testing.assert_allclose(frd.response, g.frequency_response(frd.freqs), rtol=1e-12)
 
@@ -67,7 +83,10 @@ def test_figure_has_std_band_and_coherence_panel():
         ({"f_hz": [1.0, 2.0], "re_y_u": [1, 2]}, "no matching 'im_y_u'"),
         ({"f_hz": [1.0, 2.0], "im_y_u": [1, 2]}, "no matching 're_y_u'"),
         ({"re_y_u": [1, 2], "im_y_u": [1, 2]}, "'f_hz'"),
-        ({"f_hz": [1.0, 2.0], "re_a_u": [1, 2], "im_a_u": [1, 2], "re_b_v": [1, 2], "im_b_v": [1, 2]}, "full output x input grid"),
+        (
+            {"f_hz": [1.0, 2.0], "re_a_u": [1, 2], "im_a_u": [1, 2], "re_b_v": [1, 2], "im_b_v": [1, 2]},
+            "full output x input grid",
+        ),
     ],
 )
 def test_bad_tables(tmp_path, columns, fragment):
