@@ -1,16 +1,19 @@
 """Identification from FRF data: a 2x2 flexure stage recovered within 1 % of each column's peak
 (continuous and discrete), delays, automatic order, and the measured AFM stage."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from stageid import ParameterError
-from stageid.frf import FrequencyResponse, FRDIdentification
+from stageid.data import datasets
+from stageid.frf import FRDIdentification, FrequencyResponse
 from stageid.models import StateSpaceModel
 
-AFM = Path(__file__).resolve().parents[2] / "shared" / "data" / "afm_piezo_stage_frf" / "FRF_data_current_stage2.mat"
+AFM = (
+    None
+    if datasets.SHARED_DATA is None
+    else datasets.SHARED_DATA / "afm_piezo_stage_frf" / "FRF_data_current_stage2.mat"
+)
 
 
 def flexure_stage() -> StateSpaceModel:
@@ -84,7 +87,7 @@ def test_weights_and_settings_checked():
 
 def _afm():
     scipy_io = pytest.importorskip("scipy.io")
-    if not AFM.exists():
+    if AFM is None or not AFM.exists():
         pytest.skip("shared data folder not found (../shared/data/afm_piezo_stage_frf)")
     frf = scipy_io.loadmat(AFM, squeeze_me=True, struct_as_record=False)["modelFit"].frf
     return FrequencyResponse(np.asarray(frf.freqs_Hz), np.asarray(frf.G_uz2stage), inputs=("uz",), outputs=("stage",))
