@@ -162,3 +162,29 @@ def test_identify_frd_bad_input(tmp_path, table, extra, fragment):
     rc, out, err = run("identify", "frd", path, *extra, "-o", tmp_path / "m.json")
     assert rc == 2 and fragment in err and err.count("\n") == 1, err
     assert not (tmp_path / "m.json").exists()
+
+
+def test_npz_records_streamed_with_the_same_result_and_checks(tmp_path, record):
+    path, u, y = record
+    np.savez(tmp_path / "rec.npz", t=np.arange(u.size) * DT, u=u, y=y)
+    assert run("frf", path, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "a.csv")[0] == 0
+    assert run("frf", tmp_path / "rec.npz", "--inputs", "u", "--outputs", "y", "-o", tmp_path / "b.csv")[0] == 0
+    np.testing.assert_allclose(read_frd(tmp_path / "b.csv").response, read_frd(tmp_path / "a.csv").response, rtol=1e-12)
+    for k, name in ((5000, "u"), (u.size - 3, "y")):  # inside a segment, and in the tail after the last one
+        bad = {"u": u.copy(), "y": y.copy()}
+        bad[name][k] = np.nan
+        np.savez(tmp_path / "nan.npz", t=np.arange(u.size) * DT, **bad)
+        rc, _, err = run(
+            "frf",
+            tmp_path / "nan.npz",
+            "--inputs",
+            "u",
+            "--outputs",
+            "y",
+            "--segment",
+            "1000",
+            "-o",
+            tmp_path / "c.csv",
+        )
+        assert rc == 2 and f"column '{name}' has NaN at row {k}" in err and err.count("\n") == 1, err
+        assert not (tmp_path / "c.csv").exists()

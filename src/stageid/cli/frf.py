@@ -65,10 +65,10 @@ def frf_command(
     _check_method_options(method, segment, overlap, window, periods, transient_periods)
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
-    exps = read_experiments(data, ins, outs, ts)
     if method == "welch":
         from ..frf.welch import cross_spectra, default_segment, h1_from_spectra
 
+        exps = _read_records(data, ins, outs, ts)
         if segment is None:
             segment = default_segment(min(e.n_samples for e in exps))
             chosen = " (chosen from the record; set it with --segment)"
@@ -80,15 +80,31 @@ def frf_command(
     elif method == "lpm":
         from ..frf.lpm import lpm_frf
 
-        frd = lpm_frf(exps)
+        frd = lpm_frf(read_experiments(data, ins, outs, ts))
         say(f"lpm: {frd.n_freqs} lines at {frd.freqs[0]:g} Hz resolution")
     else:
         from ..frf.periodic import periodic_frf
 
+        exps = read_experiments(data, ins, outs, ts)
         frd = periodic_frf(exps, periods, 1 if transient_periods is None else transient_periods)
         say(f"periodic: {frd.n_freqs} excited lines, {frd.freqs[0]:g}-{frd.freqs[-1]:g} Hz")
     write_table_output(output, frd.to_columns())
     say(f"frequency response written to {output}")
+
+
+def _read_records(paths, inputs, outputs, ts) -> list:
+    """Welch's records: NPZ archives of 1-D float columns are read channel by channel (no table
+    copy; samples checked segment batch by segment batch), everything else as experiments."""
+    from ..frf.records import read_npz_record
+    from ._common import CLI_TIME_RTOL
+
+    records = []
+    for p in paths:
+        rec = read_npz_record(p, inputs, outputs, ts, CLI_TIME_RTOL) if str(p).lower().endswith(".npz") else None
+        records.append(rec if rec is not None else read_experiments([p], inputs, outputs, ts)[0])
+    from ..frf.records import as_channel_records
+
+    return list(as_channel_records([r if hasattr(r, "channels") else as_channel_records(r)[0] for r in records]))
 
 
 def _check_method_options(method, segment, overlap, window, periods, transient_periods) -> None:

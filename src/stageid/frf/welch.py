@@ -25,9 +25,10 @@ import numpy as np
 
 from .._errors import DataError, ParameterError
 from ..checks import check_integer, check_real
-from ..data import Experiment, as_experiments
+from ..data import Experiment
 from ..resources import require_memory
 from .frd import FrequencyResponse
+from .records import ChannelRecord, as_channel_records, check_finite_batch
 
 __all__ = ["CrossSpectra", "cross_spectra", "welch_frf", "h1_from_spectra", "default_segment", "get_window"]
 
@@ -94,13 +95,16 @@ def _effective_segments(w: np.ndarray, step: int, counts: Sequence[int]) -> floa
 
 
 def cross_spectra(
-    data: Experiment | Sequence[Experiment], segment: int, overlap: float = 0.5, window: str = "hann"
+    data: Experiment | ChannelRecord | Sequence[Experiment | ChannelRecord],
+    segment: int,
+    overlap: float = 0.5,
+    window: str = "hann",
 ) -> CrossSpectra:
     """Auto- and cross-spectral densities of all channels of all records, pooled.
 
     Parameters
     ----------
-    data : Experiment or sequence of Experiment
+    data : Experiment, ChannelRecord or a sequence of them
     segment : int
         Samples per segment (``nperseg``), >= 2 and at most the shortest record.
     overlap : float
@@ -129,45 +133,49 @@ def cross_spectra(
     >>> bool(np.allclose(cs.S[:, 0, 1], p, rtol=1e-10))
     True
     """
-    exps = as_experiments(data)
+    recs = as_channel_records(data)
     segment = check_integer(segment, "segment", "welch_frf", low=2)
     overlap = check_real(overlap, "overlap", "welch_frf", low=0.0, high=1.0, closed="left")
     w = get_window(window, segment)
     noverlap = int(overlap * segment)
     step = segment - noverlap
-    for e in exps:
-        if e.n_samples < segment:
+    for r in recs:
+        if r.n_samples < segment:
             raise DataError(
-                f"record '{e.name or 'data'}' has {e.n_samples} samples, fewer than one segment of {segment}; "
+                f"record '{r.name or 'data'}' has {r.n_samples} samples, fewer than one segment of {segment}; "
                 "give a shorter --segment."
             )
-    n_ch = exps[0].n_inputs + exps[0].n_outputs
+    n_ch = len(recs[0].channels)
     nf = segment // 2 + 1
     batch = max(1, int(BATCH_BYTES // (8.0 * n_ch * segment * 3)))
     require_memory(16.0 * nf * (n_ch * n_ch + 2 * n_ch * batch) + 24.0 * batch * n_ch * segment, "Welch spectra")
     acc = np.zeros((nf, n_ch, n_ch), complex)
     counts = []
-    for e in exps:
-        x = np.concatenate([e.u, e.y], axis=1).T  # (channels, n): contiguous rows for the segment view
-        x = np.ascontiguousarray(x)
-        view = np.lib.stride_tricks.sliding_window_view(x, segment, axis=1)[:, ::step]  # (ch, L, N)
-        L = view.shape[1]
+    for r in recs:
+        views = [np.lib.stride_tricks.sliding_window_view(x, segment)[::step] for x in r.channels]  # (L, N) each
+        L = views[0].shape[0]
         counts.append(L)
+        for c, x in enumerate(r.channels):  # the samples after the last segment are checked too
+            tail = x[(L - 1) * step + segment :]
+            check_finite_batch(r, tail[None, :], c, (L - 1) * step + segment, 0)
         for b in range(0, L, batch):
-            seg = view[:, b : b + batch]
-            seg = seg - seg.mean(axis=2, keepdims=True)  # scipy's default detrend="constant"
-            X = np.fft.rfft(seg * w, axis=2)  # one FFT per channel per segment
+            X = np.empty((n_ch, min(batch, L - b), nf), complex)
+            for c, view in enumerate(views):
+                seg = view[b : b + batch]
+                check_finite_batch(r, seg, c, b * step, step)
+                seg = seg - seg.mean(axis=1, keepdims=True)  # scipy's default detrend="constant"
+                X[c] = np.fft.rfft(seg * w, axis=1)  # one FFT per channel per segment
             Xf = X.transpose(2, 0, 1)  # (nf, ch, batch)
             acc += np.conj(Xf) @ Xf.transpose(0, 2, 1)
     n_seg = int(sum(counts))
-    scale = 1.0 / (n_seg * (1.0 / exps[0].dt) * float(w @ w))
+    scale = 1.0 / (n_seg * (1.0 / recs[0].dt) * float(w @ w))
     one_sided = np.full(nf, 2.0)
     one_sided[0] = 1.0
     if segment % 2 == 0:
         one_sided[-1] = 1.0
     acc *= (scale * one_sided)[:, None, None]
-    freqs = np.fft.rfftfreq(segment, exps[0].dt)
-    return CrossSpectra(freqs, acc, exps[0].n_inputs, n_seg, segment, _effective_segments(w, step, counts))
+    freqs = np.fft.rfftfreq(segment, recs[0].dt)
+    return CrossSpectra(freqs, acc, recs[0].n_inputs, n_seg, segment, _effective_segments(w, step, counts))
 
 
 def h1_from_spectra(
@@ -244,8 +252,8 @@ def welch_frf(
     >>> bool(np.allclose(frd.response, 2.0, rtol=1e-2)), bool(frd.coherence.min() > 0.99)
     (True, True)
     """
-    exps = as_experiments(data)
+    recs = as_channel_records(data)
     if segment is None:
-        segment = default_segment(min(e.n_samples for e in exps))
-    spectra = cross_spectra(exps, segment, overlap, window)
-    return h1_from_spectra(spectra, exps[0].input_names, exps[0].output_names)
+        segment = default_segment(min(r.n_samples for r in recs))
+    spectra = cross_spectra(recs, segment, overlap, window)
+    return h1_from_spectra(spectra, recs[0].input_names, recs[0].output_names)
