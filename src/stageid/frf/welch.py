@@ -150,23 +150,7 @@ def cross_spectra(
     batch = max(1, int(BATCH_BYTES // (8.0 * n_ch * segment * 3)))
     require_memory(16.0 * nf * (n_ch * n_ch + 2 * n_ch * batch) + 24.0 * batch * n_ch * segment, "Welch spectra")
     acc = np.zeros((nf, n_ch, n_ch), complex)
-    counts = []
-    for r in recs:
-        views = [np.lib.stride_tricks.sliding_window_view(x, segment)[::step] for x in r.channels]  # (L, N) each
-        L = views[0].shape[0]
-        counts.append(L)
-        for c, x in enumerate(r.channels):  # the samples after the last segment are checked too
-            tail = x[(L - 1) * step + segment :]
-            check_finite_batch(r, tail[None, :], c, (L - 1) * step + segment, 0)
-        for b in range(0, L, batch):
-            X = np.empty((n_ch, min(batch, L - b), nf), complex)
-            for c, view in enumerate(views):
-                seg = view[b : b + batch]
-                check_finite_batch(r, seg, c, b * step, step)
-                seg = seg - seg.mean(axis=1, keepdims=True)  # scipy's default detrend="constant"
-                X[c] = np.fft.rfft(seg * w, axis=1)  # one FFT per channel per segment
-            Xf = X.transpose(2, 0, 1)  # (nf, ch, batch)
-            acc += np.conj(Xf) @ Xf.transpose(0, 2, 1)
+    counts = [_accumulate(r, w, step, batch, acc) for r in recs]
     n_seg = int(sum(counts))
     scale = 1.0 / (n_seg * (1.0 / recs[0].dt) * float(w @ w))
     one_sided = np.full(nf, 2.0)
@@ -176,6 +160,31 @@ def cross_spectra(
     acc *= (scale * one_sided)[:, None, None]
     freqs = np.fft.rfftfreq(segment, recs[0].dt)
     return CrossSpectra(freqs, acc, recs[0].n_inputs, n_seg, segment, _effective_segments(w, step, counts))
+
+
+def _accumulate(r: ChannelRecord, w: np.ndarray, step: int, batch: int, acc: np.ndarray) -> int:
+    """Add ``sum conj(X) X^T`` over the segments of record ``r`` to ``acc``; returns their count.
+
+    Segment batches are cut from each channel as strided views, mean-removed, windowed and
+    transformed once per channel; the samples after the last segment are checked as well.
+    """
+    segment = w.size
+    n_ch, nf = len(r.channels), acc.shape[0]
+    views = [np.lib.stride_tricks.sliding_window_view(x, segment)[::step] for x in r.channels]  # (L, N) each
+    L = views[0].shape[0]
+    for c, x in enumerate(r.channels):
+        tail = x[(L - 1) * step + segment :]
+        check_finite_batch(r, tail[None, :], c, (L - 1) * step + segment, 0)
+    for b in range(0, L, batch):
+        X = np.empty((n_ch, min(batch, L - b), nf), complex)
+        for c, view in enumerate(views):
+            seg = view[b : b + batch]
+            check_finite_batch(r, seg, c, b * step, step)
+            seg = seg - seg.mean(axis=1, keepdims=True)  # scipy's default detrend="constant"
+            X[c] = np.fft.rfft(seg * w, axis=1)  # one FFT per channel per segment
+        Xf = X.transpose(2, 0, 1)  # (nf, ch, batch)
+        acc += np.conj(Xf) @ Xf.transpose(0, 2, 1)
+    return L
 
 
 def h1_from_spectra(
