@@ -170,6 +170,9 @@ def test_npz_records_streamed_with_the_same_result_and_checks(tmp_path, record):
     assert run("frf", path, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "a.csv")[0] == 0
     assert run("frf", tmp_path / "rec.npz", "--inputs", "u", "--outputs", "y", "-o", tmp_path / "b.csv")[0] == 0
     np.testing.assert_allclose(read_frd(tmp_path / "b.csv").response, read_frd(tmp_path / "a.csv").response, rtol=1e-12)
+    np.savez_compressed(tmp_path / "z.npz", t=np.arange(u.size) * DT, u=u, y=y)  # read through the zip reader
+    assert run("frf", tmp_path / "z.npz", "--inputs", "u", "--outputs", "y", "-o", tmp_path / "z.csv")[0] == 0
+    np.testing.assert_allclose(read_frd(tmp_path / "z.csv").response, read_frd(tmp_path / "a.csv").response, rtol=1e-12)
     for k, name in ((5000, "u"), (u.size - 3, "y")):  # inside a segment, and in the tail after the last one
         bad = {"u": u.copy(), "y": y.copy()}
         bad[name][k] = np.nan

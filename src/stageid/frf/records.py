@@ -115,10 +115,10 @@ def read_npz_record(
         wanted = list(inputs) + list(outputs)
         if not all(k in keys for k in wanted):
             return None
-        arrays = [archive[k] for k in wanted]
+        arrays = [_member(path, archive, k) for k in wanted]
         if any(a.ndim != 1 or a.dtype.kind != "f" for a in arrays):
             return None
-        t = archive["t"] if "t" in keys else None
+        t = _member(path, archive, "t") if "t" in keys else None
     n = arrays[0].shape[0]
     for k, a in zip(wanted, arrays):
         if a.shape[0] != n:
@@ -128,9 +128,44 @@ def read_npz_record(
     if n < 2:
         raise DataError(f"{name}: a record needs at least 2 samples; got {n}.")
     dt = _time_step(t, ts, n, name, time_rtol)
-    return ChannelRecord(
-        tuple(np.asarray(a, dtype=float) for a in arrays), len(inputs), dt, tuple(inputs), tuple(outputs), name
-    )
+    channels = tuple(a if a.dtype == np.float64 else np.asarray(a, dtype=float) for a in arrays)
+    return ChannelRecord(channels, len(inputs), dt, tuple(inputs), tuple(outputs), name)
+
+
+def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
+    """Array ``key`` of an NPZ archive, memory-mapped when stored uncompressed (``np.savez``).
+
+    A mapped array is read from the page cache segment by segment as the spectra need it,
+    instead of being copied whole through the zip reader first.  Compressed members and
+    anything but a 1-D array in C order are read the ordinary way.
+    """
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            info = zf.getinfo(key + ".npy")
+        if info.compress_type != zipfile.ZIP_STORED:
+            return archive[key]
+        with open(path, "rb") as fh:
+            fh.seek(info.header_offset)
+            local = fh.read(30)  # the local file header: name and extra-field lengths at 26 and 28
+            fh.seek(
+                info.header_offset
+                + 30
+                + int.from_bytes(local[26:28], "little")
+                + int.from_bytes(local[28:30], "little")
+            )
+            version = np.lib.format.read_magic(fh)
+            if version not in ((1, 0), (2, 0)):
+                return archive[key]
+            reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, fortran, dtype = reader(fh)
+            offset = fh.tell()
+        if fortran or dtype.hasobject or len(shape) != 1:
+            return archive[key]
+        return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape)
+    except (KeyError, ValueError, OSError, zipfile.BadZipFile):
+        return archive[key]
 
 
 def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: float) -> float:
@@ -142,7 +177,7 @@ def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: 
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")
     steps = np.diff(t)
     dt = float((t[-1] - t[0]) / (n - 1))
-    if not dt > 0 or np.max(np.abs(steps - dt)) > rtol * dt:
+    if not dt > 0 or steps.max() > dt * (1 + rtol) or steps.min() < dt * (1 - rtol):
         raise DataError(f"{name}: the time column 't' must increase uniformly (to {rtol:g} of its step).")
     if ts is not None and abs(ts - dt) > rtol * dt:
         raise DataError(f"{name}: --ts {ts:g} s disagrees with the time column's step {dt:g} s.")
