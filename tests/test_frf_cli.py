@@ -191,3 +191,18 @@ def test_npz_records_streamed_with_the_same_result_and_checks(tmp_path, record):
         )
         assert rc == 2 and f"column '{name}' has NaN at row {k}" in err and err.count("\n") == 1, err
         assert not (tmp_path / "c.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "args, bad, fragment",
+    [
+        (["frf", "missing.csv", "--inputs", "u", "--outputs", "y"], "out.json", "expected .csv or .npz for a table"),
+        (["identify", "frd", "missing.csv", "--dt", "0.001"], "out.csv", "expected .json for a model"),
+        (["identify", "frd", "missing.csv", "--dt", "0.001", "--report", "nodir/rep"], "m.json", "does not exist"),
+    ],
+)
+def test_bad_output_refused_before_any_reading(tmp_path, monkeypatch, args, bad, fragment):
+    monkeypatch.chdir(tmp_path)  # the input does not exist: the output check must come first
+    rc, out, err = run(*args, "-o", bad)
+    assert rc == 2 and fragment in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []
