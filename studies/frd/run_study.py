@@ -21,7 +21,7 @@ import numpy as np
 import scipy.io
 
 from stageid.data import datasets
-from stageid.frf import FrequencyResponse, FRDIdentification, welch_frf
+from stageid.frf import FRDIdentification, FrequencyResponse, welch_frf
 from stageid.plants.piezo_stage import EXPERIMENTS
 from stageid.plants.piezo_stage import model as p558_model
 
