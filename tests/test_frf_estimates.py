@@ -184,3 +184,16 @@ def test_bad_records_are_one_line_errors(make, fragment):
     with pytest.raises(ValueError, match=fragment) as info:
         make()
     assert "\n" not in str(info.value)
+
+
+def test_mimo_h1_and_multiple_coherence_equal_the_scipy_composition():
+    u, y = _two_by_two(5, n=30000)
+    frd = welch_frf(Experiment(u, y, DT), 400)
+    kw = {"fs": 1 / DT, "nperseg": 400}
+    Suu = np.array([[ss.csd(u[:, a], u[:, b], **kw)[1] for b in range(2)] for a in range(2)]).transpose(2, 0, 1)[1:]
+    Suy = np.array([[ss.csd(u[:, a], y[:, b], **kw)[1] for b in range(2)] for a in range(2)]).transpose(2, 0, 1)[1:]
+    Syy = np.array([ss.csd(y[:, b], y[:, b], **kw)[1].real for b in range(2)]).T[1:]
+    HT = np.linalg.solve(Suu, Suy)
+    coh = np.real(np.einsum("kaq,kaq->kq", np.conj(Suy), HT)) / Syy
+    np.testing.assert_allclose(frd.response, HT.transpose(0, 2, 1), rtol=1e-8, atol=1e-8 * np.abs(HT).max())
+    np.testing.assert_allclose(frd.coherence, coh, rtol=0, atol=1e-6)
