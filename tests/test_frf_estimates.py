@@ -197,3 +197,21 @@ def test_mimo_h1_and_multiple_coherence_equal_the_scipy_composition():
     coh = np.real(np.einsum("kaq,kaq->kq", np.conj(Suy), HT)) / Syy
     np.testing.assert_allclose(frd.response, HT.transpose(0, 2, 1), rtol=1e-8, atol=1e-8 * np.abs(HT).max())
     np.testing.assert_allclose(frd.coherence, coh, rtol=0, atol=1e-6)
+
+
+def test_lpm_drops_lines_without_excitation_and_refuses_none():
+    # band-limited noise (1-100 Hz at 1 kHz): the lines outside the band carry no input and go
+    g = _resonant(zeta=0.05)
+    rng = np.random.default_rng(7)
+    U = np.fft.rfft(rng.standard_normal(8000))
+    f = np.fft.rfftfreq(8000, DT)
+    U[(f < 1.0) | (f > 100.0)] = 0.0
+    u = np.fft.irfft(U, 8000)[:, None]
+    frd = lpm_frf(Experiment(u, g.simulate(u) + 1e-4 * rng.standard_normal(u.shape), DT))
+    # 100-500 Hz is gone; a window reaching half its width (6 lines of 0.125 Hz) into the band stays
+    assert frd.freqs.max() <= 100.0 + 6 * 0.125 and frd.n_freqs < 900
+    inner = (frd.freqs > 2.0) & (frd.freqs < 99.0)
+    G = g.frequency_response(frd.freqs[inner])
+    assert np.max(np.abs(frd.response[inner] - G)) < 0.01 * np.max(np.abs(G))
+    with pytest.raises(DataError, match="without excitation"):
+        lpm_frf(Experiment(np.zeros((500, 1)) + 1.0, rng.standard_normal((500, 1)), DT))

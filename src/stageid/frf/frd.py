@@ -80,8 +80,10 @@ class FrequencyResponse:
         set_(self, "response", _frozen(G))
         if self.std is not None:
             s = np.array(self.std, dtype=float, copy=True)
-            if s.shape != G.shape or not np.all(np.isfinite(s)) or np.any(s < 0):
-                raise DataError(f"`std` must be finite, >= 0, with shape {G.shape}; got shape {s.shape}.")
+            if s.shape != G.shape:
+                raise DataError(f"`std` must have shape {G.shape}; got {s.shape}.")
+            if not np.all(np.isfinite(s)) or np.any(s < 0):
+                raise DataError("`std` must be finite and >= 0; got NaN, inf or a negative value.")
             set_(self, "std", _frozen(s))
         if self.coherence is not None:
             c = np.array(self.coherence, dtype=float, copy=True)

@@ -30,6 +30,9 @@ __all__ = ["lpm_frf", "lpm_half_width"]
 
 #: Lines solved at once (bounds the temporaries to a few tens of MB).
 LINES_PER_BATCH = 8192
+#: Mean input power in a window, relative to the input's mean over the record, below which
+#: the line counts as not excited (band-limited noise leaves ~1e-10 outside its band).
+EXCITED_POWER = 1e-6
 
 
 def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
@@ -56,7 +59,10 @@ def lpm_frf(
     Returns
     -------
     FrequencyResponse
-        At ``k / (N dt)`` for ``k = 1 .. N//2 - 1``.
+        At ``k / (N dt)`` for ``k = 1 .. N//2 - 1``, leaving out the lines that are not
+        excited (an input's power in the window below ``EXCITED_POWER`` of its record mean,
+        as outside the band of band-limited noise) or whose local regression is not
+        invertible (``diag(M) diag(M^-1) > 1e12``).
 
     Raises
     ------
@@ -102,20 +108,26 @@ def lpm_frf(
     G = np.empty((ks.size, q, m), complex)
     var = np.empty((ks.size, q, m))
     coh = np.empty((ks.size, q))
+    ok = np.empty(ks.size, bool)
     for b in range(0, ks.size, LINES_PER_BATCH):
         kb = ks[b : b + LINES_PER_BATCH]
-        g, v, c = _solve_lines(U, Y, kb, n, degree, K_last)
-        G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size] = g, v, c
-    G /= u_scale[None, None, :]
-    std = np.sqrt(var) / u_scale[None, None, :]
-    freqs = ks / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+        g, v, c, good = _solve_lines(U, Y, kb, n, degree, K_last)
+        G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size], ok[b : b + kb.size] = g, v, c, good
+    if not ok.any():
+        raise DataError(
+            "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
+        )
+    G = G[ok] / u_scale[None, None, :]
+    std = np.sqrt(var[ok]) / u_scale[None, None, :]
+    freqs = ks[ok] / (N * exps[0].dt)
+    return FrequencyResponse(freqs, G, std, coh[ok], exps[0].input_names, exps[0].output_names)
 
 
 def _solve_lines(
     U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The local regressions (eq. 11) of the lines ``ks``: ``G_k``, ``var(G_k)``, coherence."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The local regressions (eq. 11) of the lines ``ks``: ``G_k``, ``var(G_k)``, coherence, and
+    which lines are usable (a finite, positive variance and ``diag(M) diag(M^-1) <= 1e12``)."""
     ne, _, m = U.shape
     q = Y.shape[2]
     centre = np.clip(ks, n, k_last - n)  # windows stay inside the DFT lines 0 .. N/2
@@ -142,6 +154,7 @@ def _solve_lines(
         raise DataError(
             "the local regression of the LPM is singular: an input without excitation or inputs always proportional."
         ) from None
+    inv = np.where(np.isfinite(inv), inv, np.nan)
     theta = inv @ (Kh @ Yl)  # (B, n_th, q)
     resid = Yl - K @ theta
     dof = ne * rows - n_th
@@ -153,4 +166,12 @@ def _solve_lines(
     power = np.mean(np.abs(Yl) ** 2, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         coh = np.where(power > 0, 1.0 - sigma2 / np.where(power > 0, power, 1.0), 0.0)
-    return G, var, np.clip(coh, 0.0, 1.0)
+    gram_diag = np.real(np.diagonal(gram, axis1=1, axis2=2))[:, g_idx]  # window power of each (unit-RMS) input
+    excited = np.all(gram_diag >= EXCITED_POWER * ne * rows, axis=1)
+    good = (
+        excited
+        & np.all(np.isfinite(var), axis=(1, 2))
+        & np.all(diag > 0, axis=1)
+        & np.all(diag * gram_diag <= 1e12, axis=1)
+    )
+    return G, var, np.clip(coh, 0.0, 1.0), good
