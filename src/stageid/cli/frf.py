@@ -78,10 +78,13 @@ def frf_command(
         frd = h1_from_spectra(spectra, ins, outs)
         say(f"welch: segment {segment} samples{chosen}, {spectra.n_segments} segments, resolution {frd.freqs[0]:g} Hz")
     elif method == "lpm":
+        import numpy as np
+
         from ..frf.lpm import lpm_frf
 
         frd = lpm_frf(read_experiments(data, ins, outs, ts))
-        say(f"lpm: {frd.n_freqs} lines at {frd.freqs[0]:g} Hz resolution")
+        spacing = float(np.min(np.diff(frd.freqs))) if frd.n_freqs > 1 else float(frd.freqs[0])
+        say(f"lpm: {frd.n_freqs} excited lines, {frd.freqs[0]:g}-{frd.freqs[-1]:g} Hz, resolution {spacing:g} Hz")
     else:
         from ..frf.periodic import periodic_frf
 
