@@ -37,6 +37,9 @@ from .welch import welch_frf
 
 __all__ = ["FRDIdentification", "FRDResult", "select_order", "select_delay", "column_errors", "add_input_delay"]
 
+#: Lines whose weight is below this fraction of the largest count neither for the column
+#: scaling nor for :attr:`FRDResult.column_errors` (their data are noise by their own std).
+SIGNIFICANT_WEIGHT = 1e-6
 #: Relative cost decrease below which the output-error refinement stops (finer than the
 #: subspace default: an FRF has no prior to hide behind, every digit of the fit shows).
 REFINE_TOL = 1e-7
@@ -54,7 +57,9 @@ class FRDResult:
     delay : int
         Input delay in samples (0 for continuous models).
     column_errors : ndarray of shape (n_inputs,)
-        Max over the band of ``|G_model - G_data|`` relative to each input column's peak.
+        Max over the band of ``|G_model - G_data|`` relative to each input column's peak,
+        over the lines whose weight is at least ``SIGNIFICANT_WEIGHT`` of the largest (all
+        lines when unweighted).
     singular_values : ndarray
         Of the McKelvey realisation (the order's evidence).
     order_errors : tuple of (order, held-out error) pairs
@@ -181,7 +186,10 @@ class FRDIdentification(Estimator):
                 "of `dt`; give --fmax or a smaller --dt."
             )
         G = frd.response
-        scale = np.max(np.abs(G), axis=(0, 1))
+        # lines with next to no weight (unexcited, noise only) must not set the scale or the error
+        _, w_raw = frequency_weights(frd, self.weight, np.ones(frd.n_inputs))
+        counted = w_raw >= SIGNIFICANT_WEIGHT * w_raw.max()
+        scale = np.max(np.abs(G[counted]), axis=(0, 1))
         scale = np.where(scale > 0, scale, 1.0)
         Gs = G / scale[None, None, :]
         weight, w = frequency_weights(frd, self.weight, scale)
@@ -194,7 +202,7 @@ class FRDIdentification(Estimator):
         A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter)
         B, D = B * scale[None, :], D * scale[None, :]
         model = _assemble(A, B, C, D, T, self.dt, delay, frd)
-        errors = column_errors(model.frequency_response(frd.freqs), G)
+        errors = column_errors(model.frequency_response(frd.freqs[counted]), G[counted])
         return FRDResult(
             model,
             order,
@@ -286,9 +294,16 @@ def _max_order(n_freqs: int, q: int, m: int) -> int:
     return max(1, min((2 * n_freqs * m) // (m + q) - 2 - q, 400))
 
 
+#: The (unweighted) subspace step sees only the lines whose weight is at least this fraction
+#: of the largest: noise-only lines (outside the excited band) would otherwise dominate it.
+REALIZATION_WEIGHT = 1e-4
+
+
 def _realize(G, fz, T, order, w=None):
-    """McKelvey realisation, unstable poles reflected, ``B``, ``D`` refitted."""
-    A, B, C, D, sv = frequency_realization(G, fz, T, order)
+    """McKelvey realisation on the well-weighted lines, unstable poles reflected, ``B``, ``D``
+    refitted on all lines with their weights."""
+    keep = slice(None) if w is None else w >= REALIZATION_WEIGHT * w.max()
+    A, B, C, D, sv = frequency_realization(G[keep], fz[keep], T, order)
     if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
         A = reflect_unstable(A)
     zs = np.exp(2j * np.pi * fz * T)
