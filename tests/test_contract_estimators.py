@@ -67,6 +67,7 @@ CASES = {
         lambda cls: cls(_CONTROLLER, orders=1, structure="full", band=(1.0, 100.0)),
         _closed_loop_data,
     ),
+    "FRDIdentification": (lambda cls: cls(order=2, dt=0.01), _siso_data),
 }
 
 ESTIMATORS = {cls.__name__: cls for cls in estimators().values() if not cls.__module__.startswith("tests")}

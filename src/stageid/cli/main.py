@@ -27,6 +27,8 @@ Examples:
   stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 -o u.csv
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry -o model.json
   stageid export c hyst.json --prefix comp --inverse -o build/   # C99 compensator: build/comp.h, .c
+  stageid frf noise.csv --inputs u --outputs y -o frf.csv   # measured FRF + coherence + std
+  stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
 """
 
 # (module, attribute, parent group): each command lives in its own module.
@@ -42,6 +44,8 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.identify_statespace", "statespace_command", "identify"),
     ("stageid.cli.identify_closedloop", "closedloop_command", "identify"),
     ("stageid.cli.export", "export_group", "cli"),
+    ("stageid.cli.frf", "frf_command", "cli"),
+    ("stageid.cli.identify_frd", "frd_command", "identify"),
 ]
 
 
@@ -76,6 +80,7 @@ Examples:
   stageid identify statespace x.csv y.csv --inputs Z,Rx,Ry --outputs z,rx,ry -o model.json
   stageid identify closed-loop ex.csv ey.csv --references rx,ry --outputs x,y --controller K.json -o G.json
   stageid identify hysteresis forc.csv --input V --output y --model modified-pi -o hyst.json
+  stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
 """
 )
 def identify() -> None:

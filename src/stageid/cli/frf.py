@@ -1,0 +1,128 @@
+"""``stageid frf``: a frequency response (with coherence and uncertainty) from measured records."""
+
+from __future__ import annotations
+
+import click
+
+from ._common import check_output, read_experiments, say, split_names, write_table_output
+
+
+@click.command(
+    "frf",
+    epilog="""
+\b
+Examples:
+  stageid frf noise.csv --inputs u --outputs y -o frf.csv
+  stageid frf ex1.npz ex2.npz --inputs Z,Rx --outputs z,rx --segment 4096 -o frf.npz
+  stageid frf run.csv --inputs u --outputs y --method lpm -o frf.npz
+  stageid frf ms.csv --inputs u --outputs y --method periodic --periods 8 --transient-periods 2 -o frf.csv
+""",
+)
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--inputs", required=True, help="Input columns, comma-separated.")
+@click.option("--outputs", required=True, help="Output columns, comma-separated.")
+@click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
+@click.option(
+    "--method",
+    type=click.Choice(["welch", "lpm", "periodic"]),
+    default="welch",
+    show_default=True,
+    help="welch: H1 over segments; lpm: local polynomial method; periodic: average over periods.",
+)
+@click.option("--segment", type=int, default=None, help="welch: samples per segment (default: chosen and printed).")
+@click.option("--overlap", type=float, default=None, help="welch: overlap fraction of segments [0, 1) (default 0.5).")
+@click.option("--window", default=None, help="welch: scipy window name (default hann).")
+@click.option("--periods", type=int, default=None, help="periodic: whole periods in each record (required).")
+@click.option("--transient-periods", type=int, default=None, help="periodic: leading periods dropped (default 1).")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Output .csv or .npz (by extension).",
+)
+def frf_command(
+    data: tuple[str, ...],
+    inputs: str,
+    outputs: str,
+    ts: float | None,
+    method: str,
+    segment: int | None,
+    overlap: float | None,
+    window: str | None,
+    periods: int | None,
+    transient_periods: int | None,
+    output: str,
+) -> None:
+    """Estimate the frequency response from DATA files (one per excited input, or several at once).
+
+    Columns written: `f_hz`, `re_<out>_<in>`, `im_<out>_<in>`, `std_<out>_<in>`
+    (sqrt(E|H_est - H|^2)) for every pair, and `coh_<out>` (multiple coherence) per output.
+    Welch's defaults equal scipy.signal.csd(window="hann", nperseg=N, noverlap=N//2).
+    """
+    check_output(output, "table")
+    _check_method_options(method, segment, overlap, window, periods, transient_periods)
+    ins = split_names(inputs, "--inputs")
+    outs = split_names(outputs, "--outputs")
+    if method == "welch":
+        from ..frf.welch import cross_spectra, default_segment, h1_from_spectra
+
+        exps = _read_records(data, ins, outs, ts)
+        if segment is None:
+            segment = default_segment(min(e.n_samples for e in exps))
+            chosen = " (chosen from the record; set it with --segment)"
+        else:
+            chosen = ""
+        spectra = cross_spectra(exps, segment, 0.5 if overlap is None else overlap, window or "hann")
+        frd = h1_from_spectra(spectra, ins, outs)
+        say(f"welch: segment {segment} samples{chosen}, {spectra.n_segments} segments, resolution {frd.freqs[0]:g} Hz")
+    elif method == "lpm":
+        import numpy as np
+
+        from ..frf.lpm import lpm_frf
+
+        frd = lpm_frf(read_experiments(data, ins, outs, ts))
+        spacing = float(np.min(np.diff(frd.freqs))) if frd.n_freqs > 1 else float(frd.freqs[0])
+        say(f"lpm: {frd.n_freqs} excited lines, {frd.freqs[0]:g}-{frd.freqs[-1]:g} Hz, resolution {spacing:g} Hz")
+    else:
+        from ..frf.periodic import periodic_frf
+
+        exps = read_experiments(data, ins, outs, ts)
+        frd = periodic_frf(exps, periods, 1 if transient_periods is None else transient_periods)
+        say(f"periodic: {frd.n_freqs} excited lines, {frd.freqs[0]:g}-{frd.freqs[-1]:g} Hz")
+    write_table_output(output, frd.to_columns())
+    say(f"frequency response written to {output}")
+
+
+def _read_records(paths, inputs, outputs, ts) -> list:
+    """Welch's records: NPZ archives of 1-D float columns are read channel by channel (no table
+    copy; samples checked segment batch by segment batch), everything else as experiments."""
+    from ..frf.records import read_npz_record
+    from ._common import CLI_TIME_RTOL
+
+    records = []
+    for p in paths:
+        rec = read_npz_record(p, inputs, outputs, ts, CLI_TIME_RTOL) if str(p).lower().endswith(".npz") else None
+        records.append(rec if rec is not None else read_experiments([p], inputs, outputs, ts)[0])
+    from ..frf.records import as_channel_records
+
+    return list(as_channel_records([r if hasattr(r, "channels") else as_channel_records(r)[0] for r in records]))
+
+
+def _check_method_options(method, segment, overlap, window, periods, transient_periods) -> None:
+    """Refuse options of another method, and a periodic run without --periods."""
+    welch_only = {"--segment": segment, "--overlap": overlap, "--window": window}
+    periodic_only = {"--periods": periods, "--transient-periods": transient_periods}
+    for name, value in {**welch_only, **periodic_only}.items():
+        if value is None:
+            continue
+        if (name in welch_only and method != "welch") or (name in periodic_only and method != "periodic"):
+            owner = "welch" if name in welch_only else "periodic"
+            raise click.UsageError(f"{name} applies to --method {owner}; got --method {method}.")
+    if method == "periodic" and periods is None:
+        raise click.UsageError("--method periodic needs --periods P (whole periods in each record).")
+    if segment is not None and segment < 2:
+        raise click.BadParameter(f"must be an integer >= 2; got {segment}.", param_hint="--segment")
+    if overlap is not None and not 0.0 <= overlap < 1.0:
+        raise click.BadParameter(f"must be a fraction in [0, 1); got {overlap}.", param_hint="--overlap")

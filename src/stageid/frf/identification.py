@@ -1,0 +1,426 @@
+"""Identification of a state-space model from frequency-response data.
+
+:class:`FRDIdentification` follows the frequency-domain subspace route of McKelvey, Akcay &
+Ljung (IEEE TAC 41, 1996), reused from :mod:`stageid.subspace`, then a weighted output-error
+refinement on the complex response:
+
+1. the band ``[fmin, fmax]`` of the FRF, per-frequency weights (``1/std^2``, or
+   ``gamma^2 / (1 - gamma^2)`` from the coherence, or none);
+2. an input delay of ``d`` samples removed from the data (``G z^d``), ``d`` given or chosen by
+   the held-out error of a realisation (:func:`select_delay`);
+3. continuous time: the bilinear map ``z = (1 + s T/2) / (1 - s T/2)`` sends ``j omega`` to
+   ``exp(j 2 atan(omega T / 2))`` on the unit circle; the discrete fit there is mapped back
+   exactly by the inverse Tustin transform (stability preserved both ways);
+4. the order, given or chosen on held-out frequencies (every fourth line left out of the
+   fit; :func:`select_order`);
+5. the McKelvey realisation and a balanced truncation of one of twice the order as starts,
+   unstable poles reflected, each refined by Levenberg-Marquardt on
+   ``sum_k w_k ||G_model(z_k) - G_k||^2`` (:func:`stageid.subspace.refinement.refine_frequency_fit`,
+   steps that leave the unit disc rejected); the better end is kept;
+6. the delay put back as ``d`` shift states per input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError, IdentificationError
+from ..base import Estimator, Interval, Options
+from ..models import StateSpaceModel
+from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
+from ..subspace.refinement import refine_frequency_fit
+from .frd import FrequencyResponse
+from .welch import welch_frf
+
+__all__ = ["FRDIdentification", "FRDResult", "select_order", "select_delay", "column_errors", "add_input_delay"]
+
+#: Lines whose weight is below this fraction of the largest count neither for the column
+#: scaling nor for :attr:`FRDResult.column_errors` (their data are noise by their own std).
+SIGNIFICANT_WEIGHT = 1e-6
+#: Relative cost decrease below which the output-error refinement stops (finer than the
+#: subspace default: an FRF has no prior to hide behind, every digit of the fit shows).
+REFINE_TOL = 1e-7
+
+
+@dataclasses.dataclass(frozen=True)
+class FRDResult:
+    """The identified model and its diagnostics (no training data kept).
+
+    Attributes
+    ----------
+    model : StateSpaceModel
+    order : int
+        States of the dynamic part (the delay adds ``delay * n_inputs`` more).
+    delay : int
+        Input delay in samples (0 for continuous models).
+    column_errors : ndarray of shape (n_inputs,)
+        Max over the band of ``|G_model - G_data|`` relative to each input column's peak,
+        over the lines whose weight is at least ``SIGNIFICANT_WEIGHT`` of the largest (all
+        lines when unweighted).
+    singular_values : ndarray
+        Of the McKelvey realisation (the order's evidence).
+    order_errors : tuple of (order, held-out error) pairs
+        Filled when the order was chosen automatically.
+    delay_errors : tuple of (delay, held-out error) pairs
+        Filled when the delay was chosen automatically.
+    weight : str
+        The weighting used (``"std"``, ``"coherence"`` or ``"none"``).
+    band : tuple of float
+        The frequencies fitted, Hz.
+    """
+
+    model: StateSpaceModel
+    order: int
+    delay: int
+    column_errors: np.ndarray
+    singular_values: np.ndarray
+    order_errors: tuple = ()
+    delay_errors: tuple = ()
+    weight: str = "none"
+    band: tuple = ()
+
+    @property
+    def max_error(self) -> float:
+        """The largest of :attr:`column_errors`."""
+        return float(np.max(self.column_errors))
+
+
+class FRDIdentification(Estimator):
+    """State-space model from a frequency response (subspace start, weighted output-error fit).
+
+    Parameters
+    ----------
+    order : int or "auto"
+        States of the model (without delay states); ``"auto"`` chooses 1..``max_order`` by
+        the error on held-out frequencies.
+    dt : float or None
+        Sample time of a discrete model; None fits a continuous model (``dt: null``).
+    fmin, fmax : float or None
+        The band fitted, Hz (None: the whole response).
+    weight : {"auto", "none", "std", "coherence"}
+        ``auto``: ``std`` when the FRF has it, else ``coherence`` when it has that, else none.
+    delay : int or "auto"
+        Input delay in samples (discrete models only); ``"auto"`` chooses 0..``max_delay``.
+    max_order : int
+        Largest order tried by ``order="auto"``.
+    max_delay : int
+        Largest delay tried by ``delay="auto"``.
+    max_iter : int
+        Iterations of the output-error refinement.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.models import StateSpaceModel
+    >>> g = StateSpaceModel([[0.9, 0.3], [-0.3, 0.9]], [[1.0], [0.0]], [[0.2, 0.1]], [[0.0]], dt=0.01)
+    >>> f = np.linspace(0.5, 49.5, 100)
+    >>> res = FRDIdentification(order=2, dt=0.01).fit(FrequencyResponse(f, g.frequency_response(f)))
+    >>> bool(res.max_error < 1e-8)
+    True
+    """
+
+    parameter_constraints = {
+        "order": [Interval(int, 1, 400), Options("auto")],
+        "dt": [Interval(float, 0.0, None, closed="neither"), None],
+        "fmin": [Interval(float, 0.0, None), None],
+        "fmax": [Interval(float, 0.0, None, closed="neither"), None],
+        "weight": [Options("auto", "none", "std", "coherence")],
+        "delay": [Interval(int, 0, 10000), Options("auto")],
+        "max_order": [Interval(int, 1, 400)],
+        "max_delay": [Interval(int, 0, 10000)],
+        "max_iter": [Interval(int, 0, 10000)],
+    }
+
+    def __init__(
+        self,
+        order: int | str = "auto",
+        dt: float | None = None,
+        fmin: float | None = None,
+        fmax: float | None = None,
+        weight: str = "auto",
+        delay: int | str = 0,
+        max_order: int = 20,
+        max_delay: int = 20,
+        max_iter: int = 100,
+    ) -> None:
+        self.order = order
+        self.dt = dt
+        self.fmin = fmin
+        self.fmax = fmax
+        self.weight = weight
+        self.delay = delay
+        self.max_order = max_order
+        self.max_delay = max_delay
+        self.max_iter = max_iter
+
+    def check_together(self) -> None:
+        if self.fmin is not None and self.fmax is not None and not self.fmin < self.fmax:
+            raise self.invalid("fmax", f"above `fmin` ({self.fmin:g} Hz)")
+        if self.dt is None and self.delay != 0:
+            raise self.invalid("delay", "0 for a continuous model (an input delay needs a sample time `dt`)")
+        if self.dt is not None and self.fmax is not None and self.fmax > 0.5 / self.dt * (1 + 1e-12):
+            raise self.invalid("fmax", f"at most the Nyquist frequency {0.5 / self.dt:g} Hz of `dt`")
+
+    def fit(self, data: FrequencyResponse | Any) -> FRDResult:
+        """Identify from a :class:`FrequencyResponse` (or records: their Welch H1 first).
+
+        Raises
+        ------
+        ParameterError
+            A bad setting.
+        DataError
+            No frequency in the band, frequencies above Nyquist of ``dt``, or an order the
+            number of frequencies cannot support.
+        IdentificationError
+            No stable model could be found.
+        """
+        self.validate_params()
+        frd = data if isinstance(data, FrequencyResponse) else welch_frf(data)
+        frd = frd.band(self.fmin, self.fmax)
+        if self.dt is not None and frd.freqs[-1] > 0.5 / self.dt * (1 + 1e-9):
+            raise DataError(
+                f"the response reaches {frd.freqs[-1]:g} Hz, above the Nyquist frequency {0.5 / self.dt:g} Hz "
+                "of `dt`; give --fmax or a smaller --dt."
+            )
+        G = frd.response
+        # lines with next to no weight (unexcited, noise only) must not set the scale or the error
+        _, w_raw = frequency_weights(frd, self.weight, np.ones(frd.n_inputs))
+        counted = w_raw >= SIGNIFICANT_WEIGHT * w_raw.max()
+        scale = np.max(np.abs(G[counted]), axis=(0, 1))
+        scale = np.where(scale > 0, scale, 1.0)
+        Gs = G / scale[None, None, :]
+        weight, w = frequency_weights(frd, self.weight, scale)
+        T, fz = _fit_grid(frd.freqs, self.dt)
+        # the delay acts on the sample grid of dt: z^d with z = exp(j 2 pi f dt)
+        z_dt = np.exp(2j * np.pi * frd.freqs * (self.dt or 0.0))
+        delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
+        Gd = Gs * (z_dt**delay)[:, None, None]
+        order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
+        A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter)
+        B, D = B * scale[None, :], D * scale[None, :]
+        model = _assemble(A, B, C, D, T, self.dt, delay, frd)
+        errors = column_errors(model.frequency_response(frd.freqs[counted]), G[counted])
+        return FRDResult(
+            model,
+            order,
+            delay,
+            errors,
+            sv,
+            order_errors,
+            delay_errors,
+            weight,
+            (float(frd.freqs[0]), float(frd.freqs[-1])),
+        )
+
+    def _delay(self, Gs, fz, T, zs, w, n_freqs) -> tuple[int, tuple]:
+        if self.delay != "auto":
+            return int(self.delay), ()
+        probe = self.order if self.order != "auto" else min(8, _max_order(n_freqs, Gs.shape[1], Gs.shape[2]))
+        return select_delay(Gs, fz, T, zs, probe, self.max_delay, w)
+
+    def _order(self, Gd, fz, T, w, n_freqs) -> tuple[int, tuple]:
+        limit = _max_order(n_freqs, Gd.shape[1], Gd.shape[2])
+        if self.order != "auto":
+            if self.order > limit:
+                raise DataError(
+                    f"order {self.order} needs more frequencies than the {n_freqs} in the band "
+                    f"(at most order {limit} here); lower --order or widen the band."
+                )
+            return int(self.order), ()
+        return select_order(Gd, fz, T, min(self.max_order, limit), w)
+
+
+def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) -> tuple[str, np.ndarray]:
+    """Per-frequency weights of the output-error fit, normalised to mean 1, and their kind.
+
+    ``std``: ``1 / mean_ij (std_ij / scale_j)^2`` (the columns as scaled for the fit);
+    ``coherence``: ``mean_i gamma_i^2 / (1 - gamma_i^2)`` capped at 1e6; ``none``: ones.
+    """
+    if weight == "auto":
+        weight = "std" if frd.std is not None else ("coherence" if frd.coherence is not None else "none")
+    if weight == "std":
+        if frd.std is None:
+            raise DataError("--weight std needs std_<out>_<in> columns in the frequency response; it has none.")
+        var = np.mean((frd.std / scale[None, None, :]) ** 2, axis=(1, 2))
+        floor = 1e-12 * max(float(var.max()), 1e-300)  # a zero std would give one frequency all the weight
+        w = 1.0 / np.maximum(var, floor)
+    elif weight == "coherence":
+        if frd.coherence is None:
+            raise DataError("--weight coherence needs coh_<out> columns in the frequency response; it has none.")
+        c = np.clip(frd.coherence, 0.0, 1.0 - 1e-6)
+        w = np.mean(c / (1.0 - c), axis=1)
+    else:
+        w = np.ones(frd.n_freqs)
+    if not np.any(w > 0):
+        raise DataError(f"the {weight} weights are zero at every frequency; use --weight none.")
+    return weight, w / np.mean(w)
+
+
+def column_errors(model_response: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """Max over frequencies and outputs of ``|model - G|`` per input column, over the column's peak."""
+    peak = np.max(np.abs(G), axis=(0, 1))
+    return np.max(np.abs(model_response - G), axis=(0, 1)) / np.where(peak > 0, peak, 1.0)
+
+
+def _fit_grid(freqs: np.ndarray, dt: float | None) -> tuple[float, np.ndarray]:
+    """The sample time ``T`` of the internal discrete fit and the frequencies it sees there.
+
+    The band is spread over the unit circle before the subspace step, which is poorly
+    conditioned when all points crowd near ``z = 1`` (a 1 kHz band at 10 kHz sampling):
+    continuous frequencies go through the bilinear map with ``T = 1 / (2 f_max)`` (``f_max``
+    lands at ``2 atan(pi / 2)``, 0.64 pi); a discrete response at ``dt`` first through the
+    inverse Tustin map ``f_c = tan(pi f dt) / (pi dt)``.  Both maps are Moebius maps of the
+    unit disc onto itself (or of the left half plane onto it), so the fitted model is
+    mapped back exactly, order and stability kept (:func:`_assemble`).
+    """
+    f = np.asarray(freqs, dtype=float)
+    if dt is None:
+        T = 1.0 / (2.0 * float(f[-1]))
+        theta = 2.0 * np.arctan(np.pi * f * T)
+    else:
+        # f_max at (or near) Nyquist maps to infinity: take the scale from at most 0.45 / dt
+        f_ref = min(float(f[-1]), 0.45 / dt)
+        T = 1.0 / (2.0 * np.tan(np.pi * f_ref * dt) / (np.pi * dt))
+        theta = 2.0 * np.arctan(T / dt * np.tan(np.pi * f * dt))  # Nyquist -> pi
+        theta = np.where(theta < 0, theta + 2.0 * np.pi, theta)
+    return T, theta / (2.0 * np.pi * T)
+
+
+def _max_order(n_freqs: int, q: int, m: int) -> int:
+    """The largest order the realisation supports with ``n_freqs`` frequencies (and its 2x start)."""
+    return max(1, min((2 * n_freqs * m) // (m + q) - 2 - q, 400))
+
+
+#: The (unweighted) subspace step sees only the lines whose weight is at least this fraction
+#: of the largest: noise-only lines (outside the excited band) would otherwise dominate it.
+REALIZATION_WEIGHT = 1e-4
+
+
+def _realize(G, fz, T, order, w=None):
+    """McKelvey realisation on the well-weighted lines, unstable poles reflected, ``B``, ``D``
+    refitted on all lines with their weights."""
+    keep = slice(None) if w is None else w >= REALIZATION_WEIGHT * w.max()
+    A, B, C, D, sv = frequency_realization(G[keep], fz[keep], T, order)
+    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
+        A = reflect_unstable(A)
+    zs = np.exp(2j * np.pi * fz * T)
+    B, D = fit_input_matrices(A, C, G, zs, True, w)
+    return A, B, C, D, sv
+
+
+#: Refinement iterations of each candidate of the order selection.
+SELECTION_ITER = 15
+#: Orders tried past the last one that improved the held-out error by 10 %.
+PATIENCE = 4
+
+
+def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER) -> float:
+    """RMS error at every fourth frequency of a model fitted (shortly refined) to the others."""
+    test = np.zeros(fz.size, bool)
+    test[2::4] = True
+    try:
+        A, B, C, D, _ = _fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
+        Gm = StateSpaceModel(A, B, C, D, dt=T).frequency_response(fz[test])
+    except (IdentificationError, np.linalg.LinAlgError, ValueError):
+        return float("inf")
+    err = float(np.sqrt(np.mean(w[test][:, None, None] * np.abs(Gm - G[test]) ** 2)))
+    return err if np.isfinite(err) else float("inf")
+
+
+def select_order(G: np.ndarray, fz: np.ndarray, T: float, max_order: int, w: np.ndarray) -> tuple[int, tuple]:
+    """The smallest order whose held-out error is within 10 % of the best of 1..``max_order``.
+
+    The scan stops once ``PATIENCE`` orders in a row have not improved on the best by 10 %:
+    past the system's order the held-out error only scatters around the noise level.
+    """
+    limit = max(1, min(max_order, _max_order(int((~(np.arange(fz.size) % 4 == 2)).sum()), G.shape[1], G.shape[2])))
+    errors: list[tuple[int, float]] = []
+    best, since = float("inf"), 0
+    for n in range(1, limit + 1):
+        e = _held_out_error(G, fz, T, n, w)
+        errors.append((n, e))
+        if e < best / 1.1:
+            best, since = e, 0
+        else:
+            best, since = min(best, e), since + 1
+        if since >= PATIENCE:
+            break
+    if not np.isfinite(best):
+        raise IdentificationError(f"no order from 1 to {limit} could be realised from this frequency response.")
+    order = next(n for n, e in errors if e <= 1.1 * best)
+    return order, tuple(errors)
+
+
+def select_delay(
+    G: np.ndarray, fz: np.ndarray, T: float, zs: np.ndarray, order: int, max_delay: int, w: np.ndarray
+) -> tuple[int, tuple]:
+    """The input delay (samples) in 0..``max_delay`` whose removal gives the best held-out fit
+    of an unrefined realisation (``zs = exp(j 2 pi f dt)``)."""
+    errors = tuple((d, _held_out_error(G * (zs**d)[:, None, None], fz, T, order, w, 0)) for d in range(max_delay + 1))
+    best = min(errors, key=lambda de: de[1])
+    if not np.isfinite(best[1]):
+        raise IdentificationError(f"no delay from 0 to {max_delay} gave a realisation of order {order}.")
+    return best[0], errors
+
+
+def _fit_at_order(G, fz, T, order, w, max_iter):
+    """Realisation and balanced start, each refined (weighted output error); the better end."""
+    zs = np.exp(2j * np.pi * fz * T)
+    A, B, C, D, sv = _realize(G, fz, T, order, w)
+    starts = [(A, B, C, D)]
+    alt = balanced_start(G, fz, T, order)
+    if alt is not None:
+        Aa, _, Ca, _ = alt
+        if np.max(np.abs(np.linalg.eigvals(Aa)), initial=0.0) < 1.0:
+            Ba, Da = fit_input_matrices(Aa, Ca, G, zs, True, w)
+            starts.append((Aa, Ba, Ca, Da))
+    best = None
+    for start in starts:
+        if max_iter == 0:
+            cost = float(
+                np.sum(w[:, None, None] * np.abs(StateSpaceModel(*start, dt=T).frequency_response(fz) - G) ** 2)
+            )
+            out = (*start, {"cost": cost})
+        else:
+            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
+        if best is None or out[4]["cost"] < best[4]["cost"]:
+            best = out
+    A, B, C, D, _ = best
+    if not all(np.all(np.isfinite(x)) for x in (A, B, C, D)):
+        raise IdentificationError(f"the fit of order {order} is not finite.")
+    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
+        raise IdentificationError(f"no stable model of order {order} was found.")
+    return A, B, C, D, sv
+
+
+def add_input_delay(A, B, C, D, delay: int) -> tuple[np.ndarray, ...]:
+    """``(A, B, C, D)`` with ``delay`` shift states in front of every input: ``G(z) z^-delay``."""
+    if delay == 0:
+        return A, B, C, D
+    n, m, q = A.shape[0], B.shape[1], C.shape[0]
+    shift = np.kron(np.eye(delay, k=-1), np.eye(m))  # w_(i+1)(k+1) = w_i(k), blocks of m
+    last = np.zeros((delay * m, m))
+    last[-m:] = np.eye(m)  # the last block is u(k - delay)
+    first = np.zeros((delay * m, m))
+    first[:m] = np.eye(m)
+    Aa = np.block([[A, B @ last.T], [np.zeros((delay * m, n)), shift]])
+    Ba = np.vstack([np.zeros((n, m)), first])
+    Ca = np.hstack([C, D @ last.T])
+    return Aa, Ba, Ca, np.zeros((q, m))
+
+
+def _assemble(A, B, C, D, T, dt, delay, frd) -> StateSpaceModel:
+    """The final model: the fit at ``T`` mapped back (inverse Tustin at ``T``, then Tustin at
+    ``dt`` for a discrete model, see :func:`_fit_grid`) and the delay states added."""
+    model = StateSpaceModel(A, B, C, D, dt=T, inputs=frd.inputs, outputs=frd.outputs).d2c(method="tustin")
+    if dt is None:
+        return model
+    Ad, Bd, Cd, Dd = add_input_delay(*_matrices(model.c2d(dt, method="tustin")), delay)
+    return StateSpaceModel(Ad, Bd, Cd, Dd, dt=dt, inputs=frd.inputs, outputs=frd.outputs)
+
+
+def _matrices(model: StateSpaceModel) -> tuple[np.ndarray, ...]:
+    return model.A, model.B, model.C, model.D

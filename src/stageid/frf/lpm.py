@@ -1,0 +1,177 @@
+"""The local polynomial method (LPM) for non-periodic excitation.
+
+Pintelon, Schoukens, Vandersteen & Barbe, "Estimation of nonparametric noise and FRF models
+for multivariable systems", Mech. Syst. Signal Process. 24 (2010), sec. 3.  Around every DFT
+line ``k`` of the whole record the FRF and the leakage (transient) term are approximated by
+polynomials of degree ``R`` in the line offset ``r``:
+
+    Y_e(k + r) = (G_k + sum_s g_s r^s) U_e(k + r) + T_e,k + sum_s t_e,s r^s + V_e(k + r)   (eq. 11)
+
+for ``r = -n .. n`` and every record ``e``.  Linear least squares over the ``n_e (2n + 1)``
+equations gives ``G_k`` at the record's full resolution, free of the leakage that limits
+Welch's estimate at lightly damped resonances; the residuals give the noise variance
+``sigma^2 = |E|^2 / dof`` (eq. 16) and ``cov(G_k) = sigma^2 [(K^H K)^-1]_G`` (eq. 18).
+The multiple coherence reported is ``1 - sigma^2 / mean_r |Y(k + r)|^2`` over the window.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._errors import DataError
+from ..checks import check_integer
+from ..data import Experiment, as_experiments
+from ..resources import require_memory
+from .frd import FrequencyResponse
+
+__all__ = ["lpm_frf", "lpm_half_width"]
+
+#: Lines solved at once (bounds the temporaries to a few tens of MB).
+LINES_PER_BATCH = 8192
+#: Mean input power in a window, relative to the input's mean over the record, below which
+#: the line counts as not excited (band-limited noise leaves ~1e-10 outside its band).
+EXCITED_POWER = 1e-6
+
+
+def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
+    """The smallest half width ``n`` leaving at least 6 residual degrees of freedom per window."""
+    n_params = (n_inputs + n_records) * (degree + 1)
+    rows_needed = n_params + 6
+    return max(1, int(np.ceil((rows_needed / n_records - 1) / 2)))
+
+
+def lpm_frf(
+    data: Experiment | Sequence[Experiment], degree: int = 2, half_width: int | None = None
+) -> FrequencyResponse:
+    """LPM estimate of the FRF with its standard deviation and coherence.
+
+    Parameters
+    ----------
+    data : Experiment or sequence of Experiment
+        Records of one length (one per excited input, or several inputs excited at once).
+    degree : int
+        Polynomial degree ``R`` of the FRF and transient terms (2 in the paper).
+    half_width : int, optional
+        Lines on each side of ``k``; default :func:`lpm_half_width`.
+
+    Returns
+    -------
+    FrequencyResponse
+        At ``k / (N dt)`` for ``k = 1 .. N//2 - 1``, leaving out the lines that are not
+        excited (an input's power in the window below ``EXCITED_POWER`` of its record mean,
+        as outside the band of band-limited noise) or whose local regression is not
+        invertible (``diag(M) diag(M^-1) > 1e12``).
+
+    Raises
+    ------
+    DataError
+        Records of different lengths, too few lines for the window, or an input with no
+        excitation (a singular local regression).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data import Experiment
+    >>> rng = np.random.default_rng(0); u = rng.standard_normal(4000)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:4000]
+    >>> frd = lpm_frf(Experiment(u, y, 1.0))
+    >>> z = np.exp(2j * np.pi * frd.freqs); H = 1 / z + 0.5 / z**2
+    >>> bool(np.max(np.abs(frd.response[:, 0, 0] - H)) < 1e-6)
+    True
+    """
+    exps = as_experiments(data)
+    degree = check_integer(degree, "degree", "lpm_frf", low=0, high=6)
+    N = exps[0].n_samples
+    if any(e.n_samples != N for e in exps):
+        raise DataError(f"the LPM needs records of one length; got {sorted({e.n_samples for e in exps})} samples.")
+    m, q, ne = exps[0].n_inputs, exps[0].n_outputs, len(exps)
+    n = (
+        lpm_half_width(m, ne, degree)
+        if half_width is None
+        else check_integer(half_width, "half_width", "lpm_frf", low=1)
+    )
+    K_last = N // 2
+    if K_last + 1 < 2 * n + 1 or K_last < 2:
+        raise DataError(f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}.")
+    U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])  # (ne, nl, m)
+    Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])  # (ne, nl, q)
+    ks = np.arange(1, K_last)
+    rows = 2 * n + 1
+    n_th = (m + ne) * (degree + 1)
+    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * rows * (n_th + q) * 4, "local polynomial method")
+    u_scale = np.sqrt(np.mean(np.abs(U) ** 2, axis=(0, 1)))
+    if np.any(u_scale == 0):
+        raise DataError("an input is zero throughout; the LPM needs every input excited.")
+    U = U / u_scale
+    G = np.empty((ks.size, q, m), complex)
+    var = np.empty((ks.size, q, m))
+    coh = np.empty((ks.size, q))
+    ok = np.empty(ks.size, bool)
+    for b in range(0, ks.size, LINES_PER_BATCH):
+        kb = ks[b : b + LINES_PER_BATCH]
+        g, v, c, good = _solve_lines(U, Y, kb, n, degree, K_last)
+        G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size], ok[b : b + kb.size] = g, v, c, good
+    if not ok.any():
+        raise DataError(
+            "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
+        )
+    G = G[ok] / u_scale[None, None, :]
+    std = np.sqrt(var[ok]) / u_scale[None, None, :]
+    freqs = ks[ok] / (N * exps[0].dt)
+    return FrequencyResponse(freqs, G, std, coh[ok], exps[0].input_names, exps[0].output_names)
+
+
+def _solve_lines(
+    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The local regressions (eq. 11) of the lines ``ks``: ``G_k``, ``var(G_k)``, coherence, and
+    which lines are usable (a finite, positive variance and ``diag(M) diag(M^-1) <= 1e12``)."""
+    ne, _, m = U.shape
+    q = Y.shape[2]
+    centre = np.clip(ks, n, k_last - n)  # windows stay inside the DFT lines 0 .. N/2
+    idx = centre[:, None] + np.arange(-n, n + 1)[None, :]  # (B, rows)
+    r = (idx - ks[:, None]) / n  # offsets from k, scaled to about [-1, 1] for conditioning
+    powers = r[:, :, None] ** np.arange(degree + 1)  # (B, rows, R+1)
+    B = ks.size
+    rows = idx.shape[1]
+    n_th = (m + ne) * (degree + 1)
+    K = np.zeros((B, ne * rows, n_th), complex)
+    Yl = np.empty((B, ne * rows, q), complex)
+    for e in range(ne):
+        Ue = U[e][idx]  # (B, rows, m)
+        blk = slice(e * rows, (e + 1) * rows)
+        K[:, blk, : m * (degree + 1)] = (Ue[:, :, :, None] * powers[:, :, None, :]).reshape(B, rows, -1)
+        t0 = m * (degree + 1) + e * (degree + 1)
+        K[:, blk, t0 : t0 + degree + 1] = powers
+        Yl[:, blk] = Y[e][idx]
+    Kh = np.conj(K).transpose(0, 2, 1)
+    gram = Kh @ K
+    try:
+        inv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        raise DataError(
+            "the local regression of the LPM is singular: an input without excitation or inputs always proportional."
+        ) from None
+    inv = np.where(np.isfinite(inv), inv, np.nan)
+    theta = inv @ (Kh @ Yl)  # (B, n_th, q)
+    resid = Yl - K @ theta
+    dof = ne * rows - n_th
+    sigma2 = np.sum(np.abs(resid) ** 2, axis=1) / dof  # (B, q)
+    g_idx = np.arange(m) * (degree + 1)  # the r^0 coefficient of each input
+    G = theta[:, g_idx, :].transpose(0, 2, 1)  # (B, q, m)
+    diag = np.real(np.diagonal(inv, axis1=1, axis2=2))[:, g_idx]  # (B, m)
+    var = sigma2[:, :, None] * diag[:, None, :]
+    power = np.mean(np.abs(Yl) ** 2, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coh = np.where(power > 0, 1.0 - sigma2 / np.where(power > 0, power, 1.0), 0.0)
+    gram_diag = np.real(np.diagonal(gram, axis1=1, axis2=2))[:, g_idx]  # window power of each (unit-RMS) input
+    excited = np.all(gram_diag >= EXCITED_POWER * ne * rows, axis=1)
+    good = (
+        excited
+        & np.all(np.isfinite(var), axis=(1, 2))
+        & np.all(diag > 0, axis=1)
+        & np.all(diag * gram_diag <= 1e12, axis=1)
+    )
+    return G, var, np.clip(coh, 0.0, 1.0), good

@@ -1,0 +1,121 @@
+"""FRF of periodic excitation (multisines): averaging over periods, noise from their scatter.
+
+Pintelon & Schoukens, *System Identification*, 2nd ed., sec. 2.4: after the transient
+periods are dropped, the DFT of every period ``p`` gives ``U^[p](k)``, ``Y^[p](k)``; their
+means over the ``P`` periods are ``U(k)``, ``Y(k)`` (eq. 2-41) and the FRF is
+``G(k) = Y(k) U(k)^-1`` with one record per column of ``U`` (one experiment per excited
+input, or orthogonal multisines).  The noise of ``G`` follows from the scatter of the
+per-period residuals ``Y^[p] - G U^[p]`` (eq. 2-43, ``P - 1`` degrees of freedom); the
+coherence is ``1 - sigma^2 P / |Y|^2``.  Only the excited lines (input power above 1e-10 of
+the largest line) are returned.  On noise-free steady-state data the estimate is exact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._errors import DataError
+from ..checks import check_integer
+from ..data import Experiment, as_experiments
+from .frd import FrequencyResponse
+
+__all__ = ["periodic_frf"]
+
+#: Lines whose input power is below this fraction of the strongest line count as not excited.
+EXCITED_FRACTION = 1e-10
+
+
+def periodic_frf(
+    data: Experiment | Sequence[Experiment], periods: int, transient_periods: int = 1
+) -> FrequencyResponse:
+    """Average over periods and estimate the FRF at the excited lines.
+
+    Parameters
+    ----------
+    data : Experiment or sequence of Experiment
+        Records of one length holding ``periods`` whole periods each; as many records as
+        inputs (each exciting the inputs differently) unless there is one input.
+    periods : int
+        Periods in each record (the record length must be a multiple of it).
+    transient_periods : int
+        Leading periods dropped (the transient); at least 2 must remain for the noise.
+
+    Returns
+    -------
+    FrequencyResponse
+        With ``std`` (from the period-to-period scatter) and ``coherence``.
+
+    Raises
+    ------
+    DataError
+        A length that is not a multiple of ``periods``, fewer than 2 periods left, fewer
+        records than inputs, or no line where the input matrix is invertible.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data import Experiment
+    >>> u = np.tile(np.random.default_rng(0).standard_normal(100), 5)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:500]
+    >>> frd = periodic_frf(Experiment(u, y, 1.0), periods=5, transient_periods=1)
+    >>> z = np.exp(2j * np.pi * frd.freqs); H = 1 / z + 0.5 / z**2
+    >>> bool(np.max(np.abs(frd.response[:, 0, 0] - H)) < 1e-12)
+    True
+    """
+    exps = as_experiments(data)
+    periods = check_integer(periods, "periods", "periodic_frf", low=1)
+    transient_periods = check_integer(transient_periods, "transient_periods", "periodic_frf", low=0)
+    N = exps[0].n_samples
+    m, ne = exps[0].n_inputs, len(exps)
+    if any(e.n_samples != N for e in exps):
+        raise DataError(f"periodic averaging needs records of one length; got {sorted({e.n_samples for e in exps})}.")
+    if N % periods:
+        raise DataError(
+            f"a record of {N} samples does not hold {periods} whole periods ({N} / {periods} is not whole)."
+        )
+    kept = periods - transient_periods
+    if kept < 2:
+        raise DataError(
+            f"{periods} periods minus {transient_periods} transient periods leaves {kept}; at least 2 are needed."
+        )
+    if ne < m:
+        raise DataError(f"{m} inputs need at least {m} records with different excitation; got {ne}.")
+    L = N // periods
+    start = transient_periods * L
+
+    def per_period(x: np.ndarray) -> np.ndarray:  # (kept, lines, channels)
+        return np.fft.rfft(x[start:].reshape(kept, L, -1), axis=1)
+
+    Up = np.stack([per_period(e.u) for e in exps], axis=-1)  # (P, lines, m, ne)
+    Yp = np.stack([per_period(e.y) for e in exps], axis=-1)  # (P, lines, q, ne)
+    lines, G, std, coh = _average(Up, Yp, kept)
+    freqs = lines / (L * exps[0].dt)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+
+
+def _average(Up: np.ndarray, Yp: np.ndarray, kept: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Excited lines, ``G``, its std and the coherence from per-period spectra (eq. 2-41 to 2-43).
+
+    ``Up`` (P, lines, m, ne), ``Yp`` (P, lines, q, ne): the DFT of every period of every record.
+    """
+    Um, Ym = Up.mean(axis=0), Yp.mean(axis=0)
+    power = np.sum(np.abs(Um) ** 2, axis=(1, 2))
+    lines = np.flatnonzero(power > EXCITED_FRACTION * power.max(initial=0.0))
+    lines = lines[lines > 0]  # the mean (DC) line carries offsets, not the response
+    if lines.size:
+        sv = np.linalg.svd(Um[lines], compute_uv=False)
+        lines = lines[sv[:, -1] > 1e-8 * sv[:, 0]]
+    if not lines.size:
+        raise DataError("no excited line where the inputs are independent: a constant input or proportional inputs.")
+    Um, Ym, Up, Yp = Um[lines], Ym[lines], Up[:, lines], Yp[:, lines]
+    Uinv = np.linalg.pinv(Um)  # (lines, ne, m)
+    G = Ym @ Uinv  # (lines, q, m)
+    resid = Yp - G[None] @ Up  # (P, lines, q, ne)
+    sigma2 = np.sum(np.abs(resid - resid.mean(axis=0)) ** 2, axis=0) / (kept - 1) / kept  # var of the mean
+    var = np.einsum("kqe,kem->kqm", sigma2, np.abs(Uinv) ** 2)
+    ypow = np.mean(np.abs(Ym) ** 2, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coh = np.where(ypow > 0, 1.0 - sigma2.mean(axis=2) / np.where(ypow > 0, ypow, 1.0), 0.0)
+    return lines, G, np.sqrt(var), np.clip(coh, 0.0, 1.0)

@@ -1,0 +1,184 @@
+"""Records as separate channel arrays, and NPZ files read that way (no table copy).
+
+Welch's spectra need each channel once, segment by segment; copying a long record into a
+(n_samples, n_channels) table first (and checking it there) costs more than the spectra
+themselves.  :class:`ChannelRecord` holds one 1-D array per channel; :func:`read_npz_record`
+reads the named arrays of an ``.npz`` archive directly and checks the time axis, and the
+finiteness of the samples is checked segment batch by segment batch while the spectra are
+accumulated (:func:`check_finite_batch`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._errors import DataError
+
+__all__ = ["ChannelRecord", "as_channel_records", "read_npz_record", "check_finite_batch"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ChannelRecord:
+    """One record: ``channels`` = inputs then outputs, 1-D arrays of one length, sample time ``dt``."""
+
+    channels: tuple[np.ndarray, ...]
+    n_inputs: int
+    dt: float
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    name: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.channels[0].shape[0])
+
+    @property
+    def n_outputs(self) -> int:
+        return len(self.channels) - self.n_inputs
+
+
+def as_channel_records(data) -> tuple[ChannelRecord, ...]:
+    """Experiments (one or a sequence, checked by ``as_experiments``) or ChannelRecords as a tuple
+    of :class:`ChannelRecord` sharing dt and channel names; experiments' columns are views."""
+    from ..data import as_experiments
+
+    items = (data,) if isinstance(data, ChannelRecord) else data
+    if isinstance(items, ChannelRecord) or (
+        isinstance(items, Sequence) and items and isinstance(items[0], ChannelRecord)
+    ):
+        recs = tuple(items)
+    else:
+        recs = tuple(
+            ChannelRecord(
+                tuple(e.u[:, k] for k in range(e.n_inputs)) + tuple(e.y[:, k] for k in range(e.n_outputs)),
+                e.n_inputs,
+                float(e.dt),
+                tuple(e.input_names),
+                tuple(e.output_names),
+                e.name or "",
+            )
+            for e in as_experiments(data)
+        )
+    first = recs[0]
+    for r in recs[1:]:
+        if not np.isclose(r.dt, first.dt, rtol=1e-9, atol=0.0):
+            raise DataError(f"all records must share one sample time; got {first.dt:g} s and {r.dt:g} s.")
+        if (r.input_names, r.output_names) != (first.input_names, first.output_names):
+            raise DataError("all records must have the same input and output channels.")
+    return recs
+
+
+def check_finite_batch(record: ChannelRecord, batch: np.ndarray, channel: int, start: int, step: int) -> None:
+    """Raise DataError naming the column and row of the first NaN/inf in a batch of segments.
+
+    ``batch`` has shape (n_segments, segment) of channel ``channel``, its first segment starting
+    at sample ``start``, consecutive segments ``step`` samples apart.
+    """
+    bad = ~np.isfinite(batch)
+    if bad.any():
+        s, k = (int(i) for i in np.argwhere(bad)[0])
+        names = record.input_names + record.output_names
+        what = "NaN" if np.isnan(batch[s, k]) else "inf"
+        where = f"{record.name}: " if record.name else ""
+        raise DataError(
+            f"{where}column '{names[channel]}' has {what} at row {start + s * step + k}; every sample must be finite."
+        )
+
+
+def read_npz_record(
+    path: str | os.PathLike[str], inputs: Sequence[str], outputs: Sequence[str], ts: float | None, time_rtol: float
+) -> ChannelRecord | None:
+    """The named 1-D float arrays of an ``.npz`` archive as a :class:`ChannelRecord`.
+
+    Returns None when the archive does not hold every name as a 1-D float array (the caller
+    then reads it through :func:`stageid.data.read_table`, which knows every layout).  The
+    time axis ``t`` (when present) must be uniform to ``time_rtol`` of its step and agree
+    with ``ts``; without ``t``, ``ts`` is required.
+
+    Raises
+    ------
+    DataError
+        Unequal lengths, a non-uniform or non-increasing time axis, no time information,
+        fewer than 2 samples.
+    """
+    name = os.path.basename(os.fspath(path))
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{name}: cannot read the archive ({exc}).") from None
+    with archive:
+        keys = set(archive.files)
+        wanted = list(inputs) + list(outputs)
+        if not all(k in keys for k in wanted):
+            return None
+        arrays = [_member(path, archive, k) for k in wanted]
+        if any(a.ndim != 1 or a.dtype.kind != "f" for a in arrays):
+            return None
+        t = _member(path, archive, "t") if "t" in keys else None
+    n = arrays[0].shape[0]
+    for k, a in zip(wanted, arrays):
+        if a.shape[0] != n:
+            raise DataError(
+                f"{name}: column '{k}' has {a.shape[0]} samples, column '{wanted[0]}' {n}; expected equal lengths."
+            )
+    if n < 2:
+        raise DataError(f"{name}: a record needs at least 2 samples; got {n}.")
+    dt = _time_step(t, ts, n, name, time_rtol)
+    channels = tuple(a if a.dtype == np.float64 else np.asarray(a, dtype=float) for a in arrays)
+    return ChannelRecord(channels, len(inputs), dt, tuple(inputs), tuple(outputs), name)
+
+
+def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
+    """Array ``key`` of an NPZ archive, memory-mapped when stored uncompressed (``np.savez``).
+
+    A mapped array is read from the page cache segment by segment as the spectra need it,
+    instead of being copied whole through the zip reader first.  Compressed members and
+    anything but a 1-D array in C order are read the ordinary way.
+    """
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            info = zf.getinfo(key + ".npy")
+        if info.compress_type != zipfile.ZIP_STORED:
+            return archive[key]
+        with open(path, "rb") as fh:
+            fh.seek(info.header_offset)
+            local = fh.read(30)  # the local file header: name and extra-field lengths at 26 and 28
+            fh.seek(
+                info.header_offset
+                + 30
+                + int.from_bytes(local[26:28], "little")
+                + int.from_bytes(local[28:30], "little")
+            )
+            version = np.lib.format.read_magic(fh)
+            if version not in ((1, 0), (2, 0)):
+                return archive[key]
+            reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, fortran, dtype = reader(fh)
+            offset = fh.tell()
+        if fortran or dtype.hasobject or len(shape) != 1:
+            return archive[key]
+        return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape)
+    except (KeyError, ValueError, OSError, zipfile.BadZipFile):
+        return archive[key]
+
+
+def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: float) -> float:
+    if t is None:
+        if ts is None:
+            raise DataError(f"{name}: no time column 't'; give the sample time with --ts.")
+        return float(ts)
+    if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
+        raise DataError(f"{name}: the time column 't' must be {n} finite values.")
+    steps = np.diff(t)
+    dt = float((t[-1] - t[0]) / (n - 1))
+    if not dt > 0 or steps.max() > dt * (1 + rtol) or steps.min() < dt * (1 - rtol):
+        raise DataError(f"{name}: the time column 't' must increase uniformly (to {rtol:g} of its step).")
+    if ts is not None and abs(ts - dt) > rtol * dt:
+        raise DataError(f"{name}: --ts {ts:g} s disagrees with the time column's step {dt:g} s.")
+    return float(ts) if ts is not None else dt

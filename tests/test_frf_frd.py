@@ -1,0 +1,104 @@
+"""The FrequencyResponse object: table round trips (CSV, NPZ, freqresp files), python-control,
+its figure, and bad tables refused with one line."""
+
+import numpy as np
+import pytest
+
+from stageid import DataError
+from stageid.data import write_csv, write_npz
+from stageid.frf import FrequencyResponse, frd_columns, read_frd
+
+
+def _frd(with_extras=True):
+    rng = np.random.default_rng(0)
+    f = np.linspace(1.0, 100.0, 40)
+    G = rng.standard_normal((40, 2, 3)) + 1j * rng.standard_normal((40, 2, 3))
+    std = np.abs(rng.standard_normal((40, 2, 3))) if with_extras else None
+    coh = rng.uniform(0, 1, (40, 2)) if with_extras else None
+    return FrequencyResponse(f, G, std, coh, ("Z", "Rx", "Ry"), ("z", "r_x"))
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+@pytest.mark.parametrize("extras", [True, False])
+def test_table_round_trip(tmp_path, suffix, extras):
+    frd = _frd(extras)
+    path = tmp_path / f"frf{suffix}"
+    (write_csv if suffix == ".csv" else write_npz)(path, frd_columns(frd))
+    back = read_frd(path)
+    assert back.inputs == frd.inputs and back.outputs == frd.outputs  # an output name with "_" too
+    np.testing.assert_allclose(back.response, frd.response, rtol=1e-15)  # CSV writes repr-exact floats
+    if extras:
+        np.testing.assert_allclose(back.std, frd.std, rtol=1e-15)
+        np.testing.assert_allclose(back.coherence, frd.coherence, rtol=1e-15)
+    else:
+        assert back.std is None and back.coherence is None
+
+
+def test_reads_a_freqresp_file(tmp_path):
+    from stageid.cli.main import main
+    from stageid.models import StateSpaceModel, save_model
+
+    g = StateSpaceModel([[0.9]], [[1.0]], [[1.0]], [[0.0]], dt=0.01, inputs=("u",), outputs=("y",))
+    save_model(g, tmp_path / "g.json")
+    assert (
+        main(
+            [
+                "freqresp",
+                str(tmp_path / "g.json"),
+                "--fmin",
+                "1",
+                "--fmax",
+                "40",
+                "--n",
+                "30",
+                "-o",
+                str(tmp_path / "fr.csv"),
+            ]
+        )
+        == 0
+    )
+    frd = read_frd(tmp_path / "fr.csv")
+    np.testing.assert_allclose(frd.response, g.frequency_response(frd.freqs), rtol=1e-12)
+
+
+def test_python_control_round_trip():
+    pytest.importorskip("control")
+    frd = _frd(False)
+    back = FrequencyResponse.from_control(frd.to_control())
+    np.testing.assert_allclose(back.freqs, frd.freqs, rtol=1e-14)
+    np.testing.assert_allclose(back.response, frd.response, rtol=1e-14)
+    assert back.inputs == frd.inputs and back.outputs == frd.outputs
+
+
+def test_figure_has_std_band_and_coherence_panel():
+    fig = _frd().plot()
+    assert len(fig.axes) == 9  # magnitude, phase, coherence for each of 3 inputs
+    assert any(len(ax.collections) for ax in fig.axes[:3])  # the shaded +-2 std band
+
+
+@pytest.mark.parametrize(
+    "columns, fragment",
+    [
+        ({"f_hz": [1.0, 2.0, 1.5], "re_y_u": [1, 2, 3], "im_y_u": [0, 0, 0]}, "strictly increasing"),
+        ({"f_hz": [1.0, 2.0], "re_y_u": [1, 2]}, "no matching 'im_y_u'"),
+        ({"f_hz": [1.0, 2.0], "im_y_u": [1, 2]}, "no matching 're_y_u'"),
+        ({"re_y_u": [1, 2], "im_y_u": [1, 2]}, "'f_hz'"),
+        (
+            {"f_hz": [1.0, 2.0], "re_a_u": [1, 2], "im_a_u": [1, 2], "re_b_v": [1, 2], "im_b_v": [1, 2]},
+            "full output x input grid",
+        ),
+    ],
+)
+def test_bad_tables(tmp_path, columns, fragment):
+    path = tmp_path / "bad.csv"
+    write_csv(path, {k: np.asarray(v, float) for k, v in columns.items()})
+    with pytest.raises(DataError, match=fragment) as info:
+        read_frd(path)
+    assert "\n" not in str(info.value)
+
+
+def test_nan_in_table(tmp_path):
+    path = tmp_path / "nan.csv"
+    path.write_text("f_hz,re_y_u,im_y_u\n1,1,0\n2,nan,0\n")
+    with pytest.raises(DataError, match="NaN"):
+        read_frd(path)
