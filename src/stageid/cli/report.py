@@ -32,6 +32,7 @@ def write_report(model, experiments, out_dir: str, title: str | None = None, ext
 Examples:
   stageid report model.json val.csv --inputs Z,Rx,Ry --outputs z,rx,ry --out report/
   stageid report hyst.json tri.csv --inputs V --outputs y --out hyst-report/
+  stageid report model.json --frf frf.csv --out report/   # the model beside a measured FRF
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
@@ -40,6 +41,14 @@ Examples:
 @click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
 @click.option("--title", default=None, help="Report title.")
+@click.option(
+    "--frf",
+    "frf_path",
+    default=None,
+    type=click.Path(dir_okay=False),
+    help="A measured frequency response (`stageid frf` / `freqresp` CSV or NPZ) drawn beside the model; "
+    "its channels are the --inputs/--outputs names.",
+)
 @click.option(
     "--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for index.html and metrics.json."
 )
@@ -50,6 +59,7 @@ def report_command(
     outputs: str | None,
     ts: float | None,
     title: str | None,
+    frf_path: str | None,
     out_dir: str,
 ) -> None:
     """Report on MODEL.json: frequency response, poles and zeros, and simulation against DATA files."""
@@ -71,8 +81,43 @@ def report_command(
     if experiments:
         renamed = [e.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs)) for e in experiments]
         experiments = tuple(renamed)
-    path = write_report(model, experiments, out_dir, title)
+    extra = None
+    if frf_path is not None:
+        frd = _read_frf(frf_path, model, ins, outs)
+
+        def extra(report, metrics):
+            from ..report.model_report import frf_section
+
+            frf_section(report, metrics, model, frd, source=f"measured ({Path(frf_path).name})")
+
+    path = write_report(model, experiments, out_dir, title, extra)
     say(f"report written to {path}")
+
+
+def _read_frf(path: str, model, ins: tuple[str, ...], outs: tuple[str, ...]):
+    """The FRF file's columns for the model's channels (named as in ``--inputs``/``--outputs``),
+    in the model's order and renamed to its channels; an LTI model only."""
+    from ..frf import FrequencyResponse, read_frd
+
+    if not hasattr(model, "frequency_response"):
+        raise click.UsageError(f"--frf needs a linear model with a frequency response; got a {type(model).__name__}.")
+    frd = read_frd(path)
+    missing = [n for n in ins if n not in frd.inputs] + [n for n in outs if n not in frd.outputs]
+    if missing:
+        raise click.UsageError(
+            f"--frf '{path}' has no channel {missing[0]!r}; it has inputs {','.join(frd.inputs)} "
+            f"and outputs {','.join(frd.outputs)}."
+        )
+    i = [frd.outputs.index(n) for n in outs]
+    j = [frd.inputs.index(n) for n in ins]
+    return FrequencyResponse(
+        frd.freqs,
+        frd.response[:, i][:, :, j],
+        None if frd.std is None else frd.std[:, i][:, :, j],
+        None if frd.coherence is None else frd.coherence[:, i],
+        tuple(model.inputs),
+        tuple(model.outputs),
+    )
 
 
 def _check_count(option: str, given: tuple[str, ...], side: str, model_names: tuple[str, ...]) -> None:

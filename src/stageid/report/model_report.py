@@ -9,7 +9,7 @@ import numpy as np
 
 from .html import Report
 
-__all__ = ["lti_model_report", "hysteresis_model_report", "model_report"]
+__all__ = ["lti_model_report", "hysteresis_model_report", "model_report", "frf_section"]
 
 
 def _band(model: Any, experiments: Sequence[Any]) -> np.ndarray:
@@ -115,6 +115,50 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
                 + "; ".join(diverged)
                 + " (an unstable model): no fit, no plot."
             )
+
+
+#: Lines of a measured response whose coherence is below this are noise, not response (an
+#: unexcited band): they are drawn but not counted in the model-against-data error.
+COHERENT = 0.8
+
+
+def frf_section(
+    report: Report,
+    metrics: dict[str, Any],
+    model: Any,
+    frd: Any,
+    source: str = "measured",
+    prefix: str = "",
+    level: int = 2,
+) -> None:
+    """The measured frequency response (``frd``, a :class:`~stageid.frf.FrequencyResponse` with
+    the model's channels) beside the model: Bode figure with its +-2 std band and coherence,
+    and per input column the largest ``|G_model - G_measured|`` over the column's peak, on the
+    lines where every output's coherence is at least ``COHERENT`` (all lines without coherence)."""
+    from ..frf.identification import column_errors
+
+    keep = np.ones(frd.freqs.size, bool) if frd.coherence is None else np.all(frd.coherence >= COHERENT, axis=1)
+    report.section("Measured frequency response", level)
+    report.figure(
+        frd.plot(model=model),
+        f"{source} frequency response ({frd.freqs[0]:.3g}-{frd.freqs[-1]:.3g} Hz; shaded: +-2 std) "
+        "with the model dashed; bottom: coherence.",
+    )
+    if not np.any(keep):
+        report.paragraph(f"No line of the {source} response has coherence >= {COHERENT}: no error is computed.")
+        return
+    errors = column_errors(model.frequency_response(frd.freqs[keep]), frd.response[keep])
+    rows = [[inp, float(100 * e)] for inp, e in zip(frd.inputs, errors)]
+    counted = (
+        "all lines" if frd.coherence is None else f"{int(keep.sum())} of {keep.size} lines, coherence >= {COHERENT}"
+    )
+    report.table(
+        ["input", "max |model - measured| [% of peak]"],
+        rows,
+        caption=f"Model against the {source} response ({counted})",
+    )
+    for inp, e in zip(frd.inputs, errors):
+        metrics[f"{prefix}frf/column_error_percent/{inp}"] = float(100 * e)
 
 
 def _diverges(y: np.ndarray) -> bool:
