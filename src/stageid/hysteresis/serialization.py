@@ -65,6 +65,7 @@ _OPTIONAL = (
 # imported, by name only -- this package never imports stageid.plants.
 _KINDS: dict[str, Callable[[dict], Any] | str] = {
     "piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict",
+    "stage": "stageid.hysteresis.stage:StageModel.from_dict",
 }
 
 
