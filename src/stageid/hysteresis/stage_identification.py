@@ -300,36 +300,55 @@ class _StageProblem:
         sol = T @ (res.x / scale) + shift
         return sol[:p], sol[p:]
 
+    def segments(self, masks: list[np.ndarray], order: int) -> list[tuple[int, int]]:
+        """(record, end) of every record whose fitted rows are a prefix long enough for the dynamics."""
+        out = []
+        for j, mask in enumerate(masks):
+            last = int(np.flatnonzero(mask)[-1]) + 1 if mask.any() else 0
+            if last > 2 * order + 1 and mask[:last].all():
+                out.append((j, last))
+        if not out:
+            raise IdentificationError("no record segment left to fit the dynamics on.")
+        return out
+
+    def sse(self, filtered, masks, wc, offsets) -> float:
+        total = 0.0
+        for (_, y), c, mask, off in zip(self.recs, filtered, masks, offsets):
+            e = (y - c @ wc - off)[mask]
+            total += float(e @ e)
+        return total
+
     def fit(self, order: int, taus: tuple[float, ...], masks: list[np.ndarray]):
+        """Weights, creep weights, offsets and ``(b, a)`` (None for order 0) fitted on the masked rows.
+
+        Alternation from two starts -- the over-parametrised fit (:func:`fit_hammerstein`) and
+        ``G = 1`` -- keeping the least residual seen, so the fit is never worse than without
+        dynamics on the fitted rows.
+        """
         cols = self.columns(taus)
         nc = len(taus)
-        ba = None
-        filtered = cols
-        if order:  # a start where a lag cannot pass for hysteresis (see fit_hammerstein)
-            pieces = []
-            for (_, y), c, mask in zip(self.recs, cols, masks):
-                last = int(np.flatnonzero(mask)[-1]) + 1 if mask.any() else 0
-                if last > 2 * order + 1 and mask[:last].all():
-                    pieces.append((c[:last], y[:last]))
-            if not pieces:
-                raise IdentificationError("no record segment left to fit the dynamics on.")
-            ba = fit_hammerstein(pieces, order)
-            filtered = [unit_gain_filter(ba[0], ba[1], c) for c in cols]
-        for _ in range(N_ALTERNATIONS if order else 1):
-            wc, offsets = self.solve_weights(filtered, masks, nc)
-            if not order:
-                break
-            pairs = []
-            for j, ((_, y), c, mask) in enumerate(zip(self.recs, cols, masks)):
-                last = int(np.flatnonzero(mask)[-1]) + 1 if mask.any() else 0
-                if last > 2 * order + 1 and mask[:last].all():
-                    pairs.append((c[:last] @ wc, y[:last] - offsets[j]))
-            if not pairs:
-                raise IdentificationError("no record segment left to fit the dynamics on.")
-            ba = fit_unit_gain_dynamics(pairs, order)
-            filtered = [unit_gain_filter(ba[0], ba[1], c) for c in cols]
+        wc, offsets = self.solve_weights(cols, masks, nc)
+        best = (self.sse(cols, masks, wc, offsets), wc, offsets, None)
         if order:
-            wc, offsets = self.solve_weights(filtered, masks, nc)
+            segs = self.segments(masks, order)
+            starts = [None] + [ba for ba in (refine_output_error(self, cols, masks, order),) if ba is not None]
+            try:
+                starts.append(fit_hammerstein([(cols[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
+            except (IdentificationError, np.linalg.LinAlgError):
+                pass
+            for ba in starts:
+                w_cur, off_cur = wc, offsets
+                for _ in range(N_ALTERNATIONS):
+                    if ba is None:
+                        pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
+                        ba = fit_unit_gain_dynamics(pairs, order)
+                    filtered = [unit_gain_filter(ba[0], ba[1], c) for c in cols]
+                    w_cur, off_cur = self.solve_weights(filtered, masks, nc)
+                    err = self.sse(filtered, masks, w_cur, off_cur)
+                    if err < best[0]:
+                        best = (err, w_cur, off_cur, ba)
+                    ba = None
+        _, wc, offsets, ba = best
         return wc[: wc.size - nc], wc[wc.size - nc :], offsets, ba
 
     def held_out_score(self, order: int, taus: tuple[float, ...]) -> float:
@@ -379,6 +398,49 @@ class _StageProblem:
             max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
             rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
         return max_e, rms_e
+
+
+def refine_output_error(problem: _StageProblem, cols: list, masks: list, order: int):
+    """``(b, a)`` minimising the output error with the weights projected out (variable projection).
+
+    Parameters ``(a_1..a_n, b_1..b_n)``, ``b_0 = sum a - sum b_i`` (``G(1) = 1``); the inner fit
+    is unconstrained least squares of the weights and offsets on strided rows; an unstable
+    ``A`` scores a large residual.  Started from ``n`` poles at 0.5 and a numerator spread over
+    the delays (a stage's sub-millisecond lag and delay at 10 kHz).
+    """
+    from scipy.optimize import least_squares
+
+    n = int(order)
+    rows = [np.flatnonzero(m)[:: problem.stride] for m in masks]
+    J = len(cols)
+    y = np.concatenate([problem.recs[j][1][rows[j]] for j in range(J)])
+    big = float(np.linalg.norm(y)) + 1.0
+
+    def residual(theta):
+        a = np.r_[1.0, theta[:n]]
+        if np.any(np.abs(np.roots(a)) >= 0.9995):
+            return np.full(y.size, big / np.sqrt(y.size))
+        b = np.r_[np.sum(a) - np.sum(theta[n:]), theta[n:]]
+        blocks = []
+        for j, c in enumerate(cols):
+            f = unit_gain_filter(b, a, c)[rows[j]]
+            E = np.zeros((rows[j].size, J))
+            E[:, j] = 1.0
+            blocks.append(np.hstack([f, E]))
+        X = np.vstack(blocks)
+        sol = np.linalg.lstsq(X, y, rcond=None)[0]
+        return y - X @ sol
+
+    a0 = np.poly(np.full(n, 0.5))
+    b_tail = np.full(n, np.sum(a0) / (n + 1))
+    try:
+        res = least_squares(residual, np.r_[a0[1:], b_tail], method="trf", diff_step=1e-6, max_nfev=60 * n)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    a = np.r_[1.0, res.x[:n]]
+    if np.any(np.abs(np.roots(a)) >= 0.9995):
+        return None
+    return np.r_[np.sum(a) - np.sum(res.x[n:]), res.x[n:]], a
 
 
 def _constraint_map(m: int, nc: int, J: int, eps: float, classical: bool):
