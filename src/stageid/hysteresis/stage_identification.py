@@ -235,11 +235,12 @@ class StageIdentifier(Estimator):
             rms_error_percent=tuple(rms_e),
             output_offsets=tuple(float(v) for v in offsets),
             initial_states=tuple(kinds),
-            dynamics_order=order,
+            dynamics_order=model.dynamics_order,
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
             message=f"hysteresis by PIIdentifier ({base.message.rstrip('.')}); weights, creep and dynamics "
-            f"alternated {N_ALTERNATIONS} times.",
+            f"alternated {N_ALTERNATIONS} times"
+            + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
         )
 
 
@@ -370,7 +371,7 @@ class _StageProblem:
                 w, c, _, ba = self.fit(order, taus, fit_masks)
             except (IdentificationError, np.linalg.LinAlgError):
                 return float("inf")
-            for (u, y), z, cols_mask, col in zip(self.recs, self.Z, test_masks, self.columns(taus)):
+            for (_, y), cols_mask, col in zip(self.recs, test_masks, self.columns(taus)):
                 if not cols_mask.any():
                     continue
                 v = col @ np.r_[w, c]
