@@ -39,6 +39,7 @@ from .dynamics import fit_hammerstein, fit_unit_gain_dynamics, transfer_to_state
 from .identification import MODEL_KINDS, PIIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
 from .stage import StageModel
+from .stage_inverse import invert_dynamics
 
 __all__ = ["StageIdentifier", "StageFit", "AUTO_ORDERS", "AUTO_CREEP"]
 
@@ -197,6 +198,7 @@ class StageIdentifier(Estimator):
         """
         self.validate_params()
         recs, in_name, out_name = read_records(data, inputs, outputs)
+        names = (in_name, out_name)
         dt = sampling_period(data, self.sample_time)
         if dt is None:
             raise self.invalid("sample_time", "the sampling period in seconds for dynamics and creep on (u, y) records")
@@ -226,8 +228,11 @@ class StageIdentifier(Estimator):
             order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
         else:
             order, taus = orders[0], creeps[0]
-        w, c, offsets, ba = problem.fit(order, taus, [np.ones(u.size, bool) for u, _ in recs])
-        model = problem.build(w, c, offsets[0], taus, ba, in_name, out_name)
+        everything = [np.ones(u.size, bool) for u, _ in recs]
+        w, c, offsets, ba = problem.fit(order, taus, everything)
+        model = problem.build(w, c, offsets[0], taus, ba, *names)
+        if model.dynamics is not None:  # step 4: thresholds again, on the outputs with G inverted
+            problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         max_e, rms_e = problem.errors(model, offsets)
         return StageFit(
             model=model,
@@ -242,6 +247,23 @@ class StageIdentifier(Estimator):
             f"alternated {N_ALTERNATIONS} times"
             + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
         )
+
+    def _second_pass(self, problem, model, recs, kinds, dt, order, taus, names):
+        """Thresholds refitted on ``G^-1[y]`` (stable inversion), then step 2 again; kept when
+        the residual on the records is smaller (the first pass saw the dynamics as hysteresis)."""
+        unfiltered = [(u, invert_dynamics(model, y)) for u, y in recs]
+        base = PIIdentifier(
+            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
+        ).fit(unfiltered)
+        everything = [np.ones(u.size, bool) for u, _ in recs]
+        second = _StageProblem(base.model, recs, kinds, dt)
+        w, c, offsets2, ba = second.fit(order, taus, everything)
+        model2 = second.build(w, c, offsets2[0], taus, ba, *names)
+        old = problem.errors(model, problem.offsets_of(model, recs))[1]
+        new = second.errors(model2, offsets2)[1]
+        if sum(new) < sum(old):
+            return second, model2, offsets2
+        return problem, model, problem.offsets_of(model, recs)
 
 
 class _StageProblem:
@@ -389,6 +411,14 @@ class _StageProblem:
             h = replace(h, creep=CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=self.dt))
         dyn = None if ba is None else transfer_to_statespace(ba[0] / (np.sum(ba[0]) / np.sum(ba[1])), ba[1], self.dt)
         return StageModel(h, dyn)
+
+    def offsets_of(self, model: StageModel, recs: list) -> np.ndarray:
+        """Each record's offset: the model's plus its mean residual."""
+        out = []
+        for (u, y), kind in zip(recs, self.kinds):
+            h = model.hysteresis.with_state(model.hysteresis.consistent_state(u[0], kind))
+            out.append(float(np.mean(y - model.with_hysteresis(h).simulate(u, self.dt)[:, 0])) + h.output_offset)
+        return np.array(out)
 
     def errors(self, model: StageModel, offsets) -> tuple[list[float], list[float]]:
         max_e, rms_e = [], []
