@@ -40,7 +40,7 @@ class PreisachActuator:
         self.alpha = A[keep] * scale
         self.beta = B[keep] * scale
         # asymmetric, smooth weights: more mass near the diagonal and on the positive side
-        w = np.exp(-((A - B) / 0.6) ** 2) * (1.0 + 0.3 * (A + B))
+        w = np.exp(-(((A - B) / 0.6) ** 2)) * (1.0 + 0.3 * (A + B))
         self.w = w[keep] / w[keep].sum()
         self.scale = scale
 
@@ -106,7 +106,9 @@ def simulated(lines: list[str]) -> None:
             yh = m.with_hysteresis(m.hysteresis.with_state(m.hysteresis.consistent_state(u[0], "zero"))).simulate(u, DT)
             err = y - yh[:, 0]
             err = err - err.mean()
-            cells.append(f"{100 * np.abs(err).max() / np.ptp(y):.2f} / {100 * np.sqrt(np.mean(err**2)) / np.ptp(y):.2f}")
+            cells.append(
+                f"{100 * np.abs(err).max() / np.ptp(y):.2f} / {100 * np.sqrt(np.mean(err**2)) / np.ptp(y):.2f}"
+            )
         lines.append(f"| {e.name} | {cells[0]} | {cells[1]} |")
     # tracking: 100 Hz triangle over 80 % of the output range
     y_lo, y_hi = float(plant(np.r_[-95.0, -95.0])[-1]), float(plant(np.r_[95.0, 95.0])[-1])

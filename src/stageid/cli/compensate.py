@@ -49,10 +49,9 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     """
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
+    from ..hysteresis.stage import StageModel
     from ..models import load_model
     from ._common import check_output, read_table_checked, split_names, write_table_output
-
-    from ..hysteresis.stage import StageModel
 
     check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)

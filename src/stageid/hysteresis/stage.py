@@ -74,7 +74,9 @@ class StageModel:
 
     def __post_init__(self) -> None:
         if not isinstance(self.hysteresis, (PIModel, ModifiedPIModel)):
-            raise ModelError(f"`hysteresis` must be a PIModel or ModifiedPIModel; got {type(self.hysteresis).__name__}.")
+            raise ModelError(
+                f"`hysteresis` must be a PIModel or ModifiedPIModel; got {type(self.hysteresis).__name__}."
+            )
         g = self.dynamics
         if g is None:
             return
@@ -197,7 +199,9 @@ class StageModel:
             raise ModelFormatError(f"a stage model needs `hysteresis` and `dynamics` only; got {shown(d)}.")
         hyst = d["hysteresis"]
         if not isinstance(hyst, dict) or hyst.get("kind") not in ("pi", "modified-pi"):
-            raise ModelFormatError(f"`hysteresis` of a stage model must be a pi or modified-pi model; got {shown(hyst)}.")
+            raise ModelFormatError(
+                f"`hysteresis` of a stage model must be a pi or modified-pi model; got {shown(hyst)}."
+            )
         h = model_from_dict(hyst)
         g = d.get("dynamics")
         dyn = None
