@@ -286,3 +286,32 @@ def test_cli_creep_without_a_time_axis_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "time column" in err[0]
     assert not out.exists()
+
+
+def test_cli_stage_at_another_sample_time_exit_2_nothing_written(tmp_path, capsys):
+    path = tmp_path / "s.json"
+    path.write_text(dumps(_stage().to_dict()))
+    u = decaying_triangle(50.0, 2, 2 * DT, amplitude=5.0)
+    write_csv(tmp_path / "u.csv", {"V": u, "yref": u}, dt=2 * DT)
+    for args in (
+        ["simulate", str(path), str(tmp_path / "u.csv"), "-o", str(tmp_path / "out.csv")],
+        ["compensate", str(path), str(tmp_path / "u.csv"), "--column", "yref", "-o", str(tmp_path / "out.csv")],
+    ):
+        code = main(args)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and "sample time" in err[0], err
+        assert not (tmp_path / "out.csv").exists()
+
+
+def test_auto_with_two_records_scores_every_candidate_by_leaving_one_out():
+    true = _stage()
+    train = []
+    for freq, cycles in ((20.0, 6), (100.0, 20)):
+        u = decaying_triangle(freq, cycles, DT, amplitude=10.0)
+        train.append(Experiment(u[:, None], true.simulate(u, DT), DT, ("V",), ("y",)))
+    fit = StageIdentifier("pi", n_operators=4, dynamics="auto", creep=None).fit(train)
+    scores = {order: score for order, _, score in fit.held_out}
+    assert set(scores) == {0, 1, 2, 3, 4}
+    # noise-free true order 2: held-out error far below the rate-independent model's
+    assert scores[2] < 0.01 * scores[0]
+    assert fit.dynamics_order >= 2
