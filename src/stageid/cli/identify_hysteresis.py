@@ -141,6 +141,10 @@ def identify(
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
     the first record's offset and starts from the zero state at 0 input. Prints the max and
     RMS error of the fit in % of each record's output range.
+
+    With --dynamics (or --creep auto) the model is a rate-dependent stage (kind `stage`):
+    hysteresis -> creep -> discrete dynamics with unit DC gain, identified jointly; records at
+    several rates are the normal input.
     """
     from ..hysteresis import PIIdentifier
     from ._common import read_experiments
