@@ -45,7 +45,9 @@ class PreisachActuator:
         self.scale = scale
 
     def simulate(self, u: np.ndarray) -> np.ndarray:
-        state = np.where(self.alpha + self.beta <= 2 * u[0], 1.0, -1.0)  # demagnetised-like start
+        # demagnetised at 0 V (the staircase on alpha = -beta), then the first sample: the
+        # identified models' "zero" start, so a drive that begins elsewhere jumps there from 0 V
+        state = np.where(self.alpha + self.beta <= 0.0, 1.0, -1.0)
         y = np.empty(u.size)
         for k, x in enumerate(u):
             state[x >= self.alpha] = 1.0
