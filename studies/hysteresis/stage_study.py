@@ -23,7 +23,40 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+OUT = HERE / "output"
 DT = 1e-4
+
+
+def _aligned(model, u, y):
+    """The model's output on a record with that record's own offset and best starting state."""
+    best = None
+    for kind in ("zero", "ascending", "descending"):
+        h = model.hysteresis.with_state(model.hysteresis.consistent_state(u[0], kind))
+        yh = model.with_hysteresis(h).simulate(u, DT)[:, 0]
+        yh = yh + np.mean(y - yh)
+        sse = float(np.sum((y - yh) ** 2))
+        best = (sse, yh) if best is None or sse < best[0] else best
+    return best[1]
+
+
+def _figures(name, u, y, models) -> None:
+    """Loop and error-trace PNGs of one record (git-ignored ``output/``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from stageid.plots.hysteresis import loop_figure, model_errors_figure
+
+    OUT.mkdir(exist_ok=True)
+    preds = {label: _aligned(m, u, y) for label, m in models.items()}
+    fig = loop_figure(u, {"measured": y, **preds}, title=f"{name}: loops")
+    fig.savefig(OUT / f"stage_{name}_loops.png", dpi=90)
+    plt.close(fig)
+    t = np.arange(u.size) * DT
+    fig = model_errors_figure(t, {label: y - p for label, p in preds.items()}, title=f"{name}: error")
+    fig.savefig(OUT / f"stage_{name}_errors.png", dpi=90)
+    plt.close(fig)
 
 
 class PreisachActuator:
@@ -177,7 +210,8 @@ def real(lines: list[str]) -> None:
                 best = cand if best is None or cand[0] < best[0] else best
             cells.append(f"{100 * best[1] / np.ptp(y):.2f} / {100 * best[0] / np.ptp(y):.2f}")
         lines.append(f"| {n} | " + " | ".join(cells) + " |")
-    lines.append("")
+        _figures(n, u, y, {label: fits[label].model for label in configs})
+    lines.append(f"\nLoops and error traces per record: `{OUT.relative_to(HERE)}/stage_*.png`.\n")
 
 
 def main(argv: list[str] | None = None) -> int:
