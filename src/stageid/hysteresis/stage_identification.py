@@ -11,12 +11,18 @@ Procedure (:meth:`StageIdentifier.fit`):
    ``(w, c, o)``: the filtered columns ``G[Z_j], G[L_j]`` go into the constrained least squares
    of step 2 of the PI identification (same invertibility constraint, ``c >= 0``).  For fixed
    weights ``G`` is an output-error fit of ``v = Z w + L c`` to ``y - o``
-   (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps.
+   (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps,
+   from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
+   the variable-projection fit :func:`~.stage_problem.refine_output_error`), keeping the least
+   residual: never worse than no dynamics on the fitted rows.
 3. **auto** (``dynamics="auto"``, ``creep="auto"``): every candidate (orders
    ``AUTO_ORDERS``, creep sets ``AUTO_CREEP``) is fitted on all records but one and scored by
    its RMS error on the one left out (own offset), summed over the records; with a single
-   record the first 60 % of it is fitted and the rest scored.  The best candidate is then
-   fitted on all records.
+   record the first 60 % of it is fitted and the rest scored.  The simplest candidate within
+   ``AUTO_TOLERANCE`` of the best is then fitted on all records.
+4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
+   inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
+   hysteresis), then step 2; kept only when the summed RMS error on the records drops.
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
