@@ -152,6 +152,38 @@ def compare_with(path, n, repeat, all_kernels=False):
     return 0
 
 
+def identification_times(repeat: int) -> int:
+    """Whole-process identification times on the 20 Hz FORC record (issue 16, point 6), medians."""
+    from stageid.data.datasets import load_dspace_piezo, shared_data_dir
+    from stageid.hysteresis import PIIdentifier
+    from stageid.hysteresis.stage_identification import StageIdentifier
+
+    root = shared_data_dir()
+    path = None if root is None else root / "piezo_dspace_preisach" / "20_hz_no_lp.mat"
+    if path is None or not path.is_file():
+        print("dSPACE records not found; skipped")
+        return 0
+    exp = load_dspace_piezo(path)
+    print(f"# 20_hz_no_lp: {exp.n_samples} samples; median of {repeat}; load {os.getloadavg()[0]:.2f}")
+    cases = {
+        "classical PI (20 operators)": lambda: PIIdentifier("pi").fit(exp),
+        "modified PI (20 operators, warp)": lambda: PIIdentifier("modified-pi").fit(exp),
+        "stage: classical PI + dynamics 2": lambda: StageIdentifier("pi", dynamics=2, creep=None).fit(exp),
+        "stage: modified PI + dynamics 2": lambda: StageIdentifier("modified-pi", dynamics=2, creep=None).fit(exp),
+    }
+    base = None
+    for name, run in cases.items():
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            run()
+            times.append(time.perf_counter() - t0)
+        med = float(np.median(times))
+        base = med if base is None else base
+        print(f"| {name} | {med:.2f} s | {med / base:.1f}x |")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=1_000_000)
@@ -165,7 +197,15 @@ def main(argv=None) -> int:
         "play_sum_auto / cp_sum_auto against the current ones, interleaved, and stop",
     )
     ap.add_argument("--all-kernels", action="store_true", help="with --compare-with: every sum kernel, not only auto")
+    ap.add_argument(
+        "--identification",
+        action="store_true",
+        help="time whole identifications on the dSPACE 20 Hz FORC record (classical PI, modified PI, "
+        "stage with dynamics 2) and stop",
+    )
     args = ap.parse_args(argv)
+    if args.identification:
+        return identification_times(args.repeat)
     if args.compare_with:
         return compare_with(args.compare_with, args.samples, args.repeat, args.all_kernels)
 

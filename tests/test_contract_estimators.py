@@ -63,6 +63,7 @@ def _result_model(result):
 CASES = {
     "HankelMAP": (lambda cls: cls(horizon=8, order=2), _siso_data),
     "PIIdentifier": (lambda cls: cls("pi", n_operators=8), _hysteresis_data),
+    "StageIdentifier": (lambda cls: cls("pi", n_operators=8, dynamics=1, creep=None), _hysteresis_data),
     "ClosedLoopIdentification": (
         lambda cls: cls(_CONTROLLER, orders=1, structure="full", band=(1.0, 100.0)),
         _closed_loop_data,

@@ -12,7 +12,10 @@ SRC = Path(stageid.__file__).parent
 def test_the_entry_points_are_declared_and_load():
     formats, kinds = declared(MODEL_FORMATS), declared(HYSTERESIS_KINDS)
     assert formats == {"stageid.hysteresis/1": "stageid.hysteresis.serialization:model_from_dict"}
-    assert kinds == {"piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict"}
+    assert kinds == {
+        "piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict",
+        "stage": "stageid.hysteresis.stage:StageModel.from_dict",
+    }
     from stageid.plants.piezo_actuator import PiezoActuator
 
     assert load_object(kinds["piezo-actuator"]) == PiezoActuator.from_dict

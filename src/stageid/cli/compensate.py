@@ -39,17 +39,25 @@ Examples:
 def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: float | None, out: str) -> None:
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
+    A stage model with dynamics (`identify hysteresis --dynamics`) is inverted offline over the
+    whole reference: stable inversion of its linear dynamics (preview allowed), then the
+    hysteresis inverse, clipped to the drive limits.
+
     Classical PI models use their closed-form inverse; modified PI models are inverted sample
     by sample (exact to 1e-12). The drive starts from the model's stored state; a model with a
     creep term is inverted at the reference file's sampling period.
     """
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
+    from ..hysteresis.stage import StageModel
     from ..models import load_model
     from ._common import check_output, parse_limits, read_table_checked, write_table_output
 
     check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)
+    stage = model if isinstance(model, StageModel) else None
+    if stage is not None:
+        model = stage.hysteresis
     if not isinstance(model, (PIModel, ModifiedPIModel)):
         raise DataError(f"'{model_path}' is not a hysteresis model (stageid.hysteresis/1); got {type(model).__name__}.")
     lim = parse_limits(limits)
@@ -57,8 +65,14 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     yref = table.column(column)
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
-    # a creep term (rate dependent) runs at the reference's sampling period
-    u = Compensator(model, limits=lim, dt=table.dt).run(yref)
+    if stage is not None and stage.dynamics is not None:
+        from ..hysteresis.stage_inverse import stage_feedforward
+
+        # offline: stable inversion of the dynamics over the whole reference, then the hysteresis
+        u = stage_feedforward(stage, yref, table.dt, limits=lim)
+    else:
+        # a creep term (rate dependent) runs at the reference's sampling period
+        u = Compensator(model, limits=lim, dt=table.dt).run(yref)
     write_table_output(out, {model.inputs[0]: u[:, 0]}, dt=table.dt, t0=table.t0)
     _warn_outside_range(model, lim, u[:, 0])
 

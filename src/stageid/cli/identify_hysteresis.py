@@ -7,18 +7,34 @@ import click
 from ._common import check_output, check_output_folder, say, write_model_output
 
 
-def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | None:
+def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | str | None:
     if value is None:
         return None
+    if value in ("auto", "none"):
+        return value
     try:
         taus = tuple(float(v) for v in value.split(","))
     except ValueError:
         raise click.BadParameter(
-            f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}."
+            f"expected comma-separated positive seconds (e.g. 0.05,0.5,5), auto or none; got {value!r}."
         ) from None
     if not taus or not all(t > 0 and t < float("inf") for t in taus):
-        raise click.BadParameter(f"expected comma-separated positive seconds, e.g. 0.05,0.5,5; got {value!r}.")
+        raise click.BadParameter(
+            f"expected comma-separated positive seconds (e.g. 0.05,0.5,5), auto or none; got {value!r}."
+        )
     return taus
+
+
+def _order(ctx: click.Context, param: click.Parameter, value: str | None) -> int | str | None:
+    if value is None or value in ("auto", "none"):
+        return value
+    try:
+        order = int(value)
+    except ValueError:
+        order = 0
+    if order < 1:
+        raise click.BadParameter(f"expected a positive integer order, auto or none; got {value!r}.")
+    return order
 
 
 @click.command(
@@ -30,6 +46,7 @@ Examples:
   stageid identify hysteresis forc.csv --input V --output y --model pi --operators 20 -o pi.json
   stageid identify hysteresis a.csv b.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
+  stageid identify hysteresis f20.csv f100.csv --input V --output y --dynamics auto --creep auto -o stage.json
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
@@ -74,7 +91,18 @@ Examples:
     callback=_time_constants,
     metavar="TAU1,TAU2,...",
     help="Also fit a linear creep term: first-order lags of the input with these time constants "
-    "[s], weights >= 0 (our extension; the records' time column gives dt).",
+    "[s], weights >= 0 (our extension; the records' time column gives dt); auto: picked by "
+    "held-out error (writes a stage model); none: no creep.",
+)
+@click.option(
+    "--dynamics",
+    "dynamics",
+    default=None,
+    callback=_order,
+    metavar="N|auto|none",
+    help="Fit a stage model: hysteresis -> creep -> discrete linear dynamics of order N with unit DC "
+    "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics). "
+    "Writes a model of kind `stage`; needs a time axis.",
 )
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option(
@@ -105,13 +133,18 @@ def identify(
     out: str,
     quiet: bool,
     report_dir: str | None,
-    creep: tuple[float, ...] | None = None,
+    creep: tuple[float, ...] | str | None = None,
+    dynamics: int | str | None = None,
 ) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
     the first record's offset and starts from the zero state at 0 input. Prints the max and
     RMS error of the fit in % of each record's output range.
+
+    With --dynamics (or --creep auto) the model is a rate-dependent stage (kind `stage`):
+    hysteresis -> creep -> discrete dynamics with unit DC gain, identified jointly; records at
+    several rates are the normal input.
     """
     from ..hysteresis import PIIdentifier
     from ._common import read_experiments
@@ -121,9 +154,16 @@ def identify(
     if report_dir is not None:
         check_output_folder(report_dir)
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    fit = PIIdentifier(
-        kind, n_operators=n_operators, initial_state=initial_state, input_warp=input_warp, creep_time_constants=creep
-    ).fit(list(exps))
+    if dynamics is None and creep != "auto":  # today's rate-independent (or fixed-creep) model
+        fit = PIIdentifier(
+            kind,
+            n_operators=n_operators,
+            initial_state=initial_state,
+            input_warp=input_warp,
+            creep_time_constants=None if creep == "none" else creep,
+        ).fit(list(exps))
+    else:
+        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics)
     write_model_output(out, fit.model)
     if not quiet:
         say(fit.summary())
@@ -146,3 +186,17 @@ def identify(
         ]
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra)
         say(f"report written to {path}", err=True)
+
+
+def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics):
+    """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt."""
+    from ..hysteresis.stage_identification import StageIdentifier
+
+    return StageIdentifier(
+        kind,
+        n_operators=n_operators,
+        dynamics=None if dynamics == "none" else dynamics,
+        creep=None if creep == "none" else creep,
+        initial_state=initial_state,
+        input_warp=input_warp,
+    ).fit(list(exps))

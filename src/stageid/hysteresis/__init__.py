@@ -17,6 +17,9 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``invert``                 per-sample monotone inversion of any (modified) PI model
 ``Compensator``            streaming feedforward compensator with state and drive limits
 ``compensate``             batch feedforward
+``StageModel``             rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
+``StageIdentifier``        joint identification of a stage; ``fit`` returns ``StageFit``
+``stage_feedforward``      offline inverse of a stage (stable inversion of the dynamics)
 ``max_error_percent``      metrics as the letter uses them (see :mod:`.metrics`)
 ``rms_error_percent``
 ``tracking_error_percent``
@@ -26,6 +29,11 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 Modules, from the letter's sections down (each imports only the ones below it):
 
 =========================  ==================================================================
+:mod:`.stage_identification` ``StageIdentifier``: hysteresis, then weights / creep / dynamics
+                           alternated (:mod:`.stage_problem`), auto order and creep
+:mod:`.stage_inverse`      offline stage feedforward (stable inversion, then the inverse)
+:mod:`.stage`              ``StageModel`` (kind ``stage`` of the JSON format)
+:mod:`.dynamics`           unit-DC-gain discrete dynamics: fits and filtering
 :mod:`.identification`     ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
                            thresholds, starting states, creep)
 :mod:`.weights`            step 2: constrained least-squares weights (invertibility bounds)
@@ -51,6 +59,9 @@ from .inverse import invert, pi_inverse
 from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
 from .operators import OperatorState, coupled_play, play
 from .pi import ModifiedPIModel, PIModel
+from .stage import StageModel
+from .stage_identification import StageFit, StageIdentifier
+from .stage_inverse import stage_feedforward
 
 __all__ = [
     "OperatorState",
@@ -66,6 +77,10 @@ __all__ = [
     "invert",
     "Compensator",
     "compensate",
+    "StageModel",
+    "StageIdentifier",
+    "StageFit",
+    "stage_feedforward",
     "max_error_percent",
     "rms_error_percent",
     "tracking_error_percent",

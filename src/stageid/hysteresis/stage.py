@@ -1,0 +1,215 @@
+"""Rate-dependent stage model: drive -> hysteresis -> creep -> unit-DC-gain linear dynamics.
+
+``y = y0 + G[h(u) + creep(u) - y0]`` where ``h`` is a PI or modified-PI model (its optional
+:class:`~stageid.hysteresis.creep.CreepTerm` is the creep stage), ``y0`` its output offset and
+``G`` a discrete SISO :class:`~stageid.models.StateSpaceModel` with ``G(1) = 1`` (amplifier and
+mechanics), at rest at the first sample.  The unit DC gain keeps the hysteresis in the output's
+units: at slow drive the stage is its hysteresis model.
+
+JSON (``stageid.hysteresis/1``)::
+
+    {"format": "stageid.hysteresis/1", "kind": "stage",
+     "hysteresis": {... a pi / modified-pi model, creep included ...},
+     "dynamics": {... a stageid.lti/1 statespace model, discrete ...} | null}
+
+The object composes with :mod:`stageid.models`: :attr:`StageModel.dynamics` is a plain
+``StateSpaceModel`` (poles, frequency response, python-control conversion), and
+:meth:`StageModel.linear_response` runs it on any hysteresis output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .._errors import ModelError, ModelFormatError
+from ..checks import shown
+from .common import as_input
+from .dynamics import statespace_to_transfer, unit_gain_filter
+from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
+
+__all__ = ["StageModel", "STAGE_KIND"]
+
+STAGE_KIND = "stage"
+#: Relative tolerance on the dynamics' DC gain (1 within rounding of the fitted coefficients).
+DC_GAIN_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class StageModel:
+    """Hysteresis (PI or modified PI, optional creep) followed by unit-DC-gain discrete dynamics.
+
+    Parameters
+    ----------
+    hysteresis : PIModel or ModifiedPIModel
+        The rate-independent part (its ``creep`` term, if any, is the creep stage).
+    dynamics : StateSpaceModel or None
+        Discrete SISO model with DC gain 1 and poles inside the unit circle; ``None``: the
+        stage is its hysteresis model.
+
+    Raises
+    ------
+    ModelError
+        Dynamics that are continuous, not SISO, unstable, or of DC gain other than 1; a
+        sample time that differs from the creep term's.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis import PIModel
+    >>> from stageid.hysteresis.stage import StageModel
+    >>> from stageid.models import StateSpaceModel
+    >>> g = StateSpaceModel([[0.5]], [[1.0]], [[0.5]], [[0.0]], dt=1e-3)
+    >>> s = StageModel(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]), g)
+    >>> np.round(s.simulate(np.r_[0.0, 2.0, 2.0, 2.0])[:, 0], 3).tolist()
+    [0.0, 0.0, 1.25, 1.875]
+    """
+
+    hysteresis: Any
+    dynamics: Any = None
+
+    kind = STAGE_KIND
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.hysteresis, (PIModel, ModifiedPIModel)):
+            raise ModelError(
+                f"`hysteresis` must be a PIModel or ModifiedPIModel; got {type(self.hysteresis).__name__}."
+            )
+        g = self.dynamics
+        if g is None:
+            return
+        from ..models import StateSpaceModel
+
+        if not isinstance(g, StateSpaceModel):
+            raise ModelError(f"`dynamics` must be a StateSpaceModel or None; got {type(g).__name__}.")
+        if g.dt is None or g.n_inputs != 1 or g.n_outputs != 1:
+            raise ModelError(
+                f"`dynamics` must be discrete with one input and one output; got dt={g.dt}, {g.n_inputs}x{g.n_outputs}."
+            )
+        if g.n_states and not g.is_stable():
+            raise ModelError(f"`dynamics` must be stable; got poles {np.round(g.poles(), 6).tolist()}.")
+        dc = float(np.real(g.dc_gain()[0, 0]))
+        if not abs(dc - 1.0) <= DC_GAIN_TOLERANCE:
+            raise ModelError(f"`dynamics` must have DC gain 1 (the hysteresis keeps the output's units); got {dc:.9g}.")
+        creep = getattr(self.hysteresis, "creep", None)
+        if creep is not None and not np.isclose(creep.sample_time, g.dt, rtol=1e-9):
+            raise ModelError(f"the dynamics' dt {g.dt:g} s differs from the creep term's {creep.sample_time:g} s.")
+
+    # ------------------------------------------------------------------ the hysteresis' face
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return self.hysteresis.inputs
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.hysteresis.outputs
+
+    @property
+    def input_limits(self) -> tuple[float, float] | None:
+        return self.hysteresis.input_limits
+
+    @property
+    def output_offset(self) -> float:
+        return self.hysteresis.output_offset
+
+    @property
+    def dt(self) -> float | None:
+        """Sample time [s] of the dynamics (else of the creep term; None when rate independent)."""
+        if self.dynamics is not None:
+            return float(self.dynamics.dt)
+        creep = getattr(self.hysteresis, "creep", None)
+        return None if creep is None else float(creep.sample_time)
+
+    @property
+    def n_operators(self) -> int:
+        return self.hysteresis.n_operators
+
+    @property
+    def dynamics_order(self) -> int:
+        """Order ``n`` of the linear dynamics (0 without)."""
+        return 0 if self.dynamics is None else int(self.dynamics.n_states)
+
+    def transfer(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(b, a)`` of the dynamics in powers of ``z^-1`` (``([1], [1])`` without dynamics)."""
+        if self.dynamics is None or self.dynamics.n_states == 0:
+            d = 1.0 if self.dynamics is None else float(self.dynamics.D[0, 0])
+            return np.array([d]), np.array([1.0])
+        return statespace_to_transfer(self.dynamics)
+
+    def with_hysteresis(self, hysteresis: Any) -> StageModel:
+        """A copy with another hysteresis part (e.g. another starting state or offset)."""
+        return replace(self, hysteresis=hysteresis)
+
+    def with_state(self, state: Any) -> StageModel:
+        """Hysteresis started from ``state``; the dynamics always start at rest."""
+        return replace(self, hysteresis=self.hysteresis.with_state(state))
+
+    def consistent_state(self, u0: float, kind: str = "zero") -> Any:
+        return self.hysteresis.consistent_state(u0, kind)
+
+    # ------------------------------------------------------------------ simulation
+    def linear_response(self, v: object) -> np.ndarray:
+        """``y0 + G[v - y0]`` at rest at ``v[0]``: the dynamics applied to a hysteresis output, shape (n_samples,)."""
+        vv = np.asarray(v, dtype=float).reshape(-1)
+        if self.dynamics is None:
+            return vv.copy()
+        b, a = self.transfer()
+        return unit_gain_filter(b, a, vv[:, None])[:, 0]
+
+    def simulate(self, u: object, dt: float | None = None) -> np.ndarray:
+        """Stage output for an input record, shape (n_samples, 1).
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples, 1) or (n_samples,)
+        dt : float, optional
+            Sampling period [s]; must equal the model's :attr:`dt` when it has dynamics.
+
+        Raises
+        ------
+        ModelError
+            Bad input, or a ``dt`` that differs from the dynamics' sample time.
+        """
+        u_in = as_input(u, self.inputs[0])
+        step = self.dt
+        if dt is not None and step is not None and self.dynamics is not None and not np.isclose(dt, step, rtol=1e-6):
+            raise ModelError(f"the input's sample time {dt:g} s differs from the stage dynamics' {step:g} s.")
+        v = self.hysteresis.simulate(u_in, dt if dt is not None else step)[:, 0]
+        return self.linear_response(v)[:, None]
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict[str, Any]:
+        """The ``stageid.hysteresis/1`` dictionary of kind ``"stage"``."""
+        return {
+            "format": HYSTERESIS_FORMAT,
+            "kind": STAGE_KIND,
+            "hysteresis": self.hysteresis.to_dict(),
+            "dynamics": None if self.dynamics is None else self.dynamics.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, d: Any) -> StageModel:
+        """Inverse of :meth:`to_dict`; :class:`ModelFormatError` names the malformed field."""
+        from ..models.serialization import lti_from_dict
+        from .serialization import model_from_dict
+
+        if not isinstance(d, dict) or set(d) - {"format", "kind", "hysteresis", "dynamics"} or "hysteresis" not in d:
+            raise ModelFormatError(f"a stage model needs `hysteresis` and `dynamics` only; got {shown(d)}.")
+        hyst = d["hysteresis"]
+        if not isinstance(hyst, dict) or hyst.get("kind") not in ("pi", "modified-pi"):
+            raise ModelFormatError(
+                f"`hysteresis` of a stage model must be a pi or modified-pi model; got {shown(hyst)}."
+            )
+        h = model_from_dict(hyst)
+        g = d.get("dynamics")
+        dyn = None
+        if g is not None:
+            if not isinstance(g, dict) or g.get("kind") != "statespace":
+                raise ModelFormatError(f"`dynamics` must be a stageid.lti/1 statespace model or null; got {shown(g)}.")
+            dyn = lti_from_dict(g)
+        try:
+            return cls(hysteresis=h, dynamics=dyn)
+        except ModelError as exc:
+            raise ModelFormatError(str(exc)) from None

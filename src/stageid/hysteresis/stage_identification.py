@@ -1,0 +1,268 @@
+"""Joint identification of a rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics.
+
+Procedure (:meth:`StageIdentifier.fit`):
+
+1. **Hysteresis thresholds** by :class:`~stageid.hysteresis.PIIdentifier` (rate independent,
+   no creep): thresholds (and for the modified PI the CP thresholds and warp), every record's
+   starting state and output offset.
+2. **Alternation** with the thresholds fixed.  The model output is
+   ``y = o_j + G[Z_j w + L_j c]`` (``Z_j`` operator outputs, ``L_j`` creep lags of record
+   ``j``, ``o_j`` its offset); ``G`` is linear, so for fixed ``G`` the output is linear in
+   ``(w, c, o)``: the filtered columns ``G[Z_j], G[L_j]`` go into the constrained least squares
+   of step 2 of the PI identification (same invertibility constraint, ``c >= 0``).  For fixed
+   weights ``G`` is an output-error fit of ``v = Z w + L c`` to ``y - o``
+   (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps,
+   from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
+   the variable-projection fit :func:`~.stage_problem.refine_output_error`), keeping the least
+   residual: never worse than no dynamics on the fitted rows.
+3. **auto** (``dynamics="auto"``, ``creep="auto"``): every candidate (orders
+   ``AUTO_ORDERS``, creep sets ``AUTO_CREEP``) is fitted on all records but one and scored by
+   its RMS error on the one left out (own offset), summed over the records; with a single
+   record the first 60 % of it is fitted and the rest scored.  The simplest candidate within
+   ``AUTO_TOLERANCE`` of the best is then fitted on all records.
+4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
+   inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
+   hysteresis), then step 2; kept only when the summed RMS error on the records drops.
+
+The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
+model (zero state, first record's offset).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._threads import single_blas_thread
+from ..base import Boolean, Estimator, Interval, Options, Satisfies
+from ..checks import is_real
+from .identification import MODEL_KINDS, PIIdentifier
+from .records import STATE_CHOICES, read_records, sampling_period
+from .stage import StageModel
+from .stage_inverse import invert_dynamics
+from .stage_problem import N_ALTERNATIONS, StageProblem
+
+__all__ = ["StageIdentifier", "StageFit", "AUTO_ORDERS", "AUTO_CREEP"]
+
+AUTO_ORDERS = (0, 1, 2, 3, 4)
+AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
+#: Relative margin within which ``auto`` prefers the candidate with fewer parameters.
+AUTO_TOLERANCE = 0.02
+#: At least this many samples per dynamics coefficient (2n + 1 of them) in every record.
+SAMPLES_PER_COEFFICIENT = 50
+
+
+def _dynamics_ok(value: Any) -> bool:
+    return value is None or value == "auto" or (isinstance(value, int) and not isinstance(value, bool) and value >= 1)
+
+
+def _creep_ok(value: Any) -> bool:
+    if value is None or value == "auto":
+        return True
+    return (
+        isinstance(value, (tuple, list, np.ndarray))
+        and np.ndim(value) == 1
+        and len(value) > 0
+        and all(is_real(v) and v > 0 for v in value)
+    )
+
+
+@dataclass(frozen=True)
+class StageFit:
+    """Result of :meth:`StageIdentifier.fit` (no training data kept).
+
+    Attributes
+    ----------
+    model : StageModel
+    max_error_percent, rms_error_percent : tuple of float
+        Per record, in % of that record's output range (own offset and starting state).
+    output_offsets : tuple of float
+    initial_states : tuple of str
+    dynamics_order : int
+        0: no dynamics.
+    creep_time_constants : tuple of float
+        Empty: no creep.
+    held_out : tuple of (int, tuple of float, float)
+        ``(order, creep time constants, held-out RMS % summed over folds)`` per candidate when
+        something was ``"auto"``; empty otherwise.
+    message : str
+    """
+
+    model: StageModel
+    max_error_percent: tuple[float, ...]
+    rms_error_percent: tuple[float, ...]
+    output_offsets: tuple[float, ...]
+    initial_states: tuple[str, ...]
+    dynamics_order: int
+    creep_time_constants: tuple[float, ...]
+    held_out: tuple[tuple[int, tuple[float, ...], float], ...]
+    message: str
+
+    def summary(self) -> str:
+        """A short text report."""
+        h = self.model.hysteresis
+        lines = [
+            f"stage model: {h.kind} hysteresis, {h.n_operators} operators; creep "
+            + (", ".join(f"{t:g} s" for t in self.creep_time_constants) or "none")
+            + f"; dynamics order {self.dynamics_order}; fit on {len(self.max_error_percent)} record(s)"
+        ]
+        for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
+            lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
+        if self.model.dynamics is not None:
+            poles = self.model.dynamics.poles()
+            hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
+            lines.append("  dynamics poles at " + ", ".join(f"{f:.4g} Hz" for f in sorted(hz)))
+        for order, taus, score in self.held_out:
+            lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
+        lines.append(f"  {self.message}")
+        return "\n".join(lines)
+
+
+class StageIdentifier(Estimator):
+    """Identify a stage model: PI / modified-PI hysteresis, creep lags and unit-DC-gain dynamics.
+
+    Parameters
+    ----------
+    model : {"pi", "modified-pi"}, default "modified-pi"
+    n_operators : int, default 20
+        As in :class:`~stageid.hysteresis.PIIdentifier`.
+    dynamics : int >= 1, "auto" or None, default "auto"
+        Order of the linear dynamics; ``None``: none; ``"auto"``: picked from ``AUTO_ORDERS``
+        (0-4) by held-out error.
+    creep : sequence of positive seconds, "auto" or None, default "auto"
+        Creep time constants; ``"auto"``: picked from ``AUTO_CREEP`` by held-out error.
+    initial_state : {"auto", "zero", "ascending", "descending"}, default "auto"
+    input_warp : bool, default True
+        Modified PI only (see :class:`~stageid.hysteresis.PIIdentifier`).
+    sample_time : float, optional
+        Sampling period [s] for ``(u, y)`` records (Experiments carry their own).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.hysteresis import PIModel
+    >>> from stageid.hysteresis.stage import StageModel
+    >>> from stageid.hysteresis.stage_identification import StageIdentifier
+    >>> from stageid.models import StateSpaceModel
+    >>> from stageid.signals import decaying_triangle
+    >>> u = decaying_triangle(20.0, 8, 1e-4, amplitude=10.0)
+    >>> true = StageModel(PIModel(r=[0.0, 2.5, 5.0, 7.5], weights=[1.0, 0.4, 0.2, 0.1]),
+    ...                   StateSpaceModel([[0.9]], [[1.0]], [[0.1]], [[0.0]], dt=1e-4))
+    >>> fit = StageIdentifier("pi", n_operators=4, dynamics=1, creep=None, sample_time=1e-4).fit(
+    ...     (u, true.simulate(u)))
+    >>> bool(fit.max_error_percent[0] < 0.1)
+    True
+    """
+
+    parameter_constraints = {
+        "model": [Options(*MODEL_KINDS)],
+        "n_operators": [Interval(int, 2, None, closed="left")],
+        "dynamics": [Satisfies(_dynamics_ok, 'a positive integer order, "auto" or None')],
+        "creep": [Satisfies(_creep_ok, 'a non-empty sequence of positive seconds, "auto" or None')],
+        "initial_state": [Options(*STATE_CHOICES)],
+        "input_warp": [Boolean()],
+        "sample_time": [Interval(float, 0, None, closed="neither"), None],
+    }
+
+    def __init__(
+        self,
+        model: str = "modified-pi",
+        n_operators: int = 20,
+        dynamics: int | str | None = "auto",
+        creep: Sequence[float] | str | None = "auto",
+        initial_state: str = "auto",
+        input_warp: bool = True,
+        sample_time: float | None = None,
+    ) -> None:
+        self.model = model
+        self.n_operators = n_operators
+        self.dynamics = dynamics
+        self.creep = creep
+        self.initial_state = initial_state
+        self.input_warp = input_warp
+        self.sample_time = sample_time
+
+    @single_blas_thread
+    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> StageFit:
+        """Identify the stage from one or several records (several rates are the normal input).
+
+        Raises
+        ------
+        ParameterError
+            Bad settings; no sampling period for (u, y) records; a dynamics order the records
+            cannot support (fewer than ``SAMPLES_PER_COEFFICIENT`` samples per coefficient).
+        DataError, IdentificationError
+            As :meth:`PIIdentifier.fit`, or a dynamics fit that fails.
+        """
+        self.validate_params()
+        recs, in_name, out_name = read_records(data, inputs, outputs)
+        names = (in_name, out_name)
+        dt = sampling_period(data, self.sample_time)
+        if dt is None:
+            raise self.invalid("sample_time", "the sampling period in seconds for dynamics and creep on (u, y) records")
+        orders = AUTO_ORDERS if self.dynamics == "auto" else (0 if self.dynamics is None else int(self.dynamics),)
+        creeps = AUTO_CREEP if self.creep == "auto" else (() if self.creep is None else tuple(map(float, self.creep)),)
+        shortest = min(u.size for u, _ in recs)
+        need = SAMPLES_PER_COEFFICIENT * (2 * max(orders) + 1)
+        if self.dynamics not in (None, "auto") and shortest < need:
+            raise self.invalid(
+                "dynamics",
+                f"an order these records support: order {max(orders)} needs {need} samples per record, "
+                f"the shortest has {shortest}",
+            )
+        orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
+        base = PIIdentifier(
+            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
+        ).fit(data, inputs, outputs)
+        kinds = list(base.initial_states)
+        problem = StageProblem(base.model, recs, kinds, dt)
+        held_out: list[tuple[int, tuple[float, ...], float]] = []
+        if len(orders) * len(creeps) > 1:
+            for taus in creeps:
+                for n in orders:
+                    held_out.append((n, taus, problem.held_out_score(n, taus)))
+            # the simplest candidate within AUTO_TOLERANCE of the best held-out error
+            best = min(c[2] for c in held_out)
+            simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
+            order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
+        else:
+            order, taus = orders[0], creeps[0]
+        everything = [np.ones(u.size, bool) for u, _ in recs]
+        w, c, offsets, ba = problem.fit(order, taus, everything)
+        model = problem.build(w, c, offsets[0], taus, ba, *names)
+        if model.dynamics is not None:  # step 4: thresholds again, on the outputs with G inverted
+            problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
+        max_e, rms_e = problem.errors(model, offsets)
+        return StageFit(
+            model=model,
+            max_error_percent=tuple(max_e),
+            rms_error_percent=tuple(rms_e),
+            output_offsets=tuple(float(v) for v in offsets),
+            initial_states=tuple(kinds),
+            dynamics_order=model.dynamics_order,
+            creep_time_constants=tuple(taus),
+            held_out=tuple(held_out),
+            message=f"hysteresis by PIIdentifier ({base.message.rstrip('.')}); weights, creep and dynamics "
+            f"alternated {N_ALTERNATIONS} times"
+            + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
+        )
+
+    def _second_pass(self, problem, model, recs, kinds, dt, order, taus, names):
+        """Thresholds refitted on ``G^-1[y]`` (stable inversion), then step 2 again; kept when
+        the residual on the records is smaller (the first pass saw the dynamics as hysteresis)."""
+        unfiltered = [(u, invert_dynamics(model, y)) for u, y in recs]
+        base = PIIdentifier(
+            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
+        ).fit(unfiltered)
+        everything = [np.ones(u.size, bool) for u, _ in recs]
+        second = StageProblem(base.model, recs, kinds, dt)
+        w, c, offsets2, ba = second.fit(order, taus, everything)
+        model2 = second.build(w, c, offsets2[0], taus, ba, *names)
+        old = problem.errors(model, problem.offsets_of(model, recs))[1]
+        new = second.errors(model2, offsets2)[1]
+        if sum(new) < sum(old):
+            return second, model2, offsets2
+        return problem, model, problem.offsets_of(model, recs)
