@@ -46,10 +46,13 @@ def test_environment_overrides(blas, monkeypatch):
         monkeypatch.setenv("STAGEID_BLAS_THREADS", "0")  # leave the pool as it is
         fit()
         assert set(seen) == {2}
-        seen.clear()
+    seen.clear()
+    # outer limit 1, asked for 2: "use 2" and "leave the pool alone" now give different counts
+    with threadpool_limits(limits=1, user_api="blas"):
         monkeypatch.setenv("STAGEID_BLAS_THREADS", "2")
         fit()
         assert set(seen) == {2}
+        assert set(_blas_threads()) == {1}  # and the caller's limit is back afterwards
 
 
 def test_estimators_are_wrapped():
