@@ -139,13 +139,44 @@ def test_hyper_parameters_are_checked_on_fit_not_init():
         HankelMAP(horizon=600, order=3).fit(exp.slice(0, 1000))
 
 
+def _reachable(obj, seen=None, depth=0):
+    """Every object reachable from ``obj`` through attributes, dict values and sequence items."""
+    seen = set() if seen is None else seen
+    if id(obj) in seen or depth > 12 or isinstance(obj, (str, bytes, int, float, complex, type(None), type)):
+        return
+    if callable(obj) and not hasattr(obj, "__dict__"):
+        return
+    seen.add(id(obj))
+    yield obj
+    if isinstance(obj, np.ndarray):
+        return
+    if isinstance(obj, dict):
+        children = list(obj.keys()) + list(obj.values())
+    elif isinstance(obj, (list, tuple, set, frozenset)):
+        children = list(obj)
+    else:
+        children = list(getattr(obj, "__dict__", {}).values())
+        children += [getattr(obj, n) for n in getattr(type(obj), "__slots__", ()) if hasattr(obj, n)]
+    for child in children:
+        if type(child).__module__ in ("builtins", "numpy") or type(child).__module__.startswith("stageid"):
+            yield from _reachable(child, seen, depth + 1)
+
+
 def test_fit_does_not_modify_or_keep_the_data():
     exp = _p558_band_limited(0, n=3000)
-    u0 = exp.u.copy()
+    u0, y0 = exp.u.copy(), exp.y.copy()
     res = HankelMAP(horizon=10, order=6).fit(exp)
-    assert np.array_equal(exp.u, u0)
-    for value in vars(res).values():
-        assert not (isinstance(value, np.ndarray) and value.shape[0] == exp.n_samples)
+    assert np.array_equal(exp.u, u0) and np.array_equal(exp.y, y0)
+    # nothing reachable from the result (diagnostics, channels, posteriors, the estimator) is a
+    # record, a view of one, or a signal-length array (the result's own arrays are a few dozen wide)
+    found = list(_reachable(res))
+    reached = {type(o).__name__ for o in found}
+    assert {"ChannelFit", "Posterior", "StateSpaceModel", "dict", "HankelMAP"} <= reached  # the walk goes deep
+    for obj in found:
+        assert not isinstance(obj, Experiment), "the result keeps a record"
+        if isinstance(obj, np.ndarray) and obj.dtype != object:
+            assert not (np.shares_memory(obj, exp.u) or np.shares_memory(obj, exp.y))
+            assert max(obj.shape, default=0) < exp.n_samples // 2, f"a signal-length array {obj.shape}"
 
 
 def test_warning_for_inputs_that_do_not_excite():
