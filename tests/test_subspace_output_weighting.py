@@ -125,3 +125,25 @@ def test_output_weights_floor_uses_the_records_rms():
     std1 = np.array([NOISE_STD_FLOOR, 0.1])
     for bare in (dataclasses.replace(post, data_sums=()), dataclasses.replace(post, n_windows=0.0)):
         np.testing.assert_allclose(output_weights(bare), (1 / std1) / np.max(1 / std1), rtol=1e-12)
+
+
+def test_training_weights_estimate_the_noise_and_floor_the_clean_output():
+    # y0 = 3-tap FIR of u (noise-free, inside the horizon: its residual vanishes, the floor
+    # applies), y1 = another FIR plus white noise of std 0.5; theta is the least-squares fit
+    from stageid.subspace.hankel_toeplitz import window_statistics
+    from stageid.subspace.weighting import training_weights
+
+    rng = np.random.default_rng(7)
+    n, p = 4000, 5
+    u = rng.standard_normal((n, 1))
+    y0 = np.convolve(u[:, 0], [3.0, -1.0, 0.5])[:n]
+    y1 = np.convolve(u[:, 0], [0.2, 0.4])[:n] + 0.5 * rng.standard_normal(n)
+    stats = window_statistics(u, np.column_stack([y0, y1]), p)
+    XX, YX, _ = stats.blocks()
+    theta = np.linalg.solve(XX, YX.T).T
+    w = training_weights(theta, stats)
+    std0 = NOISE_STD_FLOOR * np.sqrt(np.mean(y0**2))  # the floor, at the clean output's RMS
+    assert w[0] == 1.0
+    # the noise std estimated with n_windows - d degrees of freedom: 4000 windows give ~1.1 %
+    # standard error, 5 % is > 4 of them
+    np.testing.assert_allclose(w[1], std0 / 0.5, rtol=0.05)
