@@ -209,3 +209,11 @@ def test_invert_respects_limits_on_both_sides(make):
     # the model's own input_limits are the default
     u2, _ = invert(dataclasses.replace(m, input_limits=(lo, hi)), yd)
     np.testing.assert_array_equal(u2[:, 0], u)
+
+
+def test_closed_form_inverse_needs_every_loading_slope_positive():
+    # slopes cumsum(w) = [1, 0, 0.5] and [1, -0.5, 0.5]: a zero slope is already not invertible
+    for w in ([1.0, -1.0, 0.5], [1.0, -1.5, 1.0]):
+        with pytest.raises(ModelError, match=r"not invertible: initial-loading slope 1 is"):
+            pi_inverse(PIModel(r=[0.0, 1.0, 2.0], weights=w))
+    assert pi_inverse(PIModel(r=[0.0, 1.0, 2.0], weights=[1.0, -0.9, 0.5])).weights[0] == 1.0

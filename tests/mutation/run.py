@@ -36,7 +36,12 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     ),
     "hysteresis-identification": (
         ["src/stageid/hysteresis/closed_form.py", "src/stageid/hysteresis/identification.py"],
-        ["tests/test_hysteresis_identification.py", "tests/test_hysteresis_search.py"],
+        [
+            "tests/test_hysteresis_inverse.py",  # pi_inverse / forward_state of closed_form.py
+            "tests/test_hysteresis_identification.py",
+            "tests/test_hysteresis_search.py",
+            "tests/test_contract_estimators.py",  # PIIdentifier's frozen result and parameter rules
+        ],
     ),
     "subspace-weighting": (
         ["src/stageid/subspace/weighting.py"],
