@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv bench clean
+.PHONY: demo test venv bench mutation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,14 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run_all.py
+
+# Mutation testing of the estimators' core (cosmic-ray; long, not part of `make test`).
+# MUTATION_GROUPS: groups of tests/mutation/run.py (default all); MUTATION_BUDGET: seconds per group.
+MUTATION_GROUPS ?=
+MUTATION_BUDGET ?= 3600
+mutation: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[mutation]'
+	OMP_NUM_THREADS=1 $(PY) tests/mutation/run.py $(MUTATION_GROUPS) --budget $(MUTATION_BUDGET)
 
 clean:
 	rm -rf $(VENV) demo-out build *.egg-info src/*.egg-info

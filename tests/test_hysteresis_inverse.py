@@ -1,5 +1,7 @@
 """Inverses and the feedforward compensator: round trips, state duality, limits."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -183,3 +185,35 @@ def test_inversion_kernel_against_its_plain_python_twins(seed):
     # the tolerance is 1e-12 of sum|w| (1 + max r); the weighted sum adds a few roundings
     np.testing.assert_allclose(Z @ m.weights, target, rtol=0, atol=4 * tolerance(m))
     np.testing.assert_array_equal(zf, z)
+
+
+@pytest.mark.parametrize("make", [_pi, _mpi])
+def test_invert_respects_limits_on_both_sides(make):
+    # the outputs of a drive asked through limits at its 10th and 90th percentiles: both limits
+    # are hit, the inputs never leave them, and wherever no limit is hit the model reproduces y
+    # (the docstring's promise)
+    rng = np.random.default_rng(5)
+    m = make(rng)
+    drive = _drive(rng)
+    yd = m.simulate(drive)[:, 0]
+    lo, hi = (float(v) for v in np.percentile(drive, [10, 90]))
+    u, state = invert(m, yd, limits=(lo, hi))
+    u = u[:, 0]
+    assert u.min() == lo and u.max() == hi
+    inside = (u > lo) & (u < hi)
+    assert 0.2 < inside.mean() < 0.95  # both saturated and free stretches
+    y = m.simulate(u)[:, 0]
+    # 1e-9 of the output scale: the per-sample inverse is exact to its 1e-12 tolerance
+    np.testing.assert_allclose(y[inside], yd[inside], rtol=0, atol=1e-9 * np.abs(yd).max())
+    np.testing.assert_allclose(state.z, m.run(u)[1].z, rtol=0, atol=1e-9 * np.abs(yd).max())
+    # the model's own input_limits are the default
+    u2, _ = invert(dataclasses.replace(m, input_limits=(lo, hi)), yd)
+    np.testing.assert_array_equal(u2[:, 0], u)
+
+
+def test_closed_form_inverse_needs_every_loading_slope_positive():
+    # slopes cumsum(w) = [1, 0, 0.5] and [1, -0.5, 0.5]: a zero slope is already not invertible
+    for w in ([1.0, -1.0, 0.5], [1.0, -1.5, 1.0]):
+        with pytest.raises(ModelError, match=r"not invertible: initial-loading slope 1 is"):
+            pi_inverse(PIModel(r=[0.0, 1.0, 2.0], weights=w))
+    assert pi_inverse(PIModel(r=[0.0, 1.0, 2.0], weights=[1.0, -0.9, 0.5])).weights[0] == 1.0

@@ -199,10 +199,14 @@ def test_play_banded_edge_cases():
     # the caller's arrays are not modified
     x = _walk(np.random.default_rng(0), 500)
     r = np.linspace(0, 100, 6)
+    w = np.linspace(0.5, 1.5, 6)
     z0 = np.linspace(-5, 5, 6)
     keep = [a.copy() for a in (x, r, w, z0)]
-    kernels.play_sum_banded(x, r, np.ones(6), z0)
+    y, z = kernels.play_sum_banded(x, r, w, z0)  # every array snapshotted is the one passed in
     assert all(np.array_equal(a, b) for a, b in zip((x, r, w, z0), keep))
+    assert z is not z0 and not np.shares_memory(z, z0)  # the final state is a new array
+    Zr, zr = play_reference(x, r, z0)
+    assert np.array_equal(z, zr) and np.allclose(y, Zr @ w, rtol=0, atol=1e-9 * np.abs(y).max())
 
 
 def test_pi_model_simulate_on_a_random_walk_equals_reference():

@@ -63,14 +63,28 @@ def test_resume_from_state():
 
 def test_immutable_and_inputs_untouched():
     m = _modified(np.random.default_rng(2))
-    with pytest.raises(ValueError, match="read-only"):
-        m.weights[0] = 5.0
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        m.r = np.zeros(8)
+    for name in ("r", "rc", "ra", "rb", "weights"):  # every array of the model is read-only
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(m, name)[0] = 5.0
+    for name in ("r", "weights", "input_offset", "input_warp"):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(m, name, 0.0)
     u = np.linspace(-100, 100, 50)
     before = u.copy()
-    m.simulate(u)
+    y0 = m.simulate(u)
     assert np.array_equal(u, before)
+    # the model keeps copies: the caller's arrays stay writable and later writes do not reach it
+    r, w = np.arange(4) * 50.0, np.array([1.0, 0.2, 0.1, 0.05])
+    for cls in (PIModel, ModifiedPIModel):
+        model = cls(r=r, weights=w)
+        y = model.simulate(u)
+        r[1] += 1.0
+        w[0] = 7.0
+        np.testing.assert_array_equal(model.simulate(u), y)
+        assert not np.shares_memory(model.r, r) and not np.shares_memory(model.weights, w)
+        r[1] -= 1.0
+        w[0] = 1.0
+    assert np.array_equal(m.simulate(u), y0)
 
 
 @pytest.mark.parametrize("kind", ["pi", "modified"])

@@ -6,6 +6,8 @@ weighted alike (commit ba08bf8) the order-4 Rx sub-model had a 2 % error on its 
 at p = 25 and 0.9-1.4 % with the automatic horizon (p = 8 was chosen by the noisy outputs).
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -14,7 +16,7 @@ from stageid.data import Experiment
 from stageid.models import StateSpaceModel
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
-from stageid.subspace.weighting import output_weights
+from stageid.subspace.weighting import NOISE_STD_FLOOR, noise_weights, output_weights
 
 F = np.linspace(1.0, 100.0, 1000)
 
@@ -84,3 +86,64 @@ def _noisy(g: StateSpaceModel, u: np.ndarray, rel: list[float]) -> Experiment:
     y = g.simulate(u)
     y = y + np.asarray(rel) * y.std(axis=0) * np.random.default_rng(9).standard_normal(y.shape)
     return Experiment(u, y, g.dt, g.inputs, g.outputs)
+
+
+def test_noise_weights_by_hand():
+    # std_i = max(noise std_i, NOISE_STD_FLOOR * RMS_i), w = (1 / std) / max(1 / std): two
+    # noise-free outputs of RMS 2 and 10 (floored) and a noisy one of std 0.2
+    w = noise_weights(np.array([0.0, 0.0, 0.04]), np.array([4.0, 100.0, 1.0]))
+    std = np.array([NOISE_STD_FLOOR * 2, NOISE_STD_FLOOR * 10, 0.2])
+    np.testing.assert_allclose(w, (1 / std) / np.max(1 / std), rtol=1e-12)  # [1, 0.2, 0.01]
+    # an output that is zero and noise-free takes the weight of the noisiest (it does not matter)
+    np.testing.assert_allclose(noise_weights(np.array([0.0, 0.01]), np.array([0.0, 1.0])), [1.0, 1.0], rtol=1e-12)
+    np.testing.assert_array_equal(noise_weights(np.zeros(2), np.zeros(2)), [1.0, 1.0])  # nothing to go on
+
+
+def test_output_weights_floor_uses_the_records_rms():
+    # output_weights reads only the noise covariance, the data sums and the window count: a
+    # posterior built by hand (p = 2 block rows, q = 2 outputs) with output 0 noise-free at RMS 2
+    # and output 1 at noise std 0.1, RMS 1
+    from stageid.subspace.map_estimator import Posterior
+
+    n, p, q = 500.0, 2, 2
+    YY = np.diag(n * np.array([4.0, 1.0, 4.0, 1.0]))
+    post = Posterior(
+        information=np.eye(1),
+        moment=np.zeros((p * q, 1)),
+        theta=np.zeros((p * q, 1)),
+        noise_cov=np.diag([0.0, 0.01, 0.0, 0.01]),
+        n_windows=n,
+        horizon=p,
+        n_inputs=1,
+        n_outputs=q,
+        residual=np.zeros((p * q, p * q)),
+        data_sums=(np.eye(1), np.zeros((p * q, 1)), YY),
+    )
+    std = np.array([NOISE_STD_FLOOR * 2.0, 0.1])  # the floor scales with the output's RMS (2, not 1)
+    np.testing.assert_allclose(output_weights(post), (1 / std) / np.max(1 / std), rtol=1e-12)
+    # no data sums (or no windows): the channels' own unit scale
+    std1 = np.array([NOISE_STD_FLOOR, 0.1])
+    for bare in (dataclasses.replace(post, data_sums=()), dataclasses.replace(post, n_windows=0.0)):
+        np.testing.assert_allclose(output_weights(bare), (1 / std1) / np.max(1 / std1), rtol=1e-12)
+
+
+def test_training_weights_estimate_the_noise_and_floor_the_clean_output():
+    # y0 = 3-tap FIR of u (noise-free, inside the horizon: its residual vanishes, the floor
+    # applies), y1 = another FIR plus white noise of std 0.5; theta is the least-squares fit
+    from stageid.subspace.hankel_toeplitz import window_statistics
+    from stageid.subspace.weighting import training_weights
+
+    rng = np.random.default_rng(7)
+    n, p = 4000, 5
+    u = rng.standard_normal((n, 1))
+    y0 = np.convolve(u[:, 0], [3.0, -1.0, 0.5])[:n]
+    y1 = np.convolve(u[:, 0], [0.2, 0.4])[:n] + 0.5 * rng.standard_normal(n)
+    stats = window_statistics(u, np.column_stack([y0, y1]), p)
+    XX, YX, _ = stats.blocks()
+    theta = np.linalg.solve(XX, YX.T).T
+    w = training_weights(theta, stats)
+    std0 = NOISE_STD_FLOOR * np.sqrt(np.mean(y0**2))  # the floor, at the clean output's RMS
+    assert w[0] == 1.0
+    # the noise std estimated with n_windows - d degrees of freedom: 4000 windows give ~1.1 %
+    # standard error, 5 % is > 4 of them
+    np.testing.assert_allclose(w[1], std0 / 0.5, rtol=0.05)

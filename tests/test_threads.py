@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
@@ -46,10 +48,15 @@ def test_environment_overrides(blas, monkeypatch):
         monkeypatch.setenv("STAGEID_BLAS_THREADS", "0")  # leave the pool as it is
         fit()
         assert set(seen) == {2}
-        seen.clear()
+    seen.clear()
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("a BLAS pool of 2 threads needs 2 cores")
+    # outer limit 1, asked for 2: "use 2" and "leave the pool alone" now give different counts
+    with threadpool_limits(limits=1, user_api="blas"):
         monkeypatch.setenv("STAGEID_BLAS_THREADS", "2")
         fit()
         assert set(seen) == {2}
+        assert set(_blas_threads()) == {1}  # and the caller's limit is back afterwards
 
 
 def test_estimators_are_wrapped():

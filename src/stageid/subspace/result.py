@@ -134,8 +134,9 @@ class HankelMAPResult:
             cols = 2 * p * m + p * q - p * m + np.arange(m)  # u(k) columns of D_p
             rows = np.arange(k * q)
             mean = post.theta[np.ix_(rows, cols)].reshape(k, q, m)
-            P = post.covariance * p  # overlap inflation, see response_bands
-            var = np.outer(np.diag(post.noise_cov)[rows], np.diag(P)[cols]).reshape(k, q, m)
+            # no overlap inflation here (unlike response_bands): one row's residuals e(k + i) are
+            # independent from window to window, so P (x) Sigma is its marginal as it stands
+            var = np.outer(np.diag(post.noise_cov)[rows], np.diag(post.covariance)[cols]).reshape(k, q, m)
             outs.append((mean, np.sqrt(np.clip(var, 0, None))))
         if len(outs) == 1:
             return outs[0]
@@ -150,8 +151,8 @@ class HankelMAPResult:
         standard deviation propagates ``Cov(vec theta) = P (x) Sigma`` to first order.
         Consecutive windows of eq. 9 share ``2p - 1`` samples, so their errors are not
         independent as the recursion of eq. 17 assumes: the posterior covariance is too small
-        by about the overlap, and the bands (like those of :meth:`markov_parameters`) use
-        ``p P`` (an effective sample size of ``n_windows / p``).  They do not include the
+        by about the overlap, and the bands use ``p P`` (an effective sample size of
+        ``n_windows / p``); a single Markov parameter (one row) is not affected.  They do not include the
         bias of the realisation step.
 
         Parameters

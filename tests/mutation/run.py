@@ -1,0 +1,206 @@
+"""Mutation testing of the estimators' core modules with cosmic-ray (``make mutation``).
+
+Not part of ``make test``.  Each group mutates a few modules in place, one mutant at a time,
+and runs the tests that cover them (``pytest -x``: a mutant is killed at its first failing
+test).  Results go to ``$MUTATION_DIR`` (default ``.venv/mutation``), one cosmic-ray session per
+group, so an interrupted run resumes where it stopped.
+
+    python tests/mutation/run.py [GROUP ...] [--budget SECONDS] [--report]
+
+``--budget`` bounds the wall time of each group; on expiry the run is stopped, the mutated
+module is restored from git, and the finished mutants are reported (the rest stay pending for
+the next run).  The modules must have no uncommitted changes (they are restored with
+``git checkout``).  See tests/MUTATION.md for the last recorded run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: group -> (modules mutated, tests run against each mutant, fastest first)
+GROUPS: dict[str, tuple[list[str], list[str]]] = {
+    "hysteresis-inverse": (
+        ["src/stageid/hysteresis/inverse.py"],
+        ["tests/test_hysteresis_inverse.py"],
+    ),
+    "hysteresis-identification": (
+        ["src/stageid/hysteresis/closed_form.py", "src/stageid/hysteresis/identification.py"],
+        [
+            "tests/test_hysteresis_inverse.py",  # pi_inverse / forward_state of closed_form.py
+            "tests/test_hysteresis_identification.py",
+            "tests/test_hysteresis_search.py",
+            "tests/test_contract_estimators.py",  # PIIdentifier's frozen result and parameter rules
+        ],
+    ),
+    "subspace-weighting": (
+        ["src/stageid/subspace/weighting.py"],
+        ["tests/test_subspace_output_weighting.py", "tests/test_subspace_estimator.py"],
+    ),
+    "subspace-result": (
+        ["src/stageid/subspace/result.py"],
+        ["tests/test_subspace_estimator.py", "tests/test_subspace_output_weighting.py"],
+    ),
+    "subspace-realization": (
+        ["src/stageid/subspace/realization.py"],
+        ["tests/test_subspace_realization.py", "tests/test_subspace_estimator.py"],
+    ),
+    "subspace-map": (
+        ["src/stageid/subspace/map_estimator.py", "src/stageid/subspace/hankel_toeplitz.py"],
+        ["tests/test_subspace_map.py", "tests/test_subspace_hankel_toeplitz.py", "tests/test_subspace_estimator.py"],
+    ),
+    "closedloop-reduction": (
+        ["src/stageid/closedloop/reduction.py"],
+        ["tests/test_closedloop_estimator.py", "tests/test_closedloop_deduction.py"],
+    ),
+    "closedloop-cancellation": (
+        ["src/stageid/closedloop/cancellation.py", "src/stageid/closedloop/deduction.py"],
+        ["tests/test_closedloop_deduction.py", "tests/test_closedloop_estimator.py"],
+    ),
+}
+
+#: operators whose mutants only raise TypeError on floats and arrays (bitwise replacements,
+#: `~x`, `not x` for a unary minus): trivially killed, they would only inflate the score
+EXCLUDED_OPERATORS = [
+    r"core/ReplaceBinaryOperator_.*_(BitOr|BitAnd|BitXor|LShift|RShift)$",
+    r"core/ReplaceUnaryOperator_.*_(Invert|Not)$",
+]
+
+
+def _config(group: str, out: Path) -> Path:
+    modules, tests = GROUPS[group]
+    cmd = f"{sys.executable} -m pytest -x -q -p no:cacheprovider " + " ".join(tests)
+    text = "\n".join(
+        [
+            "[cosmic-ray]",
+            f"module-path = {json.dumps(modules)}",
+            "timeout = 300.0",
+            "excluded-modules = []",
+            f"test-command = {json.dumps(cmd)}",
+            "",
+            "[cosmic-ray.distributor]",
+            'name = "local"',
+            "",
+            "[cosmic-ray.filters.operators-filter]",
+            f"exclude-operators = {json.dumps(EXCLUDED_OPERATORS)}",
+            "",
+        ]
+    )
+    path = out / f"{group}.toml"
+    path.write_text(text)
+    return path
+
+
+def _annotation_spans(path: Path) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """(start, end) positions of every annotation, when the module never evaluates them."""
+    tree = ast.parse(path.read_text())
+    future = any(
+        isinstance(n, ast.ImportFrom) and n.module == "__future__" and any(a.name == "annotations" for a in n.names)
+        for n in tree.body
+    )
+    if not future:
+        return []
+    spans = []
+    for node in ast.walk(tree):
+        anns = []
+        if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+            anns.append(node.annotation)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.returns is not None:
+            anns.append(node.returns)
+        spans += [((a.lineno, a.col_offset), (a.end_lineno, a.end_col_offset)) for a in anns]
+    return spans
+
+
+def _skip_annotation_mutants(session: Path) -> None:
+    """Mark mutants inside annotations skipped: with ``from __future__ import annotations`` they
+    are never evaluated, so every such mutant is equivalent and would only count as a survivor."""
+    with sqlite3.connect(session) as db:
+        specs = db.execute(
+            "SELECT s.job_id, s.module_path, s.start_pos_row, s.start_pos_col FROM mutation_specs s "
+            "LEFT JOIN work_results r ON r.job_id = s.job_id WHERE r.job_id IS NULL"
+        ).fetchall()
+        spans: dict[str, list] = {}
+        for job, module, row, col in specs:
+            if module not in spans:
+                spans[module] = _annotation_spans(ROOT / module)
+            if any(a <= (row, col) < b for a, b in spans[module]):
+                db.execute(
+                    "INSERT INTO work_results (worker_outcome, output, test_outcome, diff, job_id) "
+                    "VALUES ('SKIPPED', 'Annotation (never evaluated)', NULL, NULL, ?)",
+                    (job,),
+                )
+
+
+def _counts(session: Path) -> dict[str, int]:
+    """Finished mutants by outcome (``skipped``: removed by the operator filter)."""
+    with sqlite3.connect(session) as db:
+        rows = db.execute("SELECT worker_outcome, test_outcome, COUNT(*) FROM work_results GROUP BY 1, 2").fetchall()
+        total = db.execute("SELECT COUNT(*) FROM work_items").fetchone()[0]
+    out = {"total": total}
+    for worker, test, n in rows:
+        key = "skipped" if worker == "SKIPPED" else "timeout" if worker == "TIMEOUT" else str(test).lower()
+        out[key] = out.get(key, 0) + n
+    return out
+
+
+def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
+    modules, _ = GROUPS[group]
+    dirty = subprocess.run(["git", "diff", "--quiet", "--", *modules], cwd=ROOT).returncode
+    if dirty:
+        raise SystemExit(f"{group}: {modules} have uncommitted changes; commit them first (they are restored by git).")
+    cfg, session = _config(group, out), out / f"{group}.sqlite"
+    cr = Path(sys.executable).parent
+    if not session.exists():
+        subprocess.run([cr / "cosmic-ray", "init", cfg, session], cwd=ROOT, check=True)
+        subprocess.run([cr / "cr-filter-operators", session, cfg], cwd=ROOT, check=True)
+        _skip_annotation_mutants(session)
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    proc = subprocess.Popen([cr / "cosmic-ray", "exec", cfg, session], cwd=ROOT, env=env, start_new_session=True)
+    try:
+        proc.wait(timeout=budget)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGTERM)  # the session this run started, nothing else
+        proc.wait()
+    finally:
+        subprocess.run(["git", "checkout", "--", *modules], cwd=ROOT, check=True)  # no mutant left behind
+    return _counts(session)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("groups", nargs="*", default=list(GROUPS))
+    ap.add_argument("--budget", type=float, default=3600.0, help="wall seconds per group")
+    ap.add_argument("--report", action="store_true", help="only print the survivors of finished sessions")
+    args = ap.parse_args()
+    out = Path(os.environ.get("MUTATION_DIR", ROOT / ".venv" / "mutation"))
+    out.mkdir(parents=True, exist_ok=True)
+    cr = Path(sys.executable).parent
+    for group in args.groups:
+        if not args.report:
+            t0 = time.monotonic()
+            c = run_group(group, out, args.budget)
+            run = sum(v for k, v in c.items() if k not in ("total", "skipped"))
+            killed = c.get("killed", 0) + c.get("timeout", 0)
+            pending = c["total"] - run - c.get("skipped", 0)
+            print(
+                f"{group}: {run} mutants run in {time.monotonic() - t0:.0f} s ({c.get('skipped', 0)} filtered, "
+                f"{pending} pending), killed {killed} (timeouts {c.get('timeout', 0)}), survived "
+                f"{c.get('survived', 0)}, incompetent {c.get('incompetent', 0)}, "
+                f"score {killed / max(run - c.get('incompetent', 0), 1):.1%}",
+                flush=True,
+            )
+        subprocess.run([cr / "cr-report", "--surviving-only", "--show-diff", out / f"{group}.sqlite"], cwd=ROOT)
+
+
+if __name__ == "__main__":
+    main()
