@@ -25,8 +25,9 @@ from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from ..resources import require_memory
 from .frd import FrequencyResponse
+from .lpm_kernels import lpm_lines_kernel
 
-__all__ = ["lpm_frf", "lpm_half_width"]
+__all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
 
 #: Lines solved at once (bounds the temporaries to a few tens of MB).
 LINES_PER_BATCH = 8192
@@ -43,7 +44,11 @@ def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
 
 
 def lpm_frf(
-    data: Experiment | Sequence[Experiment], degree: int = 2, half_width: int | None = None
+    data: Experiment | Sequence[Experiment],
+    degree: int = 2,
+    half_width: int | None = None,
+    *,
+    compiled: bool = True,
 ) -> FrequencyResponse:
     """LPM estimate of the FRF with its standard deviation and coherence.
 
@@ -55,6 +60,9 @@ def lpm_frf(
         Polynomial degree ``R`` of the FRF and transient terms (2 in the paper).
     half_width : int, optional
         Lines on each side of ``k``; default :func:`lpm_half_width`.
+    compiled : bool
+        Solve the lines with the numba kernel (:func:`solve_lines_compiled`, default) or with
+        its plain-numpy twin :func:`solve_lines_python` (the reference the tests compare with).
 
     Returns
     -------
@@ -109,9 +117,11 @@ def lpm_frf(
     var = np.empty((ks.size, q, m))
     coh = np.empty((ks.size, q))
     ok = np.empty(ks.size, bool)
-    for b in range(0, ks.size, LINES_PER_BATCH):
-        kb = ks[b : b + LINES_PER_BATCH]
-        g, v, c, good = _solve_lines(U, Y, kb, n, degree, K_last)
+    solve = solve_lines_compiled if compiled else solve_lines_python
+    batch = ks.size if compiled else LINES_PER_BATCH  # the kernel's work arrays are per line
+    for b in range(0, ks.size, batch):
+        kb = ks[b : b + batch]
+        g, v, c, good = solve(U, Y, kb, n, degree, K_last)
         G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size], ok[b : b + kb.size] = g, v, c, good
     if not ok.any():
         raise DataError(
@@ -123,7 +133,29 @@ def lpm_frf(
     return FrequencyResponse(freqs, G, std, coh[ok], exps[0].input_names, exps[0].output_names)
 
 
-def _solve_lines(
+def solve_lines_compiled(
+    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`solve_lines_python` by the numba kernel :func:`~stageid.frf.lpm_kernels.lpm_lines_kernel`;
+    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin."""
+    B, q, m = ks.size, Y.shape[2], U.shape[2]
+    G = np.empty((B, q, m), complex)
+    var = np.empty((B, q, m))
+    coh = np.empty((B, q))
+    status = np.empty(B, np.int8)
+    Ur, Ui = np.ascontiguousarray(U.real), np.ascontiguousarray(U.imag)
+    ks = np.ascontiguousarray(ks, np.int64)
+    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
+    hard_lines = np.flatnonzero(status == 2)
+    for b in range(0, hard_lines.size, LINES_PER_BATCH):
+        hard = hard_lines[b : b + LINES_PER_BATCH]
+        g, v, c, good = solve_lines_python(U, Y, ks[hard], n, degree, k_last)
+        G[hard], var[hard], coh[hard] = g, v, c
+        status[hard] = np.where(good, 0, 1)
+    return G, var, coh, status == 0
+
+
+def solve_lines_python(
     U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The local regressions (eq. 11) of the lines ``ks``: ``G_k``, ``var(G_k)``, coherence, and
