@@ -16,7 +16,7 @@ The multiple coherence reported is ``1 - sigma^2 / mean_r |Y(k + r)|^2`` over th
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -112,25 +112,37 @@ def lpm_frf(
     u_scale = np.sqrt(np.mean(np.abs(U) ** 2, axis=(0, 1)))
     if np.any(u_scale == 0):
         raise DataError("an input is zero throughout; the LPM needs every input excited.")
-    U = U / u_scale
-    G = np.empty((ks.size, q, m), complex)
-    var = np.empty((ks.size, q, m))
-    coh = np.empty((ks.size, q))
-    ok = np.empty(ks.size, bool)
-    solve = solve_lines_compiled if compiled else solve_lines_python
-    batch = ks.size if compiled else LINES_PER_BATCH  # the kernel's work arrays are per line
-    for b in range(0, ks.size, batch):
-        kb = ks[b : b + batch]
-        g, v, c, good = solve(U, Y, kb, n, degree, K_last)
-        G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size], ok[b : b + kb.size] = g, v, c, good
+    U /= u_scale
+    if compiled:  # one call: the kernel's work arrays are per line
+        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last)
+    else:
+        G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, K_last)
     if not ok.any():
         raise DataError(
             "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
         )
-    G = G[ok] / u_scale[None, None, :]
-    std = np.sqrt(var[ok]) / u_scale[None, None, :]
+    if not ok.all():
+        G, var, coh = G[ok], var[ok], coh[ok]
+    G /= u_scale  # in place: at full resolution these arrays are large
+    std = np.sqrt(var, out=var)
+    std /= u_scale
     freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh[ok], exps[0].input_names, exps[0].output_names)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+
+
+def _batched(
+    solve: Callable, U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``solve`` over ``ks`` in batches of ``LINES_PER_BATCH`` lines (bounded temporaries)."""
+    q, m = Y.shape[2], U.shape[2]
+    G = np.empty((ks.size, q, m), complex)
+    var = np.empty((ks.size, q, m))
+    coh = np.empty((ks.size, q))
+    ok = np.empty(ks.size, bool)
+    for b in range(0, ks.size, LINES_PER_BATCH):
+        sl = slice(b, b + LINES_PER_BATCH)
+        G[sl], var[sl], coh[sl], ok[sl] = solve(U, Y, ks[sl], n, degree, k_last)
+    return G, var, coh, ok
 
 
 def solve_lines_compiled(
@@ -146,11 +158,9 @@ def solve_lines_compiled(
     Ur, Ui = np.ascontiguousarray(U.real), np.ascontiguousarray(U.imag)
     ks = np.ascontiguousarray(ks, np.int64)
     lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
-    hard_lines = np.flatnonzero(status == 2)
-    for b in range(0, hard_lines.size, LINES_PER_BATCH):
-        hard = hard_lines[b : b + LINES_PER_BATCH]
-        g, v, c, good = solve_lines_python(U, Y, ks[hard], n, degree, k_last)
-        G[hard], var[hard], coh[hard] = g, v, c
+    hard = np.flatnonzero(status == 2)
+    if hard.size:
+        G[hard], var[hard], coh[hard], good = _batched(solve_lines_python, U, Y, ks[hard], n, degree, k_last)
         status[hard] = np.where(good, 0, 1)
     return G, var, coh, status == 0
 

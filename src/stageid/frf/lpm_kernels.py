@@ -19,6 +19,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .lpm_lanes import LANES, lane_work, lanes_block
+
 __all__ = ["lpm_lines_kernel", "FALLBACK_CONDITION", "PIVOT_FLOOR"]
 
 #: ``max diag(M) diag(M^-1)`` above which a line is handed to the numpy twin.
@@ -34,12 +36,12 @@ _jit = numba.njit(cache=True, nogil=True, fastmath=True)
 @_jit
 def _products(Ur, Ui, Y, lo, hi, Z):  # pragma: no cover - compiled
     """The line products of lines ``lo .. hi - 1``, real and imaginary parts side by side in
-    ``Z[e, line - lo]``: ``conj(U_a) U_b`` (a <= b), ``conj(U_a)``, ``conj(U_a) Y_c``, ``Y_c``, ``|Y_c|^2``."""
+    ``Z[e, :, line - lo]``: ``conj(U_a) U_b`` (a <= b), ``conj(U_a)``, ``conj(U_a) Y_c``, ``Y_c``, ``|Y_c|^2``."""
     ne, _, m = Ur.shape
     q = Y.shape[2]
     for e in range(ne):
         for i in range(lo, hi):
-            z = Z[e, i - lo]
+            z = Z[e, :, i - lo]
             s = 0
             for a in range(m):
                 ar = Ur[e, i, a]
@@ -66,14 +68,13 @@ def _products(Ur, Ui, Y, lo, hi, Z):  # pragma: no cover - compiled
 
 @_jit
 def _moments(Z, j0, pw, S):  # pragma: no cover - compiled
-    """``S[e, p, s] = sum_j r_j^p Z[e, j0 + j, s]`` over the window (the inner loop runs along
-    the contiguous products and vectorises)."""
-    ne, _, ns = Z.shape
+    """``S[e, p, s] = sum_j r_j^p Z[e, s, j0 + j]`` over the window."""
+    ne, ns, _ = Z.shape
     rows, P = pw.shape
     S[:] = 0.0
     for e in range(ne):
         for j in range(rows):
-            z = Z[e, j0 + j]
+            z = Z[e, :, j0 + j]
             for p in range(P):
                 w = pw[j, p]
                 Sp = S[e, p]
@@ -209,12 +210,16 @@ def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, co
     ``Ur``, ``Ui`` (ne, lines, m): real and imaginary parts of the unit-RMS input spectra; ``Y``
     (ne, lines, q) complex.  Writes ``G`` (B, q, m), ``var`` (B, q, m), ``coh`` (B, q) and
     ``status`` (B): 0 usable, 1 not excited or not usable, 2 for the numpy twin to decide.
-    ``ks`` ascending keeps the product blocks small (any order gives the same results).
+    Runs of ``LANES`` consecutive interior lines go through :func:`~stageid.frf.lpm_lanes.lanes_block`,
+    the others one at a time; ``ks`` ascending keeps the product blocks small.
     """
     ne, _, m = Ur.shape
     q = Y.shape[2]
+    R1 = degree + 1
     rows = 2 * n + 1
     ns = m * (m + 1) + 2 * m + 2 * m * q + 3 * q
+    pw, Sr, n_pow = _interior_powers(n, degree, m, q)
+    work = lane_work(ne, m, q, R1, ns)
     for c0 in range(0, ks.size, CHUNK):
         c1 = min(c0 + CHUNK, ks.size)
         lo = ks.max() + 1
@@ -223,15 +228,56 @@ def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, co
             j0 = min(max(ks[i], n), k_last - n) - n
             lo = min(lo, j0)
             hi = max(hi, j0 + rows)
-        Z = np.empty((ne, hi - lo, ns))
+        Z = np.empty((ne, ns, hi - lo))
         _products(Ur, Ui, Y, lo, hi, Z)
-        _solve_chunk(Ur, Ui, Y, Z, lo, ks[c0:c1], n, degree, k_last, excited_power,
-                     G[c0:c1], var[c0:c1], coh[c0:c1], status[c0:c1])  # fmt: skip
+        i = c0
+        while i < c1:
+            e = i + LANES - 1
+            if e < c1 and ks[e] == ks[i] + LANES - 1 and ks[i] >= n and ks[e] <= k_last - n:
+                lanes_block(Z, ks[i] - n - lo, pw, Sr, n_pow, m, q, R1, PIVOT_FLOOR, excited_power, work,
+                            G[i : e + 1], var[i : e + 1], coh[i : e + 1], status[i : e + 1])  # fmt: skip
+                for l in range(LANES):
+                    if status[i + l] == 0 and work[-1][l] > FALLBACK_CONDITION:
+                        status[i + l] = 2
+                i += LANES
+            else:
+                _solve_line(
+                    Ur, Ui, Y, Z, lo, ks[i], n, degree, k_last, excited_power, G[i], var[i], coh[i:], status[i:]
+                )
+                i += 1
 
 
 @_jit
-def _solve_chunk(Ur, Ui, Y, Z, lo, ks, n, degree, k_last, excited_power, G, var, coh, status):  # pragma: no cover
-    """:func:`lpm_lines_kernel` on one chunk of lines whose products ``Z`` start at line ``lo``."""
+def _interior_powers(n, degree, m, q):  # pragma: no cover - compiled
+    """``r^p`` of an interior window, their sums, and how many powers each product slot needs."""
+    rows = 2 * n + 1
+    P = 2 * degree + 1
+    pw = np.empty((rows, P))
+    Sr = np.zeros(P)
+    for j in range(rows):
+        r = (j - n) / n
+        pw[j, 0] = 1.0
+        for p in range(1, P):
+            pw[j, p] = pw[j, p - 1] * r
+        for p in range(P):
+            Sr[p] += pw[j, p]
+    n_pow = np.empty(m * (m + 1) + 2 * m + 2 * m * q + 3 * q, np.int64)
+    s = 0
+    for a in range(m):
+        n_pow[s : s + 2 * (m - a) + 2] = P
+        s += 2 * (m - a) + 2
+        n_pow[s : s + 2 * q] = degree + 1
+        s += 2 * q
+    for _ in range(q):
+        n_pow[s : s + 2] = degree + 1
+        n_pow[s + 2] = 1
+        s += 3
+    return pw, Sr, n_pow
+
+
+@_jit
+def _solve_line(Ur, Ui, Y, Z, lo, k, n, degree, k_last, excited_power, G, var, coh, status):  # pragma: no cover
+    """One line ``k`` (any window, edges included); ``coh[0]`` and ``status[0]`` are its entries."""
     ne, _, m = Ur.shape
     q = Y.shape[2]
     R1 = degree + 1
@@ -240,59 +286,53 @@ def _solve_chunk(Ur, Ui, Y, Z, lo, ks, n, degree, k_last, excited_power, G, var,
     nth = (m + ne) * R1
     dof = ne * rows - nth
     pw = np.empty((rows, P))
-    S = np.empty((ne, P, Z.shape[2]))
-    Sr = np.empty(P)
+    S = np.empty((ne, P, Z.shape[1]))
+    Sr = np.zeros(P)
     ypow = np.empty(q)
-    res = np.empty(q)
+    res = np.zeros(q)
     diag = np.empty(m)
+    gram_diag = np.empty(m)
     M = np.empty((nth, nth), np.complex128)
     B = np.empty((nth, q), np.complex128)
     theta = np.empty((nth, q), np.complex128)
     x = np.empty(nth, np.complex128)
-    for i in range(ks.size):
-        k = ks[i]
-        j0 = min(max(k, n), k_last - n) - n
-        Sr[:] = 0.0
-        for j in range(rows):
-            r = (j0 + j - k) / n
-            pw[j, 0] = 1.0
-            for p in range(1, P):
-                pw[j, p] = pw[j, p - 1] * r
-            for p in range(P):
-                Sr[p] += pw[j, p]
-        _moments(Z, j0 - lo, pw, S)
-        _normal_equations(S, Sr, m, q, R1, M, B, ypow)
-        excited = True
+    j0 = min(max(k, n), k_last - n) - n
+    for j in range(rows):
+        r = (j0 + j - k) / n
+        pw[j, 0] = 1.0
+        for p in range(1, P):
+            pw[j, p] = pw[j, p - 1] * r
+        for p in range(P):
+            Sr[p] += pw[j, p]
+    _moments(Z, j0 - lo, pw, S)
+    _normal_equations(S, Sr, m, q, R1, M, B, ypow)
+    status[0] = 1
+    G[:] = 0.0
+    var[:] = 0.0
+    coh[0] = 0.0
+    excited = True
+    for a in range(m):
+        gram_diag[a] = M[a * R1, a * R1].real
+        excited = excited and gram_diag[a] >= excited_power * ne * rows
+    if not excited:
+        return
+    if not _cholesky(M):
+        status[0] = 2
+        return
+    _solve(M, B, theta)
+    worst = 0.0
+    for a in range(m):
+        diag[a] = _inverse_diagonal(M, a * R1, x)
+        worst = max(worst, diag[a] * gram_diag[a])
+    for e in range(ne):
+        _residual_power(Ur, Ui, Y, e, j0, pw, theta, m, R1, res)
+    finite = True
+    for c in range(q):
+        sigma2 = res[c] / dof
         for a in range(m):
-            excited = excited and M[a * R1, a * R1].real >= excited_power * ne * rows
-        status[i] = 1
-        G[i] = 0.0
-        var[i] = 0.0
-        coh[i] = 0.0
-        if not excited:
-            continue
-        gram_diag = np.empty(m)
-        for a in range(m):
-            gram_diag[a] = M[a * R1, a * R1].real
-        if not _cholesky(M):
-            status[i] = 2
-            continue
-        _solve(M, B, theta)
-        worst = 0.0
-        for a in range(m):
-            diag[a] = _inverse_diagonal(M, a * R1, x)
-            worst = max(worst, diag[a] * gram_diag[a])
-        res[:] = 0.0
-        for e in range(ne):
-            _residual_power(Ur, Ui, Y, e, j0, pw, theta, m, R1, res)
-        finite = True
-        for c in range(q):
-            sigma2 = res[c] / dof
-            for a in range(m):
-                G[i, c, a] = theta[a * R1, c]
-                var[i, c, a] = sigma2 * diag[a]
-                finite = finite and np.isfinite(var[i, c, a]) and np.isfinite(G[i, c, a].real)
-                finite = finite and np.isfinite(G[i, c, a].imag)
-            power = ypow[c] / (ne * rows)
-            coh[i, c] = min(max(1.0 - sigma2 / power, 0.0), 1.0) if power > 0 else 0.0
-        status[i] = 0 if finite and worst <= FALLBACK_CONDITION else 2
+            G[c, a] = theta[a * R1, c]
+            var[c, a] = sigma2 * diag[a]
+            finite = finite and np.isfinite(var[c, a]) and np.isfinite(G[c, a].real) and np.isfinite(G[c, a].imag)
+        power = ypow[c] / (ne * rows)
+        coh[0, c] = min(max(1.0 - sigma2 / power, 0.0), 1.0) if power > 0 else 0.0
+    status[0] = 0 if finite and worst <= FALLBACK_CONDITION else 2
