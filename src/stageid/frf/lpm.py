@@ -103,16 +103,10 @@ def lpm_frf(
     K_last = N // 2
     if K_last + 1 < 2 * n + 1 or K_last < 2:
         raise DataError(f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}.")
-    U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])  # (ne, nl, m)
-    Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])  # (ne, nl, q)
     ks = np.arange(1, K_last)
-    rows = 2 * n + 1
     n_th = (m + ne) * (degree + 1)
-    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * rows * (n_th + q) * 4, "local polynomial method")
-    u_scale = np.sqrt(np.mean(np.abs(U) ** 2, axis=(0, 1)))
-    if np.any(u_scale == 0):
-        raise DataError("an input is zero throughout; the LPM needs every input excited.")
-    U /= u_scale
+    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + q) * 4, "local polynomial method")
+    U, Y, u_scale = _spectra(exps)
     if compiled:  # one call: the kernel's work arrays are per line
         G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last)
     else:
@@ -128,6 +122,20 @@ def lpm_frf(
     std /= u_scale
     freqs = ks[ok] / (N * exps[0].dt)
     return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+
+
+def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """DFTs ``U`` (unit RMS per input) and ``Y`` of the records, (ne, lines, m|q), and the input scales."""
+    if len(exps) == 1:  # no stacking copy: the full-resolution spectra are large
+        U, Y = np.fft.rfft(exps[0].u, axis=0)[None], np.fft.rfft(exps[0].y, axis=0)[None]
+    else:
+        U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])
+        Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])
+    u_scale = np.sqrt(np.mean(U.real**2 + U.imag**2, axis=(0, 1)))
+    if np.any(u_scale == 0):
+        raise DataError("an input is zero throughout; the LPM needs every input excited.")
+    U /= u_scale
+    return U, Y, u_scale
 
 
 def _batched(
@@ -155,7 +163,7 @@ def solve_lines_compiled(
     var = np.empty((B, q, m))
     coh = np.empty((B, q))
     status = np.empty(B, np.int8)
-    Ur, Ui = np.ascontiguousarray(U.real), np.ascontiguousarray(U.imag)
+    Ur, Ui = U.real, U.imag  # strided views: the kernel reads each line once
     ks = np.ascontiguousarray(ks, np.int64)
     lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
     hard = np.flatnonzero(status == 2)

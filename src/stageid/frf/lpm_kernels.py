@@ -220,15 +220,17 @@ def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, co
     ns = m * (m + 1) + 2 * m + 2 * m * q + 3 * q
     pw, Sr, n_pow = _interior_powers(n, degree, m, q)
     work = lane_work(ne, m, q, R1, ns)
+    Z = np.empty((ne, ns, CHUNK + rows))  # reused: a fresh block per chunk costs page faults
     for c0 in range(0, ks.size, CHUNK):
         c1 = min(c0 + CHUNK, ks.size)
-        lo = ks.max() + 1
+        lo = k_last + 1
         hi = 0
         for i in range(c0, c1):
             j0 = min(max(ks[i], n), k_last - n) - n
             lo = min(lo, j0)
             hi = max(hi, j0 + rows)
-        Z = np.empty((ne, ns, hi - lo))
+        if hi - lo > Z.shape[2]:
+            Z = np.empty((ne, ns, hi - lo))
         _products(Ur, Ui, Y, lo, hi, Z)
         i = c0
         while i < c1:
