@@ -12,6 +12,11 @@ equations gives ``G_k`` at the record's full resolution, free of the leakage tha
 Welch's estimate at lightly damped resonances; the residuals give the noise variance
 ``sigma^2 = |E|^2 / dof`` (eq. 16) and ``cov(G_k) = sigma^2 [(K^H K)^-1]_G`` (eq. 18).
 The multiple coherence reported is ``1 - sigma^2 / mean_r |Y(k + r)|^2`` over the window.
+
+The lines are solved by a numba kernel (:mod:`.lpm_kernels`, :mod:`.lpm_lanes`: Gram matrices
+from moments of the line products, complex Cholesky, 16 lines side by side); its plain-numpy
+twin :func:`solve_lines_python` (``lpm_frf(..., compiled=False)``) is the reference the tests
+compare it with and decides the lines the kernel flags as ill-conditioned.
 """
 
 from __future__ import annotations
