@@ -12,11 +12,16 @@ equations gives ``G_k`` at the record's full resolution, free of the leakage tha
 Welch's estimate at lightly damped resonances; the residuals give the noise variance
 ``sigma^2 = |E|^2 / dof`` (eq. 16) and ``cov(G_k) = sigma^2 [(K^H K)^-1]_G`` (eq. 18).
 The multiple coherence reported is ``1 - sigma^2 / mean_r |Y(k + r)|^2`` over the window.
+
+The lines are solved by a numba kernel (:mod:`.lpm_kernels`, :mod:`.lpm_lanes`: Gram matrices
+from moments of the line products, complex Cholesky, 16 lines side by side); its plain-numpy
+twin :func:`solve_lines_python` (``lpm_frf(..., compiled=False)``) is the reference the tests
+compare it with and decides the lines the kernel flags as ill-conditioned.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -25,8 +30,9 @@ from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from ..resources import require_memory
 from .frd import FrequencyResponse
+from .lpm_kernels import lpm_lines_kernel
 
-__all__ = ["lpm_frf", "lpm_half_width"]
+__all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
 
 #: Lines solved at once (bounds the temporaries to a few tens of MB).
 LINES_PER_BATCH = 8192
@@ -43,7 +49,11 @@ def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
 
 
 def lpm_frf(
-    data: Experiment | Sequence[Experiment], degree: int = 2, half_width: int | None = None
+    data: Experiment | Sequence[Experiment],
+    degree: int = 2,
+    half_width: int | None = None,
+    *,
+    compiled: bool = True,
 ) -> FrequencyResponse:
     """LPM estimate of the FRF with its standard deviation and coherence.
 
@@ -55,6 +65,9 @@ def lpm_frf(
         Polynomial degree ``R`` of the FRF and transient terms (2 in the paper).
     half_width : int, optional
         Lines on each side of ``k``; default :func:`lpm_half_width`.
+    compiled : bool
+        Solve the lines with the numba kernel (:func:`solve_lines_compiled`, default) or with
+        its plain-numpy twin :func:`solve_lines_python` (the reference the tests compare with).
 
     Returns
     -------
@@ -95,35 +108,77 @@ def lpm_frf(
     K_last = N // 2
     if K_last + 1 < 2 * n + 1 or K_last < 2:
         raise DataError(f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}.")
-    U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])  # (ne, nl, m)
-    Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])  # (ne, nl, q)
     ks = np.arange(1, K_last)
-    rows = 2 * n + 1
     n_th = (m + ne) * (degree + 1)
-    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * rows * (n_th + q) * 4, "local polynomial method")
-    u_scale = np.sqrt(np.mean(np.abs(U) ** 2, axis=(0, 1)))
+    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + q) * 4, "local polynomial method")
+    U, Y, u_scale = _spectra(exps)
+    if compiled:  # one call: the kernel's work arrays are per line
+        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last)
+    else:
+        G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, K_last)
+    if not ok.any():
+        raise DataError(
+            "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
+        )
+    if not ok.all():
+        G, var, coh = G[ok], var[ok], coh[ok]
+    G /= u_scale  # in place: at full resolution these arrays are large
+    std = np.sqrt(var, out=var)
+    std /= u_scale
+    freqs = ks[ok] / (N * exps[0].dt)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+
+
+def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """DFTs ``U`` (unit RMS per input) and ``Y`` of the records, (ne, lines, m|q), and the input scales."""
+    if len(exps) == 1:  # no stacking copy: the full-resolution spectra are large
+        U, Y = np.fft.rfft(exps[0].u, axis=0)[None], np.fft.rfft(exps[0].y, axis=0)[None]
+    else:
+        U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])
+        Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])
+    u_scale = np.sqrt(np.mean(U.real**2 + U.imag**2, axis=(0, 1)))
     if np.any(u_scale == 0):
         raise DataError("an input is zero throughout; the LPM needs every input excited.")
-    U = U / u_scale
+    U /= u_scale
+    return U, Y, u_scale
+
+
+def _batched(
+    solve: Callable, U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``solve`` over ``ks`` in batches of ``LINES_PER_BATCH`` lines (bounded temporaries)."""
+    q, m = Y.shape[2], U.shape[2]
     G = np.empty((ks.size, q, m), complex)
     var = np.empty((ks.size, q, m))
     coh = np.empty((ks.size, q))
     ok = np.empty(ks.size, bool)
     for b in range(0, ks.size, LINES_PER_BATCH):
-        kb = ks[b : b + LINES_PER_BATCH]
-        g, v, c, good = _solve_lines(U, Y, kb, n, degree, K_last)
-        G[b : b + kb.size], var[b : b + kb.size], coh[b : b + kb.size], ok[b : b + kb.size] = g, v, c, good
-    if not ok.any():
-        raise DataError(
-            "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
-        )
-    G = G[ok] / u_scale[None, None, :]
-    std = np.sqrt(var[ok]) / u_scale[None, None, :]
-    freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh[ok], exps[0].input_names, exps[0].output_names)
+        sl = slice(b, b + LINES_PER_BATCH)
+        G[sl], var[sl], coh[sl], ok[sl] = solve(U, Y, ks[sl], n, degree, k_last)
+    return G, var, coh, ok
 
 
-def _solve_lines(
+def solve_lines_compiled(
+    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`solve_lines_python` by the numba kernel :func:`~stageid.frf.lpm_kernels.lpm_lines_kernel`;
+    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin."""
+    B, q, m = ks.size, Y.shape[2], U.shape[2]
+    G = np.empty((B, q, m), complex)
+    var = np.empty((B, q, m))
+    coh = np.empty((B, q))
+    status = np.empty(B, np.int8)
+    Ur, Ui = U.real, U.imag  # strided views: the kernel reads each line once
+    ks = np.ascontiguousarray(ks, np.int64)
+    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
+    hard = np.flatnonzero(status == 2)
+    if hard.size:
+        G[hard], var[hard], coh[hard], good = _batched(solve_lines_python, U, Y, ks[hard], n, degree, k_last)
+        status[hard] = np.where(good, 0, 1)
+    return G, var, coh, status == 0
+
+
+def solve_lines_python(
     U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The local regressions (eq. 11) of the lines ``ks``: ``G_k``, ``var(G_k)``, coherence, and
