@@ -6,6 +6,8 @@ module                    what it holds
 :mod:`.frd`               :class:`FrequencyResponse` (the FRF object), its CSV/NPZ table format
 :mod:`.welch`             Welch H1 with pooled cross spectra, multiple coherence, std of H
 :mod:`.lpm`               local polynomial method (Pintelon & Schoukens), noise from residuals
+:mod:`.lpm_kernels`       compiled LPM line solves (moments, complex Cholesky), edge lines
+:mod:`.lpm_lanes`         the same for interior lines, 16 at a time with 4-wide vectors
 :mod:`.periodic`          averaging over periods of periodic excitation, noise from the scatter
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.plotting`          Bode figure with a +-2 std band and a coherence panel
