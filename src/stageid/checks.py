@@ -30,6 +30,7 @@ from ._errors import ParameterError
 __all__ = [
     "is_real",
     "is_integer",
+    "is_positive_sequence",
     "check_real",
     "check_integer",
     "check_choice",
@@ -53,6 +54,13 @@ def is_real(value: Any) -> bool:
 def is_integer(value: Any) -> bool:
     """True for a Python or numpy integer, never for ``bool``."""
     return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+
+
+def is_positive_sequence(value: Any) -> bool:
+    """True for a non-empty 1-D list, tuple or array of finite numbers > 0 (time constants, ...)."""
+    if not isinstance(value, (tuple, list, np.ndarray)) or np.ndim(value) != 1 or len(value) == 0:
+        return False
+    return all(is_real(v) and v > 0 for v in value)
 
 
 def describe_interval(low: float | None, high: float | None, closed: str = "both", integer: bool = False) -> str:

@@ -63,7 +63,7 @@ import numpy as np
 from .._errors import DataError
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
-from ..checks import is_real
+from ..checks import is_positive_sequence, is_real
 from ..resources import require_memory, require_work
 from .creep import CreepTerm
 from .records import (
@@ -96,15 +96,6 @@ def _is_range(value: Any) -> bool:
         and len(value) == 2
         and all(is_real(v) for v in value)
         and float(value[0]) < float(value[1])
-    )
-
-
-def _positive_seconds(value: Any) -> bool:
-    return (
-        isinstance(value, (tuple, list, np.ndarray))
-        and np.ndim(value) == 1
-        and len(value) > 0
-        and all(is_real(v) and v > 0 for v in value)
     )
 
 
@@ -232,7 +223,7 @@ class PIIdentifier(Estimator):
         "max_evaluations": [Interval(int, 1, None, closed="left"), None],
         "ridge": [Interval(float, 0, None, closed="left")],
         "input_warp": [Boolean()],
-        "creep_time_constants": [Satisfies(_positive_seconds, "a non-empty sequence of positive seconds"), None],
+        "creep_time_constants": [Satisfies(is_positive_sequence, "a non-empty sequence of positive seconds"), None],
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
     }
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
-from ..checks import is_real
+from ..checks import is_positive_sequence
 from .identification import MODEL_KINDS, PIIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
 from .stage import StageModel
@@ -60,14 +60,7 @@ def _dynamics_ok(value: Any) -> bool:
 
 
 def _creep_ok(value: Any) -> bool:
-    if value is None or value == "auto":
-        return True
-    return (
-        isinstance(value, (tuple, list, np.ndarray))
-        and np.ndim(value) == 1
-        and len(value) > 0
-        and all(is_real(v) and v > 0 for v in value)
-    )
+    return value is None or (isinstance(value, str) and value == "auto") or is_positive_sequence(value)
 
 
 @dataclass(frozen=True)
