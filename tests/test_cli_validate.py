@@ -139,3 +139,24 @@ def test_constant_input_is_bad_input(tmp_path, capsys):
     write_csv(tmp_path / "r.csv", {"u": np.zeros(500), "y": np.random.default_rng(0).standard_normal(500)}, dt=DT)
     save_model(modes(), tmp_path / "m.json")
     _bad(tmp_path, capsys, ["validate", str(tmp_path / "m.json"), str(tmp_path / "r.csv")])
+
+
+def test_hysteresis_model_reports_error_in_percent_of_range_and_the_loop(tmp_path, capsys):
+    from stageid.hysteresis import PIModel
+
+    model = PIModel(r=[0.0, 20.0, 40.0], weights=[0.01, 0.005, 0.002])
+    save_model(model, tmp_path / "pi.json")
+    rng = np.random.default_rng(0)
+    v = 50.0 * (1 - np.cos(np.linspace(0, 8 * np.pi, 2000)))
+    y = model.simulate(v[:, None])[:, 0]
+    write_csv(tmp_path / "tri.csv", {"V": v, "y": y + 0.002 * np.ptp(y) * rng.standard_normal(2000)}, dt=0.001)
+    args = ["validate", str(tmp_path / "pi.json"), str(tmp_path / "tri.csv"), "--inputs", "V", "--outputs", "y"]
+    assert main([*args, "--json", str(tmp_path / "o.json"), "--report", str(tmp_path / "rep")]) == 0
+    out = json.loads((tmp_path / "o.json").read_text())["outputs"]["y"]
+    # 0.2 % of range white noise: RMS error ~0.2 %, max ~0.8 % (about 4 sigma over 2000 samples)
+    assert 0.15 < out["rms_error_percent"] < 0.25
+    assert out["max_error_percent"] < 1.0
+    assert "% of range" in capsys.readouterr().out
+    html = (tmp_path / "rep" / "index.html").read_text()
+    assert html.count("<img src='data:image/png;base64,") == 2  # the resid figure and the loop
+    assert "Hysteresis loops" in html

@@ -144,11 +144,11 @@ def _summary_text(summary: dict) -> str:
         w, ind = o["whiteness"], o["independence"]
         line = (
             f"{name}: fit {o['fit_percent']:.2f} %  NRMSE {o['nrmse']:.4g}  "
-            f"whiteness {_verdict(w)} (chi2 {w['statistic']:.1f} <= {w['threshold']:.1f}?)  "
+            f"whiteness {_verdict(w)} (chi2 {w['statistic']:.1f}, limit {w['threshold']:.1f})  "
             f"independence {_verdict(ind)}"
         )
         for inp, t in ind["inputs"].items():
-            line += f" [{inp}: chi2 {t['statistic']:.1f} <= {t['threshold']:.1f}?]"
+            line += f" [{inp}: chi2 {t['statistic']:.1f}, limit {t['threshold']:.1f}]"
         if "max_error_percent" in o:
             line += f"  max error {o['max_error_percent']:.2f} %  RMS {o['rms_error_percent']:.2f} % of range"
         lines.append(line)
