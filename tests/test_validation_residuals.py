@@ -7,8 +7,10 @@ import pytest
 from scipy.signal import lfilter
 from scipy.stats import binom
 
-from _validation_plant import modes, record
+from _validation_plant import DT, modes, record
 from stageid._errors import DataError
+from stageid.data import Experiment
+from stageid.models import StateSpaceModel
 from stageid.validation.residuals import independence_test, validate_model, validation_json, whiteness_test
 
 N_SEEDS = 200
@@ -88,3 +90,27 @@ def test_channels_must_match_the_model():
     exp = record(0).with_(output_names=("z",))
     with pytest.raises(DataError, match="the model expects"):
         validate_model(modes(), [exp])
+
+
+def _mimo(which=(0, 1)):
+    """Two inputs, two outputs: each output sees both modes of ``which`` driven by both inputs."""
+    siso = modes(which)
+    B = np.column_stack([siso.B[:, 0], -0.5 * siso.B[:, 0]])
+    C = np.vstack([siso.C[0], np.roll(siso.C[0], 1)])
+    return StateSpaceModel(siso.A, B, C, np.zeros((2, 2)), dt=DT, inputs=("u1", "u2"), outputs=("y1", "y2"))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mimo_true_model_passes_every_output_and_input(seed):
+    rng = np.random.default_rng(seed)
+    u = lfilter([1.0], [1.0, -0.9], rng.standard_normal((4000, 2)), axis=0)
+    y = _mimo().simulate(u)
+    y = y + 0.1 * y.std(axis=0) * rng.standard_normal(y.shape)
+    exp = Experiment(u=u, y=y, dt=DT, input_names=("u1", "u2"), output_names=("y1", "y2"))
+    out = validation_json(validate_model(_mimo(), [exp]))["outputs"]
+    assert set(out) == {"y1", "y2"}
+    for entry in out.values():
+        assert set(entry["independence"]["inputs"]) == {"u1", "u2"}
+        assert entry["whiteness"]["pass"] and entry["independence"]["pass"]
+    low = validation_json(validate_model(_mimo((0,)), [exp]))["outputs"]
+    assert any(not (e["whiteness"]["pass"] and e["independence"]["pass"]) for e in low.values())
