@@ -114,3 +114,10 @@ def test_mimo_true_model_passes_every_output_and_input(seed):
         assert entry["whiteness"]["pass"] and entry["independence"]["pass"]
     low = validation_json(validate_model(_mimo((0,)), [exp]))["outputs"]
     assert any(not (e["whiteness"]["pass"] and e["independence"]["pass"]) for e in low.values())
+
+
+def test_records_too_short_for_the_prewhitening_refused():
+    rng = np.random.default_rng(0)
+    es, us = [rng.standard_normal(20) for _ in range(10)], [rng.standard_normal(20) for _ in range(10)]
+    with pytest.raises(DataError, match="records of more than 36 samples"):
+        independence_test(es, us)

@@ -239,7 +239,7 @@ def independence_test(
     Raises
     ------
     DataError
-        Unequal lengths, too few samples, a constant input or residual.
+        Unequal lengths, too few samples (pooled, or in one record), a constant input or residual.
 
     Examples
     --------
@@ -259,6 +259,12 @@ def independence_test(
         raise DataError("residuals and inputs must be given per record with equal lengths.")
     lags = np.arange(0, max_lag + 1)
     _check(sum(e.size for e in es), max_lag, alpha)
+    shortest = min(u.size for u in us)
+    if shortest <= n_prewhiten + max_lag + 1:
+        raise DataError(
+            f"the independence test needs records of more than {n_prewhiten + max_lag + 1} samples "
+            f"(AR({n_prewhiten}) prewhitening and {max_lag} lags); got one of {shortest}."
+        )
     r_raw, n = _xcorr(es, us, lags)
     poly = _ar_filter(us, n_prewhiten)
     k = poly.size - 1
