@@ -46,6 +46,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.export", "export_group", "cli"),
     ("stageid.cli.frf", "frf_command", "cli"),
     ("stageid.cli.identify_frd", "frd_command", "identify"),
+    ("stageid.cli.validate", "validate_command", "cli"),
 ]
 
 
