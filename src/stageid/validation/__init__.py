@@ -5,9 +5,23 @@
 ``nrmse``                       RMS error over the measured range per channel
 ``rms_error``                   RMS error per channel
 ``relative_response_error``     max frequency-response error relative to the true gain
+``whiteness_test``              residual whiteness: Ljung-Box chi-square over lags 1..25
+``independence_test``           residual-input independence: chi-square over lags 0..25
+``residual_tests``              both tests on every output (:mod:`.residuals`)
+``validate_model``              simulate a model on records and test it (``stageid validate``)
 ==============================  ===========================================================
 """
 
 from .metrics import fit_percent, nrmse, relative_response_error, rms_error
+from .residuals import independence_test, residual_tests, validate_model, whiteness_test
 
-__all__ = ["fit_percent", "nrmse", "rms_error", "relative_response_error"]
+__all__ = [
+    "fit_percent",
+    "nrmse",
+    "rms_error",
+    "relative_response_error",
+    "whiteness_test",
+    "independence_test",
+    "residual_tests",
+    "validate_model",
+]
