@@ -35,8 +35,13 @@ def preisach_run(u, levels, cumw, counts0):  # pragma: no cover - compiled
     n = levels.shape[0]
     counts = counts0.copy()
     y = np.empty(u.shape[0])
+    a_prev = -1
     for k in range(u.shape[0]):
         a = n_below(levels, u[k])
+        if a == a_prev:  # the update is idempotent: same level count, same staircase
+            y[k] = y[k - 1]
+            continue
+        a_prev = a
         s = 0.0
         for i in range(n):
             c = i + 1 if i < a else min(counts[i], a)
