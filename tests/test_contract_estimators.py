@@ -69,6 +69,7 @@ CASES = {
         _closed_loop_data,
     ),
     "FRDIdentification": (lambda cls: cls(order=2, dt=0.01), _siso_data),
+    "PreisachIdentifier": (lambda cls: cls(n_levels=8), _hysteresis_data),
 }
 
 ESTIMATORS = {cls.__name__: cls for cls in estimators().values() if not cls.__module__.startswith("tests")}

@@ -111,7 +111,7 @@ def test_format_errors_name_the_field():
     with pytest.raises(ModelFormatError, match="weights"):
         loads(json.dumps(bad))
     with pytest.raises(ModelFormatError, match="kind"):
-        loads(json.dumps(dict(d, kind="preisach")))
+        loads(json.dumps(dict(d, kind="bouc-wen")))
     with pytest.raises(ModelFormatError, match="rc <= r"):
         md = json.loads(dumps(_modified(np.random.default_rng(0)).to_dict()))
         md["rc"][3] = 1e6

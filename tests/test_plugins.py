@@ -15,6 +15,7 @@ def test_the_entry_points_are_declared_and_load():
     assert kinds == {
         "piezo-actuator": "stageid.plants.piezo_actuator:PiezoActuator.from_dict",
         "stage": "stageid.hysteresis.stage:StageModel.from_dict",
+        "preisach": "stageid.hysteresis.preisach:PreisachModel.from_dict",
     }
     from stageid.plants.piezo_actuator import PiezoActuator
 

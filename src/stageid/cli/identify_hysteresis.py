@@ -55,10 +55,20 @@ Examples:
 @click.option(
     "--model",
     "kind",
-    type=click.Choice(["pi", "modified-pi"]),
+    type=click.Choice(["pi", "modified-pi", "preisach"]),
     default="modified-pi",
     show_default=True,
-    help="Classical PI (plays) or the letter's modified PI (coupled plays).",
+    help="Classical PI (plays), the letter's modified PI (coupled plays), or a discrete Preisach "
+    "model (relays on a triangular grid, --levels; rate independent: no --creep/--dynamics).",
+)
+@click.option(
+    "--levels",
+    "n_levels",
+    type=click.IntRange(min=2),
+    default=20,
+    show_default=True,
+    help="Preisach only: thresholds per axis of the grid over the input range (n(n+1)/2 relays); "
+    "a grid finer than the records resolve is refused.",
 )
 @click.option(
     "--operators",
@@ -135,6 +145,7 @@ def identify(
     report_dir: str | None,
     creep: tuple[float, ...] | str | None = None,
     dynamics: int | str | None = None,
+    n_levels: int = 20,
 ) -> None:
     """Identify a PI or modified-PI hysteresis model from one or more DATA records.
 
@@ -153,8 +164,14 @@ def identify(
     check_output(out, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
+    if kind == "preisach" and (creep not in (None, "none") or dynamics not in (None, "none")):
+        raise click.UsageError("--model preisach is rate independent: drop --creep and --dynamics.")
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    if dynamics is None and creep != "auto":  # today's rate-independent (or fixed-creep) model
+    if kind == "preisach":
+        from ..hysteresis import PreisachIdentifier
+
+        fit = PreisachIdentifier(n_levels=n_levels).fit(list(exps))
+    elif dynamics is None and creep != "auto":  # today's rate-independent (or fixed-creep) model
         fit = PIIdentifier(
             kind,
             n_operators=n_operators,

@@ -20,6 +20,10 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``StageModel``             rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
 ``StageIdentifier``        joint identification of a stage; ``fit`` returns ``StageFit``
 ``stage_feedforward``      offline inverse of a stage (stable inversion of the dynamics)
+``PreisachModel``          discrete Preisach model: relays on a triangular threshold grid
+``PreisachIdentifier``     NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachFit``
+``everett``                Everett function of a Preisach model (``everett_output``: the output
+                           as Everett differences over the memory staircase)
 ``max_error_percent``      metrics as the letter uses them (see :mod:`.metrics`)
 ``rms_error_percent``
 ``tracking_error_percent``
@@ -32,6 +36,8 @@ Modules, from the letter's sections down (each imports only the ones below it):
 :mod:`.stage_identification` ``StageIdentifier``: hysteresis, then weights / creep / dynamics
                            alternated (:mod:`.stage_problem`), auto order and creep
 :mod:`.stage_inverse`      offline stage feedforward (stable inversion, then the inverse)
+:mod:`.preisach_identification` ``PreisachIdentifier`` (NNLS, second-difference smoothing)
+:mod:`.preisach`           ``PreisachModel`` (kind ``preisach``), ``everett``, ``everett_output``
 :mod:`.stage`              ``StageModel`` (kind ``stage`` of the JSON format)
 :mod:`.dynamics`           unit-DC-gain discrete dynamics: fits and filtering
 :mod:`.identification`     ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
@@ -59,6 +65,8 @@ from .inverse import invert, pi_inverse
 from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
 from .operators import OperatorState, coupled_play, play
 from .pi import ModifiedPIModel, PIModel
+from .preisach import PreisachModel, everett, everett_output
+from .preisach_identification import PreisachFit, PreisachIdentifier
 from .stage import StageModel
 from .stage_identification import StageFit, StageIdentifier
 from .stage_inverse import stage_feedforward
@@ -81,6 +89,11 @@ __all__ = [
     "StageIdentifier",
     "StageFit",
     "stage_feedforward",
+    "PreisachModel",
+    "PreisachIdentifier",
+    "PreisachFit",
+    "everett",
+    "everett_output",
     "max_error_percent",
     "rms_error_percent",
     "tracking_error_percent",

@@ -1,0 +1,174 @@
+"""Identification of a discrete Preisach model: non-negative least squares with smoothness.
+
+The output is linear in the relay weights: ``y = y0 + Phi w`` with ``Phi[k, ij]`` the state of
+relay ``(alpha_i, beta_j)`` at sample ``k`` (the records start demagnetised about their first
+input).  The weights solve
+
+    min_{w >= 0, y0}  ||Phi w + y0 - y||^2 + lambda ||D w||^2,
+
+``D`` the second differences along ``alpha`` and along ``beta`` inside the triangle, ``lambda``
+= ``smoothing`` times the mean diagonal of ``Phi' Phi``.  Each record gets its own offset
+(centred columns); ``scipy.optimize.nnls`` (Lawson-Hanson) solves the stacked problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError, IdentificationError
+from ..base import Estimator, Interval, Satisfies
+from ..checks import is_real
+from .preisach import PreisachModel, demagnetized_counts, grid_levels
+from .records import read_records
+
+__all__ = ["PreisachIdentifier", "PreisachFit", "relay_regressors", "second_differences"]
+
+#: Smallest singular value of the centred relay states, relative to the largest, that the data
+#: must give: below it some relay weights are not resolved by the records (grid too fine).
+RESOLUTION_TOLERANCE = 1e-6
+
+
+def _is_range(value: Any) -> bool:
+    return (
+        isinstance(value, (tuple, list))
+        and len(value) == 2
+        and all(is_real(v) for v in value)
+        and float(value[0]) < float(value[1])
+    )
+
+
+def relay_regressors(u: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """Relay states ``Phi``, shape (n_samples, n_levels (n_levels + 1) / 2), from the state
+    demagnetised about ``u[0]``."""
+    from .kernels.preisach import preisach_counts
+
+    C = preisach_counts(u, levels, demagnetized_counts(levels, float(u[0])))
+    n = len(levels)
+    Phi = np.empty((len(u), n * (n + 1) // 2))
+    for i in range(n):
+        off = i * (i + 1) // 2
+        Phi[:, off : off + i + 1] = np.arange(i + 1)[None, :] < C[:, i : i + 1]
+    return Phi
+
+
+def second_differences(n: int) -> np.ndarray:
+    """Rows ``w[a-1] - 2 w[a] + w[a+1]`` along ``alpha`` and along ``beta`` in the triangle."""
+    index = {(i, j): i * (i + 1) // 2 + j for i in range(n) for j in range(i + 1)}
+    rows = []
+    for i, j in index:
+        for di, dj in ((1, 0), (0, 1)):
+            a, b = (i - di, j - dj), (i + di, j + dj)
+            if a in index and b in index:
+                r = np.zeros(len(index))
+                r[index[a]], r[index[(i, j)]], r[index[b]] = 1.0, -2.0, 1.0
+                rows.append(r)
+    return np.array(rows).reshape(-1, len(index))
+
+
+@dataclass(frozen=True)
+class PreisachFit:
+    """Result of :meth:`PreisachIdentifier.fit` (no training data kept).
+
+    Attributes
+    ----------
+    model : PreisachModel
+    max_error_percent, rms_error_percent : tuple of float
+        Per record, in % of that record's output range.
+    output_offsets : tuple of float
+        Fitted output offset of each record.
+    """
+
+    model: PreisachModel
+    max_error_percent: tuple[float, ...]
+    rms_error_percent: tuple[float, ...]
+    output_offsets: tuple[float, ...]
+
+    def summary(self) -> str:
+        errs = ", ".join(
+            f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
+        )
+        return f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} relays): {errs}"
+
+
+class PreisachIdentifier(Estimator):
+    """Discrete Preisach model from records by NNLS with a smoothness penalty.
+
+    Parameters
+    ----------
+    n_levels : int
+        Thresholds per axis of the triangular grid (``n (n + 1) / 2`` relays).
+    smoothing : float
+        ``lambda`` relative to the mean diagonal of the Gram matrix.
+    input_range : (float, float), optional
+        Range of the grid; default the records' input range.
+
+    Raises (from fit)
+    -----------------
+    DataError
+        Records that do not resolve the grid (one line naming the cause).
+    """
+
+    parameter_constraints = {
+        "n_levels": [Interval(int, 2, None, closed="left")],
+        "smoothing": [Interval(float, 0, None, closed="left")],
+        "input_range": [Satisfies(_is_range, "(low, high) with finite low < high"), None],
+    }
+
+    def __init__(self, n_levels: int = 20, smoothing: float = 1e-4, input_range: Any = None) -> None:
+        self.n_levels = n_levels
+        self.smoothing = smoothing
+        self.input_range = input_range
+
+    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> PreisachFit:
+        """Identify the weights and the offsets from one or several (u, y) records."""
+        self.validate_params()
+        recs, in_name, out_name = read_records(data, inputs, outputs)
+        lo = min(float(u.min()) for u, _ in recs)
+        hi = max(float(u.max()) for u, _ in recs)
+        if self.input_range is not None:
+            lo, hi = (float(v) for v in self.input_range)
+        n = int(self.n_levels)
+        levels = grid_levels(lo, hi, n)
+        A, b, means = self._centred_problem(recs, levels)
+        w = self._solve(A, b)
+        offsets = tuple(float(my - mp @ w) for mp, my in means)
+        model = PreisachModel((lo, hi), w, offsets[0], inputs=(in_name,), outputs=(out_name,), input_limits=(lo, hi))
+        maxe, rmse = [], []
+        for (u, y), y0 in zip(recs, offsets):
+            e = relay_regressors(u, levels) @ w + y0 - y
+            span = float(np.ptp(y))
+            maxe.append(100 * float(np.max(np.abs(e))) / span)
+            rmse.append(100 * float(np.sqrt(np.mean(e**2))) / span)
+        return PreisachFit(model.with_state(model.consistent_state(recs[0][0][0])), tuple(maxe), tuple(rmse), offsets)
+
+    def _centred_problem(self, recs: list, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+        """Centred relay states and outputs of all records stacked (one offset per record)."""
+        blocks, rhs, means = [], [], []
+        for u, y in recs:
+            Phi = relay_regressors(u, levels)
+            mp, my = Phi.mean(axis=0), float(y.mean())
+            blocks.append(Phi - mp)
+            rhs.append(y - my)
+            means.append((mp, my))
+        A = np.vstack(blocks)
+        s = np.linalg.svd(A, compute_uv=False)
+        weak = int(np.sum(s <= RESOLUTION_TOLERANCE * s[0]))
+        if weak:
+            raise DataError(
+                f"a Preisach grid of {len(levels)} levels is finer than the records resolve "
+                f"({weak} of {A.shape[1]} relay weights undetermined); use fewer levels."
+            )
+        return A, np.concatenate(rhs), means
+
+    def _solve(self, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+        from scipy.optimize import nnls
+
+        D = second_differences(int(self.n_levels))
+        lam = float(self.smoothing) * float(np.mean(np.sum(A**2, axis=0)))
+        w, _ = nnls(np.vstack([A, np.sqrt(lam) * D]), np.r_[b, np.zeros(D.shape[0])], maxiter=50 * A.shape[1])
+        if not np.all(np.isfinite(w)):
+            raise IdentificationError("the Preisach weight problem gave non-finite weights.")
+        return w

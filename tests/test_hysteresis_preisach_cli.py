@@ -1,0 +1,63 @@
+"""`stageid simulate` on a Preisach model file."""
+
+import json
+
+import numpy as np
+
+from stageid.cli.main import main
+from stageid.hysteresis.preisach import PreisachModel
+from stageid.models.serialization import dumps
+
+
+def test_simulate_runs_a_preisach_file(tmp_path):
+    rng = np.random.default_rng(0)
+    m = PreisachModel((-1.0, 1.0), rng.random(15), output_offset=0.2)
+    (tmp_path / "m.json").write_text(dumps(m.to_dict()))
+    u = np.sin(np.linspace(0, 12, 200)) * np.linspace(1, 0.2, 200)
+    (tmp_path / "u.csv").write_text("V\n" + "\n".join(repr(float(v)) for v in u) + "\n")
+    code = main(["simulate", str(tmp_path / "m.json"), str(tmp_path / "u.csv"), "-o", str(tmp_path / "y.csv")])
+    assert code in (0, None)
+    y = np.loadtxt(tmp_path / "y.csv", delimiter=",", skiprows=1, ndmin=2)[:, -1]
+    np.testing.assert_allclose(y, m(u), atol=1e-12)
+    assert json.loads((tmp_path / "m.json").read_text())["kind"] == "preisach"
+
+
+def _record(tmp_path, name="decaying-triangle"):
+    from stageid.plants.piezo_actuator import EXPERIMENTS
+
+    e = EXPERIMENTS[name](seed=0)
+    path = tmp_path / f"{name}.csv"
+    np.savetxt(path, np.c_[np.arange(len(e.u)) * e.dt, e.u, e.y], delimiter=",", header="t,V,y", comments="")
+    return path, e
+
+
+def test_identify_preisach_writes_a_model_that_simulate_reproduces(tmp_path):
+    from stageid.hysteresis import PreisachIdentifier
+    from stageid.models import load_model
+
+    path, e = _record(tmp_path)
+    out = tmp_path / "p.json"
+    args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
+    assert main([*args, "--levels", "12", "--quiet", "-o", str(out)]) == 0
+    model = load_model(str(out))
+    direct = PreisachIdentifier(n_levels=12).fit(e).model
+    np.testing.assert_array_equal(model.weights, direct.weights)  # the CLI is the estimator
+
+
+def test_a_grid_finer_than_the_records_is_one_line_exit_2_no_file(tmp_path, capsys):
+    path, _ = _record(tmp_path)
+    out = tmp_path / "p.json"
+    args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
+    assert main([*args, "--levels", "30", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "finer than the records resolve" in err and "\n" not in err
+    assert not out.exists()
+
+
+def test_preisach_with_creep_is_refused(tmp_path, capsys):
+    path, _ = _record(tmp_path)
+    out = tmp_path / "p.json"
+    args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
+    assert main([*args, "--creep", "0.1", "-o", str(out)]) == 2
+    assert "rate independent" in capsys.readouterr().err
+    assert not out.exists()
