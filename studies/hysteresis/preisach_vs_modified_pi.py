@@ -17,7 +17,7 @@ def fine_preisach(n=200):
     v = (np.arange(n) + 0.5) / n * 1000 - 500
     a, b = np.meshgrid(v, v, indexing="ij")
     centre, half = (a + b) / 2, (a - b) / 2
-    dens = np.exp(-(half / 120) ** 2) * np.exp(-((centre - 80) / 350) ** 2) * (1 + 0.6 * np.tanh(centre / 200))
+    dens = np.exp(-((half / 120) ** 2)) * np.exp(-(((centre - 80) / 350) ** 2)) * (1 + 0.6 * np.tanh(centre / 200))
     dens += np.eye(n) * 0.05 * (1 + 0.5 * v / 500)  # reversible part, asymmetric
     w = dens[np.tril_indices(n)]
     return PreisachModel((-500.0, 500.0), w / w.sum() * 3.0)
