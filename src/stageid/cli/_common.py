@@ -46,6 +46,12 @@ __all__ = [
 TABLE_SUFFIXES = (".csv", ".npz")
 #: Extensions of model outputs (stageid.lti/1 and the hysteresis formats are JSON).
 MODEL_SUFFIXES = (".json",)
+#: kind of an ``-o`` file -> (its extensions, the words in messages)
+_OUTPUT_KINDS = {
+    "table": (TABLE_SUFFIXES, "a table"),
+    "model": (MODEL_SUFFIXES, "a model"),
+    "mat": ((".mat",), "a MATLAB file"),
+}
 
 
 def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
@@ -169,9 +175,9 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     ----------
     path : str or path-like
         The output file.
-    kind : {"table", "model"}
+    kind : {"table", "model", "mat"}
         A table is written as CSV or NPZ by its extension (:data:`TABLE_SUFFIXES`); a model
-        as JSON (:data:`MODEL_SUFFIXES`).
+        as JSON (:data:`MODEL_SUFFIXES`); a MATLAB export as ``.mat``.
 
     Raises
     ------
@@ -189,9 +195,9 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     ...
     stageid._errors.DataError: output 'fr.mat' has extension '.mat'; expected .csv or .npz for a table.
     """
-    if kind not in ("table", "model"):
-        raise ValueError(f"kind must be 'table' or 'model'; got {kind!r}.")
-    allowed = TABLE_SUFFIXES if kind == "table" else MODEL_SUFFIXES
+    if kind not in _OUTPUT_KINDS:
+        raise ValueError(f"kind must be one of {', '.join(_OUTPUT_KINDS)}; got {kind!r}.")
+    allowed, words = _OUTPUT_KINDS[kind]
     if str(path) == "-":
         raise DataError(
             f"-o '-' (standard output) is not supported; expected a file name ending in {' or '.join(allowed)}."
@@ -200,7 +206,7 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     suffix = target.suffix.lower()
     if suffix not in allowed:
         shown = f"extension '{suffix}'" if suffix else "no extension"
-        raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for a {kind}.")
+        raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for {words}.")
     check_parent(target)
     if target.is_dir():
         raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")
@@ -208,7 +214,7 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     return target
 
 
-def check_output_folder(path: str | os.PathLike[str]) -> Path:
+def check_output_folder(path: str | os.PathLike[str], what: str = "a report") -> Path:
     """Check a report folder (``--out``/``--report``) before any work: its parent must exist.
 
     Raises
@@ -217,10 +223,10 @@ def check_output_folder(path: str | os.PathLike[str]) -> Path:
         A missing parent directory, ``-``, or an existing file at ``path``.
     """
     if str(path) == "-":
-        raise DataError("a report folder cannot be '-' (standard output); expected a folder name.")
+        raise DataError(f"the folder for {what} cannot be '-' (standard output); expected a folder name.")
     target = check_parent(path)
     if target.exists() and not target.is_dir():
-        raise DataError(f"cannot write a report into '{target}': it is a file; expected a folder.")
+        raise DataError(f"cannot write {what} into '{target}': it is a file; expected a folder.")
     _protect_inputs(target)
     return target
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .._errors import DataError
-from ._common import parse_limits
+from ._common import check_output, check_output_folder, parse_limits
 
 _METHODS = click.Choice(["zoh", "tustin"])
 
@@ -77,7 +77,7 @@ def c_command(
     from ..models import load_model
 
     check_prefix(prefix)
-    folder = _check_folder(out_dir)
+    folder = check_output_folder(out_dir, "the .h and .c files")
     drive_limits = parse_limits(limits)
     step = _check_dt(dt)
     model = load_model(model_path)
@@ -114,7 +114,7 @@ def mat_command(model_path: str, out: str, dt: float | None, method: str | None)
     from ..export.matlab import export_mat, mat_variables
     from ..models import load_model
 
-    target = _check_mat(out)
+    target = check_output(out, "mat")
     step = _check_dt(dt)
     model = load_model(model_path)
     mat_variables(model, step, method)  # every check before anything is written
@@ -126,31 +126,6 @@ def _check_dt(dt: float | None) -> float | None:
     from ..checks import check_real
 
     return None if dt is None else check_real(dt, "--dt", "export", low=0.0, closed="right", error=DataError)
-
-
-def _check_folder(path: str) -> Path:
-    """``-o`` of ``export c``: a folder (existing, or to be created in an existing parent)."""
-    if path == "-":
-        raise DataError("-o '-' (standard output) is not supported; expected a folder for the .h and .c files.")
-    folder = Path(path)
-    if folder.exists() and not folder.is_dir():
-        raise DataError(f"-o '{folder}' is a file; expected a folder for the .h and .c files.")
-    parent = folder.parent if str(folder.parent) else Path(".")
-    if not parent.is_dir():
-        raise DataError(f"cannot write into '{folder}': directory '{parent}' does not exist.")
-    return folder
-
-
-def _check_mat(path: str) -> Path:
-    target = Path(path)
-    if path == "-" or target.suffix.lower() != ".mat":
-        raise DataError(f"output '{path}' must be a file name ending in .mat.")
-    parent = target.parent if str(target.parent) else Path(".")
-    if not parent.is_dir():
-        raise DataError(f"cannot write '{target}': directory '{parent}' does not exist.")
-    if target.is_dir():
-        raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")
-    return target
 
 
 def _write_files(folder: Path, files: dict[str, str]) -> None:
