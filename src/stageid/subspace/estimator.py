@@ -38,7 +38,7 @@ import numpy as np
 from .._errors import DataError, ExcitationWarning, StabilityWarning
 from .._threads import single_blas_thread
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
-from ..checks import is_integer
+from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
@@ -56,7 +56,6 @@ from .map_estimator import (
 from .realization import REALIZATIONS, realize
 from .records import (
     as_records,
-    check_band_below_nyquist,
     check_continuation,
     excited_band,
     excited_lines,
@@ -241,7 +240,8 @@ class HankelMAP(Estimator):
         dt = first.dt
         if previous is not None:
             check_continuation(previous.model, first)
-        check_band_below_nyquist(self.band, dt)
+        if self.band is not None:  # the one band rule, now with the records' Nyquist frequency
+            check_band(self.band, "band", "HankelMAP", nyquist=0.5 / dt)
         records = prepared_records(exps, self.detrend)
         still_inputs(records, first.input_names, notes)
         # every channel to unit RMS (an update keeps the first fit's scales), see `records`

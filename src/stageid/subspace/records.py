@@ -13,7 +13,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError
-from ..checks import check_band
 from ..data.experiment import Experiment, as_experiments
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import WindowStatistics
@@ -22,7 +21,6 @@ from .map_estimator import Posterior, regressor_scales
 __all__ = [
     "as_records",
     "check_continuation",
-    "check_band_below_nyquist",
     "prepared_records",
     "still_inputs",
     "channel_scales",
@@ -50,13 +48,6 @@ def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
         )
     if not np.isclose(first.dt, model.dt, rtol=1e-9, atol=0.0):
         raise DataError(f"new data must have the sample time of the fitted model, {model.dt:g} s; got {first.dt:g} s.")
-
-
-def check_band_below_nyquist(band: tuple[float, float] | None, dt: float) -> None:
-    """A given ``band`` must end at or below the records' Nyquist frequency: it is refused
-    (ParameterError, the one band rule of :func:`stageid.checks.check_band`), not clipped."""
-    if band is not None:
-        check_band(band, "band", "HankelMAP", nyquist=0.5 / dt)
 
 
 def _column_means(x: np.ndarray) -> np.ndarray:
