@@ -29,7 +29,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 from ._errors import ParameterError
-from .checks import check_band, describe_interval, is_integer, is_real, shown
+from .checks import check_band, describe_interval, in_interval, is_integer, is_real, shown
 
 __all__ = [
     "Estimator",
@@ -68,10 +68,7 @@ class Interval(Constraint):
         if not (is_integer(value) if self.kind is int else is_real(value)):
             return False
         v = float(value) if self.kind is not int else int(value)
-        left, right = self.closed in ("both", "left"), self.closed in ("both", "right")
-        if self.low is not None and (v < self.low or (v == self.low and not left)):
-            return False
-        return not (self.high is not None and (v > self.high or (v == self.high and not right)))
+        return in_interval(v, self.low, self.high, self.closed)
 
     def __str__(self) -> str:
         return describe_interval(self.low, self.high, self.closed, integer=self.kind is int)

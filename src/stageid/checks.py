@@ -31,6 +31,7 @@ __all__ = [
     "is_real",
     "is_integer",
     "is_positive_sequence",
+    "in_interval",
     "check_real",
     "check_integer",
     "check_choice",
@@ -77,7 +78,8 @@ def describe_interval(low: float | None, high: float | None, closed: str = "both
     return "an integer" if integer else "a finite number"
 
 
-def _inside(v: float, low: float | None, high: float | None, closed: str) -> bool:
+def in_interval(v: float, low: float | None, high: float | None, closed: str = "both") -> bool:
+    """True when ``v`` lies between ``low`` and ``high`` (``None``: open; ends per ``closed``)."""
     left = closed in ("both", "left")
     right = closed in ("both", "right")
     if low is not None and (v < low or (v == low and not left)):
@@ -116,7 +118,7 @@ def check_real(
     error: type[Exception] = ParameterError,
 ) -> float:
     """``value`` as a finite float inside ``[low, high]`` (ends per ``closed``), else ``error``."""
-    if not is_real(value) or not _inside(float(value), low, high, closed):
+    if not is_real(value) or not in_interval(float(value), low, high, closed):
         raise _fail(error, param, owner, describe_interval(low, high, closed), value)
     return float(value)
 
@@ -131,7 +133,7 @@ def check_integer(
     error: type[Exception] = ParameterError,
 ) -> int:
     """``value`` as an int inside ``[low, high]``, else ``error`` (``bool`` is not an integer)."""
-    if not is_integer(value) or not _inside(int(value), low, high, "both"):
+    if not is_integer(value) or not in_interval(int(value), low, high, "both"):
         raise _fail(error, param, owner, describe_interval(low, high, "both", integer=True), value)
     return int(value)
 
