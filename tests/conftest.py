@@ -21,6 +21,8 @@ import sys
 import warnings
 from pathlib import Path
 
+import pytest
+
 #: Address space of a child running a hostile input: numpy, scipy, numba and h5py loaded take
 #: about 1.5 GB of address space; an allocation of many GB must fail there, not swap here.
 AS_LIMIT = 3 * 2**30
@@ -91,3 +93,12 @@ def assert_one_line_error(rc: int, err: str, *fragments: str) -> None:
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file under ``folder`` (names relative) with its bytes: "unchanged" is equality."""
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def dask_cluster():
+    """A real scheduler and two workers on 127.0.0.1 (see tests/dask_cluster.py); torn down after."""
+    from dask_cluster import TestCluster
+
+    with TestCluster(n_workers=2) as cluster:
+        yield cluster

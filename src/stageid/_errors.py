@@ -17,6 +17,7 @@ __all__ = [
     "IdentificationError",
     "ParameterError",
     "ResourceError",
+    "ClusterError",
     "StageIdWarning",
     "ExcitationWarning",
     "StabilityWarning",
@@ -62,6 +63,10 @@ class ResourceError(StageIdError, MemoryError):
     Raised before the work starts (see :mod:`stageid.resources`), with what the request would
     need and what is available.
     """
+
+
+class ClusterError(StageIdError, ConnectionError):
+    """A Dask scheduler could not be reached, or a cluster could not be started."""
 
 
 class StageIdWarning(UserWarning):
