@@ -139,6 +139,20 @@ def test_minimal_realization_removes_hidden_modes():
     np.testing.assert_allclose(m.poles().real, [-1.0], atol=1e-12)
 
 
+@pytest.mark.parametrize("gain", [1e-13, 1e-7, 1.0, 1e7])
+def test_minimal_realization_does_not_depend_on_the_units_of_b_and_c(gain):
+    # a stage in metres per volt has B ~ 1e-7: an absolute rank threshold removed every state
+    A = 1e3 * np.diag([-1.0, -2.0, -3.0, -4.0])
+    B = gain * np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.0, 0.0]])  # 4th mode not driven
+    C = gain * np.array([[1.0, 1.0, 0.0, 1.0], [0.0, 1.0, 1.0, 1.0]])
+    g = StateSpaceModel(A, B, C, np.zeros((2, 2)))
+    m = minimal_realization(g)
+    assert m.n_states == 3
+    np.testing.assert_allclose(np.sort(m.poles().real), [-3e3, -2e3, -1e3], rtol=1e-9)
+    f = np.array([0.0, 10.0, 300.0])
+    np.testing.assert_allclose(m.frequency_response(f), g.frequency_response(f), rtol=1e-9, atol=0)
+
+
 def test_feedback_matches_python_control():
     import control
 

@@ -45,19 +45,24 @@ def minimal_matrices(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(A, B, C)`` of the controllable and observable part (``D`` is unchanged).
 
-    ``tol`` is the rank threshold; default ``1e-9 * max(1, ||A||, ||B||, ||C||)``.
+    The subspaces are found with ``B`` and ``C`` scaled to unit norm: scaling them does not move
+    the subspaces, and an absolute threshold would call every state of a small-gain plant (a
+    stage in metres per volt, B ~ 1e-7) uncontrollable.  ``tol`` is the rank threshold on those
+    scaled blocks; default ``1e-9 * max(1, ||A||)``.
     """
     if A.shape[0] == 0:
         return A, B, C
     if tol is None:
-        scale = max(
-            1.0, np.linalg.norm(A, 2), np.linalg.norm(B, 2) if B.size else 0.0, np.linalg.norm(C, 2) if C.size else 0.0
-        )
-        tol = 1e-9 * scale
-    Qc = controllable_basis(A, B, tol)
+        tol = 1e-9 * max(1.0, np.linalg.norm(A, 2))
+    Qc = controllable_basis(A, _unit(B), tol)
     Ac, Bc, Cc = Qc.T @ A @ Qc, Qc.T @ B, C @ Qc
-    Qo = controllable_basis(Ac.T, Cc.T, tol)
+    Qo = controllable_basis(Ac.T, _unit(Cc.T), tol)
     return Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo
+
+
+def _unit(M: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(M, 2) if M.size else 0.0
+    return M / norm if norm > 0 else M
 
 
 def minimal_realization(model: M, tol: float | None = None) -> M:
@@ -67,7 +72,7 @@ def minimal_realization(model: M, tol: float | None = None) -> M:
     ----------
     model : StateSpaceModel
     tol : float, optional
-        Rank threshold; default ``1e-9 * max(1, ||A||, ||B||, ||C||)``.
+        Rank threshold on ``B`` and ``C`` scaled to unit norm; default ``1e-9 * max(1, ||A||)``.
 
     Examples
     --------
