@@ -66,6 +66,28 @@ def test_column_mapping(tmp_path):
     assert "y" in json.loads((tmp_path / "o.json").read_text())["outputs"]
 
 
+def test_file_without_time_column_takes_the_discrete_models_sample_time(tmp_path):
+    exp = record(2)
+    write_csv(tmp_path / "with_t.csv", {"u": exp.u[:, 0], "y": exp.y[:, 0]}, dt=DT)
+    write_csv(tmp_path / "no_t.csv", {"u": exp.u[:, 0], "y": exp.y[:, 0]})
+    assert "t" not in (tmp_path / "no_t.csv").read_text().splitlines()[0].split(",")
+    save_model(modes(), tmp_path / "m.json")
+    for name in ("with_t", "no_t"):
+        assert (
+            main(
+                [
+                    "validate",
+                    str(tmp_path / "m.json"),
+                    str(tmp_path / f"{name}.csv"),
+                    "--json",
+                    str(tmp_path / f"{name}.json"),
+                ]
+            )
+            == 0
+        )
+    assert json.loads((tmp_path / "no_t.json").read_text()) == json.loads((tmp_path / "with_t.json").read_text())
+
+
 def _bad(tmp_path, capsys, args):
     before = sorted(p.name for p in tmp_path.iterdir())
     assert main(args) == 2

@@ -17,11 +17,13 @@ Sub-packages, one capability each:
 
 from . import numba_cache
 from ._errors import (
+    ClusterError,
     DataError,
     ExcitationWarning,
     IdentificationError,
     ModelError,
     ModelFormatError,
+    NoSampleTimeError,
     ParameterError,
     ResourceError,
     SignalError,
@@ -43,6 +45,8 @@ __all__ = [
     "IdentificationError",
     "ParameterError",
     "ResourceError",
+    "ClusterError",
+    "NoSampleTimeError",
     "StageIdWarning",
     "ExcitationWarning",
     "StabilityWarning",

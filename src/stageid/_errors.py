@@ -11,6 +11,7 @@ from __future__ import annotations
 __all__ = [
     "StageIdError",
     "DataError",
+    "NoSampleTimeError",
     "ModelError",
     "ModelFormatError",
     "SignalError",
@@ -30,6 +31,10 @@ class StageIdError(Exception):
 
 class DataError(StageIdError, ValueError):
     """Measured data are unusable: NaN/inf, ragged columns, bad time axis, unknown names."""
+
+
+class NoSampleTimeError(DataError):
+    """A record has no time column and no sample time was given (a caller may supply one)."""
 
 
 class ModelError(StageIdError, ValueError):

@@ -134,13 +134,29 @@ def read_table_checked(path: str | os.PathLike[str], ts: float | None):
     return read_table(path, ts=ts, time_rtol=CLI_TIME_RTOL)
 
 
-def read_experiments(paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str], ts: float | None):
-    """One :class:`~stageid.data.Experiment` per file, all checked to share dt and channels."""
+def read_experiments(
+    paths: Sequence[str],
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    ts: float | None,
+    fallback_ts: float | None = None,
+):
+    """One :class:`~stageid.data.Experiment` per file, all checked to share dt and channels.
+
+    ``fallback_ts`` is the sample time of a file with neither a ``t`` column nor ``--ts`` (e.g.
+    a discrete model's, when validating it); a time column always wins over it.
+    """
+    from .._errors import NoSampleTimeError
     from ..data import as_experiments
 
     exps = []
     for p in paths:
-        table = read_table_checked(p, ts)
+        try:
+            table = read_table_checked(p, ts)
+        except NoSampleTimeError:
+            if fallback_ts is None:
+                raise
+            table = read_table_checked(p, fallback_ts)
         exps.append(table.experiment(inputs=list(inputs), outputs=list(outputs), name=Path(p).name))
     return as_experiments(exps)
 

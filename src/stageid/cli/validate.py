@@ -25,7 +25,12 @@ Examples:
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--inputs", default=None, help="Input columns (default: the model's input names).")
 @click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
-@click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
+@click.option(
+    "--ts",
+    type=float,
+    default=None,
+    help="Sample time [s] when the files have no `t` column (default: a discrete model's).",
+)
 @click.option("--json", "json_out", default=None, type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option(
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
@@ -78,8 +83,8 @@ def _experiments(model, data, inputs, outputs, ts):
                 f"{option}: expected {len(expected)} names for the model's channels ({','.join(expected)}); "
                 f"got {len(given)} ({','.join(given)})."
             )
-    experiments = read_experiments(data, ins, outs, ts)
     model_dt = getattr(model, "dt", None)
+    experiments = read_experiments(data, ins, outs, ts, fallback_ts=model_dt)
     for exp in experiments:
         if model_dt is not None and not np.isclose(exp.dt, model_dt, rtol=1e-6):
             raise DataError(f"record {exp.name} has sample time {exp.dt:g} s; the model's is {model_dt:g} s.")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import DataError
+from .._errors import DataError, NoSampleTimeError
 from ..checks import shown
 from .experiment import Experiment, check_samples
 
@@ -370,7 +370,7 @@ def assemble_table(
         units = [units[j] for j in keep]
     else:
         if ts is None:
-            raise DataError(f"{where}no time column '{TIME_COLUMN}'; pass ts= (the sample time in seconds).")
+            raise NoSampleTimeError(f"{where}no time column '{TIME_COLUMN}'; pass ts= (the sample time in seconds).")
         t0, dt = 0.0, ts
     if not names:
         raise DataError(f"{where}only a time column '{TIME_COLUMN}' was found; expected at least one data column.")
