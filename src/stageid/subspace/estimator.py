@@ -49,7 +49,6 @@ from .map_estimator import (
     LS_SINGULAR_PIVOT,
     METHODS,
     Prior,
-    map_estimate,
     map_posterior,
     singular_pivot,
 )
@@ -287,14 +286,14 @@ class HankelMAP(Estimator):
             cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
             train, val = split_statistics(recs, cands, lam, self.validation_fraction)
         if horizon == "auto":
-            horizon, horizon_table = select_horizon(
-                train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, self.prior, su, sy))[0]
-            )
+            horizon, horizon_table = select_horizon(train, val, cands, lambda s: prior_of(s, self.prior, su, sy))
         short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
         # eq. 9 (the held-out split already holds the whole records' windows when not forgetting)
-        stats = pooled_split(train, val, horizon, recs) if prev is None and lam == 1.0 else None
+        stats = (
+            pooled_split(train, val, horizon, recs, self.validation_fraction) if prev is None and lam == 1.0 else None
+        )
         if stats is None:
             stats = hankel_toeplitz_statistics(recs, horizon, lam)
         # eq. 16-18 (an update continues the previous posterior, which holds the prior)
