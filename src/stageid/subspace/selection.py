@@ -41,6 +41,8 @@ __all__ = [
     "pooled_split",
     "select_horizon",
     "HORIZON_GAIN",
+    "held_out_parts",
+    "training_noise",
     "select_order",
 ]
 
@@ -275,10 +277,12 @@ def select_horizon(
 
     ``prior_of`` gives the fit's prior for training statistics; ``theta`` is the MAP estimate
     of eq. 16 under it (:func:`~stageid.subspace.map_estimator.map_estimate`).
-    The search stops at the first candidate that does not lower the least error so far by
-    ``HORIZON_GAIN`` (larger horizons cost ``O(p^3)`` and the held-out errors are flat at the
-    top, where noise decides among them); the chosen horizon is the smallest scored one
-    within ``HORIZON_GAIN`` of the least error, as :func:`select_order` chooses the order.
+    Every candidate up to half the largest is scored (together they cost about as much as
+    one at the top: the solves are ``O(p^3)``); above, the search stops at the first candidate
+    that does not lower the least error so far by ``HORIZON_GAIN`` (the held-out errors are
+    flat at the top, where noise decides among them).  The chosen horizon is the smallest
+    scored one within ``HORIZON_GAIN`` of the least error, as :func:`select_order` chooses
+    the order.
     The errors weigh the outputs by the noise of the largest scored horizon's training
     residual (see :mod:`.weighting`); the table lists the scored candidates.
 
@@ -294,9 +298,11 @@ def select_horizon(
             continue
         prior = prior_of(train[p])
         theta = map_estimate(*train[p].blocks()[:2], prior)[0]
-        raw[p] = _held_out_parts(theta, val[p])
-        weights = noise_weights(*_training_noise(theta, prior, train[p]))
+        raw[p] = held_out_parts(theta, val[p])
+        weights = noise_weights(*training_noise(theta, prior, train[p]))
         errors = {k: _normalised(*raw[k], weights) for k in raw}  # all rescored with these weights
+        if 2 * p <= max(cands):  # cheap (<= 1/8 of the largest's cost): always scored
+            continue
         if not errors[p] < min((e for k, e in errors.items() if k != p), default=np.inf) * (1.0 - HORIZON_GAIN):
             break
     finite = [e for e in errors.values() if np.isfinite(e)]
@@ -309,7 +315,7 @@ def select_horizon(
     return best, SelectionTable("horizon", tuple(errors), tuple(errors.values()), best)
 
 
-def _held_out_parts(theta: np.ndarray, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
+def held_out_parts(theta: np.ndarray, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
     """Per output: the held-out residual energy of eq. 9 over the ``p`` block rows, and the output energy."""
     YY = stats.blocks()[2]
     q = stats.n_outputs
@@ -318,7 +324,7 @@ def _held_out_parts(theta: np.ndarray, stats: WindowStatistics) -> tuple[np.ndar
     return np.clip(res_c, 0.0, None), np.where(energy > 0, energy, 1.0)
 
 
-def _training_noise(theta: np.ndarray, prior: Prior | None, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
+def training_noise(theta: np.ndarray, prior: Prior | None, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
     """``(noise variance, mean square)`` per output from the training residual of ``theta``.
 
     For a MAP estimate under a diagonal prior around zero of material strength (the default),
