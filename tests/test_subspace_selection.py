@@ -76,5 +76,4 @@ def test_horizon_search_rule():
     if scored[-1] != max(cands):
         last = scored[-1]
         assert not errors[last] < min(errors[q] for q in scored[:-1]) * (1 - HORIZON_GAIN)
-    least = min(errors.values())
-    assert chosen == min(p for p in scored if errors[p] <= least * (1 + HORIZON_GAIN))
+    assert chosen == min(errors, key=errors.get)

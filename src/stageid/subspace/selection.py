@@ -262,8 +262,7 @@ def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: 
     return ranges
 
 
-#: Relative gain in held-out error a larger horizon must bring for the ascending search to go on;
-#: the chosen horizon is the smallest scored one within this fraction of the least error.
+#: Relative gain in held-out error a larger horizon must bring for the ascending search to go on.
 HORIZON_GAIN = 1e-3
 
 
@@ -280,9 +279,10 @@ def select_horizon(
     Every candidate up to half the largest is scored (together they cost about as much as
     one at the top: the solves are ``O(p^3)``); above, the search stops at the first candidate
     that does not lower the least error so far by ``HORIZON_GAIN`` (the held-out errors are
-    flat at the top, where noise decides among them).  The chosen horizon is the smallest
-    scored one within ``HORIZON_GAIN`` of the least error, as :func:`select_order` chooses
-    the order.
+    flat at the top).  The chosen horizon is the scored one of least error: preferring a
+    smaller horizon within ``HORIZON_GAIN`` of it, as :func:`select_order` does for the order,
+    costs response accuracy (the truncation bias that larger horizons remove hardly shows in
+    the held-out error; ``benchmarks/RESULTS-subspace.md``, issue 18).
     The errors weigh the outputs by the noise of the largest scored horizon's training
     residual (see :mod:`.weighting`); the table lists the scored candidates.
 
@@ -310,8 +310,7 @@ def select_horizon(
         raise DataError(
             "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
         )
-    least = min(finite)
-    best = min(k for k, e in errors.items() if e <= least * (1.0 + HORIZON_GAIN))
+    best = min(errors, key=errors.get)
     return best, SelectionTable("horizon", tuple(errors), tuple(errors.values()), best)
 
 
