@@ -177,6 +177,9 @@ def whole_process(n: int, repeats: int) -> dict:
 
     u, y = make_data(n)
     env = {**os.environ, **ENV_1THREAD}
+    # an installed package has its bytecode compiled; with PYTHONDONTWRITEBYTECODE set (as in some
+    # shells) the untimed warm-up run could not cache it and every timed run would recompile stageid
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     stageid_exe = str(Path(sys.executable).with_name("stageid"))
     out = {}
     with tempfile.TemporaryDirectory() as d:

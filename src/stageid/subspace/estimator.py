@@ -49,7 +49,6 @@ from .map_estimator import (
     LS_SINGULAR_PIVOT,
     METHODS,
     Prior,
-    map_estimate,
     map_posterior,
     singular_pivot,
 )
@@ -87,7 +86,9 @@ class HankelMAP(Estimator):
     Parameters
     ----------
     horizon : int or "auto", default "auto"
-        ``p`` of eq. 2-9. "auto" picks it from 8..80 by held-out multi-step prediction error.
+        ``p`` of eq. 2-9. "auto" picks it from 8..80 by held-out multi-step prediction error
+        (searched upwards; above half the largest candidate the search stops at the first
+        horizon that does not lower the error by 0.1 %, see ``selection.select_horizon``).
     order : int, sequence of int, or "auto", default "auto"
         Model order (per input channel when ``per_channel``; a sequence gives one per input).
         "auto" picks it by held-out simulation error.
@@ -133,7 +134,7 @@ class HankelMAP(Estimator):
     the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.weighting`): each
     output multiplied by the inverse of its noise standard deviation, estimated from the
     eq. 9 residual, the weight undone on ``C`` and ``D``; for the horizon, the noise of the
-    largest candidate's training residual.  A small coupling output that is mostly sensor
+    largest scored candidate's training residual.  A small coupling output that is mostly sensor
     noise then does not steer the realisation of the driven output.  A coupling output is
     fitted only as well as its noise allows: with an order too low for the channel the noisy
     coupling outputs may be left unfitted in favour of the driven one.  What the weighting
@@ -287,14 +288,14 @@ class HankelMAP(Estimator):
             cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
             train, val = split_statistics(recs, cands, lam, self.validation_fraction)
         if horizon == "auto":
-            horizon, horizon_table = select_horizon(
-                train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, self.prior, su, sy))[0]
-            )
+            horizon, horizon_table = select_horizon(train, val, cands, lambda s: prior_of(s, self.prior, su, sy))
         short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
         # eq. 9 (the held-out split already holds the whole records' windows when not forgetting)
-        stats = pooled_split(train, val, horizon, recs) if prev is None and lam == 1.0 else None
+        stats = (
+            pooled_split(train, val, horizon, recs, self.validation_fraction) if prev is None and lam == 1.0 else None
+        )
         if stats is None:
             stats = hankel_toeplitz_statistics(recs, horizon, lam)
         # eq. 16-18 (an update continues the previous posterior, which holds the prior)

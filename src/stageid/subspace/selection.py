@@ -26,9 +26,9 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from .correlations import input_periodogram
 from .hankel_toeplitz import WindowStatistics, record_statistics, row_residuals, segments_statistics
-from .map_estimator import Posterior
+from .map_estimator import Posterior, Prior, map_estimate
 from .realization import realize
-from .weighting import output_weights, training_weights
+from .weighting import noise_weights, output_weights
 
 __all__ = [
     "SelectionTable",
@@ -40,6 +40,9 @@ __all__ = [
     "split_statistics",
     "pooled_split",
     "select_horizon",
+    "HORIZON_GAIN",
+    "held_out_parts",
+    "training_noise",
     "select_order",
 ]
 
@@ -209,57 +212,136 @@ def pooled_split(
     val: dict[int, WindowStatistics],
     horizon: int,
     records: Sequence[tuple[np.ndarray, np.ndarray]],
+    validation_fraction: float,
 ) -> WindowStatistics | None:
-    """The whole records' eq. 9 statistics from the held-out split, when it holds all but < 1 %
-    of their windows (those straddling segment boundaries); None otherwise.
+    """The whole records' eq. 9 statistics from the held-out split (not forgetting); None
+    when the split cannot be completed cheaply.
 
-    Saves a second pass over long records; the input spectrum is added (the split has none).
+    The split lacks the windows that straddle segment boundaries and, for horizons below a
+    range's largest usable one, the last windows of each range (see :func:`split_statistics`);
+    those are added from one :func:`segments_statistics` pass over short sample ranges around
+    the range ends.  The result equals the statistics of the whole records up to rounding and
+    saves a second pass over long records; the input spectrum is added (the split has none).
     """
     if horizon not in train or horizon not in val:
         return None
-    full_count = sum(u.shape[0] - 2 * horizon + 1 for u, _ in records)
-    if train[horizon].count + val[horizon].count < 0.99 * full_count:
-        return None
+    keys = sorted(set(train) | set(val))
+    s_all = train[horizon] + val[horizon]
     power = None
-    for u, _ in records:
+    for u, y in records:
+        missing = _missing_ranges(u.shape[0], keys, horizon, validation_fraction)
+        if missing is None:
+            return None
+        if missing:
+            s_all = s_all + segments_statistics(u, y, missing, horizon)
         pw, fq = input_periodogram(u)
         power = pw if power is None else power + pw
-    s_all = train[horizon] + val[horizon]
+    if s_all.count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
+        return None
     return WindowStatistics(s_all.W, s_all.n_windows, horizon, s_all.n_inputs, s_all.n_outputs, power, fq, s_all.count)
+
+
+def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: float) -> list[tuple[int, int]] | None:
+    """Sample ranges holding exactly the horizon-``horizon`` windows of one record that
+    :func:`split_statistics` left out; None when they overlap or hold a single window (then
+    :func:`segments_statistics` cannot take them)."""
+    tr, va = held_out_segments(n, validation_fraction)
+    covered = []  # window starts [first, last] each range contributed at its largest usable horizon
+    for a, b in sorted(tr + va):
+        tops = [k for k in keys if 2 * k + 1 <= b - a]
+        if tops and tops[-1] >= horizon:
+            covered.append((a, b - 2 * tops[-1]))
+    gaps, nxt = [], 0
+    for first, last in covered + [(n - 2 * horizon + 1, None)]:
+        if first > nxt:
+            gaps.append((nxt, first - 1))
+        nxt = nxt if last is None else last + 1
+    ranges = [(s0, s1 + 2 * horizon) for s0, s1 in gaps]
+    if any(s1 == s0 for s0, s1 in gaps) or any(b0 > a1 for (_, b0), (a1, _) in zip(ranges, ranges[1:])):
+        return None
+    return ranges
+
+
+#: Relative gain in held-out error a larger horizon must bring for the ascending search to go on.
+HORIZON_GAIN = 1e-3
 
 
 def select_horizon(
     train: dict[int, WindowStatistics],
     val: dict[int, WindowStatistics],
     cands: list[int],
-    estimate: Callable[[WindowStatistics], np.ndarray],
+    prior_of: Callable[[WindowStatistics], Prior | None],
 ) -> tuple[int, SelectionTable]:
-    """The candidate horizon with the least held-out prediction error of eq. 9.
+    """The horizon by held-out prediction error of eq. 9, searched in increasing order.
 
-    ``estimate`` gives ``theta`` from training statistics (the fit's method and prior).  One
-    set of output weights serves every candidate: the noise of the largest horizon's training
-    residual (see :mod:`.weighting`).
+    ``prior_of`` gives the fit's prior for training statistics; ``theta`` is the MAP estimate
+    of eq. 16 under it (:func:`~stageid.subspace.map_estimator.map_estimate`).
+    Every candidate up to half the largest is scored (together they cost about as much as
+    one at the top: the solves are ``O(p^3)``); above, the search stops at the first candidate
+    that does not lower the least error so far by ``HORIZON_GAIN`` (the held-out errors are
+    flat at the top).  The chosen horizon is the scored one of least error: preferring a
+    smaller horizon within ``HORIZON_GAIN`` of it, as :func:`select_order` does for the order,
+    costs response accuracy (the truncation bias that larger horizons remove hardly shows in
+    the held-out error; ``benchmarks/RESULTS-subspace.md``, issue 18).
+    The errors weigh the outputs by the noise of the largest scored horizon's training
+    residual (see :mod:`.weighting`); the table lists the scored candidates.
 
     Raises
     ------
     DataError
         When no candidate has both training and held-out windows.
     """
-    usable = [p for p in cands if p in train and p in val]
-    thetas = {p: estimate(train[p]) for p in usable}
-    weights = training_weights(thetas[usable[-1]], train[usable[-1]]) if usable else None
-    errors = []
-    for p in cands:
-        if p not in thetas:
-            errors.append(float("inf"))
+    raw: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # per output: held-out residual, energy
+    errors: dict[int, float] = {}
+    for p in sorted(cands):
+        if p not in train or p not in val:
             continue
-        errors.append(prediction_error(thetas[p], val[p], weights))
-    if not np.isfinite(np.min(errors)):
+        prior = prior_of(train[p])
+        theta = map_estimate(*train[p].blocks()[:2], prior)[0]
+        raw[p] = held_out_parts(theta, val[p])
+        weights = noise_weights(*training_noise(theta, prior, train[p]))
+        errors = {k: _normalised(*raw[k], weights) for k in raw}  # all rescored with these weights
+        if 2 * p <= max(cands):  # cheap (<= 1/8 of the largest's cost): always scored
+            continue
+        if not errors[p] < min((e for k, e in errors.items() if k != p), default=np.inf) * (1.0 - HORIZON_GAIN):
+            break
+    finite = [e for e in errors.values() if np.isfinite(e)]
+    if not finite:
         raise DataError(
             "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
         )
-    best = cands[int(np.argmin(errors))]
-    return best, SelectionTable("horizon", tuple(cands), tuple(errors), best)
+    best = min(errors, key=errors.get)
+    return best, SelectionTable("horizon", tuple(errors), tuple(errors.values()), best)
+
+
+def held_out_parts(theta: np.ndarray, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
+    """Per output: the held-out residual energy of eq. 9 over the ``p`` block rows, and the output energy."""
+    YY = stats.blocks()[2]
+    q = stats.n_outputs
+    res_c = row_residuals(theta, stats).reshape(stats.horizon, q).sum(axis=0)
+    energy = np.diag(YY).reshape(stats.horizon, q).sum(axis=0)
+    return np.clip(res_c, 0.0, None), np.where(energy > 0, energy, 1.0)
+
+
+def training_noise(theta: np.ndarray, prior: Prior | None, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
+    """``(noise variance, mean square)`` per output from the training residual of ``theta``.
+
+    For a MAP estimate under a diagonal prior around zero of material strength (the default),
+    ``theta (XX + diag(P)) = YX`` gives ``theta XX theta^T = theta YX^T - theta diag(P) theta^T``
+    row by row, so the residual costs ``O(p q d)`` instead of the ``O(p q d^2)`` of
+    :func:`row_residuals`, which serves the other priors (where the identity could lose the
+    small residual to rounding).
+    """
+    XX, YX, YY = stats.blocks()
+    p, q = stats.horizon, stats.n_outputs
+    diag = None if prior is None or prior.theta0 is not None else np.asarray(prior.precision, dtype=float)
+    if diag is not None and diag.shape == (XX.shape[0],) and np.all(diag >= 1e-8 * np.abs(XX.diagonal())):
+        rows = np.diag(YY) - np.einsum("rd,rd->r", theta, YX) - np.einsum("rd,rd,d->r", theta, theta, diag)
+    else:
+        rows = row_residuals(theta, stats)
+    dof = max(stats.n_windows - XX.shape[0], 1.0)
+    mean_square = np.diag(YY).reshape(p, q).mean(axis=0) / max(stats.n_windows, 1.0)
+    return rows.reshape(p, q).mean(axis=0) / dof, mean_square
 
 
 def select_order(
