@@ -211,9 +211,8 @@ _CP_STEP = """\
     int found = 0;  /* 0: x unchanged, 1: x is the last iterate (at), 2: the far end (far) */
     if (${p}_abs(target - s->f) > ${p}_error(x)) {
         const int rising = target > s->f;
-        if (rising != s->rising) {  /* reversal: the slope on the new side of x, once */
-            ${p}_pass(rising, x, s->z, &at);
-            s->slope = at.slope;
+        if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
+            s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
         }
         found = ${p}_solve(s, target, s->slope, &x, &at, &far);
@@ -352,6 +351,16 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     return consts, drive
 
 
+def _turn_slope(model: Any) -> float:
+    """The slope of F right after a reversal: the operators whose branches coincide (zero loop
+    width: all thresholds 0) move at once, the others only once x has crossed their loop.  A
+    guess for the first Newton step (exact unless some operator sits where its branches meet);
+    at least ``min_slope()``."""
+    r, rc, ra, rb = model.coupled_play_thresholds()
+    zero_width = (r == 0.0) & (rc == 0.0) & (ra == 0.0) & (rb == 0.0)
+    return max(float(np.sum(model.weights[zero_width])), model.min_slope())
+
+
 def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: CType, prefix: str) -> dict[str, str]:
     """Fields of the per-sample inversion of a modified PI model (drive ``limits`` or None).
 
@@ -375,6 +384,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
+    consts += [_define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
     consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
