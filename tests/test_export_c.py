@@ -1,10 +1,12 @@
 """Generated C reproduces the Python models: `simulate` (LTI, PI, modified PI) and the compensator.
 
 Tolerances (issue 17): double precision within 1e-12 of the largest |reference| value of the
-record (the C keeps the package's order of operations, so most cases agree bit for bit; the
-Python hysteresis kernels reassociate the weighted sum, ~1e-16); single precision within 1e-5
-of the reference's range (a float carries ~6e-8 relative; slow poles and the per-sample
-inversion amplify that by a few ten).
+record (the LTI and forward C keeps the package's order of operations, so most cases agree bit
+for bit; the Python hysteresis kernels reassociate the weighted sum, ~1e-16; the compensators
+of modified PI models find the exact root of each sample by their own iteration, as the package
+does, so they agree to rounding); single precision within 1e-5 of the reference's range (a
+float carries ~6e-8 relative; slow poles and the per-sample inversion amplify that by a few
+ten).
 """
 
 from __future__ import annotations
@@ -187,6 +189,19 @@ def test_compensator_matches_compensate(run_c, kind, limits, single):
         check(run_c(model, y_ref, inverse=True, limits=limits, single=single), drive)
 
 
+@pytest.mark.parametrize("warp", [0.0, -0.3])
+def test_compensator_drive_is_the_exact_root(run_c, warp):
+    # the C's own answer, without the package's: the model driven by it reproduces the reference
+    # to rounding on every sample (random jumps over +-12 switch most operators every sample;
+    # 1e-14 of the largest |reference|, a few 1e-15 seen), not to an iteration tolerance
+    rng = np.random.default_rng(14)
+    model = random_mpi(rng, warp=warp)
+    for name, u in inputs(rng).items():
+        y_ref = model.simulate(u)[:, 0]
+        drive = run_c(model, y_ref, inverse=True)[:, 0]
+        assert np.max(np.abs(model.simulate(drive)[:, 0] - y_ref)) <= 1e-14 * np.max(np.abs(y_ref)), name
+
+
 def test_compensator_uses_the_model_input_limits(run_c):
     rng = np.random.default_rng(10)
     model = random_mpi(rng, limits=(-3.0, 4.0))
@@ -321,8 +336,8 @@ def _random_invertible(rng):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compensator_random_models_double(run_c, seed):
-    # random models, states, limits and references: the generated compensator takes the
-    # package's path sample for sample, so any disagreement beyond rounding is a bug
+    # random models, states, limits and references: the generated compensator and the package
+    # both return the exact root of every sample, so any disagreement beyond rounding is a bug
     rng = np.random.default_rng(100 + seed)
     done = 0
     while done < 6:
