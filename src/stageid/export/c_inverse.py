@@ -1,19 +1,26 @@
 """C99 streaming compensators: closed-form inverse PI and per-sample modified-PI inversion.
 
-The C mirrors :class:`stageid.hysteresis.Compensator` step for step (see
+What the C computes is what :class:`stageid.hysteresis.Compensator` computes (see
 :mod:`stageid.export.c_hysteresis`):
 
 * classical PI -- the inverse PI model of :func:`stageid.hysteresis.pi_inverse` (thresholds
-  ``r'``, weights ``w'``, state ``z'``); a drive outside the limits is clipped and the state
-  rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play update at the
-  clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i`` (``W = cumsum(w)``).  This
-  rebuild runs in double precision also in single-precision code: its sums cancel;
+  ``r'``, weights ``w'``, state ``z'``), step for step; a drive outside the limits is clipped
+  and the state rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play
+  update at the clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i``
+  (``W = cumsum(w)``).  This rebuild runs in double precision also in single-precision code:
+  its sums cancel;
 * modified PI -- ``F(x) = sum_i w_i CP_i(x; z_i)`` is piecewise linear and nondecreasing with
-  slope at least ``smin``; each sample brackets the solution of ``F(x) = y_ref - y0`` from the
-  last input and refines it by Newton steps on the pieces (regula falsi / bisection inside the
-  bracket as safeguards) to ``|F(x) - target| <= tol``, then updates the operators at ``x``.
+  slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
+  package does (:mod:`stageid.hysteresis.inverse`), by its own iteration: Newton steps from the
+  last input with the slope on the side of travel (kept from the last sample; at a reversal
+  the slope of the zero-width operators as a first guess), regula falsi / bisection inside the
+  bracket as safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass
+  over the operators per iterate gives F, the slope and the new operator outputs, using only the
+  branch of travel (the outputs of the last sample lie between the branches).  Both sides land
+  on the exact root, so they agree to rounding; the number of passes per sample depends on how
+  many operator corners the reference crosses (``benchmarks/RESULTS-export.md``).
 
-In single precision the tolerance and the bracket width are those a ``float`` can resolve.
+In single precision the stopping bound and the bracket width are those a ``float`` resolves.
 """
 
 from __future__ import annotations
