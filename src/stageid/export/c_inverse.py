@@ -95,11 +95,11 @@ static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T}
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
 ${branch}
-        const ${T} g = ${p}_w[i] * ${p}_max(${moves});  /* w_i where the branch itself moves */
         const ${T} v = ${new_output};
+        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
         zn[i] = v;
         f += ${p}_w[i] * v;
-        s += ${on_branch} ? g : 0.0${f};  /* w_i or 0: a select, not a jump (the data decide) */
+        s += moves ? ${p}_w[i] : 0.0${f};  /* in this form gcc vectorises the loop (-O2 and -O3) */
     }
     *slope = s;
     return f;
@@ -119,7 +119,7 @@ _DIRECTIONS = {
         "branch": """\
         const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i];
         const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f}));""",
-        "moves": "a >= 0.0${f} ? 1.0${f} : 0.0${f}, b < 0.0${f} ? 1.0${f} : 0.0${f}",
+        "moves": "(a >= 0.0${f}) | (b < 0.0${f})",
         "on_branch": "up >= v",
         "lean": "${p}_max(up, z[i])",
         "general": "${p}_max(up, ${p}_min(${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f})), z[i]))",
@@ -130,7 +130,7 @@ _DIRECTIONS = {
         "branch": """\
         const ${T} c = x + ${p}_ra[i], d = x + ${p}_rb[i];
         const ${T} down = ${p}_min(c, ${p}_max(d, 0.0${f}));""",
-        "moves": "c <= 0.0${f} ? 1.0${f} : 0.0${f}, d > 0.0${f} ? 1.0${f} : 0.0${f}",
+        "moves": "(c <= 0.0${f}) | (d > 0.0${f})",
         "on_branch": "down <= v",
         "lean": "${p}_min(down, z[i])",
         "general": "${p}_min(down, ${p}_max(${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f})), z[i]))",
@@ -317,6 +317,9 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
+PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
+
+
 def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
     """The two passes (rise, fall: one template) and the solve."""
     passes = []
@@ -372,7 +375,9 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     """Fields of the per-sample inversion of a modified PI model (drive ``limits`` or None).
 
     Operators of weight 0 are left out: they add exactly 0 to F and its slopes, and their state
-    is never seen.  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
+    is never seen; weight-0 operators with zero thresholds pad the rest to a multiple of
+    :data:`PAD`, so that gcc vectorises the passes also at -O2 (its cheap cost model there takes
+    only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
     (:func:`stageid.hysteresis.compensator.residual_bound`; in single precision with the unit
     roundoff of ``float`` and eight roundings instead of ``4 (m + 2)``: a float solve stops at
     what a float resolves).
@@ -383,11 +388,16 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     lo, hi = _limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
+    padded = -(-m // PAD) * PAD
     err_w, err_r = residual_bound(model)
     if ctype.is_float:
         err_w = 8.0 * 2.0**-24 * float(np.sum(np.abs(model.weights)))
     consistent = _consistent(model, keep)
-    consts = [f"#define {p}_N_OPERATORS {m}"]
+
+    def pad(v: np.ndarray) -> np.ndarray:  # weight-0 operators with zero thresholds: add exact zeros
+        return np.r_[v[keep], np.zeros(padded - m)]
+
+    consts = [f"#define {p}_N_OPERATORS {padded}"]
     consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
@@ -396,21 +406,21 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
-    tables = {k: getattr(model, k)[keep] for k in ("r", "rc", "ra", "rb")}
-    consts += _tables(p, ctype, **tables, w=model.weights[keep])
+    tables = {k: pad(getattr(model, k)) for k in ("r", "rc", "ra", "rb")}
+    consts += _tables(p, ctype, **tables, w=pad(model.weights))
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     T = ctype.name
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
-        "members": f"    {T} z[{m}];  /* outputs of the operators of nonzero weight */\n"
+        "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
         "helpers": "\n" + _cp_functions(ctype, p, consistent),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
-            _init("z", model.state.z[keep], ctype)
+            _init("z", pad(model.state.z), ctype)
             + [
                 f"    s->x = {literal(model.state.x, ctype)};",
                 f"    s->fresh = {int(not consistent)};",
