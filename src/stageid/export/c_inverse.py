@@ -143,14 +143,16 @@ static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
 /* The rounding error of a computed F at x: the package's bound (residual_bound). */
 static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MAX); }
 
-/* F, its slope on the side of travel and the operator outputs at an iterate. */
+/* F, its slope on the side of travel (rising: right of x) and the operator outputs at an iterate. */
 typedef struct {
     ${T} f, slope, z[${p}_N_OPERATORS];
+    int rising;
 } ${p}_point;
 
 static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
 {
     at->f = rising ? ${p}_rise(x, z, at->z, &at->slope) : ${p}_fall(x, z, at->z, &at->slope);
+    at->rising = rising;
     return at->f;
 }
 
@@ -167,7 +169,7 @@ static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out,
 {
     const int rising = target > s->f;
     const ${T} x0 = s->x;
-    ${T} near = x0, fnear = s->f, far, ffar = 0.0${f}, xc = x0, fc = s->f, sc = slope;
+    ${T} near = x0, fnear = s->f, far, ffar = 0.0${f}, xc = x0, fc = s->f, sc = slope, last = 0.0${f};
     int known = 0, it;
     if (rising) {
         far = x0 + (target - s->f) / ${p}_SMIN;
@@ -177,11 +179,19 @@ static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out,
         if (far < ${p}_LOW) far = ${p}_LOW;
     }
     *x_out = x0;
-    if (!(rising ? far > x0 : far < x0)) return 0;  /* at the limit already */
+    if (!(rising ? far > x0 : far < x0)) {  /* x at or beyond the limit: the answer is the limit */
+        ${p}_pass(far > x0, far, s->z, far_at);  /* (reached backwards if x lies beyond it) */
+        *x_out = far;
+        return 2;
+    }
     for (it = 0; it < 200; ++it) {
         ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (near + far);
         if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
-        if (!(rising ? xn > near && xn < far : xn < near && xn > far)) {
+        if (it > 0 && ${p}_abs(fc - target) > 0.5${f} * last) {
+            /* Newton did not halve the residual (a slope off the root's piece: the first sample
+               from a stored state that is not consistent, or a corner): bisect the bracket */
+            xn = 0.5${f} * (near + far);
+        } else if (!(rising ? xn > near && xn < far : xn < near && xn > far)) {
             if (!known) {
                 known = 1;
                 ffar = ${p}_pass(rising, far, s->z, far_at);
@@ -193,6 +203,7 @@ static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out,
             if (ffar != fnear) xn = near + (target - fnear) * (far - near) / (ffar - fnear);
             if (!(rising ? xn > near && xn < far : xn < near && xn > far)) xn = 0.5${f} * (near + far);
         }
+        last = ${p}_abs(fc - target);
         fc = ${p}_pass(rising, xn, s->z, at);
         *x_out = xc = xn;
         sc = at->slope;
@@ -235,6 +246,7 @@ _CP_STEP = """\
         for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = p->z[i];
         s->f = p->f;
         s->slope = p->slope;
+        s->rising = p->rising;
         s->x = x;
     }
     s->fresh = 0;
