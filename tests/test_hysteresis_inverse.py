@@ -162,29 +162,115 @@ def test_malformed_limits_one_line(limits):
         invert(m.to_modified(), [0.0, 1.0], limits=limits)
 
 
+def _kernel_inversion(m, target):
+    """The compiled batch inversion of ``m`` from zero state; its plain-Python twin's output."""
+    from stageid.hysteresis import kernels
+    from stageid.hysteresis.common import packed
+    from stageid.hysteresis.compensator import residual_bound
+    from stageid.hysteresis.operators import coupled_play_reference
+
+    args = (target, packed(m), np.zeros(m.n_operators), 0.0, -np.inf, np.inf, m.min_slope(), *residual_bound(m))
+    x, z, xf = kernels.cp_invert(*args)
+    Z, zf = coupled_play_reference(x, *m.coupled_play_thresholds(), np.zeros(m.n_operators))
+    return args, (x, z, xf), Z, zf
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_inversion_kernel_against_its_plain_python_twins(seed):
     # the compiled batch inversion equals its loop run by Python (``py_func``, which calls the
     # compiled per-sample step), and the inputs it finds drive the plain-Python CP bank (eq. 3-4,
-    # no compiled code) onto the targets to the kernel's tolerance
+    # no compiled code) onto the targets to the rounding bound the iteration stops at
     from stageid.hysteresis import kernels
-    from stageid.hysteresis.common import packed, tolerance
-    from stageid.hysteresis.operators import coupled_play_reference
+    from stageid.hysteresis.compensator import residual_bound
 
     rng = np.random.default_rng(seed)
     m = _mpi(rng)
     target = np.cumsum(rng.normal(0.0, 8.0, 300))
-    args = (target, packed(m), np.zeros(m.n_operators), 0.0, -np.inf, np.inf, m.min_slope(), tolerance(m))
-    x, z, xf = kernels.cp_invert(*args)
+    args, (x, z, xf), Z, zf = _kernel_inversion(m, target)
     x_py, z_py, xf_py = kernels.cp_invert.py_func(*args)
     np.testing.assert_array_equal(x, x_py)
     np.testing.assert_array_equal(z, z_py)
     assert xf == xf_py
-    r, rc, ra, rb = m.coupled_play_thresholds()
-    Z, zf = coupled_play_reference(x, r, rc, ra, rb, np.zeros(m.n_operators))
-    # the tolerance is 1e-12 of sum|w| (1 + max r); the weighted sum adds a few roundings
-    np.testing.assert_allclose(Z @ m.weights, target, rtol=0, atol=4 * tolerance(m))
+    err_w, err_r = residual_bound(m)
+    assert np.all(np.abs(Z @ m.weights - target) <= err_w * (np.abs(x) + err_r))
     np.testing.assert_array_equal(zf, z)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_inversion_lands_on_the_exact_root(seed):
+    # F is piecewise linear: the Newton step from the root's piece is the root, and the
+    # iteration takes it instead of stopping at a tolerance.  The residual of the plain-Python
+    # CP bank (its own in-order sum) at the inputs found is rounding: within the bound, and
+    # below 1e-14 of the output scale sum|w| (|x| + max r) on every sample (the former
+    # tolerance, 1e-12 of sum|w| (1 + max r), let single samples stop at ~1e-12).  The
+    # references are random jumps over the whole range (many operators switch each sample), a
+    # random walk, and targets off the model's own path.
+    from stageid.hysteresis.compensator import residual_bound
+
+    rng = np.random.default_rng(40 + seed)
+    m = _mpi(rng, n=20)
+    targets = {
+        "jumps": m.simulate(rng.uniform(-450, 450, 4000))[:, 0] - m.output_offset,
+        "walk": np.cumsum(rng.normal(0.0, 8.0, 4000)),
+        "off-path": m.simulate(_drive(rng))[:, 0] + rng.normal(0, 0.5, 3000),
+    }
+    err_w, err_r = residual_bound(m)
+    for name, target in targets.items():
+        _, (x, _z, _xf), Z, _zf = _kernel_inversion(m, target)
+        residual = np.abs(Z @ m.weights - target)
+        scale = np.sum(np.abs(m.weights)) * (np.abs(x) + err_r)
+        assert np.all(residual <= err_w * (np.abs(x) + err_r)), name
+        assert np.max(residual / scale) < 1e-14, name
+
+
+def test_inversion_exact_just_past_a_breakpoint():
+    # analytic truth: on the initial loading curve of a PI model, F(x) = sum_i w_i (x - r_i)+ has
+    # slope W_j = w_0 + ... + w_j on (r_j, r_j+1).  A target just past a corner, F(r_j) + d, has
+    # the root r_j + d / W_j; the Newton step from the piece before the corner lands at
+    # r_j + d / W_j-1, whose residual d (W_j / W_j-1 - 1) is below the former tolerance
+    # (1e-12 of sum|w| (1 + max r), which stopped there: 1e-12 off in x) but not at rounding.
+    # The iteration goes on to the root: within a few ulps of x.
+    r = np.arange(12) * 3.0
+    w = np.r_[1.0, np.linspace(0.2, 1.0, 11)]
+    m = PIModel(r=r, weights=w).to_modified()
+    d = 0.5 * 1e-12 * np.sum(w) * (1.0 + r.max())
+    W = np.cumsum(w)
+    loading = np.array([np.sum(w * np.maximum(rj - r, 0.0)) for rj in r])
+    target = loading[1:] + d
+    expected = r[1:] + d / W[1:]
+    u, _ = invert(m, target)
+    assert np.max(np.abs(u[:, 0] - expected)) <= 4 * np.spacing(r.max())
+    comp = Compensator(m)
+    assert np.max(np.abs([comp.step(v) - e for v, e in zip(target, expected)])) <= 4 * np.spacing(r.max())
+
+
+@pytest.fixture(scope="module")
+def piezo_model_and_record():
+    from stageid.data import datasets
+    from stageid.hysteresis import PIIdentifier
+
+    root = datasets.shared_data_dir()
+    if root is None or not (root / "piezo_dspace_preisach" / "prbn_1.mat").exists():
+        pytest.skip("shared dSPACE piezo records not found")
+    rec = datasets.load_dspace_piezo(root / "piezo_dspace_preisach" / "prbn_1.mat")
+    model = PIIdentifier(model="modified-pi", n_operators=20).fit(rec).model
+    return model, datasets.load_dspace_piezo(root / "piezo_dspace_preisach" / "sine100_1.mat")
+
+
+def test_inversion_exact_on_a_measured_reference(piezo_model_and_record):
+    # the model identified on the dSPACE PRBN record (input warp, near-zero and negative weights:
+    # its slope can drop to 7e-4 of its largest weight) asked for the displacement measured on
+    # another record: where no limit is hit the model reproduces it to rounding, through the
+    # input warp and back (a few 1e-15 of the largest displacement; 1e-14 leaves room)
+    model, rec = piezo_model_and_record
+    y = rec.y[:, 0]
+    u = Compensator(model).run(y)[:, 0]
+    lo, hi = model.input_limits
+    free = (u > lo) & (u < hi)
+    assert free.mean() > 0.9
+    residual = np.abs(model.simulate(u)[:, 0] - y)[free]
+    assert residual.max() <= 1e-14 * np.abs(y).max()
+    np.testing.assert_array_equal(invert(model, y)[0][:, 0], u)
 
 
 @pytest.mark.parametrize("make", [_pi, _mpi])

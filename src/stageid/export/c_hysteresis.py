@@ -13,13 +13,15 @@ Inverse (``stageid compensate``, eq. 5 and Fig. 9)
     A classical PI model runs its closed-form inverse PI model (a play sum); when the drive
     leaves its limits it is clipped and the operator state is rebuilt from the clipped drive
     through the duality formula, as :class:`stageid.hysteresis.Compensator` does.  A modified
-    PI model solves ``F(x) = y_ref`` per sample by the same safeguarded Newton iteration on the
-    piecewise-linear output as the package's inversion kernel, then updates the operators with
-    the chosen input.  Only rate-independent models have an exported inverse.
+    PI model finds the exact root of ``F(x) = y_ref`` per sample, as the package does, by its
+    own safeguarded Newton iteration on the piecewise-linear output (:mod:`.c_inverse`), then
+    updates the operators with that input.  Only rate-independent models have an exported
+    inverse.
 
-Every constant is emitted exactly (:mod:`stageid.export.c_writer`); the step functions keep the
-package's order of operations, so double-precision code reproduces the Python results to
-rounding (bit for bit where the package evaluates in the same order).
+Every constant is emitted exactly (:mod:`stageid.export.c_writer`); the forward steps and the
+classical-PI compensator keep the package's order of operations, so double-precision code
+reproduces the Python results to rounding (bit for bit where the package evaluates in the same
+order); the modified-PI compensator agrees to rounding because both return the exact root.
 """
 
 from __future__ import annotations

@@ -1,19 +1,26 @@
 """C99 streaming compensators: closed-form inverse PI and per-sample modified-PI inversion.
 
-The C mirrors :class:`stageid.hysteresis.Compensator` step for step (see
+What the C computes is what :class:`stageid.hysteresis.Compensator` computes (see
 :mod:`stageid.export.c_hysteresis`):
 
 * classical PI -- the inverse PI model of :func:`stageid.hysteresis.pi_inverse` (thresholds
-  ``r'``, weights ``w'``, state ``z'``); a drive outside the limits is clipped and the state
-  rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play update at the
-  clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i`` (``W = cumsum(w)``).  This
-  rebuild runs in double precision also in single-precision code: its sums cancel;
+  ``r'``, weights ``w'``, state ``z'``), step for step; a drive outside the limits is clipped
+  and the state rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play
+  update at the clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i``
+  (``W = cumsum(w)``).  This rebuild runs in double precision also in single-precision code:
+  its sums cancel;
 * modified PI -- ``F(x) = sum_i w_i CP_i(x; z_i)`` is piecewise linear and nondecreasing with
-  slope at least ``smin``; each sample brackets the solution of ``F(x) = y_ref - y0`` from the
-  last input and refines it by Newton steps on the pieces (regula falsi / bisection inside the
-  bracket as safeguards) to ``|F(x) - target| <= tol``, then updates the operators at ``x``.
+  slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
+  package does (:mod:`stageid.hysteresis.inverse`), by its own iteration: Newton steps from the
+  last input with the slope on the side of travel (kept from the last sample; at a reversal
+  the slope of the zero-width operators as a first guess), regula falsi / bisection inside the
+  bracket as safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass
+  over the operators per iterate gives F, the slope and the new operator outputs, using only the
+  branch of travel (the outputs of the last sample lie between the branches).  Both sides land
+  on the exact root, so they agree to rounding; the number of passes per sample depends on how
+  many operator corners the reference crosses (``benchmarks/RESULTS-export.md``).
 
-In single precision the tolerance and the bracket width are those a ``float`` can resolve.
+In single precision the stopping bound and the bracket width are those a ``float`` resolves.
 """
 
 from __future__ import annotations
@@ -79,153 +86,170 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 }
 """
 
-_SLOPE = """\
-static ${T} ${p}_slope_${side}(${T} x, const ${T} *z)
+_CP_PASS = """\
+/* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
+   and the slope of F ${beyond} x.  ${why} */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
 {
-    ${T} s = 0.0${f};
+    ${T} f = 0.0${f}, s = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i], c = x + ${p}_ra[i], d = x + ${p}_rb[i];
-        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f})), down = ${p}_min(c, ${p}_max(d, 0.0${f}));
-        const ${T} inner = ${p}_min(down, z[i]);
-${moves}
-        s += moves ? ${p}_w[i] : 0.0${f};  /* w_i or 0: exactly what w_i * (0 or 1) adds */
+${branch}
+        const ${T} v = ${new_output};
+        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+        zn[i] = v;
+        f += ${p}_w[i] * v;
+        s += moves ? ${p}_w[i] : 0.0${f};  /* in this form gcc vectorises the loop (-O2 and -O3) */
     }
-    return s;
+    *slope = s;
+    return f;
 }
 """
 
-# which operators move right / left of x (the tie rules of the package's kernel)
-_MOVES = {
-    "right": """\
-        const int up_moves = (a >= 0.0${f}) | (b < 0.0${f}), down_moves = (c < 0.0${f}) | (d >= 0.0${f});
-        const int moves = ((up >= inner) & up_moves) | ((up <= inner) & (down < z[i]) & down_moves);""",
-    "left": """\
-        const int up_moves = (a > 0.0${f}) | (b <= 0.0${f});
-        const int in_moves = (down <= z[i]) & ((c <= 0.0${f}) | (d > 0.0${f}));
-        const int gt = up > inner, lt = up < inner;
-        const int moves = (gt & up_moves) | (lt & in_moves) | (!gt & !lt & up_moves & in_moves);""",
+# x moving up: the ascending branch up(x) = max(x - r, min(x - rc, 0)) (slope 1 right of x except
+# on its flat stretch rc <= x < r) takes an operator along once it reaches the output z.  Moving
+# down: the descending branch down(x) = min(x + ra, max(x + rb, 0)) (slope 1 left of x except on
+# -ra < x <= -rb).  The outputs of the last sample lie between the branches, so only the branch
+# of travel can move them; a state stored inconsistent with its x (CONSISTENT 0) also takes the
+# other branch into the output, as the package's first sample does.
+_DIRECTIONS = {
+    "rise": {
+        "side": "at or right of",
+        "beyond": "right of",
+        "branch": """\
+        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i];
+        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f}));""",
+        "moves": "(a >= 0.0${f}) | (b < 0.0${f})",
+        "on_branch": "up >= v",
+        "lean": "${p}_max(up, z[i])",
+        "general": "${p}_max(up, ${p}_min(${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f})), z[i]))",
+    },
+    "fall": {
+        "side": "at or left of",
+        "beyond": "left of",
+        "branch": """\
+        const ${T} c = x + ${p}_ra[i], d = x + ${p}_rb[i];
+        const ${T} down = ${p}_min(c, ${p}_max(d, 0.0${f}));""",
+        "moves": "(c <= 0.0${f}) | (d > 0.0${f})",
+        "on_branch": "down <= v",
+        "lean": "${p}_min(down, z[i])",
+        "general": "${p}_min(down, ${p}_max(${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f})), z[i]))",
+    },
 }
 
-_CP_FUNCTIONS = """\
+_CP_SOLVE = """\
 static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
 
-/* F(x) = sum_i w_i CP_i(x; z_i), summed in operator order (the package's order); zn receives
-   the operator outputs at x, the state should x be the answer (zn = z: the operators follow x). */
-static ${T} ${p}_value(${T} x, const ${T} *z, ${T} *zn)
-{
-    ${T} f = 0.0${f};
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-        const ${T} up = ${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f}));
-        const ${T} down = ${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f}));
-        zn[i] = ${p}_max(up, ${p}_min(down, z[i]));
-        f += ${p}_w[i] * zn[i];
-    }
-    return f;
-}
-
-/* Slopes of F on the pieces right and left of x: the sums, in operator order, of the weights
-   of the operators that move there.  An operator's output max(up, min(down, z)) moves with x
-   where the branch it sits on does: the ascending branch up (slope 1 except on its flat zero
-   stretch rc <= x <= r) where up >= min(down, z), the descending branch down where down < z.
-   At a tie between branches the rules of the package's kernel apply, so the sums are its sums. */
-${slope_right}
-${slope_left}
-/* A bound of the rounding error of the computed F at x (see the module notes). */
+/* The rounding error of a computed F at x: the package's bound (residual_bound). */
 static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MAX); }
 
-/* Where a solve leaves the operators: z points to their outputs at the answer and f to F there
-   when the solve evaluated F at the answer (z = 0: not evaluated, the operators must follow). */
+/* F, its slope on the side of travel (rising: right of x) and the operator outputs at an iterate. */
 typedef struct {
-    ${T} z_new[${p}_N_OPERATORS], z_far[${p}_N_OPERATORS], f;
-    const ${T} *z;
-} ${p}_next;
+    ${T} f, slope, z[${p}_N_OPERATORS];
+    int rising;
+} ${p}_point;
 
-/* The input x with F(x) = target (to TOL), from the last input x_prev where F = f.  The package's
-   iteration: the bracket [x_prev, x_prev + (target - f) / smin] (or its mirror); if F at its far
-   end does not pass the target the far end is the answer (a drive limit), else Newton on the
-   pieces from the near end, with regula falsi / bisection inside the bracket as safeguards.
-   Work is done only where its result is used: slopes only for a Newton step, the far end only
-   when it can matter -- F rises at least smin per unit, so once an iterate lands past the target
-   by more than the rounding error allows, the far end cannot be the answer. */
-static ${T} ${p}_solve(const ${T} *z, ${T} x_prev, ${T} f, ${T} target, ${p}_next *next)
+static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
 {
-    const int rising = target > f;
-    ${T} a, b, fa = f, fb = f, xc = x_prev, fc = f, sc, x = x_prev, far;
-    int known = 0, decided = 0, it;  /* far end: value computed / known not to be the answer */
-    next->z = 0;
-    if (${p}_abs(f - target) <= ${p}_TOL) return x_prev;
+    at->f = rising ? ${p}_rise(x, z, at->z, &at->slope) : ${p}_fall(x, z, at->z, &at->slope);
+    at->rising = rising;
+    return at->f;
+}
+
+/* x with F(x) = target, from the state's x where F = s->f and `slope` is the slope of F on the
+   side of travel.  F is piecewise linear and rises at least SMIN per unit, so the root lies in
+   [x, x + (target - f) / SMIN] (or its mirror), cut at the drive limit.  Newton steps land on
+   the root once they start on its piece; an iterate outside the bracket is replaced by regula
+   falsi against the far end (computed then, and the answer if F there does not reach the
+   target: a drive limit) or by bisection.  The solve stops when |F - target| is within the
+   rounding error of F, as the package does: both return the exact root to rounding.  Returns
+   where the answer's F, slope and operator outputs are: 0 nowhere (x unchanged), 1 in *at (the
+   last iterate), 2 in *far_at (the far end). */
+static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at)
+{
+    const int rising = target > s->f;
+    const ${T} x0 = s->x;
+    ${T} near = x0, fnear = s->f, far, ffar = 0.0${f}, xc = x0, fc = s->f, sc = slope, last = 0.0${f};
+    int known = 0, it;
     if (rising) {
-        a = x_prev;
-        b = x_prev + (target - f) / ${p}_SMIN;
-        if (b > ${p}_HIGH) b = ${p}_HIGH;
+        far = x0 + (target - s->f) / ${p}_SMIN;
+        if (far > ${p}_HIGH) far = ${p}_HIGH;
     } else {
-        b = x_prev;
-        a = x_prev - (f - target) / ${p}_SMIN;
-        if (a < ${p}_LOW) a = ${p}_LOW;
+        far = x0 - (s->f - target) / ${p}_SMIN;
+        if (far < ${p}_LOW) far = ${p}_LOW;
     }
-    far = rising ? b : a;
-#define ${p}_FAR_END()                                                         \\
-    do {                                                                        \\
-        if (!known) {                                                           \\
-            known = decided = 1;                                                \\
-            if (rising) fb = ${p}_value(b, z, next->z_far);                     \\
-            else fa = ${p}_value(a, z, next->z_far);                            \\
-            if (rising ? fb <= target : fa >= target) {                         \\
-                next->z = next->z_far;                                          \\
-                next->f = rising ? fb : fa;                                     \\
-                return rising ? b : a;                                          \\
-            }                                                                   \\
-        }                                                                       \\
-    } while (0)
-    if (!(a < b)) {
-        ${p}_FAR_END();
-        return x_prev;
+    *x_out = x0;
+    if (!(rising ? far > x0 : far < x0)) {  /* x at or beyond the limit: the answer is the limit */
+        ${p}_pass(far > x0, far, s->z, far_at);  /* (reached backwards if x lies beyond it) */
+        *x_out = far;
+        return 2;
     }
-    sc = rising ? ${p}_slope_right(x_prev, z) : ${p}_slope_left(x_prev, z);
     for (it = 0; it < 200; ++it) {
-        ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (a + b);
-        ${T} fn;
-        if (!(xn > a && xn < b)) {
-            ${p}_FAR_END();
-            if (fb > fa) xn = a + (target - fa) * (b - a) / (fb - fa);
-            if (!(xn > a && xn < b)) xn = 0.5${f} * (a + b);
+        ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (near + far);
+        if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
+        if (it > 0 && ${p}_abs(fc - target) > 0.5${f} * last) {
+            /* Newton did not halve the residual (a slope off the root's piece: the first sample
+               from a stored state that is not consistent, or a corner): bisect the bracket */
+            xn = 0.5${f} * (near + far);
+        } else if (!(rising ? xn > near && xn < far : xn < near && xn > far)) {
+            if (!known) {
+                known = 1;
+                ffar = ${p}_pass(rising, far, s->z, far_at);
+                if (rising ? ffar <= target : ffar >= target) {  /* the root is at or past the far end */
+                    *x_out = far;
+                    return 2;
+                }
+            }
+            if (ffar != fnear) xn = near + (target - fnear) * (far - near) / (ffar - fnear);
+            if (!(rising ? xn > near && xn < far : xn < near && xn > far)) xn = 0.5${f} * (near + far);
         }
-        fn = ${p}_value(xn, z, next->z_new);
-        x = xn;
-        next->z = next->z_new;
-        next->f = fn;
-        if (!decided) {
-            const ${T} gap = rising ? fn + ${p}_SMIN * (far - xn) - target : target - (fn - ${p}_SMIN * (xn - far));
-            if (gap > ${p}_error(xn) + ${p}_error(far)) decided = 1;
+        last = ${p}_abs(fc - target);
+        fc = ${p}_pass(rising, xn, s->z, at);
+        *x_out = xc = xn;
+        sc = at->slope;
+        if (${p}_abs(fc - target) <= ${p}_error(xn)) return 1;
+        if (rising ? fc < target : fc > target) {
+            near = xn;
+            fnear = fc;
+        } else {
+            far = xn;
+            ffar = fc;
+            known = 1;
         }
-        if (${p}_abs(fn - target) <= ${p}_TOL) break;
-        if (fn < target) { a = xn; fa = fn; }
-        else { b = xn; fb = fn; }
-        xc = xn;
-        fc = fn;
-        if (rising ? b != far : a != far) known = decided = 1;  /* the far end was replaced */
-        if (b - a <= ${p}_BRACKET * (1.0${f} + ${p}_abs(a) + ${p}_abs(b))) break;
-        sc = fn < target ? ${p}_slope_right(xn, z) : ${p}_slope_left(xn, z);
+        if (${p}_abs(far - near) <= ${p}_BRACKET * (1.0${f} + ${p}_abs(near) + ${p}_abs(far))) return 1;
     }
-    if (!decided) ${p}_FAR_END();
-#undef ${p}_FAR_END
-    return x;
+    return 1;
 }
 """
 
 _CP_STEP = """\
-    ${p}_next next;
-    const ${T} x = ${p}_solve(s->z, s->x, s->f, in[0] - ${p}_OUTPUT_OFFSET, &next);
-    if (next.z) {  /* F was evaluated at x: its operator outputs are the new state */
-        int i;
-        for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = next.z[i];
-        s->f = next.f;
-    } else {
-        s->f = ${p}_value(x, s->z, s->z);  /* operators follow x (eq. 3); F there starts the next sample */
+    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
+    ${p}_point at, far;
+    ${T} x = s->x;
+    int found = 0;  /* 0: x unchanged, 1: x is the last iterate (at), 2: the far end (far) */
+    if (${p}_abs(target - s->f) > ${p}_error(x)) {
+        const int rising = target > s->f;
+        if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
+            s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
+            s->rising = rising;
+        }
+        found = ${p}_solve(s, target, s->slope, &x, &at, &far);
     }
-    s->x = x;
+    if (!found && s->fresh) {  /* a stored state need not be the operators' outputs at x */
+        ${p}_pass(1, x, s->z, &at);
+        s->rising = 1;
+        found = 1;
+    }
+    if (found) {
+        const ${p}_point *p = found == 1 ? &at : &far;
+        int i;
+        for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = p->z[i];
+        s->f = p->f;
+        s->slope = p->slope;
+        s->rising = p->rising;
+        s->x = x;
+    }
+    s->fresh = 0;
 ${drive}"""
 
 _UNWARP = """\
@@ -305,13 +329,32 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
-def _cp_functions(ctype: CType, prefix: str) -> str:
-    """value, the two slopes (one template, two rules) and solve."""
-    slopes = {
-        f"slope_{side}": _sub(_SLOPE, ctype, prefix, side=side, moves=_sub(moves, ctype, prefix)).rstrip("\n")
-        for side, moves in _MOVES.items()
-    }
-    return _sub(_CP_FUNCTIONS, ctype, prefix, **slopes)
+PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
+
+
+def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
+    """The two passes (rise, fall: one template) and the solve."""
+    passes = []
+    for name, d in _DIRECTIONS.items():
+        why = (
+            "The state is the operators' outputs at its x (CONSISTENT 1): F takes only the branch of travel."
+            if consistent
+            else "The stored state need not be the outputs at x: both branches enter, as in eq. 3."
+        )
+        fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
+        filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
+        passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
+    return "\n".join(passes) + "\n" + _sub(_CP_SOLVE, ctype, prefix)
+
+
+def _consistent(model: Any, keep: np.ndarray) -> bool:
+    """Whether the stored outputs are the coupled plays' outputs at the stored x (eq. 3 leaves
+    them unchanged), as every state a model reaches by running is."""
+    r, rc, ra, rb = (v[keep] for v in model.coupled_play_thresholds())
+    x, z = float(model.state.x), model.state.z[keep]
+    up = np.maximum(x - r, np.minimum(x - rc, 0.0))
+    down = np.minimum(x + ra, np.maximum(x + rb, 0.0))
+    return bool(np.all(np.maximum(up, np.minimum(down, z)) == z))
 
 
 def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str) -> tuple[list[str], str]:
@@ -330,48 +373,72 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     return consts, drive
 
 
+def _turn_slope(model: Any) -> float:
+    """The slope of F right after a reversal: the operators whose branches coincide (zero loop
+    width: all thresholds 0) move at once, the others only once x has crossed their loop.  A
+    guess for the first Newton step (exact unless some operator sits where its branches meet);
+    at least ``min_slope()``."""
+    r, rc, ra, rb = model.coupled_play_thresholds()
+    zero_width = (r == 0.0) & (rc == 0.0) & (ra == 0.0) & (rb == 0.0)
+    return max(float(np.sum(model.weights[zero_width])), model.min_slope())
+
+
 def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: CType, prefix: str) -> dict[str, str]:
     """Fields of the per-sample inversion of a modified PI model (drive ``limits`` or None).
 
     Operators of weight 0 are left out: they add exactly 0 to F and its slopes, and their state
-    is never seen.  The tolerance, ``smin`` and the bracket rules are the package's (in single
-    precision those a ``float`` resolves); ``ROUNDING`` bounds the rounding error of the computed
-    F, ``4 (m + 2) u sum|w| (|x| + max threshold)``, used only to prove the far end of a bracket
-    is not the answer without evaluating it.
+    is never seen; weight-0 operators with zero thresholds pad the rest to a multiple of
+    :data:`PAD`, so that gcc vectorises the passes also at -O2 (its cheap cost model there takes
+    only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
+    (:func:`stageid.hysteresis.compensator.residual_bound`; in single precision with the unit
+    roundoff of ``float`` and eight roundings instead of ``4 (m + 2)``: a float solve stops at
+    what a float resolves).
     """
+    from ..hysteresis.compensator import residual_bound
+
     p = prefix
     lo, hi = _limits(model, limits)
-    scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)))
-    tol = 1e-12 * max(scale, 1e-300)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
-    unit = 2.0**-24 if ctype.is_float else 2.0**-53
-    consts = [f"#define {p}_N_OPERATORS {m}"]
+    padded = -(-m // PAD) * PAD
+    err_w, err_r = residual_bound(model)
+    if ctype.is_float:
+        err_w = 8.0 * 2.0**-24 * float(np.sum(np.abs(model.weights)))
+    consistent = _consistent(model, keep)
+
+    def pad(v: np.ndarray) -> np.ndarray:  # weight-0 operators with zero thresholds: add exact zeros
+        return np.r_[v[keep], np.zeros(padded - m)]
+
+    consts = [f"#define {p}_N_OPERATORS {padded}"]
     consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
-    consts += [_define(p, "TOL", max(tol, 5e-8 * scale) if ctype.is_float else tol, ctype)]
+    consts += [_define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
     consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
-    consts += [_define(p, "ROUNDING", 4.0 * (m + 2) * unit * float(np.sum(np.abs(model.weights))), ctype)]
-    consts += [_define(p, "R_MAX", float(max(np.max(model.r), np.max(model.ra))), ctype)]
+    consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
-    tables = {k: getattr(model, k)[keep] for k in ("r", "rc", "ra", "rb")}
-    consts += _tables(p, ctype, **tables, w=model.weights[keep])
+    consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
+    tables = {k: pad(getattr(model, k)) for k in ("r", "rc", "ra", "rb")}
+    consts += _tables(p, ctype, **tables, w=pad(model.weights))
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
+    T = ctype.name
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
-        "members": f"    {ctype.name} z[{m}];  /* outputs of the operators of nonzero weight */\n"
-        f"    {ctype.name} x;  /* last operator input */\n"
-        f"    {ctype.name} f;  /* F(x) at this state */",
+        "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
+        f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
+        "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _cp_functions(ctype, p),
+        "helpers": "\n" + _cp_functions(ctype, p, consistent),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
-            _init("z", model.state.z[keep], ctype)
+            _init("z", pad(model.state.z), ctype)
             + [
                 f"    s->x = {literal(model.state.x, ctype)};",
-                f"    {{\n        {ctype.name} scratch[{p}_N_OPERATORS];\n        s->f = {p}_value(s->x, s->z, scratch);\n    }}",
+                f"    s->fresh = {int(not consistent)};",
+                "    s->rising = 1;",
+                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
+                f"        s->f = {p}_rise(s->x, s->z, scratch, &s->slope);\n    }}",
             ]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._errors import ModelError
 
-__all__ = ["as_input", "check_limits", "packed", "tolerance"]
+__all__ = ["as_input", "check_limits", "packed"]
 
 
 def as_input(u: object, name: str) -> np.ndarray:
@@ -51,10 +51,3 @@ def packed(model: Any) -> np.ndarray:
     rows ``r, rc, ra, rb, w``, shape (5, n_operators), C-contiguous."""
     r, rc, ra, rb = model.coupled_play_thresholds()
     return np.ascontiguousarray(np.vstack([r, rc, ra, rb, model.weights]))
-
-
-def tolerance(model: Any) -> float:
-    """The accepted |F(x) - target| of the per-sample inversion: 1e-12 of the output scale
-    ``sum |w_i| (1 + max r)``."""
-    scale = float(np.sum(np.abs(model.weights)) * (1.0 + np.max(model.r)))
-    return 1e-12 * max(scale, 1e-300)

@@ -6,7 +6,8 @@ model says produces it, so the cascade compensator -> actuator is close to the i
 * classical :class:`~stageid.hysteresis.PIModel`: the closed-form inverse PI model
   (:func:`~stageid.hysteresis.pi_inverse`), one play-operator update per threshold and sample;
 * :class:`~stageid.hysteresis.ModifiedPIModel`: the per-sample monotone inversion of
-  :func:`~stageid.hysteresis.invert`;
+  :func:`~stageid.hysteresis.invert` (the exact root of each sample's equation, to rounding:
+  :func:`residual_bound`);
 * either with a ``creep`` term: per-sample inversion with the creep state
   (:class:`CreepInverse`, here because it drives rate-independent compensators and the
   compensator delegates to it; the creep term itself is :mod:`.creep`).
@@ -27,11 +28,11 @@ import numpy as np
 
 from .._errors import ModelError
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .common import as_input, check_limits, packed, tolerance
+from .common import as_input, check_limits, packed
 from .operators import OperatorState
 from .pi import ModifiedPIModel, PIModel
 
-__all__ = ["Compensator", "compensate", "CreepInverse"]
+__all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound"]
 
 _isfinite = math.isfinite
 
@@ -96,7 +97,7 @@ class Compensator:
             self._inverse = None
             self._P = packed(model)
             self._smin = smin
-            self._tol = tolerance(model)
+            self._err_w, self._err_r = residual_bound(model)
         self.reset()
 
     def reset(self, state: OperatorState | None = None) -> None:
@@ -148,7 +149,9 @@ class Compensator:
                 self._z = np.array(inverse_state(self.model, OperatorState(x, zf)).z)
             self._x = x
         else:
-            x = self._k.cp_invert_step(self._P, self._z, self._x, target, self._lo, self._hi, self._smin, self._tol)
+            x = self._k.cp_invert_step(
+                self._P, self._z, self._x, target, self._lo, self._hi, self._smin, self._err_w, self._err_r
+            )
             self._x = x
             if self.model.input_warp != 0.0:
                 return self._clip(float(self.model.from_operator_input(x)))
@@ -167,7 +170,9 @@ class Compensator:
         elif self._inverse is not None:
             x = np.array([self.step(v + self.model.output_offset) for v in target]) - self.model.input_offset
         else:
-            x, z, xf = self._k.cp_invert(target, self._P, self._z, self._x, self._lo, self._hi, self._smin, self._tol)
+            x, z, xf = self._k.cp_invert(
+                target, self._P, self._z, self._x, self._lo, self._hi, self._smin, self._err_w, self._err_r
+            )
             self._z = z
             self._x = float(xf)
             if self.model.input_warp != 0.0:
@@ -213,6 +218,32 @@ def compensate(
     True
     """
     return Compensator(model, limits).run(y_ref)
+
+
+def residual_bound(model: PIModel | ModifiedPIModel) -> tuple[float, float]:
+    """The rounding error of the computed per-sample output ``F(x) = sum_i w_i CP_i(x; z_i)``.
+
+    ``|computed F(x) - F(x)| <= err_w (|x| + err_r)`` with ``err_w = 4 (m + 2) u sum|w_i|`` and
+    ``err_r`` the largest threshold (``u = 2**-53``, ``m`` operators): each operator output is one
+    rounded ``x -+ threshold`` (at most ``|x| + err_r`` in size), each term one rounded product,
+    the sum ``m - 1`` rounded additions; the factor 4 also covers the rounding of the Newton step
+    that lands on the root.  The per-sample inversion stops once ``|F(x) - target|`` is within
+    this bound: ``x`` is then the exact root to rounding.
+
+    Returns
+    -------
+    (err_w, err_r) : (float, float)
+
+    Examples
+    --------
+    >>> from stageid.hysteresis import PIModel
+    >>> err_w, err_r = residual_bound(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]))
+    >>> err_r, bool(err_w < 1e-14)
+    (1.0, True)
+    """
+    thresholds = np.abs(np.vstack(model.coupled_play_thresholds()))
+    err_w = 4.0 * (model.n_operators + 2) * 2.0**-53 * float(np.sum(np.abs(model.weights)))
+    return err_w, float(np.max(thresholds))
 
 
 class CreepInverse:
@@ -381,7 +412,8 @@ class CreepInverse:
             inner._lo,
             inner._hi,
             inner._smin,
-            inner._tol,
+            inner._err_w,
+            inner._err_r,
             float(self.model.output_offset),
             float(self.model.input_offset),
             self._a,

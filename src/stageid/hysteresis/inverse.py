@@ -12,14 +12,21 @@ Classical PI: closed form (:mod:`.closed_form`, re-exported here)
 
     The map is its own dual: applying the same formulas to the inverse gives back the model.
 
-Modified PI: per-sample monotone inversion
-    For a fixed state the output ``F(x) = y0 + sum_i w_i CP_i(x; z_i)`` of the current sample
-    is piecewise linear and nondecreasing in ``x`` with slope at least
-    ``s = w_0 + sum_{i>=1} min(w_i, 0) > 0``.  Each sample solves ``F(x) = y_ref`` by
-    safeguarded Newton steps on the bracket ``[x_prev, x_prev + (y_ref - F(x_prev)) / s]``;
-    on a piecewise-linear function the Newton step is exact once it lands on the right piece,
-    so the result satisfies ``|F(x) - y_ref| <= tol`` (1e-12 of the output scale).  Drive
-    limits clip ``x``, and the state follows the clipped input.
+Modified PI: per-sample monotone inversion (eq. 5)
+    The letter writes the inverse of the modified PI model as an operator sum of the same kind
+    (eq. 5) without giving its parameters; we read it as what it must be, the exact inverse of
+    the forward model sample by sample.  For a fixed state the output
+    ``F(x) = y0 + sum_i w_i CP_i(x; z_i)`` of the current sample is piecewise linear and
+    nondecreasing in ``x`` with slope at least ``s = w_0 + sum_{i>=1} min(w_i, 0) > 0``, so
+    ``F(x) = y_ref`` has exactly one root.  Each sample finds it by safeguarded Newton steps
+    on the bracket ``[x_prev, x_prev + (y_ref - F(x_prev)) / s]``.  On a piecewise-linear
+    function a Newton step from the piece that holds the root lands on the root itself, so the
+    iteration does not stop at a tolerance: it goes on until ``|F(x) - y_ref|`` is within the
+    rounding error of the computed F (:func:`~stageid.hysteresis.compensator.residual_bound`,
+    about ``4 (m + 2) 2**-53 sum|w| (|x| + max r)``), one step after it first reaches the
+    right piece.  The drive is the exact root to rounding (it does not depend on how the
+    iteration got there: any exact solver, e.g. the exported C, agrees with it to rounding).
+    Drive limits clip ``x``, and the state follows the clipped input.
 """
 
 from __future__ import annotations
@@ -28,8 +35,8 @@ import numpy as np
 
 from .._errors import ModelError
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .common import as_input, check_limits, packed, tolerance
-from .compensator import CreepInverse
+from .common import as_input, check_limits, packed
+from .compensator import CreepInverse, residual_bound
 from .operators import OperatorState
 from .pi import ModifiedPIModel, PIModel
 
@@ -57,7 +64,8 @@ def invert(
     Returns
     -------
     u : ndarray of shape (n_samples, 1)
-        Inputs; ``model.simulate(u) == y`` to 1e-12 of the output scale where no limit is hit.
+        Inputs; ``model.simulate(u) == y`` to rounding where no limit is hit (the exact root
+        of each sample's equation, see the module notes).
     state : OperatorState
         The model's final state.
 
@@ -93,7 +101,7 @@ def invert(
         else (float(model.to_operator_input(float(lim[0]))), float(model.to_operator_input(float(lim[1]))))
     )
     x, zf, xf = kernels.cp_invert(
-        target, packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, tolerance(model)
+        target, packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, *residual_bound(model)
     )
     u = model.from_operator_input(x)
     if lim is not None:  # the warp's inverse may round a clipped value a hair outside

@@ -65,17 +65,20 @@ def cp_eval(x, P, z):  # pragma: no cover - compiled
 
 
 @jit_exact
-def cp_invert_step(P, z, x_prev, target, lo, hi, smin, tol):  # pragma: no cover - compiled
+def cp_invert_step(P, z, x_prev, target, lo, hi, smin, err_w, err_r):  # pragma: no cover - compiled
     """One sample of the monotone inversion: the input x with F(x) = target, state updated in place.
 
     ``P`` rows are r, rc, ra, rb, w; ``z`` the operator outputs (updated); ``lo``/``hi`` drive
-    limits; ``smin`` a guaranteed lower bound of the slope of F (> 0); ``tol`` the accepted
-    |F(x) - target|.  Returns x.  F is piecewise linear and nondecreasing: safeguarded Newton
-    steps inside a bracket land on the exact piece in a few iterations.
+    limits; ``smin`` a guaranteed lower bound of the slope of F (> 0).  Returns x.  F is
+    piecewise linear and nondecreasing: safeguarded Newton steps inside a bracket land on the
+    piece that holds the root in a few iterations, and the Newton step from that piece lands on
+    the root itself.  The iteration stops there: when ``|F(x) - target|`` is within the rounding
+    error of the computed F, ``err_w (|x| + err_r)`` (see ``compensator.residual_bound``), or a
+    step no longer moves x.
     """
     f, sp, sm = cp_eval(x_prev, P, z)
     x = x_prev
-    if abs(f - target) <= tol:
+    if abs(f - target) <= err_w * (abs(x_prev) + err_r):
         x = x_prev
     else:
         if target > f:
@@ -112,6 +115,8 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, tol):  # pragma: no cover
                     xn = xc + (target - fc) / sc
                 else:
                     xn = 0.5 * (a + b)
+                if xn == xc:  # the step is below the resolution of x: xc is the root
+                    break
                 if not (xn > a and xn < b):
                     # regula falsi fallback inside the bracket
                     if fb > fa:
@@ -120,7 +125,7 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, tol):  # pragma: no cover
                         xn = 0.5 * (a + b)
                 fn, snp, snm = cp_eval(xn, P, z)
                 x = xn
-                if abs(fn - target) <= tol:
+                if abs(fn - target) <= err_w * (abs(xn) + err_r):
                     break
                 if fn < target:
                     a, fa = xn, fn
@@ -141,21 +146,21 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, tol):  # pragma: no cover
 
 
 @jit_exact
-def cp_invert(target, P, z0, x0, lo, hi, smin, tol):  # pragma: no cover - compiled
+def cp_invert(target, P, z0, x0, lo, hi, smin, err_w, err_r):  # pragma: no cover - compiled
     """Batch monotone inversion: inputs for every target sample, final state (x, z)."""
     n = target.shape[0]
     out = np.empty(n)
     z = z0.copy()
     x = x0
     for k in range(n):
-        x = cp_invert_step(P, z, x, target[k], lo, hi, smin, tol)
+        x = cp_invert_step(P, z, x, target[k], lo, hi, smin, err_w, err_r)
         out[k] = x
     return out, z, x
 
 
 @jit_exact
 def cp_invert_creep(
-    yref, P, z0, x0, lo, hi, smin, tol, out_off, in_off, a, ca, s0, u0, g, tol_fp
+    yref, P, z0, x0, lo, hi, smin, err_w, err_r, out_off, in_off, a, ca, s0, u0, g, tol_fp
 ):  # pragma: no cover - compiled
     """Batch inversion of a modified-PI model with a creep term (no input warp), as
     ``compensator.CreepInverse.step`` does it sample by sample: the creep memory ``h = ca . s`` is
@@ -180,7 +185,7 @@ def cp_invert_creep(
         xs = x
         u = np.nan
         for _ in range(100):
-            x = cp_invert_step(P, z, x, (yref[k] - h - g * e) - out_off, lo, hi, smin, tol)
+            x = cp_invert_step(P, z, x, (yref[k] - h - g * e) - out_off, lo, hi, smin, err_w, err_r)
             u = x + in_off
             e_new = u - (u - in_off)
             if abs(g * (e_new - e)) <= tol_fp:
