@@ -49,12 +49,15 @@ __all__ = [
     "model_jacobian",
     "response_points",
     "TangentProjection",
+    "response_std",
     "eq9_response_covariance",
     "realised_response_uncertainty",
 ]
 
 #: Draws of the posterior for ``method="sampling"``.
 DEFAULT_SAMPLES = 40
+#: Frequencies per block where a Jacobian over many frequencies is formed.
+CHUNK = 256
 #: Relative singular value (of the column-normalised Jacobian) below which a direction of
 #: ``A, B, C, D`` counts as a similarity direction (no effect on the response).
 GAUGE_TOLERANCE = 1e-9
@@ -146,10 +149,17 @@ class TangentProjection:
         return self.basis @ (V * np.sqrt(np.clip(ev, 0.0, None))[None, :])
 
 
-def response_std(J: np.ndarray, factor: np.ndarray) -> np.ndarray:
-    """``sqrt(E|J dx|^2)`` per entry for ``Cov(dx) = factor factor^T``; J (n, q, m, P) -> (n, q, m)."""
-    Jf = J.reshape(-1, J.shape[3]) @ factor
-    return np.sqrt(np.sum(np.abs(Jf) ** 2, axis=1)).reshape(J.shape[:3])
+def response_std(
+    abcd: tuple[np.ndarray, ...], factor: np.ndarray, points: np.ndarray, feedthrough: bool = True
+) -> np.ndarray:
+    """``sqrt(E|dG|^2)`` at ``points`` for parameters with ``Cov(dx) = factor factor^T``, shape
+    (n_points, q, m); evaluated in blocks of ``CHUNK`` points (the Jacobian's memory)."""
+    out = []
+    for lo in range(0, points.size, CHUNK):
+        _, J = model_jacobian(*abcd, points[lo : lo + CHUNK], feedthrough)
+        Jf = J.reshape(-1, J.shape[3]) @ factor
+        out.append(np.sqrt(np.sum(np.abs(Jf) ** 2, axis=1)).reshape(J.shape[:3]))
+    return np.concatenate(out, axis=0)
 
 
 def eq9_response_covariance(
@@ -240,8 +250,8 @@ def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float) -> np.ndarray
     _, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
     proj = TangentProjection.fit(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
     factor = proj.parameter_factor(cov, pseudo)
-    _, Jf = model_jacobian(A, B, C, D, response_points(freqs, dt), feed)
-    return response_std(Jf, factor) * (sy / w)[None, :, None] / su[None, None, :]
+    std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
+    return std * (sy / w)[None, :, None] / su[None, None, :]
 
 
 def channel_sampling_std(ch, estimator, freqs: np.ndarray, dt: float, n_samples: int, rng) -> np.ndarray:
