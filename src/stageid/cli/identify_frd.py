@@ -60,7 +60,7 @@ def frd_command(
     delay: str,
     report_dir: str | None,
     output: str,
-    uncertainty_path: str | None,
+    uncertainty_file: str | None,
     uncertainty_grid: str | None,
 ) -> None:
     """Fit a MIMO state-space model to FRF (columns f_hz, re_/im_<out>_<in>, optional std_, coh_).
@@ -71,11 +71,12 @@ def frd_command(
     check_output(output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    uncertainty = UncertaintyRequest(uncertainty_path, uncertainty_grid)
+    uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     if dt is None and not continuous:
         raise click.UsageError("give --dt S for a discrete model or --continuous for a continuous one.")
     if dt is not None and continuous:
         raise click.UsageError("give either --dt or --continuous, not both.")
+    uncertainty.check_nyquist(dt)
     from ..frf import FRDIdentification, read_frd
 
     estimator = FRDIdentification(

@@ -110,7 +110,7 @@ def statespace_command(
     band_text: str | None,
     output: str,
     report_dir: str | None,
-    uncertainty_path: str | None,
+    uncertainty_file: str | None,
     uncertainty_grid: str | None,
 ) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
@@ -124,7 +124,7 @@ def statespace_command(
     check_output(output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    uncertainty = UncertaintyRequest(uncertainty_path, uncertainty_grid)
+    uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     assert ins is not None and outs is not None
@@ -134,6 +134,7 @@ def statespace_command(
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
     band = None if band_text is None else parse_band(band_text)
     exps = read_experiments(data, ins, outs, ts)
+    uncertainty.check_nyquist(exps[0].dt)
     est = HankelMAP(
         horizon=horizon,
         order=order,

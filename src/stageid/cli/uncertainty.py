@@ -23,12 +23,14 @@ __all__ = ["uncertainty_options", "UncertaintyRequest", "DEFAULT_POINTS"]
 
 #: Frequencies of the uncertainty table when ``--uncertainty-grid`` is not given.
 DEFAULT_POINTS = 200
+#: Most frequencies ``--uncertainty-grid`` may ask for (a table, not a data set).
+MAX_POINTS = 100_000
 #: Where a band starting at 0 Hz starts on the log-spaced default grid, relative to its top.
 LOW_END = 1e-3
 
 
 def uncertainty_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Add ``--uncertainty`` and ``--uncertainty-grid`` (parameters ``uncertainty_path``, ``uncertainty_grid``)."""
+    """Add ``--uncertainty`` and ``--uncertainty-grid`` (parameters ``uncertainty_file``, ``uncertainty_grid``)."""
     command = click.option(
         "--uncertainty-grid",
         "uncertainty_grid",
@@ -39,7 +41,7 @@ def uncertainty_options(command: Callable[..., Any]) -> Callable[..., Any]:
     )(command)
     return click.option(
         "--uncertainty",
-        "uncertainty_path",
+        "uncertainty_file",
         default=None,
         type=click.Path(dir_okay=False),
         help="Also write the model's frequency response with its standard deviation "
@@ -62,22 +64,28 @@ class UncertaintyRequest:
     def wanted(self) -> bool:
         return self.path is not None
 
+    def check_nyquist(self, dt: float | None) -> None:
+        """Refuse a grid reaching above the Nyquist frequency of ``dt`` (None: continuous, no limit);
+        called as soon as the sample time is known, before the fit."""
+        nyquist = math.inf if dt is None else 0.5 / dt
+        if self.grid is not None and self.grid[1] > nyquist * (1 + 1e-12):
+            raise click.UsageError(
+                f"--uncertainty-grid must lie within (0, {nyquist:g}] Hz (the Nyquist frequency of the "
+                f"{dt:g} s sample time); got FMAX {self.grid[1]:g} Hz."
+            )
+
     def freqs(self, band: tuple[float, float], dt: float | None) -> Any:
         """The grid: the given one (checked against the Nyquist frequency of ``dt``) or
         ``DEFAULT_POINTS`` log-spaced over ``band`` (a band from 0 Hz starts at ``LOW_END`` of its top)."""
         import numpy as np
 
+        self.check_nyquist(dt)
         nyquist = math.inf if dt is None else 0.5 / dt
         if self.grid is None:
             lo, hi = float(band[0]), min(float(band[1]), nyquist)
             lo = lo if lo > 0 else LOW_END * hi
             return np.geomspace(lo, hi, DEFAULT_POINTS)
         fmin, fmax, n = self.grid
-        if fmax > nyquist * (1 + 1e-12):
-            raise click.UsageError(
-                f"--uncertainty-grid must lie within (0, {nyquist:g}] Hz (the model's Nyquist frequency); "
-                f"got FMAX {fmax:g} Hz."
-            )
         return np.geomspace(fmin, min(fmax, nyquist), n)
 
     def write(self, result: Any, band: tuple[float, float], dt: float | None) -> str | None:
@@ -93,7 +101,7 @@ class UncertaintyRequest:
 def parse_grid(text: str) -> tuple[float, float, int]:
     """``"FMIN:FMAX:N"`` -> ``(fmin, fmax, n)`` with ``0 < fmin < fmax`` finite and an integer ``n >= 2``."""
     parts = text.split(":")
-    expected = "FMIN:FMAX:N with 0 < FMIN < FMAX in Hz and an integer N >= 2, e.g. 1:100:200"
+    expected = f"FMIN:FMAX:N with 0 < FMIN < FMAX in Hz and an integer 2 <= N <= {MAX_POINTS}, e.g. 1:100:200"
     try:
         if len(parts) != 3:
             raise ValueError
@@ -101,6 +109,6 @@ def parse_grid(text: str) -> tuple[float, float, int]:
         n = int(parts[2])
     except ValueError:
         raise click.UsageError(f"--uncertainty-grid must be {expected}; got {text!r}.") from None
-    if not (math.isfinite(fmin) and math.isfinite(fmax) and 0.0 < fmin < fmax) or n < 2:
+    if not (math.isfinite(fmin) and math.isfinite(fmax) and 0.0 < fmin < fmax) or not 2 <= n <= MAX_POINTS:
         raise click.UsageError(f"--uncertainty-grid must be {expected}; got {text!r}.")
     return fmin, fmax, n
