@@ -8,13 +8,13 @@ is 1 for a calibrated std.  Cases:
 * ``p558``: the P-558 reference (Cao & Chen eq. 23-25, 15 states), all inputs band-limited
   1-100 Hz at once, 20 000 samples, 1 % output noise, ``HankelMAP(order=15)`` (horizon auto);
 * ``p558-channels``: the same stage from the paper's three chirp records (one per input,
-  ``per_channel=True``, orders 7, 4, 4, horizon 16), eq. 19-22;
+  ``per_channel=True``, orders 7, 4, 4, horizon auto or ``--horizon=P``), eq. 19-22;
 * ``random``: random 1x2 stages with two resonances (``tests/_subspace_systems.random_stage``,
   seeds 8 and 9), not used to develop the method;
 * ``frd``: a 1x2 two-mode plant's FRF with a known per-line std (2 % of the peak, times
   0.5-1.5), ``FRDIdentification(order=4)``; ``frd-residual``: the same without the std.
 
-    .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...]
+    .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...] [--horizon=P]
 
 Writes ``output/<case>.json`` (per seed, per entry) and prints a summary table.
 """
@@ -39,6 +39,8 @@ from _subspace_systems import band_limited, random_stage, record  # noqa: E402
 OUT = Path(__file__).parent / "output"
 K95 = 1.73
 FREQS = np.geomspace(1.5, 98.0, 200)  # inside the excited 1-100 Hz band
+#: Horizon of the per-channel case: "auto", or an integer from the command line (--horizon=16).
+HORIZON: int | str = "auto"
 
 
 def p558(seed: int):
@@ -53,7 +55,7 @@ def p558(seed: int):
 def p558_channels(seed: int):
     exps = [ps.EXPERIMENTS[k](seed) for k in ("chirp-z", "chirp-rx", "chirp-ry")]
     t = time.perf_counter()
-    res = HankelMAP(horizon=16, order=[7, 4, 4], per_channel=True).fit(exps)
+    res = HankelMAP(order=[7, 4, 4], per_channel=True, horizon=HORIZON).fit(exps)
     return ps.model(), res, time.perf_counter() - t
 
 
@@ -138,8 +140,13 @@ def run(case: str, n_seeds: int) -> dict:
 
 
 def main() -> None:
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 20
-    cases = sys.argv[2:] or list(CASES)
+    global HORIZON
+    args = [a for a in sys.argv[1:] if not a.startswith("--horizon=")]
+    for a in sys.argv[1:]:
+        if a.startswith("--horizon="):
+            HORIZON = int(a.split("=", 1)[1])
+    n = int(args[0]) if args else 20
+    cases = args[1:] or list(CASES)
     for case in cases:
         s = run(case, n)
         print(

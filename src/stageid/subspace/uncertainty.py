@@ -56,6 +56,8 @@ __all__ = [
 
 #: Draws of the posterior for ``method="sampling"``.
 DEFAULT_SAMPLES = 40
+#: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
+MAX_COVARIANCE_ENTRIES = 300
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256
 #: Relative singular value (of the column-normalised Jacobian) below which a direction of
@@ -88,9 +90,10 @@ def model_jacobian(
     RB = R @ B[None]
     G = CR @ B[None] + D[None]
     nz = points.size
-    JA = np.einsum("kia,kbj->kijab", CR, RB).reshape(nz, q, m, n * n)
-    JB = np.einsum("kia,jl->kijal", CR, np.eye(m)).reshape(nz, q, m, n * m)
-    JC = np.einsum("il,kbj->kijlb", np.eye(q), RB).reshape(nz, q, m, q * n)
+    RBt = RB.transpose(0, 2, 1)  # (nz, m, n)
+    JA = (CR[:, :, None, :, None] * RBt[:, None, :, None, :]).reshape(nz, q, m, n * n)
+    JB = (CR[:, :, None, :, None] * np.eye(m)[None, None, :, None, :]).reshape(nz, q, m, n * m)
+    JC = (np.eye(q)[None, :, None, :, None] * RBt[:, None, :, None, :]).reshape(nz, q, m, q * n)
     parts = [JA, JB, JC]
     if feedthrough:
         parts.append(np.broadcast_to(np.eye(q * m).reshape(1, q, m, q * m), (nz, q, m, q * m)))
@@ -157,8 +160,9 @@ def response_std(
     out = []
     for lo in range(0, points.size, CHUNK):
         _, J = model_jacobian(*abcd, points[lo : lo + CHUNK], feedthrough)
-        Jf = J.reshape(-1, J.shape[3]) @ factor
-        out.append(np.sqrt(np.sum(np.abs(Jf) ** 2, axis=1)).reshape(J.shape[:3]))
+        J2 = J.reshape(-1, J.shape[3])
+        var = (J2.real @ factor) ** 2 + (J2.imag @ factor) ** 2  # a real factor: two real products
+        out.append(np.sqrt(np.sum(var, axis=1)).reshape(J.shape[:3]))
     return np.concatenate(out, axis=0)
 
 
@@ -189,24 +193,22 @@ def eq9_response_covariance(
     Gam, Phi, Dp = theta[:, : p * m], theta[:, p * m : p * m + p * q], theta[:, p * m + p * q :]
     e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
     e_fut = zs[:, None] ** np.arange(p)[None, :]
-    rhs = np.einsum("kt,rtj->krj", e_past, Gam.reshape(p * q, p, m)) + np.einsum(
-        "kt,rtj->krj", e_fut, Dp.reshape(p * q, p, m)
-    )
-    lhs = -np.einsum("kt,rti->kri", e_past, Phi.reshape(p * q, p, q))
+    rhs = _weighted_sum(e_past, Gam, p, m) + _weighted_sum(e_fut, Dp, p, m)
+    lhs = -_weighted_sum(e_past, Phi, p, q)
     lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]
     lh = np.conj(lhs).transpose(0, 2, 1)
     Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq): the least-squares inverse of each block system
     G = Lp @ rhs
     # V_k = [e_past (x) I_m; e_past (x) G_k; e_fut (x) I_m], all k side by side: (d, nz m)
-    eye = np.eye(m)
+    eye = np.eye(m)[None, :, None, :]
     V = np.concatenate(
         [
-            np.einsum("kt,jl->tjkl", e_past, eye).reshape(p * m, nz * m),
-            np.einsum("kt,kil->tikl", e_past, G).reshape(p * q, nz * m),
-            np.einsum("kt,jl->tjkl", e_fut, eye).reshape(p * m, nz * m),
+            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
+            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
         ]
     )
-    PV = column_cov @ V
+    PV = column_cov @ V.real + 1j * (column_cov @ V.imag)  # a real matrix: half the flops of complex
     A_c = (V.T @ np.conj(PV)).reshape(nz, m, nz, m)
     A_p = (V.T @ PV).reshape(nz, m, nz, m)
     L2 = Lp.reshape(nz * q, p * q)
@@ -214,9 +216,28 @@ def eq9_response_covariance(
     B_c = (LS @ np.conj(L2).T).reshape(nz, q, nz, q)
     B_p = (LS @ L2.T).reshape(nz, q, nz, q)
     N = nz * q * m
-    cov = np.einsum("kilx,kjly->kijlxy", B_c, A_c).reshape(N, N)
-    pseudo = np.einsum("kilx,kjly->kijlxy", B_p, A_p).reshape(N, N)
+    cov = (B_c[:, :, None, :, :, None] * A_c[:, None, :, :, None, :]).reshape(N, N)
+    pseudo = (B_p[:, :, None, :, :, None] * A_p[:, None, :, :, None, :]).reshape(N, N)
     return G, cov, pseudo
+
+
+def covariance_grid(band: tuple[float, float], n_frequencies: int, n_entries: int) -> np.ndarray:
+    """The realisation's grid (``n_frequencies`` evenly over ``band``), every ``s``-th point kept so
+    that at most ``MAX_COVARIANCE_ENTRIES`` response entries enter the covariance.
+
+    The realisation's least-squares fit on an even grid approximates an integral over the band;
+    a coarser even grid approximates the same integral as long as it resolves the response, and
+    the covariance costs ``(n_freqs q m)^2`` memory and ``r (n_freqs q m)^2`` work.
+    """
+    stride = max(1, int(np.ceil(n_frequencies * n_entries / MAX_COVARIANCE_ENTRIES)))
+    return np.linspace(band[0], band[1], n_frequencies)[::stride]
+
+
+def _weighted_sum(e: np.ndarray, M: np.ndarray, p: int, k: int) -> np.ndarray:
+    """``sum_t e[z, t] M[r, t, :]`` for every point ``z``: ``M`` of shape (p q, p k) -> (n_z, p q, k)."""
+    rows = M.shape[0]
+    M2 = np.ascontiguousarray(M.reshape(rows, p, k).transpose(1, 0, 2)).reshape(p, rows * k)
+    return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(e.shape[0], rows, k)
 
 
 def _weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -241,7 +262,7 @@ def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float) -> np.ndarray
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
     su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
     theta_w, col_cov, noise_cov, w = _weighted_parts(post)
-    grid = np.linspace(ch.band[0], ch.band[1], int(estimator.n_frequencies))
+    grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
     G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
