@@ -4,7 +4,7 @@ Alternating paired runs (the machine is shared): for each case, ``fit`` alone an
 ``response_uncertainty`` on the default grid (200 log-spaced points over the identified
 band), repeated; medians and the median of the per-pair ratios.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty.py [repeats]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats]
 """
 
 from __future__ import annotations
@@ -22,8 +22,9 @@ from stageid.subspace import HankelMAP
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).parents[1] / "studies" / "uncertainty"))
-from _subspace_systems import band_limited, record  # noqa: E402
 from run_study import two_mode_plant  # noqa: E402
+
+from _subspace_systems import band_limited, record  # noqa: E402
 
 
 def p558_direct():
