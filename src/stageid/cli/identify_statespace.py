@@ -152,33 +152,37 @@ def statespace_command(
     if uncertainty_line:
         say(uncertainty_line, err=True)
     if report_dir is not None:
-        import numpy as np
+        _write_report(result, exps, report_dir, fit_band)
 
-        from .report import write_report
 
-        def extra(report, metrics):
-            from ..plots.subspace import bode_with_bands, selection_plot
+def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) -> None:
+    """The model report with the realised model's +-2 std bands, the eq. 9 bands and the selection plots."""
+    import numpy as np
 
-            lo, hi = fit_band
-            f = np.geomspace(max(lo, 1e-3), hi, 300)
-            report.section("Hankel-MAP diagnostics")
-            report.paragraph(result.summary())
-            report.figure(
-                bode_with_bands(result, f),
-                "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
-            )
-            for ch in result.channels:
-                for table in (ch.horizon_table, ch.order_table):
-                    if table is not None:
-                        report.figure(
-                            selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
-                            f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.",
-                        )
+    from ..plots.subspace import bode_with_bands, selection_plot
+    from .report import write_report
 
-        lo, hi = fit_band
-        bands = result.response_uncertainty(np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300))
-        path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra, uncertainty=bands)
-        say(f"report written to {path}", err=True)
+    lo, hi = fit_band
+    f = np.geomspace(max(lo, 1e-3), hi, 300)
+
+    def extra(report, metrics):
+        report.section("Hankel-MAP diagnostics")
+        report.paragraph(result.summary())
+        report.figure(
+            bode_with_bands(result, f),
+            "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
+        )
+        for ch in result.channels:
+            for table in (ch.horizon_table, ch.order_table):
+                if table is not None:
+                    report.figure(
+                        selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
+                        f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.",
+                    )
+
+    bands = result.response_uncertainty(np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300))
+    path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra, uncertainty=bands)
+    say(f"report written to {path}", err=True)
 
 
 def identified_band(result) -> tuple[float, float]:
