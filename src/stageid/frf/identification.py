@@ -123,10 +123,11 @@ class FRDResult:
         dt = self.model.dt
         f = np.asarray(freqs_hz, dtype=float)
         nyq = np.inf if dt is None else 0.5 / dt
-        if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f < 0) or np.any(f > nyq * (1 + 1e-12)):
-            raise DataError(
-                f"`freqs_hz` must be a non-empty 1-D array of finite frequencies within 0-{nyq:g} Hz; got {f!r}."
-            )
+        if f.ndim != 1 or f.size == 0:
+            raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
+        bad = ~np.isfinite(f) | (f < 0) | (f > nyq * (1 + 1e-12))
+        if bad.any():
+            raise DataError(f"`freqs_hz` must be finite and within 0-{nyq:g} Hz; got {float(f[bad][0])!r}.")
         zs = np.exp(2j * np.pi * fit_frequencies(f, self.covariance.T, dt) * self.covariance.T)
         std = self.covariance.response_std(zs)
         m = self.model

@@ -224,6 +224,20 @@ class HankelMAPResult:
         ------
         DataError
             Frequencies that are not finite, not increasing, or outside ``[0, Nyquist]``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from stageid.data import Experiment
+        >>> from stageid.models import StateSpaceModel
+        >>> from stageid.subspace import HankelMAP
+        >>> g = StateSpaceModel([[0.9]], [[1.0]], [[0.1]], [[0.0]], dt=0.01)
+        >>> rng = np.random.default_rng(0)
+        >>> u = rng.standard_normal((2000, 1))
+        >>> y = g.simulate(u) + 0.01 * rng.standard_normal((2000, 1))
+        >>> fr = HankelMAP(horizon=5, order=1).fit(Experiment(u, y, 0.01)).response_uncertainty([1.0, 10.0])
+        >>> fr.std.shape, bool(np.all(np.abs(fr.response - g.frequency_response([1.0, 10.0])) < 5 * fr.std))
+        ((2, 1, 1), True)
         """
         from .uncertainty import realised_response_uncertainty
 

@@ -83,6 +83,13 @@ def model_jacobian(
     G : ndarray of shape (n_points, q, m), complex
     J : ndarray of shape (n_points, q, m, n_params), complex
         Columns: ``vec`` of ``A`` (row-major), ``B``, ``C``, then ``D`` when ``feedthrough``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> G, J = model_jacobian(np.array([[0.5]]), np.array([[1.0]]), np.array([[2.0]]), np.zeros((1, 1)), np.array([1.0]))
+    >>> float(G[0, 0, 0].real), J[0, 0, 0].real.tolist()   # G = 2 / (z - 0.5) at z = 1
+    (4.0, [8.0, 4.0, 2.0, 1.0])
     """
     n, m, q = A.shape[0], B.shape[1], C.shape[0]
     R = np.linalg.inv(points[:, None, None] * np.eye(n)[None] - A[None])  # (nz, n, n)
@@ -106,7 +113,7 @@ class TangentProjection:
 
     For ``min_x sum ||W^1/2 (G_model(x) - G_data)||^2`` at a minimum, ``dx = M [Re dG; Im dG]``;
     the model's response then moves by ``J(f) dx`` anywhere.  Stored in the reduced form
-    ``dx = basis @ phi`` with ``phi = Re(functionals @ conj(vec dG))^*`` (see :meth:`phi_map`).
+    ``dx = basis @ phi`` with ``phi = Re(functionals @ vec(dG))``.
 
     Attributes
     ----------
@@ -121,7 +128,7 @@ class TangentProjection:
     basis: np.ndarray
 
     @classmethod
-    def fit(cls, J: np.ndarray, weights: np.ndarray, n_gauge: int = 0) -> TangentProjection:
+    def from_jacobian(cls, J: np.ndarray, weights: np.ndarray, n_gauge: int = 0) -> TangentProjection:
         """From the Jacobian ``J`` (n_points, q, m, n_params) at the fit and the weight of every
         response entry (broadcastable to (n_points, q, m)); at most ``n_params - n_gauge``
         directions are kept (``n_gauge = n^2`` similarity directions of a minimal realisation)."""
@@ -269,7 +276,7 @@ def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float) -> np.ndarray
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
     feed = bool(estimator.feedthrough)
     _, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
-    proj = TangentProjection.fit(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
+    proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
     factor = proj.parameter_factor(cov, pseudo)
     std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
     return std * (sy / w)[None, :, None] / su[None, None, :]
