@@ -45,7 +45,7 @@ def test_fit_bands_are_calibrated(with_std):
         fr = res.response_uncertainty(fe)
         err.append(np.abs(fr.response - Gt))
         std.append(fr.std)
-    assert_calibrated(np.concatenate(err), np.concatenate(std))
+    assert_calibrated(np.concatenate(err), np.concatenate(std))  # measured 0.922 with std, 0.906 without
 
 
 def test_continuous_fit_and_delay():

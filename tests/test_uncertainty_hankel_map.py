@@ -43,7 +43,7 @@ def test_p558_realised_model_bands_are_calibrated():
         assert np.all(fr.std > 0)
         err.append(np.abs(fr.response - Gt))
         std.append(fr.std)
-    assert_calibrated(np.concatenate(err), np.concatenate(std))
+    assert_calibrated(np.concatenate(err), np.concatenate(std))  # measured 0.924
 
 
 @pytest.mark.xfail(strict=True, reason="bands ~1.4x too wide on this stage (coverage 99.3 %): studies/uncertainty")
