@@ -5,7 +5,7 @@
   ``response_uncertainty`` on 200 points over the band (what ``identify closed-loop
   --uncertainty`` adds);
 * hysteresis: ``PIIdentifier`` (classical and modified PI, 20 operators) on the piezo
-  actuator's decaying triangle with ``n_bootstrap=0`` against 200 draws plus the loop band on
+  actuator's decaying triangle with ``weight_uncertainty="none"`` against ``"auto"`` plus the loop band on
   the record.
 
 Runs alternate (without, with, without, ...) so that the load of a shared machine hits both
@@ -50,7 +50,7 @@ def hysteresis_runs(kind: str):
         PIIdentifier(kind, n_operators=20).fit(ident)
 
     def with_():
-        fit = PIIdentifier(kind, n_operators=20, n_bootstrap=200).fit(ident)
+        fit = PIIdentifier(kind, n_operators=20, weight_uncertainty="auto").fit(ident)
         fit.weight_uncertainty.output_band(fit.model, ident.u)
 
     return without, with_
@@ -79,8 +79,8 @@ def main() -> None:
     if "closedloop" in args.what:
         cases["maglev closed loop (sandwich + 200-point band)"] = closed_loop_runs()
     if "hysteresis" in args.what:
-        cases["classical PI, 20 operators (200 draws + loop band)"] = hysteresis_runs("pi")
-        cases["modified PI, 20 operators (200 draws + loop band)"] = hysteresis_runs("modified-pi")
+        cases["classical PI, 20 operators (auto + loop band)"] = hysteresis_runs("pi")
+        cases["modified PI, 20 operators (auto + loop band)"] = hysteresis_runs("modified-pi")
     print(f"| case | without [s] | with [s] | ratio (median of {args.pairs} pairs) |")
     print("|---|---|---|---|")
     for name, (without, with_) in cases.items():

@@ -109,7 +109,7 @@ class WeightUncertainty:
             cols.append(np.column_stack(unit))
         X = np.hstack(cols)
         S = self.parameter_covariance[: X.shape[1], : X.shape[1]]
-        return y, np.sqrt(np.clip(np.einsum("ij,jk,ik->i", X, S, X), 0.0, None))
+        return y, np.sqrt(np.clip(((X @ S) * X).sum(axis=1), 0.0, None))
 
 
 def correlation_length(e: np.ndarray, threshold: float = float(np.exp(-1.0))) -> int:
@@ -210,8 +210,8 @@ def _bound_active(w: np.ndarray, eps: float, classical: bool) -> bool:
 
 def _sandwich(X: np.ndarray, e: np.ndarray, labels: np.ndarray, n_blocks: int) -> np.ndarray:
     """``(X^T X)^-1 (sum_b X_b^T e_b e_b^T X_b) (X^T X)^-1`` (pseudo-inverse after unit-diagonal scaling)."""
-    U = np.zeros((n_blocks, X.shape[1]))
-    np.add.at(U, labels, X * e[:, None])
+    starts = np.flatnonzero(np.diff(labels, prepend=-1))  # labels are contiguous and increasing
+    U = np.add.reduceat(X * e[:, None], starts, axis=0)
     H = X.T @ X
     d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
     Hi = np.linalg.pinv(H / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
