@@ -92,3 +92,31 @@ def test_modified_pi_has_a_band_and_a_figure() -> None:
     assert len(fig.axes) == 2
     with pytest.raises(ModelError, match="operators"):
         wu.output_band(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]), U)
+
+
+def test_creep_weights_are_part_of_the_band() -> None:
+    rng = np.random.default_rng(5)
+    y = Y0 + 0.3 * ss.lfilter([0.01], [1, -0.99], U) + 0.01 * np.ptp(Y0) * rng.standard_normal(U.size)
+    fit = PIIdentifier(
+        "pi", n_operators=N_OPS, creep_time_constants=[0.5], sample_time=1e-3, weight_uncertainty="sandwich"
+    ).fit((U, y))
+    wu = fit.weight_uncertainty
+    assert wu.parameter_covariance.shape == (N_OPS + 2, N_OPS + 2)  # weights, offset, one creep weight
+    yb, s = wu.output_band(fit.model, U)
+    assert np.allclose(yb, fit.model.simulate(U).reshape(-1))
+    # the band against simulating models whose weights, offset and creep weight are drawn from it
+    draws = np.random.default_rng(0).multivariate_normal(
+        np.concatenate([fit.model.weights, [fit.model.output_offset], fit.model.creep.weights]),
+        wu.parameter_covariance,
+        size=400,
+    )
+    sims = [
+        dataclasses.replace(
+            fit.model,
+            weights=d[:N_OPS],
+            output_offset=float(d[N_OPS]),
+            creep=dataclasses.replace(fit.model.creep, weights=d[N_OPS + 1 :]),
+        ).simulate(U)[:, 0]
+        for d in draws
+    ]
+    assert np.allclose(np.std(sims, axis=0), s, rtol=0.15)  # 400 draws: a std to ~4 %

@@ -344,7 +344,14 @@ class PIIdentifier(Estimator):
             message=message,
             weight_uncertainty=None
             if self.weight_uncertainty == "none"
-            else weight_uncertainty(problem, theta, kinds, classical, self.weight_uncertainty),
+            else weight_uncertainty(
+                problem,
+                theta,
+                kinds,
+                classical,
+                self.weight_uncertainty,
+                (w, offsets, getattr(getattr(model, "creep", None), "weights", None)),
+            ),
         )
 
     # ------------------------------------------------------------------ steps of fit

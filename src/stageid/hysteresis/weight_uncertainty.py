@@ -146,16 +146,21 @@ def weight_uncertainty(
     kinds: list[str],
     classical: bool,
     method: str = "auto",
+    solution: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None,
     n_draws: int = 200,
     seed: int = 0,
 ) -> WeightUncertainty:
     """Covariance of the linear parameters of a :class:`~stageid.hysteresis.weights.WeightProblem` (module notes).
 
-    ``theta`` and ``kinds`` are the fit's final thresholds and starting states.
+    ``theta`` and ``kinds`` are the fit's final thresholds and starting states; ``solution`` =
+    ``(weights, offsets, creep weights or None)`` of the fit when known (else solved again).
     """
     blocks = problem.matrix(theta, kinds, classical)
     has_creep = problem.lags is not None
-    if has_creep:
+    if solution is not None:
+        w, offs, c = solution
+        c = np.zeros(0) if c is None else np.asarray(c, dtype=float)
+    elif has_creep:
         _, w, offs, c = problem.solve_creep(theta, kinds, classical)
     else:
         _, w, offs = problem.solve(theta, kinds, classical)
