@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -10,10 +11,18 @@ import pytest
 import scipy.signal as ss
 
 from stageid._errors import DataError, IdentificationError, ParameterError
-from stageid.closedloop import ClosedLoopIdentification, pem
-from stageid.closedloop.covariance import pem_covariance, transfer_gradient
-from stageid.closedloop.polynomial import pack
+from stageid.closedloop import ClosedLoopIdentification, deduce_response, pem, reduce_entry, unstable_plant_poles
+from stageid.closedloop.cancellation import z_to_s
+from stageid.closedloop.covariance import model_orders, pem_covariance, transfer_gradient
+from stageid.closedloop.polynomial import pack, unpack
+from stageid.closedloop.uncertainty import (
+    deduced_variance,
+    deduction_sensitivity,
+    plant_uncertainty,
+    unstable_pole_sensitivity,
+)
 from stageid.frf.frd import FrequencyResponse
+from stageid.models import TransferMatrix
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_closedloop_estimator import G_SISO, _siso_controller, _siso_experiment  # noqa: E402
@@ -114,3 +123,95 @@ def test_siso_bands_are_calibrated_over_seeds() -> None:
     assert 0.85 <= coverage <= 0.99, coverage
     # E|err|^2 / std^2 is 1 when calibrated: a std 3x off moves it by 9x
     assert 1 / 3 < np.mean(z2) < 3, np.mean(z2)
+
+
+@pytest.fixture(scope="module")
+def siso_result():
+    return ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9)).fit(_siso_experiment(0, 60.0))
+
+
+def _with_parameters(model, theta):
+    A, B, C, D, F = unpack(theta, model_orders(model))
+    return dataclasses.replace(model, A=A, B=B, C=C, D=D, F=F)
+
+
+def test_unstable_pole_sensitivity_matches_finite_differences(siso_result) -> None:
+    res = siso_result
+    m = res.pem_models[(0, 0)]
+    theta = pack(m.A, m.B, m.C, m.D, m.F)
+    sens = unstable_pole_sensitivity(res)
+    k = int(np.argmin(np.abs(res.unstable_poles - 50.0)))
+
+    def pole(t):
+        num, den = _with_parameters(m, t).plant_polynomials()
+        T = TransferMatrix([[num]], [[den]], m.dt, res.closed_loop.inputs, res.closed_loop.outputs)
+        s = z_to_s(unstable_plant_poles(T, res.controller), m.dt)
+        return s[np.argmin(np.abs(s - res.unstable_poles[k]))].real
+
+    d = np.random.default_rng(0).standard_normal(theta.size) * 1e-10 * np.abs(theta).max()
+    fd = (pole(theta + d) - pole(theta - d)) / 2
+    # the pole is very sensitive to single coefficients (1e-9 already leaves the linear range)
+    assert np.isclose(sens[k][(0, 0)] @ d, fd, rtol=0.05)
+
+
+def test_deduced_variance_matches_sampling_the_covariance(siso_result) -> None:
+    """Steps 1-2 (delta method through eq. 18) against draws of the parameters pushed through eq. 18."""
+    res = siso_result
+    m = res.pem_models[(0, 0)]
+    C = res.covariance.covariances[(0, 0)]
+    theta = pack(m.A, m.B, m.C, m.D, m.F)
+    f = np.geomspace(20.0, 300.0, 15)
+    M = res.controller.frequency_response(f)
+    G0 = deduce_response(m.frequency_response(f)[:, None, None], M)
+    rng = np.random.default_rng(1)
+    draws = rng.multivariate_normal(theta, C, size=400, method="eigh")
+    G = np.array([deduce_response(_with_parameters(m, t).frequency_response(f)[:, None, None], M) for t in draws])
+    mc = np.sqrt(np.mean(np.abs(G - G0) ** 2, axis=0))[:, 0, 0]
+    delta = np.sqrt(deduced_variance(res, f))[:, 0, 0]
+    assert np.allclose(delta, mc, rtol=0.15)  # 400 draws: the std to ~4 %, plus the linearisation
+
+
+def test_reduction_projection_matches_refitting_draws(siso_result) -> None:
+    """Step 3 (implicit-function projection) against refitting the reduced entry to perturbed responses."""
+    res = siso_result
+    red = res.reduced[(0, 0)]
+    fb = res.covariance.band_freqs
+    f = np.geomspace(20.0, 300.0, 15)
+    L, R, g, P = deduction_sensitivity(res, fb)
+    C = res.covariance.covariances[(0, 0)]
+    H = (L[:, 0, 0] * R[:, 0, 0])[:, None] * g[(0, 0)]  # dP / dtheta over the band
+    rng = np.random.default_rng(2)
+    dth = rng.multivariate_normal(np.zeros(C.shape[0]), C, size=60, method="eigh")
+    ref = reduce_entry(P[:, 0, 0], fb, res.dt, 0, 2, red.unstable_poles, stable_free=red.unstable_poles.size > 0)
+    s = 2j * np.pi * f
+
+    def response(e):
+        return np.polyval(e.num, s) / np.polyval(e.den, s)
+
+    base = response(ref)
+    moved = [
+        response(reduce_entry(P[:, 0, 0] + H @ d, fb, res.dt, 0, 2, red.unstable_poles, stable_free=False)) for d in dth
+    ]
+    mc = np.sqrt(np.mean(np.abs(np.array(moved) - base) ** 2, axis=0))
+    delta = plant_uncertainty(res, f, bias="none").std[:, 0, 0]
+    assert np.allclose(delta, mc, rtol=0.35)  # 60 refits: the std to ~10 %
+
+
+def test_bias_rules_and_other_structures(siso_result) -> None:
+    f = np.geomspace(20.0, 300.0, 20)
+    none, flat, inflate = (plant_uncertainty(siso_result, f, b).std for b in ("none", "flat", "inflate"))
+    assert np.all(flat >= none) and np.all(inflate >= none)  # the misfit only adds
+    assert np.allclose(siso_result.response_uncertainty(f).std, flat)  # "flat" is the default
+    with pytest.raises(IdentificationError, match="bias"):
+        plant_uncertainty(siso_result, f, "huge")
+    exp = _siso_experiment(0, 60.0)
+    full = ClosedLoopIdentification(
+        _siso_controller(), order_range=range(3, 8), structure="full", continuous=False
+    ).fit(_siso_experiment(6))  # the setting test_closedloop_estimator's full-structure test uses
+    fr = full.response_uncertainty(f)  # the cancelled deduction: eq. 18's variance
+    assert np.allclose(fr.std**2, deduced_variance(full, f)) and np.all(fr.std > 0)
+    disc = ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9), continuous=False).fit(exp)
+    frd = disc.response_uncertainty(f)
+    assert np.allclose(frd.response, disc.plant.frequency_response(f))
+    # the same data and parameters: the discrete model's band is the continuous one's to the hold's effect
+    assert np.allclose(frd.std, flat, rtol=0.2)

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .._errors import IdentificationError
+from .._threads import single_blas_thread
 from ..data import Experiment
 from ..models import StateSpaceModel
 from .pem import jacobian
@@ -40,6 +41,7 @@ __all__ = [
     "model_orders",
     "pem_covariance",
     "transfer_gradient",
+    "transfer_gradient_at",
 ]
 
 COVARIANCE_METHODS = ("sandwich", "white")
@@ -170,8 +172,13 @@ def transfer_gradient(model: PolynomialModel, freqs_hz: np.ndarray) -> np.ndarra
     Columns in the order of :func:`~stageid.closedloop.polynomial.pack`; the noise polynomials
     ``C, D`` do not enter ``G`` and get zero columns.
     """
+    return transfer_gradient_at(model, np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * model.dt))
+
+
+def transfer_gradient_at(model: PolynomialModel, z: np.ndarray) -> np.ndarray:
+    """``d G(z) / d theta`` at any complex ``z`` (as :func:`transfer_gradient`), shape (n_z, n_par)."""
     orders = model_orders(model)
-    q = np.exp(-2j * np.pi * np.asarray(freqs_hz, dtype=float) * model.dt)  # q^-1 on the unit circle
+    q = 1.0 / np.asarray(z, dtype=complex).reshape(-1)  # the backward shift q^-1
     pv = np.polynomial.polynomial.polyval
     A, F = pv(q, model.A), pv(q, model.F)
     G = q**model.nk * pv(q, model.B) / (A * F)
@@ -205,6 +212,7 @@ class ClosedLoopCovariance:
     method: str
 
 
+@single_blas_thread
 def closed_loop_covariance(
     groups: Mapping[int, Sequence[Experiment]],
     models: Mapping[tuple[int, int], PolynomialModel],

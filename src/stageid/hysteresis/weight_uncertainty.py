@@ -1,26 +1,28 @@
-"""Uncertainty of the PI / modified-PI weights: a wild block bootstrap of the residuals (issue 20).
+"""Uncertainty of the PI / modified-PI weights: block-robust least-squares covariance (issue 20).
 
 With the thresholds fixed (step 1, and step 3's search for the modified PI) the output is
-linear in the weights, the offsets and the creep weights, ``y = X w + e``, solved under the
+linear in the weights, the offsets and the creep weights, ``y = X beta + e``, solved under the
 invertibility bounds of :mod:`.weights`.  The residuals of a hysteresis fit are rarely white
 (coloured sensor noise, model error that repeats on every branch), so ``sigma^2 (X^T X)^-1`` is
-optimistic, and it ignores the bounds.  Instead each draw keeps the fitted output, flips the
-sign of the residual block by block at random (Rademacher), and refits with the problem's own
-bounded solver:
+optimistic.  Two estimates that allow for it:
 
-    y* = X w_hat + s_b(t) e(t) sqrt(N / (N - p)) sqrt(B / (B - 1)),   s_b = +-1 per block b,
+* ``"sandwich"``: ``(X^T X)^-1 (sum_b X_b^T e_b e_b^T X_b) (X^T X)^-1 * N/(N-p) * B/(B-1)``, the
+  residual cut into ``B`` blocks of ``BLOCK_FACTOR`` correlation lengths (at least
+  ``MIN_BLOCKS`` blocks), ``p`` unknowns: the cluster-robust covariance with its usual
+  small-sample corrections.  Exact to first order while no bound is active; one pass, so it
+  costs less than the fit.
+* ``"bootstrap"``: the wild block bootstrap that reproduces it, refitted under the bounds: each
+  draw keeps the fitted output and flips the sign of the residual block by block (Rademacher),
+  ``y* = X beta_hat + s_b(t) e(t) sqrt(N/(N-p)) sqrt(B/(B-1))``, and the problem's own bounded
+  solver refits it.  A weight pinned at a bound scatters less, which the sandwich cannot see;
+  200 refits cost ~100 classical fits.
+* ``"auto"`` takes the sandwich unless a bound is active at the estimate.
 
-``p`` the unknowns, ``B`` the blocks: the small-sample corrections of a cluster-robust
-covariance, which this bootstrap reproduces for an unconstrained problem.  Blocks span
-``BLOCK_FACTOR`` correlation lengths of the residual, so its memory stays inside a block, with
-at least ``MIN_BLOCKS`` blocks.  Whole input cycles were the first choice of block; an
-identification record has only ~10 of them, and a cluster-robust variance from 10 clusters for
-~10 unknowns came out ~1.7x too small in std (studies/uncertainty_closedloop/RESULTS.md).  The
-bounds act on every draw (a weight pinned at its bound scatters less), and the draws give the
-band of any simulated output directly (:meth:`WeightUncertainty.output_band`).
-
-Not covered: the uncertainty of the thresholds the modified PI searched (held at their
-optimum) and of the starting states.
+Whole input cycles were the first choice of block; an identification record has only ~10 of
+them, and a cluster-robust variance from 10 clusters for ~10 unknowns came out ~1.7x too small
+in std (studies/uncertainty_closedloop/RESULTS.md, section 3).  Not covered: the uncertainty of
+the thresholds the modified PI searched (held at their optimum) and of the starting states;
+the modified PI's small ridge on the CP weights is left out of the sandwich.
 """
 
 from __future__ import annotations
@@ -34,7 +36,14 @@ import scipy.fft as sfft
 
 from .._errors import ModelError
 
-__all__ = ["WeightUncertainty", "bootstrap_weights", "block_labels", "correlation_length", "plot_loop_band"]
+__all__ = [
+    "UNCERTAINTY_METHODS",
+    "WeightUncertainty",
+    "weight_uncertainty",
+    "block_labels",
+    "correlation_length",
+    "plot_loop_band",
+]
 
 #: a block spans this many correlation lengths of the residual (its memory, with margin)
 BLOCK_FACTOR = 10
@@ -44,62 +53,63 @@ MIN_BLOCKS = 40
 
 @dataclass(frozen=True, eq=False)
 class WeightUncertainty:
-    """Bootstrap draws of an identified PI model's linear parameters.
+    """Covariance of an identified PI model's linear parameters.
 
     Attributes
     ----------
-    weights : ndarray of shape (n_draws, n_operators)
-    output_offsets : ndarray of shape (n_draws,)
-        The first record's offset in each draw (the model's ``output_offset``).
-    creep_weights : ndarray of shape (n_draws, n_lags) or None
-    n_clusters : int
-        Blocks resampled.
+    parameter_covariance : ndarray of shape (k, k)
+        Over ``[weights (n_operators), output_offset, creep weights (n_lags)]``, the offset
+        being the first record's (the model's ``output_offset``).
+    n_operators : int
+    method : str
+        "sandwich" or "bootstrap" (module notes).
+    n_blocks : int
+        Residual blocks the estimate used.
     """
 
-    weights: np.ndarray
-    output_offsets: np.ndarray
-    creep_weights: np.ndarray | None
-    n_clusters: int
-
-    @property
-    def n_draws(self) -> int:
-        return int(self.weights.shape[0])
-
-    @property
-    def std(self) -> np.ndarray:
-        """Standard deviation of each weight, shape (n_operators,)."""
-        return self.weights.std(axis=0, ddof=1)
+    parameter_covariance: np.ndarray
+    n_operators: int
+    method: str
+    n_blocks: int
 
     @property
     def covariance(self) -> np.ndarray:
         """Covariance of the weights, shape (n_operators, n_operators)."""
-        return np.atleast_2d(np.cov(self.weights, rowvar=False))
+        n = self.n_operators
+        return self.parameter_covariance[:n, :n]
 
-    def draw_models(self, model: Any) -> list[Any]:
-        """``model`` with each draw's weights, offset and creep weights (thresholds and state kept)."""
-        out = []
-        for k in range(self.n_draws):
-            m = replace(model, weights=self.weights[k], output_offset=float(self.output_offsets[k]))
-            if self.creep_weights is not None and getattr(model, "creep", None) is not None:
-                m = replace(m, creep=replace(model.creep, weights=np.maximum(self.creep_weights[k], 0.0)))
-            out.append(m.with_state(model.state))
-        return out
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviation of each weight, shape (n_operators,)."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
     def output_band(self, model: Any, u: object, dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``(y, std)`` of ``model`` simulated on ``u``: its output and the draws' std, shape (n_samples,).
+        """``(y, std)`` of ``model`` simulated on ``u`` from its state, shape (n_samples,) each.
+
+        The output is linear in the weights, the offset and the creep weights, so its variance
+        is ``diag(Z Sigma Z^T)`` with ``Z`` the operator outputs, ones and creep lags on ``u``.
 
         Raises
         ------
         ModelError
-            When ``model`` has another number of operators than the draws.
+            When ``model`` has another number of operators than the covariance.
         """
-        if model.n_operators != self.weights.shape[1]:
+        if model.n_operators != self.n_operators:
             raise ModelError(
-                f"the weight draws are for {self.weights.shape[1]} operators; got a model with {model.n_operators}."
+                f"the weight covariance is for {self.n_operators} operators; got a model with {model.n_operators}."
             )
         y = np.asarray(model.simulate(u, dt), dtype=float).reshape(-1)
-        sims = np.array([np.asarray(m.simulate(u, dt), dtype=float).reshape(-1) for m in self.draw_models(model)])
-        return y, sims.std(axis=0, ddof=1)
+        Z, _ = model.operator_outputs(u)
+        cols = [Z, np.ones((Z.shape[0], 1))]
+        creep = getattr(model, "creep", None)
+        k_creep = self.parameter_covariance.shape[0] - self.n_operators - 1
+        if creep is not None and k_creep:
+            uu = np.asarray(u, dtype=float).reshape(-1)
+            unit = [replace(creep, weights=np.eye(k_creep)[k]).run(uu, dt)[0] for k in range(k_creep)]
+            cols.append(np.column_stack(unit))
+        X = np.hstack(cols)
+        S = self.parameter_covariance[: X.shape[1], : X.shape[1]]
+        return y, np.sqrt(np.clip(((X @ S) * X).sum(axis=1), 0.0, None))
 
 
 def correlation_length(e: np.ndarray, threshold: float = float(np.exp(-1.0))) -> int:
@@ -127,51 +137,108 @@ def block_labels(e: np.ndarray, n_rows: list[int]) -> np.ndarray:
     return np.concatenate(labels)
 
 
-def bootstrap_weights(
+UNCERTAINTY_METHODS = ("auto", "sandwich", "bootstrap")
+
+
+def weight_uncertainty(
     problem: Any,
     theta: np.ndarray,
     kinds: list[str],
     classical: bool,
+    method: str = "auto",
+    solution: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None,
     n_draws: int = 200,
     seed: int = 0,
 ) -> WeightUncertainty:
-    """Wild cluster bootstrap of the weights of a :class:`~stageid.hysteresis.weights.WeightProblem` (module notes).
+    """Covariance of the linear parameters of a :class:`~stageid.hysteresis.weights.WeightProblem` (module notes).
 
-    ``theta`` and ``kinds`` are the final thresholds and starting states of the fit; the
-    problem's own bounded solver refits every draw.
+    ``theta`` and ``kinds`` are the fit's final thresholds and starting states; ``solution`` =
+    ``(weights, offsets, creep weights or None)`` of the fit when known (else solved again).
     """
     blocks = problem.matrix(theta, kinds, classical)
     has_creep = problem.lags is not None
-    if has_creep:
+    if solution is not None:
+        w, offs, c = solution
+        c = np.zeros(0) if c is None else np.asarray(c, dtype=float)
+    elif has_creep:
         _, w, offs, c = problem.solve_creep(theta, kinds, classical)
     else:
         _, w, offs = problem.solve(theta, kinds, classical)
-    fitted = []
-    for j, Z in enumerate(blocks):
-        f = Z @ w + offs[j]
-        fitted.append(f + problem.lags[j] @ c if has_creep else f)
-    fitted = np.concatenate(fitted)
+        c = np.zeros(0)
+    X = _design(problem, blocks)
+    beta = np.concatenate([w, offs, c])
+    fitted = X @ beta
     resid = problem.y - fitted
     labels = block_labels(resid, [rows.size for rows in problem.rows])
-    n_clusters = int(labels.max()) + 1
-    n_rows, n_unknowns = resid.size, w.size + offs.size + (c.size if has_creep else 0)
-    scale = np.sqrt(n_rows / max(n_rows - n_unknowns, 1)) * np.sqrt(n_clusters / max(n_clusters - 1, 1))
+    n_blocks = int(labels.max()) + 1
+    # the solver gives operators that never move no weight (exactly 0): they carry no variance
+    live = np.flatnonzero(np.concatenate([(w != 0) | (np.arange(w.size) == 0), np.ones(offs.size + c.size, bool)]))
+    n_rows = resid.size
+    scale2 = n_rows / max(n_rows - live.size, 1) * n_blocks / max(n_blocks - 1, 1)
+    if method == "auto":
+        method = "bootstrap" if _bound_active(w, problem.eps, classical) else "sandwich"
+    if method == "sandwich":
+        cov = _sandwich(X[:, live], resid, labels, n_blocks) * scale2
+        full = np.zeros((beta.size, beta.size))
+        full[np.ix_(live, live)] = cov
+    else:
+        draws = _bootstrap(
+            problem, blocks, theta, kinds, classical, fitted, resid, labels, np.sqrt(scale2), n_draws, seed
+        )
+        full = np.atleast_2d(np.cov(draws, rowvar=False))
+    # keep [weights, first offset, creep]
+    n, J = w.size, offs.size
+    keep = np.concatenate([np.arange(n + 1), n + J + np.arange(c.size)])
+    return WeightUncertainty(full[np.ix_(keep, keep)], n, method, n_blocks)
+
+
+def _design(problem: Any, blocks: list[np.ndarray]) -> np.ndarray:
+    """``X`` of ``y = X [w; offsets; c]`` over the least-squares rows of every record."""
+    J = len(blocks)
+    rows = []
+    for j, Z in enumerate(blocks):
+        onehot = np.zeros((Z.shape[0], J))
+        onehot[:, j] = 1.0
+        parts = [Z, onehot] + ([problem.lags[j]] if problem.lags is not None else [])
+        rows.append(np.hstack(parts))
+    return np.vstack(rows)
+
+
+def _bound_active(w: np.ndarray, eps: float, classical: bool) -> bool:
+    """Whether the invertibility bound of :mod:`.weights` holds with equality at ``w``."""
+    tol = 1e-6 * max(abs(eps), float(np.max(np.abs(w))), 1e-300)
+    if classical:
+        W = np.cumsum(w)
+        return bool(np.any(W[w != 0] <= eps + tol))
+    return bool(w[0] + np.sum(np.minimum(w[1:], 0.0)) <= eps + tol)
+
+
+def _sandwich(X: np.ndarray, e: np.ndarray, labels: np.ndarray, n_blocks: int) -> np.ndarray:
+    """``(X^T X)^-1 (sum_b X_b^T e_b e_b^T X_b) (X^T X)^-1`` (pseudo-inverse after unit-diagonal scaling)."""
+    starts = np.flatnonzero(np.diff(labels, prepend=-1))  # labels are contiguous and increasing
+    U = np.add.reduceat(X * e[:, None], starts, axis=0)
+    H = X.T @ X
+    d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
+    Hi = np.linalg.pinv(H / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
+    return Hi @ (U.T @ U) @ Hi
+
+
+def _bootstrap(problem, blocks, theta, kinds, classical, fitted, resid, labels, scale, n_draws, seed) -> np.ndarray:
+    """Draws ``[w; offsets; c]`` of the wild block bootstrap, each refitted under the bounds."""
     # the operator outputs depend on the input alone: computed once, the draws only change y
     fixed = copy.copy(problem)
     fixed.matrix = lambda *_: blocks
     rng = np.random.default_rng(seed)
-    W, O, C = [], [], []
+    n_blocks = int(labels.max()) + 1
+    out = []
     for _ in range(int(n_draws)):
-        signs = rng.choice((-1.0, 1.0), size=n_clusters)
-        fixed.y = fitted + scale * signs[labels] * resid
-        if has_creep:
+        fixed.y = fitted + scale * rng.choice((-1.0, 1.0), size=n_blocks)[labels] * resid
+        if problem.lags is not None:
             _, wd, od, cd = fixed.solve_creep(theta, kinds, classical)
-            C.append(cd)
         else:
-            _, wd, od = fixed.solve(theta, kinds, classical)
-        W.append(wd)
-        O.append(od[0])
-    return WeightUncertainty(np.array(W), np.array(O), np.array(C) if has_creep else None, n_clusters)
+            (_, wd, od), cd = fixed.solve(theta, kinds, classical), np.zeros(0)
+        out.append(np.concatenate([wd, od, cd]))
+    return np.array(out)
 
 
 def plot_loop_band(
