@@ -128,8 +128,10 @@ def test_identify_closed_loop_report(tmp_path):
     )
     assert rc == 0
     html = (tmp_path / "rep" / "index.html").read_text()
-    assert html.count("<img src='data:image/png;base64,") == 4
+    # plant Bode, its +-2 std bands (issue 20), pole-zero, closed loop vs ETFE, re-closed loop
+    assert html.count("<img src='data:image/png;base64,") == 5
     metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert metrics["uncertainty/relative_std_median_percent/y_u"] > 0
     fits = [v for k, v in metrics.items() if k.startswith("reclosed_fit_percent/") and k.endswith("/y")]
     assert len(fits) == 1 and fits[0] > 99.0  # the identified plant re-closed with K reproduces y
     s_true = np.log(1.02) / 0.001

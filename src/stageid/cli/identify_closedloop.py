@@ -6,6 +6,7 @@ import click
 
 from .._errors import DataError, IdentificationError
 from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
+from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
 @click.command(
@@ -17,6 +18,8 @@ Examples:
   stageid plants maglev --experiment chirp-x -o ex.csv   (and chirp-y, chirp-phi)
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
       --outputs x,y,phi --controller K.json --band 20:300 -o G.json
+  stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
+      --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   (plant response and std)
 """,
 )
 @click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))
@@ -64,6 +67,7 @@ Examples:
     type=click.Path(file_okay=False),
     help="Also write an HTML report (plant Bode and pole-zero maps, closed loop vs FFT estimate, re-closed loop).",
 )
+@uncertainty_options
 def closedloop_command(
     experiments: tuple[str, ...],
     references: str,
@@ -77,6 +81,8 @@ def closedloop_command(
     method: str,
     output: str,
     report_dir: str | None,
+    uncertainty_file: str | None,
+    uncertainty_grid: str | None,
 ) -> None:
     """Identify an open-loop-unstable plant from closed-loop experiments (Shakir & Kim).
 
@@ -92,6 +98,7 @@ def closedloop_command(
     check_output(output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
+    uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     refs = split_names(references, "--references")
     outs = split_names(outputs, "--outputs")
     assert refs is not None and outs is not None
@@ -105,6 +112,7 @@ def closedloop_command(
     exps = as_experiments(
         [t.experiment(inputs=list(refs), outputs=list(outs), name=str(path)) for t, path in zip(tables, experiments)]
     )
+    uncertainty.check_nyquist(exps[0].dt)  # the records' Nyquist frequency bounds what they tell
     u_names = split_names(plant_inputs, "--plant-inputs")
     if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
         u_names = tuple(K.outputs)
@@ -116,7 +124,10 @@ def closedloop_command(
     if structure == "paper":
         _check_paper_structure(result, band)
     write_model_output(output, result.plant)
+    uncertainty_line = uncertainty.write(result, result.band, exps[0].dt)
     say(result.summary(), err=True)
+    if uncertainty_line:
+        say(uncertainty_line, err=True)
     if report_dir is not None:
         _write_report(result, exps, result.controller, report_dir)
 
@@ -204,7 +215,7 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
     from ..closedloop import empirical_transfer, reclose_loop
     from ..plots import time_overlay_figure
     from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero
-    from ..report import Report, write_report_folder
+    from ..report import Report, uncertainty_section, write_report_folder
     from ..validation import fit_percent
 
     dt = result.dt
@@ -219,6 +230,9 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
         plot_plant_bode(result, np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300)),
         "Identified plant: reduced fit and full-order deduction (eq. 18).",
     )
+    if result.covariance is not None:
+        f = np.geomspace(result.band[0], min(result.band[1], 0.5 / dt), 300)
+        uncertainty_section(report, metrics, result.response_uncertainty(f), "identified plant", level=3)
     report.figure(
         plot_pole_zero(result, (0, 0)), "Pole-zero map of the first diagonal entry before and after cancellation."
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ._common import check_output, check_output_folder, say, write_model_output
+from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
 def _order_or_auto(text: str, option: str) -> int | str:
@@ -24,6 +25,7 @@ Examples:
   stageid identify frd frf.csv --order 6 --dt 0.0002 -o model.json
   stageid identify frd frf.npz --order auto --continuous --fmax 2000 -o model.json
   stageid identify frd afm.csv --order 16 --dt 4e-5 --fmin 1 --fmax 2000 --delay auto --report rep/ -o afm.json
+  stageid identify frd frf.csv --order 6 --dt 0.0002 -o model.json --uncertainty bands.csv
 """,
 )
 @click.argument("frf_path", metavar="FRF.(csv|npz)", type=click.Path(dir_okay=False))
@@ -46,6 +48,7 @@ Examples:
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
 )
 @click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model .json.")
+@uncertainty_options
 def frd_command(
     frf_path: str,
     order: str,
@@ -57,6 +60,8 @@ def frd_command(
     delay: str,
     report_dir: str | None,
     output: str,
+    uncertainty_file: str | None,
+    uncertainty_grid: str | None,
 ) -> None:
     """Fit a MIMO state-space model to FRF (columns f_hz, re_/im_<out>_<in>, optional std_, coh_).
 
@@ -66,10 +71,12 @@ def frd_command(
     check_output(output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
+    uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     if dt is None and not continuous:
         raise click.UsageError("give --dt S for a discrete model or --continuous for a continuous one.")
     if dt is not None and continuous:
         raise click.UsageError("give either --dt or --continuous, not both.")
+    uncertainty.check_nyquist(dt)
     from ..frf import FRDIdentification, read_frd
 
     estimator = FRDIdentification(
@@ -83,6 +90,7 @@ def frd_command(
     frd = read_frd(frf_path)
     result = estimator.fit(frd)
     write_model_output(output, result.model)
+    uncertainty_line = uncertainty.write(result, result.band, result.model.dt)
     if report_dir is not None:
         _write_report(report_dir, frd.band(fmin, fmax), result)
     errors = ", ".join(f"{name} {100 * e:.3g} %" for name, e in zip(result.model.inputs, result.column_errors))
@@ -91,10 +99,14 @@ def frd_command(
         f"max error per input column (of its peak): {errors}"
     )
     say(f"model written to {output}")
+    if uncertainty_line:
+        say(uncertainty_line)
 
 
 def _write_report(folder: str, frd, result) -> None:
     """``index.html`` (measured FRF with coherence and std band beside the model) and metrics.json."""
+    import numpy as np
+
     from ..report import Report, write_report_folder
 
     report = Report(title="identify frd")
@@ -104,10 +116,19 @@ def _write_report(folder: str, frd, result) -> None:
         ["input", "max error / column peak"],
         [[name, float(e)] for name, e in zip(result.model.inputs, result.column_errors)],
     )
+    from ..report import uncertainty_section
+
+    lo, hi = result.band
+    hi = hi if result.model.dt is None else min(hi, 0.5 / result.model.dt)
+    f = np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300)
+    metrics: dict = {}
+    uncertainty_section(
+        report, metrics, result.response_uncertainty(f), f"model fitted to the FRF ({result.covariance.noise_source})"
+    )
     if result.order_errors:
         report.section("Order selection (held-out frequencies)", level=3)
         report.table(["order", "held-out RMS error"], [[n, e] for n, e in result.order_errors])
-    metrics = {
+    metrics |= {
         "order": result.order,
         "delay": result.delay,
         "weight": result.weight,

@@ -13,6 +13,7 @@ from ._common import (
     split_names,
     write_model_output,
 )
+from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -39,6 +40,8 @@ Examples:
   stageid identify statespace cz.csv crx.csv cry.csv --inputs Z,Rx,Ry --outputs z,rx,ry \\
       --per-channel --order 7,4,4 -o model.json      (one file per excited input, eq. 19-22)
   stageid identify statespace run.npz --inputs u1,u2 --outputs y1,y2 --ts 0.002 -o model.json
+  stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json \\
+      --uncertainty bands.csv --uncertainty-grid 1:100:200   (model response with its std)
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
@@ -92,6 +95,7 @@ Examples:
     type=click.Path(file_okay=False),
     help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.",
 )
+@uncertainty_options
 def statespace_command(
     data: tuple[str, ...],
     inputs: str,
@@ -106,6 +110,8 @@ def statespace_command(
     band_text: str | None,
     output: str,
     report_dir: str | None,
+    uncertainty_file: str | None,
+    uncertainty_grid: str | None,
 ) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
 
@@ -118,6 +124,7 @@ def statespace_command(
     check_output(output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
+    uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     assert ins is not None and outs is not None
@@ -127,6 +134,7 @@ def statespace_command(
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
     band = None if band_text is None else parse_band(band_text)
     exps = read_experiments(data, ins, outs, ts)
+    uncertainty.check_nyquist(exps[0].dt)
     est = HankelMAP(
         horizon=horizon,
         order=order,
@@ -138,30 +146,46 @@ def statespace_command(
     )
     result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
     write_model_output(output, result.model)  # committed with the report, after both succeeded
+    fit_band = identified_band(result)
+    uncertainty_line = uncertainty.write(result, fit_band, result.model.dt)
     say(result.summary(), err=True)
+    if uncertainty_line:
+        say(uncertainty_line, err=True)
     if report_dir is not None:
-        from .report import write_report
+        _write_report(result, exps, report_dir, fit_band)
 
-        def extra(report, metrics):
-            import numpy as np
 
-            from ..plots.subspace import bode_with_bands, selection_plot
+def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) -> None:
+    """The model report with the realised model's +-2 std bands, the eq. 9 bands and the selection plots."""
+    import numpy as np
 
-            lo, hi = result.diagnostics.get("band_hz") or (0.01 / result.model.dt, 0.45 / result.model.dt)
-            f = np.geomspace(max(lo, 1e-3), hi, 300)
-            report.section("Hankel-MAP diagnostics")
-            report.paragraph(result.summary())
-            report.figure(
-                bode_with_bands(result, f),
-                "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
-            )
-            for ch in result.channels:
-                for table in (ch.horizon_table, ch.order_table):
-                    if table is not None:
-                        report.figure(
-                            selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
-                            f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.",
-                        )
+    from ..plots.subspace import bode_with_bands, selection_plot
+    from .report import write_report
 
-        path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra)
-        say(f"report written to {path}", err=True)
+    lo, hi = fit_band
+    f = np.geomspace(max(lo, 1e-3), hi, 300)
+
+    def extra(report, metrics):
+        report.section("Hankel-MAP diagnostics")
+        report.paragraph(result.summary())
+        report.figure(
+            bode_with_bands(result, f),
+            "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
+        )
+        for ch in result.channels:
+            for table in (ch.horizon_table, ch.order_table):
+                if table is not None:
+                    report.figure(
+                        selection_plot(table, title=f"{', '.join(ch.inputs)}: held-out error vs {table.kind}"),
+                        f"Selection of the {table.kind} by held-out error for input(s) {', '.join(ch.inputs)}.",
+                    )
+
+    bands = result.response_uncertainty(np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300))
+    path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra, uncertainty=bands)
+    say(f"report written to {path}", err=True)
+
+
+def identified_band(result) -> tuple[float, float]:
+    """The band the model was identified on: the channels' bands together (Hz)."""
+    bands = [ch.band for ch in result.channels]
+    return min(b[0] for b in bands), max(b[1] for b in bands)

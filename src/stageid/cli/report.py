@@ -9,17 +9,18 @@ import click
 from ._common import check_output_folder, read_experiments, say, split_names
 
 
-def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None) -> Path:
+def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None, uncertainty=None) -> Path:
     """Build the model report and write ``index.html`` and ``metrics.json`` into ``out_dir``.
 
     ``extra(report, metrics)``, when given, adds method-specific sections (the ``identify``
     verbs' ``--report`` uses it for uncertainty bands, selection plots, ...).  Nothing is
     written unless the whole report could be built: both files go to a temporary folder that
-    is then moved into place (:func:`stageid.report.write_report_folder`).
+    is then moved into place (:func:`stageid.report.write_report_folder`).  ``uncertainty``
+    (a FrequencyResponse with ``std``) puts +-2 std bands on the model's Bode plot.
     """
     from ..report import model_report, write_report_folder
 
-    report, metrics = model_report(model, experiments, title)
+    report, metrics = model_report(model, experiments, title, uncertainty=uncertainty)
     if extra is not None:
         extra(report, metrics)
     return write_report_folder(out_dir, report, metrics)

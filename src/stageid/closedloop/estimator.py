@@ -25,6 +25,7 @@ from ..checks import check_band, is_integer
 from ..data import Experiment
 from ..models import StateSpaceModel, TransferMatrix
 from .cancellation import cancel_entries, z_to_s
+from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import (
     check_controller,
     check_deduction,
@@ -101,6 +102,9 @@ class ClosedLoopIdentification(Estimator):
         How a continuous controller was implemented.
     max_nfev : int
         Evaluation limit of each prediction-error optimisation.
+    covariance : {"sandwich", "white", "none"}
+        Parameter covariance of each pair for :meth:`ClosedLoopResult.response_uncertainty`
+        (:mod:`~stageid.closedloop.covariance`; "none" skips it).
 
     Examples
     --------
@@ -126,6 +130,7 @@ class ClosedLoopIdentification(Estimator):
         continuous: bool = True,
         controller_discretization: str = "tustin",
         max_nfev: int = 200,
+        covariance: str = "sandwich",
     ) -> None:
         self.controller = controller
         self.reference_filter = reference_filter
@@ -139,6 +144,7 @@ class ClosedLoopIdentification(Estimator):
         self.continuous = continuous
         self.controller_discretization = controller_discretization
         self.max_nfev = max_nfev
+        self.covariance = covariance
 
     parameter_constraints = {
         "controller": [InstanceOf(_MODEL, "a StateSpaceModel or TransferMatrix")],
@@ -156,6 +162,7 @@ class ClosedLoopIdentification(Estimator):
         "continuous": [Boolean()],
         "controller_discretization": [Options("tustin", "zoh")],
         "max_nfev": [Interval(int, 1, None)],
+        "covariance": [Options(*COVARIANCE_METHODS, "none")],
     }
 
     def check_together(self) -> None:
@@ -271,4 +278,7 @@ class ClosedLoopIdentification(Estimator):
             closed_loop_fit=fits,
             dt=dt,
             structure=self.structure if isinstance(self.structure, str) else "custom",
+            covariance=None
+            if self.covariance == "none"
+            else closed_loop_covariance(groups, pem_models, f_band, Mr, self.covariance),
         )

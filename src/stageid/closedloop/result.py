@@ -7,9 +7,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..frf.frd import FrequencyResponse
 from ..models import StateSpaceModel, TransferMatrix
 from .cancellation import CancelledPair, EntryPoleZero, z_to_s
+from .covariance import ClosedLoopCovariance
 from .deduction import plant_response
+from .uncertainty import plant_uncertainty
 
 __all__ = ["ClosedLoopResult"]
 
@@ -55,6 +58,9 @@ class ClosedLoopResult:
         "paper", "full" or "custom" (a dict of orders).
     diagnostics : dict
         Free-form notes of the fit (empty by default).
+    covariance : ClosedLoopCovariance or None
+        The pairs' parameter covariances for :meth:`response_uncertainty` (None when fitted
+        with ``covariance="none"``).
     """
 
     plant: TransferMatrix
@@ -74,6 +80,32 @@ class ClosedLoopResult:
     dt: float
     structure: str = "paper"
     diagnostics: dict = field(default_factory=dict)
+    covariance: ClosedLoopCovariance | None = None
+
+    def response_uncertainty(self, freqs_hz: Sequence[float] | np.ndarray) -> FrequencyResponse:
+        """The returned plant's response with ``std = sqrt(E|G_est - G|^2)`` per entry (issue 20).
+
+        The PEM parameter covariance propagated through eq. 18 and the reduction by the delta
+        method, the reduction's bias included (:mod:`~stageid.closedloop.uncertainty`).
+
+        Parameters
+        ----------
+        freqs_hz : array_like of shape (n_freqs,)
+            Finite, positive, strictly increasing frequencies in Hz.
+
+        Returns
+        -------
+        FrequencyResponse
+            ``response`` of :attr:`plant`, ``std`` beside it, the plant's channel names.
+
+        Raises
+        ------
+        DataError
+            A bad grid, or one that hits a pole of the plant.
+        IdentificationError
+            When the result was fitted with ``covariance="none"``.
+        """
+        return plant_uncertainty(self, freqs_hz)
 
     def deduced_response(self, freqs_hz: Sequence[float] | np.ndarray) -> np.ndarray:
         """Full-order deduced plant response (eq. 18) at ``freqs_hz``, shape (n_freqs, p, p)."""

@@ -32,10 +32,19 @@ from ..base import Estimator, Interval, Options
 from ..models import StateSpaceModel
 from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
 from ..subspace.refinement import refine_frequency_fit
+from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
 from .welch import welch_frf
 
-__all__ = ["FRDIdentification", "FRDResult", "select_order", "select_delay", "column_errors", "add_input_delay"]
+__all__ = [
+    "FRDIdentification",
+    "FRDResult",
+    "select_order",
+    "select_delay",
+    "column_errors",
+    "add_input_delay",
+    "fit_frequencies",
+]
 
 #: Lines whose weight is below this fraction of the largest count neither for the column
 #: scaling nor for :attr:`FRDResult.column_errors` (their data are noise by their own std).
@@ -70,6 +79,9 @@ class FRDResult:
         The weighting used (``"std"``, ``"coherence"`` or ``"none"``).
     band : tuple of float
         The frequencies fitted, Hz.
+    covariance : FitCovariance or None
+        The refined fit's parameter covariance (from the data's std, else the residual);
+        see :meth:`response_uncertainty`.
     """
 
     model: StateSpaceModel
@@ -81,11 +93,45 @@ class FRDResult:
     delay_errors: tuple = ()
     weight: str = "none"
     band: tuple = ()
+    covariance: FitCovariance | None = None
 
     @property
     def max_error(self) -> float:
         """The largest of :attr:`column_errors`."""
         return float(np.max(self.column_errors))
+
+    def response_uncertainty(self, freqs_hz: Any) -> FrequencyResponse:
+        """The model's frequency response with ``std = sqrt(E|G_est - G|^2)`` per entry.
+
+        The data's std (or, without one, the fit's residual) propagated through the weighted
+        output-error fit to first order, the order and delay held fixed
+        (:mod:`stageid.frf.fit_uncertainty`).
+
+        Parameters
+        ----------
+        freqs_hz : array_like of shape (n_freqs,)
+            Strictly increasing frequencies in Hz, finite, >= 0 and (discrete models) at most
+            the Nyquist frequency.
+
+        Raises
+        ------
+        DataError
+            Frequencies outside that range, or a result without a covariance.
+        """
+        if self.covariance is None:
+            raise DataError("this FRDResult has no fit covariance (it was built without one).")
+        dt = self.model.dt
+        f = np.asarray(freqs_hz, dtype=float)
+        nyq = np.inf if dt is None else 0.5 / dt
+        if f.ndim != 1 or f.size == 0:
+            raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
+        bad = ~np.isfinite(f) | (f < 0) | (f > nyq * (1 + 1e-12))
+        if bad.any():
+            raise DataError(f"`freqs_hz` must be finite and within 0-{nyq:g} Hz; got {float(f[bad][0])!r}.")
+        zs = np.exp(2j * np.pi * fit_frequencies(f, self.covariance.T, dt) * self.covariance.T)
+        std = self.covariance.response_std(zs)
+        m = self.model
+        return FrequencyResponse(f, m.frequency_response(f), std, None, m.inputs, m.outputs)
 
 
 class FRDIdentification(Estimator):
@@ -200,6 +246,8 @@ class FRDIdentification(Estimator):
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
         A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter)
+        std = None if frd.std is None else frd.std / scale[None, None, :]
+        covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
         model = _assemble(A, B, C, D, T, self.dt, delay, frd)
         errors = column_errors(model.frequency_response(frd.freqs[counted]), G[counted])
@@ -213,6 +261,7 @@ class FRDIdentification(Estimator):
             delay_errors,
             weight,
             (float(frd.freqs[0]), float(frd.freqs[-1])),
+            covariance,
         )
 
     def _delay(self, Gs, fz, T, zs, w, n_freqs) -> tuple[int, tuple]:
@@ -279,14 +328,23 @@ def _fit_grid(freqs: np.ndarray, dt: float | None) -> tuple[float, np.ndarray]:
     f = np.asarray(freqs, dtype=float)
     if dt is None:
         T = 1.0 / (2.0 * float(f[-1]))
-        theta = 2.0 * np.arctan(np.pi * f * T)
     else:
         # f_max at (or near) Nyquist maps to infinity: take the scale from at most 0.45 / dt
         f_ref = min(float(f[-1]), 0.45 / dt)
         T = 1.0 / (2.0 * np.tan(np.pi * f_ref * dt) / (np.pi * dt))
+    return T, fit_frequencies(f, T, dt)
+
+
+def fit_frequencies(freqs: np.ndarray, T: float, dt: float | None) -> np.ndarray:
+    """Where the frequencies ``freqs`` (Hz) land in the internal fit at sample time ``T``
+    (the maps of :func:`_fit_grid`): ``theta / (2 pi T)`` with ``z = exp(j theta)``."""
+    f = np.asarray(freqs, dtype=float)
+    if dt is None:
+        theta = 2.0 * np.arctan(np.pi * f * T)
+    else:
         theta = 2.0 * np.arctan(T / dt * np.tan(np.pi * f * dt))  # Nyquist -> pi
         theta = np.where(theta < 0, theta + 2.0 * np.pi, theta)
-    return T, theta / (2.0 * np.pi * T)
+    return theta / (2.0 * np.pi * T)
 
 
 def _max_order(n_freqs: int, q: int, m: int) -> int:

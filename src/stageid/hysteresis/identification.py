@@ -75,6 +75,7 @@ from .records import (
     sampling_period,
 )
 from .threshold_search import search_thresholds
+from .weight_uncertainty import UNCERTAINTY_METHODS, WeightUncertainty, weight_uncertainty
 from .weights import WeightProblem
 
 __all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
@@ -119,6 +120,9 @@ class HysteresisFit:
         False when the nonlinear search stopped on its evaluation limit (the model is still the
         best found and never worse than the classical fit it started from).
     message : str
+    weight_uncertainty : WeightUncertainty or None
+        Covariance of the weights (when asked for; :mod:`.weight_uncertainty`), with the band
+        of a simulated output by ``weight_uncertainty.output_band(model, u)``.
     """
 
     model: Any
@@ -129,6 +133,7 @@ class HysteresisFit:
     n_evaluations: int
     success: bool
     message: str
+    weight_uncertainty: WeightUncertainty | None = None
 
     def summary(self) -> str:
         """A short text report."""
@@ -194,6 +199,9 @@ class PIIdentifier(Estimator):
         the normal matrix (keeps barely-moving operators from getting huge weights that blow up
         outside the identified input range; changes the fit by < 0.1 % of range on the data we
         tried).
+    weight_uncertainty : {"none", "auto", "sandwich", "bootstrap"}, default "none"
+        Covariance of the weights on the result (:mod:`~stageid.hysteresis.weight_uncertainty`):
+        "auto" is the block-robust sandwich unless a bound is active, then 200 bootstrap refits.
 
     Notes
     -----
@@ -225,6 +233,7 @@ class PIIdentifier(Estimator):
         "input_warp": [Boolean()],
         "creep_time_constants": [Satisfies(is_positive_sequence, "a non-empty sequence of positive seconds"), None],
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
+        "weight_uncertainty": [Options("none", *UNCERTAINTY_METHODS)],
     }
 
     def check_together(self) -> None:
@@ -245,6 +254,7 @@ class PIIdentifier(Estimator):
         input_warp: bool = True,
         creep_time_constants: Sequence[float] | None = None,
         sample_time: float | None = None,
+        weight_uncertainty: str = "none",
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -257,6 +267,7 @@ class PIIdentifier(Estimator):
         self.input_warp = input_warp
         self.creep_time_constants = creep_time_constants
         self.sample_time = sample_time
+        self.weight_uncertainty = weight_uncertainty
 
     @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
@@ -331,6 +342,16 @@ class PIIdentifier(Estimator):
             n_evaluations=n_eval,
             success=success,
             message=message,
+            weight_uncertainty=None
+            if self.weight_uncertainty == "none"
+            else weight_uncertainty(
+                problem,
+                theta,
+                kinds,
+                classical,
+                self.weight_uncertainty,
+                (w, offsets, getattr(getattr(model, "creep", None), "weights", None)),
+            ),
         )
 
     # ------------------------------------------------------------------ steps of fit

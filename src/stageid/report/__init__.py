@@ -5,11 +5,13 @@
 ``write_metrics``   write the figures of a report's tables as ``metrics.json``
 ``write_report_folder``  write ``index.html`` and ``metrics.json`` atomically (all or nothing)
 ``model_report``    Bode, pole-zero and simulation report of any model on data
+``uncertainty_section``  the model's response with +-2 std bands and its relative std
 ==================  ================================================================
 """
 
 from .html import Report, write_metrics, write_report_folder
 from .model_report import hysteresis_model_report, lti_model_report, model_report
+from .uncertainty import magnitude_band, uncertainty_section
 
 __all__ = [
     "Report",
@@ -18,4 +20,6 @@ __all__ = [
     "model_report",
     "lti_model_report",
     "hysteresis_model_report",
+    "uncertainty_section",
+    "magnitude_band",
 ]

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from .html import Report
+from .uncertainty import uncertainty_section
 
 __all__ = ["lti_model_report", "hysteresis_model_report", "model_report", "frf_section"]
 
@@ -20,9 +21,17 @@ def _band(model: Any, experiments: Sequence[Any]) -> np.ndarray:
 
 
 def lti_model_report(
-    model: Any, experiments: Sequence[Any] = (), title: str = "Identified model", notes: Sequence[str] = ()
+    model: Any,
+    experiments: Sequence[Any] = (),
+    title: str = "Identified model",
+    notes: Sequence[str] = (),
+    uncertainty: Any = None,
 ) -> tuple[Report, dict[str, Any]]:
     """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
+
+    ``uncertainty`` (a :class:`~stageid.frf.FrequencyResponse` with ``std``, from a result's
+    ``response_uncertainty``) draws the Bode plot on its frequencies with +-2 std bands and
+    adds the relative std per entry (:func:`~stageid.report.uncertainty.uncertainty_section`).
 
     Returns the report and a metrics dictionary (fit % per experiment and output).  The fit
     of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
@@ -41,11 +50,16 @@ def lti_model_report(
     )
     for note in notes:
         report.paragraph(note)
-    f = _band(model, experiments)
-    report.figure(
-        bode_figure(f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"),
-        "Bode magnitude and phase of the identified model.",
-    )
+    if uncertainty is None:
+        f = _band(model, experiments)
+        report.figure(
+            bode_figure(
+                f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"
+            ),
+            "Bode magnitude and phase of the identified model.",
+        )
+    else:
+        uncertainty_section(report, metrics, uncertainty, "identified model", level=3)
     poles, zeros = model.poles(), model.zeros()
     report.figure(
         pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
@@ -219,9 +233,10 @@ def hysteresis_model_report(
 
 
 def model_report(
-    model: Any, experiments: Sequence[Any] = (), title: str | None = None
+    model: Any, experiments: Sequence[Any] = (), title: str | None = None, uncertainty: Any = None
 ) -> tuple[Report, dict[str, Any]]:
-    """A report for any stageid model: LTI models get Bode/pole-zero/simulation, hysteresis models loops."""
+    """A report for any stageid model: LTI models get Bode/pole-zero/simulation (with ``uncertainty``
+    bands when given, see :func:`lti_model_report`), hysteresis models loops."""
     if hasattr(model, "frequency_response"):
-        return lti_model_report(model, experiments, title or "Identified LTI model")
+        return lti_model_report(model, experiments, title or "Identified LTI model", uncertainty=uncertainty)
     return hysteresis_model_report(model, experiments, title or "Identified hysteresis model")

@@ -27,6 +27,8 @@ Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one n
 ``records``              mean removal, unit-RMS scaling, excited band of the records
 ``estimator``            the whole method: ``HankelMAP(...).fit(data)`` -> result
 ``result``               ``HankelMAPResult``: model, posterior, bands, ``update(new_data)``
+``uncertainty``          the posterior carried through the realisation to the realised model
+                         (``HankelMAPResult.response_uncertainty``: delta method or draws)
 =======================  ===================================================================
 
 ``HankelMAP``            the estimator (configure, fit, get a frozen ``HankelMAPResult``)

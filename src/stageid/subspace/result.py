@@ -19,6 +19,7 @@ from .._threads import single_blas_thread
 from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
+from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import theta_response_std
 from .map_estimator import Posterior
@@ -195,6 +196,52 @@ class HankelMAPResult:
             Gs.append(G)
             Ss.append(S)
         return np.concatenate(Gs, axis=2), np.concatenate(Ss, axis=2)
+
+    def response_uncertainty(
+        self, freqs_hz: Sequence[float] | np.ndarray, method: str = "auto", n_samples: int = 40, seed: int = 0
+    ) -> FrequencyResponse:
+        """The realised model's frequency response with ``std = sqrt(E|G_est - G|^2)`` per entry.
+
+        Unlike :meth:`response_bands` (the eq. 9 response), this is the posterior carried
+        through the realisation to the model itself: first order (``method="delta"``, the
+        default for the refined frequency route) or by realising draws of the posterior
+        (``"sampling"``, the default otherwise); see :mod:`stageid.subspace.uncertainty`.
+
+        Parameters
+        ----------
+        freqs_hz : array_like of shape (n_freqs,)
+            Strictly increasing frequencies in Hz within ``[0, 1 / (2 dt)]``.
+        method : {"auto", "delta", "sampling"}
+        n_samples, seed : int
+            Draws and seed of ``"sampling"``.
+
+        Returns
+        -------
+        FrequencyResponse
+            ``response`` the model's, ``std`` its standard deviation, the model's channel names.
+
+        Raises
+        ------
+        DataError
+            Frequencies that are not finite, not increasing, or outside ``[0, Nyquist]``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from stageid.data import Experiment
+        >>> from stageid.models import StateSpaceModel
+        >>> from stageid.subspace import HankelMAP
+        >>> g = StateSpaceModel([[0.9]], [[1.0]], [[0.1]], [[0.0]], dt=0.01)
+        >>> rng = np.random.default_rng(0)
+        >>> u = rng.standard_normal((2000, 1))
+        >>> y = g.simulate(u) + 0.01 * rng.standard_normal((2000, 1))
+        >>> fr = HankelMAP(horizon=5, order=1).fit(Experiment(u, y, 0.01)).response_uncertainty([1.0, 10.0])
+        >>> fr.std.shape, bool(np.all(np.abs(fr.response - g.frequency_response([1.0, 10.0])) < 5 * fr.std))
+        ((2, 1, 1), True)
+        """
+        from .uncertainty import realised_response_uncertainty
+
+        return realised_response_uncertainty(self, freqs_hz, method, n_samples, seed)
 
     def summary(self) -> str:
         """A short text summary (horizon, order, band, stability, selection tables)."""

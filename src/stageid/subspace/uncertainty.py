@@ -1,0 +1,356 @@
+"""Uncertainty of the *realised* Hankel-MAP model: the eq. 9 posterior carried through the realisation.
+
+:meth:`HankelMAPResult.response_bands` gives the posterior spread of the eq. 9 response; the
+model a user takes away is the ``order``-state realisation of that response (the frequency
+route: an output-error fit of ``C (zI - A)^-1 B + D`` to the eq. 9 response on the band's
+grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posterior there:
+
+* ``"delta"`` (first order, the default for the frequency route with refinement): the
+  realisation is the weighted least-squares fit ``min sum_k ||(G_model(z_k) - G_9(z_k)) / s_j||^2``
+  (``s_j`` the column scale of :func:`~.frequency_domain.response_realization`), so to first
+  order a perturbation ``dG_9`` of the eq. 9 response moves the model's parameters by
+  ``dx = J^+ dG_9`` (``J`` the Jacobian of the model's response in ``A, B, C, D``; the
+  pseudo-inverse drops the ``n^2`` similarity directions, which do not change the response)
+  and its response anywhere by ``J(f) dx``.  ``dG_9 = L^+ dtheta V(z)`` (first order in the
+  block-row equations of eq. 9, as in ``theta_response_std``) with the matrix-normal
+  ``Cov(vec theta) = p P (x) Sigma`` (the ``p`` for the overlap of consecutive windows, as in
+  ``response_bands``) gives the covariance of ``dG_9`` across the whole grid, and so
+  ``Cov(dx)``;
+* ``"sampling"``: draws of ``theta`` from that posterior, each realised by the very route
+  and order of the fit (:func:`~.realization.realize`), the spread of their responses
+  around the identified one.  Slower; for ``realization="markov"`` (Lemma 1, not a
+  least-squares fit on a grid) and ``refine=False`` it is the default.
+
+Per-input-channel fits (eq. 19-22) are independent (disjoint records): the stacked model's
+column ``j`` is the ``j``-th sub-model's, with its own posterior.  Neither way counts the bias
+of a realisation whose order cannot fit the system (measured in
+``studies/uncertainty/RESULTS.md``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._errors import DataError
+from .._threads import single_blas_thread
+from ..frf.frd import FrequencyResponse
+from ..models.statespace import StateSpaceModel
+from .map_estimator import Posterior
+from .realization import realize
+from .records import check_freqs
+from .weighting import output_weights, weight_scales, weighted_theta
+
+__all__ = [
+    "UNCERTAINTY_METHODS",
+    "DEFAULT_SAMPLES",
+    "model_jacobian",
+    "response_points",
+    "TangentProjection",
+    "response_std",
+    "eq9_response_covariance",
+    "realised_response_uncertainty",
+]
+
+#: Draws of the posterior for ``method="sampling"``.
+DEFAULT_SAMPLES = 40
+#: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
+MAX_COVARIANCE_ENTRIES = 300
+#: Frequencies per block where a Jacobian over many frequencies is formed.
+CHUNK = 256
+#: Relative singular value (of the column-normalised Jacobian) below which a direction of
+#: ``A, B, C, D`` counts as a similarity direction (no effect on the response).
+GAUGE_TOLERANCE = 1e-9
+
+
+def response_points(freqs_hz: np.ndarray, dt: float | None) -> np.ndarray:
+    """``z = exp(j 2 pi f dt)`` (discrete) or ``s = j 2 pi f`` (continuous, ``dt`` None)."""
+    f = np.asarray(freqs_hz, dtype=float)
+    return 2j * np.pi * f if dt is None else np.exp(2j * np.pi * f * dt)
+
+
+def model_jacobian(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, points: np.ndarray, feedthrough: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """Response ``G = C (xI - A)^-1 B + D`` at ``points`` and its Jacobian in the matrix entries.
+
+    ``dG = C R dA R B + C R dB + dC R B + dD`` with ``R = (xI - A)^-1``.
+
+    Returns
+    -------
+    G : ndarray of shape (n_points, q, m), complex
+    J : ndarray of shape (n_points, q, m, n_params), complex
+        Columns: ``vec`` of ``A`` (row-major), ``B``, ``C``, then ``D`` when ``feedthrough``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> G, J = model_jacobian(np.array([[0.5]]), np.array([[1.0]]), np.array([[2.0]]), np.zeros((1, 1)), np.array([1.0]))
+    >>> float(G[0, 0, 0].real), J[0, 0, 0].real.tolist()   # G = 2 / (z - 0.5) at z = 1
+    (4.0, [8.0, 4.0, 2.0, 1.0])
+    """
+    n, m, q = A.shape[0], B.shape[1], C.shape[0]
+    R = np.linalg.inv(points[:, None, None] * np.eye(n)[None] - A[None])  # (nz, n, n)
+    CR = C[None] @ R
+    RB = R @ B[None]
+    G = CR @ B[None] + D[None]
+    nz = points.size
+    RBt = RB.transpose(0, 2, 1)  # (nz, m, n)
+    JA = (CR[:, :, None, :, None] * RBt[:, None, :, None, :]).reshape(nz, q, m, n * n)
+    JB = (CR[:, :, None, :, None] * np.eye(m)[None, None, :, None, :]).reshape(nz, q, m, n * m)
+    JC = (np.eye(q)[None, :, None, :, None] * RBt[:, None, :, None, :]).reshape(nz, q, m, q * n)
+    parts = [JA, JB, JC]
+    if feedthrough:
+        parts.append(np.broadcast_to(np.eye(q * m).reshape(1, q, m, q * m), (nz, q, m, q * m)))
+    return G, np.concatenate(parts, axis=3)
+
+
+@dataclasses.dataclass(frozen=True)
+class TangentProjection:
+    """First-order map of a weighted least-squares fit of a model's response to data on a grid.
+
+    For ``min_x sum ||W^1/2 (G_model(x) - G_data)||^2`` at a minimum, ``dx = M [Re dG; Im dG]``;
+    the model's response then moves by ``J(f) dx`` anywhere.  Stored in the reduced form
+    ``dx = basis @ phi`` with ``phi = Re(functionals @ vec(dG))``.
+
+    Attributes
+    ----------
+    functionals : ndarray of shape (r, n_points * q * m), complex
+        ``phi = Re(functionals @ vec(dG))``: the data's weighted projection on the ``r``
+        identifiable directions.
+    basis : ndarray of shape (n_params, r)
+        ``dx = basis @ phi``.
+    """
+
+    functionals: np.ndarray
+    basis: np.ndarray
+
+    @classmethod
+    def from_jacobian(cls, J: np.ndarray, weights: np.ndarray, n_gauge: int = 0) -> TangentProjection:
+        """From the Jacobian ``J`` (n_points, q, m, n_params) at the fit and the weight of every
+        response entry (broadcastable to (n_points, q, m)); at most ``n_params - n_gauge``
+        directions are kept (``n_gauge = n^2`` similarity directions of a minimal realisation)."""
+        P = J.shape[3]
+        sw = np.sqrt(np.broadcast_to(weights, J.shape[:3])).reshape(-1)
+        Jw = J.reshape(-1, P) * sw[:, None]
+        norms = np.sqrt(np.sum(np.abs(Jw) ** 2, axis=0))
+        norms = np.where(norms > 0, norms, 1.0)
+        Jn = Jw / norms[None, :]
+        # the Gram matrix's eigenpairs are the SVD of the real-stacked [Re Jn; Im Jn] at a seventh
+        # of its cost; its precision (eps relative to the largest eigenvalue) is why the kept
+        # directions are also capped by the known number of similarity directions
+        ev, V = np.linalg.eigh(np.real(np.conj(Jn).T @ Jn))
+        ev, V = ev[::-1], V[:, ::-1]
+        ok = int(np.sum(ev > GAUGE_TOLERANCE**2 * max(float(ev[0]), 1e-300))) if ev.size else 0
+        keep = min(ok, max(P - n_gauge, 1))
+        s = np.sqrt(ev[:keep])
+        Ur = (Jn @ V[:, :keep]) / s[None, :]  # complex (N, keep): Re-stacked left singular vectors
+        functionals = np.conj(Ur).T * sw[None, :]  # Re(f @ dG) = Re(Ur)^T Re dG + Im(Ur)^T Im dG
+        basis = (V[:, :keep] / s[None, :]) / norms[:, None]
+        return cls(functionals, basis)
+
+    def parameter_factor(self, cov: np.ndarray, pseudo: np.ndarray) -> np.ndarray:
+        """``L`` with ``L L^T = Cov(dx)`` (clipped at zero eigenvalues), shape (n_params, r)."""
+        F = self.functionals
+        phi = 0.5 * np.real((F @ cov) @ np.conj(F).T + (F @ pseudo) @ F.T)
+        ev, V = np.linalg.eigh(0.5 * (phi + phi.T))
+        return self.basis @ (V * np.sqrt(np.clip(ev, 0.0, None))[None, :])
+
+
+def response_std(
+    abcd: tuple[np.ndarray, ...], factor: np.ndarray, points: np.ndarray, feedthrough: bool = True
+) -> np.ndarray:
+    """``sqrt(E|dG|^2)`` at ``points`` for parameters with ``Cov(dx) = factor factor^T``, shape
+    (n_points, q, m); evaluated in blocks of ``CHUNK`` points (the Jacobian's memory)."""
+    out = []
+    for lo in range(0, points.size, CHUNK):
+        _, J = model_jacobian(*abcd, points[lo : lo + CHUNK], feedthrough)
+        J2 = J.reshape(-1, J.shape[3])
+        var = (J2.real @ factor) ** 2 + (J2.imag @ factor) ** 2  # a real factor: two real products
+        out.append(np.sqrt(np.sum(var, axis=1)).reshape(J.shape[:3]))
+    return np.concatenate(out, axis=0)
+
+
+def eq9_response_covariance(
+    theta: np.ndarray,
+    column_cov: np.ndarray,
+    noise_cov: np.ndarray,
+    horizon: int,
+    n_inputs: int,
+    n_outputs: int,
+    freqs: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The eq. 9 response on a grid and the covariance of its error across the whole grid.
+
+    ``dG_k = L_k^+ dtheta V_k`` (``theta_response_std``) with ``Cov(vec theta) = P (x) Sigma``
+    gives ``E[dG_k(i,j) conj(dG_l(i',j'))] = (L_k^+ Sigma L_l^+H)_(ii') (V_k^T P conj V_l)_(jj')``
+    and the pseudo-covariance (no conjugate) likewise: ``theta`` is real, so both are needed.
+
+    Returns
+    -------
+    G : ndarray of shape (n_freqs, q, m), complex
+    cov, pseudo : ndarrays of shape (n_freqs q m, n_freqs q m), complex (``vec`` in (k, i, j) order)
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+    nz = zs.size
+    Gam, Phi, Dp = theta[:, : p * m], theta[:, p * m : p * m + p * q], theta[:, p * m + p * q :]
+    e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
+    e_fut = zs[:, None] ** np.arange(p)[None, :]
+    rhs = _weighted_sum(e_past, Gam, p, m) + _weighted_sum(e_fut, Dp, p, m)
+    lhs = -_weighted_sum(e_past, Phi, p, q)
+    lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]
+    lh = np.conj(lhs).transpose(0, 2, 1)
+    Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq): the least-squares inverse of each block system
+    G = Lp @ rhs
+    # V_k = [e_past (x) I_m; e_past (x) G_k; e_fut (x) I_m], all k side by side: (d, nz m)
+    eye = np.eye(m)[None, :, None, :]
+    V = np.concatenate(
+        [
+            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
+            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+        ]
+    )
+    PV = column_cov @ V.real + 1j * (column_cov @ V.imag)  # a real matrix: half the flops of complex
+    A_c = (V.T @ np.conj(PV)).reshape(nz, m, nz, m)
+    A_p = (V.T @ PV).reshape(nz, m, nz, m)
+    L2 = Lp.reshape(nz * q, p * q)
+    LS = L2 @ noise_cov
+    B_c = (LS @ np.conj(L2).T).reshape(nz, q, nz, q)
+    B_p = (LS @ L2.T).reshape(nz, q, nz, q)
+    N = nz * q * m
+    cov = (B_c[:, :, None, :, :, None] * A_c[:, None, :, :, None, :]).reshape(N, N)
+    pseudo = (B_p[:, :, None, :, :, None] * A_p[:, None, :, :, None, :]).reshape(N, N)
+    return G, cov, pseudo
+
+
+def covariance_grid(band: tuple[float, float], n_frequencies: int, n_entries: int) -> np.ndarray:
+    """The realisation's grid (``n_frequencies`` evenly over ``band``), every ``s``-th point kept so
+    that at most ``MAX_COVARIANCE_ENTRIES`` response entries enter the covariance.
+
+    The realisation's least-squares fit on an even grid approximates an integral over the band;
+    a coarser even grid approximates the same integral as long as it resolves the response, and
+    the covariance costs ``(n_freqs q m)^2`` memory and ``r (n_freqs q m)^2`` work.
+    """
+    stride = max(1, int(np.ceil(n_frequencies * n_entries / MAX_COVARIANCE_ENTRIES)))
+    return np.linspace(band[0], band[1], n_frequencies)[::stride]
+
+
+def _weighted_sum(e: np.ndarray, M: np.ndarray, p: int, k: int) -> np.ndarray:
+    """``sum_t e[z, t] M[r, t, :]`` for every point ``z``: ``M`` of shape (p q, p k) -> (n_z, p q, k)."""
+    rows = M.shape[0]
+    M2 = np.ascontiguousarray(M.reshape(rows, p, k).transpose(1, 0, 2)).reshape(p, rows * k)
+    return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(e.shape[0], rows, k)
+
+
+def _weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``theta`` and its covariance factors for the noise-whitened outputs the realisation fits
+    (``p P`` for the window overlap, as ``response_bands``), and the output weights."""
+    p, m, q = post.horizon, post.n_inputs, post.n_outputs
+    w = output_weights(post)
+    wp, c = weight_scales(w, p, m)
+    theta_w = weighted_theta(post.theta, w, p, m, q)
+    return theta_w, post.covariance * p * np.outer(c, c), post.noise_cov * np.outer(wp, wp), w
+
+
+def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The channel's model in the coordinates of its realisation: unit-RMS channels, outputs times ``w``."""
+    ow = (w / sy)[:, None]
+    return model.A, model.B * su[None, :], model.C * ow, model.D * su[None, :] * ow
+
+
+def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float) -> np.ndarray:
+    """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units)."""
+    post = ch.scaled_posterior
+    p, m, q = post.horizon, post.n_inputs, post.n_outputs
+    su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
+    theta_w, col_cov, noise_cov, w = _weighted_parts(post)
+    grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
+    G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
+    scale = np.max(np.abs(G9), axis=(0, 1))
+    scale = np.where(scale > 0, scale, 1.0)
+    A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
+    feed = bool(estimator.feedthrough)
+    _, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
+    proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
+    factor = proj.parameter_factor(cov, pseudo)
+    std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
+    return std * (sy / w)[None, :, None] / su[None, None, :]
+
+
+def channel_sampling_std(ch, estimator, freqs: np.ndarray, dt: float, n_samples: int, rng) -> np.ndarray:
+    """``"sampling"``: draws of ``theta`` from the posterior (``p P (x) Sigma``), each realised by
+    the fit's route and order; the RMS distance of their responses from the identified one."""
+    post = ch.scaled_posterior
+    p, m, q = post.horizon, post.n_inputs, post.n_outputs
+    su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
+    row = _psd_factor(post.noise_cov)
+    col = _psd_factor(post.covariance * p)
+    grid = np.linspace(ch.band[0], ch.band[1], int(estimator.n_frequencies))
+    settings = {"realization": estimator.realization, "feedthrough": estimator.feedthrough, "refine": estimator.refine}
+    G0 = ch.model.frequency_response(freqs)
+    acc = np.zeros(G0.shape)
+    for _ in range(n_samples):
+        theta = post.theta + row @ rng.standard_normal(post.theta.shape) @ col.T
+        model, _ = realize(dataclasses.replace(post, theta=theta), ch.order, grid, dt, **settings)
+        scaled = StateSpaceModel(model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su, dt)
+        acc += np.abs(scaled.frequency_response(freqs) - G0) ** 2
+    return np.sqrt(acc / n_samples)
+
+
+def _psd_factor(M: np.ndarray) -> np.ndarray:
+    ev, V = np.linalg.eigh(0.5 * (M + M.T))
+    return V * np.sqrt(np.clip(ev, 0.0, None))[None, :]
+
+
+#: ``method`` of :func:`realised_response_uncertainty` -> what it does (``"auto"`` picks).
+UNCERTAINTY_METHODS = ("auto", "delta", "sampling")
+
+
+@single_blas_thread
+def realised_response_uncertainty(
+    result,
+    freqs_hz: Sequence[float] | np.ndarray,
+    method: str = "auto",
+    n_samples: int = DEFAULT_SAMPLES,
+    seed: int = 0,
+) -> FrequencyResponse:
+    """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
+
+    Parameters
+    ----------
+    result : HankelMAPResult
+    freqs_hz : array_like of shape (n_freqs,)
+        Frequencies in Hz within ``[0, 1 / (2 dt)]``.
+    method : {"auto", "delta", "sampling"}
+        ``auto``: ``delta`` for the refined frequency route, ``sampling`` otherwise.
+    n_samples, seed : int
+        Draws and seed of ``sampling``.
+
+    Raises
+    ------
+    DataError
+        Frequencies that are not finite, negative or above Nyquist; an unknown ``method``.
+    """
+    f = check_freqs(freqs_hz, result.model.dt)
+    if method not in UNCERTAINTY_METHODS:
+        raise DataError(f"`method` must be one of {', '.join(UNCERTAINTY_METHODS)}; got {method!r}.")
+    est = result.estimator
+    if method == "auto":
+        method = "delta" if est.realization == "frequency" and est.refine else "sampling"
+    dt = result.model.dt
+    rng = np.random.default_rng(seed)
+    stds = []
+    for ch in result.channels:
+        if method == "delta":
+            stds.append(channel_delta_std(ch, est, f, dt))
+        else:
+            stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
+    model = result.model
+    return FrequencyResponse(
+        f, model.frequency_response(f), np.concatenate(stds, axis=2), None, model.inputs, model.outputs
+    )
