@@ -217,7 +217,7 @@ BAD_MANIFESTS = {
     "empty name": ("name,command\n,frf x.csv --inputs u --outputs y\n", "name is empty"),
     "empty command": ("name,command\na,\n", "command is empty"),
     "quote": ('name,command\na,"frf ""x.csv --inputs u --outputs y"\n', "cannot be split"),
-    "ragged": ("name,command\na,frf x.csv,extra\n", "3 fields"),
+    "ragged": ("command,name\nfrf x.csv,a,extra\n", "3 fields"),
 }
 
 

@@ -97,3 +97,27 @@ def test_content_hash_of_a_directory_store_sees_every_file(tmp_path):
     before = content_hash(store)
     (store / "u" / "1").write_bytes(b"")  # a new (even empty) chunk changes the hash
     assert content_hash(store) != before
+
+
+def test_a_last_command_column_needs_no_quotes_for_its_commas(tmp_path):
+    from stageid.batch import read_manifest
+
+    (tmp_path / "m.csv").write_text(
+        "name,command\n"
+        "unit7,identify statespace unit7.csv --inputs Ux,Uy --outputs x,y --order 6\n"
+        'quoted,"frf a.csv --inputs Z,Rx --outputs z"\n'
+    )
+    rows = read_manifest(tmp_path / "m.csv")
+    assert rows[0].words == (
+        "identify",
+        "statespace",
+        "unit7.csv",
+        "--inputs",
+        "Ux,Uy",
+        "--outputs",
+        "x,y",
+        "--order",
+        "6",
+    )
+    assert rows[1].words == ("frf", "a.csv", "--inputs", "Z,Rx", "--outputs", "z")
+    assert [r.row for r in rows] == [2, 3]

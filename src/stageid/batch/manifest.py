@@ -2,7 +2,9 @@
 
 ``name`` names the job's output (``DIR/<name>.json`` or ``DIR/<name>.csv``) and its row in
 ``summary.csv``; ``command`` is a stageid command line without ``stageid`` and without ``-o``,
-split as a POSIX shell would split it (quote paths with spaces).  Other columns are ignored
+split as a POSIX shell would split it (quote paths with spaces).  When ``command`` is the last
+column its commas need no CSV quoting (``a,frf a.csv --inputs Z,Rx --outputs z,rx`` is one
+job); elsewhere a command with commas is quoted as CSV quotes it.  Other columns are ignored
 (notes, serial numbers).  Everything here is checked before any job runs or any file is
 written: a bad manifest is one :class:`~stageid.DataError`.
 """
@@ -98,8 +100,13 @@ def read_manifest(path: str | os.PathLike[str]) -> list[ManifestRow]:
     for number, fields in enumerate(reader, start=2):
         if not any(f.strip() for f in fields):
             continue
+        if len(fields) > len(header) and header[-1] == "command":  # commas of the command line, unquoted
+            fields = [*fields[: len(header) - 1], ",".join(fields[len(header) - 1 :])]
         if len(fields) != len(header):
-            raise DataError(f"manifest row {number}: {len(fields)} fields; expected {len(header)} as in the header.")
+            raise DataError(
+                f"manifest row {number}: {len(fields)} fields; expected {len(header)} as in the header "
+                "(quote a command that holds commas unless command is the last column)."
+            )
         name = check_job_name(fields[index["name"]], number)
         if name.casefold() in seen:
             raise DataError(
