@@ -93,6 +93,28 @@ def scheduler_overhead(n_tasks: int = 2000) -> tuple[float, float]:
     return started, per_task
 
 
+def worker_settings(manifest: Path, pairs: int = 5) -> tuple[float, float, float]:
+    """Median job seconds on a 1-worker cluster with Dask's default worker settings and with
+    stageid's (:data:`stageid.cluster.LOCAL_WORKER_CONFIG`), submissions alternating, and the
+    same job in this process: (dask defaults, stageid settings, in-process)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    from stageid.cli.batch import run_command_line
+    from stageid.cluster import LOCAL_WORKER_CONFIG
+
+    argv = tuple(COMMAND.format(i=0).replace("unit0.csv", str(manifest.parent / "unit0.csv")).split())
+    kw = {"n_workers": 1, "threads_per_worker": 1, "dashboard_address": None, "silence_logs": 40}
+    with LocalCluster(**kw) as default, dask.config.set(LOCAL_WORKER_CONFIG), LocalCluster(**kw) as tuned:
+        with Client(default, set_as_default=False) as a, Client(tuned, set_as_default=False) as b:
+            runs: dict[str, list[float]] = {"default": [], "stageid": [], "in-process": []}
+            for _ in range(pairs + 1):  # the first pair pays imports and JIT: dropped
+                for label, client in (("default", a), ("stageid", b)):
+                    runs[label].append(client.submit(run_command_line, argv, ".json", pure=False).result()["seconds"])
+                runs["in-process"].append(run_command_line(argv, ".json")["seconds"])
+    return tuple(statistics.median(v[1:]) for v in runs.values())  # type: ignore[return-value]
+
+
 def hashing_rate(folder: Path) -> tuple[float, float]:
     """(MB hashed, MB/s) for every record of the fleet: what the client reads to decide skips."""
     from stageid.batch.state import content_hash
@@ -126,12 +148,13 @@ def main_bench() -> None:
         rerun = timed([sys.executable, "-m", "stageid", "batch", str(manifest), "--out", str(work / "batch2-0")])
         started, per_task = scheduler_overhead()
         size, rate = hashing_rate(work)
+        settings = worker_settings(manifest)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    report(opts, times, job_seconds, rerun, started, per_task, size, rate)
+    report(opts, times, job_seconds, rerun, started, per_task, size, rate, settings)
 
 
-def report(opts, times, job_seconds, rerun, started, per_task, size, rate) -> None:
+def report(opts, times, job_seconds, rerun, started, per_task, size, rate, settings) -> None:
     med = {k: statistics.median(v) for k, v in times.items()}
     lines = [
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
@@ -153,6 +176,9 @@ def report(opts, times, job_seconds, rerun, started, per_task, size, rate) -> No
         f"Local 2-worker cluster start+stop: {started:.1f} s.  Scheduler cost per no-op task "
         f"(2000 tasks, 2 workers): {per_task * 1e3:.2f} ms.  Hashing the inputs: {size:.1f} MB at "
         f"{rate:.0f} MB/s.  Rerun with every job skipped (no cluster started): {rerun:.1f} s.",
+        "",
+        f"One job (median of 5, alternating): on a worker with Dask's default settings {settings[0]:.2f} s, "
+        f"with stageid's LOCAL_WORKER_CONFIG {settings[1]:.2f} s, in this process {settings[2]:.2f} s.",
     ]
     text = "\n".join(lines)
     print(text)
