@@ -105,8 +105,14 @@ def worker_settings(manifest: Path, pairs: int = 5) -> tuple[float, float, float
 
     argv = tuple(COMMAND.format(i=0).replace("unit0.csv", str(manifest.parent / "unit0.csv")).split())
     kw = {"n_workers": 1, "threads_per_worker": 1, "dashboard_address": None, "silence_logs": 40}
-    with LocalCluster(**kw) as default, dask.config.set(LOCAL_WORKER_CONFIG), LocalCluster(**kw) as tuned:
+    # the tuned cluster first: a nanny also sets its pre-spawn variables in this process's
+    # environment, which later workers would inherit
+    with dask.config.set(LOCAL_WORKER_CONFIG):
+        tuned = LocalCluster(**kw)
+    with tuned, LocalCluster(**kw) as default:
         with Client(default, set_as_default=False) as a, Client(tuned, set_as_default=False) as b:
+            trim = b.run(lambda: os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+            assert set(trim.values()) == {None}, trim
             runs: dict[str, list[float]] = {"default": [], "stageid": [], "in-process": []}
             for _ in range(pairs + 1):  # the first pair pays imports and JIT: dropped
                 for label, client in (("default", a), ("stageid", b)):
