@@ -32,15 +32,19 @@ __all__ = ["dask_client", "check_scheduler_address", "DEFAULT_TIMEOUT", "LOCAL_W
 #: Seconds to wait for a scheduler before giving up (the batch contract: an error within 10 s).
 DEFAULT_TIMEOUT = 8.0
 
-#: Dask settings of the local cluster's workers.  The nanny sets ``MALLOC_TRIM_THRESHOLD_`` by
-#: default, and any explicit glibc threshold freezes malloc's adaptive thresholds: every fit then
-#: faults its temporaries' pages in again (2-3x slower identification); the statistical profiler
-#: samples the running task every 10 ms (~15 %).  Both measured in benchmarks/RESULTS-dask.md.
-#: Workers started elsewhere should get the same settings (``dask worker`` reads them from its
-#: YAML configuration; or run it with ``--no-nanny``).
+#: Dask settings of the local cluster's workers, for jobs of seconds of pure computation.  The
+#: nanny sets ``MALLOC_TRIM_THRESHOLD_`` by default, and any explicit glibc threshold freezes
+#: malloc's adaptive thresholds: every fit then faults its temporaries' pages in again; the
+#: statistical profiler samples the running task every 10 ms; the event-loop health check (20 ms)
+#: and memory monitor (100 ms) take the GIL from the fit, which on a loaded machine waits for a
+#: CPU each time.  Together 1.5-3x slower fits on a worker than in-process, measured in
+#: benchmarks/RESULTS-dask.md.  Workers started elsewhere should get the same settings
+#: (``dask worker`` reads them from its YAML configuration).
 LOCAL_WORKER_CONFIG = {
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
     "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
 }
 
 _ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?$")
