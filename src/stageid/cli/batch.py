@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import threading
+import warnings
 
 import click
 
@@ -72,6 +73,8 @@ def batch_command(manifest_path: str, out_dir: str, scheduler: str | None, n_wor
     from ..batch import SUMMARY_FILE, read_manifest, resolve_job, run_batch
     from ..cluster import check_scheduler_address, dask_client
 
+    # Dask's sockets closed by the garbage collector are its own business, not the user's
+    warnings.filterwarnings("ignore", category=ResourceWarning)
     if scheduler is not None and n_workers is not None:
         raise click.UsageError("--workers sizes the local cluster; got it with --scheduler (that cluster's own).")
     if scheduler is not None:
