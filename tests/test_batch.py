@@ -161,6 +161,7 @@ def test_local_cluster_by_the_real_script(records, tmp_path):
     manifest = write_manifest(data / "fleet.csv", [("a", IDENTIFY_Z.format("unit1.csv")), ("f", JOBS[3][1])])
     rc, out, err = run_cli("batch", manifest, "--out", tmp_path / "out", "--workers", "1", timeout=300)
     assert rc == 0, err
+    assert err == ""  # no Dask warnings or logs (stderr is not a terminal: no progress bar either)
     assert "2 ok" in out
     rows = read_summary(tmp_path / "out")
     assert [r["status"] for r in rows] == ["ok", "ok"] and rows[0]["worker"] == rows[1]["worker"] != ""
