@@ -57,8 +57,10 @@ def batch_command(manifest_path: str, out_dir: str, scheduler: str | None, n_wor
     statespace|closed-loop|hysteresis|frd (-> DIR/<name>.json), frf, simulate, freqresp,
     compensate, signal KIND (-> DIR/<name>.csv) or plants (.json; .csv with --experiment).
     Each output is the file the command writes when run directly, written atomically as its
-    job finishes.  DIR/summary.csv has one row per job: name,status,seconds,worker,error with
-    status ok, failed (error: the command's one-line error) or skipped.  A rerun skips a job
+    job finishes.  DIR/summary.csv has one row per job, in manifest order:
+    name,status,seconds,worker,error with status ok, failed (error: the command's one-line
+    error) or skipped, and the job's run time on its worker.  A progress bar shows on stderr
+    (on a terminal).  A rerun skips a job
     whose command, input files (SHA-256 of their content), stageid version and output are
     unchanged (state in DIR/.stageid-batch.json); when every job is skipped no cluster starts.
 
