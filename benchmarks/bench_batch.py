@@ -19,6 +19,7 @@ import argparse
 import csv
 import os
 import platform
+import resource
 import shutil
 import statistics
 import subprocess
@@ -52,10 +53,18 @@ def make_fleet(folder: Path, n_jobs: int) -> Path:
     return manifest
 
 
+CPU: list[float] = []  # CPU seconds (user + system) of each timed process and its descendants
+
+
 def timed(args: list[str], cwd: Path | None = None) -> float:
+    """Wall seconds of a whole process; its CPU seconds (workers included) go to ``CPU``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run(args, check=True, env=ENV, capture_output=True, cwd=cwd)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    return wall
 
 
 def run_serial(manifest: Path, out: Path) -> float:
@@ -143,34 +152,44 @@ def main_bench() -> None:
     try:
         manifest = make_fleet(work, opts.jobs)
         times: dict[str, list[float]] = {"serial": [], "1 worker": [], "2 workers": []}
+        cpu: dict[str, list[float]] = {k: [] for k in times}
         job_seconds: dict[str, list[float]] = {"1 worker": [], "2 workers": []}
         for r in range(opts.rounds):
             times["serial"].append(run_serial(manifest, work / f"serial{r}"))
+            cpu["serial"].append(CPU[-1])
             for n, label in ((1, "1 worker"), (2, "2 workers")):
                 wall, seconds = run_batch(manifest, work / f"batch{n}-{r}", n)
                 times[label].append(wall)
+                cpu[label].append(CPU[-1])
                 job_seconds[label] += seconds
-            print(f"round {r + 1}: " + ", ".join(f"{k} {v[-1]:.1f} s" for k, v in times.items()), flush=True)
+            print(
+                f"round {r + 1}: " + ", ".join(f"{k} {v[-1]:.1f} s (CPU {cpu[k][-1]:.1f} s)" for k, v in times.items()),
+                flush=True,
+            )
         rerun = timed([sys.executable, "-m", "stageid", "batch", str(manifest), "--out", str(work / "batch2-0")])
         started, per_task = scheduler_overhead()
         size, rate = hashing_rate(work)
         settings = worker_settings(manifest)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    report(opts, times, job_seconds, rerun, started, per_task, size, rate, settings)
+    report(opts, times, cpu, job_seconds, rerun, started, per_task, size, rate, settings)
 
 
-def report(opts, times, job_seconds, rerun, started, per_task, size, rate, settings) -> None:
+def report(opts, times, cpu, job_seconds, rerun, started, per_task, size, rate, settings) -> None:
     med = {k: statistics.median(v) for k, v in times.items()}
+    med_cpu = {k: statistics.median(v) for k, v in cpu.items()}
     lines = [
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}; {opts.jobs} jobs, {opts.rounds} alternating rounds, medians.",
         "",
-        "| run | wall [s] | jobs/s | vs serial |",
-        "|---|---|---|---|",
+        "| run | wall [s] | jobs/s | vs serial | CPU [s] (all processes) | CPU s/job |",
+        "|---|---|---|---|---|---|",
     ]
     for k, v in med.items():
-        lines.append(f"| {k} | {v:.1f} | {opts.jobs / v:.2f} | {med['serial'] / v:.2f}x |")
+        lines.append(
+            f"| {k} | {v:.1f} | {opts.jobs / v:.2f} | {med['serial'] / v:.2f}x | {med_cpu[k]:.1f} "
+            f"| {med_cpu[k] / opts.jobs:.2f} |"
+        )
     for label, seconds in job_seconds.items():
         s = sorted(seconds)
         lines.append(
