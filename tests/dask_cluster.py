@@ -65,7 +65,7 @@ class TestCluster:
         worker = self._spawn(
             "distributed.cli.dask_worker",
             "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
-            "--scheduler-file", str(self.scheduler_file),
+            "--name", f"w{len(self.workers)}", "--scheduler-file", str(self.scheduler_file),
         )  # fmt: skip
         self.workers.append(worker)
         return worker
@@ -79,6 +79,14 @@ class TestCluster:
                     self.close()
                     raise RuntimeError(f"only {len(client.scheduler_info()['workers'])} of {n} workers came up")
                 time.sleep(0.1)
+
+    def worker_address(self, index: int) -> str:
+        """The address of worker ``index`` (in start order; workers are named w0, w1, ...)."""
+        from distributed import Client
+
+        with Client(self.address, timeout="30s", set_as_default=False) as client:
+            workers = client.scheduler_info(n_workers=-1)["workers"]
+        return next(addr for addr, info in workers.items() if info.get("name") == f"w{index}")
 
     def kill_worker(self, index: int = 0) -> None:
         """SIGKILL one worker process: no goodbye to the scheduler, its tasks are simply lost."""

@@ -20,16 +20,32 @@ import contextlib
 import os
 import re
 import socket
+import warnings
 from collections.abc import Iterator
 from typing import Any
 from urllib.parse import urlsplit
 
 from ._errors import ClusterError, ParameterError
 
-__all__ = ["dask_client", "check_scheduler_address", "DEFAULT_TIMEOUT"]
+__all__ = ["dask_client", "check_scheduler_address", "DEFAULT_TIMEOUT", "LOCAL_WORKER_CONFIG"]
 
 #: Seconds to wait for a scheduler before giving up (the batch contract: an error within 10 s).
 DEFAULT_TIMEOUT = 8.0
+
+#: Dask settings of the local cluster's workers, for jobs of seconds of pure computation.  The
+#: nanny sets ``MALLOC_TRIM_THRESHOLD_`` by default, and any explicit glibc threshold freezes
+#: malloc's adaptive thresholds: every fit then faults its temporaries' pages in again; the
+#: statistical profiler samples the running task every 10 ms; the event-loop health check (20 ms)
+#: and memory monitor (100 ms) take the GIL from the fit, which on a loaded machine waits for a
+#: CPU each time.  Together 1.5-3x slower fits on a worker than in-process, measured in
+#: benchmarks/RESULTS-dask.md.  Workers started elsewhere should get the same settings
+#: (``dask worker`` reads them from its YAML configuration).
+LOCAL_WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 
 _ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?$")
 
@@ -66,6 +82,7 @@ def dask_client(
         The scheduler cannot be reached, or the local cluster cannot start.
     """
     # Imported here: dask.distributed takes ~0.5 s to import, and most commands never need it.
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
@@ -85,14 +102,17 @@ def dask_client(
 
     n = n_workers if n_workers is not None else max(1, os.cpu_count() or 1)
     try:
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-            silence_logs=40,
-        )
+        with dask.config.set(LOCAL_WORKER_CONFIG), warnings.catch_warnings():
+            # the scheduler's HTTP routes move off a busy 8787 by themselves; no dashboard is used
+            warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+            cluster = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=None,
+                silence_logs=40,
+            )
     except (OSError, TimeoutError, RuntimeError) as exc:
         raise ClusterError(f"cannot start a local Dask cluster of {n} workers ({exc}).") from None
     try:

@@ -47,6 +47,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.frf", "frf_command", "cli"),
     ("stageid.cli.identify_frd", "frd_command", "identify"),
     ("stageid.cli.validate", "validate_command", "cli"),
+    ("stageid.cli.batch", "batch_command", "cli"),
 ]
 
 
@@ -103,8 +104,8 @@ _register()
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``stageid`` script; returns the exit code.
 
-    Exit codes: 0 success; 2 bad input, settings or resources (one line on stderr, no output
-    written); 130 interrupted; 3 a bug in stageid (one line; ``--debug`` shows the traceback).
+    Exit codes: 0 success; 1 some jobs of a batch failed (``stageid batch``); 2 bad input,
+    settings or resources (one line on stderr, no output written); 130 interrupted; 3 a bug in stageid (one line; ``--debug`` shows the traceback).
     """
     from ..atomic import transaction
     from ._common import flush_messages
@@ -117,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _warning_as_message
             warnings.simplefilter("default")
             warnings.filterwarnings("ignore", category=RuntimeWarning)  # numpy's floating-point notes
-            cli.main(args=args, prog_name="stageid", standalone_mode=False)
+            code = cli.main(args=args, prog_name="stageid", standalone_mode=False)
     except click.exceptions.Exit as exc:
         flush_messages()
         return int(exc.exit_code or 0)
@@ -129,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(text, err=True)
         return code
     flush_messages()
-    return 0
+    return code if type(code) is int else 0  # ctx.exit(n): a command's own exit code (batch: 1)
 
 
 def _failure(exc: BaseException) -> tuple[int | None, str]:
