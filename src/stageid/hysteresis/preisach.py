@@ -162,7 +162,7 @@ class PreisachModel:
 
     def memory_arrays(self, extra: int) -> tuple[np.ndarray, np.ndarray, int, float]:
         """``(P, cum, top, cur)`` of the kernels for the stored state, room for ``extra`` samples."""
-        from .kernels.preisach import everett_at
+        from .kernels.preisach import memory_cum
 
         mem = np.empty(0) if self.state is None else self.state
         top = max(mem.size - 1, 0)
@@ -171,10 +171,7 @@ class PreisachModel:
         P[0] = self.input_range[0]
         P[1 : top + 1] = mem[:top]
         En, wd = self.everett_table
-        lo, h = self.input_range[0], self.step
-        for k in range(1, top + 1):
-            e = everett_at(En, wd, lo, h, *((P[k], P[k - 1]) if k % 2 else (P[k - 1], P[k])))
-            cum[k] = cum[k - 1] + (e if k % 2 else -e)
+        memory_cum(En, wd, self.input_range[0], self.step, P, cum, top)
         cur = float(mem[-1]) if mem.size else P[0]
         return P, cum, top, cur
 

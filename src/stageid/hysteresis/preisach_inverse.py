@@ -2,7 +2,7 @@
 
 With a uniform density in each cell (:mod:`.preisach`) the output reached from the current
 memory is continuous, piecewise linear and monotone in the input, so each desired output has
-an exact root, found per sample by :func:`~stageid.hysteresis.kernels.preisach_inversion.preisach_root`
+an exact root, found per sample by :func:`~stageid.hysteresis.kernels.preisach.preisach_root`
 (memory points, then one grid column, then one linear interpolation): ``model(drive) ==
 reference`` to rounding wherever the reference is reachable.  Where it is not (beyond the
 output of the grid's ends, or beyond the drive limits) the drive is clipped and the memory
@@ -81,7 +81,7 @@ class PreisachCompensator:
 
     def run(self, y_ref: object) -> np.ndarray:
         """Drives for a block of desired outputs, shape (n_samples, 1); continues the memory."""
-        from .kernels.preisach_inversion import preisach_invert
+        from .kernels.preisach import preisach_invert
 
         target = np.ascontiguousarray(as_input(y_ref, "y_ref") - self.model.output_offset)
         need = self._top + target.size + 3

@@ -16,6 +16,15 @@ E(cur, P[top])`` (rising) or ``cum[top] - E(P[top], cur)`` (falling) (Mayergoyz 
 so a sample costs O(1) amortised, whatever the grid size.  Arrays ``P`` and ``cum`` need
 room for one more point per sample.
 
+Inverse (:func:`preisach_root`, :func:`preisach_invert`): for a fixed memory the output reached
+by moving the input from ``cur`` to ``x`` is continuous and monotone in ``x`` (non-decreasing
+for non-negative weights): rising it follows ``cum[L] + E(x, P[L])`` until ``x`` reaches the
+maximum ``P[L - 1]``, where the output is ``cum[L - 1]`` and the pair is wiped out; falling,
+the same with ``cum[L] - E(P[L], x)`` and the minima.  The root walks those memory points
+(O(1) each) to the piece holding the desired output, then the grid columns of that piece, in
+each of which ``E`` is linear in ``x``: one linear interpolation, exact to rounding.  Where the
+output is flat the nearest input is taken (the smallest move).
+
 The plain-Python twin, :func:`cells_reference`, integrates the up part of every cell from the
 raw input history instead (no stack, no Everett function).
 """
@@ -26,16 +35,20 @@ import numba
 import numpy as np
 
 jit = numba.njit(cache=True, nogil=True)
+#: Helpers of the sample loops, inlined into them: as calls, their array arguments cost ~30 ns
+#: a sample in reference counting (benchmarks/RESULTS-hysteresis.md).
+inline = numba.njit(cache=True, nogil=True, inline="always")
 
 
-@jit
+@inline
 def everett_at(En, wd, lo, h, alpha, beta):  # pragma: no cover - compiled
     """``E(alpha, beta)`` for ``lo <= beta <= alpha <= lo + n h`` (0 when ``alpha <= beta``)."""
     if alpha <= beta:
         return 0.0
     n = wd.shape[0]
-    s = (alpha - lo) / h
-    t = (beta - lo) / h
+    ih = 1.0 / h  # loop invariant once inlined: one division per loop, not two per call
+    s = (alpha - lo) * ih
+    t = (beta - lo) * ih
     a = min(int(s), n - 1)
     b = min(int(t), n - 1)
     fa = s - a
@@ -47,33 +60,7 @@ def everett_at(En, wd, lo, h, alpha, beta):  # pragma: no cover - compiled
     )
 
 
-@jit
-def preisach_move(x, En, wd, lo, h, P, cum, top, cur):  # pragma: no cover - compiled
-    """Move the input from ``cur`` to ``x`` (already in ``[lo, hi]``): new ``top``; updates P, cum."""
-    if top % 2 == 0:  # rising from the minimum P[top]
-        if x < cur:  # cur becomes a maximum
-            top += 1
-            P[top] = cur
-            cum[top] = cum[top - 1] + everett_at(En, wd, lo, h, cur, P[top - 1])
-            while top >= 3 and x <= P[top - 1]:
-                top -= 2
-        else:
-            while top >= 2 and x >= P[top - 1]:
-                top -= 2
-    else:  # falling from the maximum P[top]
-        if x > cur:  # cur becomes a minimum
-            top += 1
-            P[top] = cur
-            cum[top] = cum[top - 1] - everett_at(En, wd, lo, h, P[top - 1], cur)
-            while top >= 2 and x >= P[top - 1]:
-                top -= 2
-        else:
-            while top >= 3 and x <= P[top - 1]:
-                top -= 2
-    return top
-
-
-@jit
+@inline
 def preisach_output(En, wd, lo, h, P, cum, top, cur):  # pragma: no cover - compiled
     """Relay part of the output in the state ``(P, cum, top, cur)``."""
     if top % 2 == 0:
@@ -81,23 +68,151 @@ def preisach_output(En, wd, lo, h, P, cum, top, cur):  # pragma: no cover - comp
     return cum[top] - everett_at(En, wd, lo, h, P[top], cur)
 
 
+@inline
+def rise_to(En, wd, lo, h, p, xs, xe, target):  # pragma: no cover - compiled
+    """Smallest ``x`` in ``[xs, xe]`` with ``E(x, p) >= target`` (``xe`` if none)."""
+    x0 = xs
+    e0 = everett_at(En, wd, lo, h, x0, p)
+    if e0 >= target:
+        return x0
+    a = int((x0 - lo) / h)
+    while True:
+        a += 1
+        x1 = min(max(lo + a * h, x0), xe)
+        e1 = everett_at(En, wd, lo, h, x1, p)
+        if e1 >= target:
+            if e1 > e0:  # E is linear in x between x0 and x1 (one grid column)
+                return min(max(x0 + (target - e0) * ((x1 - x0) / (e1 - e0)), x0), x1)
+            return x1
+        if x1 >= xe:
+            return xe
+        x0, e0 = x1, e1
+
+
+@inline
+def fall_to(En, wd, lo, h, p, xs, xe, target):  # pragma: no cover - compiled
+    """Largest ``x`` in ``[xe, xs]`` with ``E(p, x) >= target`` (``xe`` if none)."""
+    x0 = xs
+    e0 = everett_at(En, wd, lo, h, p, x0)
+    if e0 >= target:
+        return x0
+    a = int((x0 - lo) / h) + 1
+    while True:
+        a -= 1
+        x1 = max(min(lo + a * h, x0), xe)
+        e1 = everett_at(En, wd, lo, h, p, x1)
+        if e1 >= target:
+            if e1 > e0:
+                return max(min(x0 - (target - e0) * ((x0 - x1) / (e1 - e0)), x0), x1)
+            return x1
+        if x1 <= xe:
+            return xe
+        x0, e0 = x1, e1
+
+
+@inline
+def preisach_root(r, En, wd, lo, h, P, cum, top, cur):  # pragma: no cover - compiled
+    """Input in ``[lo, hi]`` nearest ``cur`` whose output (relay part) is ``r``, or the end
+    of the grid that comes closest; the memory is not changed."""
+    hi = lo + h * wd.shape[0]
+    y = preisach_output(En, wd, lo, h, P, cum, top, cur)
+    if r == y:
+        return cur
+    if r > y:  # rise: from a virtual minimum at cur if the input was falling
+        if top % 2 == 1:
+            L, p, c = top + 1, cur, y
+        else:
+            L, p, c = top, P[top], cum[top]
+        xs = cur
+        while L >= 2 and r > cum[L - 1]:  # beyond the next maximum: wipe it out
+            xs = P[L - 1]
+            L -= 2
+            p, c = P[L], cum[L]
+        return rise_to(En, wd, lo, h, p, xs, P[L - 1] if L >= 2 else hi, r - c)
+    if top % 2 == 0:  # fall: from a virtual maximum at cur if the input was rising
+        L, p, c = top + 1, cur, y
+    else:
+        L, p, c = top, P[top], cum[top]
+    xs = cur
+    while L >= 3 and r < cum[L - 1]:
+        xs = P[L - 1]
+        L -= 2
+        p, c = P[L], cum[L]
+    return fall_to(En, wd, lo, h, p, xs, P[L - 1] if L >= 3 else lo, c - r)
+
+
+@jit
+def memory_cum(En, wd, lo, h, P, cum, top):  # pragma: no cover - compiled
+    """``cum[1..top]``: the output at each reversal point of the memory ``P`` (``cum[0] = 0``)."""
+    cum[0] = 0.0
+    for k in range(1, top + 1):
+        if k % 2 == 1:
+            cum[k] = cum[k - 1] + everett_at(En, wd, lo, h, P[k], P[k - 1])
+        else:
+            cum[k] = cum[k - 1] - everett_at(En, wd, lo, h, P[k - 1], P[k])
+
+
+@jit
+def preisach_walk(values, En, wd, lo, h, P, cum, top, cur, ulo, uhi, invert):  # pragma: no cover - compiled
+    """Drive the memory sample by sample; returns ``(out, top, cur)``, P and cum updated.
+
+    Forward (``invert`` False): ``values`` are inputs and ``out`` the outputs (without
+    offset).  Inverse: ``values`` are desired outputs (without offset), each input is
+    :func:`preisach_root` clipped to ``[ulo, uhi]``, and ``out`` the inputs.  The move is written out here, not in
+    a helper: a helper that writes to ``P`` and ``cum`` costs ~20 ns a sample in reference
+    counting even when inlined (benchmarks/RESULTS-hysteresis.md).
+    """
+    hi = lo + h * wd.shape[0]
+    out = np.empty(values.shape[0])
+    last = preisach_output(En, wd, lo, h, P, cum, top, cur)
+    for k in range(values.shape[0]):
+        if invert:
+            v = min(max(preisach_root(values[k], En, wd, lo, h, P, cum, top, cur), ulo), uhi)
+        else:
+            v = values[k]
+        x = min(max(v, lo), hi)
+        if x != cur:  # a standing input changes nothing
+            if top % 2 == 0:  # rising from the minimum P[top]
+                if x < cur:  # cur becomes a maximum
+                    top += 1
+                    P[top] = cur
+                    cum[top] = cum[top - 1] + everett_at(En, wd, lo, h, cur, P[top - 1])
+                    while top >= 3 and x <= P[top - 1]:
+                        top -= 2
+                else:
+                    while top >= 2 and x >= P[top - 1]:
+                        top -= 2
+            else:  # falling from the maximum P[top]
+                if x > cur:  # cur becomes a minimum
+                    top += 1
+                    P[top] = cur
+                    cum[top] = cum[top - 1] - everett_at(En, wd, lo, h, P[top - 1], cur)
+                    while top >= 2 and x >= P[top - 1]:
+                        top -= 2
+                else:
+                    while top >= 3 and x <= P[top - 1]:
+                        top -= 2
+            cur = x
+            last = preisach_output(En, wd, lo, h, P, cum, top, cur)
+        out[k] = v if invert else last
+    return out, top, cur
+
+
 @jit
 def preisach_run(u, En, wd, lo, h, P, cum, top, cur):  # pragma: no cover - compiled
     """Outputs (without offset) for the inputs ``u``; returns ``(y, top, cur)``, P and cum updated."""
-    hi = lo + h * wd.shape[0]
-    y = np.empty(u.shape[0])
-    last = preisach_output(En, wd, lo, h, P, cum, top, cur)
-    for k in range(u.shape[0]):
-        x = min(max(u[k], lo), hi)
-        if x != cur:  # a standing input changes nothing
-            top = preisach_move(x, En, wd, lo, h, P, cum, top, cur)
-            cur = x
-            last = preisach_output(En, wd, lo, h, P, cum, top, cur)
-        y[k] = last
-    return y, top, cur
+    return preisach_walk(u, En, wd, lo, h, P, cum, top, cur, lo, lo, False)
 
 
 @jit
+def preisach_invert(target, En, wd, lo, h, P, cum, top, cur, ulo, uhi):  # pragma: no cover - compiled
+    """Drives for the desired relay outputs ``target``, clipped to ``[ulo, uhi]``; the memory
+    follows the clipped drive.  Returns ``(u, top, cur)``; P and cum need room for one point
+    per sample."""
+    return preisach_walk(target, En, wd, lo, h, P, cum, top, cur, ulo, uhi, True)
+
+
+@inline
 def cell_everett(e, n, lo, h, alpha, beta):  # pragma: no cover - compiled
     """Fill ``e`` (flat triangle, row by row) with ``E(alpha, beta)`` of every unit-weight cell."""
     for i in range(n):
