@@ -16,6 +16,8 @@ and a non-negative least-squares problem on the Cholesky factor of their reduced
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .._errors import IdentificationError
@@ -62,20 +64,30 @@ class WeightProblem:
     def warp(self, theta, classical):
         return 0.0 if classical or len(theta) < 8 else float(theta[7])
 
+    def start_outputs(self, u0, xc, q, thresholds, kind):
+        """Operator outputs at the first sample ``u0`` (shape (1,)) for the starting-state ``kind``."""
+        r, rc, ra, rb = thresholds
+        x = self.warped(u0 - xc, q)[0]
+        up = np.maximum(x - r, np.minimum(x - rc, 0.0))
+        down = np.minimum(x + ra, np.maximum(x + rb, 0.0))
+        z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
+        return np.ascontiguousarray(z0)
+
+    def warped(self, x, q):
+        """The monotone quadratic input warp of :class:`ModifiedPIModel` (identity for q = 0)."""
+        if q == 0.0:
+            return x
+        t = np.abs(x) / self.R
+        return x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
+
     def operator_inputs(self, theta, kinds, classical):
         """Per record: the operator input (centred, warped) and the starting outputs ``z0``."""
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
         for (u, _), kind in zip(self.recs, kinds):
-            x = u - xc
-            if q != 0.0:
-                t = np.abs(x) / self.R
-                x = x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
-            up = np.maximum(x[0] - r, np.minimum(x[0] - rc, 0.0))
-            down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
-            z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
+            x = self.warped(u - xc, q)
             # the state before the first sample: z0 is already consistent with x[0]
-            yield np.ascontiguousarray(x), np.ascontiguousarray(z0)
+            yield np.ascontiguousarray(x), self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
 
     def matrix(self, theta, kinds, classical):
         from . import kernels  # numba: imported on first use
@@ -90,15 +102,17 @@ class WeightProblem:
     def gram_blocks(self, theta, kinds, classical):
         """Per record ``(Z'Z, Z'y, column sums, rows, sum y)`` of the operator outputs ``Z`` at
         the strided rows, and the largest motion of each operator over the records: the
-        operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, only the rows kept)
-        and the products are one BLAS call (one thread inside a fit), the cost of every step
-        of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
+        operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, input warp included,
+        only the rows kept) and ``Z'Z`` is one BLAS product (one thread inside a fit): the
+        cost of every step of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
         from . import kernels  # numba: imported on first use
 
-        r, rc, ra, rb, _ = self.thresholds(theta, classical)
+        r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        q = self.warp(theta, classical)
         stats, motion, start = [], np.zeros(r.size), 0
-        for x, z0 in self.operator_inputs(theta, kinds, classical):
-            Z, s, low, high = kernels.cp_rows(x, r, rc, ra, rb, z0, self.stride)
+        for (u, _), kind in zip(self.recs, kinds):
+            z0 = self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
+            Z, s, low, high = kernels.cp_rows(u, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
             yb = self.y[start : start + Z.shape[0]]
             stats.append((Z.T @ Z, Z.T @ yb, s, Z.shape[0], float(yb.sum())))
             motion = np.maximum(motion, high - low)
@@ -278,21 +292,28 @@ def bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray
     from scipy.optimize import nnls
 
     d = np.sqrt(np.maximum(np.diag(G), 1e-300))
-    Gs = G / np.outer(d, d) + 1e-10 * np.eye(G.shape[0])
+    Gs = G / d[:, None] / d[None, :]
+    Gs.flat[:: G.shape[0] + 1] += 1e-10
     gs = g / d
-    lbs = np.where(np.isfinite(lb), lb * d, -np.inf)
-    bounded = np.isfinite(lbs)
+    bounded = np.isfinite(lb)
     free = ~bounded
+    order = np.r_[np.flatnonzero(bounded), np.flatnonzero(free)]  # bounded first: blocks by slicing
+    nb = int(bounded.sum())
+    Gp = Gs[np.ix_(order, order)]
+    gp = gs[order]
     try:
-        F = Gs[np.ix_(free, free)]
-        B = Gs[np.ix_(bounded, free)]
-        FB = np.linalg.solve(F, B.T) if free.any() else np.zeros((0, int(bounded.sum())))
-        Fg = np.linalg.solve(F, gs[free]) if free.any() else np.zeros(0)
-        S = Gs[np.ix_(bounded, bounded)] - B @ FB
-        c0 = lbs[bounded]
-        h = gs[bounded] - B @ Fg - S @ c0
+        if nb < order.size:
+            F = Gp[nb:, nb:]
+            B = Gp[:nb, nb:]
+            FB = np.linalg.solve(F, B.T)
+            Fg = np.linalg.solve(F, gp[nb:])
+        else:
+            FB, Fg = np.zeros((0, nb)), np.zeros(0)
+        S = Gp[:nb, :nb] - Gp[:nb, nb:] @ FB
+        c0 = lb[bounded] * d[bounded]
+        h = gp[:nb] - Gp[:nb, nb:] @ Fg - S @ c0
         L = np.linalg.cholesky(0.5 * (S + S.T))
-        c, _ = nnls(L.T, np.linalg.solve(L, h), maxiter=50 * max(int(bounded.sum()), 1))
+        c, _ = nnls(L.T, np.linalg.solve(L, h), maxiter=50 * max(nb, 1))
     except (np.linalg.LinAlgError, RuntimeError):
         return bounded_gram_lsq_bvls(G, g, lb)
     v = np.empty(G.shape[0])
@@ -327,15 +348,18 @@ def bounded_gram_lsq_bvls(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.nd
     return res.x / d
 
 
+@functools.lru_cache(maxsize=64)
 def _cumulative_map(m: int, size: int) -> np.ndarray:
     """``w = T W``: the first ``m`` unknowns as differences of cumulative sums ``W`` (the
     classical model's initial-loading slopes, bounded below by eps); the others unchanged."""
     T = np.eye(size)
     for i in range(m - 1):
         T[i + 1, i] = -1.0
+    T.setflags(write=False)  # cached: shared by every fit
     return T
 
 
+@functools.lru_cache(maxsize=64)
 def _split_map(m: int, n_free: int) -> np.ndarray:
     """``(w, rest) = T (s, p, q, rest)`` with ``w_0 = s + sum q`` (plus eps, added by the caller)
     and ``w_i = p_i - q_i``: the modified model's bound ``w_0 + sum min(w_i, 0) >= eps`` as
@@ -347,4 +371,5 @@ def _split_map(m: int, n_free: int) -> np.ndarray:
     T[1:m, 1 : 1 + k] = np.eye(k)
     T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
     T[m:, 1 + 2 * k :] = np.eye(n_free)
+    T.setflags(write=False)  # cached: shared by every fit
     return T

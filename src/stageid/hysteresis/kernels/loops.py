@@ -139,17 +139,13 @@ def gram(Z, y):  # pragma: no cover - compiled
     return G, g, s
 
 
-#: :func:`cp_rows`: min/max without NaN or signed-zero semantics (so the operator loop
-#: vectorises), but no reassociation: the column sums in sample order.
-jit_minmax = numba.njit(cache=True, nogil=True, fastmath={"nnan", "ninf", "nsz"})
-
-
-@jit_minmax
-def cp_rows(x, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
+@jit
+def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
     """Coupled-play outputs at the samples ``0, stride, 2 stride, ...`` only, shape
     (n_rows, n_operators), with each column's sum, least and largest value there; the
-    operators run over every sample, as in :func:`cp_bank` (same values)."""
-    n = x.shape[0]
+    operators run over every sample, as in :func:`cp_bank`, on the centred and warped input
+    ``x = u - xc + q R w(|u - xc| / R)``, ``w(t) = t^2`` (t <= 1) else ``2t - 1``."""
+    n = u.shape[0]
     m = r.shape[0]
     rows = (n + stride - 1) // stride
     out = np.empty((rows, m))
@@ -158,13 +154,19 @@ def cp_rows(x, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
     high = np.full(m, -np.inf)
     z = z0.copy()
     row = 0
+    next_kept = 0  # a counter, not k % stride: an integer division per sample costs more
     for k in range(n):
-        xk = x[k]
-        for i in range(m):
-            up = max(xk - r[i], min(xk - rc[i], 0.0))
-            down = min(xk + ra[i], max(xk + rb[i], 0.0))
-            z[i] = max(up, min(down, z[i]))
-        if k % stride == 0:
+        if k == 0 or u[k] != u[k - 1]:  # a standing input leaves every operator as it is
+            xk = u[k] - xc
+            if q != 0.0:
+                t = abs(xk) / R
+                xk = xk + q * R * (t * t if t <= 1.0 else 2.0 * t - 1.0)
+            for i in range(m):
+                up = max(xk - r[i], min(xk - rc[i], 0.0))
+                down = min(xk + ra[i], max(xk + rb[i], 0.0))
+                z[i] = max(up, min(down, z[i]))
+        if k == next_kept:
+            next_kept += stride
             for i in range(m):
                 zi = z[i]
                 out[row, i] = zi
