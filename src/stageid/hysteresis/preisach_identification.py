@@ -8,7 +8,9 @@ input).  The weights solve
 
 ``D`` the second differences along ``alpha`` and along ``beta`` inside the triangle, ``lambda``
 = ``smoothing`` times the mean diagonal of ``Phi' Phi``.  Each record gets its own offset
-(centred columns); ``scipy.optimize.nnls`` (Lawson-Hanson) solves the stacked problem.
+(centred columns); the stacked records are reduced to the triangular factor ``R`` of their QR
+decomposition (``||A w - b|| = ||R w - Q'b||`` up to a constant) and ``scipy.optimize.nnls``
+(Lawson-Hanson) solves ``[R; sqrt(lambda) D] w = [Q'b; 0]``, a problem of the cells' size.
 """
 
 from __future__ import annotations
