@@ -184,6 +184,102 @@ def identification_times(repeat: int) -> int:
     return 0
 
 
+WHOLE_PROCESS = """
+import sys
+from stageid.data.datasets import load_dspace_piezo, shared_data_dir
+from stageid.hysteresis import PIIdentifier
+exp = load_dspace_piezo(shared_data_dir() / "piezo_dspace_preisach" / "20_hz_no_lp.mat")
+PIIdentifier(sys.argv[1]).fit(exp)
+"""
+
+
+def whole_process_times(pairs: int) -> int:
+    """Classical vs modified PI identification of the 20 Hz FORC record, each in a fresh
+    interpreter (imports, numba cache, load, fit), in alternating pairs: medians of the wall
+    and CPU times (``getrusage`` of the children) and of the per-pair ratios."""
+    import resource
+    import subprocess
+
+    from stageid.data.datasets import shared_data_dir
+
+    root = shared_data_dir()
+    if root is None or not (root / "piezo_dspace_preisach" / "20_hz_no_lp.mat").is_file():
+        print("dSPACE records not found; skipped")
+        return 0
+    wall: dict[str, list[float]] = {"pi": [], "modified-pi": []}
+    cpu: dict[str, list[float]] = {"pi": [], "modified-pi": []}
+    print(f"# {pairs} alternating pairs; load average {os.getloadavg()[0]:.2f} at the start")
+    for i in range(pairs):
+        for kind in ("pi", "modified-pi") if i % 2 == 0 else ("modified-pi", "pi"):
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", WHOLE_PROCESS, kind], check=True)
+            wall[kind].append(time.perf_counter() - t0)
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu[kind].append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
+    print("| time | classical PI | modified PI | ratio (median of pairs) |")
+    print("|---|---|---|---|")
+    for name, d in (("wall", wall), ("CPU", cpu)):
+        ratio = np.median(np.array(d["modified-pi"]) / np.array(d["pi"]))
+        print(f"| {name} | {np.median(d['pi']):.2f} s | {np.median(d['modified-pi']):.2f} s | {ratio:.2f}x |")
+    print(f"# load average {os.getloadavg()[0]:.2f} at the end")
+    return 0
+
+
+def preisach_times(n: int, repeat: int) -> int:
+    """Preisach model (continuous cells, 20 and 60 levels) against the PI kernels, side by side.
+
+    ``simulate`` of each model on the benchmark's inputs, runs alternating model by model,
+    CPU time of this thread; and the exact Preisach inverse against the modified-PI
+    compensator (``run``) on each model's own output of the input.
+    """
+    from stageid.hysteresis import Compensator, ModifiedPIModel, PIModel, PreisachCompensator, PreisachModel
+
+    rng, inputs = _inputs(n)
+    models = {}
+    for levels in (20, 60):
+        w = rng.uniform(0.0, 1.0, levels * (levels + 1) // 2) / levels
+        models[f"Preisach {levels} levels"] = PreisachModel((-500.0, 500.0), w)
+    for m in (20, 100):
+        r = np.arange(m) * 450.0 / m
+        w = rng.uniform(0.0, 1.0, m) / m
+        models[f"PI {m} ops"] = PIModel(r=r, weights=w)
+        models[f"modified PI {m} ops"] = ModifiedPIModel(r=r, rc=0.5 * r, ra=1.3 * r, rb=0.78 * r, weights=w)
+    print(f"# {n} samples, median of {repeat} alternating rounds, CPU ns per sample; load {os.getloadavg()[0]:.2f}")
+    print("| input | " + " | ".join(models) + " |")
+    print("|---|" + "---|" * len(models))
+    for name, x in inputs.items():
+        x = np.ascontiguousarray(x)
+        times: dict[str, list[float]] = {k: [] for k in models}
+        for mod in models.values():
+            mod.simulate(x[:100])
+        for _ in range(repeat):
+            for key, mod in models.items():
+                t0 = time.thread_time()
+                mod.simulate(x)
+                times[key].append(time.thread_time() - t0)
+        print(f"| {name} | " + " | ".join(f"{np.median(v) / n * 1e9:.1f}" for v in times.values()) + " |")
+    print("\n| inverse, 20 levels / 20 operators | ns per sample | model(drive) - reference, max |")
+    print("|---|---|---|")
+    x = inputs["random-walk"][: min(n, 200_000)]
+    pre, mpi = models["Preisach 20 levels"], models["modified PI 20 ops"]
+    for label, mod, make in (
+        ("Preisach exact inverse (PreisachCompensator.run)", pre, lambda m: PreisachCompensator(m)),
+        ("modified PI compensator (Compensator.run)", mpi, lambda m: Compensator(m, limits=(-np.inf, np.inf))),
+    ):
+        y = mod.simulate(x)[:, 0]
+        make(mod).run(y[:10])
+        ts = []
+        for _ in range(repeat):
+            comp = make(mod)
+            t0 = time.thread_time()
+            u = comp.run(y)
+            ts.append(time.thread_time() - t0)
+        err = float(np.max(np.abs(mod.simulate(u)[:, 0] - y)))
+        print(f"| {label} | {np.median(ts) / x.size * 1e9:.1f} | {err:.1e} |")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=1_000_000)
@@ -203,7 +299,24 @@ def main(argv=None) -> int:
         help="time whole identifications on the dSPACE 20 Hz FORC record (classical PI, modified PI, "
         "stage with dynamics 2) and stop",
     )
+    ap.add_argument(
+        "--whole-process",
+        type=int,
+        default=0,
+        metavar="PAIRS",
+        help="time classical vs modified PI identification of the 20 Hz FORC record, each in a fresh "
+        "interpreter, in PAIRS alternating pairs, and stop",
+    )
+    ap.add_argument(
+        "--preisach",
+        action="store_true",
+        help="time the Preisach model and its exact inverse side by side with the PI kernels and stop",
+    )
     args = ap.parse_args(argv)
+    if args.whole_process:
+        return whole_process_times(args.whole_process)
+    if args.preisach:
+        return preisach_times(args.samples, args.repeat)
     if args.identification:
         return identification_times(args.repeat)
     if args.compare_with:

@@ -44,11 +44,13 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     hysteresis inverse, clipped to the drive limits.
 
     Classical PI models use their closed-form inverse; modified PI models are inverted sample
-    by sample (exact to 1e-12). The drive starts from the model's stored state; a model with a
-    creep term is inverted at the reference file's sampling period.
+    by sample (exact to 1e-12); Preisach models by their exact inverse (one linear
+    interpolation per sample, exact to rounding). The drive starts from the model's stored
+    state; a model with a creep term is inverted at the reference file's sampling period.
     """
     from ..hysteresis import Compensator
     from ..hysteresis.pi import ModifiedPIModel, PIModel
+    from ..hysteresis.preisach import PreisachModel
     from ..hysteresis.stage import StageModel
     from ..models import load_model
     from ._common import check_output, parse_limits, read_table_checked, write_table_output
@@ -58,14 +60,18 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     stage = model if isinstance(model, StageModel) else None
     if stage is not None:
         model = stage.hysteresis
-    if not isinstance(model, (PIModel, ModifiedPIModel)):
+    if not isinstance(model, (PIModel, ModifiedPIModel, PreisachModel)):
         raise DataError(f"'{model_path}' is not a hysteresis model (stageid.hysteresis/1); got {type(model).__name__}.")
     lim = parse_limits(limits)
     table = read_table_checked(ref_path, ts=ts)
     yref = table.column(column)
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
-    if stage is not None and stage.dynamics is not None:
+    if isinstance(model, PreisachModel):
+        from ..hysteresis.preisach_inverse import preisach_feedforward
+
+        u = preisach_feedforward(model, yref, limits=lim)
+    elif stage is not None and stage.dynamics is not None:
         from ..hysteresis.stage_inverse import stage_feedforward
 
         # offline: stable inversion of the dynamics over the whole reference, then the hysteresis

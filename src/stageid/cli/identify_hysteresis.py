@@ -59,7 +59,8 @@ Examples:
     default="modified-pi",
     show_default=True,
     help="Classical PI (plays), the letter's modified PI (coupled plays), or a discrete Preisach "
-    "model (relays on a triangular grid, --levels; rate independent: no --creep/--dynamics).",
+    "model (uniform-density cells on a triangular grid, --levels; rate independent: no "
+    "--creep/--dynamics; `stageid compensate` inverts it exactly).",
 )
 @click.option(
     "--levels",
@@ -67,7 +68,7 @@ Examples:
     type=click.IntRange(min=2),
     default=20,
     show_default=True,
-    help="Preisach only: thresholds per axis of the grid over the input range (n(n+1)/2 relays); "
+    help="Preisach only: cells per axis of the grid over the input range (n(n+1)/2 weights); "
     "a grid finer than the records resolve is refused.",
 )
 @click.option(
@@ -147,7 +148,7 @@ def identify(
     dynamics: int | str | None = None,
     n_levels: int = 20,
 ) -> None:
-    """Identify a PI or modified-PI hysteresis model from one or more DATA records.
+    """Identify a PI, modified-PI or Preisach hysteresis model from one or more DATA records.
 
     Each record gets its own output offset (sensor zero) and starting state; the model keeps
     the first record's offset and starts from the zero state at 0 input. Prints the max and

@@ -20,10 +20,12 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``StageModel``             rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
 ``StageIdentifier``        joint identification of a stage; ``fit`` returns ``StageFit``
 ``stage_feedforward``      offline inverse of a stage (stable inversion of the dynamics)
-``PreisachModel``          discrete Preisach model: relays on a triangular threshold grid
+``PreisachModel``          discrete Preisach model: uniform-density cells on a triangular grid
 ``PreisachIdentifier``     NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachFit``
+``PreisachCompensator``    exact Preisach inverse, streaming, with memory and drive limits
+``preisach_feedforward``   exact Preisach inverse, batch
 ``everett``                Everett function of a Preisach model (``everett_output``: the output
-                           as Everett differences over the memory staircase)
+                           as Everett differences over the memory)
 ``max_error_percent``      metrics as the letter uses them (see :mod:`.metrics`)
 ``rms_error_percent``
 ``tracking_error_percent``
@@ -36,6 +38,7 @@ Modules, from the letter's sections down (each imports only the ones below it):
 :mod:`.stage_identification` ``StageIdentifier``: hysteresis, then weights / creep / dynamics
                            alternated (:mod:`.stage_problem`), auto order and creep
 :mod:`.stage_inverse`      offline stage feedforward (stable inversion, then the inverse)
+:mod:`.preisach_inverse`   ``PreisachCompensator``, ``preisach_feedforward`` (exact inverse)
 :mod:`.preisach_identification` ``PreisachIdentifier`` (NNLS, second-difference smoothing)
 :mod:`.preisach`           ``PreisachModel`` (kind ``preisach``), ``everett``, ``everett_output``
 :mod:`.stage`              ``StageModel`` (kind ``stage`` of the JSON format)
@@ -67,6 +70,7 @@ from .operators import OperatorState, coupled_play, play
 from .pi import ModifiedPIModel, PIModel
 from .preisach import PreisachModel, everett, everett_output
 from .preisach_identification import PreisachFit, PreisachIdentifier
+from .preisach_inverse import PreisachCompensator, preisach_feedforward
 from .stage import StageModel
 from .stage_identification import StageFit, StageIdentifier
 from .stage_inverse import stage_feedforward
@@ -92,6 +96,8 @@ __all__ = [
     "PreisachModel",
     "PreisachIdentifier",
     "PreisachFit",
+    "PreisachCompensator",
+    "preisach_feedforward",
     "everett",
     "everett_output",
     "max_error_percent",

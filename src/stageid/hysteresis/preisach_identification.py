@@ -1,14 +1,16 @@
 """Identification of a discrete Preisach model: non-negative least squares with smoothness.
 
-The output is linear in the relay weights: ``y = y0 + Phi w`` with ``Phi[k, ij]`` the state of
-relay ``(alpha_i, beta_j)`` at sample ``k`` (the records start demagnetised about their first
+The output is linear in the cell weights: ``y = y0 + Phi w`` with ``Phi[k, ij]`` the part of
+cell ``(i, j)`` that is up at sample ``k`` (the records start demagnetised about their first
 input).  The weights solve
 
     min_{w >= 0, y0}  ||Phi w + y0 - y||^2 + lambda ||D w||^2,
 
 ``D`` the second differences along ``alpha`` and along ``beta`` inside the triangle, ``lambda``
 = ``smoothing`` times the mean diagonal of ``Phi' Phi``.  Each record gets its own offset
-(centred columns); ``scipy.optimize.nnls`` (Lawson-Hanson) solves the stacked problem.
+(centred columns); the stacked records are reduced to the triangular factor ``R`` of their QR
+decomposition (``||A w - b|| = ||R w - Q'b||`` up to a constant) and ``scipy.optimize.nnls``
+(Lawson-Hanson) solves ``[R; sqrt(lambda) D] w = [Q'b; 0]``, a problem of the cells' size.
 """
 
 from __future__ import annotations
@@ -21,13 +23,13 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Satisfies
 from ..checks import is_real
-from .preisach import PreisachModel, demagnetized_counts, grid_levels
+from .preisach import PreisachModel
 from .records import read_records
 
-__all__ = ["PreisachIdentifier", "PreisachFit", "relay_regressors", "second_differences"]
+__all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences"]
 
-#: Smallest singular value of the centred relay states, relative to the largest, that the data
-#: must give: below it some relay weights are not resolved by the records (grid too fine).
+#: Smallest singular value of the centred cell states, relative to the largest, that the data
+#: must give: below it some cell weights are not resolved by the records (grid too fine).
 RESOLUTION_TOLERANCE = 1e-6
 
 
@@ -40,18 +42,15 @@ def _is_range(value: Any) -> bool:
     )
 
 
-def relay_regressors(u: np.ndarray, levels: np.ndarray) -> np.ndarray:
-    """Relay states ``Phi``, shape (n_samples, n_levels (n_levels + 1) / 2), from the state
-    demagnetised about ``u[0]``."""
-    from .kernels.preisach import preisach_counts
+def cell_regressors(u: np.ndarray, input_range: tuple[float, float], n_levels: int) -> np.ndarray:
+    """Up parts of the cells ``Phi``, shape (n_samples, n_levels (n_levels + 1) / 2), from the
+    state demagnetised about ``u[0]`` (the memory does not depend on the weights)."""
+    from .kernels.preisach import preisach_regressors
 
-    C = preisach_counts(u, levels, demagnetized_counts(levels, float(u[0])))
-    n = len(levels)
-    Phi = np.empty((len(u), n * (n + 1) // 2))
-    for i in range(n):
-        off = i * (i + 1) // 2
-        Phi[:, off : off + i + 1] = np.arange(i + 1)[None, :] < C[:, i : i + 1]
-    return Phi
+    grid = PreisachModel(input_range, np.zeros(n_levels * (n_levels + 1) // 2))
+    P, _, top, cur = grid.with_state(grid.consistent_state(u[0])).memory_arrays(0)
+    lo, hi = grid.input_range
+    return preisach_regressors(np.ascontiguousarray(u, dtype=float), n_levels, lo, grid.step, P, top, cur)
 
 
 def second_differences(n: int) -> np.ndarray:
@@ -90,7 +89,7 @@ class PreisachFit:
         errs = ", ".join(
             f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
         )
-        return f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} relays): {errs}"
+        return f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} cells): {errs}"
 
 
 class PreisachIdentifier(Estimator):
@@ -99,7 +98,7 @@ class PreisachIdentifier(Estimator):
     Parameters
     ----------
     n_levels : int
-        Thresholds per axis of the triangular grid (``n (n + 1) / 2`` relays).
+        Cells per axis of the triangular grid (``n (n + 1) / 2`` weights).
     smoothing : float
         ``lambda`` relative to the mean diagonal of the Gram matrix.
     input_range : (float, float), optional
@@ -131,44 +130,46 @@ class PreisachIdentifier(Estimator):
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         n = int(self.n_levels)
-        levels = grid_levels(lo, hi, n)
-        A, b, means = self._centred_problem(recs, levels)
+        A, b, means = self._centred_problem(recs, (lo, hi), n)
         w = self._solve(A, b)
         offsets = tuple(float(my - mp @ w) for mp, my in means)
         model = PreisachModel((lo, hi), w, offsets[0], inputs=(in_name,), outputs=(out_name,), input_limits=(lo, hi))
         maxe, rmse = [], []
         for (u, y), y0 in zip(recs, offsets):
-            e = relay_regressors(u, levels) @ w + y0 - y
+            e = cell_regressors(u, (lo, hi), n) @ w + y0 - y
             span = float(np.ptp(y))
             maxe.append(100 * float(np.max(np.abs(e))) / span)
             rmse.append(100 * float(np.sqrt(np.mean(e**2))) / span)
         return PreisachFit(model.with_state(model.consistent_state(recs[0][0][0])), tuple(maxe), tuple(rmse), offsets)
 
-    def _centred_problem(self, recs: list, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
-        """Centred relay states and outputs of all records stacked (one offset per record)."""
+    def _centred_problem(self, recs: list, input_range: tuple, n: int) -> tuple[np.ndarray, np.ndarray, list]:
+        """Centred cell states and outputs of all records stacked (one offset per record)."""
         blocks, rhs, means = [], [], []
         for u, y in recs:
-            Phi = relay_regressors(u, levels)
+            Phi = cell_regressors(u, input_range, n)
             mp, my = Phi.mean(axis=0), float(y.mean())
             blocks.append(Phi - mp)
             rhs.append(y - my)
             means.append((mp, my))
-        A = np.vstack(blocks)
-        s = np.linalg.svd(A, compute_uv=False)
+        # the tall problem compressed to its triangular factor: ||A w - b|| = ||R w - Q'b|| + const,
+        # so NNLS and the resolution check work on a square matrix of the cells' size
+        Q, R = np.linalg.qr(np.vstack(blocks))
+        c = Q.T @ np.concatenate(rhs)
+        s = np.linalg.svd(R, compute_uv=False)
         weak = int(np.sum(s <= RESOLUTION_TOLERANCE * s[0]))
         if weak:
             raise DataError(
-                f"a Preisach grid of {len(levels)} levels is finer than the records resolve "
-                f"({weak} of {A.shape[1]} relay weights undetermined); use fewer levels."
+                f"a Preisach grid of {n} levels is finer than the records resolve "
+                f"({weak} of {R.shape[1]} cell weights undetermined); use fewer levels."
             )
-        return A, np.concatenate(rhs), means
+        return R, c, means
 
-    def _solve(self, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def _solve(self, R: np.ndarray, c: np.ndarray) -> np.ndarray:
         from scipy.optimize import nnls
 
         D = second_differences(int(self.n_levels))
-        lam = float(self.smoothing) * float(np.mean(np.sum(A**2, axis=0)))
-        w, _ = nnls(np.vstack([A, np.sqrt(lam) * D]), np.r_[b, np.zeros(D.shape[0])], maxiter=50 * A.shape[1])
+        lam = float(self.smoothing) * float(np.mean(np.sum(R**2, axis=0)))
+        w, _ = nnls(np.vstack([R, np.sqrt(lam) * D]), np.r_[c, np.zeros(D.shape[0])], maxiter=50 * R.shape[1])
         if not np.all(np.isfinite(w)):
             raise IdentificationError("the Preisach weight problem gave non-finite weights.")
         return w

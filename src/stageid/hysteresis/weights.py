@@ -10,11 +10,13 @@ record (sensor zeros differ between records) and, optionally, the creep lags of
   ``w_i = p_i - q_i``, ``w_0 = eps + s + sum q_i`` with ``s, p, q >= 0``;
 * creep weights ``c_j >= 0``.
 
-The fit works on the normal equations (``kernels.gram``, single-threaded) and a bounded
-least-squares problem on their Cholesky factor.
+The fit works on the normal equations (``kernels.cp_rows`` and BLAS, or ``kernels.gram``)
+and a non-negative least-squares problem on the Cholesky factor of their reduced form.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -22,7 +24,7 @@ from .._errors import IdentificationError
 from .creep import CreepTerm
 from .pi import ModifiedPIModel, PIModel
 
-__all__ = ["WeightProblem", "gram_solve", "bounded_gram_lsq"]
+__all__ = ["WeightProblem", "gram_solve", "bounded_gram_lsq", "bounded_gram_lsq_bvls"]
 
 
 class WeightProblem:
@@ -62,29 +64,66 @@ class WeightProblem:
     def warp(self, theta, classical):
         return 0.0 if classical or len(theta) < 8 else float(theta[7])
 
+    def start_outputs(self, u0, xc, q, thresholds, kind):
+        """Operator outputs at the first sample ``u0`` (shape (1,)) for the starting-state ``kind``."""
+        r, rc, ra, rb = thresholds
+        x = self.warped(u0 - xc, q)[0]
+        up = np.maximum(x - r, np.minimum(x - rc, 0.0))
+        down = np.minimum(x + ra, np.maximum(x + rb, 0.0))
+        z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
+        return np.ascontiguousarray(z0)
+
+    def warped(self, x, q):
+        """The monotone quadratic input warp of :class:`ModifiedPIModel` (identity for q = 0)."""
+        if q == 0.0:
+            return x
+        t = np.abs(x) / self.R
+        return x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
+
+    def operator_inputs(self, theta, kinds, classical):
+        """Per record: the operator input (centred, warped) and the starting outputs ``z0``."""
+        r, rc, ra, rb, xc = self.thresholds(theta, classical)
+        q = self.warp(theta, classical)
+        for (u, _), kind in zip(self.recs, kinds):
+            x = self.warped(u - xc, q)
+            # the state before the first sample: z0 is already consistent with x[0]
+            yield np.ascontiguousarray(x), self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
+
     def matrix(self, theta, kinds, classical):
+        from . import kernels  # numba: imported on first use
+
+        r, rc, ra, rb, _ = self.thresholds(theta, classical)
+        blocks = []
+        for (x, z0), rows in zip(self.operator_inputs(theta, kinds, classical), self.rows):
+            Z, _ = kernels.cp_bank(x, r, rc, ra, rb, z0)
+            blocks.append(Z[rows])
+        return blocks
+
+    def gram_blocks(self, theta, kinds, classical):
+        """Per record ``(Z'Z, Z'y, column sums, rows, sum y)`` of the operator outputs ``Z`` at
+        the strided rows, and the largest motion of each operator over the records: the
+        operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, input warp included,
+        only the rows kept) and ``Z'Z`` is one BLAS product (one thread inside a fit): the
+        cost of every step of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
         from . import kernels  # numba: imported on first use
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
-        blocks = []
-        for (u, _), kind, rows in zip(self.recs, kinds, self.rows):
-            x = u - xc
-            if q != 0.0:
-                t = np.abs(x) / self.R
-                x = x + q * self.R * np.where(t <= 1.0, t * t, 2.0 * t - 1.0)
-            up = np.maximum(x[0] - r, np.minimum(x[0] - rc, 0.0))
-            down = np.minimum(x[0] + ra, np.maximum(x[0] + rb, 0.0))
-            z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
-            # the state before the first sample: z0 is already consistent with x[0]
-            Z, _ = kernels.cp_bank(np.ascontiguousarray(x), r, rc, ra, rb, np.ascontiguousarray(z0))
-            blocks.append(Z[rows])
-        return blocks
+        stats, motion, start = [], np.zeros(r.size), 0
+        for (u, _), kind in zip(self.recs, kinds):
+            z0 = self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
+            Z, s, low, high = kernels.cp_rows(u, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
+            yb = self.y[start : start + Z.shape[0]]
+            stats.append((Z.T @ Z, Z.T @ yb, s, Z.shape[0], float(yb.sum())))
+            motion = np.maximum(motion, high - low)
+            start += Z.shape[0]
+        return stats, motion
 
-    def _live(self, blocks) -> np.ndarray:
+    def _live(self, blocks=None, motion=None) -> np.ndarray:
         """Columns of the operators that move: one that (almost) never moves gets no weight
         (its weight would be unbounded); the linear term always counts."""
-        motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
+        if motion is None:
+            motion = np.max([np.ptp(b, axis=0) for b in blocks], axis=0)
         live = motion > 1e-3 * max(float(self.r[-1]), 1e-300)
         live[0] = True
         return np.flatnonzero(live)
@@ -98,27 +137,34 @@ class WeightProblem:
         from . import kernels  # numba: imported on first use
 
         y = self.y
-        p = columns[0].shape[1]
-        J = len(columns)
+        stats = []
+        start = 0
+        for c in columns:
+            yb = np.ascontiguousarray(y[start : start + c.shape[0]])
+            stats.append((*kernels.gram(np.ascontiguousarray(c), yb), c.shape[0], yb.sum()))
+            start += c.shape[0]
+        return self._assemble(stats, m, classical)
+
+    def _assemble(self, stats, m: int, classical: bool):
+        """The normal equations of :meth:`_normal_equations` from per-record ``(Z'Z, Z'y, column
+        sums, rows, sum y)`` of the columns."""
+        p = stats[0][0].shape[0]
+        J = len(stats)
         G = np.zeros((p + J, p + J))
         g = np.zeros(p + J)
-        start = 0
-        for j, c in enumerate(columns):
-            yb = np.ascontiguousarray(y[start : start + c.shape[0]])
-            Gb, gb, sb = kernels.gram(np.ascontiguousarray(c), yb)
+        for j, (Gb, gb, sb, rows, ysum) in enumerate(stats):
             G[:p, :p] += Gb
             G[:p, p + j] = sb
             G[p + j, :p] = sb
-            G[p + j, p + j] = c.shape[0]
+            G[p + j, p + j] = rows
             g[:p] += gb
-            g[p + j] = yb.sum()
-            start += c.shape[0]
+            g[p + j] = ysum
         Gfit = G
         if self.ridge > 0 and not classical:
             G = G.copy()
             lam = self.ridge * float(np.mean(np.diag(G)[:m]))
             G[np.arange(1, m), np.arange(1, m)] += lam
-        return G, Gfit, g, float(y @ y)
+        return G, Gfit, g, float(self.y @ self.y)
 
     def solve(self, theta, kinds, classical, creep=True):
         """SSE, weights (n,), offsets (n_records,) of the constrained fit (Gram-matrix based);
@@ -126,12 +172,13 @@ class WeightProblem:
         if self.lags is not None and creep:
             return self.solve_creep(theta, kinds, classical)[:3]
 
-        blocks = self.matrix(theta, kinds, classical)
+        stats, motion = self.gram_blocks(theta, kinds, classical)
         n = self.r.size
-        J = len(blocks)
-        idx = self._live(blocks)
+        J = len(stats)
+        idx = self._live(motion=motion)
         m = idx.size
-        G, Gfit, g, yy = self._normal_equations([b[:, idx] for b in blocks], m, classical)
+        live = [(G[np.ix_(idx, idx)], g[idx], s[idx], rows, ys) for G, g, s, rows, ys in stats]
+        G, Gfit, g, yy = self._assemble(live, m, classical)
         if classical:
             # w = D W with W the cumulative sums (over the live operators), bounds W >= eps
             T = _cumulative_map(m, m + J)
@@ -234,6 +281,50 @@ def gram_solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
 
 
 def bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray:
+    """min v'Gv - 2 g'v subject to v >= lb (``-inf``: free), scaled to unit diagonal first.
+
+    The free unknowns (the offsets) are eliminated by their normal equations (Schur
+    complement), the bounded ones shifted to ``c = v - lb >= 0``: an NNLS problem on the
+    Cholesky factor of the reduced Gram matrix (Lawson-Hanson, compiled), which does the
+    many small fits of the threshold search several times faster than scipy's BVLS.  Where
+    the scaled Gram matrix is singular to rounding, :func:`bounded_gram_lsq_bvls`.
+    """
+    from scipy.optimize import nnls
+
+    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+    Gs = G / d[:, None] / d[None, :]
+    Gs.flat[:: G.shape[0] + 1] += 1e-10
+    gs = g / d
+    bounded = np.isfinite(lb)
+    free = ~bounded
+    order = np.r_[np.flatnonzero(bounded), np.flatnonzero(free)]  # bounded first: blocks by slicing
+    nb = int(bounded.sum())
+    Gp = Gs[np.ix_(order, order)]
+    gp = gs[order]
+    try:
+        if nb < order.size:
+            F = Gp[nb:, nb:]
+            B = Gp[:nb, nb:]
+            FB = np.linalg.solve(F, B.T)
+            Fg = np.linalg.solve(F, gp[nb:])
+        else:
+            FB, Fg = np.zeros((0, nb)), np.zeros(0)
+        S = Gp[:nb, :nb] - Gp[:nb, nb:] @ FB
+        c0 = lb[bounded] * d[bounded]
+        h = gp[:nb] - Gp[:nb, nb:] @ Fg - S @ c0
+        L = np.linalg.cholesky(0.5 * (S + S.T))
+        c, _ = nnls(L.T, np.linalg.solve(L, h), maxiter=50 * max(nb, 1))
+    except (np.linalg.LinAlgError, RuntimeError):
+        return bounded_gram_lsq_bvls(G, g, lb)
+    v = np.empty(G.shape[0])
+    v[bounded] = c0 + c
+    v[free] = Fg - FB @ v[bounded]
+    if not np.all(np.isfinite(v)):
+        return bounded_gram_lsq_bvls(G, g, lb)
+    return v / d
+
+
+def bounded_gram_lsq_bvls(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray:
     """min v'Gv - 2 g'v subject to v >= lb, as a bounded least-squares problem on chol(G)."""
     from scipy.optimize import lsq_linear
 
@@ -257,15 +348,18 @@ def bounded_gram_lsq(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.ndarray
     return res.x / d
 
 
+@functools.lru_cache(maxsize=64)
 def _cumulative_map(m: int, size: int) -> np.ndarray:
     """``w = T W``: the first ``m`` unknowns as differences of cumulative sums ``W`` (the
     classical model's initial-loading slopes, bounded below by eps); the others unchanged."""
     T = np.eye(size)
     for i in range(m - 1):
         T[i + 1, i] = -1.0
+    T.setflags(write=False)  # cached: shared by every fit
     return T
 
 
+@functools.lru_cache(maxsize=64)
 def _split_map(m: int, n_free: int) -> np.ndarray:
     """``(w, rest) = T (s, p, q, rest)`` with ``w_0 = s + sum q`` (plus eps, added by the caller)
     and ``w_i = p_i - q_i``: the modified model's bound ``w_0 + sum min(w_i, 0) >= eps`` as
@@ -277,4 +371,5 @@ def _split_map(m: int, n_free: int) -> np.ndarray:
     T[1:m, 1 : 1 + k] = np.eye(k)
     T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
     T[m:, 1 + 2 * k :] = np.eye(n_free)
+    T.setflags(write=False)  # cached: shared by every fit
     return T

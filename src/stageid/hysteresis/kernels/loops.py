@@ -3,7 +3,8 @@
 The plain-Python twins are :func:`stageid.hysteresis.operators.play_reference` and
 :func:`~stageid.hysteresis.operators.coupled_play_reference`.  The loops over operators have
 no branches (``min``/``max`` only), so LLVM vectorises them.  Also :func:`gram`, the normal
-equations of the weight least squares.
+equations of the weight least squares, and :func:`cp_rows`, the operator outputs of the
+least-squares rows only with their column statistics.
 """
 
 from __future__ import annotations
@@ -136,3 +137,41 @@ def gram(Z, y):  # pragma: no cover - compiled
         for j in range(i):
             G[j, i] = G[i, j]
     return G, g, s
+
+
+@jit
+def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
+    """Coupled-play outputs at the samples ``0, stride, 2 stride, ...`` only, shape
+    (n_rows, n_operators), with each column's sum, least and largest value there; the
+    operators run over every sample, as in :func:`cp_bank`, on the centred and warped input
+    ``x = u - xc + q R w(|u - xc| / R)``, ``w(t) = t^2`` (t <= 1) else ``2t - 1``."""
+    n = u.shape[0]
+    m = r.shape[0]
+    rows = (n + stride - 1) // stride
+    out = np.empty((rows, m))
+    s = np.zeros(m)
+    low = np.full(m, np.inf)
+    high = np.full(m, -np.inf)
+    z = z0.copy()
+    row = 0
+    next_kept = 0  # a counter, not k % stride: an integer division per sample costs more
+    for k in range(n):
+        if k == 0 or u[k] != u[k - 1]:  # a standing input leaves every operator as it is
+            xk = u[k] - xc
+            if q != 0.0:
+                t = abs(xk) / R
+                xk = xk + q * R * (t * t if t <= 1.0 else 2.0 * t - 1.0)
+            for i in range(m):
+                up = max(xk - r[i], min(xk - rc[i], 0.0))
+                down = min(xk + ra[i], max(xk + rb[i], 0.0))
+                z[i] = max(up, min(down, z[i]))
+        if k == next_kept:
+            next_kept += stride
+            for i in range(m):
+                zi = z[i]
+                out[row, i] = zi
+                s[i] += zi
+                low[i] = min(low[i], zi)
+                high[i] = max(high[i], zi)
+            row += 1
+    return out, s, low, high
