@@ -13,6 +13,7 @@ from ._common import (
     split_names,
     write_model_output,
 )
+from .chunked_input import chunked_record, scheduler_option, statistics_client
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -41,7 +42,7 @@ Examples:
   stageid identify statespace run.npz --inputs u1,u2 --outputs y1,y2 --ts 0.002 -o model.json
 """,
 )
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("data", nargs=-1, required=True, type=click.Path())
 @click.option("--inputs", required=True, help="Input columns A,B,C.")
 @click.option("--outputs", required=True, help="Output columns X,Y,Z.")
 @click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
@@ -92,6 +93,7 @@ Examples:
     type=click.Path(file_okay=False),
     help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.",
 )
+@scheduler_option
 def statespace_command(
     data: tuple[str, ...],
     inputs: str,
@@ -106,6 +108,7 @@ def statespace_command(
     band_text: str | None,
     output: str,
     report_dir: str | None,
+    scheduler: str | None,
 ) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
 
@@ -126,7 +129,8 @@ def statespace_command(
     if isinstance(horizon, list):
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
     band = None if band_text is None else parse_band(band_text)
-    exps = read_experiments(data, ins, outs, ts)
+    record = chunked_record(data, ins, outs, ts, "--report" if report_dir is not None else "")
+    exps = read_experiments(data, ins, outs, ts) if record is None else None
     est = HankelMAP(
         horizon=horizon,
         order=order,
@@ -136,7 +140,13 @@ def statespace_command(
         realization=realization,
         band=band,
     )
-    result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
+    if record is not None:  # larger than memory: statistics chunk by chunk (here or on --scheduler)
+        from ..subspace.chunked_fit import fit_chunked
+
+        with statistics_client(scheduler) as client:
+            result = fit_chunked(est, record, client)
+    else:
+        result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
     write_model_output(output, result.model)  # committed with the report, after both succeeded
     say(result.summary(), err=True)
     if report_dir is not None:

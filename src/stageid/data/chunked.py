@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,11 +37,21 @@ from .._errors import DataError
 from ..atomic import note_input
 from .table import TIME_COLUMN
 
-__all__ = ["ChunkedRecord", "open_chunked", "is_chunked_path", "CHUNKED_SUFFIXES", "check_finite_rows"]
+__all__ = [
+    "ChunkedRecord",
+    "open_chunked",
+    "is_chunked_path",
+    "CHUNKED_SUFFIXES",
+    "DEFAULT_CHUNK",
+    "check_finite_rows",
+    "map_reduce",
+]
 
 #: File extensions read as chunked records (a directory is a Zarr store or a folder of .npy).
 CHUNKED_SUFFIXES = (".h5", ".hdf5", ".npy", ".zarr")
 
+#: Samples per task of a chunked computation: 2^20 rows of four float64 channels are 32 MB.
+DEFAULT_CHUNK = 1 << 20
 #: Samples read at once when the time column is checked.
 TIME_CHUNK = 1 << 20
 
@@ -290,3 +300,26 @@ def _uniform_step(rec: ChunkedRecord, n: int, rtol: float, where: str) -> float:
         if not np.all(np.isfinite(t)) or steps.max() > dt * (1 + rtol) or steps.min() < dt * (1 - rtol):
             raise DataError(f"{where}: the time column 't' must increase uniformly (to {rtol:g} of its step).")
     return dt
+
+
+def map_reduce(
+    function: Callable, arguments: Sequence[tuple], reduce: Callable[[object, int, object], object], client=None
+):
+    """``reduce(total, i, function(*arguments[i]))`` over all ``i`` (``total`` starts as None).
+
+    With a ``dask.distributed`` client the calls run on its workers and are reduced here as
+    they finish (one result in memory at a time); without, they run here in order.
+    """
+    total = None
+    if client is None:
+        for i, args in enumerate(arguments):
+            total = reduce(total, i, function(*args))
+        return total
+    from distributed import as_completed
+
+    futures = client.map(function, *zip(*arguments), pure=False) if arguments else []
+    index = {f.key: i for i, f in enumerate(futures)}
+    for future, value in as_completed(futures, with_results=True):
+        total = reduce(total, index[future.key], value)
+        future.release()
+    return total

@@ -27,10 +27,10 @@ import numpy as np
 from .._errors import DataError
 from .._threads import single_blas_thread
 from ..checks import check_band
-from ..data.chunked import ChunkedRecord
+from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
-from .chunked_statistics import DEFAULT_CHUNK, column_moments, range_lag_sums, ranged_statistics
+from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .hankel_toeplitz import WindowStatistics, response_bytes, statistics_bytes
 from .map_estimator import METHODS, map_estimate, map_posterior
 from .realization import realize
@@ -108,7 +108,9 @@ def chunked_split_statistics(record, cands, validation_fraction, shift, scale, c
             for ph, top in tops.items():
                 if ph >= p:
                     k = 2 * p * (top.n_inputs + top.n_outputs)
-                    sp = WindowStatistics(top.W[:k, :k], top.n_windows, p, top.n_inputs, top.n_outputs, None, None, top.count)
+                    sp = WindowStatistics(
+                        top.W[:k, :k], top.n_windows, p, top.n_inputs, top.n_outputs, None, None, top.count
+                    )
                     acc[p] = sp if p not in acc else acc[p] + sp
     return out[0], out[1], (power, (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0]))
 
@@ -123,7 +125,9 @@ def _record_statistics(est, record, horizon, shift, scale, su, sy, chunk, client
         lags, power = range_lag_sums(record, [(0, n)], 2 * p - 1, shift, scale, chunk, client, spectrum=True)
         return _with_power(ranged_statistics(record, [(0, n)], lags, p, shift, scale), power), None
     cands = horizon_candidates(m, q, [n])
-    train, val, (power, _) = chunked_split_statistics(record, cands, est.validation_fraction, shift, scale, chunk, client)
+    train, val, (power, _) = chunked_split_statistics(
+        record, cands, est.validation_fraction, shift, scale, chunk, client
+    )
     prior_of = METHODS[est.method]
     p, table = select_horizon(
         train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, est.prior, su, sy))[0]
@@ -159,7 +163,9 @@ def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CH
     p_max = max(horizon_candidates(m, q, [record.n_samples])) if est.horizon == "auto" else int(est.horizon)
     nz = int(est.n_frequencies)
     need = statistics_bytes(p_max, m, q) + response_bytes(p_max, m, q, nz) + refinement_bytes(order, m, q, nz)
-    require_memory(need, f"HankelMAP with horizon {p_max}, order {order} and {nz} frequencies on {m} inputs and {q} outputs")
+    require_memory(
+        need, f"HankelMAP with horizon {p_max}, order {order} and {nz} frequencies on {m} inputs and {q} outputs"
+    )
     shift, scale = _shift_and_scale(est, record, client, chunk, notes)
     su, sy = scale[:m], scale[m:]
     stats, horizon_table = _record_statistics(est, record, est.horizon, shift, scale, su, sy, chunk, client)

@@ -29,28 +29,24 @@ after the other.  A task that is lost with its worker is recomputed by Dask from
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from .._errors import DataError
-from ..data.chunked import ChunkedRecord, check_finite_rows
+from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
 from .correlations import gram_from_lags, lag_correlations
 from .hankel_toeplitz import WindowStatistics
 
 __all__ = [
-    "DEFAULT_CHUNK",
     "SPECTRUM_BLOCK",
     "ColumnMoments",
     "column_moments",
     "chunk_pieces",
     "range_lag_sums",
     "ranged_statistics",
-    "map_reduce",
 ]
 
-#: Samples per task: 2^20 rows of four float64 channels are 32 MB.
-DEFAULT_CHUNK = 1 << 20
 #: Block length of the chunked input periodogram: bins of 1/1024 cycles per sample, the
 #: grid of ``input_periodogram``'s 512 bins.
 SPECTRUM_BLOCK = 1024
@@ -85,30 +81,9 @@ def chunk_pieces(ranges: Sequence[tuple[int, int]], chunk: int) -> list[tuple[in
     """``(range index, a, b, range stop)`` for every chunk ``[a, b)`` of ``chunk`` samples of every range."""
     if chunk < 1:
         raise DataError(f"`chunk` must be a positive number of samples; got {chunk}.")
-    return [(i, a, min(a + chunk, stop), stop) for i, (start, stop) in enumerate(ranges) for a in range(start, stop, chunk)]
-
-
-def map_reduce(
-    function: Callable, arguments: Sequence[tuple], reduce: Callable[[object, int, object], object], client=None
-):
-    """``reduce(total, i, function(*arguments[i]))`` over all ``i`` (``total`` starts as None).
-
-    With a ``dask.distributed`` client the calls run on its workers and are reduced here as
-    they finish (one result in memory at a time); without, they run here in order.
-    """
-    total = None
-    if client is None:
-        for i, args in enumerate(arguments):
-            total = reduce(total, i, function(*args))
-        return total
-    from distributed import as_completed
-
-    futures = client.map(function, *zip(*arguments), pure=False) if arguments else []
-    index = {f.key: i for i, f in enumerate(futures)}
-    for future, value in as_completed(futures, with_results=True):
-        total = reduce(total, index[future.key], value)
-        future.release()
-    return total
+    return [
+        (i, a, min(a + chunk, stop), stop) for i, (start, stop) in enumerate(ranges) for a in range(start, stop, chunk)
+    ]
 
 
 def _moments_task(record: ChunkedRecord, a: int, b: int) -> ColumnMoments:
