@@ -319,7 +319,7 @@ def map_reduce(
 
     futures = client.map(function, *zip(*arguments), pure=False) if arguments else []
     index = {f.key: i for i, f in enumerate(futures)}
-    for future, value in as_completed(futures, with_results=True):
+    for future, value in as_completed(futures, loop=client.loop, with_results=True):
         total = reduce(total, index[future.key], value)
         future.release()
     return total
