@@ -99,32 +99,40 @@ class ChunkedRecord:
         out = np.empty((max(stop - start, 0), len(self.keys)))
         if stop <= start:
             return out
-        with _opened(self.path, self.kind) as store:
-            for j, (key, col) in enumerate(zip(self.keys, self.columns)):
-                out[:, j] = _slice(store, self.kind, key, col, start, stop)
+        store = _opened(self.path, self.kind)
+        for j, (key, col) in enumerate(zip(self.keys, self.columns)):
+            out[:, j] = _slice(store, self.kind, key, col, start, stop)
         return out
 
 
-class _opened:
-    """The open file or store of a record for one :meth:`ChunkedRecord.read` (closed after)."""
+#: Open HDF5 files and Zarr groups of this process, by (path, size, modification time): a worker
+#: reading hundreds of chunks of one file opens it once (a rewritten file is opened afresh).
+_OPEN: dict[tuple[str, int, int], object] = {}
+_OPEN_MAX = 8
 
-    def __init__(self, path: str, kind: str):
-        self.path, self.kind, self.handle = path, kind, None
 
-    def __enter__(self):
-        if self.kind == "hdf5":
+def _opened(path: str, kind: str):
+    """The open file or store of a record (kept open for the next read of the same file)."""
+    if kind not in ("hdf5", "zarr"):
+        return None
+    st = os.stat(path)
+    key = (path, st.st_size, st.st_mtime_ns)
+    handle = _OPEN.get(key)
+    if handle is None:
+        if len(_OPEN) >= _OPEN_MAX:
+            old = _OPEN.pop(next(iter(_OPEN)))
+            if kind == "hdf5" and hasattr(old, "close"):
+                old.close()
+        if kind == "hdf5":
             import h5py
 
-            self.handle = h5py.File(self.path, "r")
-        elif self.kind == "zarr":
+            handle = h5py.File(path, "r")
+        else:
             import zarr
 
-            self.handle = zarr.open_group(self.path, mode="r")
-        return self.handle
-
-    def __exit__(self, *exc) -> None:
-        if self.kind == "hdf5" and self.handle is not None:
-            self.handle.close()
+            handle = zarr.open_group(path, mode="r")
+        _OPEN[key] = handle
+    return handle
 
 
 def _slice(store, kind: str, key: str, col: int | None, start: int, stop: int) -> np.ndarray:
