@@ -23,14 +23,27 @@ scheduler_option = click.option(
 )
 
 
-def chunked_record(paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str], ts: float | None, what: str):
+def chunked_record(
+    paths: Sequence[str],
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    ts: float | None,
+    what: str,
+    scheduler: str | None,
+):
     """The :class:`~stageid.data.chunked.ChunkedRecord` when DATA is one chunked file or folder,
-    else None (a UsageError when chunked inputs come with others or ``what`` cannot use them)."""
+    else None.  UsageError: chunked inputs with others, an option ``what`` that needs the
+    records in memory, or a ``scheduler`` for in-memory records (it would be ignored)."""
     from ..data.chunked import is_chunked_path, open_chunked
     from ._common import CLI_TIME_RTOL
 
     chunked = [p for p in paths if is_chunked_path(p)]
     if not chunked:
+        if scheduler is not None:
+            raise click.UsageError(
+                "--scheduler computes the statistics of a chunked record (.h5, .hdf5, .npy, Zarr); "
+                "got records read into memory."
+            )
         return None
     if len(paths) > 1:
         raise click.UsageError(

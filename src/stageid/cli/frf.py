@@ -69,7 +69,7 @@ def frf_command(
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     # a record larger than memory: Welch's spectra chunk by chunk (lpm and periodic refuse it)
-    record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}")
+    record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}", scheduler)
     if method == "welch":
         from ..frf.welch import cross_spectra, default_segment, h1_from_spectra
 

@@ -129,7 +129,7 @@ def statespace_command(
     if isinstance(horizon, list):
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
     band = None if band_text is None else parse_band(band_text)
-    record = chunked_record(data, ins, outs, ts, "--report" if report_dir is not None else "")
+    record = chunked_record(data, ins, outs, ts, "--report" if report_dir is not None else "", scheduler)
     exps = read_experiments(data, ins, outs, ts) if record is None else None
     est = HankelMAP(
         horizon=horizon,
