@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+import time
 from pathlib import Path
 
 import numpy as np
 
 from stageid.data import Experiment
+from stageid.data.chunked import ChunkedRecord
 from stageid.models import StateSpaceModel
 
 DT = 1e-3
@@ -71,3 +74,19 @@ def write(folder: Path, fmt: str, x: np.ndarray) -> Path:
         np.save(path, x)
         return path
     raise ValueError(fmt)
+
+
+@dataclasses.dataclass(frozen=True)
+class SlowRecord(ChunkedRecord):
+    """A chunked record whose every read takes ``delay`` seconds longer: a computation on a
+    cluster that lasts long enough to lose a worker in the middle of it."""
+
+    delay: float = 0.05
+
+    def read(self, start: int, stop: int) -> np.ndarray:
+        time.sleep(self.delay)
+        return super().read(start, stop)
+
+
+def slowed(record: ChunkedRecord, delay: float) -> SlowRecord:
+    return SlowRecord(**dataclasses.asdict(record), delay=delay)
