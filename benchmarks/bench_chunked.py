@@ -154,6 +154,13 @@ def main() -> None:
                     kb += sum(cl.worker_peaks_kb())
             results[how].append((wall, kb))
             print(f"repeat {rep} {how:>9}: {wall:7.1f} s, peak RSS {kb / 1024:7.0f} MiB", flush=True)
+    # once each, here: the horizon chosen by held-out error, and Welch's spectra
+    auto = [*ident[: ident.index("--horizon")], "--horizon", "auto", "--band", "0:5000"]
+    for label, cmd in (("horizon auto", auto), ("frf welch", ["frf", str(rec), *ident[4:8]])):
+        wall, kb, text = run([*cmd, "-o", str(folder / ("auto.json" if "horizon" in label else "frf.csv"))], folder)
+        chosen = re.search(r"horizon (\d+)", text) if "horizon" in label else None
+        extra = f", chosen horizon {chosen.group(1)}" if chosen else ""
+        print(f"{label:>12} here: {wall:7.1f} s, peak RSS {kb / 1024:7.0f} MiB{extra}", flush=True)
     print("\nmedians (command + workers peak RSS):")
     for how, vals in results.items():
         w = statistics.median(v[0] for v in vals)
@@ -161,7 +168,7 @@ def main() -> None:
         print(f"  {how:>9}: {w:7.1f} s  ({opts.samples / w / 1e6:.2f} M samples/s), peak RSS {k / 1024:.0f} MiB")
     from stageid.models import load_model
 
-    models = sorted(folder.glob("model-*.json"))
+    models = sorted(folder.glob("model-*.json")) + [folder / "auto.json"]
     G = []
     for m in models:
         G.append(load_model(m).frequency_response(np.linspace(10.0, 4000.0, 50)))

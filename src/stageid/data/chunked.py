@@ -144,6 +144,8 @@ def _slice(store, kind: str, key: str, col: int | None, start: int, stop: int) -
 
 def check_finite_rows(block: np.ndarray, names: Sequence[str], start: int, where: str) -> None:
     """DataError naming the column and (absolute) row of the first NaN/inf in ``block`` of rows from ``start``."""
+    if np.isfinite(block).all():
+        return
     bad = ~np.isfinite(block)
     if bad.any():
         i, j = (int(v) for v in np.argwhere(bad)[0])
