@@ -168,7 +168,7 @@ def main() -> None:
         print(f"  {how:>9}: {w:7.1f} s  ({opts.samples / w / 1e6:.2f} M samples/s), peak RSS {k / 1024:.0f} MiB")
     from stageid.models import load_model
 
-    models = sorted(folder.glob("model-*.json")) + [folder / "auto.json"]
+    models = sorted(folder.glob("model-*.json"))  # same settings: here, 1 and 2 workers
     G = []
     for m in models:
         G.append(load_model(m).frequency_response(np.linspace(10.0, 4000.0, 50)))

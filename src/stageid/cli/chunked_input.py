@@ -12,7 +12,7 @@ from collections.abc import Iterator, Sequence
 
 import click
 
-__all__ = ["scheduler_option", "chunked_record", "statistics_client"]
+__all__ = ["scheduler_option", "chunked_record", "statistics_client", "fit_on_chunks"]
 
 scheduler_option = click.option(
     "--scheduler",
@@ -64,3 +64,11 @@ def statistics_client(scheduler: str | None) -> Iterator[object]:
 
     with dask_client(scheduler) as client:
         yield client
+
+
+def fit_on_chunks(est, record, scheduler: str | None):
+    """``est`` (a HankelMAP) fitted to a chunked record, its statistics here or on ``scheduler``."""
+    from ..subspace.chunked_fit import fit_chunked
+
+    with statistics_client(scheduler) as client:
+        return fit_chunked(est, record, client)

@@ -13,7 +13,7 @@ from ._common import (
     split_names,
     write_model_output,
 )
-from .chunked_input import chunked_record, scheduler_option, statistics_client
+from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
 
 
 def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str | list[int]:
@@ -140,13 +140,9 @@ def statespace_command(
         realization=realization,
         band=band,
     )
-    if record is not None:  # larger than memory: statistics chunk by chunk (here or on --scheduler)
-        from ..subspace.chunked_fit import fit_chunked
-
-        with statistics_client(scheduler) as client:
-            result = fit_chunked(est, record, client)
-    else:
-        result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
+    # warnings become one-line messages printed after success (cli.main); a chunked record is
+    # fitted from statistics computed chunk by chunk, here or on --scheduler
+    result = est.fit(exps) if record is None else fit_on_chunks(est, record, scheduler)
     write_model_output(output, result.model)  # committed with the report, after both succeeded
     say(result.summary(), err=True)
     if report_dir is not None:
