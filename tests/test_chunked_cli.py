@@ -136,8 +136,6 @@ def test_bad_zarr_and_npy_inputs(tmp_path, x):
 def test_chunked_settings_that_need_memory_are_refused(tmp_path, x):
     path = write(tmp_path, "h5", x)
     base = ("identify", "statespace", path, *IO, "-o", tmp_path / "m.json")
-    rc, _, err = run_main(*base)  # --order auto by default
-    assert_one_line_error(rc, err, "order 'auto'", "--order N")
     rc, _, err = run_main(*base, "--order", "4", "--per-channel")
     assert_one_line_error(rc, err, "drop --per-channel")
     rc, _, err = run_main(*base, "--order", "4", "--report", tmp_path / "rep")

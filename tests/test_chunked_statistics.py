@@ -139,6 +139,19 @@ def test_identified_model_matches_in_memory(data, horizon):
         assert got.channels[0].horizon_table.errors == pytest.approx(want.channels[0].horizon_table.errors, rel=1e-8)
 
 
+@pytest.mark.parametrize("horizon", [10, "auto"])
+def test_order_selection_matches_in_memory(data, horizon):
+    """order="auto": the held-out simulation errors of one sequential pass, state carried across chunks."""
+    x, rec = data
+    est = HankelMAP(horizon=horizon, order="auto", max_order=6, band=(0.0, 450.0))
+    want = est.fit(experiment(x))
+    got = fit_chunked(est, rec, chunk=2999)
+    assert got.diagnostics["order"] == want.diagnostics["order"] == 4
+    table, ref = got.channels[0].order_table, want.channels[0].order_table
+    assert table.values == ref.values
+    np.testing.assert_allclose(table.errors, ref.errors, rtol=1e-8)
+
+
 @pytest.mark.parametrize("segment, overlap", [(1024, 0.5), (1000, 0.3), (256, 0.0)])
 def test_welch_spectra_equal_in_memory(data, segment, overlap):
     x, rec = data

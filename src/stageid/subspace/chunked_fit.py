@@ -15,9 +15,9 @@ The statistics equal the in-memory ones to rounding; the excited band (when ``ba
 given) comes from a block-averaged input periodogram (see :mod:`.chunked_statistics`), so it
 can differ from the in-memory band by a bin of ``1 / (1024 dt)``.
 
-Not available on a chunked record (a one-line DataError says what to give instead):
-``order="auto"`` (it simulates every candidate over the record), ``per_channel`` (one record
-per excited input), ``forgetting`` below 1.
+``order="auto"`` simulates every candidate over the record in one sequential pass here
+(:mod:`.chunked_order`).  Not available on a chunked record (a one-line DataError says what to
+give instead): ``per_channel`` (one record per excited input), ``forgetting`` below 1.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
+from .chunked_order import select_order_chunked
 from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .hankel_toeplitz import WindowStatistics, response_bytes, statistics_bytes
 from .map_estimator import METHODS, map_estimate, map_posterior
@@ -44,11 +45,6 @@ __all__ = ["fit_chunked", "chunked_split_statistics"]
 
 def _check_settings(est, record: ChunkedRecord) -> None:
     """The settings a chunked record cannot serve, refused with what to give instead."""
-    if est.order == "auto":
-        raise DataError(
-            "order 'auto' simulates every candidate model over the whole record; give --order N "
-            "(`order=N`) for a chunked record."
-        )
     if isinstance(est.order, (list, tuple)) and len(est.order) > 1:
         raise DataError(f"a chunked record gets one model order; got {list(est.order)}.")
     if est.per_channel:
@@ -115,27 +111,31 @@ def chunked_split_statistics(record, cands, validation_fraction, shift, scale, c
     return out[0], out[1], (power, (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0]))
 
 
-def _record_statistics(est, record, horizon, shift, scale, su, sy, chunk, client):
-    """Eq. 9 for the whole record at ``horizon``, with the horizon table when it was chosen."""
+def _record_statistics(est, record, shift, scale, su, sy, chunk, client):
+    """Eq. 9 for the whole record at the given or chosen horizon: ``(stats, train, horizon table)``,
+    ``train`` the training segments' statistics (per horizon) when a selection needs them."""
     m, q, n = record.n_inputs, record.n_outputs, record.n_samples
-    if est.horizon != "auto":
-        p = int(horizon)
-        if n <= 2 * p:
-            raise DataError(f"horizon {p} needs records of more than {2 * p} samples; got {n}.")
-        lags, power = range_lag_sums(record, [(0, n)], 2 * p - 1, shift, scale, chunk, client, spectrum=True)
-        return _with_power(ranged_statistics(record, [(0, n)], lags, p, shift, scale), power), None
-    cands = horizon_candidates(m, q, [n])
-    train, val, (power, _) = chunked_split_statistics(
-        record, cands, est.validation_fraction, shift, scale, chunk, client
-    )
-    prior_of = METHODS[est.method]
-    p, table = select_horizon(
-        train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, est.prior, su, sy))[0]
-    )
+    if est.horizon == "auto" or est.order == "auto":
+        cands = horizon_candidates(m, q, [n]) if est.horizon == "auto" else [int(est.horizon)]
+        train, val, (power, _) = chunked_split_statistics(
+            record, cands, est.validation_fraction, shift, scale, chunk, client
+        )
+    else:
+        train, val = {}, {}
+    table = None
+    if est.horizon == "auto":
+        prior_of = METHODS[est.method]
+        p, table = select_horizon(
+            train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, est.prior, su, sy))[0]
+        )
+    else:
+        p = int(est.horizon)
+    if n <= 2 * p:
+        raise DataError(f"horizon {p} needs records of more than {2 * p} samples; got {n}.")
     if p in train and p in val and train[p].count + val[p].count >= 0.99 * (n - 2 * p + 1):
-        return _with_power(train[p] + val[p], power), table  # as selection.pooled_split
+        return _with_power(train[p] + val[p], power), train, table  # as selection.pooled_split
     lags, power = range_lag_sums(record, [(0, n)], 2 * p - 1, shift, scale, chunk, client, spectrum=True)
-    return _with_power(ranged_statistics(record, [(0, n)], lags, p, shift, scale), power), table
+    return _with_power(ranged_statistics(record, [(0, n)], lags, p, shift, scale), power), train, table
 
 
 def _with_power(stats: WindowStatistics, power: np.ndarray) -> WindowStatistics:
@@ -159,27 +159,40 @@ def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CH
     _check_settings(est, record)
     notes: list[str] = []
     m, q, dt = record.n_inputs, record.n_outputs, record.dt
-    order = int(est.order[0] if isinstance(est.order, (list, tuple)) else est.order)
+    order = None if est.order == "auto" else int(est.order[0] if isinstance(est.order, (list, tuple)) else est.order)
     p_max = max(horizon_candidates(m, q, [record.n_samples])) if est.horizon == "auto" else int(est.horizon)
     nz = int(est.n_frequencies)
-    need = statistics_bytes(p_max, m, q) + response_bytes(p_max, m, q, nz) + refinement_bytes(order, m, q, nz)
+    n_max = est.max_order if order is None else order
+    need = statistics_bytes(p_max, m, q) + response_bytes(p_max, m, q, nz) + refinement_bytes(n_max, m, q, nz)
     require_memory(
-        need, f"HankelMAP with horizon {p_max}, order {order} and {nz} frequencies on {m} inputs and {q} outputs"
+        need, f"HankelMAP with horizon {p_max}, order {n_max} and {nz} frequencies on {m} inputs and {q} outputs"
     )
     shift, scale = _shift_and_scale(est, record, client, chunk, notes)
     su, sy = scale[:m], scale[m:]
-    stats, horizon_table = _record_statistics(est, record, est.horizon, shift, scale, su, sy, chunk, client)
-    post = map_posterior(stats, METHODS[est.method](stats, est.prior, su, sy))  # eq. 16-18
+    stats, train, horizon_table = _record_statistics(est, record, shift, scale, su, sy, chunk, client)
+    prior_of = METHODS[est.method]
+    post = map_posterior(stats, prior_of(stats, est.prior, su, sy))  # eq. 16-18
     band = excited_band(stats, dt, est.band, notes)
     freqs = np.linspace(band[0], band[1], est.n_frequencies)
     settings = {"realization": est.realization, "feedthrough": est.feedthrough, "refine": est.refine}
+    order_table = None
+    if order is None:  # section 3.2: the order by held-out simulation error, one pass here
+        p = stats.horizon
+        if p not in train:
+            raise DataError(
+                "the records are too short to hold out data for choosing the order; give `order` explicitly."
+            )
+        post_train = map_posterior(train[p], prior_of(train[p], est.prior, su, sy))
+        order, order_table = select_order_chunked(
+            post_train, est.max_order, freqs, dt, record, est.validation_fraction, shift, scale, chunk, **settings
+        )
     model, cost = realize(post, order, freqs, dt, **settings)  # eq. 10-15 or the frequency route
     model = StateSpaceModel(
         model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :], dt
     ).with_names(record.input_names, record.output_names)
     fit = ChannelFit(
         record.input_names, record.output_names, post, stats.horizon, order, band, model,
-        horizon_table, None, cost, scales=(su.copy(), sy.copy()),
+        horizon_table, order_table, cost, scales=(su.copy(), sy.copy()),
     )  # fmt: skip
     stable = model.is_stable()
     if not stable:
