@@ -19,7 +19,7 @@ scheduler_option = click.option(
     default=None,
     metavar="tcp://HOST:PORT",
     help="Dask scheduler computing the statistics of a chunked record (.h5, .hdf5, .npy, Zarr folder) on its "
-    "workers; default: here, chunk by chunk.",
+    "workers, which read the file at the same path; default: here, chunk by chunk.",
 )
 
 

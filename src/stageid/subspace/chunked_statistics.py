@@ -145,6 +145,8 @@ def _block_periodogram(x: np.ndarray, first: int, a: int, b: int, n: int) -> np.
 
 
 def _lag_task(record, a, b, stop, max_lag, shift, scale, n_inputs_spectrum):
+    """One task: the lag sums of the chunk ``[a, b)`` of a range ending at ``stop`` (history read
+    past ``b``, at most to ``stop``) and the periodogram of its blocks (history to the record's end)."""
     history = max(max_lag, SPECTRUM_BLOCK - 1 if n_inputs_spectrum else 0)
     end = min(b + history, record.n_samples)
     x = record.read(a, end)
