@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ._common import check_output, read_experiments, say, split_names, write_table_output
+from .chunked_input import chunked_record, scheduler_option, statistics_client
 
 
 @click.command(
@@ -18,7 +19,7 @@ Examples:
   stageid frf ms.csv --inputs u --outputs y --method periodic --periods 8 --transient-periods 2 -o frf.csv
 """,
 )
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("data", nargs=-1, required=True, type=click.Path())
 @click.option("--inputs", required=True, help="Input columns, comma-separated.")
 @click.option("--outputs", required=True, help="Output columns, comma-separated.")
 @click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
@@ -42,6 +43,7 @@ Examples:
     type=click.Path(dir_okay=False),
     help="Output .csv or .npz (by extension).",
 )
+@scheduler_option
 def frf_command(
     data: tuple[str, ...],
     inputs: str,
@@ -54,6 +56,7 @@ def frf_command(
     periods: int | None,
     transient_periods: int | None,
     output: str,
+    scheduler: str | None,
 ) -> None:
     """Estimate the frequency response from DATA files (one per excited input, or several at once).
 
@@ -65,16 +68,26 @@ def frf_command(
     _check_method_options(method, segment, overlap, window, periods, transient_periods)
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
+    # a record larger than memory: Welch's spectra chunk by chunk (lpm and periodic refuse it)
+    record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}", scheduler)
     if method == "welch":
         from ..frf.welch import cross_spectra, default_segment, h1_from_spectra
 
-        exps = _read_records(data, ins, outs, ts)
+        exps = _read_records(data, ins, outs, ts) if record is None else [record]
         if segment is None:
             segment = default_segment(min(e.n_samples for e in exps))
             chosen = " (chosen from the record; set it with --segment)"
         else:
             chosen = ""
-        spectra = cross_spectra(exps, segment, 0.5 if overlap is None else overlap, window or "hann")
+        if record is not None:
+            from ..frf.welch_chunked import chunked_cross_spectra
+
+            with statistics_client(scheduler) as client:
+                spectra = chunked_cross_spectra(
+                    record, segment, 0.5 if overlap is None else overlap, window or "hann", client=client
+                )
+        else:
+            spectra = cross_spectra(exps, segment, 0.5 if overlap is None else overlap, window or "hann")
         frd = h1_from_spectra(spectra, ins, outs)
         say(f"welch: segment {segment} samples{chosen}, {spectra.n_segments} segments, resolution {frd.freqs[0]:g} Hz")
     elif method == "lpm":

@@ -13,6 +13,7 @@ from ._common import (
     split_names,
     write_model_output,
 )
+from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -44,7 +45,7 @@ Examples:
       --uncertainty bands.csv --uncertainty-grid 1:100:200   (model response with its std)
 """,
 )
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("data", nargs=-1, required=True, type=click.Path())
 @click.option("--inputs", required=True, help="Input columns A,B,C.")
 @click.option("--outputs", required=True, help="Output columns X,Y,Z.")
 @click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
@@ -96,6 +97,7 @@ Examples:
     help="Also write an HTML report (Bode with posterior bands, selection plots, simulation fits) into this folder.",
 )
 @uncertainty_options
+@scheduler_option
 def statespace_command(
     data: tuple[str, ...],
     inputs: str,
@@ -112,6 +114,7 @@ def statespace_command(
     report_dir: str | None,
     uncertainty_file: str | None,
     uncertainty_grid: str | None,
+    scheduler: str | None,
 ) -> None:
     """Identify a discrete MIMO state-space model from open-loop records (Cao & Chen 2013).
 
@@ -133,8 +136,9 @@ def statespace_command(
     if isinstance(horizon, list):
         raise click.UsageError(f"--horizon must be one integer or 'auto'; got {horizon_text!r}.")
     band = None if band_text is None else parse_band(band_text)
-    exps = read_experiments(data, ins, outs, ts)
-    uncertainty.check_nyquist(exps[0].dt)
+    record = chunked_record(data, ins, outs, ts, "--report" if report_dir is not None else "", scheduler)
+    exps = read_experiments(data, ins, outs, ts) if record is None else None
+    uncertainty.check_nyquist(exps[0].dt if record is None else record.dt)
     est = HankelMAP(
         horizon=horizon,
         order=order,
@@ -144,7 +148,9 @@ def statespace_command(
         realization=realization,
         band=band,
     )
-    result = est.fit(exps)  # warnings become one-line messages printed after success (cli.main)
+    # warnings become one-line messages printed after success (cli.main); a chunked record is
+    # fitted from statistics computed chunk by chunk, here or on --scheduler
+    result = est.fit(exps) if record is None else fit_on_chunks(est, record, scheduler)
     write_model_output(output, result.model)  # committed with the report, after both succeeded
     fit_band = identified_band(result)
     uncertainty_line = uncertainty.write(result, fit_band, result.model.dt)

@@ -30,7 +30,16 @@ from ..resources import require_memory
 from .frd import FrequencyResponse
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 
-__all__ = ["CrossSpectra", "cross_spectra", "welch_frf", "h1_from_spectra", "default_segment", "get_window"]
+__all__ = [
+    "CrossSpectra",
+    "cross_spectra",
+    "segment_sums",
+    "spectra_from_sums",
+    "welch_frf",
+    "h1_from_spectra",
+    "default_segment",
+    "get_window",
+]
 
 #: Bytes of segment data transformed at once (a batch of segments x channels).
 BATCH_BYTES = 32e6
@@ -151,15 +160,34 @@ def cross_spectra(
     require_memory(16.0 * nf * (n_ch * n_ch + 2 * n_ch * batch) + 24.0 * batch * n_ch * segment, "Welch spectra")
     acc = np.zeros((nf, n_ch, n_ch), complex)
     counts = [_accumulate(r, w, step, batch, acc) for r in recs]
+    return spectra_from_sums(acc, counts, w, step, recs[0].dt, recs[0].n_inputs)
+
+
+def spectra_from_sums(
+    acc: np.ndarray, counts: Sequence[int], w: np.ndarray, step: int, dt: float, n_inputs: int
+) -> CrossSpectra:
+    """The :class:`CrossSpectra` of ``acc = sum conj(X) X^T`` over the segments of records with
+    ``counts`` segments each (window ``w``, ``step`` samples apart); ``acc`` is scaled in place."""
+    segment, nf = w.size, acc.shape[0]
     n_seg = int(sum(counts))
-    scale = 1.0 / (n_seg * (1.0 / recs[0].dt) * float(w @ w))
+    scale = 1.0 / (n_seg * (1.0 / dt) * float(w @ w))
     one_sided = np.full(nf, 2.0)
     one_sided[0] = 1.0
     if segment % 2 == 0:
         one_sided[-1] = 1.0
     acc *= (scale * one_sided)[:, None, None]
-    freqs = np.fft.rfftfreq(segment, recs[0].dt)
-    return CrossSpectra(freqs, acc, recs[0].n_inputs, n_seg, segment, _effective_segments(w, step, counts))
+    freqs = np.fft.rfftfreq(segment, dt)
+    return CrossSpectra(freqs, acc, n_inputs, n_seg, segment, _effective_segments(w, step, counts))
+
+
+def segment_sums(record: ChannelRecord, w: np.ndarray, step: int) -> tuple[np.ndarray, int]:
+    """``sum conj(X) X^T`` (unscaled, shape (segment // 2 + 1, n_ch, n_ch)) over the segments of
+    one record, ``step`` samples apart and windowed by ``w``, and their count: the part of
+    :func:`cross_spectra` that adds over segments (:mod:`.welch_chunked` sums it over chunks)."""
+    n_ch = len(record.channels)
+    batch = max(1, int(BATCH_BYTES // (8.0 * n_ch * w.size * 3)))
+    acc = np.zeros((w.size // 2 + 1, n_ch, n_ch), complex)
+    return acc, _accumulate(record, w, step, batch, acc)
 
 
 def _accumulate(r: ChannelRecord, w: np.ndarray, step: int, batch: int, acc: np.ndarray) -> int:
