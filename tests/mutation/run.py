@@ -5,11 +5,13 @@ and runs the tests that cover them (``pytest -x``: a mutant is killed at its fir
 test).  Results go to ``$MUTATION_DIR`` (default ``.venv/mutation``), one cosmic-ray session per
 group, so an interrupted run resumes where it stopped.
 
-    python tests/mutation/run.py [GROUP ...] [--budget SECONDS] [--report]
+    python tests/mutation/run.py [GROUP ...] [--budget SECONDS] [--seed N] [--report]
 
-``--budget`` bounds the wall time of each group; on expiry the run is stopped, the mutated
-module is restored from git, and the finished mutants are reported (the rest stay pending for
-the next run).  The modules must have no uncommitted changes (they are restored with
+Mutants run in a random order fixed by ``--seed`` (a permutation of the whole group, the same
+on every resume), so a run cut short by its budget has tested a uniform random sample of the
+group and its score is an unbiased estimate of the group's score.  ``--budget`` bounds the wall
+time of each group; on expiry the run is stopped, the mutated module is restored from git, and
+the finished mutants are reported (the rest stay pending for the next run).  The modules must have no uncommitted changes (they are restored with
 ``git checkout``).  See tests/MUTATION.md for the last recorded run.
 """
 
@@ -18,7 +20,9 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import math
 import os
+import random
 import signal
 import sqlite3
 import subprocess
@@ -153,7 +157,40 @@ def _counts(session: Path) -> dict[str, int]:
     return out
 
 
-def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
+def sample_order(job_ids: list[str], seed: int) -> list[str]:
+    """The group's mutants in the order they are run: a permutation fixed by ``seed`` alone, so
+    every prefix is a uniform random sample and a resumed run continues the same sample."""
+    order = sorted(job_ids)
+    random.Random(seed).shuffle(order)
+    return order
+
+
+def execute_in_order(session: Path, cfg: Path, seed: int) -> None:
+    """``cosmic-ray exec`` with the pending mutants taken in ``sample_order`` (cosmic-ray's own
+    order is an unseeded SQL ``random()``), one line per mutant on stdout."""
+    from cosmic_ray.config import load_config
+    from cosmic_ray.mutating import mutate_and_test
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    config = load_config(cfg)
+    with use_db(session, WorkDB.Mode.open) as db:
+        pending = {item.job_id: item for item in db.pending_work_items}
+        order = sample_order([item.job_id for item in db.work_items], seed)
+        for job_id in order:
+            if job_id not in pending:
+                continue
+            t0 = time.monotonic()
+            result = mutate_and_test(pending[job_id].mutations, config.test_command, config.timeout)
+            db.set_result(job_id, result)
+            m = pending[job_id].mutations[0]
+            outcome = result.test_outcome.value if result.test_outcome else result.worker_outcome.value
+            print(
+                f"{outcome:>9} {time.monotonic() - t0:6.1f} s  {m.module_path}:{m.start_pos[0]} {m.operator_name}",
+                flush=True,
+            )
+
+
+def run_group(group: str, out: Path, budget: float, seed: int = 0) -> dict[str, int]:
     modules, _ = GROUPS[group]
     dirty = subprocess.run(["git", "diff", "--quiet", "--", *modules], cwd=ROOT).returncode
     if dirty:
@@ -165,7 +202,8 @@ def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
         subprocess.run([cr / "cr-filter-operators", session, cfg], cwd=ROOT, check=True)
         _skip_annotation_mutants(session)
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    proc = subprocess.Popen([cr / "cosmic-ray", "exec", cfg, session], cwd=ROOT, env=env, start_new_session=True)
+    worker = [sys.executable, __file__, group, "--exec-session", str(session), "--seed", str(seed)]
+    proc = subprocess.Popen(worker, cwd=ROOT, env=env, start_new_session=True)
     try:
         proc.wait(timeout=budget)
     except subprocess.TimeoutExpired:
@@ -176,27 +214,44 @@ def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
     return _counts(session)
 
 
+def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson interval of a score k/n estimated from a random sample of n mutants."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("groups", nargs="*", default=list(GROUPS))
     ap.add_argument("--budget", type=float, default=3600.0, help="wall seconds per group")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the order the mutants are sampled in")
     ap.add_argument("--report", action="store_true", help="only print the survivors of finished sessions")
+    ap.add_argument("--exec-session", type=Path, help=argparse.SUPPRESS)  # the budgeted worker run_group starts
     args = ap.parse_args()
+    if args.exec_session:
+        execute_in_order(args.exec_session, args.exec_session.with_suffix(".toml"), args.seed)
+        return
     out = Path(os.environ.get("MUTATION_DIR", ROOT / ".venv" / "mutation"))
     out.mkdir(parents=True, exist_ok=True)
     cr = Path(sys.executable).parent
     for group in args.groups:
         if not args.report:
             t0 = time.monotonic()
-            c = run_group(group, out, args.budget)
+            c = run_group(group, out, args.budget, args.seed)
             run = sum(v for k, v in c.items() if k not in ("total", "skipped"))
             killed = c.get("killed", 0) + c.get("timeout", 0)
             pending = c["total"] - run - c.get("skipped", 0)
+            scored = run - c.get("incompetent", 0)
+            lo, hi = wilson_interval(killed, scored)
             print(
-                f"{group}: {run} mutants run in {time.monotonic() - t0:.0f} s ({c.get('skipped', 0)} filtered, "
-                f"{pending} pending), killed {killed} (timeouts {c.get('timeout', 0)}), survived "
-                f"{c.get('survived', 0)}, incompetent {c.get('incompetent', 0)}, "
-                f"score {killed / max(run - c.get('incompetent', 0), 1):.1%}",
+                f"{group}: {run} of {run + pending} mutants run in {time.monotonic() - t0:.0f} s "
+                f"({c.get('skipped', 0)} filtered, {pending} pending, seed {args.seed}), killed {killed} "
+                f"(timeouts {c.get('timeout', 0)}), survived {c.get('survived', 0)}, incompetent "
+                f"{c.get('incompetent', 0)}, score {killed / max(scored, 1):.1%} (95 % interval {lo:.0%}-{hi:.0%})",
                 flush=True,
             )
         subprocess.run([cr / "cr-report", "--surviving-only", "--show-diff", out / f"{group}.sqlite"], cwd=ROOT)
