@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import io
 import json
 import math
 import os
@@ -27,6 +28,8 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 from pathlib import Path
 
@@ -81,8 +84,15 @@ EXCLUDED_OPERATORS = [
 ]
 
 
+def group_tests(group: str) -> list[str]:
+    """The group's tests, then its ``tests/test_killed_<group>.py`` (the tests written to kill
+    its survivors, tests/MUTATION.md) when there is one."""
+    killed = f"tests/test_killed_{group.replace('-', '_')}.py"
+    return GROUPS[group][1] + ([killed] if (ROOT / killed).exists() else [])
+
+
 def _config(group: str, out: Path) -> Path:
-    modules, tests = GROUPS[group]
+    modules, tests = GROUPS[group][0], group_tests(group)
     cmd = f"{sys.executable} -m pytest -x -q -p no:cacheprovider " + " ".join(tests)
     text = "\n".join(
         [
@@ -190,6 +200,45 @@ def execute_in_order(session: Path, cfg: Path, seed: int) -> None:
             )
 
 
+def recheck(group: str, session: Path, jobs: list[str] | None, tests: list[str] | None) -> None:
+    """Re-run recorded survivors (or ``jobs``) against the current tests, without touching the
+    working tree: each mutant is applied to a copy of the committed ``src`` put first on
+    ``PYTHONPATH``, so this can run while a mutation run has a mutant applied in place.
+    Prints the outcome and the first failing test of each mutant."""
+    from cosmic_ray.mutating import apply_mutation
+    from cosmic_ray.plugins import get_operator
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    tests = tests or group_tests(group)
+    with use_db(session, WorkDB.Mode.open) as db:
+        items = [
+            (item, result)
+            for item, result in db.completed_work_items
+            if (jobs and item.job_id in jobs)
+            or (not jobs and result.test_outcome is not None and result.test_outcome.value == "survived")
+        ]
+    with tempfile.TemporaryDirectory(prefix="mutation-recheck-") as tmp:
+        archive = subprocess.run(
+            ["git", "archive", "--format=tar", "HEAD", "src"], cwd=ROOT, capture_output=True, check=True
+        )
+        with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+            tar.extractall(tmp, filter="data")
+        env = dict(os.environ, PYTHONPATH=str(Path(tmp) / "src"), PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1")
+        for item, _ in items:
+            m = item.mutations[0]
+            path = Path(tmp) / m.module_path
+            original = path.read_text()
+            try:
+                apply_mutation(path, get_operator(m.operator_name)(**(m.operator_args or {})), m.occurrence)
+                cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
+                run = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+            finally:
+                path.write_text(original)
+            failed = [ln.split()[1] for ln in run.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]
+            outcome = "killed" if run.returncode else "survived"
+            print(f"{item.job_id} {m.module_path}:{m.start_pos[0]} {m.operator_name} -> {outcome} {' '.join(failed)}")
+
+
 def run_group(group: str, out: Path, budget: float, seed: int = 0) -> dict[str, int]:
     modules, _ = GROUPS[group]
     dirty = subprocess.run(["git", "diff", "--quiet", "--", *modules], cwd=ROOT).returncode
@@ -230,6 +279,9 @@ def main() -> None:
     ap.add_argument("--budget", type=float, default=3600.0, help="wall seconds per group")
     ap.add_argument("--seed", type=int, default=0, help="seed of the order the mutants are sampled in")
     ap.add_argument("--report", action="store_true", help="only print the survivors of finished sessions")
+    ap.add_argument("--recheck", action="store_true", help="re-run the survivors against the current tests")
+    ap.add_argument("--jobs", nargs="*", help="with --recheck: these job ids instead of the survivors")
+    ap.add_argument("--tests", nargs="*", help="with --recheck: these tests instead of the group's")
     ap.add_argument("--exec-session", type=Path, help=argparse.SUPPRESS)  # the budgeted worker run_group starts
     args = ap.parse_args()
     if args.exec_session:
@@ -239,6 +291,9 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     cr = Path(sys.executable).parent
     for group in args.groups:
+        if args.recheck:
+            recheck(group, out / f"{group}.sqlite", args.jobs, args.tests)
+            continue
         if not args.report:
             t0 = time.monotonic()
             c = run_group(group, out, args.budget, args.seed)
