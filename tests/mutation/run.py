@@ -72,7 +72,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     ),
     "closedloop-cancellation": (
         ["src/stageid/closedloop/cancellation.py", "src/stageid/closedloop/deduction.py"],
-        ["tests/test_closedloop_deduction.py", "tests/test_closedloop_estimator.py"],
+        [
+            "tests/test_closedloop_cancellation_pairs.py",  # cancel_pairs against recomputed distances
+            "tests/test_closedloop_deduction.py",
+            "tests/test_closedloop_estimator.py",
+        ],
     ),
 }
 
