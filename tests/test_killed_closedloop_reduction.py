@@ -45,6 +45,10 @@ def test_entry_unstable_poles_uses_each_plant_pole_once_and_keeps_complex_pairs(
     # outside the 5 % snapping distance the entry's own value is kept
     far = entry_unstable_poles(_entry([54.0]), np.array([50.0]), DT)
     assert far.real.tolist() == pytest.approx([54.0], rel=1e-9)
+    # a real pole that picked up a rounding-size imaginary part (< 1e-9 relative) comes back real
+    almost = entry_unstable_poles(_entry([200.0 + 1e-8j]), np.zeros(0), DT)
+    assert almost.imag.tolist() == [0.0] and almost.real == pytest.approx(200.0, rel=1e-9)
+    assert entry_unstable_poles(_entry([200.0 + 1e-5j]), np.zeros(0), DT).imag == pytest.approx(1e-5, rel=1e-3)
     assert entry_unstable_poles(_entry([54.0]), np.array([50.0]), DT, rel=0.1).tolist() == [50.0]
 
 
