@@ -15,7 +15,13 @@ import pytest
 
 from stageid._errors import IdentificationError
 from stageid.closedloop.cancellation import EntryPoleZero
-from stageid.closedloop.reduction import entry_unstable_poles, keep_full_order, reduce_entry, zoh_response
+from stageid.closedloop.reduction import (
+    entry_unstable_poles,
+    keep_full_order,
+    paper_orders,
+    reduce_entry,
+    zoh_response,
+)
 from stageid.models import TransferMatrix
 
 DT = 2e-4
@@ -119,3 +125,31 @@ def test_stable_free_keeps_the_free_poles_in_the_left_half_plane() -> None:
     assert np.max(free.poles.real) == pytest.approx(50.0, rel=1e-6)  # fitted, not kept
     stable = reduce_entry(P, f, DT, 0, 2, stable_free=True)
     assert np.all(stable.poles.real < 0)
+
+
+def test_paper_orders_diagonal_0_2_couplings_1_3() -> None:
+    # eq. 22a/23a/24a: [0, 2] on the diagonal; eq. 22b-24c: third-order couplings, up to one zero
+    assert paper_orders(2) == {(0, 0): (0, 2), (0, 1): (1, 3), (1, 0): (1, 3), (1, 1): (0, 2)}
+    assert paper_orders(1) == {(0, 0): (0, 2)}
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=np.linalg.LinAlgError,
+    reason="bug (minor): scipy's tf2ss gives a static gain one zero state, so zoh_response's n == 0 branch "
+    "(reduction.py:91) is never taken and at 0 Hz it solves (1 - 0) x = 0 with a singular 1 - Ad "
+    "(z = 1, Ad = 1): LinAlgError instead of the gain; unreachable from reduce_entry (n_poles >= 1)",
+)
+def test_zoh_response_of_a_static_gain() -> None:
+    f = np.array([0.0, 10.0, 2000.0])
+    np.testing.assert_array_equal(zoh_response([2.5], [1.0], DT, f), np.full(3, 2.5 + 0j))
+
+
+def test_reduce_entry_structure_bounds() -> None:
+    f = np.geomspace(20, 300, 30)
+    # biproper [1, 1] is allowed (n_zeros == n_poles) ...
+    P = zoh_response([1.0, 10.0], [1.0, 80.0], DT, f)
+    assert reduce_entry(P, f, DT, 1, 1).eps_complex < 1e-6
+    # ... an improper [3, 2] is not
+    with pytest.raises(IdentificationError, match=r"0 <= n_zeros <= n_poles .* got \[3, 2\]"):
+        reduce_entry(P, f, DT, 3, 2)
