@@ -9,7 +9,7 @@ import pytest
 
 from stageid._errors import IdentificationError
 from stageid.closedloop.cancellation import cancel_entries, cancel_pairs, pole_contributions
-from stageid.closedloop.deduction import check_controller, unstable_plant_poles
+from stageid.closedloop.deduction import check_controller, check_grid, deduce_response, unstable_plant_poles
 from stageid.models import StateSpaceModel, TransferMatrix, feedback
 
 DT = 1e-3
@@ -72,3 +72,16 @@ def test_singular_controller_names_the_first_frequency_and_the_relative_size() -
     ratio = K[0] / K.max()
     with pytest.raises(IdentificationError, match=rf"singular at 0 Hz: .* {ratio:.2g} of its peak gain"):
         check_controller(M, f)
+
+
+def test_check_grid_starts_a_decade_below_the_band_and_at_most_at_1_hz() -> None:
+    for f_low, first in ((5.0, 0.5), (50.0, 1.0)):
+        grid = check_grid(f_low, DT)
+        assert grid.size == 401 and grid[0] == 0.0
+        assert grid[1] == pytest.approx(first, rel=1e-12) and grid[-1] == pytest.approx(0.95 * 0.5 / DT, rel=1e-12)
+
+
+def test_deduce_response_refuses_arrays_that_are_not_frequency_stacks_of_square_matrices() -> None:
+    T = np.full((2, 2, 2, 2), 0.5 + 0j)  # 4-d: not (n_freqs, p, p)
+    with pytest.raises(IdentificationError, match=r"must all have shape \(n_freqs, p, p\)"):
+        deduce_response(T, np.ones_like(T))
