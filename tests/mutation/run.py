@@ -260,7 +260,15 @@ def run_group(group: str, out: Path, budget: float, seed: int = 0) -> dict[str, 
     try:
         proc.wait(timeout=budget)
     except subprocess.TimeoutExpired:
+        # cosmic-ray starts each test run in a session of its own: stop it by its id as well,
+        # or an orphaned pytest of the last mutant keeps running after the budget
+        tests = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
         os.killpg(proc.pid, signal.SIGTERM)  # the session this run started, nothing else
+        for pid in tests:
+            try:
+                os.killpg(int(pid), signal.SIGTERM)
+            except ProcessLookupError:
+                pass
         proc.wait()
     finally:
         subprocess.run(["git", "checkout", "--", *modules], cwd=ROOT, check=True)  # no mutant left behind
