@@ -117,3 +117,21 @@ def test_auto_start_is_zero_only_within_one_percent_of_the_range_at_rest() -> No
         start = true.with_state(true.consistent_state(u[0], "ascending"))
         fit = PIIdentifier("pi", n_operators=4).fit([(u, start.simulate(u)[:, 0])])
         assert fit.initial_states == (expected,), u0
+
+
+def test_a_given_initial_state_is_kept_not_chosen() -> None:
+    # a record generated from a "descending" start, fitted with initial_state="ascending": the
+    # fit must use the start it is given ("auto" would pick "descending")
+    true = PIModel(r=np.arange(4) * 25.0, weights=[0.01, 0.004, 0.003, 0.002])
+    u = np.r_[np.linspace(60, -100, 300), np.linspace(-100, 100, 400)]
+    y = true.with_state(true.consistent_state(u[0], "descending")).simulate(u)[:, 0]
+    assert PIIdentifier("pi", n_operators=4).fit((u, y)).initial_states == ("descending",)
+    assert PIIdentifier("pi", n_operators=4, initial_state="ascending").fit((u, y)).initial_states == ("ascending",)
+
+
+def test_closed_form_inverse_needs_a_linear_term_first() -> None:
+    from stageid import ModelError
+    from stageid.hysteresis import pi_inverse
+
+    with pytest.raises(ModelError, match=r"needs r\[0\] = 0 \(a linear term\); got r\[0\] = 5"):
+        pi_inverse(PIModel(r=[5.0, 25.0], weights=[0.01, 0.004]))
