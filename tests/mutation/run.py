@@ -5,11 +5,13 @@ and runs the tests that cover them (``pytest -x``: a mutant is killed at its fir
 test).  Results go to ``$MUTATION_DIR`` (default ``.venv/mutation``), one cosmic-ray session per
 group, so an interrupted run resumes where it stopped.
 
-    python tests/mutation/run.py [GROUP ...] [--budget SECONDS] [--report]
+    python tests/mutation/run.py [GROUP ...] [--budget SECONDS] [--seed N] [--report]
 
-``--budget`` bounds the wall time of each group; on expiry the run is stopped, the mutated
-module is restored from git, and the finished mutants are reported (the rest stay pending for
-the next run).  The modules must have no uncommitted changes (they are restored with
+Mutants run in a random order fixed by ``--seed`` (a permutation of the whole group, the same
+on every resume), so a run cut short by its budget has tested a uniform random sample of the
+group and its score is an unbiased estimate of the group's score.  ``--budget`` bounds the wall
+time of each group; on expiry the run is stopped, the mutated module is restored from git, and
+the finished mutants are reported (the rest stay pending for the next run).  The modules must have no uncommitted changes (they are restored with
 ``git checkout``).  See tests/MUTATION.md for the last recorded run.
 """
 
@@ -17,12 +19,17 @@ from __future__ import annotations
 
 import argparse
 import ast
+import io
 import json
+import math
 import os
+import random
 import signal
 import sqlite3
 import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 from pathlib import Path
 
@@ -65,7 +72,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     ),
     "closedloop-cancellation": (
         ["src/stageid/closedloop/cancellation.py", "src/stageid/closedloop/deduction.py"],
-        ["tests/test_closedloop_deduction.py", "tests/test_closedloop_estimator.py"],
+        [
+            "tests/test_closedloop_cancellation_pairs.py",  # cancel_pairs against recomputed distances
+            "tests/test_closedloop_deduction.py",
+            "tests/test_closedloop_estimator.py",
+        ],
     ),
 }
 
@@ -77,8 +88,15 @@ EXCLUDED_OPERATORS = [
 ]
 
 
+def group_tests(group: str) -> list[str]:
+    """The group's tests, then its ``tests/test_killed_<group>.py`` (the tests written to kill
+    its survivors, tests/MUTATION.md) when there is one."""
+    killed = f"tests/test_killed_{group.replace('-', '_')}.py"
+    return GROUPS[group][1] + ([killed] if (ROOT / killed).exists() else [])
+
+
 def _config(group: str, out: Path) -> Path:
-    modules, tests = GROUPS[group]
+    modules, tests = GROUPS[group][0], group_tests(group)
     cmd = f"{sys.executable} -m pytest -x -q -p no:cacheprovider " + " ".join(tests)
     text = "\n".join(
         [
@@ -153,7 +171,79 @@ def _counts(session: Path) -> dict[str, int]:
     return out
 
 
-def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
+def sample_order(job_ids: list[str], seed: int) -> list[str]:
+    """The group's mutants in the order they are run: a permutation fixed by ``seed`` alone, so
+    every prefix is a uniform random sample and a resumed run continues the same sample."""
+    order = sorted(job_ids)
+    random.Random(seed).shuffle(order)
+    return order
+
+
+def execute_in_order(session: Path, cfg: Path, seed: int) -> None:
+    """``cosmic-ray exec`` with the pending mutants taken in ``sample_order`` (cosmic-ray's own
+    order is an unseeded SQL ``random()``), one line per mutant on stdout."""
+    from cosmic_ray.config import load_config
+    from cosmic_ray.mutating import mutate_and_test
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    config = load_config(cfg)
+    with use_db(session, WorkDB.Mode.open) as db:
+        pending = {item.job_id: item for item in db.pending_work_items}
+        order = sample_order([item.job_id for item in db.work_items], seed)
+        for job_id in order:
+            if job_id not in pending:
+                continue
+            t0 = time.monotonic()
+            result = mutate_and_test(pending[job_id].mutations, config.test_command, config.timeout)
+            db.set_result(job_id, result)
+            m = pending[job_id].mutations[0]
+            outcome = result.test_outcome.value if result.test_outcome else result.worker_outcome.value
+            print(
+                f"{outcome:>9} {time.monotonic() - t0:6.1f} s  {m.module_path}:{m.start_pos[0]} {m.operator_name}",
+                flush=True,
+            )
+
+
+def recheck(group: str, session: Path, jobs: list[str] | None, tests: list[str] | None) -> None:
+    """Re-run recorded survivors (or ``jobs``) against the current tests, without touching the
+    working tree: each mutant is applied to a copy of the committed ``src`` put first on
+    ``PYTHONPATH``, so this can run while a mutation run has a mutant applied in place.
+    Prints the outcome and the first failing test of each mutant."""
+    from cosmic_ray.mutating import apply_mutation
+    from cosmic_ray.plugins import get_operator
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    tests = tests or group_tests(group)
+    with use_db(session, WorkDB.Mode.open) as db:
+        items = [
+            (item, result)
+            for item, result in db.completed_work_items
+            if (jobs and item.job_id in jobs)
+            or (not jobs and result.test_outcome is not None and result.test_outcome.value == "survived")
+        ]
+    with tempfile.TemporaryDirectory(prefix="mutation-recheck-") as tmp:
+        archive = subprocess.run(
+            ["git", "archive", "--format=tar", "HEAD", "src"], cwd=ROOT, capture_output=True, check=True
+        )
+        with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+            tar.extractall(tmp, filter="data")
+        env = dict(os.environ, PYTHONPATH=str(Path(tmp) / "src"), PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1")
+        for item, _ in items:
+            m = item.mutations[0]
+            path = Path(tmp) / m.module_path
+            original = path.read_text()
+            try:
+                apply_mutation(path, get_operator(m.operator_name)(**(m.operator_args or {})), m.occurrence)
+                cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
+                run = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+            finally:
+                path.write_text(original)
+            failed = [ln.split()[1] for ln in run.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]
+            outcome = "killed" if run.returncode else "survived"
+            print(f"{item.job_id} {m.module_path}:{m.start_pos[0]} {m.operator_name} -> {outcome} {' '.join(failed)}")
+
+
+def run_group(group: str, out: Path, budget: float, seed: int = 0) -> dict[str, int]:
     modules, _ = GROUPS[group]
     dirty = subprocess.run(["git", "diff", "--quiet", "--", *modules], cwd=ROOT).returncode
     if dirty:
@@ -165,38 +255,70 @@ def run_group(group: str, out: Path, budget: float) -> dict[str, int]:
         subprocess.run([cr / "cr-filter-operators", session, cfg], cwd=ROOT, check=True)
         _skip_annotation_mutants(session)
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    proc = subprocess.Popen([cr / "cosmic-ray", "exec", cfg, session], cwd=ROOT, env=env, start_new_session=True)
+    worker = [sys.executable, __file__, group, "--exec-session", str(session), "--seed", str(seed)]
+    proc = subprocess.Popen(worker, cwd=ROOT, env=env, start_new_session=True)
     try:
         proc.wait(timeout=budget)
     except subprocess.TimeoutExpired:
+        # cosmic-ray starts each test run in a session of its own: stop it by its id as well,
+        # or an orphaned pytest of the last mutant keeps running after the budget
+        tests = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
         os.killpg(proc.pid, signal.SIGTERM)  # the session this run started, nothing else
+        for pid in tests:
+            try:
+                os.killpg(int(pid), signal.SIGTERM)
+            except ProcessLookupError:
+                pass
         proc.wait()
     finally:
         subprocess.run(["git", "checkout", "--", *modules], cwd=ROOT, check=True)  # no mutant left behind
     return _counts(session)
 
 
+def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson interval of a score k/n estimated from a random sample of n mutants."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("groups", nargs="*", default=list(GROUPS))
     ap.add_argument("--budget", type=float, default=3600.0, help="wall seconds per group")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the order the mutants are sampled in")
     ap.add_argument("--report", action="store_true", help="only print the survivors of finished sessions")
+    ap.add_argument("--recheck", action="store_true", help="re-run the survivors against the current tests")
+    ap.add_argument("--jobs", nargs="*", help="with --recheck: these job ids instead of the survivors")
+    ap.add_argument("--tests", nargs="*", help="with --recheck: these tests instead of the group's")
+    ap.add_argument("--exec-session", type=Path, help=argparse.SUPPRESS)  # the budgeted worker run_group starts
     args = ap.parse_args()
+    if args.exec_session:
+        execute_in_order(args.exec_session, args.exec_session.with_suffix(".toml"), args.seed)
+        return
     out = Path(os.environ.get("MUTATION_DIR", ROOT / ".venv" / "mutation"))
     out.mkdir(parents=True, exist_ok=True)
     cr = Path(sys.executable).parent
     for group in args.groups:
+        if args.recheck:
+            recheck(group, out / f"{group}.sqlite", args.jobs, args.tests)
+            continue
         if not args.report:
             t0 = time.monotonic()
-            c = run_group(group, out, args.budget)
+            c = run_group(group, out, args.budget, args.seed)
             run = sum(v for k, v in c.items() if k not in ("total", "skipped"))
             killed = c.get("killed", 0) + c.get("timeout", 0)
             pending = c["total"] - run - c.get("skipped", 0)
+            scored = run - c.get("incompetent", 0)
+            lo, hi = wilson_interval(killed, scored)
             print(
-                f"{group}: {run} mutants run in {time.monotonic() - t0:.0f} s ({c.get('skipped', 0)} filtered, "
-                f"{pending} pending), killed {killed} (timeouts {c.get('timeout', 0)}), survived "
-                f"{c.get('survived', 0)}, incompetent {c.get('incompetent', 0)}, "
-                f"score {killed / max(run - c.get('incompetent', 0), 1):.1%}",
+                f"{group}: {run} of {run + pending} mutants run in {time.monotonic() - t0:.0f} s "
+                f"({c.get('skipped', 0)} filtered, {pending} pending, seed {args.seed}), killed {killed} "
+                f"(timeouts {c.get('timeout', 0)}), survived {c.get('survived', 0)}, incompetent "
+                f"{c.get('incompetent', 0)}, score {killed / max(scored, 1):.1%} (95 % interval {lo:.0%}-{hi:.0%})",
                 flush=True,
             )
         subprocess.run([cr / "cr-report", "--surviving-only", "--show-diff", out / f"{group}.sqlite"], cwd=ROOT)
