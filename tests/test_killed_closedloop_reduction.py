@@ -97,13 +97,6 @@ def test_keep_full_order_reports_each_entrys_band_error() -> None:
         keep_full_order(G, G.frequency_response(f) * (1 + worse), f, continuous=False)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: TransferMatrix.d2c rebuilds each entry through minimal_matrices (models/minimal.py:52-56), "
-    "whose rank threshold 1e-9 * max(1, ||A||, ||B||, ||C||) is absolute across A, B and C: a ZOH entry "
-    "with numerator ~6e-8 (gain 3 at dt = 2e-4) is judged unobservable and becomes 0, so "
-    "keep_full_order(continuous=True) -- structure='full' with a continuous plant -- always fails",
-)
 def test_full_order_continuous_plant_with_small_discrete_gains() -> None:
     G = TransferMatrix([[[3.0]]], [[np.poly([50.0, -80.0])]], None, ("F",), ("x",)).c2d(DT, "zoh")
     f = np.geomspace(20, 300, 30)
@@ -111,13 +104,6 @@ def test_full_order_continuous_plant_with_small_discrete_gains() -> None:
     assert plant.dt is None and eps_c.max() < 1e-6
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug (doc and code disagree): reduce_entry's stable_free=True promises free poles in the left "
-    "half plane, but _reflect_and_refit (reduction.py:205-213) refits without a constraint after the "
-    "reflection, and on an unstable entry the refit walks back to the unstable optimum (+50 rad/s here); "
-    "reduce_best only copes by dropping the candidate (stable_ok)",
-)
 def test_stable_free_keeps_the_free_poles_in_the_left_half_plane() -> None:
     f = np.geomspace(20, 300, 40)
     P = zoh_response([3.0], np.poly([50.0, -80.0]), DT, f)  # an unstable entry, no pole kept
@@ -133,13 +119,6 @@ def test_paper_orders_diagonal_0_2_couplings_1_3() -> None:
     assert paper_orders(1) == {(0, 0): (0, 2)}
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=np.linalg.LinAlgError,
-    reason="bug (minor): scipy's tf2ss gives a static gain one zero state, so zoh_response's n == 0 branch "
-    "(reduction.py:91) is never taken and at 0 Hz it solves (1 - 0) x = 0 with a singular 1 - Ad "
-    "(z = 1, Ad = 1): LinAlgError instead of the gain; unreachable from reduce_entry (n_poles >= 1)",
-)
 def test_zoh_response_of_a_static_gain() -> None:
     f = np.array([0.0, 10.0, 2000.0])
     np.testing.assert_array_equal(zoh_response([2.5], [1.0], DT, f), np.full(3, 2.5 + 0j))

@@ -85,11 +85,12 @@ def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarr
     """
     num = np.atleast_1d(np.asarray(num, dtype=float))
     den = np.atleast_1d(np.asarray(den, dtype=float))
+    z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt)
+    num_t, den_t = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
+    if den_t.size == 1 and num_t.size <= 1:  # a static gain: tf2ss would give it one state at z = 1
+        return np.full(z.shape, complex(num_t.sum() / den_t[0]))
     A, B, C, D = ss.tf2ss(num, den)
     n = A.shape[0]
-    z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt)
-    if n == 0:
-        return np.full(z.shape, complex(D[0, 0]))
     blk = np.zeros((n + 1, n + 1))
     blk[:n, :n] = A * dt
     blk[:n, n:] = B * dt
@@ -210,7 +211,12 @@ def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> n
         return theta
     roots = np.where(roots.real > 0, -np.conj(roots), roots)
     theta = np.concatenate([theta[:nb], np.real(np.poly(roots))[1:]])
-    return least_squares(fit.residual, theta, method="trf", max_nfev=max_nfev).x
+    refit = least_squares(fit.residual, theta, method="trf", max_nfev=max_nfev).x
+    # the refit is unconstrained: on a truly unstable entry it walks back to the unstable
+    # optimum, and the promise is stable free poles, so the reflected fit stands then
+    if np.any(np.roots(_poly_from_params(refit[nb:])).real > 0):
+        return theta
+    return refit
 
 
 def _levy_start(

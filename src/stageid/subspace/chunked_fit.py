@@ -33,7 +33,7 @@ from ..resources import require_memory
 from .chunked_order import select_order_chunked
 from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .hankel_toeplitz import WindowStatistics, response_bytes, statistics_bytes
-from .map_estimator import METHODS, map_estimate, map_posterior
+from .map_estimator import METHODS, map_posterior
 from .realization import realize
 from .records import excited_band
 from .refinement import refinement_bytes
@@ -125,9 +125,7 @@ def _record_statistics(est, record, shift, scale, su, sy, chunk, client):
     table = None
     if est.horizon == "auto":
         prior_of = METHODS[est.method]
-        p, table = select_horizon(
-            train, val, cands, lambda s: map_estimate(*s.blocks()[:2], prior_of(s, est.prior, su, sy))[0]
-        )
+        p, table = select_horizon(train, val, cands, lambda s: prior_of(s, est.prior, su, sy))
     else:
         p = int(est.horizon)
     if n <= 2 * p:
