@@ -342,16 +342,16 @@ class PIIdentifier(Estimator):
             n_evaluations=n_eval,
             success=success,
             message=message,
-            weight_uncertainty=None
-            if self.weight_uncertainty == "none"
-            else weight_uncertainty(
-                problem,
-                theta,
-                kinds,
-                classical,
-                self.weight_uncertainty,
-                (w, offsets, getattr(getattr(model, "creep", None), "weights", None)),
-            ),
+            weight_uncertainty=self._weight_uncertainty(problem, theta, kinds, classical, model, w, offsets),
+        )
+
+    def _weight_uncertainty(self, problem, theta, kinds, classical, model, w, offsets):
+        """The weights' covariance (``weight_uncertainty`` setting), None when not asked for."""
+        if self.weight_uncertainty == "none":
+            return None
+        creep_weights = getattr(getattr(model, "creep", None), "weights", None)
+        return weight_uncertainty(
+            problem, theta, kinds, classical, self.weight_uncertainty, (w, offsets, creep_weights)
         )
 
     # ------------------------------------------------------------------ steps of fit
