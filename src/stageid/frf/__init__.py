@@ -15,21 +15,35 @@ module                    what it holds
 ========================  =================================================================
 """
 
-from .frd import FrequencyResponse, frd_columns, read_frd
-from .identification import FRDIdentification, FRDResult
-from .lpm import lpm_frf
-from .periodic import periodic_frf
-from .welch import cross_spectra, default_segment, welch_frf
+import importlib
+from typing import Any
 
-__all__ = [
-    "FrequencyResponse",
-    "read_frd",
-    "frd_columns",
-    "welch_frf",
-    "cross_spectra",
-    "default_segment",
-    "lpm_frf",
-    "periodic_frf",
-    "FRDIdentification",
-    "FRDResult",
-]
+# Names load on first use (PEP 562): `stageid.frf.frd` is imported by every estimator that
+# reports a response with its std; the LPM's numba kernels must not load with it into every
+# command's start-up (tests/test_import_cost.py).
+_WHERE = {
+    "FrequencyResponse": "frd",
+    "read_frd": "frd",
+    "frd_columns": "frd",
+    "welch_frf": "welch",
+    "cross_spectra": "welch",
+    "default_segment": "welch",
+    "lpm_frf": "lpm",
+    "periodic_frf": "periodic",
+    "FRDIdentification": "identification",
+    "FRDResult": "identification",
+}
+
+__all__ = list(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_WHERE])
