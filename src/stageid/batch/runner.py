@@ -13,6 +13,8 @@ import contextlib
 import csv
 import hashlib
 import io
+import signal
+import threading
 import time
 import uuid
 from collections.abc import Callable, Sequence
@@ -104,17 +106,44 @@ def _collect(client, pending, task, folder: Path, prints, state, outcomes, bar) 
         for i, job in enumerate(pending)
     }
     saved = time.monotonic()
+    done = as_completed(futures, loop=client.loop)
     try:
-        for future in as_completed(futures, loop=client.loop):
-            job = futures.pop(future)
-            outcomes[job.name] = _finish(job, future, folder, prints[job.name], state)
-            bar.update(1)
-            if time.monotonic() - saved > _STATE_EVERY:
-                save_state(folder, state)
-                saved = time.monotonic()
+        with _deferred_interrupt() as interrupted:
+            while not done.is_empty():
+                if interrupted.is_set():  # Ctrl-C, taken here between jobs
+                    raise KeyboardInterrupt
+                ready = done.next_batch(block=False)
+                if not ready:
+                    time.sleep(0.05)
+                for future in ready:
+                    job = futures.pop(future)
+                    outcomes[job.name] = _finish(job, future, folder, prints[job.name], state)
+                    bar.update(1)
+                if time.monotonic() - saved > _STATE_EVERY:
+                    save_state(folder, state)
+                    saved = time.monotonic()
     finally:  # an interrupt: stop what still runs, keep the state of what finished
         client.cancel(list(futures))
         save_state(folder, state)
+
+
+@contextlib.contextmanager
+def _deferred_interrupt():
+    """SIGINT sets an event instead of raising wherever Python happens to be.
+
+    Raised asynchronously, the KeyboardInterrupt can land in a Dask finaliser (``Future.__del__``),
+    which prints "Exception ignored" and swallows it, and the batch then runs to the end.
+    """
+    event = threading.Event()
+    try:
+        previous = signal.signal(signal.SIGINT, lambda *_: event.set())
+    except ValueError:  # not the main thread: leave signals alone
+        yield event
+        return
+    try:
+        yield event
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _finish(job: Job, future, folder: Path, current: dict, state: dict) -> Outcome:
