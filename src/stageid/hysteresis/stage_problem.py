@@ -18,6 +18,7 @@ from .._errors import IdentificationError
 from .creep import CreepTerm
 from .dynamics import fit_hammerstein, fit_unit_gain_dynamics, transfer_to_statespace, unit_gain_filter
 from .stage import StageModel
+from .weights import cumulative_map, split_map
 
 __all__ = ["StageProblem", "refine_output_error", "constraint_map", "N_ALTERNATIONS", "MAX_ROWS"]
 
@@ -240,19 +241,10 @@ def constraint_map(m: int, nc: int, J: int, eps: float, classical: bool):
     sum q``, ``w_i = p_i - q_i``), creep weights ``>= 0``, offsets free."""
     tail = nc + J
     shift = np.zeros(m + tail)
+    # the same reformulations as the weight-only fit (weights.py), with the creep and offsets appended
     if classical:
-        T = np.zeros((m + tail, m + tail))
-        T[:m, :m] = np.eye(m) - np.eye(m, k=-1)  # w = D W
-        T[m:, m:] = np.eye(tail)
         lb = np.concatenate([np.full(m, eps), np.zeros(nc), np.full(J, -np.inf)])
-        return T, shift, lb
-    k = m - 1
-    T = np.zeros((m + tail, 1 + 2 * k + tail))
-    T[0, 0] = 1.0
-    T[0, 1 + k : 1 + 2 * k] = 1.0
-    T[1:m, 1 : 1 + k] = np.eye(k)
-    T[1:m, 1 + k : 1 + 2 * k] = -np.eye(k)
-    T[m:, 1 + 2 * k :] = np.eye(tail)
+        return cumulative_map(m, m + tail), shift, lb
     shift[0] = eps
-    lb = np.concatenate([np.zeros(1 + 2 * k + nc), np.full(J, -np.inf)])
-    return T, shift, lb
+    lb = np.concatenate([np.zeros(2 * m - 1 + nc), np.full(J, -np.inf)])
+    return split_map(m, tail), shift, lb

@@ -24,7 +24,7 @@ from .._errors import IdentificationError
 from .creep import CreepTerm
 from .pi import ModifiedPIModel, PIModel
 
-__all__ = ["WeightProblem", "gram_solve", "bounded_gram_lsq", "bounded_gram_lsq_bvls"]
+__all__ = ["WeightProblem", "gram_solve", "bounded_gram_lsq", "bounded_gram_lsq_bvls", "cumulative_map", "split_map"]
 
 
 class WeightProblem:
@@ -181,7 +181,7 @@ class WeightProblem:
         G, Gfit, g, yy = self._assemble(live, m, classical)
         if classical:
             # w = D W with W the cumulative sums (over the live operators), bounds W >= eps
-            T = _cumulative_map(m, m + J)
+            T = cumulative_map(m, m + J)
             lb = np.concatenate([np.full(m, self.eps), np.full(J, -np.inf)])
             v = bounded_gram_lsq(T.T @ G @ T, T.T @ g, lb)
             sol = T @ v
@@ -191,7 +191,7 @@ class WeightProblem:
             if not (wl[0] + np.sum(np.minimum(wl[1:], 0.0)) >= self.eps):
                 # w0 = eps + s + sum q, w_i = p_i - q_i (i >= 1), s, p, q >= 0: v = (s, p, q, offsets)
                 k = m - 1
-                T = _split_map(m, J)
+                T = split_map(m, J)
                 shift = np.zeros(m + J)
                 shift[0] = self.eps
                 g2 = T.T @ (g - G @ shift)
@@ -228,12 +228,12 @@ class WeightProblem:
             shift = np.zeros(p + J)
             if classical:
                 # w = D W (cumulative sums, W >= eps), c >= 0, offsets free
-                T = _cumulative_map(m, p + J)
+                T = cumulative_map(m, p + J)
                 lb = np.concatenate([np.full(m, self.eps), np.zeros(nc), np.full(J, -np.inf)])
             else:
                 # w0 = eps + s + sum q, w_i = p_i - q_i, c >= 0: v = (s, p, q, c, offsets)
                 k = m - 1
-                T = _split_map(m, nc + J)
+                T = split_map(m, nc + J)
                 shift[0] = self.eps
                 lb = np.concatenate([np.zeros(1 + 2 * k + nc), np.full(J, -np.inf)])
             v = bounded_gram_lsq(T.T @ G @ T, T.T @ (g - G @ shift), lb)
@@ -349,7 +349,7 @@ def bounded_gram_lsq_bvls(G: np.ndarray, g: np.ndarray, lb: np.ndarray) -> np.nd
 
 
 @functools.lru_cache(maxsize=64)
-def _cumulative_map(m: int, size: int) -> np.ndarray:
+def cumulative_map(m: int, size: int) -> np.ndarray:
     """``w = T W``: the first ``m`` unknowns as differences of cumulative sums ``W`` (the
     classical model's initial-loading slopes, bounded below by eps); the others unchanged."""
     T = np.eye(size)
@@ -360,7 +360,7 @@ def _cumulative_map(m: int, size: int) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _split_map(m: int, n_free: int) -> np.ndarray:
+def split_map(m: int, n_free: int) -> np.ndarray:
     """``(w, rest) = T (s, p, q, rest)`` with ``w_0 = s + sum q`` (plus eps, added by the caller)
     and ``w_i = p_i - q_i``: the modified model's bound ``w_0 + sum min(w_i, 0) >= eps`` as
     ``s, p, q >= 0`` (an exact reformulation); the ``n_free`` other unknowns unchanged."""

@@ -380,6 +380,32 @@ def response_bytes(horizon: int, n_inputs: int, n_outputs: int, n_frequencies: i
     return 16.0 * 6.0 * n_frequencies * (p * q * (m + q) + 2.0 * p)
 
 
+def response_systems(
+    theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, freqs: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The block-row equations of eq. 9 at every frequency: ``lhs G = rhs``.
+
+    Returns ``lhs`` (n_freqs, p q, q), ``rhs`` (n_freqs, p q, m) and the powers of ``z`` they are
+    built from, ``e_past = z^(i - p)`` and ``e_fut = z^i`` for ``i = 0..p-1`` (n_freqs, p).
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
+    Gam, Phi, Dp = split_theta(theta, p, m, q)
+    nz = zs.size
+    e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
+    e_fut = zs[:, None] ** np.arange(p)[None, :]
+
+    def weighted(e: np.ndarray, M: np.ndarray, k: int) -> np.ndarray:
+        # sum_i e[z, i] M[r, i, :] for every z: two real products (nz, p) @ (p, pq k)
+        M2 = np.ascontiguousarray(M.reshape(p * q, p, k).transpose(1, 0, 2)).reshape(p, p * q * k)
+        return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(nz, p * q, k)
+
+    rhs = weighted(e_past, Gam, m) + weighted(e_fut, Dp, m)
+    lhs = -weighted(e_past, Phi, q)
+    lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]  # z^j I in block row j
+    return lhs, rhs, e_past, e_fut
+
+
 def theta_frequency_response(
     theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, freqs: np.ndarray, dt: float
 ) -> np.ndarray:
@@ -395,22 +421,7 @@ def theta_frequency_response(
     -------
     ndarray of shape (n_freqs, n_outputs, n_inputs), complex
     """
-    p, m, q = horizon, n_inputs, n_outputs
-    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-    Gam, Phi, Dp = split_theta(theta, p, m, q)
-    nz = zs.size
-    e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
-    e_fut = zs[:, None] ** np.arange(p)[None, :]
-
-    def weighted(e: np.ndarray, M: np.ndarray, k: int) -> np.ndarray:
-        # sum_i e[z, i] M[r, i, :] for every z: two real products (nz, p) @ (p, pq k)
-        M2 = np.ascontiguousarray(M.reshape(p * q, p, k).transpose(1, 0, 2)).reshape(p, p * q * k)
-        return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(nz, p * q, k)
-
-    # all frequencies at once: rhs (nz, pq, m), lhs (nz, pq, q)
-    rhs = weighted(e_past, Gam, m) + weighted(e_fut, Dp, m)
-    lhs = -weighted(e_past, Phi, q)
-    lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]  # z^j I in block row j
+    lhs, rhs, _, _ = response_systems(theta, horizon, n_inputs, n_outputs, freqs, dt)
     # least squares by the normal equations (q x q per frequency); lhs has full column rank
     # because its block row for the largest power of z dominates
     lh = np.conj(lhs).transpose(0, 2, 1)

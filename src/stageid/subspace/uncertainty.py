@@ -38,6 +38,7 @@ from .._errors import DataError
 from .._threads import single_blas_thread
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
+from .hankel_toeplitz import response_systems
 from .map_estimator import Posterior
 from .realization import realize
 from .records import check_freqs
@@ -195,14 +196,8 @@ def eq9_response_covariance(
     cov, pseudo : ndarrays of shape (n_freqs q m, n_freqs q m), complex (``vec`` in (k, i, j) order)
     """
     p, m, q = horizon, n_inputs, n_outputs
-    zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-    nz = zs.size
-    Gam, Phi, Dp = theta[:, : p * m], theta[:, p * m : p * m + p * q], theta[:, p * m + p * q :]
-    e_past = zs[:, None] ** (np.arange(p) - p)[None, :]  # (nz, p)
-    e_fut = zs[:, None] ** np.arange(p)[None, :]
-    rhs = _weighted_sum(e_past, Gam, p, m) + _weighted_sum(e_fut, Dp, p, m)
-    lhs = -_weighted_sum(e_past, Phi, p, q)
-    lhs.reshape(nz, p, q, q)[:, :, np.arange(q), np.arange(q)] += e_fut[:, :, None]
+    lhs, rhs, e_past, e_fut = response_systems(theta, p, m, q, freqs, dt)
+    nz = e_past.shape[0]
     lh = np.conj(lhs).transpose(0, 2, 1)
     Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq): the least-squares inverse of each block system
     G = Lp @ rhs
@@ -238,13 +233,6 @@ def covariance_grid(band: tuple[float, float], n_frequencies: int, n_entries: in
     """
     stride = max(1, int(np.ceil(n_frequencies * n_entries / MAX_COVARIANCE_ENTRIES)))
     return np.linspace(band[0], band[1], n_frequencies)[::stride]
-
-
-def _weighted_sum(e: np.ndarray, M: np.ndarray, p: int, k: int) -> np.ndarray:
-    """``sum_t e[z, t] M[r, t, :]`` for every point ``z``: ``M`` of shape (p q, p k) -> (n_z, p q, k)."""
-    rows = M.shape[0]
-    M2 = np.ascontiguousarray(M.reshape(rows, p, k).transpose(1, 0, 2)).reshape(p, rows * k)
-    return (e.real @ M2 + 1j * (e.imag @ M2)).reshape(e.shape[0], rows, k)
 
 
 def _weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
