@@ -75,9 +75,9 @@ def test_a_worker_killed_mid_batch_loses_no_job(fleet, tmp_path):
         finally:
             if batch.poll() is None:
                 batch.kill()
-    assert batch.returncode == 0, stderr
-    assert f"{N_JOBS} ok, 0 skipped, 0 failed" in stdout
     rows = read_summary(out)
+    assert batch.returncode == 0, (stdout, stderr, rows)
+    assert f"{N_JOBS} ok, 0 skipped, 0 failed" in stdout
     assert [r["status"] for r in rows] == ["ok"] * N_JOBS
     assert lost  # a job really was on the killed worker ...
     for key in lost:  # ... and it finished elsewhere
@@ -114,3 +114,34 @@ def test_an_interrupted_batch_leaves_whole_files_and_the_rerun_finishes_it(fleet
     assert {n for n, s in statuses.items() if s == "skipped"} == set(state["jobs"])
     for name, _ in jobs:
         assert (out / f"{name}.json").read_bytes() == expected[name]
+
+
+class _RecomputedFuture:
+    """A future whose worker died after it finished and before its bytes were fetched: Dask
+    reset it to pending, recomputed it elsewhere, and ``exception()`` is None, not an error."""
+
+    status = "lost"
+
+    def result(self):
+        return {"ok": True, "seconds": 1.0, "worker": "tcp://127.0.0.1:2", "error": "", "data": b"{}"}
+
+    def exception(self):
+        return None
+
+
+class _RaisingFuture:
+    status = "error"
+
+    def result(self):
+        raise ValueError("bad record")
+
+    def exception(self):
+        return ValueError("bad record")
+
+
+def test_a_result_lost_with_its_worker_is_taken_once_recomputed():
+    from stageid.batch.runner import job_result
+
+    assert job_result(_RecomputedFuture())["ok"]
+    failed = job_result(_RaisingFuture())
+    assert not failed["ok"] and failed["error"] == "ValueError: bad record"

@@ -26,7 +26,7 @@ from typing import Any
 from .commands import Job
 from .state import fingerprint, load_state, save_state, write_now
 
-__all__ = ["Outcome", "SUMMARY_FILE", "SUMMARY_COLUMNS", "run_batch", "summary_text", "up_to_date"]
+__all__ = ["Outcome", "job_result", "SUMMARY_FILE", "SUMMARY_COLUMNS", "run_batch", "summary_text", "up_to_date"]
 
 SUMMARY_FILE = "summary.csv"
 SUMMARY_COLUMNS = ("name", "status", "seconds", "worker", "error")
@@ -149,11 +149,7 @@ def _deferred_interrupt():
 def _finish(job: Job, future, folder: Path, current: dict, state: dict) -> Outcome:
     """The outcome of a completed future; its output written (ok) or a stale one removed (failed)."""
     target = folder / job.output_name
-    if future.status == "finished":
-        result = future.result()
-    else:  # the task itself raised, or its workers kept dying (KilledWorker)
-        exc = future.exception()
-        result = {"ok": False, "seconds": None, "worker": "", "error": f"{type(exc).__name__}: {exc}"}
+    result = job_result(future)
     if result["ok"]:
         write_now(target, result["data"])
         state[job.name] = {**current, "output": hashlib.sha256(result["data"]).hexdigest()}
@@ -165,6 +161,19 @@ def _finish(job: Job, future, folder: Path, current: dict, state: dict) -> Outco
     for given, absolute in job.inputs:  # the paths as the manifest gives them, as the direct command says
         error = error.replace(absolute, given)
     return Outcome(job.name, "failed", result["seconds"], result["worker"], error)
+
+
+def job_result(future) -> dict:
+    """The task's result dict, or a failed one carrying the exception the task raised.
+
+    Asks for the result rather than reading ``future.status`` first: a future that completed
+    on a worker that died before the client fetched its bytes goes back to pending and is
+    recomputed elsewhere, and its ``exception()`` is then None, not an error.
+    """
+    try:
+        return future.result()
+    except Exception as exc:  # the task itself raised, or its workers kept dying (KilledWorker)
+        return {"ok": False, "seconds": None, "worker": "", "error": f"{type(exc).__name__}: {exc}"}
 
 
 def summary_text(outcomes: Sequence[Outcome]) -> str:
