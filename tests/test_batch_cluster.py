@@ -67,7 +67,7 @@ def test_a_worker_killed_mid_batch_loses_no_job(fleet, tmp_path):
         batch = _start_batch(manifest, out, cluster.address)
         try:
             # the victim has finished a job (imports paid) and holds another one when it dies
-            _wait_for(lambda: out.is_dir() and any(out.glob("*.json")), 240, "a first output")
+            _wait_for(lambda: out.is_dir() and any(out.glob("unit*.json")), 240, "a first output")
             _wait_for(lambda: client.processing().get(victim), 120, "a job on worker 0")
             lost = set(client.processing()[victim])
             cluster.kill_worker(0)
@@ -92,7 +92,7 @@ def test_an_interrupted_batch_leaves_whole_files_and_the_rerun_finishes_it(fleet
     with TestCluster(n_workers=2) as cluster:
         batch = _start_batch(manifest, out, cluster.address)
         try:
-            _wait_for(lambda: out.is_dir() and any(out.glob("*.json")), 240, "a first output")
+            _wait_for(lambda: out.is_dir() and any(out.glob("unit*.json")), 240, "a first output")
             batch.send_signal(signal.SIGINT)  # Ctrl-C
             _, stderr = batch.communicate(timeout=120)
         finally:
