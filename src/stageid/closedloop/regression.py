@@ -11,10 +11,11 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from scipy.linalg import lapack
 
 from .._errors import DataError, IdentificationError
 
-__all__ = ["records", "check_dt", "check_moving", "shifted", "fill_shifted", "regressor", "lstsq"]
+__all__ = ["records", "check_dt", "check_moving", "shifted", "fill_shifted", "regressor", "lstsq", "lstsq_qr", "svd_solve"]
 
 
 def records(u: object, y: object) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -135,5 +136,50 @@ def lstsq(Phi: np.ndarray, Y: np.ndarray, what: str, strict: bool = True, overwr
     if strict and rank < Phi.shape[1]:
         raise IdentificationError(
             f"the {what} regression is rank deficient ({rank} of {Phi.shape[1]}): the input does not excite this order."
+        )
+    return theta / scale
+
+
+def svd_solve(R: np.ndarray, z: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
+    """Minimum-norm solution of ``R theta = z`` (square) with singular values below ``rcond * s_max`` dropped.
+
+    The rank decision of LAPACK's gelsd (``numpy.linalg.lstsq``), here on a small matrix.
+    """
+    U, s, Vt = np.linalg.svd(R)
+    rank = int(np.count_nonzero(s > rcond * s[0])) if s.size and s[0] > 0 else 0
+    return Vt[:rank].T @ ((U[:, :rank].T @ z) / s[:rank]), rank
+
+
+def lstsq_qr(W: np.ndarray, what: str, strict: bool = True) -> np.ndarray:
+    """:func:`lstsq` of ``W[:, :-1] theta = W[:, -1]`` by a Householder QR of ``W`` (overwritten).
+
+    ``W`` is Fortran-ordered with the right-hand side as its last column.  The QR of the
+    augmented matrix gives ``R`` and ``Q^T Y`` in one pass; the column scaling and the rank
+    decision of :func:`lstsq` (unit-norm columns, gelsd's cut at ``eps * max(m, n)``) are then
+    applied to the small ``R`` (Householder QR is column-wise backward stable, so scaling ``R``
+    is scaling the regressor).
+
+    Raises
+    ------
+    IdentificationError
+        As :func:`lstsq`.
+    """
+    m, k1 = W.shape
+    k = k1 - 1
+    if m < 2 * k1 or not W.flags.f_contiguous:  # short records: the plain route
+        return lstsq(np.array(W[:, :k]), np.array(W[:, k]), what, strict)
+    qr, _, _, info = lapack.dgeqrf(W, overwrite_a=1)
+    if info != 0:
+        raise IdentificationError(f"the {what} regression failed (LAPACK dgeqrf info {info}).")
+    R = np.triu(qr[:k, :k])
+    scale = np.sqrt(np.add.reduce(R * R, axis=0))
+    if np.any(scale == 0):
+        raise IdentificationError(
+            f"the {what} regression is singular: a regressor column is identically zero (no excitation)."
+        )
+    theta, rank = svd_solve(R / scale, qr[:k, k], np.finfo(float).eps * max(m, k))
+    if strict and rank < k:
+        raise IdentificationError(
+            f"the {what} regression is rank deficient ({rank} of {k}): the input does not excite this order."
         )
     return theta / scale
