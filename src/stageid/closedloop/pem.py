@@ -152,7 +152,7 @@ def _loss_functions(segs, orders, nk):
 
     def jac(theta):
         polys, signals = evaluate(theta)
-        J = np.empty((n_rows, n_par))
+        J = np.empty((n_rows, n_par), order="F")  # column fills contiguous, as the QR wants it
         r0 = 0
         for (uu, yy), sig in zip(segs, signals):
             jacobian(*polys, nk, orders, uu, yy, parts=sig, out=J[r0 : r0 + uu.size])

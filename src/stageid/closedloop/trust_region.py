@@ -58,7 +58,7 @@ def _reduced_svd(J: np.ndarray, d: np.ndarray, f: np.ndarray) -> tuple[np.ndarra
 
 
 def lm_step(n: int, m: int, uf, s, V, Delta: float, initial_alpha: float | None = None, rtol=0.01, max_iter=10):
-    """Moré's trust-region step from the SVD of the Jacobian: ``(p, alpha, n_iter)``.
+    """Moré's trust-region step from the SVD of the Jacobian: ``(p, alpha)``.
 
     A transcription of SciPy's ``solve_lsq_trust_region`` (``p`` minimises ``|J p + f|`` subject to
     ``|p| <= Delta``; ``alpha`` is the Levenberg-Marquardt parameter).
@@ -74,7 +74,7 @@ def lm_step(n: int, m: int, uf, s, V, Delta: float, initial_alpha: float | None 
     if full_rank:
         p = -V.dot(uf / s)
         if norm(p) <= Delta:
-            return p, 0.0, 0
+            return p, 0.0
     alpha_upper = norm(suf) / Delta
     if full_rank:
         phi, phi_prime = phi_and_derivative(0.0)
@@ -85,8 +85,7 @@ def lm_step(n: int, m: int, uf, s, V, Delta: float, initial_alpha: float | None 
         alpha = max(0.001 * alpha_upper, (alpha_lower * alpha_upper) ** 0.5)
     else:
         alpha = initial_alpha
-    it = 0
-    for it in range(max_iter):
+    for _ in range(max_iter):
         if alpha < alpha_lower or alpha > alpha_upper:
             alpha = max(0.001 * alpha_upper, (alpha_lower * alpha_upper) ** 0.5)
         phi, phi_prime = phi_and_derivative(alpha)
@@ -99,7 +98,7 @@ def lm_step(n: int, m: int, uf, s, V, Delta: float, initial_alpha: float | None 
             break
     p = -V.dot(suf / (s**2 + alpha))
     p *= Delta / norm(p)  # exactly on the boundary, as SciPy
-    return p, alpha, it + 1
+    return p, alpha
 
 
 def update_radius(Delta: float, actual: float, predicted: float, step_norm: float, bound_hit: bool):
@@ -173,7 +172,7 @@ def trust_region_lsq(
         uf, s, V, R = _reduced_svd(J, d, f)
         actual = -1
         while actual <= 0 and nfev < max_nfev:
-            step_h, alpha, _ = lm_step(n, m, uf, s, V, Delta, initial_alpha=alpha)
+            step_h, alpha = lm_step(n, m, uf, s, V, Delta, initial_alpha=alpha)
             Js = R.dot(step_h)
             predicted = -(0.5 * np.dot(Js, Js) + np.dot(g_h, step_h))
             step = d * step_h
