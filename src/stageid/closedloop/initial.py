@@ -20,17 +20,14 @@ from .polynomial import PolynomialModel, check_orders, fit_length, residual, sta
 from .regression import (
     check_dt,
     check_moving,
-    fill_shifted,
     lstsq,
     lstsq_qr,
-    qr_triangle,
     records,
     regressor,
     shifted,
-    triangle_lstsq,
 )
 
-__all__ = ["arx", "steiglitz_mcbride", "first_passes", "hannan_rissanen", "start", "SM_ITERATIONS"]
+__all__ = ["arx", "steiglitz_mcbride", "hannan_rissanen", "start", "SM_ITERATIONS"]
 
 #: Steiglitz-McBride passes of a PEM start
 SM_ITERATIONS = 8
@@ -114,46 +111,6 @@ def steiglitz_mcbride(
         F = stabilize(np.concatenate([[1.0], theta[:nf]]))
         B = theta[nf:]
     return B, F
-
-
-def first_passes(segs, orders, nk: int) -> dict[int, np.ndarray | None]:
-    """``F`` after the first Steiglitz-McBride pass (``F = 1``: ARX with ``nb = nf = n``) of every order.
-
-    One Householder QR serves all orders: with the columns interleaved as ``[-y(t-1), u(t-nk),
-    -y(t-2), u(t-nk-1), ...]`` the leading ``2n`` columns are order ``n``'s regressor, and the
-    leading ``2n x 2n`` block of ``R`` and ``2n`` entries of ``Q^T Y`` are its QR (Householder
-    QR is column by column).  ``None`` for an order whose regression
-    :func:`~stageid.closedloop.regression.lstsq_qr` refuses (a zero column).
-    """
-    top = max(orders)
-    rows = sum(uu.size for uu, _ in segs)
-    if rows < 2 * (2 * top + 1):  # short records: order by order
-        return {n: _first_pass_alone(segs, n, nk) for n in orders}
-    W = np.empty((rows, 2 * top + 1), order="F")
-    r0 = 0
-    for uu, yy in segs:
-        for k in range(top):
-            fill_shifted(W[r0 : r0 + yy.size, 2 * k : 2 * k + 1], yy, 1 + k, negate=True)
-            fill_shifted(W[r0 : r0 + yy.size, 2 * k + 1 : 2 * k + 2], uu, nk + k)
-        W[r0 : r0 + yy.size, 2 * top] = yy
-        r0 += yy.size
-    R, z = qr_triangle(W)
-    out: dict[int, np.ndarray | None] = {}
-    for n in orders:
-        try:
-            theta = triangle_lstsq(R[: 2 * n, : 2 * n], z[: 2 * n], rows, "Steiglitz-McBride", strict=False)
-        except IdentificationError:
-            out[n] = None
-            continue
-        out[n] = stabilize(np.concatenate([[1.0], theta[0::2]]))
-    return out
-
-
-def _first_pass_alone(segs, n, nk):
-    try:
-        return steiglitz_mcbride(segs, n, n, nk, n_iter=1)[1]
-    except IdentificationError:
-        return None
 
 
 def hannan_rissanen(w: list[np.ndarray], nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:

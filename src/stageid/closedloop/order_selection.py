@@ -14,7 +14,7 @@ import numpy as np
 import scipy.signal as ss
 
 from .._errors import DataError, IdentificationError
-from .initial import first_passes, steiglitz_mcbride
+from .initial import steiglitz_mcbride
 from .pem import fit_pem
 from .polynomial import STRUCTURES, PolynomialModel, structure_orders
 from .regression import check_dt, check_moving, records
@@ -40,12 +40,9 @@ def screen_orders(segs, orders: Sequence[int], nk: int, criterion: str) -> tuple
     """
     N = sum(s_[0].size for s_ in segs)
     scores, states = {}, {}
-    first = first_passes(segs, orders, nk)  # the first pass of every order from one QR
     for n in orders:
-        if first[n] is None:
-            continue
         try:
-            B, F = steiglitz_mcbride(segs, n, n, nk, n_iter=SCREEN_ITERATIONS - 1, F0=first[n])
+            B, F = steiglitz_mcbride(segs, n, n, nk, n_iter=SCREEN_ITERATIONS)
         except IdentificationError:
             continue
         states[n] = (SCREEN_ITERATIONS, F)
