@@ -204,6 +204,6 @@ def lstsq_qr(W: np.ndarray, what: str, strict: bool = True) -> np.ndarray:
     """
     m, k1 = W.shape
     if m < 2 * k1 or not W.flags.f_contiguous:  # short records: the plain route
-        return lstsq(np.array(W[:, :-1]), np.array(W[:, -1]), what, strict)
+        return lstsq(np.ascontiguousarray(W[:, :-1]), np.array(W[:, -1]), what, strict)
     R, z = qr_triangle(W)
     return triangle_lstsq(R, z, m, what, strict)
