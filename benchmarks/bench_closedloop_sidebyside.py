@@ -9,7 +9,7 @@ poles), and the report says whether the two trees' plant responses are equal.
 
 Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo)
 and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
-axis at 70 dB SNR, as in the CLI test).
+axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR).
 
     .venv/bin/python benchmarks/bench_closedloop_sidebyside.py --old /tmp/old/src --new src [--rounds 7]
 """
@@ -48,13 +48,14 @@ def _build(case: str):
     import _closedloop_plant2x2 as p2
     from stageid.signals import chirp
 
-    seed = int(case.split("-s")[1])
+    spec = case.split("-s")[1].split("-")  # "2x2-s<seed>" or "2x2-s<seed>-<snr>db"
+    seed, snr = int(spec[0]), (float(spec[1].removesuffix("db")) if len(spec) > 1 else 70.0)
     r = chirp(0.0, 2500.0, duration=2.0, dt=p2.DT, amplitude=1e-6)
     exps = []
     for j in range(2):
         R = np.zeros((r.size, 2))
         R[:, j] = r
-        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, 70.0, seed=seed + j)
+        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, snr, seed=seed + j)
         exps.append(Experiment(R, y, p2.DT))
     return ClosedLoopIdentification(p2.controller(), band=(20.0, 300.0)), exps, p2.plant()
 
@@ -72,6 +73,7 @@ def _accuracy(res, true) -> dict:
         "coupling_error_of_peak_max_percent": float(100 * np.max(peak[off])),
         "rhp_pole_error_max_percent": float(100 * max(np.min(np.abs(rhp - t)) / t for t in true_rhp)),
         "response": [Gh.real.tolist(), Gh.imag.tolist()],
+        "orders": [int(res.pem_models[k].F.size - 1) for k in sorted(res.pem_models)],
     }
 
 
@@ -153,18 +155,26 @@ def report(runs, args, load) -> str:
         lines.append(
             f"| {case} | {ow:.2f} | {nw:.2f} | {ow / nw:.2f}x | {paired:.2f}x | {oc:.2f} | {nc:.2f} | {oc / nc:.2f}x |"
         )
-    lines += ["", "| case | tree | diagonal error [%] | coupling error of peak, max [%] | RHP pole error, max [%] |"]
-    lines.append("|---|---|---|---|---|")
+    lines += [
+        "",
+        "| case | tree | diagonal error [%] | coupling error of peak, max [%] | RHP pole error, max [%] | PEM orders |",
+        "|---|---|---|---|---|---|",
+    ]
     for case in args.cases:
         for name in ("old", "new"):
             r = runs[(case, name)][-1]
             diag = ", ".join(f"{v:.4f}" for v in r["diag_error_percent"])
             lines.append(
                 f"| {case} | {name} | {diag} | {r['coupling_error_of_peak_max_percent']:.3f} | "
-                f"{r['rhp_pole_error_max_percent']:.4f} |"
+                f"{r['rhp_pole_error_max_percent']:.4f} | {' '.join(map(str, r['orders']))} |"
             )
-        same = runs[(case, "old")][-1]["response"] == runs[(case, "new")][-1]["response"]
-        lines.append(f"| {case} | | plant responses of the two trees {'bitwise equal' if same else 'DIFFER'} | | |")
+        ro, rn = (np.array(runs[(case, k)][-1]["response"]) for k in ("old", "new"))
+        if np.array_equal(ro, rn):
+            lines.append(f"| {case} | | plant responses of the two trees bitwise equal | | | |")
+        else:
+            go, gn = ro[0] + 1j * ro[1], rn[0] + 1j * rn[1]
+            rel = float(np.max(np.abs(gn - go) / np.abs(go)))
+            lines.append(f"| {case} | | plant responses of the two trees differ by {100 * rel:.2g} % at most | | | |")
     return "\n".join(lines)
 
 
