@@ -9,7 +9,9 @@ poles), and the report says whether the two trees' plant responses are equal.
 
 Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo)
 and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
-axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR).
+axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR); ``pem-oe``,
+``pem-armax`` and ``pem-bj`` time the stageid PEM runs of ``bench_closedloop.py`` (fit = its
+simulation fit on the validation record).
 
     .venv/bin/python benchmarks/bench_closedloop_sidebyside.py --old /tmp/old/src --new src [--rounds 7]
 """
@@ -77,6 +79,25 @@ def _accuracy(res, true) -> dict:
     }
 
 
+def _pem_case(case: str):
+    """``(fit, accuracy)`` of a ``pem-<structure>`` case: the PEM runs of ``bench_closedloop.py``."""
+    sys.path.insert(0, str(HERE))
+    import bench_closedloop as bc
+
+    from stageid.closedloop import pem
+
+    r, y, _ = bc.data(0, 2.0)
+    rv, _, yv0 = bc.data(1, 1.5)
+    n, structure = bc.N_ORDER, case.split("-")[1]
+    orders = {
+        "oe": {"nb": n, "nf": n},
+        "armax": {"na": n, "nb": n, "nc": n},
+        "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2},
+    }
+    fit = lambda: pem(1e6 * r, 1e6 * y, structure, orders[structure], nk=1, dt=bc.DT)  # noqa: E731
+    return fit, lambda m: {"fit_percent": bc.fit_percent(1e6 * yv0, m.simulate(1e6 * rv)), "response": m.B.tolist()}
+
+
 def worker() -> None:
     """Answer ``case`` lines on stdin with one JSON line of timings and accuracy."""
     built = {}
@@ -85,12 +106,16 @@ def worker() -> None:
         if not case:
             continue
         if case not in built:
-            built[case] = _build(case)
-        est, exps, true = built[case]
+            if case.startswith("pem-"):
+                built[case] = _pem_case(case)
+            else:
+                est, exps, true = _build(case)
+                built[case] = (lambda est=est, exps=exps: est.fit(exps)), (lambda res, true=true: _accuracy(res, true))
+        fit, accuracy = built[case]
         t0, c0 = time.perf_counter(), time.process_time()
-        res = est.fit(exps)
+        res = fit()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        print(json.dumps({"case": case, "wall": wall, "cpu": cpu, **_accuracy(res, true)}), flush=True)
+        print(json.dumps({"case": case, "wall": wall, "cpu": cpu, **accuracy(res)}), flush=True)
 
 
 # ------------------------------------------------------------------------------ driver side
@@ -161,6 +186,10 @@ def report(runs, args, load) -> str:
         "|---|---|---|---|---|---|",
     ]
     for case in args.cases:
+        if case.startswith("pem-"):
+            fits = [runs[(case, k)][-1]["fit_percent"] for k in ("old", "new")]
+            lines.append(f"| {case} | old / new | simulation fit {fits[0]:.4f} / {fits[1]:.4f} % | | | |")
+            continue
         for name in ("old", "new"):
             r = runs[(case, name)][-1]
             diag = ", ".join(f"{v:.4f}" for v in r["diag_error_percent"])
