@@ -121,7 +121,7 @@ def _plant(seed=3, n=24, p=2):
 
 def test_shared_entry_realisations_equal_the_entry_by_entry_minimal_realisation():
     plant = _plant()
-    split = cancellation._Entries(plant, None)
+    split = cancellation.PlantEntries(plant, None)
     A, T = sla.matrix_balance(plant.A, permute=False, separate=False)
     t = T.diagonal()
     for i in range(2):

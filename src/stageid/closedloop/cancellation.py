@@ -20,7 +20,7 @@ from .._errors import IdentificationError
 from ..models import StateSpaceModel, TransferMatrix
 from ..models.minimal import controllable_basis
 
-__all__ = ["CancelledPair", "EntryPoleZero", "cancel_pairs", "cancel_entries", "z_to_s"]
+__all__ = ["CancelledPair", "EntryPoleZero", "PlantEntries", "cancel_pairs", "cancel_entries", "z_to_s"]
 
 
 @dataclass(frozen=True)
@@ -136,7 +136,7 @@ def _unit(M: np.ndarray) -> np.ndarray:
     return M / norm if norm > 0 else M
 
 
-class _Entries:
+class PlantEntries:
     """The SISO entries of one plant and their minimal realisations.
 
     The balancing of ``A`` is the same for every entry, and the controllable part (the first
@@ -225,7 +225,7 @@ def cancel_entries(
     G_grid = (plant.frequency_response if response is None else response)(f_grid)  # once for all entries
     reports = []
     num_rows, den_rows = [], []
-    split = _Entries(plant, minimal_tol)
+    split = PlantEntries(plant, minimal_tol)
     for i in range(plant.n_outputs):
         nr, dr = [], []
         for j in range(plant.n_inputs):
