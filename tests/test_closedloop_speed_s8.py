@@ -49,6 +49,26 @@ def test_trust_region_follows_scipy_trf(seed, max_nfev):
     assert np.allclose(got.fun, ref.fun, rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("x0", [(-1.2, 1.0), (-3.0, -2.0), (2.5, -1.0)])
+@pytest.mark.parametrize("max_nfev", [5, 200])
+def test_trust_region_follows_scipy_trf_through_rejected_steps(x0, max_nfev):
+    # Rosenbrock from far away: steps are rejected, the radius shrinks and grows, alpha > 0
+    # (six residuals: more than n + 1, so the QR route, not the square fallback, is taken)
+    def fun(x):
+        return np.array(
+            [10 * (x[1] - x[0] ** 2), 1 - x[0], 0.1 * x[0] * x[1], 0.2 * (x[0] + x[1] - 1), 0.3, 0.1 * x[1]]
+        )
+
+    def jac(x):
+        return np.array([[-20 * x[0], 10.0], [-1.0, 0.0], [0.1 * x[1], 0.1 * x[0]], [0.2, 0.2], [0.0, 0.0], [0.0, 0.1]])
+
+    x0 = np.array(x0)
+    ref = least_squares(fun, x0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-12, xtol=1e-12)
+    got = trust_region_lsq(fun, jac, x0, max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-8)
+    assert got.nfev == ref.nfev and got.status == ref.status
+    assert np.allclose(got.x, ref.x, rtol=1e-9, atol=1e-12)
+
+
 def test_trust_region_refuses_a_non_finite_start():
     fun, jac, x0 = _exp_problem()
     with pytest.raises(ValueError, match="not finite"):
