@@ -115,6 +115,7 @@ def test_lstsq_qr_on_short_records_takes_the_plain_route():
     assert np.array_equal(_lstsq_qr(Phi, Y), regression.lstsq(Phi, Y, "test"))
 
 
+@pytest.mark.filterwarnings("ignore::scipy.signal.BadCoefficients")  # the tiny-leading-coefficient cases
 def test_controller_canonical_and_trim_leading_equal_scipy_and_numpy():
     rng = np.random.default_rng(0)
     for k in range(600):
