@@ -158,7 +158,6 @@ def test_shared_entry_realisations_equal_the_entry_by_entry_minimal_realisation(
 
 def test_wide_response_is_eq18_and_falls_back_where_it_is_singular():
     f = np.geomspace(1.0, 200.0, 40)
-    z = [0.5, 0.3]
     T = TransferMatrix([[[0.2, 0.1]]], [[[1.0, -0.6, 0.1]]], 1e-3)
     M = TransferMatrix([[[2.0, -1.0]]], [[[1.0, -0.2]]], 1e-3)
     G_full = deduction.deduce_plant(T, M)
@@ -172,4 +171,3 @@ def test_wide_response_is_eq18_and_falls_back_where_it_is_singular():
         deduction.plant_response(T, Mz, None, fz)
     Gz = deduction.deduce_plant(T, Mz)
     assert np.array_equal(deduction.wide_response(T, Mz, None, Gz)(fz), Gz.frequency_response(fz))
-    del z
