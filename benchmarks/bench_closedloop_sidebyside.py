@@ -9,7 +9,9 @@ poles), and the report says whether the two trees' plant responses are equal.
 
 Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo)
 and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
-axis at 70 dB SNR, as in the CLI test).
+axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR); ``pem-oe``,
+``pem-armax`` and ``pem-bj`` time the stageid PEM runs of ``bench_closedloop.py`` (fit = its
+simulation fit on the validation record).
 
     .venv/bin/python benchmarks/bench_closedloop_sidebyside.py --old /tmp/old/src --new src [--rounds 7]
 """
@@ -48,13 +50,14 @@ def _build(case: str):
     import _closedloop_plant2x2 as p2
     from stageid.signals import chirp
 
-    seed = int(case.split("-s")[1])
+    spec = case.split("-s")[1].split("-")  # "2x2-s<seed>" or "2x2-s<seed>-<snr>db"
+    seed, snr = int(spec[0]), (float(spec[1].removesuffix("db")) if len(spec) > 1 else 70.0)
     r = chirp(0.0, 2500.0, duration=2.0, dt=p2.DT, amplitude=1e-6)
     exps = []
     for j in range(2):
         R = np.zeros((r.size, 2))
         R[:, j] = r
-        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, 70.0, seed=seed + j)
+        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, snr, seed=seed + j)
         exps.append(Experiment(R, y, p2.DT))
     return ClosedLoopIdentification(p2.controller(), band=(20.0, 300.0)), exps, p2.plant()
 
@@ -72,7 +75,27 @@ def _accuracy(res, true) -> dict:
         "coupling_error_of_peak_max_percent": float(100 * np.max(peak[off])),
         "rhp_pole_error_max_percent": float(100 * max(np.min(np.abs(rhp - t)) / t for t in true_rhp)),
         "response": [Gh.real.tolist(), Gh.imag.tolist()],
+        "orders": [int(res.pem_models[k].F.size - 1) for k in sorted(res.pem_models)],
     }
+
+
+def _pem_case(case: str):
+    """``(fit, accuracy)`` of a ``pem-<structure>`` case: the PEM runs of ``bench_closedloop.py``."""
+    sys.path.insert(0, str(HERE))
+    import bench_closedloop as bc
+
+    from stageid.closedloop import pem
+
+    r, y, _ = bc.data(0, 2.0)
+    rv, _, yv0 = bc.data(1, 1.5)
+    n, structure = bc.N_ORDER, case.split("-")[1]
+    orders = {
+        "oe": {"nb": n, "nf": n},
+        "armax": {"na": n, "nb": n, "nc": n},
+        "bj": {"nb": n, "nf": n, "nc": 2, "nd": 2},
+    }
+    fit = lambda: pem(1e6 * r, 1e6 * y, structure, orders[structure], nk=1, dt=bc.DT)  # noqa: E731
+    return fit, lambda m: {"fit_percent": bc.fit_percent(1e6 * yv0, m.simulate(1e6 * rv)), "response": m.B.tolist()}
 
 
 def worker() -> None:
@@ -83,12 +106,16 @@ def worker() -> None:
         if not case:
             continue
         if case not in built:
-            built[case] = _build(case)
-        est, exps, true = built[case]
+            if case.startswith("pem-"):
+                built[case] = _pem_case(case)
+            else:
+                est, exps, true = _build(case)
+                built[case] = (lambda est=est, exps=exps: est.fit(exps)), (lambda res, true=true: _accuracy(res, true))
+        fit, accuracy = built[case]
         t0, c0 = time.perf_counter(), time.process_time()
-        res = est.fit(exps)
+        res = fit()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        print(json.dumps({"case": case, "wall": wall, "cpu": cpu, **_accuracy(res, true)}), flush=True)
+        print(json.dumps({"case": case, "wall": wall, "cpu": cpu, **accuracy(res)}), flush=True)
 
 
 # ------------------------------------------------------------------------------ driver side
@@ -153,18 +180,30 @@ def report(runs, args, load) -> str:
         lines.append(
             f"| {case} | {ow:.2f} | {nw:.2f} | {ow / nw:.2f}x | {paired:.2f}x | {oc:.2f} | {nc:.2f} | {oc / nc:.2f}x |"
         )
-    lines += ["", "| case | tree | diagonal error [%] | coupling error of peak, max [%] | RHP pole error, max [%] |"]
-    lines.append("|---|---|---|---|---|")
+    lines += [
+        "",
+        "| case | tree | diagonal error [%] | coupling error of peak, max [%] | RHP pole error, max [%] | PEM orders |",
+        "|---|---|---|---|---|---|",
+    ]
     for case in args.cases:
+        if case.startswith("pem-"):
+            fits = [runs[(case, k)][-1]["fit_percent"] for k in ("old", "new")]
+            lines.append(f"| {case} | old / new | simulation fit {fits[0]:.4f} / {fits[1]:.4f} % | | | |")
+            continue
         for name in ("old", "new"):
             r = runs[(case, name)][-1]
             diag = ", ".join(f"{v:.4f}" for v in r["diag_error_percent"])
             lines.append(
                 f"| {case} | {name} | {diag} | {r['coupling_error_of_peak_max_percent']:.3f} | "
-                f"{r['rhp_pole_error_max_percent']:.4f} |"
+                f"{r['rhp_pole_error_max_percent']:.4f} | {' '.join(map(str, r['orders']))} |"
             )
-        same = runs[(case, "old")][-1]["response"] == runs[(case, "new")][-1]["response"]
-        lines.append(f"| {case} | | plant responses of the two trees {'bitwise equal' if same else 'DIFFER'} | | |")
+        ro, rn = (np.array(runs[(case, k)][-1]["response"]) for k in ("old", "new"))
+        if np.array_equal(ro, rn):
+            lines.append(f"| {case} | | plant responses of the two trees bitwise equal | | | |")
+        else:
+            go, gn = ro[0] + 1j * ro[1], rn[0] + 1j * rn[1]
+            rel = float(np.max(np.abs(gn - go) / np.abs(go)))
+            lines.append(f"| {case} | | plant responses of the two trees differ by {100 * rel:.2g} % at most | | | |")
     return "\n".join(lines)
 
 

@@ -10,15 +10,17 @@ distance ``|s_p - s_z| / max(|s_p|, 1 rad/s)`` in the ``s``-plane (``s = ln(z) /
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
 from .._errors import IdentificationError
-from ..models import StateSpaceModel, TransferMatrix, minimal_realization
+from ..models import StateSpaceModel, TransferMatrix
+from ..models.minimal import controllable_basis
 
-__all__ = ["CancelledPair", "EntryPoleZero", "cancel_pairs", "cancel_entries", "z_to_s"]
+__all__ = ["CancelledPair", "EntryPoleZero", "PlantEntries", "cancel_pairs", "cancel_entries", "z_to_s"]
 
 
 @dataclass(frozen=True)
@@ -129,23 +131,62 @@ def _siso_pz(g: StateSpaceModel) -> tuple[np.ndarray, np.ndarray]:
     return poles, zeros
 
 
-def _entry(plant: StateSpaceModel, i: int, j: int) -> StateSpaceModel:
-    """SISO entry ``(i, j)``, balanced and with unit-norm ``B``/``C`` so rank tests are scale-free."""
-    A = plant.A
-    b = plant.B[:, [j]]
-    c = plant.C[[i]]
-    if A.shape[0]:
-        A, T = sla.matrix_balance(A, permute=False, separate=False)
-        b = b / T.diagonal()[:, None]
-        c = c * T.diagonal()[None, :]
-    nb = max(np.linalg.norm(b), 1e-300)
-    nc = max(np.linalg.norm(c), 1e-300)
-    d = plant.D[[i]][:, [j]] / (nb * nc)
-    return StateSpaceModel(A, b / nb, c / nc, d, plant.dt)
+def _unit(M: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(M, 2) if M.size else 0.0
+    return M / norm if norm > 0 else M
+
+
+class PlantEntries:
+    """The SISO entries of one plant and their minimal realisations.
+
+    The balancing of ``A`` is the same for every entry, and the controllable part (the first
+    half of :func:`~stageid.models.minimal.minimal_matrices`) the same for every entry of one
+    input: both are computed once and shared (the numbers are those of the entry-by-entry
+    route).
+    """
+
+    def __init__(self, plant: StateSpaceModel, minimal_tol: float | None) -> None:
+        self.plant = plant
+        A = plant.A
+        self.tdiag = None
+        if A.shape[0]:
+            A, T = sla.matrix_balance(A, permute=False, separate=False)
+            self.tdiag = T.diagonal()
+        self.A = A
+        self.tol = minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(A, 2))
+        self._controllable: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def entry(self, i: int, j: int) -> StateSpaceModel:
+        b = self.plant.B[:, [j]]
+        c = self.plant.C[[i]]
+        if self.tdiag is not None:
+            b = b / self.tdiag[:, None]
+            c = c * self.tdiag[None, :]
+        nb = max(np.linalg.norm(b), 1e-300)
+        nc = max(np.linalg.norm(c), 1e-300)
+        d = self.plant.D[[i]][:, [j]] / (nb * nc)
+        return StateSpaceModel(self.A, b / nb, c / nc, d, self.plant.dt)
+
+    def minimal(self, i: int, j: int) -> StateSpaceModel:
+        """``minimal_realization(entry(i, j), tol)``."""
+        g = self.entry(i, j)
+        if g.n_states == 0:
+            return g
+        if j not in self._controllable:
+            Qc = controllable_basis(g.A, _unit(g.B), self.tol)
+            self._controllable[j] = (Qc, Qc.T @ g.A @ Qc, Qc.T @ g.B)
+        Qc, Ac, Bc = self._controllable[j]
+        Cc = g.C @ Qc
+        Qo = controllable_basis(Ac.T, _unit(Cc.T), self.tol)
+        return StateSpaceModel(Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo, g.D.copy(), g.dt)
 
 
 def cancel_entries(
-    plant: StateSpaceModel, tol: float = 1e-2, f_ref_hz: float | None = None, minimal_tol: float | None = None
+    plant: StateSpaceModel,
+    tol: float = 1e-2,
+    f_ref_hz: float | None = None,
+    minimal_tol: float | None = None,
+    response: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[TransferMatrix, tuple[EntryPoleZero, ...]]:
     """Per entry of a deduced discrete plant: minimal SISO realisation, poles, zeros, cancellation.
 
@@ -160,6 +201,11 @@ def cancel_entries(
         (default a tenth of the Nyquist frequency).
     minimal_tol : float, optional
         Rank tolerance of the SISO minimal realisations.
+    response : callable, optional
+        ``response(freqs_hz)`` -> the plant's response, shape (n_freqs, p, p), used to refit
+        the numerators (default ``plant.frequency_response``).  The estimator passes eq. 18
+        frequency by frequency: the large non-minimal realisation's own response loses
+        accuracy at low frequencies (``z`` near 1).
 
     Returns
     -------
@@ -176,17 +222,14 @@ def cancel_entries(
     dt = plant.dt
     f_ref = 0.1 / (2 * dt) if f_ref_hz is None else float(f_ref_hz)
     f_grid = np.geomspace(max(f_ref / 100, 1e-3 / dt), 0.45 / dt, 400)
-    G_grid = plant.frequency_response(f_grid)  # once for all entries (one Hessenberg form)
+    G_grid = (plant.frequency_response if response is None else response)(f_grid)  # once for all entries
     reports = []
     num_rows, den_rows = [], []
+    split = PlantEntries(plant, minimal_tol)
     for i in range(plant.n_outputs):
         nr, dr = [], []
         for j in range(plant.n_inputs):
-            g = _entry(plant, i, j)
-            g = minimal_realization(
-                g, minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(g.A, 2))
-            )
-            poles, zeros = _siso_pz(g)
+            poles, zeros = _siso_pz(split.minimal(i, j))
             kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
             # rebuild the numerator over a wide grid with the kept poles fixed (linear least squares on
             # the entry's own response): robust when a pencil zero of a large entry is inaccurate

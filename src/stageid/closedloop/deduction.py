@@ -41,6 +41,7 @@ __all__ = [
     "check_controller",
     "check_deduction",
     "plant_response",
+    "wide_response",
 ]
 
 
@@ -153,6 +154,22 @@ def plant_response(
         None if reference_filter is None else reference_filter.frequency_response(freqs_hz),
         freqs_hz,
     )
+
+
+def wide_response(T, M, Mr, G_full):
+    """The plant's response for the numerator refits of the cancellation: eq. 18 frequency by frequency.
+
+    Where ``M (I - T)`` is singular on the grid (a controller zero on the unit circle) the
+    non-minimal realisation's own response is used, as before.
+    """
+
+    def response(freqs_hz: np.ndarray) -> np.ndarray:
+        try:
+            return plant_response(T, M, Mr, freqs_hz)
+        except IdentificationError:
+            return G_full.frequency_response(freqs_hz)
+
+    return response
 
 
 def deduce_response(

@@ -34,6 +34,7 @@ from .deduction import (
     discrete_controllers,
     plant_response,
     unstable_plant_poles,
+    wide_response,
 )
 from .loop_model import closed_loop_experiments, group_by_reference, identify_pairs
 from .order_selection import select_order
@@ -249,7 +250,9 @@ class ClosedLoopIdentification(Estimator):
         check_deduction(T, M, Mr, check_grid(lo, dt))
         s_unstable = z_to_s(unstable_plant_poles(T, M, Mr), dt)
         # 3. spurious pole-zero pairs cancelled entry by entry (sec. 3.2.3)
-        G_cancel, entries = cancel_entries(G_full, self.cancel_tol, f_ref_hz=float(np.sqrt(lo * hi)))
+        G_cancel, entries = cancel_entries(
+            G_full, self.cancel_tol, float(np.sqrt(lo * hi)), None, wide_response(T, M, Mr, G_full)
+        )
         # 4. each entry reduced over the band, or the cancelled full order kept (sec. 3.3)
         f_band = np.geomspace(lo, hi, 120)
         P_band = plant_response(T, M, Mr, f_band)

@@ -17,7 +17,15 @@ import scipy.signal as ss
 
 from .._errors import IdentificationError
 from .polynomial import PolynomialModel, check_orders, fit_length, residual, stabilize
-from .regression import check_dt, check_moving, lstsq, records, regressor, shifted
+from .regression import (
+    check_dt,
+    check_moving,
+    lstsq,
+    lstsq_qr,
+    records,
+    regressor,
+    shifted,
+)
 
 __all__ = ["arx", "steiglitz_mcbride", "hannan_rissanen", "start", "SM_ITERATIONS"]
 
@@ -88,17 +96,18 @@ def steiglitz_mcbride(
     F = np.ones(1) if F0 is None else F0
     B = np.zeros(nb)
     rows = sum(uu.size for uu, _ in segs)
-    Phi = np.empty((rows, nf + nb))
+    # regressor and right-hand side side by side, column-major: one Householder QR solves it
+    W = np.empty((rows, nf + nb + 1), order="F")
     for _ in range(n_iter):
-        blocks, rhs = [], []
+        blocks, r0 = [], 0
         for uu, yy in segs:
             uf = ss.lfilter([1.0], F, uu)
             yf = ss.lfilter([1.0], F, yy)
             blocks.append([(yf, nf, 1, True), (uf, nb, nk, False)])
-            rhs.append(yf)
-        regressor(blocks, rows, out=Phi)
-        Y = rhs[0] if len(rhs) == 1 else np.concatenate(rhs)
-        theta = lstsq(Phi, Y, "Steiglitz-McBride", strict=False, overwrite=True)
+            W[r0 : r0 + yy.size, nf + nb] = yf
+            r0 += yy.size
+        regressor(blocks, rows, out=W[:, : nf + nb])
+        theta = lstsq_qr(W, "Steiglitz-McBride", strict=False)
         F = stabilize(np.concatenate([[1.0], theta[:nf]]))
         B = theta[nf:]
     return B, F

@@ -182,8 +182,10 @@ def residual_parts(A, B, C, D, F, nk, u, y) -> tuple[np.ndarray, np.ndarray, np.
     """``(B/F u, A y - B/F u, e)``: the prediction error and the signals its Jacobian reuses."""
     bu = np.concatenate([np.zeros(nk), B])
     yu = ss.lfilter(bu, F, u)  # B/F u
-    w = ss.lfilter(A, [1.0], y) - yu  # A y - B/F u
-    return yu, w, ss.lfilter(D, C, w)
+    # A = 1 (OE, BJ) and C = D = 1 (OE, ARX): lfilter would return y and w unchanged (up to the sign of zeros)
+    w = (y if A.size == 1 and A[0] == 1.0 else ss.lfilter(A, [1.0], y)) - yu  # A y - B/F u
+    e = w.copy() if C.size == 1 and D.size == 1 and C[0] == 1.0 and D[0] == 1.0 else ss.lfilter(D, C, w)
+    return yu, w, e
 
 
 def unpack(theta: np.ndarray, orders: Mapping[str, int]):

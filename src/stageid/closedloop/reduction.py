@@ -86,10 +86,10 @@ def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarr
     num = np.atleast_1d(np.asarray(num, dtype=float))
     den = np.atleast_1d(np.asarray(den, dtype=float))
     z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt)
-    num_t, den_t = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
+    num_t, den_t = trim_leading(num), trim_leading(den)
     if den_t.size == 1 and num_t.size <= 1:  # a static gain: tf2ss would give it one state at z = 1
         return np.full(z.shape, complex(num_t.sum() / den_t[0]))
-    A, B, C, D = ss.tf2ss(num, den)
+    A, B, C, D = controller_canonical(num, den)
     n = A.shape[0]
     blk = np.zeros((n + 1, n + 1))
     blk[:n, :n] = A * dt
@@ -99,6 +99,30 @@ def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarr
     M = z[:, None, None] * np.eye(n)[None] - Ad[None]
     X = np.linalg.solve(M, np.broadcast_to(Bd, (z.size, n, 1)))
     return (C[None] @ X)[:, 0, 0] + D[0, 0]
+
+
+def trim_leading(p: np.ndarray) -> np.ndarray:
+    """``np.trim_zeros(p, "f")`` for a 1-D array (without its generic, slower machinery)."""
+    nz = np.flatnonzero(p)
+    return p[nz[0] :] if nz.size else p[:0]
+
+
+def controller_canonical(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``scipy.signal.tf2ss(num, den)`` for a proper SISO ``num/den`` (the same numbers, without its
+    argument handling: the reduced fits call it for every residual).  Cases where ``tf2ss`` would
+    trim or warn about tiny leading numerator coefficients, or refuse, go to ``tf2ss`` itself."""
+    den_t = trim_leading(den)
+    numn, dn = num / den_t[0], den_t / den_t[0]
+    K = dn.size
+    if numn.size == 0 or abs(numn[0]) <= 1e-14 or numn.size > K or K == 1:
+        return ss.tf2ss(num, den)
+    nump = np.concatenate([np.zeros(K - numn.size), numn])
+    A = np.zeros((K - 1, K - 1))
+    A[0] = -dn[1:]
+    A[1:, :-1] = np.eye(K - 2)
+    B = np.zeros((K - 1, 1))
+    B[0, 0] = 1.0
+    return A, B, (nump[1:] - nump[0] * dn[1:])[None, :], np.array([[nump[0]]])
 
 
 def _poly_from_params(a: np.ndarray) -> np.ndarray:

@@ -11,10 +11,21 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from scipy.linalg import lapack
 
 from .._errors import DataError, IdentificationError
 
-__all__ = ["records", "check_dt", "check_moving", "shifted", "fill_shifted", "regressor", "lstsq"]
+__all__ = [
+    "records",
+    "check_dt",
+    "check_moving",
+    "shifted",
+    "fill_shifted",
+    "regressor",
+    "lstsq",
+    "lstsq_qr",
+    "svd_solve",
+]
 
 
 def records(u: object, y: object) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -137,3 +148,62 @@ def lstsq(Phi: np.ndarray, Y: np.ndarray, what: str, strict: bool = True, overwr
             f"the {what} regression is rank deficient ({rank} of {Phi.shape[1]}): the input does not excite this order."
         )
     return theta / scale
+
+
+def svd_solve(R: np.ndarray, z: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
+    """Minimum-norm solution of ``R theta = z`` (square) with singular values below ``rcond * s_max`` dropped.
+
+    The rank decision of LAPACK's gelsd (``numpy.linalg.lstsq``), here on a small matrix.
+    """
+    U, s, Vt = np.linalg.svd(R)
+    rank = int(np.count_nonzero(s > rcond * s[0])) if s.size and s[0] > 0 else 0
+    return Vt[:rank].T @ ((U[:, :rank].T @ z) / s[:rank]), rank
+
+
+def qr_triangle(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, Q^T y)`` of ``W = [Phi | y]`` (Fortran-ordered, overwritten) by one Householder QR (LAPACK dgeqrf)."""
+    k = W.shape[1] - 1
+    qr, _, _, info = lapack.dgeqrf(W, overwrite_a=1)
+    if info != 0:
+        raise IdentificationError(f"the QR factorisation failed (LAPACK dgeqrf info {info}).")
+    return np.triu(qr[:k, :k]), qr[:k, k].copy()
+
+
+def triangle_lstsq(R: np.ndarray, z: np.ndarray, m: int, what: str, strict: bool = True) -> np.ndarray:
+    """:func:`lstsq` from the QR of the regressor: ``R`` (k x k) and ``Q^T Y`` of an ``m``-row problem.
+
+    The column scaling and the rank decision of :func:`lstsq` (unit-norm columns, gelsd's cut at
+    ``eps * max(m, k)``) are applied to ``R``: Householder QR is column-wise backward stable, so
+    scaling ``R`` is scaling the regressor.
+    """
+    k = R.shape[1]
+    scale = np.sqrt(np.add.reduce(R * R, axis=0))
+    if np.any(scale == 0):
+        raise IdentificationError(
+            f"the {what} regression is singular: a regressor column is identically zero (no excitation)."
+        )
+    theta, rank = svd_solve(R / scale, z, np.finfo(float).eps * max(m, k))
+    if strict and rank < k:
+        raise IdentificationError(
+            f"the {what} regression is rank deficient ({rank} of {k}): the input does not excite this order."
+        )
+    return theta / scale
+
+
+def lstsq_qr(W: np.ndarray, what: str, strict: bool = True) -> np.ndarray:
+    """:func:`lstsq` of ``W[:, :-1] theta = W[:, -1]`` by a Householder QR of ``W`` (overwritten).
+
+    ``W`` is Fortran-ordered with the right-hand side as its last column: the QR of the
+    augmented matrix gives ``R`` and ``Q^T Y`` in one pass (:func:`qr_triangle`), then
+    :func:`triangle_lstsq`.
+
+    Raises
+    ------
+    IdentificationError
+        As :func:`lstsq`.
+    """
+    m, k1 = W.shape
+    if m < 2 * k1 or not W.flags.f_contiguous:  # short records: the plain route
+        return lstsq(np.ascontiguousarray(W[:, :-1]), np.array(W[:, -1]), what, strict)
+    R, z = qr_triangle(W)
+    return triangle_lstsq(R, z, m, what, strict)
