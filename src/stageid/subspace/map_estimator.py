@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from .hankel_toeplitz import WindowStatistics
+from .hankel_toeplitz import WindowStatistics, regressor_indices
 
 __all__ = [
     "Prior",
@@ -140,8 +140,10 @@ def default_prior(stats: WindowStatistics, strength: float = 1e-5) -> Prior:
     equations well conditioned without moving the in-band predictions noticeably (see
     ``theta_frequency_response`` and the choice documented in ``HankelMAP``).
     """
-    XX, _, _ = stats.blocks()
-    diag = np.clip(np.diag(XX), 0.0, None)
+    # the diagonal of sum x x^T straight from the window Gram matrix: no block copies
+    diag = np.clip(
+        np.diagonal(stats.W)[regressor_indices(stats.horizon, stats.n_inputs, stats.n_outputs)[0]], 0.0, None
+    )
     floor = max(float(diag.max(initial=0.0)), 1e-300) * 1e-12
     return Prior(None, strength * np.maximum(diag, floor))
 
