@@ -6,7 +6,7 @@ import pytest
 
 from _subspace_systems import band_limited, random_stage, record
 from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics, row_residuals, window_statistics
-from stageid.subspace.map_estimator import Prior, default_prior, map_estimate
+from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, map_estimate
 from stageid.subspace.nested_horizons import solve_lower, solve_lower_transposed
 from stageid.subspace.selection import (
     central_statistics,
@@ -15,7 +15,6 @@ from stageid.subspace.selection import (
     pooled_split,
     select_horizon,
     split_statistics,
-    training_noise,
 )
 
 
@@ -47,18 +46,19 @@ def test_pooled_split_equals_the_whole_records_statistics(n):
 
 
 @pytest.mark.parametrize("strength", [1e-5, 1e-2])
-def test_training_noise_identity_equals_the_explicit_residual(strength):
+def test_posterior_residual_identity_equals_the_explicit_residual(strength):
+    # batch_posterior's residual by the MAP identity (diagonal prior around zero) against the
+    # explicit O(p q d^2) form, which a prior with an explicit zero mean takes
     _, recs = _records(6000)
     stats = hankel_toeplitz_statistics(recs, 12)
     prior = default_prior(stats, strength)
-    theta = map_estimate(*stats.blocks()[:2], prior)[0]
-    fast = training_noise(theta, prior, stats)
-    # the explicit O(p q d^2) residual; the flat prior (None) takes that route itself
-    explicit = training_noise(theta, Prior(np.zeros_like(theta), prior.precision), stats)
-    rows = row_residuals(theta, stats).reshape(12, 2).mean(axis=0) / (stats.n_windows - theta.shape[1])
-    np.testing.assert_allclose(explicit[0], rows, rtol=1e-12)
-    np.testing.assert_allclose(fast[0], explicit[0], rtol=1e-6)  # residual ~1e-4 of the output energy
-    np.testing.assert_array_equal(fast[1], explicit[1])
+    fast = batch_posterior(stats, prior)
+    explicit = batch_posterior(stats, Prior(np.zeros_like(fast.theta), prior.precision))
+    np.testing.assert_array_equal(fast.theta, explicit.theta)
+    rows = row_residuals(fast.theta, stats)
+    np.testing.assert_allclose(np.diag(explicit.residual), rows, rtol=1e-10)
+    # residual ~1e-4 of the output energy: the identity keeps it to ~1e-7
+    np.testing.assert_allclose(fast.residual, explicit.residual, rtol=0, atol=1e-6 * rows.max())
 
 
 def _split(seed=24, n=20000):

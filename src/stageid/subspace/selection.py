@@ -44,7 +44,6 @@ __all__ = [
     "central_statistics",
     "pooled_split",
     "select_horizon",
-    "training_noise",
     "select_order",
 ]
 
@@ -233,19 +232,23 @@ def pooled_split(
     if horizon not in train or horizon not in val:
         return None
     keys = sorted(set(train) | set(val))
-    s_all = train[horizon] + val[horizon]
+    t, v = train[horizon], val[horizon]
+    W = t.W + v.W  # a fresh matrix: the missing windows are added in place (no further copies)
+    n_windows, count = t.n_windows + v.n_windows, t.count + v.count
     power = None
     for u, y in records:
         missing = _missing_ranges(u.shape[0], keys, horizon, validation_fraction)
         if missing is None:
             return None
         if missing:
-            s_all = s_all + segments_statistics(u, y, missing, horizon)
+            extra = segments_statistics(u, y, missing, horizon)
+            W += extra.W
+            n_windows, count = n_windows + extra.n_windows, count + extra.count
         pw, fq = input_periodogram(u)
         power = pw if power is None else power + pw
-    if s_all.count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
+    if count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
         return None
-    return WindowStatistics(s_all.W, s_all.n_windows, horizon, s_all.n_inputs, s_all.n_outputs, power, fq, s_all.count)
+    return WindowStatistics(W, n_windows, horizon, t.n_inputs, t.n_outputs, power, fq, count)
 
 
 def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: float) -> list[tuple[int, int]] | None:
@@ -342,27 +345,6 @@ def _candidate_lead_parts(
     XX, YX, YY = train[scored[-1]].blocks()
     yy = np.diag(YY)[:rows]
     return held_out, energy, lead_parts(theta, XX, YX[:rows], yy), yy
-
-
-def training_noise(theta: np.ndarray, prior: Prior | None, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
-    """``(noise variance, mean square)`` per output from the training residual of ``theta``.
-
-    For a MAP estimate under a diagonal prior around zero of material strength (the default),
-    ``theta (XX + diag(P)) = YX`` gives ``theta XX theta^T = theta YX^T - theta diag(P) theta^T``
-    row by row, so the residual costs ``O(p q d)`` instead of the ``O(p q d^2)`` of
-    :func:`row_residuals`, which serves the other priors (where the identity could lose the
-    small residual to rounding).
-    """
-    XX, YX, YY = stats.blocks()
-    p, q = stats.horizon, stats.n_outputs
-    diag = None if prior is None or prior.theta0 is not None else np.asarray(prior.precision, dtype=float)
-    if diag is not None and diag.shape == (XX.shape[0],) and np.all(diag >= 1e-8 * np.abs(XX.diagonal())):
-        rows = np.diag(YY) - np.einsum("rd,rd->r", theta, YX) - np.einsum("rd,rd,d->r", theta, theta, diag)
-    else:
-        rows = row_residuals(theta, stats)
-    dof = max(stats.n_windows - XX.shape[0], 1.0)
-    mean_square = np.diag(YY).reshape(p, q).mean(axis=0) / max(stats.n_windows, 1.0)
-    return rows.reshape(p, q).mean(axis=0) / dof, mean_square
 
 
 def select_order(
