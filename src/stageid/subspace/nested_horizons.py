@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .hankel_toeplitz import WindowStatistics, regressor_indices
-from .map_estimator import Prior
+from .map_estimator import Prior, prior_identity_diagonal
 
 __all__ = [
     "distance_order",
@@ -122,11 +122,11 @@ def nested_lead_parts(
     xi, std_pos = distance_order(P, m, q)
     ti = lead_rows(P, m, q, leads)
     XX, YX, yy = _ordered(train, xi, ti)
-    A = XX.copy()
-    if prior is not None:
-        A[np.diag_indices(xi.size)] += np.asarray(prior.precision, dtype=float)[std_pos]
+    diag = np.zeros(xi.size) if prior is None else np.asarray(prior.precision, dtype=float)[std_pos]
+    identity = prior_identity_diagonal(None if prior is None else Prior(None, diag), XX)
+    XX[np.diag_indices(xi.size)] += diag  # XX is a fresh gather: the information matrix in place
     try:
-        L = np.linalg.cholesky(A)
+        L = np.linalg.cholesky(XX)
     except np.linalg.LinAlgError:
         return None
     M = solve_lower(L, YX.T)
@@ -138,5 +138,11 @@ def nested_lead_parts(
         held_out[p] = lead_parts(theta, XXv[:d, :d], YXv[:, :d], yyv)
     if not all(np.all(np.isfinite(v)) for v in held_out.values()):
         return None
-    # the largest horizon's theta (the loop's last) for its training residual
-    return held_out, dict.fromkeys(held_out, yyv), lead_parts(theta, XX, YX, yy), yy
+    # the largest horizon's theta (the loop's last) for its training residual: the MAP identity
+    # theta XX theta^T = theta YX^T - theta diag theta^T under priors of material strength
+    if identity is not None:
+        train_rows = yy - np.einsum("rd,rd->r", theta, YX) - np.einsum("rd,rd,d->r", theta, theta, identity)
+    else:
+        XX[np.diag_indices(xi.size)] -= diag
+        train_rows = lead_parts(theta, XX, YX, yy)
+    return held_out, dict.fromkeys(held_out, yyv), train_rows, yy
