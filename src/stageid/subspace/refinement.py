@@ -100,7 +100,8 @@ def _hermitian_block(Ma: np.ndarray, Mb: np.ndarray) -> np.ndarray:
     Kr = Ma2.real[:, su].T @ Mb2.real[:, su]
     Ki = Ma2.imag[:, sa].T @ Mb2.imag[:, sa]
     out = Kr.take(idx_r)
-    out -= signs * Ki.take(idx_i)
+    if sa.size:  # no i < k pairs for one state
+        out -= signs * Ki.take(idx_i)
     return out
 
 
