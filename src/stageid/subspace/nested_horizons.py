@@ -34,7 +34,7 @@ __all__ = [
 ]
 
 #: Rows per diagonal block of the blocked triangular solves.
-TRIANGULAR_BLOCK = 128
+TRIANGULAR_BLOCK = 64
 
 
 def distance_order(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
