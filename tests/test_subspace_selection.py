@@ -86,8 +86,14 @@ def test_blocked_triangular_solves():
     X = rng.standard_normal((300, 300))
     L = np.linalg.cholesky(X @ X.T + 300 * np.eye(300))
     B = rng.standard_normal((300, 7))
-    np.testing.assert_allclose(solve_lower(L, B, block=64), np.linalg.solve(L, B), rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(solve_lower_transposed(L, B, block=64), np.linalg.solve(L.T, B), rtol=1e-10, atol=1e-12)
+    inverses = [np.linalg.inv(L[a : a + 64, a : a + 64]) for a in range(0, 300 - 63, 64)]
+    for inv in (None, inverses):
+        for d in (300, 200, 64, 50):  # leading blocks of the factor, as the candidates use them
+            want, want_t = np.linalg.solve(L[:d, :d], B[:d]), np.linalg.solve(L[:d, :d].T, B[:d])
+            got = solve_lower(L[:d, :d], B[:d], block=64, inverses=inv)
+            got_t = solve_lower_transposed(L[:d, :d], B[:d], block=64, inverses=inv)
+            np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+            np.testing.assert_allclose(got_t, want_t, rtol=1e-10, atol=1e-12 * np.abs(want_t).max())
 
 
 def test_nested_scores_equal_candidate_by_candidate_solves():

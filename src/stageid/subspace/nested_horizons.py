@@ -62,25 +62,46 @@ def lead_rows(horizon: int, n_inputs: int, n_outputs: int, leads: int) -> np.nda
     return ((horizon + np.arange(leads))[:, None] * r + n_inputs + np.arange(n_outputs)[None, :]).ravel()
 
 
-def solve_lower(L: np.ndarray, B: np.ndarray, block: int = TRIANGULAR_BLOCK) -> np.ndarray:
-    """``L^-1 B`` for a lower-triangular ``L`` (forward substitution, block by block)."""
+def _block_inverses(L: np.ndarray, block: int) -> list[np.ndarray]:
+    """Inverses of the full diagonal blocks ``[k b, (k+1) b)`` of a lower-triangular ``L``: a
+    matrix product per block then replaces a dense solve (~5x faster at 64 rows)."""
+    return [np.linalg.inv(L[a : a + block, a : a + block]) for a in range(0, L.shape[0] - block + 1, block)]
+
+
+def solve_lower(
+    L: np.ndarray, B: np.ndarray, block: int = TRIANGULAR_BLOCK, inverses: list[np.ndarray] | None = None
+) -> np.ndarray:
+    """``L^-1 B`` for a lower-triangular ``L`` (forward substitution, block by block); ``inverses``
+    are the diagonal blocks' inverses (:func:`_block_inverses` of ``L`` or of a larger factor
+    whose leading block ``L`` is)."""
     X = np.array(B, dtype=float)
     n = L.shape[0]
-    for i in range(0, n, block):
+    for k, i in enumerate(range(0, n, block)):
         j = min(n, i + block)
-        X[i:j] = np.linalg.solve(L[i:j, i:j], X[i:j])
+        if inverses is not None and k < len(inverses) and j - i == block:
+            X[i:j] = inverses[k] @ X[i:j]
+        else:
+            X[i:j] = np.linalg.solve(L[i:j, i:j], X[i:j])
         if j < n:
             X[j:] -= L[j:, i:j] @ X[i:j]
     return X
 
 
-def solve_lower_transposed(L: np.ndarray, B: np.ndarray, block: int = TRIANGULAR_BLOCK) -> np.ndarray:
-    """``L^-T B`` for a lower-triangular ``L`` (back substitution, block by block)."""
+def solve_lower_transposed(
+    L: np.ndarray, B: np.ndarray, block: int = TRIANGULAR_BLOCK, inverses: list[np.ndarray] | None = None
+) -> np.ndarray:
+    """``L^-T B`` for a lower-triangular ``L`` (back substitution over the blocks of
+    :func:`solve_lower`, last first)."""
     X = np.array(B, dtype=float)
     n = L.shape[0]
-    for j in range(n, 0, -block):
-        i = max(0, j - block)
-        X[i:j] = np.linalg.solve(L[i:j, i:j].T, X[i:j])
+    starts = list(range(0, n, block))
+    for k in range(len(starts) - 1, -1, -1):
+        i = starts[k]
+        j = min(n, i + block)
+        if inverses is not None and k < len(inverses) and j - i == block:
+            X[i:j] = inverses[k].T @ X[i:j]
+        else:
+            X[i:j] = np.linalg.solve(L[i:j, i:j].T, X[i:j])
         if i > 0:
             X[:i] -= L[i:j, :i].T @ X[i:j]
     return X
@@ -129,12 +150,13 @@ def nested_lead_parts(
         L = np.linalg.cholesky(XX)
     except np.linalg.LinAlgError:
         return None
-    M = solve_lower(L, YX.T)
+    inverses = _block_inverses(L, TRIANGULAR_BLOCK)  # shared by every candidate's leading block
+    M = solve_lower(L, YX.T, inverses=inverses)
     XXv, YXv, yyv = _ordered(val, xi, ti)
     held_out = {}
     for p in horizons:
         d = p * (2 * m + q)
-        theta = solve_lower_transposed(L[:d, :d], M[:d]).T
+        theta = solve_lower_transposed(L[:d, :d], M[:d], inverses=inverses).T
         held_out[p] = lead_parts(theta, XXv[:d, :d], YXv[:, :d], yyv)
     if not all(np.all(np.isfinite(v)) for v in held_out.values()):
         return None
