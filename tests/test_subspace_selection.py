@@ -71,7 +71,8 @@ def _split(seed=24, n=20000):
 
 def test_central_statistics_are_the_shifted_windows_of_the_smaller_horizon():
     # horizon p from the top P: the windows of the top shifted by P - p, i.e. the horizon-p
-    # windows of the record without its first and last P - p samples
+    # windows of the record without its first and last P - p samples (the windows the horizon
+    # scores use, predicting from the same point)
     _, recs = _records(3000)
     u, y = recs[0]
     top = window_statistics(u, y, 20, with_spectrum=False)
@@ -114,6 +115,10 @@ def test_horizon_rule_scores_the_first_block_rows_of_every_candidate():
     recs, cands, train, val = _split()
     chosen, table = select_horizon(train, val, cands, default_prior)
     lead, top, q = cands[0], cands[-1], 2
+    # one Gram matrix per split here: the candidates use the central windows of the largest
+    assert all(train[p].count == train[top].count for p in cands)
+    train = {p: central_statistics(train[top], p) for p in cands}
+    val = {p: central_statistics(val[top], p) for p in cands}
     rows = lead * q
     t_top = map_estimate(*train[top].blocks()[:2], default_prior(train[top]))[0]
     noise = row_residuals(t_top, train[top])[:rows].reshape(lead, q).mean(axis=0) / (

@@ -38,7 +38,7 @@ from .realization import realize
 from .records import excited_band
 from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
-from .selection import central_statistics, held_out_segments, horizon_candidates, select_horizon
+from .selection import held_out_segments, horizon_candidates, select_horizon
 
 __all__ = ["fit_chunked", "chunked_split_statistics"]
 
@@ -82,7 +82,7 @@ def chunked_split_statistics(record, cands, validation_fraction, shift, scale, c
 
     One pass: the lag sums of every training and held-out range up to the largest candidate's
     window; each range counts at the largest candidate it holds, smaller horizons use the
-    central block of that Gram matrix, as in the in-memory split.
+    leading block of that Gram matrix, as in the in-memory split.
     """
     n = record.n_samples
     tr, va = held_out_segments(n, validation_fraction)
@@ -103,7 +103,10 @@ def chunked_split_statistics(record, cands, validation_fraction, shift, scale, c
         for p in cands:
             for ph, top in tops.items():
                 if ph >= p:
-                    sp = central_statistics(top, p)
+                    k = 2 * p * (top.n_inputs + top.n_outputs)
+                    sp = WindowStatistics(
+                        top.W[:k, :k], top.n_windows, p, top.n_inputs, top.n_outputs, None, None, top.count
+                    )
                     acc[p] = sp if p not in acc else acc[p] + sp
     return out[0], out[1], (power, (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0]))
 

@@ -162,6 +162,16 @@ def held_out_segments(n: int, validation_fraction: float) -> tuple[list[tuple[in
     return train, val
 
 
+def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
+    """Statistics of horizon ``horizon`` from those of a larger one (windows of the larger one)."""
+    if horizon == stats.horizon:
+        return stats
+    k = 2 * horizon * (stats.n_inputs + stats.n_outputs)
+    return WindowStatistics(
+        stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count
+    )
+
+
 def central_statistics(stats: WindowStatistics, horizon: int) -> WindowStatistics:
     """Statistics of horizon ``horizon`` from those of a larger one ``P``: its central block, the
     window positions ``P - horizon .. P + horizon - 1`` (the larger one's windows, predicting
@@ -181,8 +191,7 @@ def split_statistics(
     """Eq. 9 statistics of the training and of the held-out segments, per candidate horizon.
 
     One Gram matrix per segment at its largest usable horizon, summed per horizon; smaller
-    horizons use its central block (:func:`central_statistics`: exact statistics over a
-    slightly smaller window set).
+    horizons use its leading block (exact statistics over a slightly smaller window set).
     The training windows are weighted by ``forgetting`` (each range as a record of its own).
     """
     train: dict[int, WindowStatistics] = {}
@@ -207,7 +216,7 @@ def split_statistics(
         for p in cands:
             for ph, top in acc.items():
                 if ph >= p:
-                    sp = central_statistics(top, p)
+                    sp = _leading(top, p)
                     target[p] = sp if p not in target else target[p] + sp
     return train, val
 
@@ -223,8 +232,7 @@ def pooled_split(
     when the split cannot be completed cheaply.
 
     The split lacks the windows that straddle segment boundaries and, for horizons below a
-    range's largest usable one, the first and last windows of each range (see
-    :func:`split_statistics`);
+    range's largest usable one, the last windows of each range (see :func:`split_statistics`);
     those are added from one :func:`segments_statistics` pass over short sample ranges around
     the range ends.  The result equals the statistics of the whole records up to rounding and
     saves a second pass over long records; the input spectrum is added (the split has none).
@@ -256,11 +264,11 @@ def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: 
     :func:`split_statistics` left out; None when they overlap or hold a single window (then
     :func:`segments_statistics` cannot take them)."""
     tr, va = held_out_segments(n, validation_fraction)
-    covered = []  # window starts [first, last] each range contributed (central blocks of its largest horizon)
+    covered = []  # window starts [first, last] each range contributed at its largest usable horizon
     for a, b in sorted(tr + va):
         tops = [k for k in keys if 2 * k + 1 <= b - a]
         if tops and tops[-1] >= horizon:
-            covered.append((a + tops[-1] - horizon, b - tops[-1] - horizon))
+            covered.append((a, b - 2 * tops[-1]))
     gaps, nxt = [], 0
     for first, last in covered + [(n - 2 * horizon + 1, None)]:
         if first > nxt:
@@ -282,8 +290,10 @@ def select_horizon(
 
     Every candidate with training and held-out windows is scored on the same targets: the
     first ``leads`` block rows of ``y_p`` (``leads`` the smallest candidate), predicted from the
-    same point (central windows, :func:`split_statistics`) by the MAP estimate of eq. 16 under
-    the fit's prior (``prior_of`` gives it for training statistics).  The errors weigh the
+    same point by the MAP estimate of eq. 16 under the fit's prior (``prior_of`` gives it for
+    training statistics).  When every range holds the largest candidate (one Gram matrix per
+    split, :func:`split_statistics`), the candidates use the central blocks of its windows
+    (:func:`central_statistics`); otherwise their own statistics.  The errors weigh the
     outputs by the noise of the largest candidate's training residual on those rows (see
     :mod:`.weighting`).  Unlike the multi-step error over all ``p`` block rows, which scores
     each horizon on its own rows, this compares the candidates on the same samples, and it
@@ -304,9 +314,13 @@ def select_horizon(
             "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
         )
     leads, top = scored[0], scored[-1]
+    # one Gram matrix per split: every candidate's windows are the largest one's
     nested = all(train[p].count == train[top].count and val[p].count == val[top].count for p in scored)
     parts = nested_lead_parts(train[top], val[top], scored, leads, prior_of(train[top])) if nested else None
     if parts is None:
+        if nested:
+            train = {p: central_statistics(train[top], p) for p in scored}
+            val = {p: central_statistics(val[top], p) for p in scored}
         parts = _candidate_lead_parts(train, val, scored, leads, prior_of)
     held_out, energy, train_rows, yy_rows = parts
     t, q = train[top], train[top].n_outputs
