@@ -133,9 +133,10 @@ def nested_lead_parts(
     -------
     (held_out, energy, train_top, yy_top) or None
         Per horizon the held-out residual energy and the held-out energy of each target row
-        (``leads q`` values, time-major; the same targets for every horizon); the
-        largest horizon's training residual and target energy per row.  None when the prior is
-        of another kind or the normal equations are not positive definite (the caller then solves candidate by candidate).
+        (``leads q`` values, time-major; the same targets for every horizon); the largest
+        horizon's training residual and target energy per row.  None when the prior is of
+        another kind or the normal equations are not positive definite (the caller then solves
+        candidate by candidate).
     """
     P, m, q = train.horizon, train.n_inputs, train.n_outputs
     if prior is not None and (prior.theta0 is not None or np.shape(prior.precision) != (P * (2 * m + q),)):
