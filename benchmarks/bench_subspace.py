@@ -21,10 +21,17 @@ Also measured: the whole ``stageid identify statespace`` process on an NPZ file 
 whole process of an equivalent python-control script, and the per-window cost of the fused
 recursive MAP update (eq. 17-18) at regressor dimension 190 against a textbook numpy update.
 
+On a loaded machine single wall-clock figures mislead: ``--paired ROUNDS`` instead runs
+stageid (default settings) and python-control in two long-lived workers, one call each per
+round in alternating order, and prints the medians of wall and CPU time (``process_time``) with
+the median of the per-round ratios; then the same for the two whole processes (CPU time of
+the child processes from ``getrusage``).
+
 Usage::
 
     python benchmarks/bench_subspace.py                 # N = 5e3, 5e4, 5e5, 5e6; writes RESULTS-subspace.md
     python benchmarks/bench_subspace.py --sizes 5000 50000 --repeats 3 --no-write
+    python benchmarks/bench_subspace.py --paired 15     # paired rounds at N = 50 000, printed only
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -118,8 +126,6 @@ def run_tool(tool: str, u, y, dt: float):
 
 def worker(tool: str, n: int, repeats: int, warmup: int = 0) -> None:
     """Time ``repeats`` identifications after ``warmup`` untimed ones (imports, first calls)."""
-    import resource
-
     limit = int(MEMORY_LIMIT_GB * 2**30)
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     import numpy as np  # noqa: F401  (imported before timing)
@@ -137,6 +143,98 @@ def worker(tool: str, n: int, repeats: int, warmup: int = 0) -> None:
         err = response_error(A, B, C, D, dt)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # GB (ru_maxrss is KiB on Linux)
     print(json.dumps({"tool": tool, "n": n, "times": times, "peak_gb": peak, "error": err}))
+
+
+def serve(tool: str, n: int) -> None:
+    """Paired-mode worker: one timed identification per input line, one JSON line out."""
+    u, y = make_data(n)
+    run_tool(tool, u, y, 0.002)  # imports and first calls, untimed
+    for _ in sys.stdin:
+        t0, c0 = time.perf_counter(), time.process_time()
+        A, B, C, D = run_tool(tool, u, y, 0.002)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        print(json.dumps({"wall": wall, "cpu": cpu, "error": response_error(A, B, C, D, 0.002)}), flush=True)
+
+
+def _paired_lines(name_a: str, a: list[dict], name_b: str, b: list[dict]) -> list[str]:
+    """Medians of ``b`` against ``a`` (wall and CPU), the median of the per-round ratios b / a."""
+    med = statistics.median
+    lines = [f"| {name} | {1e3 * med(x['wall'] for x in xs):.1f} | {1e3 * med(x['cpu'] for x in xs):.1f} |"
+             for name, xs in ((name_a, a), (name_b, b))]  # fmt: skip
+    ratio = {k: med(y[k] / x[k] for x, y in zip(a, b)) for k in ("wall", "cpu")}
+    of_medians = {k: med(y[k] for y in b) / med(x[k] for x in a) for k in ("wall", "cpu")}
+    lines.append(
+        f"| {name_b} / {name_a} | {of_medians['wall']:.1f}x (paired {ratio['wall']:.1f}x) "
+        f"| {of_medians['cpu']:.1f}x (paired {ratio['cpu']:.1f}x) |"
+    )
+    return lines
+
+
+def paired(rounds: int, n: int = 50000) -> str:
+    """In-process and whole-process comparison of stageid's default against python-control,
+    alternating call by call (see the module notes)."""
+    env = {**os.environ, **ENV_1THREAD}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    workers = {
+        tool: subprocess.Popen(
+            [sys.executable, str(Path(__file__)), "--serve", tool, str(n)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            env=env,
+        )  # fmt: skip
+        for tool in ("stageid", "python-control")
+    }
+    runs: dict[str, list[dict]] = {tool: [] for tool in workers}
+    for r in range(rounds):
+        for tool in list(workers)[:: 1 if r % 2 == 0 else -1]:
+            workers[tool].stdin.write("go\n")
+            workers[tool].stdin.flush()
+            runs[tool].append(json.loads(workers[tool].stdout.readline()))
+    for w in workers.values():
+        w.stdin.close()
+        w.wait()
+    errors = {tool: runs[tool][-1]["error"] for tool in runs}
+    lines = [
+        f"Paired, N = {n}, {rounds} rounds (one call of each per round, order alternating); medians:",
+        "",
+        "| in-process | wall [ms] | CPU [ms] |",
+        "|---|---|---|",
+        *_paired_lines("stageid default", runs["stageid"], "python-control", runs["python-control"]),
+        "",
+        f"FR error: stageid {errors['stageid']:.3e}, python-control {errors['python-control']:.3e}.",
+        "",
+    ]
+    from stageid.data import Experiment, write_npz
+
+    u, y = make_data(n)
+    with tempfile.TemporaryDirectory() as d:
+        data = Path(d) / "run.npz"
+        write_npz(data, Experiment(u, y, 0.002, ("Z", "Rx", "Ry"), ("z", "rx", "ry")))
+        script = Path(d) / "pycontrol_id.py"
+        script.write_text(PYCONTROL_SCRIPT)
+        cmds = _process_commands(data, script, Path(d))
+        for cmd in cmds.values():  # untimed: bytecode and file cache
+            subprocess.run(cmd, env=env, capture_output=True)
+        procs: dict[str, list[dict]] = {name: [] for name in cmds}
+        for r in range(rounds):
+            for name in list(cmds)[:: 1 if r % 2 == 0 else -1]:
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                proc = subprocess.run(cmds[name], env=env, capture_output=True, text=True)
+                wall = time.perf_counter() - t0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if proc.returncode != 0:
+                    raise SystemExit(f"{name} failed: {proc.stderr.strip()[-300:]}")
+                cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+                procs[name].append({"wall": wall, "cpu": cpu})
+    lines += [
+        "| whole process | wall [ms] | CPU [ms] |",
+        "|---|---|---|",
+        *_paired_lines("stageid CLI", procs["stageid CLI"], "python-control script", procs["python-control script"]),
+        "",
+    ]
+    return "\n".join(lines)
 
 
 def spawn(args: list[str], timeout: float = TIMEOUT_S) -> tuple[dict | None, str]:
@@ -170,6 +268,16 @@ json.dump({'A': np.asarray(s.A).tolist(), 'B': np.asarray(s.B).tolist(), 'C': np
 """
 
 
+def _process_commands(data: Path, script: Path, folder: Path) -> dict[str, list[str]]:
+    """The two whole processes: ``stageid identify statespace`` and the python-control script."""
+    stageid_exe = str(Path(sys.executable).with_name("stageid"))
+    cli = [stageid_exe, "identify", "statespace", str(data), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry"]
+    return {
+        "stageid CLI": [*cli, "--order", "15", "-o", str(folder / "m.json")],
+        "python-control script": [sys.executable, str(script), str(data), str(folder / "pc.json")],
+    }
+
+
 def whole_process(n: int, repeats: int) -> dict:
     """Wall time of the whole `stageid identify statespace` process vs a python-control script."""
 
@@ -180,30 +288,13 @@ def whole_process(n: int, repeats: int) -> dict:
     # an installed package has its bytecode compiled; with PYTHONDONTWRITEBYTECODE set (as in some
     # shells) the untimed warm-up run could not cache it and every timed run would recompile stageid
     env.pop("PYTHONDONTWRITEBYTECODE", None)
-    stageid_exe = str(Path(sys.executable).with_name("stageid"))
     out = {}
     with tempfile.TemporaryDirectory() as d:
         data = Path(d) / "run.npz"
         write_npz(data, Experiment(u, y, 0.002, ("Z", "Rx", "Ry"), ("z", "rx", "ry")))
         script = Path(d) / "pycontrol_id.py"
         script.write_text(PYCONTROL_SCRIPT)
-        cmds = {
-            "stageid CLI": [
-                stageid_exe,
-                "identify",
-                "statespace",
-                str(data),
-                "--inputs",
-                "Z,Rx,Ry",
-                "--outputs",
-                "z,rx,ry",
-                "--order",
-                "15",
-                "-o",
-                str(Path(d) / "m.json"),
-            ],
-            "python-control script": [sys.executable, str(script), str(data), str(Path(d) / "pc.json")],
-        }
+        cmds = _process_commands(data, script, Path(d))
         subprocess.run(
             cmds["stageid CLI"], env=env, capture_output=True
         )  # warm the file cache (first run reads the package from disk)
@@ -258,7 +349,15 @@ def main() -> None:
         help="untimed runs before the timed ones, in each worker up to N = 500 000 (default 1)",
     )
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--paired", type=int, metavar="ROUNDS", help="paired rounds at N = 50 000 (printed only)")
+    ap.add_argument("--serve", nargs=2, metavar=("TOOL", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.serve:
+        serve(args.serve[0], int(args.serve[1]))
+        return
+    if args.paired:
+        print(paired(args.paired))
+        return
     if args.worker:
         worker(args.worker[0], int(args.worker[1]), args.repeats, args.warmup)
         return

@@ -1,19 +1,20 @@
-"""Held-out selection of the horizon: the completed split, the cheap training residual, the search rule."""
+"""Held-out selection of the horizon: the completed split, the cheap training residual, the
+nested (one-factorisation) scores and the rule."""
 
 import numpy as np
 import pytest
 
 from _subspace_systems import band_limited, random_stage, record
-from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics, row_residuals
-from stageid.subspace.map_estimator import Prior, default_prior, map_estimate
+from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics, row_residuals, window_statistics
+from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, map_estimate
+from stageid.subspace.nested_horizons import solve_lower, solve_lower_transposed
 from stageid.subspace.selection import (
-    HORIZON_GAIN,
+    central_statistics,
     held_out_segments,
     horizon_candidates,
     pooled_split,
     select_horizon,
     split_statistics,
-    training_noise,
 )
 
 
@@ -45,35 +46,89 @@ def test_pooled_split_equals_the_whole_records_statistics(n):
 
 
 @pytest.mark.parametrize("strength", [1e-5, 1e-2])
-def test_training_noise_identity_equals_the_explicit_residual(strength):
+def test_posterior_residual_identity_equals_the_explicit_residual(strength):
+    # batch_posterior's residual by the MAP identity (diagonal prior around zero) against the
+    # explicit O(p q d^2) form, which a prior with an explicit zero mean takes
     _, recs = _records(6000)
     stats = hankel_toeplitz_statistics(recs, 12)
     prior = default_prior(stats, strength)
-    theta = map_estimate(*stats.blocks()[:2], prior)[0]
-    fast = training_noise(theta, prior, stats)
-    # the explicit O(p q d^2) residual; the flat prior (None) takes that route itself
-    explicit = training_noise(theta, Prior(np.zeros_like(theta), prior.precision), stats)
-    rows = row_residuals(theta, stats).reshape(12, 2).mean(axis=0) / (stats.n_windows - theta.shape[1])
-    np.testing.assert_allclose(explicit[0], rows, rtol=1e-12)
-    np.testing.assert_allclose(fast[0], explicit[0], rtol=1e-6)  # residual ~1e-4 of the output energy
-    np.testing.assert_array_equal(fast[1], explicit[1])
+    fast = batch_posterior(stats, prior)
+    explicit = batch_posterior(stats, Prior(np.zeros_like(fast.theta), prior.precision))
+    np.testing.assert_array_equal(fast.theta, explicit.theta)
+    rows = row_residuals(fast.theta, stats)
+    np.testing.assert_allclose(np.diag(explicit.residual), rows, rtol=1e-10)
+    # residual ~1e-4 of the output energy: the identity keeps it to ~1e-7
+    np.testing.assert_allclose(fast.residual, explicit.residual, rtol=0, atol=1e-6 * rows.max())
 
 
-def test_horizon_search_rule():
-    g = random_stage(24)
-    exp = record(g, band_limited(20000, 2, g.dt, 24), 0.01, 24, names=False)
+def _split(seed=24, n=20000):
+    g = random_stage(seed)
+    exp = record(g, band_limited(n, 2, g.dt, seed), 0.01, seed, names=False)
     recs = [(exp.u / exp.u.std(axis=0), exp.y / exp.y.std(axis=0))]
-    cands = horizon_candidates(2, 2, [20000])
-    train, val = split_statistics(recs, cands, 1.0, 0.25)
+    cands = horizon_candidates(2, 2, [n])
+    return recs, cands, *split_statistics(recs, cands, 1.0, 0.25)
+
+
+def test_central_statistics_are_the_shifted_windows_of_the_smaller_horizon():
+    # horizon p from the top P: the windows of the top shifted by P - p, i.e. the horizon-p
+    # windows of the record without its first and last P - p samples (the windows the horizon
+    # scores use, predicting from the same point)
+    _, recs = _records(3000)
+    u, y = recs[0]
+    top = window_statistics(u, y, 20, with_spectrum=False)
+    s = central_statistics(top, 8)
+    want = window_statistics(u[12:-12], y[12:-12], 8, with_spectrum=False)
+    assert s.count == want.count
+    np.testing.assert_allclose(s.W, want.W, rtol=0, atol=1e-12 * np.abs(want.W).max())
+
+
+def test_blocked_triangular_solves():
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((300, 300))
+    L = np.linalg.cholesky(X @ X.T + 300 * np.eye(300))
+    B = rng.standard_normal((300, 7))
+    inverses = [np.linalg.inv(L[a : a + 64, a : a + 64]) for a in range(0, 300 - 63, 64)]
+    for inv in (None, inverses):
+        for d in (300, 200, 64, 50):  # leading blocks of the factor, as the candidates use them
+            want, want_t = np.linalg.solve(L[:d, :d], B[:d]), np.linalg.solve(L[:d, :d].T, B[:d])
+            got = solve_lower(L[:d, :d], B[:d], block=64, inverses=inv)
+            got_t = solve_lower_transposed(L[:d, :d], B[:d], block=64, inverses=inv)
+            np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+            np.testing.assert_allclose(got_t, want_t, rtol=1e-10, atol=1e-12 * np.abs(want_t).max())
+
+
+def test_nested_scores_equal_candidate_by_candidate_solves():
+    # the default prior takes the one-factorisation path; the same prior given with an explicit
+    # zero mean is solved candidate by candidate (map_estimate): the scores must agree
+    recs, cands, train, val = _split()
     chosen, table = select_horizon(train, val, cands, default_prior)
-    errors = dict(zip(table.values, table.errors))
-    # every candidate up to half the largest is scored, then the search goes on while the error falls by 0.1 %
-    assert [p for p in cands if 2 * p <= max(cands)] == [p for p in table.values if 2 * p <= max(cands)]
-    scored = list(table.values)
-    for k, p in enumerate(scored):
-        if 2 * p > max(cands) and p != scored[-1]:
-            assert errors[p] < min(errors[q] for q in scored[:k]) * (1 - HORIZON_GAIN)
-    if scored[-1] != max(cands):
-        last = scored[-1]
-        assert not errors[last] < min(errors[q] for q in scored[:-1]) * (1 - HORIZON_GAIN)
-    assert chosen == min(errors, key=errors.get)
+    slow_prior = lambda s: Prior(np.zeros((s.horizon * 2, s.horizon * 6)), default_prior(s).precision)  # noqa: E731
+    chosen_slow, slow = select_horizon(train, val, cands, slow_prior)
+    assert table.values == slow.values == tuple(cands)
+    np.testing.assert_allclose(table.errors, slow.errors, rtol=1e-8)
+    assert chosen == chosen_slow == min(zip(table.errors, table.values))[1]
+
+
+def test_horizon_rule_scores_the_first_block_rows_of_every_candidate():
+    # the error of candidate p: held-out residual of y(k) .. y(k + p_min - 1) under the MAP
+    # estimate from the training windows, outputs weighted by the top's training noise
+    recs, cands, train, val = _split()
+    chosen, table = select_horizon(train, val, cands, default_prior)
+    lead, top, q = cands[0], cands[-1], 2
+    # one Gram matrix per split here: the candidates use the central windows of the largest
+    assert all(train[p].count == train[top].count for p in cands)
+    train = {p: central_statistics(train[top], p) for p in cands}
+    val = {p: central_statistics(val[top], p) for p in cands}
+    rows = lead * q
+    t_top = map_estimate(*train[top].blocks()[:2], default_prior(train[top]))[0]
+    noise = row_residuals(t_top, train[top])[:rows].reshape(lead, q).mean(axis=0) / (
+        train[top].n_windows - t_top.shape[1]
+    )
+    ms = np.diag(train[top].blocks()[2])[:rows].reshape(lead, q).mean(axis=0) / train[top].n_windows
+    w2 = (1.0 / np.maximum(np.sqrt(noise), 1e-3 * np.sqrt(ms))) ** 2
+    for p, err in zip(table.values, table.errors):
+        theta = map_estimate(*train[p].blocks()[:2], default_prior(train[p]))[0]
+        res = row_residuals(theta, val[p])[:rows].reshape(lead, q).sum(axis=0)
+        energy = np.diag(val[p].blocks()[2])[:rows].reshape(lead, q).sum(axis=0)
+        np.testing.assert_allclose(err, np.sum(w2 * res) / np.sum(w2 * energy), rtol=1e-8)
+    assert chosen == table.values[int(np.argmin(table.errors))]

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import importlib
 from functools import cache
-from importlib.metadata import entry_points
 from typing import Any
 
 __all__ = ["MODEL_FORMATS", "HYSTERESIS_KINDS", "declared", "load_object"]
@@ -27,6 +26,8 @@ HYSTERESIS_KINDS = "stageid.hysteresis_kinds"
 @cache
 def declared(group: str) -> dict[str, str]:
     """The ``name -> "module:attribute"`` entries installed packages declare in ``group``."""
+    from importlib.metadata import entry_points  # ~10 ms of imports: only when a file is read
+
     return {ep.name: ep.value for ep in entry_points(group=group)}
 
 

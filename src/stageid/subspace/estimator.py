@@ -86,9 +86,9 @@ class HankelMAP(Estimator):
     Parameters
     ----------
     horizon : int or "auto", default "auto"
-        ``p`` of eq. 2-9. "auto" picks it from 8..80 by held-out multi-step prediction error
-        (searched upwards; above half the largest candidate the search stops at the first
-        horizon that does not lower the error by 0.1 %, see ``selection.select_horizon``).
+        ``p`` of eq. 2-9. "auto" picks it from 8..80 by held-out prediction error of the first
+        block rows of eq. 9 (the next 8 samples), every candidate predicting the same samples
+        from the same point (``selection.select_horizon``).
     order : int, sequence of int, or "auto", default "auto"
         Model order (per input channel when ``per_channel``; a sequence gives one per input).
         "auto" picks it by held-out simulation error.
@@ -134,7 +134,7 @@ class HankelMAP(Estimator):
     the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.weighting`): each
     output multiplied by the inverse of its noise standard deviation, estimated from the
     eq. 9 residual, the weight undone on ``C`` and ``D``; for the horizon, the noise of the
-    largest scored candidate's training residual.  A small coupling output that is mostly sensor
+    largest candidate's training residual on the scored block rows.  A small coupling output that is mostly sensor
     noise then does not steer the realisation of the driven output.  A coupling output is
     fitted only as well as its noise allows: with an order too low for the channel the noisy
     coupling outputs may be left unfitted in favour of the driven one.  What the weighting

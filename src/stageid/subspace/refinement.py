@@ -8,6 +8,8 @@ product structure of the Jacobian, never the Jacobian itself.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 __all__ = ["refine_frequency_fit", "fit_cost", "refinement_bytes", "REFINE_TOL", "MULTI_START_MISFIT"]
@@ -67,6 +69,42 @@ def _re_mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=8)
+def _hermitian_plan(n: int) -> tuple[np.ndarray, ...]:
+    """Index plan of :func:`_hermitian_block`: the ``i <= k`` and ``i < k`` pairs of an ``n x n``
+    matrix, where each entry of the ``(i, j), (k, l)`` block reads its pair products, and the signs."""
+    iu, ku = np.triu_indices(n)
+    ia, ka = np.triu_indices(n, 1)
+    sym = np.empty((n, n), dtype=np.intp)
+    sym[iu, ku] = sym[ku, iu] = np.arange(iu.size)
+    asym = np.zeros((n, n), dtype=np.intp)
+    asym[ia, ka] = asym[ka, ia] = np.arange(ia.size)
+    sign = np.zeros((n, n))
+    sign[ia, ka], sign[ka, ia] = 1.0, -1.0
+    idx_r = (sym[:, None, :, None] * iu.size + sym[None, :, None, :]).reshape(n * n, n * n)
+    idx_i = (asym[:, None, :, None] * ia.size + asym[None, :, None, :]).reshape(n * n, n * n)
+    signs = (sign[:, None, :, None] * sign[None, :, None, :]).reshape(n * n, n * n)
+    return iu * n + ku, ia * n + ka, idx_r, idx_i, signs
+
+
+def _hermitian_block(Ma: np.ndarray, Mb: np.ndarray) -> np.ndarray:
+    """``X[(i, j), (k, l)] = Re sum_z Ma[z, i, k] Mb[z, j, l]`` for Hermitian ``Ma[z]`` and ``Mb[z]``.
+
+    The real parts are symmetric and the imaginary parts antisymmetric in each pair, so the sum
+    needs the ``i <= k`` (real) and ``i < k`` (imaginary) pairs only: about a quarter of the flops
+    of the full product (the ``A`` block of the normal equations).
+    """
+    nz, n, _ = Ma.shape
+    su, sa, idx_r, idx_i, signs = _hermitian_plan(n)
+    Ma2, Mb2 = Ma.reshape(nz, n * n), Mb.reshape(nz, n * n)
+    Kr = Ma2.real[:, su].T @ Mb2.real[:, su]
+    Ki = Ma2.imag[:, sa].T @ Mb2.imag[:, sa]
+    out = Kr.take(idx_r)
+    if sa.size:  # no i < k pairs for one state
+        out -= signs * Ki.take(idx_i)
+    return out
+
+
 def _normal_equations(
     a: np.ndarray, b: np.ndarray, e: np.ndarray, w: np.ndarray, feedthrough: bool
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -99,7 +137,7 @@ def _normal_equations(
             JtJ[c0 : c0 + blk.shape[1], r0 : r0 + blk.shape[0]] = blk.T
 
     # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
-    JtJ[:nA, :nA] = _re_mm(Ma2.T, Mb2).reshape(n, n, n, n).transpose(0, 2, 1, 3).reshape(nA, nA)
+    JtJ[:nA, :nA] = _hermitian_block(Ma, Mb)
     put(iA, iB, _re_mm(Ma2.T, cb2).reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(nA, nB))
     put(iA, iC, _re_mm(caw.T, Mb2).reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(nA, nC))
     put(iB, iB, np.kron(Ma.sum(axis=0).real, np.eye(m)))

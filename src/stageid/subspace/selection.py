@@ -7,9 +7,11 @@ on data not used for the fit.  Here:
   most 32) and ``round(validation_fraction k)`` of them, spread evenly, are held out
   (:func:`held_out_segments`; with the default 0.25, 1 of 4, ..., 8 of 32): interleaving
   keeps the held-out part representative of chirps, whose frequency changes with time;
-* the horizon is chosen by the normalised multi-step prediction error of eq. 9 on the
-  held-out windows, which follows from the held-out :class:`WindowStatistics` alone
-  (no pass over the data per candidate);
+* the horizon is chosen by the normalised prediction error of the first block rows of eq. 9
+  (the next ``p_min`` samples, ``p_min`` the smallest candidate) on the held-out windows, which
+  follows from the held-out :class:`WindowStatistics` alone (no pass over the data per
+  candidate); every candidate predicts the same samples from the same point, so one Cholesky
+  factor serves all (:mod:`.nested_horizons`);
 * the order is chosen by the simulation error on the held-out segments of each candidate
   model realised from the training segments (the smallest order within 0.1 % of the best);
 * both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
@@ -27,6 +29,7 @@ from .._errors import DataError, IdentificationError
 from .correlations import input_periodogram
 from .hankel_toeplitz import WindowStatistics, record_statistics, row_residuals, segments_statistics
 from .map_estimator import Posterior, Prior, map_estimate
+from .nested_horizons import lead_parts, nested_lead_parts
 from .realization import realize
 from .weighting import noise_weights, output_weights
 
@@ -38,11 +41,9 @@ __all__ = [
     "simulation_error",
     "held_out_segments",
     "split_statistics",
+    "central_statistics",
     "pooled_split",
     "select_horizon",
-    "HORIZON_GAIN",
-    "held_out_parts",
-    "training_noise",
     "select_order",
 ]
 
@@ -171,6 +172,19 @@ def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
     )
 
 
+def central_statistics(stats: WindowStatistics, horizon: int) -> WindowStatistics:
+    """Statistics of horizon ``horizon`` from those of a larger one ``P``: its central block, the
+    window positions ``P - horizon .. P + horizon - 1`` (the larger one's windows, predicting
+    from the same point, so that the candidates' regressions are nested: :mod:`.nested_horizons`)."""
+    if horizon == stats.horizon:
+        return stats
+    r = stats.n_inputs + stats.n_outputs
+    a, b = (stats.horizon - horizon) * r, (stats.horizon + horizon) * r
+    return WindowStatistics(
+        stats.W[a:b, a:b], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count
+    )
+
+
 def split_statistics(
     records: Sequence[tuple[np.ndarray, np.ndarray]], cands: list[int], forgetting: float, validation_fraction: float
 ) -> tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]]:
@@ -226,19 +240,23 @@ def pooled_split(
     if horizon not in train or horizon not in val:
         return None
     keys = sorted(set(train) | set(val))
-    s_all = train[horizon] + val[horizon]
+    t, v = train[horizon], val[horizon]
+    W = t.W + v.W  # a fresh matrix: the missing windows are added in place (no further copies)
+    n_windows, count = t.n_windows + v.n_windows, t.count + v.count
     power = None
     for u, y in records:
         missing = _missing_ranges(u.shape[0], keys, horizon, validation_fraction)
         if missing is None:
             return None
         if missing:
-            s_all = s_all + segments_statistics(u, y, missing, horizon)
+            extra = segments_statistics(u, y, missing, horizon)
+            W += extra.W
+            n_windows, count = n_windows + extra.n_windows, count + extra.count
         pw, fq = input_periodogram(u)
         power = pw if power is None else power + pw
-    if s_all.count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
+    if count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
         return None
-    return WindowStatistics(s_all.W, s_all.n_windows, horizon, s_all.n_inputs, s_all.n_outputs, power, fq, s_all.count)
+    return WindowStatistics(W, n_windows, horizon, t.n_inputs, t.n_outputs, power, fq, count)
 
 
 def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: float) -> list[tuple[int, int]] | None:
@@ -262,51 +280,60 @@ def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: 
     return ranges
 
 
-#: Relative gain in held-out error a larger horizon must bring for the ascending search to go on.
-HORIZON_GAIN = 1e-3
-
-
 def select_horizon(
     train: dict[int, WindowStatistics],
     val: dict[int, WindowStatistics],
     cands: list[int],
     prior_of: Callable[[WindowStatistics], Prior | None],
 ) -> tuple[int, SelectionTable]:
-    """The horizon by held-out prediction error of eq. 9, searched in increasing order.
+    """The horizon of least held-out prediction error of the first block rows of eq. 9.
 
-    ``prior_of`` gives the fit's prior for training statistics; ``theta`` is the MAP estimate
-    of eq. 16 under it (:func:`~stageid.subspace.map_estimator.map_estimate`).
-    Every candidate up to half the largest is scored (together they cost about as much as
-    one at the top: the solves are ``O(p^3)``); above, the search stops at the first candidate
-    that does not lower the least error so far by ``HORIZON_GAIN`` (the held-out errors are
-    flat at the top).  The chosen horizon is the scored one of least error: preferring a
-    smaller horizon within ``HORIZON_GAIN`` of it, as :func:`select_order` does for the order,
-    costs response accuracy (the truncation bias that larger horizons remove hardly shows in
-    the held-out error; ``benchmarks/RESULTS-subspace.md``, issue 18).
-    The errors weigh the outputs by the noise of the largest scored horizon's training
-    residual (see :mod:`.weighting`); the table lists the scored candidates.
+    Every candidate with training and held-out windows is scored on the same targets: the
+    first ``leads`` block rows of ``y_p`` (``leads`` the smallest candidate), predicted from the
+    same point by the MAP estimate of eq. 16 under the fit's prior (``prior_of`` gives it for
+    training statistics).  When every range holds the largest candidate (one Gram matrix per
+    split, :func:`split_statistics`), the candidates use the central blocks of its windows
+    (:func:`central_statistics`); otherwise their own statistics.  The errors weigh the
+    outputs by the noise of the largest candidate's training residual on those rows (see
+    :mod:`.weighting`).  Unlike the multi-step error over all ``p`` block rows, which scores
+    each horizon on its own rows, this compares the candidates on the same samples, and it
+    keeps preferring larger horizons while they remove truncation bias
+    (``benchmarks/RESULTS-subspace.md``, issue 18).  The normal equations of the candidates
+    are then nested, so one Cholesky factor serves all (:mod:`.nested_horizons`); when they are
+    not (records or segments too short for the largest candidate, priors of another kind,
+    singular flat-prior equations), each candidate is solved on its own.
 
     Raises
     ------
     DataError
         When no candidate has both training and held-out windows.
     """
-    raw: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # per output: held-out residual, energy
-    errors: dict[int, float] = {}
-    for p in sorted(cands):
-        if p not in train or p not in val:
-            continue
-        prior = prior_of(train[p])
-        theta = map_estimate(*train[p].blocks()[:2], prior)[0]
-        raw[p] = held_out_parts(theta, val[p])
-        weights = noise_weights(*training_noise(theta, prior, train[p]))
-        errors = {k: _normalised(*raw[k], weights) for k in raw}  # all rescored with these weights
-        if 2 * p <= max(cands):  # cheap (<= 1/8 of the largest's cost): always scored
-            continue
-        if not errors[p] < min((e for k, e in errors.items() if k != p), default=np.inf) * (1.0 - HORIZON_GAIN):
-            break
-    finite = [e for e in errors.values() if np.isfinite(e)]
-    if not finite:
+    scored = [p for p in sorted(cands) if p in train and p in val]
+    if not scored:
+        raise DataError(
+            "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
+        )
+    leads, top = scored[0], scored[-1]
+    # one Gram matrix per split: every candidate's windows are the largest one's
+    nested = all(train[p].count == train[top].count and val[p].count == val[top].count for p in scored)
+    parts = nested_lead_parts(train[top], val[top], scored, leads, prior_of(train[top])) if nested else None
+    if parts is None:
+        if nested:
+            train = {p: central_statistics(train[top], p) for p in scored}
+            val = {p: central_statistics(val[top], p) for p in scored}
+        parts = _candidate_lead_parts(train, val, scored, leads, prior_of)
+    held_out, energy, train_rows, yy_rows = parts
+    t, q = train[top], train[top].n_outputs
+    d = top * (2 * t.n_inputs + q)
+    noise_var = train_rows.reshape(leads, q).mean(axis=0) / max(t.n_windows - d, 1.0)
+    weights = noise_weights(noise_var, yy_rows.reshape(leads, q).mean(axis=0) / max(t.n_windows, 1.0))
+    errors = {}
+    for p in scored:
+        per_output = energy[p].reshape(leads, q).sum(axis=0)
+        per_output = np.where(per_output > 0, per_output, 1.0)
+        err = _normalised(np.clip(held_out[p].reshape(leads, q).sum(axis=0), 0.0, None), per_output, weights)
+        errors[p] = err if np.isfinite(err) else float("inf")
+    if not np.isfinite(min(errors.values())):
         raise DataError(
             "the records are too short to hold out data for choosing the horizon; give `horizon` explicitly."
         )
@@ -314,34 +341,24 @@ def select_horizon(
     return best, SelectionTable("horizon", tuple(errors), tuple(errors.values()), best)
 
 
-def held_out_parts(theta: np.ndarray, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
-    """Per output: the held-out residual energy of eq. 9 over the ``p`` block rows, and the output energy."""
-    YY = stats.blocks()[2]
-    q = stats.n_outputs
-    res_c = row_residuals(theta, stats).reshape(stats.horizon, q).sum(axis=0)
-    energy = np.diag(YY).reshape(stats.horizon, q).sum(axis=0)
-    return np.clip(res_c, 0.0, None), np.where(energy > 0, energy, 1.0)
-
-
-def training_noise(theta: np.ndarray, prior: Prior | None, stats: WindowStatistics) -> tuple[np.ndarray, np.ndarray]:
-    """``(noise variance, mean square)`` per output from the training residual of ``theta``.
-
-    For a MAP estimate under a diagonal prior around zero of material strength (the default),
-    ``theta (XX + diag(P)) = YX`` gives ``theta XX theta^T = theta YX^T - theta diag(P) theta^T``
-    row by row, so the residual costs ``O(p q d)`` instead of the ``O(p q d^2)`` of
-    :func:`row_residuals`, which serves the other priors (where the identity could lose the
-    small residual to rounding).
-    """
-    XX, YX, YY = stats.blocks()
-    p, q = stats.horizon, stats.n_outputs
-    diag = None if prior is None or prior.theta0 is not None else np.asarray(prior.precision, dtype=float)
-    if diag is not None and diag.shape == (XX.shape[0],) and np.all(diag >= 1e-8 * np.abs(XX.diagonal())):
-        rows = np.diag(YY) - np.einsum("rd,rd->r", theta, YX) - np.einsum("rd,rd,d->r", theta, theta, diag)
-    else:
-        rows = row_residuals(theta, stats)
-    dof = max(stats.n_windows - XX.shape[0], 1.0)
-    mean_square = np.diag(YY).reshape(p, q).mean(axis=0) / max(stats.n_windows, 1.0)
-    return rows.reshape(p, q).mean(axis=0) / dof, mean_square
+def _candidate_lead_parts(
+    train: dict[int, WindowStatistics],
+    val: dict[int, WindowStatistics],
+    scored: list[int],
+    leads: int,
+    prior_of: Callable[[WindowStatistics], Prior | None],
+) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray], np.ndarray, np.ndarray]:
+    """What :func:`~.nested_horizons.nested_lead_parts` gives, one candidate at a time."""
+    held_out, energy = {}, {}
+    rows = leads * train[scored[0]].n_outputs
+    for p in scored:
+        theta = map_estimate(*train[p].blocks()[:2], prior_of(train[p]))[0][:rows]
+        XX, YX, YY = val[p].blocks()
+        energy[p] = np.diag(YY)[:rows]
+        held_out[p] = lead_parts(theta, XX, YX[:rows], energy[p])
+    XX, YX, YY = train[scored[-1]].blocks()
+    yy = np.diag(YY)[:rows]
+    return held_out, energy, lead_parts(theta, XX, YX[:rows], yy), yy
 
 
 def select_order(
