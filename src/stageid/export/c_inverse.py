@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from .c_reversal_curve import reversal_curve
 from .c_writer import CType, array, literal
 
 __all__ = ["pi_inverse_fields", "modified_pi_inverse"]
@@ -186,7 +187,7 @@ static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out,
     }
     for (it = 0; it < 200; ++it) {
         ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (near + far);
-        if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
+${guess}        if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
         if (it > 0 && ${p}_abs(fc - target) > 0.5${f} * last) {
             /* Newton did not halve the residual (a slope off the root's piece: the first sample
                from a stored state that is not consistent, or a corner): bisect the bracket */
@@ -232,6 +233,8 @@ _CP_STEP = """\
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
+            s->x_turn = x;
+            s->f_turn = s->f;
         }
         found = ${p}_solve(s, target, s->slope, &x, &at, &far);
     }
@@ -332,8 +335,17 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
 
-def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
-    """The two passes (rise, fall: one template) and the solve."""
+_LONG_MOVE = """\
+        if (it == 0 && ${p}_abs(xn - x0) > ${p}_LONG_MOVE) {  /* a long move: from the reversal curve */
+            const ${T} g = ${p}_turn_guess(s, target, rising);
+            if (rising ? g > near && g < far : g < near && g > far) xn = g;
+        }
+"""
+
+
+def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
+    """The two passes (rise, fall: one template), the reversal curve's first iterate (C text,
+    or "" for none) and the solve."""
     passes = []
     for name, d in _DIRECTIONS.items():
         why = (
@@ -344,7 +356,8 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
         passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
-    return "\n".join(passes) + "\n" + _sub(_CP_SOLVE, ctype, prefix)
+    guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
+    return "\n".join(passes) + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -420,6 +433,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
     tables = {k: pad(getattr(model, k)) for k in ("r", "rc", "ra", "rb")}
     consts += _tables(p, ctype, **tables, w=pad(model.weights))
+    curve = reversal_curve(model, keep, ctype, p)
+    consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     T = ctype.name
@@ -427,9 +442,10 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
+        f"    {T} x_turn, f_turn;  /* where the last move began (x and F): the reversal curve's origin */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _cp_functions(ctype, p, consistent),
+        "helpers": "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", pad(model.state.z), ctype)
@@ -439,6 +455,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 "    s->rising = 1;",
                 f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
                 f"        s->f = {p}_rise(s->x, s->z, scratch, &s->slope);\n    }}",
+                "    s->x_turn = s->x;",
+                "    s->f_turn = s->f;",
             ]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
