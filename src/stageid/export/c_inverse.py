@@ -88,17 +88,23 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 """
 
 _CP_PASS = """\
-/* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
-   and the slope of F ${beyond} x.  ${why} */
-static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
+/* One pass over the operators on a move, in the move's coordinate m = sg x: a rise (sg = 1), or
+   a fall taken as a rise of -x (sg = -1): the descending branch min(x + ra, max(x + rb, 0)) of x
+   is minus the ascending branch max(m - ra, min(m - rb, 0)) of m = -x, so one loop with the
+   thresholds of the direction serves both, without a branch on it.  Returns sg F at x, the
+   operator outputs there (zn) and the slope of F beyond x on the side of travel.  ${why} */
+static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
 {
-    ${T} f = 0.0${f}, s = 0.0${f};
+    const int row = sg < 0.0${f};
+    const ${T} *restrict r = ${p}_lead[row], *restrict rc = ${p}_flat[row];
+${other}    ${T} f = 0.0${f}, s = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
-${branch}
+        const ${T} a = m - r[i], b = m - rc[i];
+        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f}));
         const ${T} v = ${new_output};
-        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
-        zn[i] = v;
+        const int moves = (up >= v) & ((a >= 0.0${f}) | (b < 0.0${f}));  /* on the branch, where it has slope 1 */
+        zn[i] = sg * v;
         f += ${p}_w[i] * v;
         s += moves ? ${p}_w[i] : 0.0${f};  /* in this form gcc vectorises the loop (-O2 and -O3) */
     }
@@ -107,36 +113,16 @@ ${branch}
 }
 """
 
-# x moving up: the ascending branch up(x) = max(x - r, min(x - rc, 0)) (slope 1 right of x except
-# on its flat stretch rc <= x < r) takes an operator along once it reaches the output z.  Moving
-# down: the descending branch down(x) = min(x + ra, max(x + rb, 0)) (slope 1 left of x except on
-# -ra < x <= -rb).  The outputs of the last sample lie between the branches, so only the branch
-# of travel can move them; a state stored inconsistent with its x (CONSISTENT 0) also takes the
-# other branch into the output, as the package's first sample does.
-_DIRECTIONS = {
-    "rise": {
-        "side": "at or right of",
-        "beyond": "right of",
-        "branch": """\
-        const ${T} a = x - ${p}_r[i], b = x - ${p}_rc[i];
-        const ${T} up = ${p}_max(a, ${p}_min(b, 0.0${f}));""",
-        "moves": "(a >= 0.0${f}) | (b < 0.0${f})",
-        "on_branch": "up >= v",
-        "lean": "${p}_max(up, z[i])",
-        "general": "${p}_max(up, ${p}_min(${p}_min(x + ${p}_ra[i], ${p}_max(x + ${p}_rb[i], 0.0${f})), z[i]))",
-    },
-    "fall": {
-        "side": "at or left of",
-        "beyond": "left of",
-        "branch": """\
-        const ${T} c = x + ${p}_ra[i], d = x + ${p}_rb[i];
-        const ${T} down = ${p}_min(c, ${p}_max(d, 0.0${f}));""",
-        "moves": "(c <= 0.0${f}) | (d > 0.0${f})",
-        "on_branch": "down <= v",
-        "lean": "${p}_min(down, z[i])",
-        "general": "${p}_min(down, ${p}_max(${p}_max(x - ${p}_r[i], ${p}_min(x - ${p}_rc[i], 0.0${f})), z[i]))",
-    },
+# Moving up, the ascending branch up(x) = max(x - r, min(x - rc, 0)) (slope 1 right of x except on
+# its flat stretch rc <= x < r) takes an operator along once it reaches the output z; moving down,
+# the descending branch (the mirror above).  The outputs of the last sample lie between the
+# branches, so only the branch of travel can move them; a state stored inconsistent with its x
+# (CONSISTENT 0) also takes the other branch into the output, as the package's first sample does.
+_OUTPUT = {
+    "lean": "${p}_max(up, sg * z[i])",
+    "general": "${p}_max(up, ${p}_min(${p}_min(m + ra[i], ${p}_max(m + rb[i], 0.0${f})), sg * z[i]))",
 }
+_OTHER = "    const ${T} *restrict ra = ${p}_lead[!row], *restrict rb = ${p}_flat[!row];  /* the other branch */\n"
 
 _CP_SOLVE = """\
 static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
@@ -150,17 +136,20 @@ typedef struct {
     int rising;
 } ${p}_point;
 
-static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
+/* The pass at m = sg x into *at (F there, not sg F); returns sg F. */
+static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
 {
-    at->f = rising ? ${p}_rise(x, z, at->z, &at->slope) : ${p}_fall(x, z, at->z, &at->slope);
-    at->rising = rising;
-    return at->f;
+    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope);
+    at->f = sg * fm;
+    at->rising = sg > 0.0${f};
+    return fm;
 }
 
 /* x with F(x) = target, from the state's x where F = s->f and `slope` is the slope of F on the
-   side of travel.  F is piecewise linear and rises at least SMIN per unit, so the root lies in
-   [x, x + (target - f) / SMIN] (or its mirror), cut at the drive limit.  Newton steps land on
-   the root once they start on its piece; an iterate outside the bracket is replaced by regula
+   side of travel; worked in the move's coordinate m = sg x (negation is exact, so a fall gives
+   the same numbers as its mirror).  F is piecewise linear and rises at least SMIN per unit of m,
+   so the root lies in [m0, m0 + (goal - f0) / SMIN], cut at the drive limit.  Newton steps land
+   on the root once they start on its piece; an iterate outside the bracket is replaced by regula
    falsi against the far end (computed then, and the answer if F there does not reach the
    target: a drive limit) or by bisection.  The solve stops when |F - target| is within the
    rounding error of F, as the package does: both return the exact root to rounding.  Returns
@@ -168,48 +157,45 @@ static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
    last iterate), 2 in *far_at (the far end). */
 static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at)
 {
-    const int rising = target > s->f;
-    const ${T} x0 = s->x;
-    ${T} near = x0, fnear = s->f, far, ffar = 0.0${f}, xc = x0, fc = s->f, sc = slope, last = 0.0${f};
+    const ${T} sg = target > s->f ? 1.0${f} : -1.0${f};
+    const ${T} goal = sg * target, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
+    ${T} near = m0, fnear = sg * s->f, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
+    ${T} mc = m0, fc = fnear, sc = slope, last = 0.0${f};
     int known = 0, it;
-    if (rising) {
-        far = x0 + (target - s->f) / ${p}_SMIN;
-        if (far > ${p}_HIGH) far = ${p}_HIGH;
-    } else {
-        far = x0 - (s->f - target) / ${p}_SMIN;
-        if (far < ${p}_LOW) far = ${p}_LOW;
-    }
-    *x_out = x0;
-    if (!(rising ? far > x0 : far < x0)) {  /* x at or beyond the limit: the answer is the limit */
-        ${p}_pass(far > x0, far, s->z, far_at);  /* (reached backwards if x lies beyond it) */
-        *x_out = far;
+    if (far > edge) far = edge;
+    *x_out = s->x;
+    if (!(far > m0)) {  /* x at or beyond the limit: the answer is the limit */
+        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
+        ${p}_pass(back, back * sg * far, s->z, far_at);
+        *x_out = sg * far;
         return 2;
     }
     for (it = 0; it < 200; ++it) {
-        ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (near + far);
-${guess}        if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
-        if (it > 0 && ${p}_abs(fc - target) > 0.5${f} * last) {
+        ${T} xn = sc > 0.0${f} ? mc + (goal - fc) / sc : 0.5${f} * (near + far);
+${guess}        if (xn == mc) return it > 0;  /* the step is below the resolution of x: mc is the root */
+        if (it > 0 && ${p}_abs(fc - goal) > 0.5${f} * last) {
             /* Newton did not halve the residual (a slope off the root's piece: the first sample
                from a stored state that is not consistent, or a corner): bisect the bracket */
             xn = 0.5${f} * (near + far);
-        } else if (!(rising ? xn > near && xn < far : xn < near && xn > far)) {
+        } else if (!(xn > near && xn < far)) {
             if (!known) {
                 known = 1;
-                ffar = ${p}_pass(rising, far, s->z, far_at);
-                if (rising ? ffar <= target : ffar >= target) {  /* the root is at or past the far end */
-                    *x_out = far;
+                ffar = ${p}_pass(sg, far, s->z, far_at);
+                if (ffar <= goal) {  /* the root is at or past the far end */
+                    *x_out = sg * far;
                     return 2;
                 }
             }
-            if (ffar != fnear) xn = near + (target - fnear) * (far - near) / (ffar - fnear);
-            if (!(rising ? xn > near && xn < far : xn < near && xn > far)) xn = 0.5${f} * (near + far);
+            if (ffar != fnear) xn = near + (goal - fnear) * (far - near) / (ffar - fnear);
+            if (!(xn > near && xn < far)) xn = 0.5${f} * (near + far);
         }
-        last = ${p}_abs(fc - target);
-        fc = ${p}_pass(rising, xn, s->z, at);
-        *x_out = xc = xn;
+        last = ${p}_abs(fc - goal);
+        fc = ${p}_pass(sg, xn, s->z, at);
+        *x_out = sg * xn;
+        mc = xn;
         sc = at->slope;
-        if (${p}_abs(fc - target) <= ${p}_error(xn)) return 1;
-        if (rising ? fc < target : fc > target) {
+        if (${p}_abs(fc - goal) <= ${p}_error(xn)) return 1;
+        if (fc < goal) {
             near = xn;
             fnear = fc;
         } else {
@@ -239,7 +225,7 @@ _CP_STEP = """\
         found = ${p}_solve(s, target, s->slope, &x, &at, &far);
     }
     if (!found && s->fresh) {  /* a stored state need not be the operators' outputs at x */
-        ${p}_pass(1, x, s->z, &at);
+        ${p}_pass(1.0${f}, x, s->z, &at);
         s->rising = 1;
         found = 1;
     }
@@ -336,28 +322,25 @@ PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline ta
 
 
 _LONG_MOVE = """\
-        if (it == 0 && ${p}_abs(xn - x0) > ${p}_LONG_MOVE) {  /* a long move: from the reversal curve */
-            const ${T} g = ${p}_turn_guess(s, target, rising);
-            if (rising ? g > near && g < far : g < near && g > far) xn = g;
+        if (it == 0 && xn - m0 > ${p}_LONG_MOVE) {  /* a long move: from the reversal curve */
+            const ${T} g = sg * ${p}_turn_guess(s, target, sg);
+            if (g > near && g < far) xn = g;
         }
 """
 
 
 def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
-    """The two passes (rise, fall: one template), the reversal curve's first iterate (C text,
-    or "" for none) and the solve."""
-    passes = []
-    for name, d in _DIRECTIONS.items():
-        why = (
-            "The state is the operators' outputs at its x (CONSISTENT 1): F takes only the branch of travel."
-            if consistent
-            else "The stored state need not be the outputs at x: both branches enter, as in eq. 3."
-        )
-        fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
-        filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
-        passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
+    """The pass, the reversal curve's first iterate (C text, or "" for none) and the solve."""
+    why = (
+        "The state is the operators' outputs at its x (CONSISTENT 1): F takes only the branch of travel."
+        if consistent
+        else "The stored state need not be the outputs at x: both branches enter, as in eq. 3."
+    )
+    output = _sub(_OUTPUT["lean" if consistent else "general"], ctype, prefix)
+    other = "" if consistent else _sub(_OTHER, ctype, prefix)
+    move = _sub(_CP_PASS, ctype, prefix, why=why, new_output=output, other=other)
     guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
-    return "\n".join(passes) + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
+    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -431,13 +414,16 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
-    tables = {k: pad(getattr(model, k)) for k in ("r", "rc", "ra", "rb")}
-    consts += _tables(p, ctype, **tables, w=pad(model.weights))
+    T = ctype.name
+    r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
+    consts += _tables(p, ctype, w=pad(model.weights))
+    for name, rows in (("lead", (r, ra)), ("flat", (rc, rb))):  # row 0: rising, row 1: falling (mirrored)
+        text = ",\n".join(array(v, ctype, indent="    ") for v in rows)
+        consts.append(f"static const {T} {p}_{name}[2][{p}_N_OPERATORS] = {{\n{text}\n}};")
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
-    T = ctype.name
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
@@ -454,7 +440,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
                 f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
-                f"        s->f = {p}_rise(s->x, s->z, scratch, &s->slope);\n    }}",
+                f"        s->f = {p}_move({literal(1.0, ctype)}, s->x, s->z, scratch, &s->slope);\n    }}",
                 "    s->x_turn = s->x;",
                 "    s->f_turn = s->f;",
             ]

@@ -41,16 +41,16 @@ _GUESS = """\
 /* First iterate of a long move: the root of the reversal curve from the last turn, on which F
    moves once every operator the move reaches was wiped out by the move before the turn (a
    table of its inverse; module stageid.export.c_reversal_curve). */
-static ${T} ${p}_turn_guess(const ${p}_state *s, ${T} target, int rising)
+static ${T} ${p}_turn_guess(const ${p}_state *s, ${T} target, ${T} sg)
 {
-    const int row = s->x_turn >= 0.0${f} ? 0 : 1;
-    const ${T} delta = rising ? target - s->f_turn : s->f_turn - target;
+    const int row = s->x_turn < 0.0${f};
+    const ${T} delta = sg * (target - s->f_turn);
     const ${T} *value = ${p}_curve_value[row];
     int j, k = 0;
-    for (j = 1; j < ${p}_N_KNOTS; ++j) k += value[j] < delta;
+    for (j = 1; j < ${p}_N_KNOTS; ++j) k += value[j] < delta;  /* the knots below delta */
     {
         const ${T} d = ${p}_curve_knot[row][k] + (delta - value[k]) * ${p}_curve_islope[row][k];
-        return rising ? s->x_turn + d : s->x_turn - d;
+        return s->x_turn + sg * d;
     }
 }
 """
@@ -78,7 +78,7 @@ def _spacing(r: np.ndarray) -> float:
 
 
 def reversal_curve(model: Any, keep: np.ndarray, ctype: CType, prefix: str) -> tuple[list[str], str] | None:
-    """Constants and the C function ``P_turn_guess`` for the operators ``keep`` (None: no table).
+    """Constants and the C function ``P_turn_guess`` (sg = 1 rising, -1 falling) for the operators ``keep`` (None: no table).
 
     ``P_LONG_MOVE``: a Newton step from the last slope longer than a quarter of the smallest
     spacing of the thresholds ``r`` is taken as one that crosses corners (the table's iterate
