@@ -80,14 +80,14 @@ def _spacing(r: np.ndarray) -> float:
 def reversal_curve(model: Any, keep: np.ndarray, ctype: CType, prefix: str) -> tuple[list[str], str] | None:
     """Constants and the C function ``P_turn_guess`` (sg = 1 rising, -1 falling) for the operators ``keep`` (None: no table).
 
-    ``P_LONG_MOVE``: a Newton step from the last slope longer than a quarter of the smallest
+    ``P_LONG_MOVE``: a Newton step from the last slope longer than the smallest
     spacing of the thresholds ``r`` is taken as one that crosses corners (the table's iterate
     is used instead).
     """
     r, rc, ra, rb = (v[keep] for v in model.coupled_play_thresholds())
     w = model.weights[keep]
     tables = [curve_table(r + rb, w), curve_table(ra + rc, w)]
-    move = 0.25 * _spacing(r)
+    move = _spacing(r)
     if any(t is None for t in tables) or not np.isfinite(move):
         return None
     p, n = prefix, len(w)
