@@ -13,12 +13,17 @@ What the C computes is what :class:`stageid.hysteresis.Compensator` computes (se
   slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
   package does (:mod:`stageid.hysteresis.inverse`), by its own iteration: Newton steps from the
   last input with the slope on the side of travel (kept from the last sample; at a reversal
-  the slope of the zero-width operators as a first guess), regula falsi / bisection inside the
-  bracket as safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass
-  over the operators per iterate gives F, the slope and the new operator outputs, using only the
-  branch of travel (the outputs of the last sample lie between the branches).  Both sides land
-  on the exact root, so they agree to rounding; the number of passes per sample depends on how
-  many operator corners the reference crosses (``benchmarks/RESULTS-export.md``).
+  the slope of the zero-width operators), except that a move whose first Newton step would
+  cross operator corners starts from the root of the reversal curve of the last turn
+  (:mod:`stageid.export.c_reversal_curve`: the root itself when the move before the turn wiped
+  out every operator the move reaches); regula falsi / bisection inside the bracket as
+  safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass over the
+  operators per iterate gives F, the slope and the new operator outputs, using only the branch
+  of travel (the outputs of the last sample lie between the branches); a fall is computed as the
+  rise of ``-x`` (exact negations), so one loop serves both directions.  Both sides land on the
+  exact root, so they agree to rounding; the number of passes per sample depends on how many
+  operator corners the reference crosses and how far the first iterate lands from the root
+  (``benchmarks/RESULTS-export.md``).
 
 In single precision the stopping bound and the bracket width are those a ``float`` resolves.
 """
