@@ -59,7 +59,7 @@ void guesses(long n, const double *target, double sg, double *x)
     {p}_state s;
     long k;
     {p}_init(&s);
-    for (k = 0; k < n; ++k) x[k] = {p}_turn_guess(&s, target[k] - {p}_OUTPUT_OFFSET, sg);
+    for (k = 0; k < n; ++k) x[k] = sg * {p}_turn_guess(&s, target[k] - {p}_OUTPUT_OFFSET, sg);
 }}
 """
 

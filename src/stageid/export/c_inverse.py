@@ -328,7 +328,7 @@ PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline ta
 
 _LONG_MOVE = """\
         if (it == 0 && xn - m0 > ${p}_LONG_MOVE) {  /* a long move: from the reversal curve */
-            const ${T} g = sg * ${p}_turn_guess(s, target, sg);
+            const ${T} g = ${p}_turn_guess(s, target, sg);
             if (g > near && g < far) xn = g;
         }
 """

@@ -38,20 +38,18 @@ from .c_writer import CType, array, literal
 __all__ = ["curve_table", "reversal_curve"]
 
 _GUESS = """\
-/* First iterate of a long move: the root of the reversal curve from the last turn, on which F
-   moves once every operator the move reaches was wiped out by the move before the turn (a
-   table of its inverse; module stageid.export.c_reversal_curve). */
+/* First iterate of a long move, in the move's coordinate sg x: the root of the reversal curve
+   from the last turn, on which F moves once every operator the move reaches was wiped out by the
+   move before the turn (a table of its inverse, d = base + delta islope on the segment of delta;
+   module stageid.export.c_reversal_curve).  The knots below delta are counted by a sum, not a
+   loop: the compares run in parallel (this lies on every long move's critical path). */
 static ${T} ${p}_turn_guess(const ${p}_state *s, ${T} target, ${T} sg)
 {
     const int row = s->x_turn < 0.0${f};
     const ${T} delta = sg * (target - s->f_turn);
     const ${T} *value = ${p}_curve_value[row];
-    int j, k = 0;
-    for (j = 1; j < ${p}_N_KNOTS; ++j) k += value[j] < delta;  /* the knots below delta */
-    {
-        const ${T} d = ${p}_curve_knot[row][k] + (delta - value[k]) * ${p}_curve_islope[row][k];
-        return s->x_turn + sg * d;
-    }
+    const int k = ${count};
+    return sg * s->x_turn + (${p}_curve_base[row][k] + delta * ${p}_curve_islope[row][k]);
 }
 """
 
@@ -60,8 +58,9 @@ def curve_table(widths: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np
     """Knots, values and inverse slopes of ``D(d) = sum_i w_i max(d - d_i, 0)``.
 
     ``D`` is linear between knots: ``D(d) = value[k] + (d - knot[k]) / islope[k]`` for
-    ``knot[k] <= d`` up to the next knot (or beyond the last).  None if ``D`` is not increasing
-    after its first knot (a slope <= 0 there: no inverse table).
+    ``knot[k] <= d`` up to the next knot (or beyond the last); the C keeps ``base = knot -
+    value islope`` instead of the knots (one multiply-add per guess).  None if ``D`` is not
+    increasing after its first knot (a slope <= 0 there: no inverse table).
     """
     order = np.argsort(widths, kind="stable")
     knot, w = np.asarray(widths, dtype=float)[order], np.asarray(weights, dtype=float)[order]
@@ -78,7 +77,8 @@ def _spacing(r: np.ndarray) -> float:
 
 
 def reversal_curve(model: Any, keep: np.ndarray, ctype: CType, prefix: str) -> tuple[list[str], str] | None:
-    """Constants and the C function ``P_turn_guess`` (sg = 1 rising, -1 falling) for the operators ``keep`` (None: no table).
+    """Constants and the C function ``P_turn_guess`` (sg = 1 rising, -1 falling; the answer in
+    the move's coordinate sg x) for the operators ``keep`` (None: no table).
 
     ``P_LONG_MOVE``: a Newton step from the last slope longer than the smallest
     spacing of the thresholds ``r`` is taken as one that crosses corners (the table's iterate
@@ -95,8 +95,11 @@ def reversal_curve(model: Any, keep: np.ndarray, ctype: CType, prefix: str) -> t
     def rows(k: int) -> str:
         return "{\n    " + ",\n    ".join(array(t[k], ctype, indent="    ") for t in tables) + "\n}"
 
+    tables = [(knot - value * islope, value, islope) for knot, value, islope in tables]
     consts = [f"#define {p}_N_KNOTS {n}", f"#define {p}_LONG_MOVE ({literal(move, ctype)})"]
-    for k, name in enumerate(("knot", "value", "islope")):
+    for k, name in enumerate(("base", "value", "islope")):
         consts.append(f"static const {ctype.name} {p}_curve_{name}[2][{p}_N_KNOTS] = {rows(k)};")
+    terms = [f"(value[{j}] < delta)" for j in range(1, n)] or ["0"]
+    count = " +\n                  ".join(" + ".join(terms[i : i + 4]) for i in range(0, len(terms), 4))
     f = "f" if ctype.is_float else ""
-    return consts, Template(_GUESS).substitute(T=ctype.name, p=p, f=f)
+    return consts, Template(_GUESS).substitute(T=ctype.name, p=p, f=f, count=count)
