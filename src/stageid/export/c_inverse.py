@@ -19,11 +19,11 @@ What the C computes is what :class:`stageid.hysteresis.Compensator` computes (se
   out every operator the move reaches); regula falsi / bisection inside the bracket as
   safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass over the
   operators per iterate gives F, the slope and the new operator outputs, using only the branch
-  of travel (the outputs of the last sample lie between the branches); a fall is computed as the
-  rise of ``-x`` (exact negations), so one loop serves both directions.  Both sides land on the
-  exact root, so they agree to rounding; the number of passes per sample depends on how many
-  operator corners the reference crosses and how far the first iterate lands from the root
-  (``benchmarks/RESULTS-export.md``).
+  of travel (the outputs of the last sample lie between the branches); the solve works in the
+  move's coordinate ``sg x`` (a fall as the rise of ``-x``: exact negations), so it has one code
+  path for both directions.  Both sides land on the exact root, so they agree to rounding; the
+  number of passes per sample depends on how many operator corners the reference crosses and
+  how far the first iterate lands from the root (``benchmarks/RESULTS-export.md``).
 
 In single precision the stopping bound and the bracket width are those a ``float`` resolves.
 """
