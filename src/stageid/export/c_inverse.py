@@ -248,8 +248,13 @@ _CP_STEP = """\
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
-            s->x_turn = x;
-            s->f_turn = s->f;
+            if (s->turns == ${p}_TURNS) {  /* full: forget the two oldest turns (a ring) */
+                s->oldest = (s->oldest + 2) & (${p}_TURNS - 1);
+                s->turns -= 2;
+            }
+            s->x_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = x;
+            s->f_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = s->f;
+            ++s->turns;
         }
         found = ${p}_solve(s, target, s->slope, &x, &at, &far);
     }
@@ -266,6 +271,11 @@ _CP_STEP = """\
         s->slope = p->slope;
         s->rising = p->rising;
         s->x = x;
+        while (s->turns >= 3) {  /* past the turn before the last: both wiped out (return-point memory) */
+            const ${T} before = s->f_turn[(s->oldest + s->turns - 2) & (${p}_TURNS - 1)];
+            if (s->rising ? s->f <= before : s->f >= before) break;
+            s->turns -= 2;
+        }
     }
     s->fresh = 0;
 ${drive}"""
@@ -347,6 +357,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
+TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
 
@@ -447,6 +458,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
+    consts += [f"#define {p}_TURNS {TURNS}  /* turns kept for the reversal curves (return-point memory) */"]
     T = ctype.name
     r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
     consts += _tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
@@ -458,7 +470,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
-        f"    {T} x_turn, f_turn;  /* where the last move began (x and F): the reversal curve's origin */\n"
+        f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
+        "    int turns, oldest;  /* how many, and where the oldest is (a ring of TURNS) */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
         "helpers": "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
@@ -471,8 +484,10 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 "    s->rising = 1;",
                 f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
                 f"        s->f = {p}_move({literal(1.0, ctype)}, s->x, s->z, scratch, &s->slope);\n    }}",
-                "    s->x_turn = s->x;",
-                "    s->f_turn = s->f;",
+                "    s->x_turn[0] = s->x;",
+                "    s->f_turn[0] = s->f;",
+                "    s->turns = 1;",
+                "    s->oldest = 0;",
             ]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),

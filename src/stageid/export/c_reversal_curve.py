@@ -45,11 +45,18 @@ _GUESS = """\
    loop: the compares run in parallel (this lies on every long move's critical path). */
 static ${T} ${p}_turn_guess(const ${p}_state *s, ${T} target, ${T} sg)
 {
-    const int row = s->x_turn < 0.0${f};
-    const ${T} delta = sg * (target - s->f_turn);
-    const ${T} *value = ${p}_curve_value[row];
-    const int k = ${count};
-    return sg * s->x_turn + (${p}_curve_base[row][k] + delta * ${p}_curve_islope[row][k]);
+    int j = s->turns - 1, row, k;
+    ${T} delta, x_t;
+    const ${T} *value;
+    while (j >= 2 && sg * (target - s->f_turn[(s->oldest + j - 1) & (${p}_TURNS - 1)]) > 0.0${f})
+        j -= 2;  /* past the turn before: the move continues the curve of the turn before that */
+    j = (s->oldest + j) & (${p}_TURNS - 1);
+    x_t = s->x_turn[j];
+    row = x_t < 0.0${f};
+    delta = sg * (target - s->f_turn[j]);
+    value = ${p}_curve_value[row];
+    k = ${count};
+    return sg * x_t + (${p}_curve_base[row][k] + delta * ${p}_curve_islope[row][k]);
 }
 """
 
