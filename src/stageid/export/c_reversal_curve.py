@@ -107,6 +107,6 @@ def reversal_curve(model: Any, keep: np.ndarray, ctype: CType, prefix: str) -> t
     for k, name in enumerate(("base", "value", "islope")):
         consts.append(f"static const {ctype.name} {p}_curve_{name}[2][{p}_N_KNOTS] = {rows(k)};")
     terms = [f"(value[{j}] < delta)" for j in range(1, n)] or ["0"]
-    count = " +\n                  ".join(" + ".join(terms[i : i + 4]) for i in range(0, len(terms), 4))
+    count = " +\n        ".join(" + ".join(terms[i : i + 4]) for i in range(0, len(terms), 4))
     f = "f" if ctype.is_float else ""
     return consts, Template(_GUESS).substitute(T=ctype.name, p=p, f=f, count=count)
