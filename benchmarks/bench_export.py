@@ -22,6 +22,11 @@ walk, full-range random jumps (every operator can switch at every sample) and a 
 displacement record when ../shared/data is present -- to show how the cost depends on the input
 history; and, for reference, the forward modified PI model and the classical-PI compensator.
 The outputs are checked against the Python models before timing (1e-12 relative).
+
+``--paired REV`` times the modified-PI compensator of this tree against the one the package at
+git revision ``REV`` generates (``git archive`` of its ``src``), both compiled into one driver
+that alternates them (``--runs`` rounds of old, new / new, old): medians of the CPU time per
+step, the median of the per-round ratios old / new with its range, and p50 / p99.9 of each.
 """
 
 from __future__ import annotations
@@ -164,6 +169,151 @@ _NAIVE_MAIN = r"""
 """
 
 
+_PAIRED = r"""
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+#include "old.h"
+#include "new.h"
+
+static double cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
+}
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
+}
+
+#if defined(__x86_64__) || defined(__i386__)
+static double ticks(void) { return (double)__builtin_ia32_rdtsc(); }
+#else
+static double ticks(void) { return now(); }
+#endif
+
+static int cmp(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+#define TIMED(P)                                                                     \
+    static double run_##P(const double *in, double *out, long n)                     \
+    {                                                                                \
+        P##_state s;                                                                 \
+        long k;                                                                      \
+        double c0;                                                                   \
+        P##_init(&s);                                                                \
+        c0 = cpu();                                                                  \
+        for (k = 0; k < n; ++k) P##_step(&s, in + k, out + k);                       \
+        return (cpu() - c0) / n;                                                     \
+    }                                                                                \
+    static void steps_##P(const double *in, double *out, double *dt, long n)         \
+    {                                                                                \
+        P##_state s;                                                                 \
+        long k;                                                                      \
+        P##_init(&s);                                                                \
+        for (k = 0; k < n; ++k) {                                                    \
+            const double t0 = ticks();                                               \
+            P##_step(&s, in + k, out + k);                                           \
+            dt[k] = ticks() - t0;                                                    \
+        }                                                                            \
+    }
+TIMED(old)
+TIMED(new)
+
+int main(int argc, char **argv)
+{
+    const long n = argc > 3 ? atol(argv[1]) : 0;
+    const int rounds = argc > 3 ? atoi(argv[2]) : 0;
+    double *in = malloc(sizeof(double) * n), *out = malloc(sizeof(double) * n), *dt = malloc(sizeof(double) * n);
+    FILE *f = argc > 3 ? fopen(argv[3], "rb") : NULL;
+    double timer, w0, k0, scale;
+    long k;
+    int r;
+    if (!f || fread(in, sizeof(double), n, f) != (size_t)n) return 2;
+    fclose(f);
+    for (r = 0; r < rounds; ++r) {  /* alternating: old new, new old, ... */
+        double a, b;
+        if (r & 1) {
+            b = run_new(in, out, n);
+            a = run_old(in, out, n);
+        } else {
+            a = run_old(in, out, n);
+            b = run_new(in, out, n);
+        }
+        printf("old %.4f\nnew %.4f\n", a, b);
+    }
+    w0 = now();
+    k0 = ticks();
+    for (k = 0; k < n; ++k) {
+        const double t0 = ticks();
+        dt[k] = ticks() - t0;
+    }
+    qsort(dt, n, sizeof(double), cmp);
+    timer = dt[n / 2];
+    steps_old(in, out, dt, n);
+    qsort(dt, n, sizeof(double), cmp);
+    printf("old50 %.2f\nold999 %.2f\n", dt[n / 2] - timer, dt[(long)(0.999 * n)] - timer);
+    steps_new(in, out, dt, n);
+    qsort(dt, n, sizeof(double), cmp);
+    printf("new50 %.2f\nnew999 %.2f\n", dt[n / 2] - timer, dt[(long)(0.999 * n)] - timer);
+    scale = (now() - w0) / (ticks() - k0);
+    printf("scale %.6f\n", scale);
+    return 0;
+}
+"""
+
+
+def _old_export(rev: str, model, folder: Path) -> None:
+    """``old.h`` / ``old.c``: the compensator of ``model`` as the package at git ``rev`` exports it."""
+    import pickle
+
+    root = Path(__file__).resolve().parents[1]
+    src = folder / "old_src"
+    src.mkdir()
+    archive = subprocess.run(["git", "-C", str(root), "archive", rev, "src"], capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(src)], input=archive.stdout, check=True)
+    (folder / "model.pkl").write_bytes(pickle.dumps(model))
+    script = (
+        "import pickle, sys; from pathlib import Path; from stageid.export import export_c; "
+        "out = Path(sys.argv[1]); code = export_c(pickle.loads((out / 'model.pkl').read_bytes()), 'old', inverse=True); "
+        "[(out / k).write_text(v) for k, v in code.files().items()]"
+    )
+    env = dict(os.environ, PYTHONPATH=str(src / "src"))
+    subprocess.run([sys.executable, "-c", script, str(folder)], check=True, env=env, cwd=str(folder))
+
+
+def paired(rev: str, model, refs: dict, n: int, rounds: int, cflags: list[str], folder: Path) -> list[tuple]:
+    """Old (git ``rev``) against new compensator of ``model``, alternating in one driver, per reference."""
+    _old_export(rev, model, folder)
+    for name, text in export_c(model, "new", inverse=True).files().items():
+        (folder / name).write_text(text)
+    (folder / "paired.c").write_text(_PAIRED)
+    exe = folder / "paired"
+    compile_files([folder / "old.c", folder / "new.c", folder / "paired.c"], exe, flags=(*cflags, f"-I{folder}"))
+    rows = []
+    for name, ref in refs.items():
+        data = folder / "ref.bin"
+        np.ascontiguousarray(ref[:n], dtype=np.float64).tofile(data)
+        out = subprocess.run([str(exe), str(n), str(rounds), str(data)], capture_output=True, text=True, check=True)
+        vals: dict[str, list[float]] = {}
+        for line in out.stdout.splitlines():
+            key, value = line.split()
+            vals.setdefault(key, []).append(float(value))
+        old, new, scale = np.array(vals["old"]), np.array(vals["new"]), vals["scale"][0]
+        ratio = old / new
+        tsc = {k: vals[k][0] * scale for k in ("old50", "old999", "new50", "new999")}
+        rows.append((name, np.median(old), np.median(new), np.median(ratio), ratio.min(), ratio.max(), tsc))
+    return rows
+
+
 def _c_array(a: np.ndarray) -> str:
     return "{" + ", ".join(repr(float(v)) for v in np.asarray(a).reshape(-1)) + "}"
 
@@ -240,6 +390,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=200_000)
     ap.add_argument("--runs", type=int, default=15)
     ap.add_argument("--cflags", default="-O2")
+    ap.add_argument("--paired", metavar="REV", help="time the compensator against git revision REV's, alternating")
     args = ap.parse_args(argv)
     cc = find_compiler()
     if cc is None:
@@ -272,6 +423,17 @@ def main(argv=None) -> int:
         if rec is not None:
             reps = int(np.ceil(n / rec.n_samples))
             refs["measured displacement (dSPACE)"] = np.tile(rec.y[:, 0], reps)[:n]
+        if args.paired:
+            print(
+                f"| reference | old ({args.paired}) ns/step | new ns/step | old / new [range] | p50 / p99.9 old | p50 / p99.9 new |"
+            )
+            print("|---|---:|---:|---:|---:|---:|")
+            for name, old, new, ratio, rlo, rhi, t in paired(args.paired, mpi, refs, n, args.runs, cflags, folder):
+                print(
+                    f"| {name} | {old:.1f} | {new:.1f} | {ratio:.2f} [{rlo:.2f}, {rhi:.2f}] "
+                    f"| {t['old50']:.0f} / {t['old999']:.0f} | {t['new50']:.0f} / {t['new999']:.0f} |"
+                )
+            return 0
         comp = export_c(mpi, "comp", inverse=True)
         for name, ref in refs.items():
             drive = build(comp, folder).run(ref[:5000])

@@ -13,12 +13,17 @@ What the C computes is what :class:`stageid.hysteresis.Compensator` computes (se
   slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
   package does (:mod:`stageid.hysteresis.inverse`), by its own iteration: Newton steps from the
   last input with the slope on the side of travel (kept from the last sample; at a reversal
-  the slope of the zero-width operators as a first guess), regula falsi / bisection inside the
-  bracket as safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass
-  over the operators per iterate gives F, the slope and the new operator outputs, using only the
-  branch of travel (the outputs of the last sample lie between the branches).  Both sides land
-  on the exact root, so they agree to rounding; the number of passes per sample depends on how
-  many operator corners the reference crosses (``benchmarks/RESULTS-export.md``).
+  the slope of the zero-width operators), except that a move whose first Newton step would
+  cross operator corners starts from the root of the reversal curve of the last turn
+  (:mod:`stageid.export.c_reversal_curve`: the root itself when the move before the turn wiped
+  out every operator the move reaches); regula falsi / bisection inside the bracket as
+  safeguards, until ``|F(x) - target|`` is within the rounding error of F.  One pass over the
+  operators per iterate gives F, the slope and the new operator outputs, using only the branch
+  of travel (the outputs of the last sample lie between the branches); the solve works in the
+  move's coordinate ``sg x`` (a fall as the rise of ``-x``: exact negations), so it has one code
+  path for both directions.  Both sides land on the exact root, so they agree to rounding; the
+  number of passes per sample depends on how many operator corners the reference crosses and
+  how far the first iterate lands from the root (``benchmarks/RESULTS-export.md``).
 
 In single precision the stopping bound and the bracket width are those a ``float`` resolves.
 """
@@ -30,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .c_reversal_curve import reversal_curve
 from .c_writer import CType, array, literal
 
 __all__ = ["pi_inverse_fields", "modified_pi_inverse"]
@@ -137,6 +143,16 @@ _DIRECTIONS = {
     },
 }
 
+_MOVE = """\
+/* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
+   solve has one code path): returns sg F at x; the outputs and the slope as the pass gives them.
+   Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */
+static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
+{
+    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope) : -${p}_fall(-m, z, zn, slope);
+}
+"""
+
 _CP_SOLVE = """\
 static ${T} ${p}_abs(${T} v) { return v < 0.0${f} ? -v : v; }
 
@@ -149,17 +165,20 @@ typedef struct {
     int rising;
 } ${p}_point;
 
-static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
+/* The pass at m = sg x into *at (F there, not sg F); returns sg F. */
+static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
 {
-    at->f = rising ? ${p}_rise(x, z, at->z, &at->slope) : ${p}_fall(x, z, at->z, &at->slope);
-    at->rising = rising;
-    return at->f;
+    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope);
+    at->f = sg * fm;
+    at->rising = sg > 0.0${f};
+    return fm;
 }
 
 /* x with F(x) = target, from the state's x where F = s->f and `slope` is the slope of F on the
-   side of travel.  F is piecewise linear and rises at least SMIN per unit, so the root lies in
-   [x, x + (target - f) / SMIN] (or its mirror), cut at the drive limit.  Newton steps land on
-   the root once they start on its piece; an iterate outside the bracket is replaced by regula
+   side of travel; worked in the move's coordinate m = sg x (negation is exact, so a fall gives
+   the same numbers as its mirror).  F is piecewise linear and rises at least SMIN per unit of m,
+   so the root lies in [m0, m0 + (goal - f0) / SMIN], cut at the drive limit.  Newton steps land
+   on the root once they start on its piece; an iterate outside the bracket is replaced by regula
    falsi against the far end (computed then, and the answer if F there does not reach the
    target: a drive limit) or by bisection.  The solve stops when |F - target| is within the
    rounding error of F, as the package does: both return the exact root to rounding.  Returns
@@ -167,48 +186,45 @@ static ${T} ${p}_pass(int rising, ${T} x, const ${T} *z, ${p}_point *at)
    last iterate), 2 in *far_at (the far end). */
 static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at)
 {
-    const int rising = target > s->f;
-    const ${T} x0 = s->x;
-    ${T} near = x0, fnear = s->f, far, ffar = 0.0${f}, xc = x0, fc = s->f, sc = slope, last = 0.0${f};
+    const ${T} sg = target > s->f ? 1.0${f} : -1.0${f};
+    const ${T} goal = sg * target, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
+    ${T} near = m0, fnear = sg * s->f, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
+    ${T} mc = m0, fc = fnear, sc = slope, last = 0.0${f};
     int known = 0, it;
-    if (rising) {
-        far = x0 + (target - s->f) / ${p}_SMIN;
-        if (far > ${p}_HIGH) far = ${p}_HIGH;
-    } else {
-        far = x0 - (s->f - target) / ${p}_SMIN;
-        if (far < ${p}_LOW) far = ${p}_LOW;
-    }
-    *x_out = x0;
-    if (!(rising ? far > x0 : far < x0)) {  /* x at or beyond the limit: the answer is the limit */
-        ${p}_pass(far > x0, far, s->z, far_at);  /* (reached backwards if x lies beyond it) */
-        *x_out = far;
+    if (far > edge) far = edge;
+    *x_out = s->x;
+    if (!(far > m0)) {  /* x at or beyond the limit: the answer is the limit */
+        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
+        ${p}_pass(back, back * sg * far, s->z, far_at);
+        *x_out = sg * far;
         return 2;
     }
     for (it = 0; it < 200; ++it) {
-        ${T} xn = sc > 0.0${f} ? xc + (target - fc) / sc : 0.5${f} * (near + far);
-        if (xn == xc) return it > 0;  /* the step is below the resolution of x: xc is the root */
-        if (it > 0 && ${p}_abs(fc - target) > 0.5${f} * last) {
+        ${T} xn = sc > 0.0${f} ? mc + (goal - fc) / sc : 0.5${f} * (near + far);
+${guess}        if (xn == mc) return it > 0;  /* the step is below the resolution of x: mc is the root */
+        if (it > 0 && ${p}_abs(fc - goal) > 0.5${f} * last) {
             /* Newton did not halve the residual (a slope off the root's piece: the first sample
                from a stored state that is not consistent, or a corner): bisect the bracket */
             xn = 0.5${f} * (near + far);
-        } else if (!(rising ? xn > near && xn < far : xn < near && xn > far)) {
+        } else if (!(xn > near && xn < far)) {
             if (!known) {
                 known = 1;
-                ffar = ${p}_pass(rising, far, s->z, far_at);
-                if (rising ? ffar <= target : ffar >= target) {  /* the root is at or past the far end */
-                    *x_out = far;
+                ffar = ${p}_pass(sg, far, s->z, far_at);
+                if (ffar <= goal) {  /* the root is at or past the far end */
+                    *x_out = sg * far;
                     return 2;
                 }
             }
-            if (ffar != fnear) xn = near + (target - fnear) * (far - near) / (ffar - fnear);
-            if (!(rising ? xn > near && xn < far : xn < near && xn > far)) xn = 0.5${f} * (near + far);
+            if (ffar != fnear) xn = near + (goal - fnear) * (far - near) / (ffar - fnear);
+            if (!(xn > near && xn < far)) xn = 0.5${f} * (near + far);
         }
-        last = ${p}_abs(fc - target);
-        fc = ${p}_pass(rising, xn, s->z, at);
-        *x_out = xc = xn;
+        last = ${p}_abs(fc - goal);
+        fc = ${p}_pass(sg, xn, s->z, at);
+        *x_out = sg * xn;
+        mc = xn;
         sc = at->slope;
-        if (${p}_abs(fc - target) <= ${p}_error(xn)) return 1;
-        if (rising ? fc < target : fc > target) {
+        if (${p}_abs(fc - goal) <= ${p}_error(xn)) return 1;
+        if (fc < goal) {
             near = xn;
             fnear = fc;
         } else {
@@ -232,11 +248,18 @@ _CP_STEP = """\
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
+            if (s->turns == ${p}_TURNS) {  /* full: forget the two oldest turns (a ring) */
+                s->oldest = (s->oldest + 2) & (${p}_TURNS - 1);
+                s->turns -= 2;
+            }
+            s->x_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = x;
+            s->f_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = s->f;
+            ++s->turns;
         }
         found = ${p}_solve(s, target, s->slope, &x, &at, &far);
     }
     if (!found && s->fresh) {  /* a stored state need not be the operators' outputs at x */
-        ${p}_pass(1, x, s->z, &at);
+        ${p}_pass(1.0${f}, x, s->z, &at);
         s->rising = 1;
         found = 1;
     }
@@ -248,6 +271,11 @@ _CP_STEP = """\
         s->slope = p->slope;
         s->rising = p->rising;
         s->x = x;
+        while (s->turns >= 3) {  /* past the turn before the last: both wiped out (return-point memory) */
+            const ${T} before = s->f_turn[(s->oldest + s->turns - 2) & (${p}_TURNS - 1)];
+            if (s->rising ? s->f <= before : s->f >= before) break;
+            s->turns -= 2;
+        }
     }
     s->fresh = 0;
 ${drive}"""
@@ -329,11 +357,21 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
+TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
 
-def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
-    """The two passes (rise, fall: one template) and the solve."""
+_LONG_MOVE = """\
+        if (it == 0 && xn - m0 > ${p}_LONG_MOVE) {  /* a long move: from the reversal curve */
+            const ${T} g = ${p}_turn_guess(s, target, sg);
+            if (g > near && g < far) xn = g;
+        }
+"""
+
+
+def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
+    """The two passes (rise, fall: one template), the reversal curve's first iterate (C text, or ""
+    for none) and the solve."""
     passes = []
     for name, d in _DIRECTIONS.items():
         why = (
@@ -344,7 +382,9 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool) -> str:
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
         passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
-    return "\n".join(passes) + "\n" + _sub(_CP_SOLVE, ctype, prefix)
+    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix)
+    guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
+    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -418,18 +458,23 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
-    tables = {k: pad(getattr(model, k)) for k in ("r", "rc", "ra", "rb")}
-    consts += _tables(p, ctype, **tables, w=pad(model.weights))
+    consts += [f"#define {p}_TURNS {TURNS}  /* turns kept for the reversal curves (return-point memory) */"]
+    T = ctype.name
+    r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
+    consts += _tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
+    curve = reversal_curve(model, keep, ctype, p)
+    consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
     uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
-    T = ctype.name
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
+        f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
+        "    int turns, oldest;  /* how many, and where the oldest is (a ring of TURNS) */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _cp_functions(ctype, p, consistent),
+        "helpers": "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", pad(model.state.z), ctype)
@@ -438,7 +483,11 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
                 f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
-                f"        s->f = {p}_rise(s->x, s->z, scratch, &s->slope);\n    }}",
+                f"        s->f = {p}_move({literal(1.0, ctype)}, s->x, s->z, scratch, &s->slope);\n    }}",
+                "    s->x_turn[0] = s->x;",
+                "    s->f_turn[0] = s->f;",
+                "    s->turns = 1;",
+                "    s->oldest = 0;",
             ]
         ),
         "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
