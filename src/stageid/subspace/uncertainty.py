@@ -12,10 +12,12 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
   ``dx = J^+ dG_9`` (``J`` the Jacobian of the model's response in ``A, B, C, D``; the
   pseudo-inverse drops the ``n^2`` similarity directions, which do not change the response)
   and its response anywhere by ``J(f) dx``.  ``dG_9 = L^+ dtheta V(z)`` (first order in the
-  block-row equations of eq. 9, as in ``theta_response_std``) with the matrix-normal
-  ``Cov(vec theta) = p P (x) Sigma`` (the ``p`` for the overlap of consecutive windows, as in
-  ``response_bands``) gives the covariance of ``dG_9`` across the whole grid, and so
-  ``Cov(dx)``;
+  block-row equations of eq. 9, as in ``theta_response_std``); the covariance of ``dG_9``
+  across the whole grid, and so ``Cov(dx)``, is the one the least-squares coefficients have
+  under overlapping windows (:mod:`.window_covariance`, from lag statistics the fit keeps), or,
+  when the fit kept none (``update``, forgetting, records shorter than ``8 p``), the
+  matrix-normal ``p P (x) Sigma`` (``P`` times ``p`` for the overlap, as in ``response_bands``:
+  a rough allowance, ~1.4x too wide in std on some stages);
 * ``"sampling"``: draws of ``theta`` from that posterior, each realised by the very route
   and order of the fit (:func:`~.realization.realize`), the spread of their responses
   around the identified one.  Slower; for ``realization="markov"`` (Lemma 1, not a
@@ -23,8 +25,8 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
 
 Per-input-channel fits (eq. 19-22) are independent (disjoint records): the stacked model's
 column ``j`` is the ``j``-th sub-model's, with its own posterior.  Neither way counts the bias
-of a realisation whose order cannot fit the system (measured in
-``studies/uncertainty/RESULTS.md``).
+of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) or of a
+realisation whose order cannot fit the system (measured in ``studies/uncertainty/RESULTS.md``).
 """
 
 from __future__ import annotations
@@ -64,9 +66,9 @@ DEFAULT_SAMPLES = 40
 MAX_COVARIANCE_ENTRIES = 300
 #: For the covariance under overlapping windows (``overlap="exact"``): at most this many
 #: frequencies times ``max(q, m)``; its spectra are ``8 p x n_freqs max(q, m) x 2 n_freqs max(q, m)``
-#: (P-558 3x3: 20 frequencies against 32 move the std by +0.7 % median, +5 % at the 99th percentile,
-#: at a quarter of the cost; ``benchmarks/RESULTS-uncertainty.md``).
-MAX_OVERLAP_COLUMNS = 60
+#: (fewer frequencies under-resolve lightly damped modes: on the unseen 3x2 stages 20 instead of
+#: 32 widened the bands from 97.7 % to 99.2 % coverage; ``studies/uncertainty/RESULTS.md``).
+MAX_OVERLAP_COLUMNS = 96
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256
 #: Relative singular value (of the column-normalised Jacobian) below which a direction of

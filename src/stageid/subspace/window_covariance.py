@@ -38,8 +38,8 @@ from .hankel_toeplitz import regressor_indices, response_systems
 
 __all__ = ["WindowLags", "window_lags", "WindowFilter", "lag_spectrum", "lag_products", "overlap_response_covariance"]
 
-#: Most complex entries of the per-frequency spectral products formed at once (memory).
-BLOCK_ENTRIES = 1 << 22
+#: Most complex entries of the per-frequency spectral products formed at once (cache, memory).
+BLOCK_ENTRIES = 1 << 18
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,7 +135,10 @@ def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags:
     Y = np.fft.fft(np.stack(ys), n=n, axis=1).transpose(1, 0, 2)
     left = np.concatenate([np.matmul(fa.H_t, S), -Xt], axis=2)
     right = np.concatenate([np.conj(np.concatenate([fb.H, fb.H_conj], axis=2)), Y], axis=1)
-    both = np.fft.ifft(np.matmul(left, right), axis=0)[lags % n]
+    both = np.empty((lags.size, left.shape[1], right.shape[2]), dtype=complex)
+    step = max(1, BLOCK_ENTRIES // (n * right.shape[2]))  # a few MB per block: it stays in cache
+    for lo in range(0, left.shape[1], step):
+        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[lags % n]
     cb = fb.h.shape[2]
     return both[:, :, :cb], both[:, :, cb:]
 
