@@ -29,7 +29,8 @@ response's error comes mostly from the closed-loop models' own bias, which the r
 misfit measures.  That error grows toward the low end of the band (there ``T`` is close to
 ``I``: a small error of ``T`` is a large relative error of ``(M - M T)^-1``), so the default
 ``bias="local"`` follows the misfit along the band, ``|r|^2 - E|r_noise|^2`` averaged over
-``LOCAL_WINDOW`` of the band's points on either side (held at the edge values outside the band);
+``LOCAL_WINDOW`` of the band's points on either side (outside the band, the larger of the
+edge's value and the band's mean);
 ``bias="flat"`` spreads its band average ``b^2 = max(0, ||r||^2 - E||r_noise||^2) / n_band``
 evenly (too narrow at the low end: 84 % coverage at 20-39 Hz on the maglev), and
 ``bias="inflate"`` scales the propagated variance by the misfit's ratio to its noise expectation
@@ -161,7 +162,8 @@ def local_bias(fb: np.ndarray, misfit: np.ndarray, noise: np.ndarray, f: np.ndar
     """``b^2(f)`` of ``bias="local"``: the reduction's squared relative misfit beyond its noise
     expectation, per band frequency ``fb`` (``misfit``, ``noise`` of shape (n_band, p, p)),
     averaged over ``LOCAL_WINDOW`` of the band on either side, then interpolated in log frequency
-    to ``f`` (held at the band's edge values outside it).  Shape (n_freqs, p, p)."""
+    to ``f``; outside the band, the larger of the nearest edge's value and the band's mean (the
+    ``"flat"`` value).  Shape (n_freqs, p, p)."""
     h = max(1, int(round(LOCAL_WINDOW * fb.size)))
     kernel = np.ones(2 * h + 1)
     count = np.convolve(np.ones(fb.size), kernel, mode="same")
@@ -173,6 +175,9 @@ def local_bias(fb: np.ndarray, misfit: np.ndarray, noise: np.ndarray, f: np.ndar
     for a in range(misfit.shape[1]):
         for b in range(misfit.shape[2]):
             out[:, a, b] = np.interp(lf, lb, smooth[:, a, b])
+    # outside the band nothing measures the misfit: the larger of the edge's and the band's mean
+    outside = (f < fb[0]) | (f > fb[-1])
+    out[outside] = np.maximum(out[outside], np.maximum(excess.mean(axis=0), 0.0)[None])
     return out
 
 
