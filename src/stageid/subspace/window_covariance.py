@@ -190,7 +190,8 @@ def overlap_response_covariance(
     xi, yi = regressor_indices(p, m, q)
     n = 8 * p  # > 8 p - 4: no lag |l| <= 2p - 1 wraps (module docstring)
     S = lag_spectrum(stats.lags, n)
-    lags = np.arange(-(2 * p - 1), 2 * p)
+    # lags 0 .. 2p - 1 only: the products at -l are those at l transposed (and conjugated for cov)
+    lags = np.arange(2 * p)
     # a_t = (P V)^T x_t: the regressor filter, one column per (k, j)
     fa = WindowFilter(column_cov @ V, xi, p, r, n)
     A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in lag_products(fa, fa, S, stats, lags))
@@ -202,6 +203,11 @@ def overlap_response_covariance(
     dof = max(float(n_windows) - d, 1.0)
     B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in lag_products(fb, fb, S, stats, lags))
     N = nz * q * m
-    cov = np.einsum("ckilx,ckjly->kijlxy", B_c, A_c, optimize=True).reshape(N, N)
-    pseudo = np.einsum("ckilx,ckjly->kijlxy", B_p, A_p, optimize=True).reshape(N, N)
+    # sum over l >= 1 of B(l) (.) A(l); the negative lags add its (conjugate) transpose
+    half_c = np.einsum("ckilx,ckjly->kijlxy", B_c[1:], A_c[1:], optimize=True).reshape(N, N)
+    half_p = np.einsum("ckilx,ckjly->kijlxy", B_p[1:], A_p[1:], optimize=True).reshape(N, N)
+    zero_c = np.einsum("kilx,kjly->kijlxy", B_c[0], A_c[0]).reshape(N, N)
+    zero_p = np.einsum("kilx,kjly->kijlxy", B_p[0], A_p[0]).reshape(N, N)
+    cov = zero_c + half_c + np.conj(half_c).T
+    pseudo = zero_p + half_p + half_p.T
     return G, cov, pseudo
