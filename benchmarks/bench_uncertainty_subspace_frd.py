@@ -7,7 +7,10 @@ covariance, repeated; medians of wall and CPU time and of the per-run ratios to 
 ``--cli`` instead times ``stageid identify statespace`` on one P-558 record with and without
 ``--uncertainty`` (whole processes, alternating).
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli]
+``--columns`` times the exact uncertainty alone on the P-558 direct fit for several column caps
+(``MAX_OVERLAP_COLUMNS``), CPU medians, with the change of the std against the default cap.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli|--columns]
 """
 
 from __future__ import annotations
@@ -88,6 +91,8 @@ def main() -> None:
     repeats = int(args[0]) if args else 5
     if "--cli" in sys.argv:
         return cli(repeats)
+    if "--columns" in sys.argv:
+        return columns(repeats)
     for name, make in CASES.items():
         variants = _variants(make())
         for run in variants.values():
@@ -109,6 +114,37 @@ def main() -> None:
                 f"{min(rc):.2f}-{max(rc):.2f})",
                 flush=True,
             )
+
+
+def columns(repeats: int) -> None:
+    """The exact uncertainty alone against the fit, for several column caps (alternating)."""
+    import stageid.subspace.uncertainty as unc
+
+    fit = p558_direct()
+    res = fit()
+    lo, hi = band_of(res)
+    f = np.geomspace(lo, hi, 200)
+    default = unc.MAX_OVERLAP_COLUMNS
+    caps = (default, 72, 60, 48, 36)
+    ref = realised_response_uncertainty(res, f).std
+    cpu = {c: [] for c in ("fit", "inflate", *caps)}
+    change = {}
+    for _ in range(repeats):
+        cpu["fit"].append(_timed(fit)[1])
+        cpu["inflate"].append(_timed(lambda: realised_response_uncertainty(res, f, overlap="inflate"))[1])
+        for c in caps:
+            unc.MAX_OVERLAP_COLUMNS = c
+            cpu[c].append(_timed(lambda: realised_response_uncertainty(res, f))[1])
+            change[c] = np.percentile(realised_response_uncertainty(res, f).std / ref, [50, 99])
+        unc.MAX_OVERLAP_COLUMNS = default
+    print(f"P-558 direct, {repeats} rounds, CPU medians: fit {statistics.median(cpu['fit']):.3f} s, "
+          f"uncertainty with inflate {statistics.median(cpu['inflate']):.3f} s")  # fmt: skip
+    for c in caps:
+        print(
+            f"  exact, {c} columns: {statistics.median(cpu[c]):.3f} s; std against {default} columns: "
+            f"median {change[c][0]:.3f}, 99th percentile {change[c][1]:.3f}",
+            flush=True,
+        )
 
 
 def cli(repeats: int) -> None:
