@@ -20,11 +20,15 @@ with the truncated kernel, lags ``|l| <= 2 p - 1``: exact for a moving average o
 
 ``A_l = sum_t a_t conj(a_(t+l))^T`` (the sample lag products of the regressor filter) and
 ``Sb_l = E[b_t conj(b_(t+l))^T]`` (the residual filter's lag covariance, estimated from the
-residuals per window).  Both come from the lag correlations ``R(c) = sum_t z(t) z(t+c)^T`` of the
-records up to ``c = 4 p - 2`` (:func:`window_lag_correlations`, kept by the fit), through the
+residuals per window); the pseudo-covariance likewise without the conjugates.  Both come from
+the lag correlations ``R(c) = sum_t z(t) z(t+c)^T`` of the records up to ``c = 4 p - 2`` and
+their first and last ``4 p - 2`` samples (:class:`WindowLags`, kept by the fit), through the
 spectral identity ``sum_(a,b) h(a)^T R(l + b - a) conj h'(b) = 1/n sum_w e^(i w l) H(w)^T S(w) conj H'(w)``
-with ``S`` the DFT of ``R`` (exact: no lag wraps for ``n >= 8 p``).  Cost: independent of the
-record length.
+with ``S`` the DFT of ``R`` (no lag wraps for ``n = 8 p``), minus the pairs in which a window
+sticks out of a record (:func:`lag_products`).  Only the lags ``l >= 0`` are formed: those at
+``-l`` are their (conjugate) transposes.  Cost ``~ 8 p (n_freqs max(q, m))^2 (m + q)``,
+independent of the record length; the covariance under overlapping windows of Hankel-Toeplitz
+estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``.
 """
 
 from __future__ import annotations
