@@ -376,5 +376,19 @@ def realised_response_uncertainty(
             stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
     model = result.model
     return FrequencyResponse(
-        f, model.frequency_response(f), np.concatenate(stds, axis=2), None, model.inputs, model.outputs
+        f, model_response(model, f), np.concatenate(stds, axis=2), None, model.inputs, model.outputs
     )
+
+
+def model_response(model: StateSpaceModel, freqs_hz: np.ndarray) -> np.ndarray:
+    """``C (xI - A)^-1 B + D`` at ``freqs_hz`` by numpy's batched solve, shape (n_freqs, q, m):
+    ``model.frequency_response`` imports scipy.linalg, which costs a command-line run more than
+    the uncertainty itself."""
+    x = response_points(freqs_hz, model.dt)
+    n = model.n_states
+    if n == 0:
+        return np.broadcast_to(model.D, (x.size,) + model.D.shape).astype(complex)
+    R = np.linalg.solve(
+        x[:, None, None] * np.eye(n)[None] - model.A[None], np.broadcast_to(model.B, (x.size,) + model.B.shape)
+    )
+    return model.C[None] @ R + model.D[None]
