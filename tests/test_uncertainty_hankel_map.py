@@ -8,6 +8,7 @@ from stageid._errors import DataError
 from stageid.frf import FrequencyResponse
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
+from stageid.subspace.uncertainty import realised_response_uncertainty
 
 # For a circular complex Gaussian error with E|dG|^2 = std^2, P(|dG| <= k std) = 1 - exp(-k^2):
 # k = 1.73 covers 95 %.  The window is issue 20's; a std 3x too small covers ~28 %, 3x too large
@@ -43,11 +44,12 @@ def test_p558_realised_model_bands_are_calibrated():
         assert np.all(fr.std > 0)
         err.append(np.abs(fr.response - Gt))
         std.append(fr.std)
-    assert_calibrated(np.concatenate(err), np.concatenate(std))  # measured 0.924
+    assert_calibrated(np.concatenate(err), np.concatenate(std))  # measured 0.912 (0.924 with the former p P covariance)
 
 
-@pytest.mark.xfail(strict=True, reason="bands ~1.4x too wide on this stage (coverage 99.3 %): studies/uncertainty")
 def test_realised_model_bands_are_calibrated_on_an_unseen_stage():
+    # with the covariance under overlapping windows (window_covariance); the p P allowance it
+    # replaced covered 99.3 % here (bands ~1.4x too wide), so this was a strict xfail
     g = random_stage(8, m=1, q=2, modes=2)
     f = np.geomspace(2, 98, 60)
     Gt = g.frequency_response(f)
@@ -57,10 +59,7 @@ def test_realised_model_bands_are_calibrated_on_an_unseen_stage():
         fr = HankelMAP(horizon=25, order=4).fit(exp).response_uncertainty(f)
         err.append(np.abs(fr.response - Gt))
         std.append(fr.std)
-    err, std = np.concatenate(err), np.concatenate(std)
-    # the bands are conservative, never too narrow: a std 3x too small would be caught
-    assert coverage(err, std, 1 / 3) < WINDOW[0] and coverage(err, std) > WINDOW[0]
-    assert_calibrated(err, std)
+    assert_calibrated(np.concatenate(err), np.concatenate(std))  # measured 0.95 (studies: 94.9-95.0 %)
 
 
 def test_per_channel_fit_stacks_the_channels_own_uncertainty():
@@ -76,11 +75,12 @@ def test_per_channel_fit_stacks_the_channels_own_uncertainty():
 
 
 def test_delta_method_agrees_with_realising_posterior_draws():
+    # the first-order map against realising draws of the same (matrix-normal, p P) posterior
     g = random_stage(8, m=1, q=2, modes=2)
     exp = record(g, band_limited(6000, 1, g.dt, 3), 0.02, 3, names=False)
     res = HankelMAP(horizon=25, order=4).fit(exp)
     f = np.geomspace(2, 98, 40)
-    delta = res.response_uncertainty(f, method="delta")
+    delta = realised_response_uncertainty(res, f, method="delta", overlap="inflate")
     draws = res.response_uncertainty(f, method="sampling", n_samples=60, seed=1)
     ratio = delta.std / draws.std
     # 60 draws estimate a std to ~9 %; the first-order map misses the realisation's curvature
@@ -103,6 +103,8 @@ def test_result_is_a_frequency_response_of_the_model():
             res.response_uncertainty(bad)
     with pytest.raises(DataError, match="method"):
         res.response_uncertainty(f, method="bootstrap")
+    with pytest.raises(DataError, match="overlap"):
+        realised_response_uncertainty(res, f, overlap="hac")
 
 
 def test_markov_route_uses_posterior_draws():

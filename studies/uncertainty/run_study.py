@@ -34,15 +34,19 @@ from stageid.frf import FRDIdentification, FrequencyResponse
 from stageid.models import StateSpaceModel
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
+from stageid.subspace.uncertainty import realised_response_uncertainty
 
 sys.path.insert(0, str(Path(__file__).parents[2] / "tests"))
 from _subspace_systems import band_limited, random_stage, record  # noqa: E402
 
 OUT = Path(__file__).parent / "output"
+FRDResultTypes = ()  # set in main: the FRD result class (its uncertainty has no overlap rule)
 K95 = 1.73
 FREQS = np.geomspace(1.5, 98.0, 200)  # inside the excited 1-100 Hz band
 #: Horizon of the per-channel case: "auto", or an integer from the command line (--horizon=16).
 HORIZON: int | str = "auto"
+#: Eq. 9 covariance of the Hankel-MAP cases (--overlap=exact|inflate; default "auto" = exact).
+OVERLAP = "auto"
 
 
 def p558(seed: int):
@@ -77,6 +81,24 @@ def random_mimo(seed: int):
     return g, res, time.perf_counter() - t
 
 
+def random_siso(seed: int):
+    # unseen: SISO stages with three resonances, 8000 samples, 3 % noise (seeds 31-32)
+    g = random_stage(31 + seed % 2, m=1, q=1, modes=3)
+    exp = record(g, band_limited(8000, 1, g.dt, seed), 0.03, seed, names=False)
+    t = time.perf_counter()
+    res = HankelMAP(order=g.n_states).fit(exp)
+    return g, res, time.perf_counter() - t
+
+
+def random_3x2(seed: int):
+    # unseen: 3 outputs, 2 inputs, three resonances, 12000 samples, 1 % noise (seeds 41-42)
+    g = random_stage(41 + seed % 2, m=2, q=3, modes=3)
+    exp = record(g, band_limited(12000, 2, g.dt, seed), 0.01, seed, names=False)
+    t = time.perf_counter()
+    res = HankelMAP(order=g.n_states).fit(exp)
+    return g, res, time.perf_counter() - t
+
+
 def two_mode_plant() -> StateSpaceModel:
     A, B, C = np.zeros((4, 4)), np.zeros((4, 1)), np.zeros((2, 4))
     for i, (f, z, c) in enumerate([(12.0, 0.03, [1.0, 0.5]), (47.0, 0.02, [0.3, -0.8])]):
@@ -104,6 +126,8 @@ CASES = {
     "p558-channels": p558_channels,
     "random": random_case,
     "random-mimo": random_mimo,
+    "random-siso": random_siso,
+    "random-3x2": random_3x2,
     "frd": frd_case,
     "frd-residual": lambda seed: frd_case(seed, False),
 }
@@ -114,7 +138,10 @@ def run(case: str, n_seeds: int) -> dict:
     for seed in range(n_seeds):
         g, res, tf = CASES[case](seed)
         t = time.perf_counter()
-        fr = res.response_uncertainty(FREQS)
+        if isinstance(res, FRDResultTypes):
+            fr = res.response_uncertainty(FREQS)
+        else:
+            fr = realised_response_uncertainty(res, FREQS, overlap=OVERLAP)
         t_unc.append(time.perf_counter() - t)
         t_fit.append(tf)
         err = np.abs(fr.response - g.frequency_response(FREQS))
@@ -146,16 +173,22 @@ def run(case: str, n_seeds: int) -> dict:
         "entries": [f"{i}->{o}" for o, i in names],
     }
     OUT.mkdir(exist_ok=True)
-    (OUT / f"{case}.json").write_text(json.dumps(summary, indent=1))
+    summary["overlap"] = OVERLAP
+    (OUT / f"{case}-{OVERLAP}.json").write_text(json.dumps(summary, indent=1))
     return summary
 
 
 def main() -> None:
-    global HORIZON
-    args = [a for a in sys.argv[1:] if not a.startswith("--horizon=")]
+    global HORIZON, OVERLAP, FRDResultTypes
+    from stageid.frf.identification import FRDResult
+
+    FRDResultTypes = (FRDResult,)
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
     for a in sys.argv[1:]:
         if a.startswith("--horizon="):
             HORIZON = int(a.split("=", 1)[1])
+        if a.startswith("--overlap="):
+            OVERLAP = a.split("=", 1)[1]
     n = int(args[0]) if args else 20
     cases = args[1:] or list(CASES)
     for case in cases:

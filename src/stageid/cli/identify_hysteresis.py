@@ -179,6 +179,8 @@ def identify(
             initial_state=initial_state,
             input_warp=input_warp,
             creep_time_constants=None if creep == "none" else creep,
+            # a report draws the band the weights' uncertainty puts on the loops (issue 20)
+            weight_uncertainty="auto" if report_dir is not None else "none",
         ).fit(list(exps))
     else:
         fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics)
@@ -202,7 +204,8 @@ def identify(
             )
             for e, off in zip(exps, fit.output_offsets)
         ]
-        path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra)
+        band = getattr(fit, "weight_uncertainty", None)
+        path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
         say(f"report written to {path}", err=True)
 
 

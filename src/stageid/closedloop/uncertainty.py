@@ -21,16 +21,21 @@ Delta method, step by step (all first order, evaluated at the estimate):
    a kept complex pair is held fixed.
 
 **The reduction's bias.**  A fixed structure that cannot follow the deduced response leaves a
-systematic error the noise does not explain.  It is estimated per entry as the band's mean
-squared relative misfit beyond its noise expectation,
-``b^2 = max(0, ||r||^2 - E||r_noise||^2) / n_band`` with ``r_noise = (I - J_r J_r^+) dP / P``,
-and added as ``b^2 |P_r(f)|^2`` at every frequency (a relative error flat in frequency,
-extrapolated outside the band), so ``std`` is the root mean squared error of the returned
+systematic error the noise does not explain.  It is estimated per entry from the relative
+misfit ``r = (ZOH{P_r} - P) / P`` beyond its noise expectation (``r_noise = (I - J_r J_r^+) dP / P``)
+and added as ``b^2(f) |P_r(f)|^2``, so ``std`` is the root mean squared error of the returned
 model and not only its scatter.  At 70-80 dB this term, not the noise, dominates: the deduced
 response's error comes mostly from the closed-loop models' own bias, which the reduction's
-misfit measures.  ``bias="inflate"`` instead scales the propagated variance by the misfit's
-ratio to its noise expectation (keeping its frequency shape); coverage of both over 20 seeds,
-and where they fail, in studies/uncertainty_closedloop/RESULTS.md.
+misfit measures.  That error grows toward the low end of the band (there ``T`` is close to
+``I``: a small error of ``T`` is a large relative error of ``(M - M T)^-1``), so the default
+``bias="local"`` follows the misfit along the band, ``|r|^2 - E|r_noise|^2`` averaged over
+``LOCAL_WINDOW`` of the band's points on either side (outside the band, the larger of the
+edge's value and the band's mean);
+``bias="flat"`` spreads its band average ``b^2 = max(0, ||r||^2 - E||r_noise||^2) / n_band``
+evenly (too narrow at the low end: 84 % coverage at 20-39 Hz on the maglev), and
+``bias="inflate"`` scales the propagated variance by the misfit's ratio to its noise expectation
+(keeping its frequency shape).  Coverage of each, and where they fail, in
+studies/uncertainty_closedloop/RESULTS.md.
 
 With the ``"full"`` structure the returned plant is the cancelled deduction: its ``std`` is
 that of step 2.
@@ -47,6 +52,9 @@ from .covariance import transfer_gradient, transfer_gradient_at
 from .reduction import ReducedEntry, zoh_response
 
 __all__ = [
+    "BIAS_RULES",
+    "LOCAL_WINDOW",
+    "local_bias",
     "check_frequencies",
     "deduction_sensitivity",
     "deduced_variance",
@@ -100,16 +108,17 @@ def deduced_variance(result, freqs_hz: np.ndarray) -> np.ndarray:
 
 
 #: how the reduction's misfit beyond the noise enters ``std`` (module notes)
-BIAS_RULES = ("flat", "inflate", "none")
+BIAS_RULES = ("flat", "inflate", "local", "none")
 
 
 @single_blas_thread
-def plant_uncertainty(result, freqs_hz: object, bias: str = "flat") -> FrequencyResponse:
+def plant_uncertainty(result, freqs_hz: object, bias: str = "local") -> FrequencyResponse:
     """The returned plant's response and ``std = sqrt(E|G_est - G|^2)`` at ``freqs_hz`` (see the module notes).
 
-    ``bias``: "flat" (the default) adds the misfit as a relative error flat in frequency,
-    "inflate" scales the propagated variance by the misfit's ratio to its noise expectation,
-    "none" leaves the propagated variance alone (the study compares the three).
+    ``bias``: "local" (the default) adds the misfit beyond its noise as a relative error that
+    follows the misfit along the band (:func:`local_bias`), "flat" its band average at every
+    frequency, "inflate" scales the propagated variance by the misfit's ratio to its noise
+    expectation, "none" leaves the propagated variance alone (the studies compare them).
 
     Raises
     ------
@@ -134,18 +143,49 @@ def plant_uncertainty(result, freqs_hz: object, bias: str = "flat") -> Frequency
         var = deduced_variance(result, f)
     else:
         var, misfit, noise = _reduced_variance(result, f)
+        fb = result.covariance.band_freqs
         if bias == "flat":
-            var += np.maximum(misfit - noise, 0.0)[None] / result.covariance.band_freqs.size * np.abs(G) ** 2
+            var += np.maximum(misfit.sum(0) - noise.sum(0), 0.0)[None] / fb.size * np.abs(G) ** 2
         elif bias == "inflate":
-            var *= np.maximum(misfit / np.maximum(noise, 1e-300), 1.0)[None]
+            var *= np.maximum(misfit.sum(0) / np.maximum(noise.sum(0), 1e-300), 1.0)[None]
+        elif bias == "local":
+            var += local_bias(fb, misfit, noise, f) * np.abs(G) ** 2
     return FrequencyResponse(f, G, np.sqrt(var), None, result.plant.inputs, result.plant.outputs)
+
+
+#: ``bias="local"``: the misfit is averaged over this fraction of the band's (log-spaced) points
+#: on either side of each frequency
+LOCAL_WINDOW = 0.1
+
+
+def local_bias(fb: np.ndarray, misfit: np.ndarray, noise: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``b^2(f)`` of ``bias="local"``: the reduction's squared relative misfit beyond its noise
+    expectation, per band frequency ``fb`` (``misfit``, ``noise`` of shape (n_band, p, p)),
+    averaged over ``LOCAL_WINDOW`` of the band on either side, then interpolated in log frequency
+    to ``f``; outside the band, the larger of the nearest edge's value and the band's mean (the
+    ``"flat"`` value).  Shape (n_freqs, p, p)."""
+    h = max(1, int(round(LOCAL_WINDOW * fb.size)))
+    kernel = np.ones(2 * h + 1)
+    count = np.convolve(np.ones(fb.size), kernel, mode="same")
+    excess = misfit - noise
+    smooth = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, excess) / count[:, None, None]
+    smooth = np.maximum(smooth, 0.0)
+    lf, lb = np.log(f), np.log(fb)
+    out = np.empty((f.size,) + misfit.shape[1:])
+    for a in range(misfit.shape[1]):
+        for b in range(misfit.shape[2]):
+            out[:, a, b] = np.interp(lf, lb, smooth[:, a, b])
+    # outside the band nothing measures the misfit: the larger of the edge's and the band's mean
+    outside = (f < fb[0]) | (f > fb[-1])
+    out[outside] = np.maximum(out[outside], np.maximum(excess.mean(axis=0), 0.0)[None])
+    return out
 
 
 def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Steps 1-4 for every entry of a reduced plant: ``(var, misfit, noise)``.
 
-    ``var`` (n_freqs, p, p) is the propagated variance, ``misfit`` (p, p) the reduction's
-    ``||r||^2`` over the band and ``noise`` (p, p) its expectation under the noise alone.
+    ``var`` (n_freqs, p, p) is the propagated variance, ``misfit`` (n_band, p, p) the reduction's
+    ``|r|^2`` at each band frequency and ``noise`` (n_band, p, p) its expectation under the noise alone.
     """
     fb = result.covariance.band_freqs
     L, R, g, P = deduction_sensitivity(result, fb)
@@ -153,7 +193,7 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     discrete = result.plant.dt is not None
     pole_sens = unstable_pole_sensitivity(result)
     p = L.shape[1]
-    var, misfit, noise = np.zeros((f.size, p, p)), np.zeros((p, p)), np.zeros((p, p))
+    var, misfit, noise = np.zeros((f.size, p, p)), np.zeros((fb.size, p, p)), np.zeros((fb.size, p, p))
     for (a, b), red in result.reduced.items():
         Pab = P[:, a, b]
         Jr = _stack(_tangent(red, fb, result.dt, w0, zoh=True) / Pab[:, None])
@@ -162,7 +202,7 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
         kept = _kept_poles(red, result.unstable_poles)
         Jp = _stack(_pole_tangent(red, [p for p, _ in kept], fb, result.dt, w0, zoh=True) / Pab[:, None])
         Ep = _pole_tangent(red, [p for p, _ in kept], f, result.dt, w0, zoh=discrete)
-        noise_resid = 0.0
+        noise_resid = np.zeros(fb.size)
         for (i, j), gij in g.items():
             C = result.covariance.covariances[(i, j)]
             S = _stack((L[:, a, i] * R[:, j, b] / Pab)[:, None] * gij)  # d(dP/P)/dtheta, stacked
@@ -171,9 +211,10 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
             QS = Q @ S
             var[:, a, b] += _quadratic(E @ QS + Ep @ Hp, C)
             Rn = S - Jr @ QS  # what the fit leaves of the noise
-            noise_resid += float(np.sum((Rn @ C) * Rn))
+            per_row = np.sum((Rn @ C) * Rn, axis=1)  # [Re; Im] rows of each band frequency
+            noise_resid += per_row[: fb.size] + per_row[fb.size :]
         fit = _stack((zoh_response(red.num, red.den, result.dt, fb) - Pab) / Pab)
-        misfit[a, b], noise[a, b] = float(fit @ fit), noise_resid
+        misfit[:, a, b], noise[:, a, b] = fit[: fb.size] ** 2 + fit[fb.size :] ** 2, noise_resid
     return var, misfit, noise
 
 

@@ -187,24 +187,33 @@ def _damping(p: complex, dt: float | None) -> float:
 
 
 def hysteresis_model_report(
-    model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model"
+    model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model", uncertainty: Any = None
 ) -> tuple[Report, dict[str, Any]]:
     """Measured versus modelled input-output loops and the modelling error in % of range.
 
     When a record's output does not move its range is zero: the error in % of range is
     undefined (NaN in the metrics, ``null`` in ``metrics.json``) and the error is plotted in
-    the output's own unit.
+    the output's own unit.  ``uncertainty`` (the fit's
+    :class:`~stageid.hysteresis.WeightUncertainty`) draws the band the weights' uncertainty puts
+    on each simulated loop (:func:`~stageid.report.uncertainty.loop_band_figure`) and reports its
+    half-width and how much of the record it holds.
     """
     from ..plots._style import subplots
+    from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
     report.section("Model")
     report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
+    band_rows = []
     for k, exp in enumerate(records):
+        name = exp.name or k
         u = exp.u[:, 0]
         y = exp.y[:, 0]
-        y_hat = model.simulate(exp.u)[:, 0]
+        if uncertainty is not None:
+            y_hat, std = uncertainty.output_band(model, exp.u, exp.dt)
+        else:
+            y_hat, std = model.simulate(exp.u)[:, 0], None
         y_range = float(np.ptp(y))
         if y_range > 0:
             err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
@@ -218,17 +227,43 @@ def hysteresis_model_report(
             unit = exp.output_units[0] or "-"
             err_trace, err_label = y - y_hat, f"error [{unit}]"
             err_text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
-        metrics[f"max_error_percent_range/{exp.name or k}"] = err
+        metrics[f"max_error_percent_range/{name}"] = err
+        labels = (
+            f"{model.inputs[0]} [{exp.input_units[0] or '-'}]",
+            f"{model.outputs[0]} [{exp.output_units[0] or '-'}]",
+        )
+        if std is not None:
+            half = LOOP_N_STD * std * (100.0 / y_range if y_range > 0 else float("nan"))
+            inside = float(np.mean(np.abs(y - y_hat) <= LOOP_N_STD * std))
+            metrics[f"loop_band/median_half_width_percent_range/{name}"] = float(np.median(half))
+            metrics[f"loop_band/max_half_width_percent_range/{name}"] = float(np.max(half))
+            metrics[f"loop_band/error_inside_percent/{name}"] = 100 * inside
+            band_rows.append([exp.name or f"record {k}", float(np.median(half)), float(np.max(half)), 100 * inside])
+            report.figure(
+                loop_band_figure(u, y, y_hat, std, exp.time, labels, y_range),
+                f"{exp.name or f'record {k}'}: loops with the band of +-{LOOP_N_STD:g} std that the weights' "
+                f"uncertainty ({uncertainty.method}) puts on the simulated output, and the modelling error "
+                f"inside it ({err_text}).",
+            )
+            continue
         fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
         a.plot(u, y, color="0.2", lw=1.2, label="measured")
         a.plot(u, y_hat, "--", lw=1.0, label="model")
-        a.set_xlabel(f"{model.inputs[0]} [{exp.input_units[0] or '-'}]")
-        a.set_ylabel(f"{model.outputs[0]} [{exp.output_units[0] or '-'}]")
+        a.set_xlabel(labels[0])
+        a.set_ylabel(labels[1])
         a.legend()
         b.plot(exp.time, err_trace, color="C3", lw=0.9)
         b.set_xlabel("time [s]")
         b.set_ylabel(err_label)
         report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).")
+    if band_rows:
+        report.section("Uncertainty of the weights")
+        report.table(
+            ["record", "median half-width [% of range]", "max half-width [% of range]", "error inside [% of samples]"],
+            band_rows,
+            caption=f"+-{LOOP_N_STD:g} std band of the simulated output from the weights' covariance; it says how "
+            "well the data fix the weights, not how wrong the model's structure is",
+        )
     return report, metrics
 
 
@@ -236,7 +271,8 @@ def model_report(
     model: Any, experiments: Sequence[Any] = (), title: str | None = None, uncertainty: Any = None
 ) -> tuple[Report, dict[str, Any]]:
     """A report for any stageid model: LTI models get Bode/pole-zero/simulation (with ``uncertainty``
-    bands when given, see :func:`lti_model_report`), hysteresis models loops."""
+    bands when given, a FrequencyResponse, see :func:`lti_model_report`), hysteresis models loops
+    (with the band of a :class:`~stageid.hysteresis.WeightUncertainty` ``uncertainty``)."""
     if hasattr(model, "frequency_response"):
         return lti_model_report(model, experiments, title or "Identified LTI model", uncertainty=uncertainty)
-    return hysteresis_model_report(model, experiments, title or "Identified hysteresis model")
+    return hysteresis_model_report(model, experiments, title or "Identified hysteresis model", uncertainty)

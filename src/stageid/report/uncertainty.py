@@ -14,10 +14,12 @@ import numpy as np
 
 from .html import Report
 
-__all__ = ["N_STD", "magnitude_band", "uncertainty_section"]
+__all__ = ["N_STD", "LOOP_N_STD", "magnitude_band", "uncertainty_section", "loop_band_figure"]
 
 #: Width of the drawn bands in standard deviations.
 N_STD = 2.0
+#: Width of a hysteresis loop's band (the output's error is real: 1.96 std covers 95 %).
+LOOP_N_STD = 1.96
 
 
 def magnitude_band(fr: Any, n_std: float = N_STD) -> tuple[np.ndarray, np.ndarray]:
@@ -59,3 +61,39 @@ def uncertainty_section(report: Report, metrics: dict[str, Any], fr: Any, source
         rows,
         caption=f"Relative standard deviation over {fr.freqs[0]:.3g}-{fr.freqs[-1]:.3g} Hz",
     )
+
+
+def loop_band_figure(
+    u: np.ndarray,
+    y: np.ndarray,
+    y_hat: np.ndarray,
+    std: np.ndarray,
+    time: np.ndarray,
+    labels: tuple[str, str],
+    y_range: float,
+) -> Any:
+    """A hysteresis model's loop with the band the weights' uncertainty puts on it.
+
+    Left: measured loop, the model's loop and its ``+-LOOP_N_STD std`` edges; right: the error
+    ``y - y_hat`` in % of ``y_range`` (the output's own unit when the range is 0) inside the
+    shaded band.  ``std`` is the simulated output's standard deviation
+    (:meth:`~stageid.hysteresis.WeightUncertainty.output_band`).
+    """
+    from ..plots._style import subplots
+
+    unit = 100.0 / y_range if y_range > 0 else 1.0
+    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
+    a.plot(u, y, color="0.2", lw=1.2, label="measured")
+    a.plot(u, y_hat, "--", color="C0", lw=1.0, label="model")
+    for sign in (1.0, -1.0):
+        a.plot(u, y_hat + sign * LOOP_N_STD * std, color="C1", lw=0.6, label=None if sign < 0 else "band edges")
+    a.set_xlabel(labels[0])
+    a.set_ylabel(labels[1])
+    a.legend()
+    half = LOOP_N_STD * std * unit
+    b.fill_between(time, -half, half, color="C1", alpha=0.35, label=f"+-{LOOP_N_STD:g} std (weights)")
+    b.plot(time, (y - y_hat) * unit, color="C3", lw=0.9, label="measured - model")
+    b.set_xlabel("time [s]")
+    b.set_ylabel("error [% of range]" if y_range > 0 else "error")
+    b.legend()
+    return fig

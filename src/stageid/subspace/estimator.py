@@ -72,6 +72,7 @@ from .selection import (
     select_order,
     split_statistics,
 )
+from .window_covariance import window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -340,6 +341,7 @@ class HankelMAP(Estimator):
             order_table,
             cost,
             scales=(su.copy(), sy.copy()),
+            window_lags=window_lags(recs, horizon) if prev is None and lam == 1.0 else None,
         )
 
     # ----------------------------------------------------------------- helpers

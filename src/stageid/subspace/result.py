@@ -26,6 +26,7 @@ from .map_estimator import Posterior
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
 from .weighting import output_weights, weight_scales, weighted_theta
+from .window_covariance import WindowLags
 
 __all__ = ["ChannelFit", "HankelMAPResult"]
 
@@ -49,6 +50,9 @@ class ChannelFit:
     fit_cost: float
     offsets: tuple[np.ndarray, np.ndarray] | None = None
     scales: tuple[np.ndarray, np.ndarray] | None = None
+    #: Lag statistics of the scaled records (:mod:`.window_covariance`) for the covariance of
+    #: ``response_uncertainty`` under overlapping windows; None for updates and forgetting.
+    window_lags: WindowLags | None = None
 
     @cached_property
     def posterior(self) -> Posterior:

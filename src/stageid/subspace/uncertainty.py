@@ -12,10 +12,12 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
   ``dx = J^+ dG_9`` (``J`` the Jacobian of the model's response in ``A, B, C, D``; the
   pseudo-inverse drops the ``n^2`` similarity directions, which do not change the response)
   and its response anywhere by ``J(f) dx``.  ``dG_9 = L^+ dtheta V(z)`` (first order in the
-  block-row equations of eq. 9, as in ``theta_response_std``) with the matrix-normal
-  ``Cov(vec theta) = p P (x) Sigma`` (the ``p`` for the overlap of consecutive windows, as in
-  ``response_bands``) gives the covariance of ``dG_9`` across the whole grid, and so
-  ``Cov(dx)``;
+  block-row equations of eq. 9, as in ``theta_response_std``); the covariance of ``dG_9``
+  across the whole grid, and so ``Cov(dx)``, is the one the least-squares coefficients have
+  under overlapping windows (:mod:`.window_covariance`, from lag statistics the fit keeps), or,
+  when the fit kept none (``update``, forgetting, records shorter than ``8 p``), the
+  matrix-normal ``p P (x) Sigma`` (``P`` times ``p`` for the overlap, as in ``response_bands``:
+  a rough allowance, ~1.4x too wide in std on some stages);
 * ``"sampling"``: draws of ``theta`` from that posterior, each realised by the very route
   and order of the fit (:func:`~.realization.realize`), the spread of their responses
   around the identified one.  Slower; for ``realization="markov"`` (Lemma 1, not a
@@ -23,8 +25,8 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
 
 Per-input-channel fits (eq. 19-22) are independent (disjoint records): the stacked model's
 column ``j`` is the ``j``-th sub-model's, with its own posterior.  Neither way counts the bias
-of a realisation whose order cannot fit the system (measured in
-``studies/uncertainty/RESULTS.md``).
+of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) or of a
+realisation whose order cannot fit the system (measured in ``studies/uncertainty/RESULTS.md``).
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from .map_estimator import Posterior
 from .realization import realize
 from .records import check_freqs
 from .weighting import output_weights, weight_scales, weighted_theta
+from .window_covariance import overlap_response_covariance
 
 __all__ = [
     "UNCERTAINTY_METHODS",
@@ -52,6 +55,8 @@ __all__ = [
     "TangentProjection",
     "response_std",
     "eq9_response_covariance",
+    "weighted_parts",
+    "channel_delta_std",
     "realised_response_uncertainty",
 ]
 
@@ -59,6 +64,12 @@ __all__ = [
 DEFAULT_SAMPLES = 40
 #: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
 MAX_COVARIANCE_ENTRIES = 300
+#: For the covariance under overlapping windows (``overlap="exact"``): at most this many
+#: frequencies times ``max(q, m)``; its spectra are ``8 p x n_freqs max(q, m) x 2 n_freqs max(q, m)``.
+#: A cost/resolution trade-off: fewer frequencies under-resolve lightly damped modes and widen
+#: the bands (unseen 3x2 stages: 97.7 % coverage at 96, 98.6 % at 72, 99.2 % at 60), more cost
+#: (P-558: 0.52 s at 96, 0.20 s at 72); ``studies/uncertainty/RESULTS.md``.
+MAX_OVERLAP_COLUMNS = 72
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256
 #: Relative singular value (of the column-normalised Jacobian) below which a direction of
@@ -223,19 +234,21 @@ def eq9_response_covariance(
     return G, cov, pseudo
 
 
-def covariance_grid(band: tuple[float, float], n_frequencies: int, n_entries: int) -> np.ndarray:
+def covariance_grid(
+    band: tuple[float, float], n_frequencies: int, n_entries: int, cap: int = MAX_COVARIANCE_ENTRIES
+) -> np.ndarray:
     """The realisation's grid (``n_frequencies`` evenly over ``band``), every ``s``-th point kept so
-    that at most ``MAX_COVARIANCE_ENTRIES`` response entries enter the covariance.
+    that at most ``cap`` response entries enter the covariance.
 
     The realisation's least-squares fit on an even grid approximates an integral over the band;
     a coarser even grid approximates the same integral as long as it resolves the response, and
     the covariance costs ``(n_freqs q m)^2`` memory and ``r (n_freqs q m)^2`` work.
     """
-    stride = max(1, int(np.ceil(n_frequencies * n_entries / MAX_COVARIANCE_ENTRIES)))
+    stride = max(1, int(np.ceil(n_frequencies * n_entries / cap)))
     return np.linspace(band[0], band[1], n_frequencies)[::stride]
 
 
-def _weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``theta`` and its covariance factors for the noise-whitened outputs the realisation fits
     (``p P`` for the window overlap, as ``response_bands``), and the output weights."""
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
@@ -251,14 +264,29 @@ def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: 
     return model.A, model.B * su[None, :], model.C * ow, model.D * su[None, :] * ow
 
 
-def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float) -> np.ndarray:
-    """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units)."""
+def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto") -> np.ndarray:
+    """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
+
+    ``overlap``: ``"exact"`` takes the eq. 9 covariance under overlapping windows
+    (:mod:`.window_covariance`, from the lag statistics the fit kept); ``"inflate"`` the
+    matrix-normal ``p P (x) Sigma`` (windows counted as independent, ``P`` times ``p`` for their
+    overlap: a rough allowance); ``"auto"`` the first when the fit kept its lag statistics (not
+    after ``update``, with forgetting, or on records shorter than ``8 p``).
+    """
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
     su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
-    theta_w, col_cov, noise_cov, w = _weighted_parts(post)
-    grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
-    G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
+    theta_w, col_cov, noise_cov, w = weighted_parts(post)
+    exact = overlap == "exact" or (overlap == "auto" and ch.window_lags is not None)
+    if exact and ch.window_lags is None:
+        raise DataError("`overlap='exact'` needs the fit's lag statistics; this fit has none (update or forgetting).")
+    if exact:
+        grid = covariance_grid(ch.band, int(estimator.n_frequencies), max(q, m), MAX_OVERLAP_COLUMNS)
+        stats = ch.window_lags.weighted(np.concatenate([np.ones(m), w]))  # z = [u; w y], the realisation's outputs
+        G9, cov, pseudo = overlap_response_covariance(theta_w, col_cov / p, stats, post.n_windows, p, m, q, grid, dt)
+    else:
+        grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
+        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
@@ -297,6 +325,8 @@ def _psd_factor(M: np.ndarray) -> np.ndarray:
 
 #: ``method`` of :func:`realised_response_uncertainty` -> what it does (``"auto"`` picks).
 UNCERTAINTY_METHODS = ("auto", "delta", "sampling")
+#: ``overlap`` of :func:`realised_response_uncertainty` (:func:`channel_delta_std`).
+OVERLAP_RULES = ("auto", "exact", "inflate")
 
 
 @single_blas_thread
@@ -306,6 +336,7 @@ def realised_response_uncertainty(
     method: str = "auto",
     n_samples: int = DEFAULT_SAMPLES,
     seed: int = 0,
+    overlap: str = "auto",
 ) -> FrequencyResponse:
     """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
 
@@ -317,16 +348,21 @@ def realised_response_uncertainty(
     method : {"auto", "delta", "sampling"}
         ``auto``: ``delta`` for the refined frequency route, ``sampling`` otherwise.
     n_samples, seed : int
-        Draws and seed of ``sampling``.
+        Draws and seed of ``sampling`` (whose posterior is the matrix-normal one with ``p P``).
+    overlap : {"auto", "exact", "inflate"}
+        The eq. 9 covariance of ``delta`` (:func:`channel_delta_std`).
 
     Raises
     ------
     DataError
-        Frequencies that are not finite, negative or above Nyquist; an unknown ``method``.
+        Frequencies that are not finite, negative or above Nyquist; an unknown ``method`` or
+        ``overlap``; ``overlap="exact"`` for a fit without lag statistics.
     """
     f = check_freqs(freqs_hz, result.model.dt)
     if method not in UNCERTAINTY_METHODS:
         raise DataError(f"`method` must be one of {', '.join(UNCERTAINTY_METHODS)}; got {method!r}.")
+    if overlap not in OVERLAP_RULES:
+        raise DataError(f"`overlap` must be one of {', '.join(OVERLAP_RULES)}; got {overlap!r}.")
     est = result.estimator
     if method == "auto":
         method = "delta" if est.realization == "frequency" and est.refine else "sampling"
@@ -335,10 +371,24 @@ def realised_response_uncertainty(
     stds = []
     for ch in result.channels:
         if method == "delta":
-            stds.append(channel_delta_std(ch, est, f, dt))
+            stds.append(channel_delta_std(ch, est, f, dt, overlap))
         else:
             stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
     model = result.model
     return FrequencyResponse(
-        f, model.frequency_response(f), np.concatenate(stds, axis=2), None, model.inputs, model.outputs
+        f, model_response(model, f), np.concatenate(stds, axis=2), None, model.inputs, model.outputs
     )
+
+
+def model_response(model: StateSpaceModel, freqs_hz: np.ndarray) -> np.ndarray:
+    """``C (xI - A)^-1 B + D`` at ``freqs_hz`` by numpy's batched solve, shape (n_freqs, q, m):
+    ``model.frequency_response`` imports scipy.linalg, which costs a command-line run more than
+    the uncertainty itself."""
+    x = response_points(freqs_hz, model.dt)
+    n = model.n_states
+    if n == 0:
+        return np.broadcast_to(model.D, (x.size,) + model.D.shape).astype(complex)
+    R = np.linalg.solve(
+        x[:, None, None] * np.eye(n)[None] - model.A[None], np.broadcast_to(model.B, (x.size,) + model.B.shape)
+    )
+    return model.C[None] @ R + model.D[None]

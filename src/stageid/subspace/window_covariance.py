@@ -1,0 +1,217 @@
+"""Covariance of the eq. 9 response under overlapping windows (Cao & Chen 2013, eq. 9 and 16-18).
+
+Consecutive windows of eq. 9 share ``2 p - 1`` samples, so the errors ``Delta(k)`` of nearby
+windows are correlated: with white output noise, ``Delta(k)`` holds the noise of samples
+``k - p .. k + p - 1`` and is a moving average of order ``2 p - 1``.  The recursion of eq. 17
+treats the windows as independent, so ``P (x) Sigma`` understates the least-squares
+coefficients' covariance; the ``p P`` allowance of ``response_bands`` is a rough fix.  This
+module computes the covariance the least-squares (MAP) coefficients actually have, for the one
+thing the uncertainty needs: the eq. 9 response on a grid.
+
+To first order ``dG_k = L_k^+ dtheta V_k`` and ``dtheta = sum_t Delta(t) x(t)^T P``, so
+
+    dG_k = sum_t b_t(k) a_t(k)^T,   b_t(k) = L_k^+ Delta(t),   a_t(k) = (P V_k)^T x(t),
+
+two FIR-filtered versions of the window signal ``z = [u; y]``.  With ``Delta`` independent of
+the regressors and stationary (a heteroskedasticity-and-autocorrelation-consistent sandwich
+with the truncated kernel, lags ``|l| <= 2 p - 1``: exact for a moving average of that order),
+
+    E[dG_k(i, j) conj dG_l(i', j')] = sum_l Sb_l[(k,i), (l,i')] A_l[(k,j), (l,j')],
+
+``A_l = sum_t a_t conj(a_(t+l))^T`` (the sample lag products of the regressor filter) and
+``Sb_l = E[b_t conj(b_(t+l))^T]`` (the residual filter's lag covariance, estimated from the
+residuals per window); the pseudo-covariance likewise without the conjugates.  Both come from
+the lag correlations ``R(c) = sum_t z(t) z(t+c)^T`` of the records up to ``c = 4 p - 2`` and
+their first and last ``4 p - 2`` samples (:class:`WindowLags`, kept by the fit), through the
+spectral identity ``sum_(a,b) h(a)^T R(l + b - a) conj h'(b) = 1/n sum_w e^(i w l) H(w)^T S(w) conj H'(w)``
+with ``S`` the DFT of ``R`` (no lag wraps for ``n = 8 p``), minus the pairs in which a window
+sticks out of a record (:func:`lag_products`).  Only the lags ``l >= 0`` are formed: those at
+``-l`` are their (conjugate) transposes.  Cost ``~ 8 p (n_freqs max(q, m))^2 (m + q)``,
+independent of the record length; the covariance under overlapping windows of Hankel-Toeplitz
+estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .correlations import RecordRows, lag_correlations
+from .hankel_toeplitz import regressor_indices, response_systems
+
+__all__ = ["WindowLags", "window_lags", "WindowFilter", "lag_spectrum", "lag_products", "overlap_response_covariance"]
+
+#: Most complex entries of the per-frequency spectral products formed at once (cache, memory).
+BLOCK_ENTRIES = 1 << 18
+
+
+@dataclass(frozen=True, eq=False)
+class WindowLags:
+    """What :func:`overlap_response_covariance` needs of the records, kept by the fit (a few
+    ``(m + q)^2 p`` numbers, not the records).
+
+    Attributes
+    ----------
+    lags : ndarray of shape (4 p - 1, m + q, m + q)
+        ``R(c) = sum_t z(t) z(t+c)^T`` of ``z = [u y]``, summed over the records.
+    heads, tails : ndarray of shape (n_records, 4 p - 2, m + q)
+        The first and last ``4 p - 2`` samples of every record: the windows sticking out of a
+        record (which ``R`` counts, zero-padded) are subtracted exactly from them.
+    """
+
+    lags: np.ndarray
+    heads: np.ndarray
+    tails: np.ndarray
+
+    def weighted(self, scale: np.ndarray) -> WindowLags:
+        """The same for ``z`` times ``scale`` (per channel)."""
+        return WindowLags(self.lags * np.outer(scale, scale)[None], self.heads * scale, self.tails * scale)
+
+
+def window_lags(records: list[tuple[np.ndarray, np.ndarray]], horizon: int) -> WindowLags | None:
+    """:class:`WindowLags` of the records at ``horizon``; None when a record is shorter than ``8 p``
+    (its head and tail windows would meet)."""
+    p = int(horizon)
+    if any(u.shape[0] < 8 * p for u, _ in records):
+        return None
+    L = 4 * p - 1
+    r = records[0][0].shape[1] + records[0][1].shape[1]
+    R = np.zeros((L, r, r))
+    for u, y in records:
+        R += lag_correlations(RecordRows([u, y]), L - 1)
+    heads = np.stack([np.hstack([u[: L - 1], y[: L - 1]]) for u, y in records])
+    tails = np.stack([np.hstack([u[-(L - 1) :], y[-(L - 1) :]]) for u, y in records])
+    return WindowLags(R, heads, tails)
+
+
+def lag_spectrum(R: np.ndarray, n: int) -> np.ndarray:
+    """``S(w_k) = sum_c R(c) e^(-i w_k c)`` over ``c = -(L-1) .. L-1`` (``R(-c) = R(c)^T``), shape (n, r, r)."""
+    L = R.shape[0]
+    full = np.zeros((n,) + R.shape[1:])
+    full[:L] = R
+    full[n - L + 1 :] = R[:0:-1].transpose(0, 2, 1)
+    return np.fft.fft(full, axis=0)
+
+
+class WindowFilter:
+    """A filter of the windows, ``s_t = sum_pos h[pos]^T w_t[pos]`` (one column per output), with
+    the DFTs the lag products need (``n`` points over the window positions)."""
+
+    def __init__(self, weights: np.ndarray, positions: np.ndarray, horizon: int, r: int, n: int):
+        h = np.zeros((2 * horizon * r, weights.shape[1]), dtype=complex)
+        h[positions] = weights
+        self.h = h.reshape(2 * horizon, r, -1)
+        self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
+        self.H_t = np.ascontiguousarray(self.H.transpose(0, 2, 1))
+        self.H_conj = np.fft.fft(np.conj(self.h), n=n, axis=0)
+
+    def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
+        """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
+        (``t = K-(2p-1) .. n-1``), the record zero-padded, from its ``4 p - 2`` end samples."""
+        L = self.h.shape[0]
+        pad = np.zeros((L - 1, samples.shape[1]))
+        z = np.vstack([pad, samples]) if head else np.vstack([samples, pad])
+        win = np.lib.stride_tricks.sliding_window_view(z, L, axis=0)  # (4p-2, r, L)
+        return np.einsum("tra,arc->tc", win, self.h, optimize=True)
+
+
+def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags: np.ndarray):
+    """``sum_t s_t conj(s'_(t+l))^T`` and ``sum_t s_t s'_(t+l)^T`` over the pairs of windows lying
+    wholly inside a record, at ``lags``: the zero-padded sum from the lag correlations (module
+    docstring) minus the pairs in which a window sticks out of a record, summed as spectra before
+    one inverse DFT.  Two arrays of shape (n_lags, cols_a, cols_b)."""
+    n = S.shape[0]
+    half = fa.h.shape[0] - 1  # 2p - 1 partial windows at each end
+    xs, ys = [], []
+    for edges, head in ((stats.heads, True), (stats.tails, False)):
+        out = (np.arange(2 * half) < half) if head else (np.arange(2 * half) >= half)
+        for samples in edges:
+            x = fa.edge_series(samples, head)
+            y = fb.edge_series(samples, head)
+            y = np.hstack([np.conj(y), y])
+            # pairs with the first window outside, plus pairs with only the second outside
+            xs += [x * out[:, None], x * ~out[:, None]]
+            ys += [y, y * out[:, None]]
+    # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T with X~(w) = sum_t x_t e^(+i w t),
+    # so both sums are one product [H_a^T S, -X~^T] [conj H_b; Y] per frequency
+    Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n, axis=1)).transpose(1, 2, 0)  # (n, cols_a, pieces)
+    Y = np.fft.fft(np.stack(ys), n=n, axis=1).transpose(1, 0, 2)
+    left = np.concatenate([np.matmul(fa.H_t, S), -Xt], axis=2)
+    right = np.concatenate([np.conj(np.concatenate([fb.H, fb.H_conj], axis=2)), Y], axis=1)
+    both = np.empty((lags.size, left.shape[1], right.shape[2]), dtype=complex)
+    step = max(1, BLOCK_ENTRIES // (n * right.shape[2]))  # a few MB per block: it stays in cache
+    for lo in range(0, left.shape[1], step):
+        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[lags % n]
+    cb = fb.h.shape[2]
+    return both[:, :, :cb], both[:, :, cb:]
+
+
+def overlap_response_covariance(
+    theta: np.ndarray,
+    column_cov: np.ndarray,
+    stats: WindowLags,
+    n_windows: float,
+    horizon: int,
+    n_inputs: int,
+    n_outputs: int,
+    freqs: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The eq. 9 response on a grid and the covariance of its error across the grid (module docstring).
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p q, d)
+        Posterior mean in the coordinates of ``lag_corr``.
+    column_cov : ndarray of shape (d, d)
+        ``P`` (the inverse of the posterior information ``sum x x^T + P_0^-1``), same coordinates.
+    stats : WindowLags
+        Of the records, in the same coordinates.
+    n_windows : float
+        Windows of the fit (the residual covariance is their sum over ``n_windows - d``).
+
+    Returns
+    -------
+    G : ndarray of shape (n_freqs, q, m), complex
+    cov, pseudo : ndarrays of shape (n_freqs q m, n_freqs q m), complex (``vec`` in (k, i, j) order)
+    """
+    p, m, q = horizon, n_inputs, n_outputs
+    r, d = m + q, theta.shape[1]
+    lhs, rhs, e_past, e_fut = response_systems(theta, p, m, q, freqs, dt)
+    nz = e_past.shape[0]
+    lh = np.conj(lhs).transpose(0, 2, 1)
+    Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq)
+    G = Lp @ rhs
+    eye = np.eye(m)[None, :, None, :]
+    V = np.concatenate(
+        [
+            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
+            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+        ]
+    )
+    xi, yi = regressor_indices(p, m, q)
+    n = 8 * p  # > 8 p - 4: no lag |l| <= 2p - 1 wraps (module docstring)
+    S = lag_spectrum(stats.lags, n)
+    # lags 0 .. 2p - 1 only: the products at -l are those at l transposed (and conjugated for cov)
+    lags = np.arange(2 * p)
+    # a_t = (P V)^T x_t: the regressor filter, one column per (k, j)
+    fa = WindowFilter(column_cov @ V, xi, p, r, n)
+    A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in lag_products(fa, fa, S, stats, lags))
+    # b_t = L^+ (y_p - theta x)_t: the residual filter, one column per (k, i)
+    E = np.zeros((p * q, 2 * p * r))
+    E[:, yi] = np.eye(p * q)
+    E[:, xi] = -theta
+    fb = WindowFilter(E.T @ Lp.reshape(nz * q, p * q).T, np.arange(2 * p * r), p, r, n)
+    dof = max(float(n_windows) - d, 1.0)
+    B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in lag_products(fb, fb, S, stats, lags))
+    N = nz * q * m
+    # sum over l >= 1 of B(l) (.) A(l); the negative lags add its (conjugate) transpose
+    half_c = np.einsum("ckilx,ckjly->kijlxy", B_c[1:], A_c[1:], optimize=True).reshape(N, N)
+    half_p = np.einsum("ckilx,ckjly->kijlxy", B_p[1:], A_p[1:], optimize=True).reshape(N, N)
+    zero_c = np.einsum("kilx,kjly->kijlxy", B_c[0], A_c[0]).reshape(N, N)
+    zero_p = np.einsum("kilx,kjly->kijlxy", B_p[0], A_p[0]).reshape(N, N)
+    cov = zero_c + half_c + np.conj(half_c).T
+    pseudo = zero_p + half_p + half_p.T
+    return G, cov, pseudo
