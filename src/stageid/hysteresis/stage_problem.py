@@ -58,6 +58,10 @@ class StageProblem:
             out.append(np.hstack(cols))
         return out
 
+    def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
+        """Columns the searches for ``G`` run on (all of them here; a reduced set for many columns)."""
+        return cols
+
     def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
         """Constrained LS of ``y`` by ``cols`` plus one offset per record: (weights incl. creep, offsets)."""
         from scipy.optimize import lsq_linear
@@ -115,9 +119,10 @@ class StageProblem:
         best = (self.sse(cols, masks, wc, offsets), wc, offsets, None)
         if order:
             segs = self.segments(masks, order)
-            starts = [None] + [ba for ba in (refine_output_error(self, cols, masks, order),) if ba is not None]
+            search = self.search_columns(cols, masks)
+            starts = [None] + [ba for ba in (refine_output_error(self, search, masks, order),) if ba is not None]
             try:
-                starts.append(fit_hammerstein([(cols[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
+                starts.append(fit_hammerstein([(search[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
             except (IdentificationError, np.linalg.LinAlgError):
                 pass
             for ba in starts:
