@@ -253,7 +253,7 @@ class StageIdentifier(Estimator):
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
             message=f"{base_message}; weights, creep and dynamics "
-            f"alternated {N_ALTERNATIONS} times"
+            + (f"alternated {N_ALTERNATIONS} times" if problem.settle == 0 else "alternated until settled")
             + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
         )
 

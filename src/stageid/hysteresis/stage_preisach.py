@@ -49,6 +49,11 @@ def preisach_cell_states(u: np.ndarray, model: PreisachModel, kind: str) -> np.n
 class PreisachStageProblem(StageProblem):
     """:class:`StageProblem` with Preisach cell states as the columns and non-negative weights."""
 
+    # the searches see only the leading directions, so the alternation finishes the fit of G:
+    # it runs until the residual settles (a few rounds on the FORC records, more on a resonance)
+    n_alternations = 30
+    settle = 1e-4
+
     def __init__(self, hysteresis: PreisachModel, recs: list, kinds: list[str], dt: float, smoothing: float) -> None:
         self.h = hysteresis
         self.recs = recs

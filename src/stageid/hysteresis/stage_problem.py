@@ -30,6 +30,11 @@ MAX_ROWS = 40000
 class StageProblem:
     """Operator and creep columns of every record (full rate) and the alternating fit of step 2."""
 
+    #: Rounds of the alternation from each start, and the relative drop of the residual below
+    #: which it stops early (0: never; the PI fit runs all its rounds).
+    n_alternations = N_ALTERNATIONS
+    settle = 0.0
+
     def __init__(self, hysteresis: Any, recs: list, kinds: list[str], dt: float) -> None:
         self.h = hysteresis
         self.recs = recs
@@ -127,7 +132,8 @@ class StageProblem:
                 pass
             for ba in starts:
                 w_cur, off_cur = wc, offsets
-                for _ in range(N_ALTERNATIONS):
+                prev = np.inf
+                for _ in range(self.n_alternations):
                     if ba is None:
                         pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
                         ba = fit_unit_gain_dynamics(pairs, order)
@@ -136,6 +142,9 @@ class StageProblem:
                     err = self.sse(filtered, masks, w_cur, off_cur)
                     if err < best[0]:
                         best = (err, w_cur, off_cur, ba)
+                    if self.settle and err > prev * (1 - self.settle):
+                        break
+                    prev = err
                     ba = None
         _, wc, offsets, ba = best
         return wc[: wc.size - nc], wc[wc.size - nc :], offsets, ba
