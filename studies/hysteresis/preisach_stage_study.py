@@ -53,6 +53,26 @@ def aligned_error(model, u, y, detrend: bool = False) -> np.ndarray:
     return best[1]
 
 
+def figures(name: str, u: np.ndarray, y: np.ndarray, models: dict) -> None:
+    """Loop and error-trace PNGs of one record in ``output/`` (git-ignored)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from stageid.plots.hysteresis import loop_figure, model_errors_figure
+
+    out = HERE / "output"
+    out.mkdir(exist_ok=True)
+    errors = {label: aligned_error(m, u, y) for label, m in models.items()}
+    fig = loop_figure(u, {"measured": y, **{k: y - e for k, e in errors.items()}}, title=f"{name}: loops")
+    fig.savefig(out / f"preisach_stage_{name}_loops.png", dpi=90)
+    plt.close(fig)
+    fig = model_errors_figure(np.arange(u.size) * DT, errors, title=f"{name}: error (own offset)")
+    fig.savefig(out / f"preisach_stage_{name}_errors.png", dpi=90)
+    plt.close(fig)
+
+
 def simulated(lines: list[str]) -> None:
     from scipy.signal import lfilter
     from stage_study import PreisachActuator, resonance
@@ -83,7 +103,9 @@ def simulated(lines: list[str]) -> None:
     ref = np.r_[np.full(200, ref[0]), ref]
     first = 200 + int(round(1 / 100.0 / DT))
     lines.append("## Simulated Preisach actuator + 1 kHz resonance: Preisach stage model\n")
-    lines.append("| levels | dynamics | fit CPU s | 20 Hz | 100 Hz | 150 Hz (validation) | 100 Hz scan max / RMS % FSR |")
+    lines.append(
+        "| levels | dynamics | fit CPU s | 20 Hz | 100 Hz | 150 Hz (validation) | 100 Hz scan max / RMS % FSR |"
+    )
     lines.append("|---|---|---|---|---|---|---|")
     for levels in (20, 30):
         for dyn in ("auto", 2):
@@ -97,7 +119,9 @@ def simulated(lines: list[str]) -> None:
                 h = m.hysteresis.with_state(m.hysteresis.consistent_state(u[0], "zero"))
                 err = y - m.with_hysteresis(h).simulate(u, DT)[:, 0]
                 err = err - err.mean()
-                cells.append(f"{100 * np.abs(err).max() / np.ptp(y):.2f} / {100 * np.sqrt(np.mean(err**2)) / np.ptp(y):.2f}")
+                cells.append(
+                    f"{100 * np.abs(err).max() / np.ptp(y):.2f} / {100 * np.sqrt(np.mean(err**2)) / np.ptp(y):.2f}"
+                )
             drive = stage_feedforward(fit.model, ref, DT, limits=(-95.0, 95.0))[:, 0]
             e = (plant(drive) - ref)[first:]
             scan = f"{100 * np.abs(e).max() / (2 * half):.2f} / {100 * np.sqrt(np.mean(e**2)) / (2 * half):.2f}"
@@ -142,7 +166,8 @@ def real(lines: list[str], configs: list[str]) -> None:
         e = aligned_error(m, u, y)[int(0.3 / DT) :]
         cells.append(f"{100 * np.sqrt(np.mean((e - e.mean()) ** 2)) / np.ptp(y):.2f}")
         lines.append(f"| {n} | " + " | ".join(cells) + " |")
-    lines.append("")
+        figures(n, u, y, {label: fits[label].model for label in configs})
+    lines.append("\nLoops and error traces per record: `output/preisach_stage_*.png`.\n")
 
 
 def main(argv: list[str] | None = None) -> int:

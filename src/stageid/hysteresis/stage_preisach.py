@@ -28,10 +28,12 @@ from .preisach_identification import second_differences
 from .stage import StageModel
 from .stage_problem import StageProblem
 
-__all__ = ["PreisachStageProblem", "preisach_cell_states", "best_start_kinds", "SEARCH_RANK", "MAX_ROWS"]
+__all__ = ["PreisachStageProblem", "preisach_cell_states", "best_start_kinds", "SEARCH_RANK", "MAX_ROWS", "GRID_POLES"]
 
 #: Singular directions of the cell states the dynamics searches run on.
 SEARCH_RANK = 24
+#: Poles of the lag-and-delay starts of the alternation (:meth:`PreisachStageProblem.grid_starts`).
+GRID_POLES = (0.0, 0.5, 0.9)
 #: Least-squares rows per weight fit (evenly strided; the filters run over every sample).
 MAX_ROWS = 16000
 
@@ -74,6 +76,28 @@ class PreisachStageProblem(StageProblem):
         _, _, Vt = np.linalg.svd(stacked, full_matrices=False)
         V = Vt[: min(SEARCH_RANK, m)].T
         return [np.hstack([c[:, :m] @ V, c[:, m:]]) for c in cols]
+
+    def grid_starts(self, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
+        """The best of a few lag-and-delay filters (``z^-d (1 - p) / (1 - p z^-1)``, ``d <= order``,
+        ``p`` in ``GRID_POLES``) by the weight fit's residual: the searches on the leading
+        directions can end in a lead-lag when a plain delay of one sample fits far better (seen
+        on the dSPACE FORC records, RESULTS.md section 4d)."""
+        from .dynamics import unit_gain_filter
+
+        nc = cols[0].shape[1] - self.h.n_operators
+        best = None
+        for d in range(order + 1):
+            for p in GRID_POLES:
+                b = np.zeros(order + 1)
+                b[d] = 1.0 - p
+                a = np.zeros(order + 1)
+                a[:2] = 1.0, -p
+                filtered = [unit_gain_filter(b, a, c) for c in cols]
+                w, off = self.solve_weights(filtered, masks, nc)
+                err = self.sse(filtered, masks, w, off)
+                if best is None or err < best[0]:
+                    best = (err, (b, a))
+        return [best[1]]
 
     def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
         """NNLS of the cell and creep weights with the smoothness penalty; one free offset per record."""

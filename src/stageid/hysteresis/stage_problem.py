@@ -67,6 +67,10 @@ class StageProblem:
         """Columns the searches for ``G`` run on (all of them here; a reduced set for many columns)."""
         return cols
 
+    def grid_starts(self, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
+        """Further ``(b, a)`` starts of the alternation (none here)."""
+        return []
+
     def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
         """Constrained LS of ``y`` by ``cols`` plus one offset per record: (weights incl. creep, offsets)."""
         from scipy.optimize import lsq_linear
@@ -130,6 +134,7 @@ class StageProblem:
                 starts.append(fit_hammerstein([(search[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
             except (IdentificationError, np.linalg.LinAlgError):
                 pass
+            starts += self.grid_starts(cols, masks, order)
             for ba in starts:
                 w_cur, off_cur = wc, offsets
                 prev = np.inf
