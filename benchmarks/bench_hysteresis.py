@@ -155,7 +155,7 @@ def compare_with(path, n, repeat, all_kernels=False):
 def identification_times(repeat: int) -> int:
     """Whole-process identification times on the 20 Hz FORC record (issue 16, point 6), medians."""
     from stageid.data.datasets import load_dspace_piezo, shared_data_dir
-    from stageid.hysteresis import PIIdentifier
+    from stageid.hysteresis import PIIdentifier, PreisachIdentifier
     from stageid.hysteresis.stage_identification import StageIdentifier
 
     root = shared_data_dir()
@@ -164,23 +164,37 @@ def identification_times(repeat: int) -> int:
         print("dSPACE records not found; skipped")
         return 0
     exp = load_dspace_piezo(path)
-    print(f"# 20_hz_no_lp: {exp.n_samples} samples; median of {repeat}; load {os.getloadavg()[0]:.2f}")
+    print(
+        f"# 20_hz_no_lp: {exp.n_samples} samples; median of {repeat} alternating rounds; load {os.getloadavg()[0]:.2f}"
+    )
     cases = {
         "classical PI (20 operators)": lambda: PIIdentifier("pi").fit(exp),
         "modified PI (20 operators, warp)": lambda: PIIdentifier("modified-pi").fit(exp),
+        "Preisach (20 levels)": lambda: PreisachIdentifier(n_levels=20).fit(exp),
         "stage: classical PI + dynamics 2": lambda: StageIdentifier("pi", dynamics=2, creep=None).fit(exp),
         "stage: modified PI + dynamics 2": lambda: StageIdentifier("modified-pi", dynamics=2, creep=None).fit(exp),
+        "stage: Preisach + dynamics 2": lambda: StageIdentifier("preisach", dynamics=2, creep=None).fit(exp),
+        "stage: Preisach + dynamics 2 + creep 0.01/0.1/1 s": lambda: StageIdentifier(
+            "preisach", dynamics=2, creep=(0.01, 0.1, 1.0)
+        ).fit(exp),
     }
-    base = None
-    for name, run in cases.items():
-        times = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            run()
-            times.append(time.perf_counter() - t0)
-        med = float(np.median(times))
-        base = med if base is None else base
-        print(f"| {name} | {med:.2f} s | {med / base:.1f}x |")
+    for run in cases.values():  # compile and warm every path once, untimed
+        run()
+    wall: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    for i in range(repeat):  # rounds with the cases alternating in order
+        for name in list(cases)[:: 1 if i % 2 == 0 else -1]:
+            t0, c0 = time.perf_counter(), time.process_time()
+            cases[name]()
+            cpu[name].append(time.process_time() - c0)
+            wall[name].append(time.perf_counter() - t0)
+    first = next(iter(cases))
+    print("| identification | wall | CPU | CPU ratio to classical PI (median of rounds) |")
+    print("|---|---|---|---|")
+    for name in cases:
+        ratio = float(np.median(np.array(cpu[name]) / np.array(cpu[first])))
+        print(f"| {name} | {np.median(wall[name]):.2f} s | {np.median(cpu[name]):.2f} s | {ratio:.1f}x |")
+    print(f"# load average {os.getloadavg()[0]:.2f} at the end")
     return 0
 
 

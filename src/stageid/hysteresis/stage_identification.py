@@ -114,8 +114,12 @@ class StageFit:
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
         if self.model.dynamics is not None:
             poles = self.model.dynamics.poles()
-            hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
-            lines.append("  dynamics poles at " + ", ".join(f"{f:.4g} Hz" for f in sorted(hz)))
+            with np.errstate(divide="ignore"):  # a pole at z = 0 (a delay) has no frequency
+                hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
+            lines.append(
+                "  dynamics poles at "
+                + ", ".join(f"{f:.4g} Hz" if np.isfinite(f) else "z = 0 (a one-sample delay)" for f in sorted(hz))
+            )
         for order, taus, score in self.held_out:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
         lines.append(f"  {self.message}")
