@@ -74,22 +74,26 @@ def figures(name: str, u: np.ndarray, y: np.ndarray, models: dict) -> None:
     plt.close(fig)
 
 
-def one_loop_memory_error(model, u, y) -> tuple[np.ndarray, list]:
+def one_loop_memory_error(model, u, y) -> tuple[np.ndarray, str]:
     """Error with the starting memory chosen from the three kinds and from "rose to ``M``, fell to
     ``m``, rose to ``u[0]``" (one earlier minor loop, ``M`` and ``m`` on a 41-node grid), own offset."""
     h = model.hysteresis
     lo, hi = h.input_range
     u0 = min(max(float(u[0]), lo), hi)
     nodes = np.linspace(lo, hi, 41)
-    memories = [h.consistent_state(u0, kind) for kind in ("zero", "ascending", "descending")]
-    memories += [[M, m, u0] for M in nodes[nodes >= u0] for m in nodes[nodes <= u0]]
+    memories = {kind: h.consistent_state(u0, kind) for kind in ("zero", "ascending", "descending")}
+    memories |= {
+        str([round(float(M), 1), round(float(m), 1), round(u0, 1)]): [M, m, u0]
+        for M in nodes[nodes >= u0]
+        for m in nodes[nodes <= u0]
+    }
     best = None
-    for mem in memories:
+    for label, mem in memories.items():
         e = y - model.with_hysteresis(h.with_state(mem)).simulate(u, DT)[:, 0]
         e = e - e.mean()
         sse = float(e @ e)
         if best is None or sse < best[0]:
-            best = (sse, e, list(np.round(mem, 1)))
+            best = (sse, e, label)
     return best[1], best[2]
 
 
