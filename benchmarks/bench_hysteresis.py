@@ -155,7 +155,7 @@ def compare_with(path, n, repeat, all_kernels=False):
 def identification_times(repeat: int) -> int:
     """Whole-process identification times on the 20 Hz FORC record (issue 16, point 6), medians."""
     from stageid.data.datasets import load_dspace_piezo, shared_data_dir
-    from stageid.hysteresis import PIIdentifier
+    from stageid.hysteresis import PIIdentifier, PreisachIdentifier
     from stageid.hysteresis.stage_identification import StageIdentifier
 
     root = shared_data_dir()
@@ -164,23 +164,37 @@ def identification_times(repeat: int) -> int:
         print("dSPACE records not found; skipped")
         return 0
     exp = load_dspace_piezo(path)
-    print(f"# 20_hz_no_lp: {exp.n_samples} samples; median of {repeat}; load {os.getloadavg()[0]:.2f}")
+    print(
+        f"# 20_hz_no_lp: {exp.n_samples} samples; median of {repeat} alternating rounds; load {os.getloadavg()[0]:.2f}"
+    )
     cases = {
         "classical PI (20 operators)": lambda: PIIdentifier("pi").fit(exp),
         "modified PI (20 operators, warp)": lambda: PIIdentifier("modified-pi").fit(exp),
+        "Preisach (20 levels)": lambda: PreisachIdentifier(n_levels=20).fit(exp),
         "stage: classical PI + dynamics 2": lambda: StageIdentifier("pi", dynamics=2, creep=None).fit(exp),
         "stage: modified PI + dynamics 2": lambda: StageIdentifier("modified-pi", dynamics=2, creep=None).fit(exp),
+        "stage: Preisach + dynamics 2": lambda: StageIdentifier("preisach", dynamics=2, creep=None).fit(exp),
+        "stage: Preisach + dynamics 2 + creep 0.01/0.1/1 s": lambda: StageIdentifier(
+            "preisach", dynamics=2, creep=(0.01, 0.1, 1.0)
+        ).fit(exp),
     }
-    base = None
-    for name, run in cases.items():
-        times = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            run()
-            times.append(time.perf_counter() - t0)
-        med = float(np.median(times))
-        base = med if base is None else base
-        print(f"| {name} | {med:.2f} s | {med / base:.1f}x |")
+    for run in cases.values():  # compile and warm every path once, untimed
+        run()
+    wall: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    for i in range(repeat):  # rounds with the cases alternating in order
+        for name in list(cases)[:: 1 if i % 2 == 0 else -1]:
+            t0, c0 = time.perf_counter(), time.process_time()
+            cases[name]()
+            cpu[name].append(time.process_time() - c0)
+            wall[name].append(time.perf_counter() - t0)
+    first = next(iter(cases))
+    print("| identification | wall | CPU | CPU ratio to classical PI (median of rounds) |")
+    print("|---|---|---|---|")
+    for name in cases:
+        ratio = float(np.median(np.array(cpu[name]) / np.array(cpu[first])))
+        print(f"| {name} | {np.median(wall[name]):.2f} s | {np.median(cpu[name]):.2f} s | {ratio:.1f}x |")
+    print(f"# load average {os.getloadavg()[0]:.2f} at the end")
     return 0
 
 
@@ -189,11 +203,15 @@ import sys
 from stageid.data.datasets import load_dspace_piezo, shared_data_dir
 from stageid.hysteresis import PIIdentifier
 exp = load_dspace_piezo(shared_data_dir() / "piezo_dspace_preisach" / "20_hz_no_lp.mat")
-PIIdentifier(sys.argv[1]).fit(exp)
+if sys.argv[1] == "preisach-stage":  # the joint fit with dynamics of order 2, Preisach hysteresis
+    from stageid.hysteresis.stage_identification import StageIdentifier
+    StageIdentifier("preisach", dynamics=2, creep=None).fit(exp)
+else:
+    PIIdentifier(sys.argv[1]).fit(exp)
 """
 
 
-def whole_process_times(pairs: int) -> int:
+def whole_process_times(pairs: int, other: str = "modified-pi") -> int:
     """Classical vs modified PI identification of the 20 Hz FORC record, each in a fresh
     interpreter (imports, numba cache, load, fit), in alternating pairs: medians of the wall
     and CPU times (``getrusage`` of the children) and of the per-pair ratios."""
@@ -206,22 +224,22 @@ def whole_process_times(pairs: int) -> int:
     if root is None or not (root / "piezo_dspace_preisach" / "20_hz_no_lp.mat").is_file():
         print("dSPACE records not found; skipped")
         return 0
-    wall: dict[str, list[float]] = {"pi": [], "modified-pi": []}
-    cpu: dict[str, list[float]] = {"pi": [], "modified-pi": []}
+    wall: dict[str, list[float]] = {"pi": [], other: []}
+    cpu: dict[str, list[float]] = {"pi": [], other: []}
     print(f"# {pairs} alternating pairs; load average {os.getloadavg()[0]:.2f} at the start")
     for i in range(pairs):
-        for kind in ("pi", "modified-pi") if i % 2 == 0 else ("modified-pi", "pi"):
+        for kind in ("pi", other) if i % 2 == 0 else (other, "pi"):
             r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-c", WHOLE_PROCESS, kind], check=True)
             wall[kind].append(time.perf_counter() - t0)
             r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu[kind].append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
-    print("| time | classical PI | modified PI | ratio (median of pairs) |")
+    print(f"| time | classical PI | {other} | ratio (median of pairs) |")
     print("|---|---|---|---|")
     for name, d in (("wall", wall), ("CPU", cpu)):
-        ratio = np.median(np.array(d["modified-pi"]) / np.array(d["pi"]))
-        print(f"| {name} | {np.median(d['pi']):.2f} s | {np.median(d['modified-pi']):.2f} s | {ratio:.2f}x |")
+        ratio = np.median(np.array(d[other]) / np.array(d["pi"]))
+        print(f"| {name} | {np.median(d['pi']):.2f} s | {np.median(d[other]):.2f} s | {ratio:.2f}x |")
     print(f"# load average {os.getloadavg()[0]:.2f} at the end")
     return 0
 
@@ -308,6 +326,13 @@ def main(argv=None) -> int:
         "interpreter, in PAIRS alternating pairs, and stop",
     )
     ap.add_argument(
+        "--whole-process-stage",
+        type=int,
+        default=0,
+        metavar="PAIRS",
+        help="as --whole-process, classical PI against the Preisach stage with dynamics of order 2",
+    )
+    ap.add_argument(
         "--preisach",
         action="store_true",
         help="time the Preisach model and its exact inverse side by side with the PI kernels and stop",
@@ -315,6 +340,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.whole_process:
         return whole_process_times(args.whole_process)
+    if args.whole_process_stage:
+        return whole_process_times(args.whole_process_stage, "preisach-stage")
     if args.preisach:
         return preisach_times(args.samples, args.repeat)
     if args.identification:

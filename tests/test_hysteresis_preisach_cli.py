@@ -52,12 +52,3 @@ def test_a_grid_finer_than_the_records_is_one_line_exit_2_no_file(tmp_path, caps
     err = capsys.readouterr().err.strip()
     assert "finer than the records resolve" in err and "\n" not in err
     assert not out.exists()
-
-
-def test_preisach_with_creep_is_refused(tmp_path, capsys):
-    path, _ = _record(tmp_path)
-    out = tmp_path / "p.json"
-    args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
-    assert main([*args, "--creep", "0.1", "-o", str(out)]) == 2
-    assert "rate independent" in capsys.readouterr().err
-    assert not out.exists()

@@ -40,8 +40,9 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
     A stage model with dynamics (`identify hysteresis --dynamics`) is inverted offline over the
-    whole reference: stable inversion of its linear dynamics (preview allowed), then the
-    hysteresis inverse, clipped to the drive limits.
+    whole reference: stable inversion of its linear dynamics (preview allowed, regularised by
+    the least decade whose drive needs no extra clipping), then the hysteresis inverse (with a
+    Preisach stage's creep), clipped to the drive limits.
 
     Classical PI models use their closed-form inverse; modified PI models are inverted sample
     by sample (exact to 1e-12); Preisach models by their exact inverse (one linear
@@ -67,15 +68,16 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     yref = table.column(column)
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
-    if isinstance(model, PreisachModel):
-        from ..hysteresis.preisach_inverse import preisach_feedforward
-
-        u = preisach_feedforward(model, yref, limits=lim)
-    elif stage is not None and stage.dynamics is not None:
+    if stage is not None and (stage.dynamics is not None or stage.creep is not None):
         from ..hysteresis.stage_inverse import stage_feedforward
 
         # offline: stable inversion of the dynamics over the whole reference, then the hysteresis
+        # (a Preisach stage's creep folded into its exact inverse)
         u = stage_feedforward(stage, yref, table.dt, limits=lim)
+    elif isinstance(model, PreisachModel):
+        from ..hysteresis.preisach_inverse import preisach_feedforward
+
+        u = preisach_feedforward(model, yref, limits=lim)
     else:
         # a creep term (rate dependent) runs at the reference's sampling period
         u = Compensator(model, limits=lim, dt=table.dt).run(yref)

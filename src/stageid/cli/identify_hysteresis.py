@@ -47,6 +47,7 @@ Examples:
   stageid identify hysteresis a.csv b.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
   stageid identify hysteresis f20.csv f100.csv --input V --output y --dynamics auto --creep auto -o stage.json
+  stageid identify hysteresis f20.csv f100.csv --input V --output y --model preisach --dynamics auto --creep auto -o stage.json
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
@@ -59,8 +60,8 @@ Examples:
     default="modified-pi",
     show_default=True,
     help="Classical PI (plays), the letter's modified PI (coupled plays), or a discrete Preisach "
-    "model (uniform-density cells on a triangular grid, --levels; rate independent: no "
-    "--creep/--dynamics; `stageid compensate` inverts it exactly).",
+    "model (uniform-density cells on a triangular grid, --levels; with --creep/--dynamics it is "
+    "the hysteresis of a stage model; `stageid compensate` inverts it exactly).",
 )
 @click.option(
     "--levels",
@@ -165,10 +166,9 @@ def identify(
     check_output(out, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    if kind == "preisach" and (creep not in (None, "none") or dynamics not in (None, "none")):
-        raise click.UsageError("--model preisach is rate independent: drop --creep and --dynamics.")
     exps = read_experiments(list(data), [input_name], [output_name], ts)
-    if kind == "preisach":
+    rate_independent = creep in (None, "none") and dynamics in (None, "none")
+    if kind == "preisach" and rate_independent:
         from ..hysteresis import PreisachIdentifier
 
         fit = PreisachIdentifier(n_levels=n_levels).fit(list(exps))
@@ -183,7 +183,7 @@ def identify(
             weight_uncertainty="auto" if report_dir is not None else "none",
         ).fit(list(exps))
     else:
-        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics)
+        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels)
     write_model_output(out, fit.model)
     if not quiet:
         say(fit.summary())
@@ -209,8 +209,9 @@ def identify(
         say(f"report written to {path}", err=True)
 
 
-def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics):
-    """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt."""
+def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels):
+    """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt.
+    A Preisach model holds no creep term of its own, so any --creep makes it a stage."""
     from ..hysteresis.stage_identification import StageIdentifier
 
     return StageIdentifier(
@@ -220,4 +221,5 @@ def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, d
         creep=None if creep == "none" else creep,
         initial_state=initial_state,
         input_warp=input_warp,
+        n_levels=n_levels,
     ).fit(list(exps))

@@ -1,7 +1,8 @@
 """Rate-dependent stage model: drive -> hysteresis -> creep -> unit-DC-gain linear dynamics.
 
 ``y = y0 + G[h(u) + creep(u) - y0]`` where ``h`` is a PI or modified-PI model (its optional
-:class:`~stageid.hysteresis.creep.CreepTerm` is the creep stage), ``y0`` its output offset and
+:class:`~stageid.hysteresis.creep.CreepTerm` is the creep stage) or a Preisach model (which
+is rate independent: the stage holds its creep term), ``y0`` its output offset and
 ``G`` a discrete SISO :class:`~stageid.models.StateSpaceModel` with ``G(1) = 1`` (amplifier and
 mechanics), at rest at the first sample.  The unit DC gain keeps the hysteresis in the output's
 units: at slow drive the stage is its hysteresis model.
@@ -9,8 +10,9 @@ units: at slow drive the stage is its hysteresis model.
 JSON (``stageid.hysteresis/1``)::
 
     {"format": "stageid.hysteresis/1", "kind": "stage",
-     "hysteresis": {... a pi / modified-pi model, creep included ...},
-     "dynamics": {... a stageid.lti/1 statespace model, discrete ...} | null}
+     "hysteresis": {... a pi / modified-pi model, creep included, or a preisach model ...},
+     "dynamics": {... a stageid.lti/1 statespace model, discrete ...} | null,
+     "creep": {... see stageid.hysteresis.creep ...}}   # optional; preisach hysteresis only
 
 The object composes with :mod:`stageid.models`: :attr:`StageModel.dynamics` is a plain
 ``StateSpaceModel`` (poles, frequency response, python-control conversion), and
@@ -27,8 +29,10 @@ import numpy as np
 from .._errors import ModelError, ModelFormatError
 from ..checks import shown
 from .common import as_input
+from .creep import CreepTerm
 from .dynamics import statespace_to_transfer, unit_gain_filter
 from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
+from .preisach import PreisachModel
 
 __all__ = ["StageModel", "STAGE_KIND"]
 
@@ -39,15 +43,18 @@ DC_GAIN_TOLERANCE = 1e-6
 
 @dataclass(frozen=True, eq=False)
 class StageModel:
-    """Hysteresis (PI or modified PI, optional creep) followed by unit-DC-gain discrete dynamics.
+    """Hysteresis (PI, modified PI or Preisach), creep, then unit-DC-gain discrete dynamics.
 
     Parameters
     ----------
-    hysteresis : PIModel or ModifiedPIModel
-        The rate-independent part (its ``creep`` term, if any, is the creep stage).
+    hysteresis : PIModel, ModifiedPIModel or PreisachModel
+        The rate-independent part (a PI model's ``creep`` term, if any, is the creep stage).
     dynamics : StateSpaceModel or None
         Discrete SISO model with DC gain 1 and poles inside the unit circle; ``None``: the
         stage is its hysteresis model.
+    creep : CreepTerm or None
+        The creep stage of a Preisach hysteresis (a PI model carries its own); at rest at the
+        first sample of every simulation.
 
     Raises
     ------
@@ -69,14 +76,20 @@ class StageModel:
 
     hysteresis: Any
     dynamics: Any = None
+    creep: CreepTerm | None = None
 
     kind = STAGE_KIND
 
     def __post_init__(self) -> None:
-        if not isinstance(self.hysteresis, (PIModel, ModifiedPIModel)):
+        if not isinstance(self.hysteresis, (PIModel, ModifiedPIModel, PreisachModel)):
             raise ModelError(
-                f"`hysteresis` must be a PIModel or ModifiedPIModel; got {type(self.hysteresis).__name__}."
+                f"`hysteresis` must be a PIModel, ModifiedPIModel or PreisachModel; got {type(self.hysteresis).__name__}."
             )
+        if self.creep is not None:
+            if not isinstance(self.creep, CreepTerm):
+                raise ModelError(f"`creep` must be a CreepTerm or None; got {type(self.creep).__name__}.")
+            if not isinstance(self.hysteresis, PreisachModel):
+                raise ModelError("a PI hysteresis carries its own creep term; `creep` is for a Preisach hysteresis.")
         g = self.dynamics
         if g is None:
             return
@@ -93,7 +106,7 @@ class StageModel:
         dc = float(np.real(g.dc_gain()[0, 0]))
         if not abs(dc - 1.0) <= DC_GAIN_TOLERANCE:
             raise ModelError(f"`dynamics` must have DC gain 1 (the hysteresis keeps the output's units); got {dc:.9g}.")
-        creep = getattr(self.hysteresis, "creep", None)
+        creep = self.creep_term
         if creep is not None and not np.isclose(creep.sample_time, g.dt, rtol=1e-9):
             raise ModelError(f"the dynamics' dt {g.dt:g} s differs from the creep term's {creep.sample_time:g} s.")
 
@@ -115,11 +128,16 @@ class StageModel:
         return self.hysteresis.output_offset
 
     @property
+    def creep_term(self) -> CreepTerm | None:
+        """The creep stage: the stage's own (Preisach) or the PI model's."""
+        return self.creep if self.creep is not None else getattr(self.hysteresis, "creep", None)
+
+    @property
     def dt(self) -> float | None:
         """Sample time [s] of the dynamics (else of the creep term; None when rate independent)."""
         if self.dynamics is not None:
             return float(self.dynamics.dt)
-        creep = getattr(self.hysteresis, "creep", None)
+        creep = self.creep_term
         return None if creep is None else float(creep.sample_time)
 
     @property
@@ -177,17 +195,22 @@ class StageModel:
         if dt is not None and step is not None and self.dynamics is not None and not np.isclose(dt, step, rtol=1e-6):
             raise ModelError(f"the input's sample time {dt:g} s differs from the stage dynamics' {step:g} s.")
         v = self.hysteresis.simulate(u_in, dt if dt is not None else step)[:, 0]
+        if self.creep is not None:
+            v = v + self.creep.run(u_in, dt if dt is not None else step)[0]
         return self.linear_response(v)[:, None]
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.hysteresis/1`` dictionary of kind ``"stage"``."""
-        return {
+        d = {
             "format": HYSTERESIS_FORMAT,
             "kind": STAGE_KIND,
             "hysteresis": self.hysteresis.to_dict(),
             "dynamics": None if self.dynamics is None else self.dynamics.to_dict(),
         }
+        if self.creep is not None:  # absent otherwise: PI stage files stay as they were
+            d["creep"] = self.creep.to_dict()
+        return d
 
     @classmethod
     def from_dict(cls, d: Any) -> StageModel:
@@ -195,14 +218,18 @@ class StageModel:
         from ..models.serialization import lti_from_dict
         from .serialization import model_from_dict
 
-        if not isinstance(d, dict) or set(d) - {"format", "kind", "hysteresis", "dynamics"} or "hysteresis" not in d:
-            raise ModelFormatError(f"a stage model needs `hysteresis` and `dynamics` only; got {shown(d)}.")
-        hyst = d["hysteresis"]
-        if not isinstance(hyst, dict) or hyst.get("kind") not in ("pi", "modified-pi"):
+        keys = {"format", "kind", "hysteresis", "dynamics", "creep"}
+        if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d:
             raise ModelFormatError(
-                f"`hysteresis` of a stage model must be a pi or modified-pi model; got {shown(hyst)}."
+                f"a stage model needs `hysteresis`, `dynamics` and optionally `creep`; got {shown(d)}."
             )
-        h = model_from_dict(hyst)
+        hyst = d["hysteresis"]
+        if not isinstance(hyst, dict) or hyst.get("kind") not in ("pi", "modified-pi", "preisach"):
+            raise ModelFormatError(
+                f"`hysteresis` of a stage model must be a pi, modified-pi or preisach model; got {shown(hyst)}."
+            )
+        h = PreisachModel.from_dict(hyst) if hyst.get("kind") == "preisach" else model_from_dict(hyst)
+        creep = None if d.get("creep") is None else CreepTerm.from_dict(d["creep"])
         g = d.get("dynamics")
         dyn = None
         if g is not None:
@@ -210,6 +237,6 @@ class StageModel:
                 raise ModelFormatError(f"`dynamics` must be a stageid.lti/1 statespace model or null; got {shown(g)}.")
             dyn = lti_from_dict(g)
         try:
-            return cls(hysteresis=h, dynamics=dyn)
+            return cls(hysteresis=h, dynamics=dyn, creep=creep)
         except ModelError as exc:
             raise ModelFormatError(str(exc)) from None

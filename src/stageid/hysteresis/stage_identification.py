@@ -4,12 +4,16 @@ Procedure (:meth:`StageIdentifier.fit`):
 
 1. **Hysteresis thresholds** by :class:`~stageid.hysteresis.PIIdentifier` (rate independent,
    no creep): thresholds (and for the modified PI the CP thresholds and warp), every record's
-   starting state and output offset.
+   starting state and output offset.  A Preisach hysteresis has a fixed grid instead: the
+   rate-independent :class:`~stageid.hysteresis.PreisachIdentifier` checks that the records
+   resolve it and gives each record's starting state (the best of the three kinds).
 2. **Alternation** with the thresholds fixed.  The model output is
    ``y = o_j + G[Z_j w + L_j c]`` (``Z_j`` operator outputs, ``L_j`` creep lags of record
    ``j``, ``o_j`` its offset); ``G`` is linear, so for fixed ``G`` the output is linear in
    ``(w, c, o)``: the filtered columns ``G[Z_j], G[L_j]`` go into the constrained least squares
-   of step 2 of the PI identification (same invertibility constraint, ``c >= 0``).  For fixed
+   of step 2 of the PI identification (same invertibility constraint, ``c >= 0``; for a
+   Preisach hysteresis ``Z_j`` are the cell states and the weights are non-negative with the
+   smoothness penalty, :mod:`.stage_preisach`).  For fixed
    weights ``G`` is an output-error fit of ``v = Z w + L c`` to ``y - o``
    (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps,
    from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
@@ -22,7 +26,8 @@ Procedure (:meth:`StageIdentifier.fit`):
    ``AUTO_TOLERANCE`` of the best is then fitted on all records.
 4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
    inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
-   hysteresis), then step 2; kept only when the summed RMS error on the records drops.
+   hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
+   only: a Preisach grid has no thresholds to search.)
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
@@ -40,9 +45,11 @@ from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
 from .identification import MODEL_KINDS, PIIdentifier
+from .preisach_identification import PreisachIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
 from .stage import StageModel
 from .stage_inverse import invert_dynamics
+from .stage_preisach import PreisachStageProblem, best_start_kinds
 from .stage_problem import N_ALTERNATIONS, StageProblem
 
 __all__ = ["StageIdentifier", "StageFit", "AUTO_ORDERS", "AUTO_CREEP"]
@@ -97,8 +104,9 @@ class StageFit:
     def summary(self) -> str:
         """A short text report."""
         h = self.model.hysteresis
+        size = f"{h.n_levels} levels" if h.kind == "preisach" else f"{h.n_operators} operators"
         lines = [
-            f"stage model: {h.kind} hysteresis, {h.n_operators} operators; creep "
+            f"stage model: {h.kind} hysteresis, {size}; creep "
             + (", ".join(f"{t:g} s" for t in self.creep_time_constants) or "none")
             + f"; dynamics order {self.dynamics_order}; fit on {len(self.max_error_percent)} record(s)"
         ]
@@ -106,8 +114,12 @@ class StageFit:
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
         if self.model.dynamics is not None:
             poles = self.model.dynamics.poles()
-            hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
-            lines.append("  dynamics poles at " + ", ".join(f"{f:.4g} Hz" for f in sorted(hz)))
+            with np.errstate(divide="ignore"):  # a pole at z = 0 (a delay) has no frequency
+                hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
+            lines.append(
+                "  dynamics poles at "
+                + ", ".join(f"{f:.4g} Hz" if np.isfinite(f) else "z = 0 (a one-sample delay)" for f in sorted(hz))
+            )
         for order, taus, score in self.held_out:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
         lines.append(f"  {self.message}")
@@ -115,13 +127,13 @@ class StageFit:
 
 
 class StageIdentifier(Estimator):
-    """Identify a stage model: PI / modified-PI hysteresis, creep lags and unit-DC-gain dynamics.
+    """Identify a stage model: PI / modified-PI / Preisach hysteresis, creep lags and unit-DC-gain dynamics.
 
     Parameters
     ----------
-    model : {"pi", "modified-pi"}, default "modified-pi"
+    model : {"pi", "modified-pi", "preisach"}, default "modified-pi"
     n_operators : int, default 20
-        As in :class:`~stageid.hysteresis.PIIdentifier`.
+        As in :class:`~stageid.hysteresis.PIIdentifier` (PI kinds).
     dynamics : int >= 1, "auto" or None, default "auto"
         Order of the linear dynamics; ``None``: none; ``"auto"``: picked from ``AUTO_ORDERS``
         (0-4) by held-out error.
@@ -132,6 +144,10 @@ class StageIdentifier(Estimator):
         Modified PI only (see :class:`~stageid.hysteresis.PIIdentifier`).
     sample_time : float, optional
         Sampling period [s] for ``(u, y)`` records (Experiments carry their own).
+    n_levels : int, default 20
+        Preisach only: cells per axis of the grid (as :class:`~stageid.hysteresis.PreisachIdentifier`).
+    smoothing : float, default 1e-4
+        Preisach only: weight of the smoothness penalty (as :class:`~stageid.hysteresis.PreisachIdentifier`).
 
     Examples
     --------
@@ -151,13 +167,15 @@ class StageIdentifier(Estimator):
     """
 
     parameter_constraints = {
-        "model": [Options(*MODEL_KINDS)],
+        "model": [Options(*MODEL_KINDS, "preisach")],
         "n_operators": [Interval(int, 2, None, closed="left")],
         "dynamics": [Satisfies(_dynamics_ok, 'a positive integer order, "auto" or None')],
         "creep": [Satisfies(_creep_ok, 'a non-empty sequence of positive seconds, "auto" or None')],
         "initial_state": [Options(*STATE_CHOICES)],
         "input_warp": [Boolean()],
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
+        "n_levels": [Interval(int, 2, None, closed="left")],
+        "smoothing": [Interval(float, 0, None, closed="left")],
     }
 
     def __init__(
@@ -169,6 +187,8 @@ class StageIdentifier(Estimator):
         initial_state: str = "auto",
         input_warp: bool = True,
         sample_time: float | None = None,
+        n_levels: int = 20,
+        smoothing: float = 1e-4,
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -177,6 +197,8 @@ class StageIdentifier(Estimator):
         self.initial_state = initial_state
         self.input_warp = input_warp
         self.sample_time = sample_time
+        self.n_levels = n_levels
+        self.smoothing = smoothing
 
     @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> StageFit:
@@ -207,11 +229,7 @@ class StageIdentifier(Estimator):
                 f"the shortest has {shortest}",
             )
         orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
-        base = PIIdentifier(
-            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
-        ).fit(data, inputs, outputs)
-        kinds = list(base.initial_states)
-        problem = StageProblem(base.model, recs, kinds, dt)
+        problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
         held_out: list[tuple[int, tuple[float, ...], float]] = []
         if len(orders) * len(creeps) > 1:
             for taus in creeps:
@@ -226,7 +244,7 @@ class StageIdentifier(Estimator):
         everything = [np.ones(u.size, bool) for u, _ in recs]
         w, c, offsets, ba = problem.fit(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
-        if model.dynamics is not None:  # step 4: thresholds again, on the outputs with G inverted
+        if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
             problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         max_e, rms_e = problem.errors(model, offsets)
         return StageFit(
@@ -238,9 +256,26 @@ class StageIdentifier(Estimator):
             dynamics_order=model.dynamics_order,
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
-            message=f"hysteresis by PIIdentifier ({base.message.rstrip('.')}); weights, creep and dynamics "
-            f"alternated {N_ALTERNATIONS} times"
+            message=f"{base_message}; weights, creep and dynamics "
+            + (f"alternated {N_ALTERNATIONS} times" if problem.settle == 0 else "alternated until settled")
             + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
+        )
+
+    def _first_step(self, data, inputs, outputs, recs, dt):
+        """Step 1: the rate-independent hysteresis, the records' starting states and the step-2 problem."""
+        if self.model == "preisach":
+            base = PreisachIdentifier(n_levels=self.n_levels, smoothing=self.smoothing).fit(data, inputs, outputs)
+            kinds = best_start_kinds(base.model, recs, self.initial_state)
+            problem = PreisachStageProblem(base.model, recs, kinds, dt, self.smoothing)
+            return problem, kinds, f"Preisach grid of {self.n_levels} levels (rate-independent start {base.summary()})"
+        base = PIIdentifier(
+            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
+        ).fit(data, inputs, outputs)
+        kinds = list(base.initial_states)
+        return (
+            StageProblem(base.model, recs, kinds, dt),
+            kinds,
+            f"hysteresis by PIIdentifier ({base.message.rstrip('.')})",
         )
 
     def _second_pass(self, problem, model, recs, kinds, dt, order, taus, names):

@@ -30,6 +30,11 @@ MAX_ROWS = 40000
 class StageProblem:
     """Operator and creep columns of every record (full rate) and the alternating fit of step 2."""
 
+    #: Rounds of the alternation from each start, and the relative drop of the residual below
+    #: which it stops early (0: never; the PI fit runs all its rounds).
+    n_alternations = N_ALTERNATIONS
+    settle = 0.0
+
     def __init__(self, hysteresis: Any, recs: list, kinds: list[str], dt: float) -> None:
         self.h = hysteresis
         self.recs = recs
@@ -57,6 +62,14 @@ class StageProblem:
                 cols.append(term.lags(u))
             out.append(np.hstack(cols))
         return out
+
+    def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
+        """Columns the searches for ``G`` run on (all of them here; a reduced set for many columns)."""
+        return cols
+
+    def grid_starts(self, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
+        """Further ``(b, a)`` starts of the alternation (none here)."""
+        return []
 
     def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
         """Constrained LS of ``y`` by ``cols`` plus one offset per record: (weights incl. creep, offsets)."""
@@ -115,14 +128,17 @@ class StageProblem:
         best = (self.sse(cols, masks, wc, offsets), wc, offsets, None)
         if order:
             segs = self.segments(masks, order)
-            starts = [None] + [ba for ba in (refine_output_error(self, cols, masks, order),) if ba is not None]
+            search = self.search_columns(cols, masks)
+            starts = [None] + [ba for ba in (refine_output_error(self, search, masks, order),) if ba is not None]
             try:
-                starts.append(fit_hammerstein([(cols[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
+                starts.append(fit_hammerstein([(search[j][:end], self.recs[j][1][:end]) for j, end in segs], order))
             except (IdentificationError, np.linalg.LinAlgError):
                 pass
+            starts += self.grid_starts(cols, masks, order)
             for ba in starts:
                 w_cur, off_cur = wc, offsets
-                for _ in range(N_ALTERNATIONS):
+                prev = np.inf
+                for _ in range(self.n_alternations):
                     if ba is None:
                         pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
                         ba = fit_unit_gain_dynamics(pairs, order)
@@ -131,6 +147,9 @@ class StageProblem:
                     err = self.sse(filtered, masks, w_cur, off_cur)
                     if err < best[0]:
                         best = (err, w_cur, off_cur, ba)
+                    if self.settle and err > prev * (1 - self.settle):
+                        break
+                    prev = err
                     ba = None
         _, wc, offsets, ba = best
         return wc[: wc.size - nc], wc[wc.size - nc :], offsets, ba
