@@ -1,7 +1,7 @@
 """The cheaper factorisations of the closed-loop fits compute what the plain routes did.
 
-* :func:`~stageid.closedloop.trust_region.trust_region_lsq` is SciPy's ``trf`` (no bounds,
-  ``x_scale="jac"``) on a QR-reduced Jacobian: the same iterates to rounding;
+* :func:`~stageid.closedloop.reduced_lsq.reduced_least_squares` hands SciPy's ``trf`` (no bounds,
+  ``x_scale="jac"``) the QR-reduced problem: the same iterates as the full problem, to rounding;
 * :func:`~stageid.closedloop.regression.lstsq_qr` (one QR of ``[Phi | Y]``, gelsd's rank rule
   on ``R``) gives :func:`~stageid.closedloop.regression.lstsq`'s solution and rank decisions;
 * the shared balancing / controllable parts of the cancellation, the direct canonical form of
@@ -16,7 +16,7 @@ from scipy.optimize import least_squares
 
 from stageid._errors import IdentificationError
 from stageid.closedloop import cancellation, deduction, reduction, regression
-from stageid.closedloop.trust_region import trust_region_lsq
+from stageid.closedloop.reduced_lsq import qr_reduce, reduced_least_squares
 from stageid.models import StateSpaceModel, TransferMatrix, minimal_realization
 
 
@@ -38,20 +38,31 @@ def _exp_problem(seed=0, m=300):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("max_nfev", [3, 7, 200])
-def test_trust_region_follows_scipy_trf(seed, max_nfev):
+def test_reduced_problem_follows_scipy_trf(seed, max_nfev):
     fun, jac, x0 = _exp_problem(seed)
     ref = least_squares(
         fun, x0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12
     )
-    got = trust_region_lsq(fun, jac, x0, max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12)
+    got = reduced_least_squares(fun, jac, x0, max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12)
     assert got.nfev == ref.nfev and got.status == ref.status
     assert np.allclose(got.x, ref.x, rtol=1e-9, atol=1e-12)
-    assert np.allclose(got.fun, ref.fun, rtol=1e-9, atol=1e-12)
+    assert np.isclose(np.linalg.norm(got.fun), np.linalg.norm(ref.fun), rtol=1e-9)
+
+
+def test_qr_reduction_keeps_what_the_iteration_uses():
+    fun, jac, x0 = _exp_problem()
+    J, f = jac(x0), fun(x0)
+    J_r, f_r = qr_reduce(J, f)
+    assert J_r.shape == (5, 4) and f_r.shape == (5,) and not np.any(f_r[:4])
+    np.testing.assert_allclose(J_r.T @ J_r, J.T @ J, rtol=1e-12)
+    np.testing.assert_allclose(J_r.T @ f_r, J.T @ f, rtol=1e-10)
+    np.testing.assert_allclose(np.linalg.norm(f_r), np.linalg.norm(f), rtol=1e-13)
+    np.testing.assert_allclose(np.linalg.norm(J_r, axis=0), np.linalg.norm(J, axis=0), rtol=1e-13)
 
 
 @pytest.mark.parametrize("x0", [(-1.2, 1.0), (-3.0, -2.0), (2.5, -1.0)])
 @pytest.mark.parametrize("max_nfev", [5, 200])
-def test_trust_region_follows_scipy_trf_through_rejected_steps(x0, max_nfev):
+def test_reduced_problem_follows_scipy_trf_through_rejected_steps(x0, max_nfev):
     # Rosenbrock from far away: steps are rejected, the radius shrinks and grows, alpha > 0
     # (six residuals: more than n + 1, so the QR route, not the square fallback, is taken)
     def fun(x):
@@ -64,15 +75,15 @@ def test_trust_region_follows_scipy_trf_through_rejected_steps(x0, max_nfev):
 
     x0 = np.array(x0)
     ref = least_squares(fun, x0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-12, xtol=1e-12)
-    got = trust_region_lsq(fun, jac, x0, max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-8)
+    got = reduced_least_squares(fun, jac, x0, max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-8)
     assert got.nfev == ref.nfev and got.status == ref.status
     assert np.allclose(got.x, ref.x, rtol=1e-9, atol=1e-12)
 
 
-def test_trust_region_refuses_a_non_finite_start():
+def test_reduced_problem_refuses_a_non_finite_start():
     fun, jac, x0 = _exp_problem()
     with pytest.raises(ValueError, match="not finite"):
-        trust_region_lsq(lambda x: fun(x) * np.nan, jac, x0, 10)
+        reduced_least_squares(lambda x: fun(x) * np.nan, jac, x0, 10)
 
 
 def _lstsq_qr(Phi, Y, strict=True):

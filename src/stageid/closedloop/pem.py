@@ -2,8 +2,8 @@
 
 The parameters of a structure of :mod:`~stageid.closedloop.polynomial` minimise eq. 13,
 ``V_N = sum e(t)^2``, with the prediction error of eq. 14, ``e = D/C (A y - B/F u)``, by
-:func:`~stageid.closedloop.trust_region.trust_region_lsq` (SciPy's trust-region ``trf`` iteration on a
-QR-reduced Jacobian) with the analytic Jacobian,
+:func:`~stageid.closedloop.reduced_lsq.reduced_least_squares` (SciPy's trust-region ``trf`` on the
+QR-reduced problem) with the analytic Jacobian,
 started from the linear estimates of :mod:`~stageid.closedloop.initial`.  The predictor is
 kept stable: roots of ``C`` and ``F`` that leave the unit circle are reflected into it
 (Ljung 1999, sec. 10.5) before the loss is evaluated.
@@ -21,8 +21,8 @@ import scipy.signal as ss
 from .._errors import DataError, IdentificationError
 from .initial import arx, start
 from .polynomial import PolynomialModel, check_orders, pack, residual_parts, stabilize, unpack
+from .reduced_lsq import reduced_least_squares
 from .regression import check_dt, check_moving, records, regressor
-from .trust_region import trust_region_lsq
 
 __all__ = ["pem", "fit_pem", "jacobian"]
 
@@ -116,7 +116,9 @@ def _minimise(segs, structure, orders, nk, dt, max_nfev, polys) -> PolynomialMod
     segs_s = [(uu, yy / yscale) for uu, yy in segs]
     fun, jac, parts = _loss_functions(segs_s, orders, nk)
     try:
-        sol = trust_region_lsq(fun, jac, pack(A, B / yscale, C, D, F), max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12)
+        sol = reduced_least_squares(
+            fun, jac, pack(A, B / yscale, C, D, F), max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12
+        )
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentificationError(f"the {structure} prediction-error optimisation failed: {exc}") from None
     A, B, C, D, F = parts(sol.x)
