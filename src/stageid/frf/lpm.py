@@ -30,7 +30,7 @@ from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from ..resources import require_memory
 from .frd import FrequencyResponse
-from .lpm_kernels import lpm_lines_kernel
+from .lpm_kernels import lpm_lines_kernel, unit_scale
 
 __all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
 
@@ -122,11 +122,9 @@ def lpm_frf(
         )
     if not ok.all():
         G, var, coh = G[ok], var[ok], coh[ok]
-    G /= u_scale  # in place: at full resolution these arrays are large
-    std = np.sqrt(var, out=var)
-    std /= u_scale
+    unit_scale(G, var, u_scale)  # in place, var -> std: at full resolution these arrays are large
     freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+    return FrequencyResponse(freqs, G, var, coh, exps[0].input_names, exps[0].output_names, copy=False)
 
 
 def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,7 +134,8 @@ def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     else:
         U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])
         Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])
-    u_scale = np.sqrt(np.mean(U.real**2 + U.imag**2, axis=(0, 1)))
+    power = np.einsum("eia,eia->a", U.real, U.real) + np.einsum("eia,eia->a", U.imag, U.imag)
+    u_scale = np.sqrt(power / (U.shape[0] * U.shape[1]))  # no full-size temporaries
     if np.any(u_scale == 0):
         raise DataError("an input is zero throughout; the LPM needs every input excited.")
     U /= u_scale

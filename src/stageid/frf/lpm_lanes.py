@@ -90,9 +90,8 @@ def _lane_moments(Z, off, pw, n_pow, S):  # pragma: no cover - compiled
 
 
 @_jit
-def _lane_normal_equations(S, Sr, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma: no cover - compiled
+def _lane_normal_equations(S, Sr, ne, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma: no cover - compiled
     """``M = K^H K``, ``B = K^H Y`` and ``sum |Y_c|^2`` per lane (slot order of the products)."""
-    ne = S.shape[0]
     Mr[:] = 0.0
     Mi[:] = 0.0
     Br[:] = 0.0
@@ -143,11 +142,10 @@ def _lane_normal_equations(S, Sr, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma: no
 
 
 @_jit
-def _lane_cholesky(Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
+def _lane_cholesky(n, Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
     """Lower Cholesky factor in place, ``dinv = 1 / diag(L)``; ``ok`` False where a pivot falls
     below ``floor`` of its diagonal entry (that lane's factor is then garbage).  The four lane
     groups go through each dot product together: eight independent FMA chains."""
-    n = Mr.shape[0]
     ok[:] = True
     for j in range(n):
         d0 = vload(Mr[j, j], 0)
@@ -215,9 +213,8 @@ def _lane_cholesky(Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
 
 
 @_jit
-def _lane_solve(Lr, Li, dinv, Br, Bi, Tr, Ti):  # pragma: no cover - compiled
+def _lane_solve(n, q, Lr, Li, dinv, Br, Bi, Tr, Ti):  # pragma: no cover - compiled
     """``T = (L L^H)^-1 B`` per lane (forward then back substitution, four lane groups at once)."""
-    n, q, _ = Br.shape
     for i in range(n):
         for c in range(q):
             r0, r1, r2, r3 = vload(Br[i, c], 0), vload(Br[i, c], 4), vload(Br[i, c], 8), vload(Br[i, c], 12)
@@ -272,9 +269,8 @@ def _store_scaled(xr, xi, d, r0, r1, r2, r3, i0, i1, i2, i3):  # pragma: no cove
 
 
 @_jit
-def _lane_inverse_diagonal(Lr, Li, dinv, g, xr, xi, acc):  # pragma: no cover - compiled
+def _lane_inverse_diagonal(n, Lr, Li, dinv, g, xr, xi, acc):  # pragma: no cover - compiled
     """``acc = [(L L^H)^-1]_gg = |L^-1 e_g|^2`` per lane (four lane groups at once)."""
-    n = Lr.shape[0]
     vstore(acc, 0, vzero())
     vstore(acc, 4, vzero())
     vstore(acc, 8, vzero())
@@ -306,10 +302,9 @@ def _lane_inverse_diagonal(Lr, Li, dinv, g, xr, xi, acc):  # pragma: no cover - 
 
 
 @_jit
-def _lane_residuals(Z, off, pw, m, q, R1, Tr, Ti, res):  # pragma: no cover - compiled
+def _lane_residuals(Z, off, pw, ne, m, q, R1, Tr, Ti, res):  # pragma: no cover - compiled
     """``res[c] = sum |Y_c - K theta_c|^2`` per lane; ``U_a`` and ``Y_c`` are read from the
     product slots ``conj(U_a)`` and ``Y_c``."""
-    ne = Z.shape[0]
     rows = pw.shape[0]
     one = vbcast(1.0)
     for c in range(q):
@@ -346,37 +341,36 @@ def _lane_residuals(Z, off, pw, m, q, R1, Tr, Ti, res):  # pragma: no cover - co
 
 
 @_jit
-def lanes_block(Z, off, pw, Sr, n_pow, m, q, R1, floor, excited_power, work, G, var, coh, status):  # pragma: no cover
+def lanes_block(
+    Z, off, pw, Sr, n_pow, ne, m, q, R1, floor, excited_power, work, G, var, coh, status
+):  # pragma: no cover
     """Solve ``LANES`` interior lines whose windows start at product column ``off``; write
     ``G``, ``var``, ``coh`` (lines first) and ``status`` as the per-line kernel does, except that
     the fallback test ``diag(M) diag(M^-1) <= FALLBACK_CONDITION`` is left to the caller
     (``work[-1]`` returns that product's maximum per lane)."""
-    ne = Z.shape[0]
     rows = pw.shape[0]
     nth = (m + ne) * R1
-    S, Mr, Mi, Br, Bi, Tr, Ti, dinv, xr, xi, ypow, res, acc, worst = work
+    S, Mr, Mi, Br, Bi, Tr, Ti, dinv, xr, xi, ypow, res, acc, gram_diag, excited, ok, worst = work
     if Mr.shape[0] != nth:
         raise ValueError("work arrays of the wrong size")
     _lane_moments(Z, off, pw, n_pow, S)
-    _lane_normal_equations(S, Sr, m, q, R1, Mr, Mi, Br, Bi, ypow)
-    excited = np.ones(LANES, np.bool_)
-    gram_diag = np.empty((m, LANES))
+    _lane_normal_equations(S, Sr, ne, m, q, R1, Mr, Mi, Br, Bi, ypow)
+    excited[:] = True
     for a in range(m):
         for l in range(LANES):
             gram_diag[a, l] = Mr[a * R1, a * R1, l]
             excited[l] = excited[l] and gram_diag[a, l] >= excited_power * ne * rows
-    ok = np.empty(LANES, np.bool_)
-    _lane_cholesky(Mr, Mi, dinv, floor, ok)
-    _lane_solve(Mr, Mi, dinv, Br, Bi, Tr, Ti)
+    _lane_cholesky(nth, Mr, Mi, dinv, floor, ok)
+    _lane_solve(nth, q, Mr, Mi, dinv, Br, Bi, Tr, Ti)
     worst[:] = 0.0
     for a in range(m):
-        _lane_inverse_diagonal(Mr, Mi, dinv, a * R1, xr, xi, acc)
+        _lane_inverse_diagonal(nth, Mr, Mi, dinv, a * R1, xr, xi, acc)
         for l in range(LANES):
             worst[l] = max(worst[l], acc[l] * gram_diag[a, l])
             for c in range(q):
                 var[l, c, a] = acc[l]
                 G[l, c, a] = complex(Tr[a * R1, c, l], Ti[a * R1, c, l])
-    _lane_residuals(Z, off, pw, m, q, R1, Tr, Ti, res)
+    _lane_residuals(Z, off, pw, ne, m, q, R1, Tr, Ti, res)
     dof = ne * rows - nth
     for l in range(LANES):
         finite = True
@@ -416,5 +410,8 @@ def lane_work(ne, m, q, R1, ns):  # pragma: no cover - compiled
         np.empty((q, LANES)),
         np.empty((q, LANES)),
         np.empty(LANES),
+        np.empty((m, LANES)),
+        np.empty(LANES, np.bool_),
+        np.empty(LANES, np.bool_),
         np.empty(LANES),
     )
