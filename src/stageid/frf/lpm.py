@@ -42,10 +42,18 @@ EXCITED_POWER = 1e-6
 
 
 def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
-    """The smallest half width ``n`` leaving at least 6 residual degrees of freedom per window."""
-    n_params = (n_inputs + n_records) * (degree + 1)
-    rows_needed = n_params + 6
-    return max(1, int(np.ceil((rows_needed / n_records - 1) / 2)))
+    """The smallest half width ``n`` leaving at least 6 residual degrees of freedom per window
+    in each record's own regression, whatever the number of records.
+
+    Pooling ``n_records`` records would allow a narrower window for the same total degrees of
+    freedom, but when each record excites one input (the usual way of measuring a MIMO FRF)
+    the pooled regression falls apart into one per record, each with ``(R + 1)`` G and
+    ``(R + 1)`` transient coefficients per output: the pooled rule left those 9 lines for 6
+    unknowns on the P-558 3x3 stage and tripled the error (benchmarks/RESULTS-frf.md).
+    """
+    del n_records  # see above: the per-record rule holds for any number of records
+    n_params = (n_inputs + 1) * (degree + 1)
+    return max(1, int(np.ceil((n_params + 6 - 1) / 2)))
 
 
 def lpm_frf(
