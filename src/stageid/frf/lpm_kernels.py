@@ -304,6 +304,7 @@ def _interior_powers(n, degree, m, q):  # pragma: no cover - compiled
     s = 0
     for a in range(m):
         n_pow[s : s + 2 * (m - a) + 2] = P
+        n_pow[s + 1] = 0  # Im |U_a|^2 = 0: no moments (the lanes' work array holds zeros there)
         s += 2 * (m - a) + 2
         n_pow[s : s + 2 * q] = degree + 1
         s += 2 * q

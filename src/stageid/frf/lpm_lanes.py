@@ -91,54 +91,71 @@ def _lane_moments(Z, off, pw, n_pow, S):  # pragma: no cover - compiled
 
 @_jit
 def _lane_normal_equations(S, Sr, ne, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma: no cover - compiled
-    """``M = K^H K``, ``B = K^H Y`` and ``sum |Y_c|^2`` per lane (slot order of the products)."""
-    Mr[:] = 0.0
-    Mi[:] = 0.0
-    Br[:] = 0.0
-    Bi[:] = 0.0
-    ypow[:] = 0.0
+    """``M = K^H K`` (lower triangle: all the factorisation reads), ``B = K^H Y`` and
+    ``sum |Y_c|^2`` per lane (slot order of the products); the first record assigns, the
+    others add, so nothing is zeroed for one record."""
+    nG = m * R1
+    if ne > 1:  # blocks between two records' transients stay zero
+        for i in range(nG, Mr.shape[0]):
+            for j in range(nG, i + 1):
+                Mr[i, j] = 0.0
+                Mi[i, j] = 0.0
     for e in range(ne):
-        t0 = m * R1 + e * R1
+        first = e == 0
+        t0 = nG + e * R1
         s = 0
         for a in range(m):
             for b in range(a, m):
                 for p in range(R1):
-                    for t in range(R1):
-                        i, j = a * R1 + p, b * R1 + t
-                        for l in range(LANES):
-                            Mr[i, j, l] += S[e, p + t, s, l]
-                            Mi[i, j, l] += S[e, p + t, s + 1, l]
-                        if b != a:
+                    for t in range(R1 if b > a else p + 1):
+                        # lower entry (b, t), (a, p): conj of the moment for b > a; on the
+                        # diagonal block the moment itself (its imaginary part is rounding)
+                        i, j = b * R1 + t, a * R1 + p
+                        if b == a:
+                            i, j = a * R1 + p, a * R1 + t
+                        sgn = -1.0 if b > a else 1.0
+                        if first:
                             for l in range(LANES):
-                                Mr[j, i, l] += S[e, p + t, s, l]
-                                Mi[j, i, l] -= S[e, p + t, s + 1, l]
+                                Mr[i, j, l] = S[e, p + t, s, l]
+                                Mi[i, j, l] = sgn * S[e, p + t, s + 1, l]
+                        else:
+                            for l in range(LANES):
+                                Mr[i, j, l] += S[e, p + t, s, l]
+                                Mi[i, j, l] += sgn * S[e, p + t, s + 1, l]
                 s += 2
             for p in range(R1):
                 for t in range(R1):
                     i, j = a * R1 + p, t0 + t
                     for l in range(LANES):
-                        Mr[i, j, l] = S[e, p + t, s, l]
-                        Mi[i, j, l] = S[e, p + t, s + 1, l]
                         Mr[j, i, l] = S[e, p + t, s, l]
                         Mi[j, i, l] = -S[e, p + t, s + 1, l]
             s += 2
             for c in range(q):
                 for p in range(R1):
-                    for l in range(LANES):
-                        Br[a * R1 + p, c, l] += S[e, p, s, l]
-                        Bi[a * R1 + p, c, l] += S[e, p, s + 1, l]
+                    if first:
+                        for l in range(LANES):
+                            Br[a * R1 + p, c, l] = S[e, p, s, l]
+                            Bi[a * R1 + p, c, l] = S[e, p, s + 1, l]
+                    else:
+                        for l in range(LANES):
+                            Br[a * R1 + p, c, l] += S[e, p, s, l]
+                            Bi[a * R1 + p, c, l] += S[e, p, s + 1, l]
                 s += 2
         for c in range(q):
             for p in range(R1):
                 for l in range(LANES):
                     Br[t0 + p, c, l] = S[e, p, s, l]
                     Bi[t0 + p, c, l] = S[e, p, s + 1, l]
-            for l in range(LANES):
-                ypow[c, l] += S[e, 0, s + 2, l]
+            if first:
+                ypow[c] = S[e, 0, s + 2]
+            else:
+                for l in range(LANES):
+                    ypow[c, l] += S[e, 0, s + 2, l]
             s += 3
         for p in range(R1):
-            for t in range(R1):
+            for t in range(p + 1):
                 Mr[t0 + p, t0 + t, :] = Sr[p + t]
+                Mi[t0 + p, t0 + t, :] = 0.0
 
 
 @_jit
@@ -397,7 +414,7 @@ def lane_work(ne, m, q, R1, ns):  # pragma: no cover - compiled
     P = 2 * R1 - 1
     nth = (m + ne) * R1
     return (
-        np.empty((ne, P, ns, LANES)),
+        np.zeros((ne, P, ns, LANES)),  # zeros: slots without moments (n_pow 0) read as 0
         np.empty((nth, nth, LANES)),
         np.empty((nth, nth, LANES)),
         np.empty((nth, q, LANES)),
