@@ -30,7 +30,7 @@ from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from ..resources import require_memory
 from .frd import FrequencyResponse
-from .lpm_kernels import lpm_lines_kernel, unit_scale
+from .lpm_kernels import lpm_lines_kernel
 
 __all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
 
@@ -120,19 +120,21 @@ def lpm_frf(
     n_th = (m + ne) * (degree + 1)
     require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + q) * 4, "local polynomial method")
     U, Y, u_scale = _spectra(exps)
-    if compiled:  # one call: the kernel's work arrays are per line
-        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last)
+    if compiled:  # one call: the kernel's work arrays are per line; it writes in input units
+        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last, u_scale)
     else:
         G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, K_last)
+        G /= u_scale
+        var /= u_scale**2
     if not ok.any():
         raise DataError(
             "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
         )
     if not ok.all():
         G, var, coh = G[ok], var[ok], coh[ok]
-    unit_scale(G, var, u_scale)  # in place, var -> std: at full resolution these arrays are large
+    std = np.sqrt(var, out=var)  # in place: at full resolution these arrays are large
     freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, var, coh, exps[0].input_names, exps[0].output_names, copy=False)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names, copy=False)
 
 
 def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -166,10 +168,11 @@ def _batched(
 
 
 def solve_lines_compiled(
-    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int, scale: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`solve_lines_python` by the numba kernel :func:`~stageid.frf.lpm_kernels.lpm_lines_kernel`;
-    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin."""
+    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin.  With
+    ``scale`` (m,), ``G`` and ``var`` come divided by ``scale[a]`` and ``scale[a]^2``."""
     B, q, m = ks.size, Y.shape[2], U.shape[2]
     G = np.empty((B, q, m), complex)
     var = np.empty((B, q, m))
@@ -177,10 +180,13 @@ def solve_lines_compiled(
     status = np.empty(B, np.int8)
     Ur, Ui = U.real, U.imag  # strided views: the kernel reads each line once
     ks = np.ascontiguousarray(ks, np.int64)
-    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
+    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status, scale)
     hard = np.flatnonzero(status == 2)
     if hard.size:
         G[hard], var[hard], coh[hard], good = _batched(solve_lines_python, U, Y, ks[hard], n, degree, k_last)
+        if scale is not None:
+            G[hard] /= scale
+            var[hard] /= scale**2
         status[hard] = np.where(good, 0, 1)
     return G, var, coh, status == 0
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from .lpm_lanes import LANES, lane_work, lanes_block
 
-__all__ = ["lpm_lines_kernel", "sized_entry", "FALLBACK_CONDITION", "PIVOT_FLOOR", "SPECIALISE_LINES", "unit_scale"]
+__all__ = ["lpm_lines_kernel", "sized_entry", "FALLBACK_CONDITION", "PIVOT_FLOOR", "SPECIALISE_LINES"]
 
 #: ``max diag(M) diag(M^-1)`` above which a line is handed to the numpy twin.
 FALLBACK_CONDITION = 1e8
@@ -207,7 +207,7 @@ def _residual_power(Ur, Ui, Y, e, j0, pw, theta, m, R1, res):  # pragma: no cove
             res[c] += d.real * d.real + d.imag * d.imag
 
 
-def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status):
+def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status, scale=None):
     """The local regressions of the lines ``ks`` (see :func:`~stageid.frf.lpm.solve_lines_python`).
 
     ``Ur``, ``Ui`` (ne, lines, m): real and imaginary parts of the unit-RMS input spectra; ``Y``
@@ -215,10 +215,12 @@ def lpm_lines_kernel(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, co
     ``status`` (B): 0 usable, 1 not excited or not usable, 2 for the numpy twin to decide.
     Runs of ``LANES`` consecutive interior lines go through :func:`~stageid.frf.lpm_lanes.lanes_block`,
     the others one at a time; ``ks`` ascending keeps the product blocks small.  From
-    ``SPECIALISE_LINES`` lines on, the kernel runs compiled for the record's sizes.
+    ``SPECIALISE_LINES`` lines on, the kernel runs compiled for the record's sizes.  With
+    ``scale`` (m,), ``G`` and ``var`` are written divided by ``scale[a]`` and ``scale[a]^2``.
     """
     ne, _, m = Ur.shape
-    args = (Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status, ne, m, Y.shape[2], degree + 1)
+    scale = np.ones(m) if scale is None else np.ascontiguousarray(scale, dtype=float)
+    args = (Ur, Ui, Y, ks, n, degree, k_last, excited_power, scale, G, var, coh, status, ne, m, Y.shape[2], degree + 1)
     if ks.size < SPECIALISE_LINES:
         _lines(*args)
     else:
@@ -238,7 +240,9 @@ def sized_entry(args: tuple) -> object:
 
 
 @_jit
-def _lines(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status, ne, m, q, R1):  # pragma: no cover
+def _lines(
+    Ur, Ui, Y, ks, n, degree, k_last, excited_power, scale, G, var, coh, status, ne, m, q, R1
+):  # pragma: no cover
     """:func:`lpm_lines_kernel`; the sizes ``ne, m, q, R1`` are arguments so that they can be
     compiled in as constants (:func:`sized_entry`)."""
     rows = 2 * n + 1
@@ -261,7 +265,7 @@ def _lines(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status,
         while i < c1:
             e = i + LANES - 1
             if e < c1 and ks[e] == ks[i] + LANES - 1 and ks[i] >= n and ks[e] <= k_last - n:
-                lanes_block(Z, ks[i] - n - lo, pw, Sr, n_pow, ne, m, q, R1, PIVOT_FLOOR, excited_power, work,
+                lanes_block(Z, ks[i] - n - lo, pw, Sr, n_pow, ne, m, q, R1, PIVOT_FLOOR, excited_power, work, scale,
                             G[i : e + 1], var[i : e + 1], coh[i : e + 1], status[i : e + 1])  # fmt: skip
                 for l in range(LANES):
                     if status[i + l] == 0 and work[-1][l] > FALLBACK_CONDITION:
@@ -269,21 +273,9 @@ def _lines(Ur, Ui, Y, ks, n, degree, k_last, excited_power, G, var, coh, status,
                 i += LANES
             else:
                 _solve_line(
-                    Ur, Ui, Y, Z, lo, ks[i], n, degree, k_last, excited_power, G[i], var[i], coh[i:], status[i:]
+                    Ur, Ui, Y, Z, lo, ks[i], n, degree, k_last, excited_power, scale, G[i], var[i], coh[i:], status[i:]
                 )
                 i += 1
-
-
-@_jit
-def unit_scale(G, var, scale):  # pragma: no cover - compiled
-    """``G[:, :, a] /= scale[a]`` and ``var -> sqrt(var) / scale[a]`` (the std) in one pass, in place:
-    the estimates back in the inputs' units (numpy needs three passes over ~100 MB at 10^6 samples)."""
-    B, q, m = G.shape
-    for i in range(B):
-        for c in range(q):
-            for a in range(m):
-                G[i, c, a] = G[i, c, a] / scale[a]
-                var[i, c, a] = np.sqrt(var[i, c, a]) / scale[a]
 
 
 @_jit
@@ -316,7 +308,7 @@ def _interior_powers(n, degree, m, q):  # pragma: no cover - compiled
 
 
 @_jit
-def _solve_line(Ur, Ui, Y, Z, lo, k, n, degree, k_last, excited_power, G, var, coh, status):  # pragma: no cover
+def _solve_line(Ur, Ui, Y, Z, lo, k, n, degree, k_last, excited_power, scale, G, var, coh, status):  # pragma: no cover
     """One line ``k`` (any window, edges included); ``coh[0]`` and ``status[0]`` are its entries."""
     ne, _, m = Ur.shape
     q = Y.shape[2]
@@ -370,8 +362,8 @@ def _solve_line(Ur, Ui, Y, Z, lo, k, n, degree, k_last, excited_power, G, var, c
     for c in range(q):
         sigma2 = res[c] / dof
         for a in range(m):
-            G[c, a] = theta[a * R1, c]
-            var[c, a] = sigma2 * diag[a]
+            G[c, a] = theta[a * R1, c] / scale[a]
+            var[c, a] = sigma2 * diag[a] / (scale[a] * scale[a])
             finite = finite and np.isfinite(var[c, a]) and np.isfinite(G[c, a].real) and np.isfinite(G[c, a].imag)
         power = ypow[c] / (ne * rows)
         coh[0, c] = min(max(1.0 - sigma2 / power, 0.0), 1.0) if power > 0 else 0.0

@@ -359,12 +359,13 @@ def _lane_residuals(Z, off, pw, ne, m, q, R1, Tr, Ti, res):  # pragma: no cover 
 
 @_jit
 def lanes_block(
-    Z, off, pw, Sr, n_pow, ne, m, q, R1, floor, excited_power, work, G, var, coh, status
+    Z, off, pw, Sr, n_pow, ne, m, q, R1, floor, excited_power, work, scale, G, var, coh, status
 ):  # pragma: no cover
     """Solve ``LANES`` interior lines whose windows start at product column ``off``; write
     ``G``, ``var``, ``coh`` (lines first) and ``status`` as the per-line kernel does, except that
     the fallback test ``diag(M) diag(M^-1) <= FALLBACK_CONDITION`` is left to the caller
-    (``work[-1]`` returns that product's maximum per lane)."""
+    (``work[-1]`` returns that product's maximum per lane).  ``G`` and ``var`` are written
+    divided by ``scale[a]`` and ``scale[a]^2`` (input ``a``'s units back, no later pass)."""
     rows = pw.shape[0]
     nth = (m + ne) * R1
     S, Mr, Mi, Br, Bi, Tr, Ti, dinv, xr, xi, ypow, res, acc, gram_diag, excited, ok, worst = work
@@ -385,8 +386,8 @@ def lanes_block(
         for l in range(LANES):
             worst[l] = max(worst[l], acc[l] * gram_diag[a, l])
             for c in range(q):
-                var[l, c, a] = acc[l]
-                G[l, c, a] = complex(Tr[a * R1, c, l], Ti[a * R1, c, l])
+                var[l, c, a] = acc[l] / (scale[a] * scale[a])
+                G[l, c, a] = complex(Tr[a * R1, c, l], Ti[a * R1, c, l]) / scale[a]
     _lane_residuals(Z, off, pw, ne, m, q, R1, Tr, Ti, res)
     dof = ne * rows - nth
     for l in range(LANES):
