@@ -102,3 +102,15 @@ def test_nan_in_table(tmp_path):
     path.write_text("f_hz,re_y_u,im_y_u\n1,1,0\n2,nan,0\n")
     with pytest.raises(DataError, match="NaN"):
         read_frd(path)
+
+
+def test_copy_false_takes_the_arrays_over_and_the_default_copies():
+    f = np.array([1.0, 2.0, 3.0])
+    G = np.ones((3, 1, 1), complex)
+    std = np.full((3, 1, 1), 0.1)
+    coh = np.array([[0.5], [1.2], [0.9]])
+    kept = FrequencyResponse(f, G, std, coh)
+    assert G.flags.writeable and coh[1, 0] == 1.2 and not np.shares_memory(kept.response, G)
+    taken = FrequencyResponse(f, G, std, coh, copy=False)
+    assert np.shares_memory(taken.response, G) and np.shares_memory(taken.std, std)
+    assert not G.flags.writeable and coh[1, 0] == 1.0  # frozen, clipped in place

@@ -6,7 +6,7 @@ import pytest
 import scipy.signal as ss
 
 from stageid.data import Experiment
-from stageid.frf import lpm_frf
+from stageid.frf import lpm_frf, lpm_kernels
 from stageid.frf.lpm import solve_lines_compiled, solve_lines_python
 from stageid.frf.lpm_kernels import lpm_lines_kernel
 
@@ -103,3 +103,15 @@ def test_ill_conditioned_windows_fall_back_to_the_twin():
             lpm_frf(exp, compiled=False)
     else:
         _assert_same(ra, lpm_frf(exp, compiled=False))
+
+
+def test_kernel_compiled_for_the_sizes_equals_numpy_twin(monkeypatch):
+    # long records run the kernel compiled with (ne, m, q, degree) as constants; force that path
+    # on a short MIMO record (two records, so the cross-record blocks are exercised too)
+    calls = []
+    sized = lpm_kernels.sized_entry
+    monkeypatch.setattr(lpm_kernels, "SPECIALISE_LINES", 0)
+    monkeypatch.setattr(lpm_kernels, "sized_entry", lambda args: calls.append(args[-4:]) or sized(args))
+    exps = _records(9, 1800, 2, 3, 2)
+    _assert_same(lpm_frf(exps), lpm_frf(exps, compiled=False))
+    assert calls == [(2, 2, 3, 3)]

@@ -36,6 +36,10 @@ class FrequencyResponse:
         Multiple coherence of each output (ordinary coherence for one input), in [0, 1].
     inputs, outputs : sequence of str
         Channel names; default ``u1, ...`` and ``y1, ...``.
+    copy : bool
+        Copy the arrays (default).  ``False`` takes them over as they are (made read-only, the
+        coherence clipped in place): for estimators that built them and keep no reference,
+        because at a long record's full resolution a copy costs as much as the estimate.
 
     Raises
     ------
@@ -56,10 +60,12 @@ class FrequencyResponse:
     coherence: np.ndarray | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+    copy: dataclasses.InitVar[bool] = True
 
-    def __post_init__(self) -> None:
-        f = np.array(self.freqs, dtype=float, copy=True).reshape(-1)
-        G = np.array(self.response, dtype=complex, copy=True)
+    def __post_init__(self, copy: bool) -> None:
+        own = True if copy else None  # None: no copy unless the dtype differs
+        f = np.array(self.freqs, dtype=float, copy=own).reshape(-1)
+        G = np.array(self.response, dtype=complex, copy=own)
         if G.ndim == 1:
             G = G[:, None, None]
         if G.ndim != 3 or G.shape[0] != f.size:
@@ -79,17 +85,17 @@ class FrequencyResponse:
         set_(self, "freqs", _frozen(f))
         set_(self, "response", _frozen(G))
         if self.std is not None:
-            s = np.array(self.std, dtype=float, copy=True)
+            s = np.array(self.std, dtype=float, copy=own)
             if s.shape != G.shape:
                 raise DataError(f"`std` must have shape {G.shape}; got {s.shape}.")
             if not np.all(np.isfinite(s)) or np.any(s < 0):
                 raise DataError("`std` must be finite and >= 0; got NaN, inf or a negative value.")
             set_(self, "std", _frozen(s))
         if self.coherence is not None:
-            c = np.array(self.coherence, dtype=float, copy=True)
+            c = np.array(self.coherence, dtype=float, copy=own)
             if c.shape != (f.size, q) or not np.all(np.isfinite(c)):
                 raise DataError(f"`coherence` must be finite with shape {(f.size, q)}; got shape {c.shape}.")
-            set_(self, "coherence", _frozen(np.clip(c, 0.0, 1.0)))
+            set_(self, "coherence", _frozen(np.clip(c, 0.0, 1.0, out=c)))
         set_(self, "inputs", _names(self.inputs, m, "u", "inputs"))
         set_(self, "outputs", _names(self.outputs, q, "y", "outputs"))
 

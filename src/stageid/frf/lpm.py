@@ -42,10 +42,18 @@ EXCITED_POWER = 1e-6
 
 
 def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
-    """The smallest half width ``n`` leaving at least 6 residual degrees of freedom per window."""
-    n_params = (n_inputs + n_records) * (degree + 1)
-    rows_needed = n_params + 6
-    return max(1, int(np.ceil((rows_needed / n_records - 1) / 2)))
+    """The smallest half width ``n`` leaving at least 6 residual degrees of freedom per window
+    in each record's own regression, whatever the number of records.
+
+    Pooling ``n_records`` records would allow a narrower window for the same total degrees of
+    freedom, but when each record excites one input (the usual way of measuring a MIMO FRF)
+    the pooled regression falls apart into one per record, each with ``(R + 1)`` G and
+    ``(R + 1)`` transient coefficients per output: the pooled rule left those 9 lines for 6
+    unknowns on the P-558 3x3 stage and tripled the error (benchmarks/RESULTS-frf.md).
+    """
+    del n_records  # see above: the per-record rule holds for any number of records
+    n_params = (n_inputs + 1) * (degree + 1)
+    return max(1, int(np.ceil((n_params + 6 - 1) / 2)))
 
 
 def lpm_frf(
@@ -112,21 +120,21 @@ def lpm_frf(
     n_th = (m + ne) * (degree + 1)
     require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + q) * 4, "local polynomial method")
     U, Y, u_scale = _spectra(exps)
-    if compiled:  # one call: the kernel's work arrays are per line
-        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last)
+    if compiled:  # one call: the kernel's work arrays are per line; it writes in input units
+        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last, u_scale)
     else:
         G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, K_last)
+        G /= u_scale
+        var /= u_scale**2
     if not ok.any():
         raise DataError(
             "no DFT line has an invertible local regression: an input without excitation or inputs always proportional."
         )
     if not ok.all():
         G, var, coh = G[ok], var[ok], coh[ok]
-    G /= u_scale  # in place: at full resolution these arrays are large
-    std = np.sqrt(var, out=var)
-    std /= u_scale
+    std = np.sqrt(var, out=var)  # in place: at full resolution these arrays are large
     freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names, copy=False)
 
 
 def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,7 +144,8 @@ def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     else:
         U = np.stack([np.fft.rfft(e.u, axis=0) for e in exps])
         Y = np.stack([np.fft.rfft(e.y, axis=0) for e in exps])
-    u_scale = np.sqrt(np.mean(U.real**2 + U.imag**2, axis=(0, 1)))
+    power = np.einsum("eia,eia->a", U.real, U.real) + np.einsum("eia,eia->a", U.imag, U.imag)
+    u_scale = np.sqrt(power / (U.shape[0] * U.shape[1]))  # no full-size temporaries
     if np.any(u_scale == 0):
         raise DataError("an input is zero throughout; the LPM needs every input excited.")
     U /= u_scale
@@ -159,10 +168,11 @@ def _batched(
 
 
 def solve_lines_compiled(
-    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int
+    U: np.ndarray, Y: np.ndarray, ks: np.ndarray, n: int, degree: int, k_last: int, scale: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`solve_lines_python` by the numba kernel :func:`~stageid.frf.lpm_kernels.lpm_lines_kernel`;
-    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin."""
+    the lines it flags (ill-conditioned or a failed Cholesky pivot) are solved by the twin.  With
+    ``scale`` (m,), ``G`` and ``var`` come divided by ``scale[a]`` and ``scale[a]^2``."""
     B, q, m = ks.size, Y.shape[2], U.shape[2]
     G = np.empty((B, q, m), complex)
     var = np.empty((B, q, m))
@@ -170,10 +180,13 @@ def solve_lines_compiled(
     status = np.empty(B, np.int8)
     Ur, Ui = U.real, U.imag  # strided views: the kernel reads each line once
     ks = np.ascontiguousarray(ks, np.int64)
-    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status)
+    lpm_lines_kernel(Ur, Ui, np.ascontiguousarray(Y), ks, n, degree, k_last, EXCITED_POWER, G, var, coh, status, scale)
     hard = np.flatnonzero(status == 2)
     if hard.size:
         G[hard], var[hard], coh[hard], good = _batched(solve_lines_python, U, Y, ks[hard], n, degree, k_last)
+        if scale is not None:
+            G[hard] /= scale
+            var[hard] /= scale**2
         status[hard] = np.where(good, 0, 1)
     return G, var, coh, status == 0
 
