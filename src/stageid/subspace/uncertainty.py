@@ -40,12 +40,11 @@ from .._errors import DataError
 from .._threads import single_blas_thread
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import response_systems
 from .map_estimator import Posterior
 from .realization import realize
 from .records import check_freqs
 from .weighting import output_weights, weight_scales, weighted_theta
-from .window_covariance import overlap_response_covariance
+from .window_covariance import overlap_response_covariance, response_directions
 
 __all__ = [
     "UNCERTAINTY_METHODS",
@@ -207,20 +206,8 @@ def eq9_response_covariance(
     cov, pseudo : ndarrays of shape (n_freqs q m, n_freqs q m), complex (``vec`` in (k, i, j) order)
     """
     p, m, q = horizon, n_inputs, n_outputs
-    lhs, rhs, e_past, e_fut = response_systems(theta, p, m, q, freqs, dt)
-    nz = e_past.shape[0]
-    lh = np.conj(lhs).transpose(0, 2, 1)
-    Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq): the least-squares inverse of each block system
-    G = Lp @ rhs
-    # V_k = [e_past (x) I_m; e_past (x) G_k; e_fut (x) I_m], all k side by side: (d, nz m)
-    eye = np.eye(m)[None, :, None, :]
-    V = np.concatenate(
-        [
-            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
-            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
-            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
-        ]
-    )
+    G, Lp, V = response_directions(theta, p, m, q, freqs, dt)
+    nz = G.shape[0]
     PV = column_cov @ V.real + 1j * (column_cov @ V.imag)  # a real matrix: half the flops of complex
     A_c = (V.T @ np.conj(PV)).reshape(nz, m, nz, m)
     A_p = (V.T @ PV).reshape(nz, m, nz, m)

@@ -40,7 +40,15 @@ import numpy as np
 from .correlations import RecordRows, lag_correlations
 from .hankel_toeplitz import regressor_indices, response_systems
 
-__all__ = ["WindowLags", "window_lags", "WindowFilter", "lag_spectrum", "lag_products", "overlap_response_covariance"]
+__all__ = [
+    "WindowLags",
+    "window_lags",
+    "WindowFilter",
+    "lag_spectrum",
+    "lag_products",
+    "overlap_response_covariance",
+    "response_directions",
+]
 
 #: Most complex entries of the per-frequency spectral products formed at once (cache, memory).
 BLOCK_ENTRIES = 1 << 18
@@ -178,19 +186,8 @@ def overlap_response_covariance(
     """
     p, m, q = horizon, n_inputs, n_outputs
     r, d = m + q, theta.shape[1]
-    lhs, rhs, e_past, e_fut = response_systems(theta, p, m, q, freqs, dt)
-    nz = e_past.shape[0]
-    lh = np.conj(lhs).transpose(0, 2, 1)
-    Lp = np.linalg.solve(lh @ lhs, lh)  # (nz, q, pq)
-    G = Lp @ rhs
-    eye = np.eye(m)[None, :, None, :]
-    V = np.concatenate(
-        [
-            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
-            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
-            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
-        ]
-    )
+    G, Lp, V = response_directions(theta, p, m, q, freqs, dt)
+    nz = G.shape[0]
     xi, yi = regressor_indices(p, m, q)
     n = 8 * p  # > 8 p - 4: no lag |l| <= 2p - 1 wraps (module docstring)
     S = lag_spectrum(stats.lags, n)
@@ -215,3 +212,25 @@ def overlap_response_covariance(
     cov = zero_c + half_c + np.conj(half_c).T
     pseudo = zero_p + half_p + half_p.T
     return G, cov, pseudo
+
+
+def response_directions(
+    theta: np.ndarray, p: int, m: int, q: int, freqs: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(G, L^+, V)``: the eq. 9 response ``G_k = L_k^+ theta V_k`` on a grid, each block system's
+    least-squares inverse ``L_k^+`` (nz, q, pq) and ``V_k = [e_past (x) I_m; e_past (x) G_k;
+    e_fut (x) I_m]`` for all ``k`` side by side (d, nz m): ``dG_k = L_k^+ dtheta V_k``."""
+    lhs, rhs, e_past, e_fut = response_systems(theta, p, m, q, freqs, dt)
+    nz = e_past.shape[0]
+    lh = np.conj(lhs).transpose(0, 2, 1)
+    Lp = np.linalg.solve(lh @ lhs, lh)
+    G = Lp @ rhs
+    eye = np.eye(m)[None, :, None, :]
+    V = np.concatenate(
+        [
+            (e_past.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+            (e_past.T[:, None, :, None] * G.transpose(1, 0, 2)[None]).reshape(p * q, nz * m),
+            (e_fut.T[:, None, :, None] * eye).reshape(p * m, nz * m),
+        ]
+    )
+    return G, Lp, V
