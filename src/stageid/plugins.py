@@ -26,7 +26,7 @@ HYSTERESIS_KINDS = "stageid.hysteresis_kinds"
 @cache
 def declared(group: str) -> dict[str, str]:
     """The ``name -> "module:attribute"`` entries installed packages declare in ``group``."""
-    from importlib.metadata import entry_points  # ~10 ms of imports: only when a file is read
+    from importlib.metadata import entry_points  # a costly import: only when a file is read
 
     return {ep.name: ep.value for ep in entry_points(group=group)}
 
