@@ -98,27 +98,13 @@ def one_loop_memory_error(model, u, y) -> tuple[np.ndarray, str]:
 
 
 def simulated(lines: list[str]) -> None:
-    from scipy.signal import lfilter
-    from stage_study import PreisachActuator, resonance
+    from stage_study import simulated_stage
 
-    from stageid.data import Experiment
     from stageid.hysteresis.stage_identification import StageIdentifier
     from stageid.hysteresis.stage_inverse import stage_feedforward
-    from stageid.signals import decaying_triangle, triangle
+    from stageid.signals import triangle
 
-    act = PreisachActuator()
-    b, a, _ = resonance(DT)
-    rng = np.random.default_rng(0)
-
-    def plant(u):
-        h = act.simulate(u)
-        return h[0] + lfilter(b, a, h - h[0])
-
-    def rec(freq, cycles, name):
-        u = decaying_triangle(freq, cycles, DT, amplitude=95.0)
-        y = plant(u) + 2e-3 * rng.standard_normal(u.size)
-        return Experiment(u[:, None], y[:, None], DT, ("V",), ("y",), name=name)
-
+    plant, rec = simulated_stage()  # the same plant and records as stage_study.py
     train = [rec(20.0, 12, "20 Hz"), rec(100.0, 40, "100 Hz")]
     val = rec(150.0, 40, "150 Hz")
     y_lo, y_hi = float(plant(np.r_[-95.0, -95.0])[-1]), float(plant(np.r_[95.0, 95.0])[-1])

@@ -100,18 +100,17 @@ def resonance(dt: float, f_n: float = 1000.0, zeta: float = 0.05):
     return b * np.sum(a) / np.sum(b), a, transfer_to_statespace(b * np.sum(a) / np.sum(b), a, dt)
 
 
-def simulated(lines: list[str]) -> None:
+def simulated_stage(seed: int = 0):
+    """``(plant, rec)``: the Preisach actuator + 1 kHz resonance, and ``rec(freq, cycles, name)``,
+    a noisy decaying-triangle record of it (the noise drawn in call order from ``seed``)."""
     from scipy.signal import lfilter
 
     from stageid.data import Experiment
-    from stageid.hysteresis import compensate
-    from stageid.hysteresis.stage_identification import StageIdentifier
-    from stageid.hysteresis.stage_inverse import stage_feedforward
-    from stageid.signals import decaying_triangle, triangle
+    from stageid.signals import decaying_triangle
 
     act = PreisachActuator()
     b, a, _ = resonance(DT)
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
 
     def plant(u):
         h = act.simulate(u)
@@ -122,6 +121,16 @@ def simulated(lines: list[str]) -> None:
         y = plant(u) + 2e-3 * rng.standard_normal(u.size)
         return Experiment(u[:, None], y[:, None], DT, ("V",), ("y",), name=name)
 
+    return plant, rec
+
+
+def simulated(lines: list[str]) -> None:
+    from stageid.hysteresis import compensate
+    from stageid.hysteresis.stage_identification import StageIdentifier
+    from stageid.hysteresis.stage_inverse import stage_feedforward
+    from stageid.signals import triangle
+
+    plant, rec = simulated_stage()
     train = [rec(20.0, 12, "20 Hz"), rec(100.0, 40, "100 Hz")]
     t0 = time.perf_counter()
     fit = StageIdentifier("modified-pi", dynamics="auto", creep=None).fit(train)
