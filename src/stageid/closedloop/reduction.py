@@ -36,6 +36,7 @@ __all__ = [
     "keep_full_order",
     "entry_unstable_poles",
     "zoh_response",
+    "zoh_at",
     "paper_orders",
 ]
 
@@ -85,7 +86,12 @@ def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarr
     """
     num = np.atleast_1d(np.asarray(num, dtype=float))
     den = np.atleast_1d(np.asarray(den, dtype=float))
-    z = np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt)
+    return zoh_at(num, den, dt, np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt))
+
+
+def zoh_at(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) -> np.ndarray:
+    """:func:`zoh_response` at given points ``z = exp(j 2 pi f dt)`` (1-D float ``num``, ``den``):
+    the reduced fits evaluate it for every residual on one grid."""
     num_t, den_t = trim_leading(num), trim_leading(den)
     if den_t.size == 1 and num_t.size <= 1:  # a static gain: tf2ss would give it one state at z = 1
         return np.full(z.shape, complex(num_t.sum() / den_t[0]))
@@ -263,25 +269,34 @@ def _levy_start(
 
 
 class _RationalFit:
-    """``b(s) / (d_u(s) d_s(s))`` in the normalised variable ``s / w0``, and its relative ZOH error."""
+    """``b(s) / (d_u(s) d_s(s))`` in the normalised variable ``s / w0``, and its relative ZOH error.
+
+    The grid ``z``, ``1 / P`` and the powers of ``w0`` are computed once: the least-squares
+    search evaluates :meth:`residual` thousands of times (the same numbers as
+    :func:`zoh_response` on ``f``).
+    """
 
     def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles):
         self.P, self.f, self.dt, self.w0, self.du_n = P, f, dt, w0, du_n
         self.n_zeros, self.n_poles = n_zeros, n_poles
+        self.z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
+        self.num_scale = w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
+        self.den_scale = w0 ** (-np.arange(n_poles, -1, -1, dtype=float))
 
     def polynomials(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(num, den)`` in ``s`` (descending, monic ``den``) of the parameters ``th``."""
         nb = self.n_zeros + 1
-        den_n = np.polymul(self.du_n, _poly_from_params(th[nb:]))
+        # np.polymul of these (leading coefficients 1, nothing to trim) is this convolution
+        den_n = np.convolve(self.du_n, _poly_from_params(th[nb:]))
         # undo the normalisation s_n = s / w0: multiply coefficient k (power p) by w0^-p
-        num = th[:nb] * self.w0 ** (-np.arange(self.n_zeros, -1, -1, dtype=float))
-        den = den_n * self.w0 ** (-np.arange(self.n_poles, -1, -1, dtype=float))
+        num = th[:nb] * self.num_scale
+        den = den_n * self.den_scale
         return num / den[0], den / den[0]
 
     def residual(self, th: np.ndarray) -> np.ndarray:
         """``(ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
         num, den = self.polynomials(th)
-        r = (zoh_response(num, den, self.dt, self.f) - self.P) / self.P
+        r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.P
         return np.concatenate([r.real, r.imag])
 
 
