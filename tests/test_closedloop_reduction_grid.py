@@ -1,0 +1,71 @@
+"""The reduced fits evaluate the ZOH response on a grid computed once (``reduction.zoh_at``).
+
+``zoh_at`` must give the numbers of :func:`zoh_response` (the same arithmetic, bit for bit) and
+those of an independent ZOH discretisation; the reduction's residual must be the one written
+with ``np.polymul`` and :func:`zoh_response` on the frequencies, so that the fits are unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.signal as ss
+
+from stageid.closedloop.reduction import reduce_entry, zoh_at, zoh_response
+
+DT = 2e-4
+F = np.geomspace(20.0, 300.0, 120)
+
+CASES = [
+    ([3.0], np.poly([50.0, -80.0])),  # the paper's diagonal [0, 2], one unstable pole
+    ([1.0, 3.0], np.poly([50.0, -80.0, -120.0])),  # a coupling [1, 3]
+    ([2.0, 0.0, 5.0], np.real(np.poly([-30.0 + 400j, -30.0 - 400j, -200.0]))),  # lightly damped pair
+    ([1.0], np.poly([-100.0, -100.0, -100.0])),  # a triple pole (no partial fractions)
+    ([4.0, 1.0], [2.0, 0.0]),  # an integrator, non-monic denominator
+]
+
+
+@pytest.mark.parametrize(("num", "den"), CASES)
+def test_zoh_at_equals_zoh_response_and_an_independent_discretisation(num, den) -> None:
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    z = np.exp(2j * np.pi * F * DT)
+    got = zoh_at(num, den, DT, z)
+    assert np.array_equal(got, zoh_response(num, den, DT, F))
+    # scipy's own ZOH of scipy's realisation, the resolvent inverted point by point (a polynomial
+    # form would lose digits near z = 1 for the triple pole)
+    Ad, Bd, Cd, Dd, _ = ss.cont2discrete(ss.tf2ss(num, den), DT, method="zoh")
+    ref = np.array([(Cd @ np.linalg.inv(zk * np.eye(Ad.shape[0]) - Ad) @ Bd + Dd)[0, 0] for zk in z])
+    assert np.max(np.abs(got - ref) / np.abs(ref)) < 1e-9
+
+
+def _reference_residual(P, f, dt, w0, du_n, n_zeros, n_poles, th):
+    """The residual as written before the grid was cached: np.polymul and zoh_response on ``f``."""
+    nb = n_zeros + 1
+    den_n = np.polymul(du_n, np.concatenate([[1.0], th[nb:]]))
+    num = th[:nb] * w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
+    den = den_n * w0 ** (-np.arange(n_poles, -1, -1, dtype=float))
+    num, den = num / den[0], den / den[0]
+    r = (zoh_response(num, den, dt, f) - P) / P
+    return np.concatenate([r.real, r.imag])
+
+
+@pytest.mark.parametrize(("nz", "n_p", "unstable"), [(0, 2, [50.0]), (1, 3, []), (1, 3, [50.0])])
+def test_reduction_residual_is_the_uncached_one(nz, n_p, unstable) -> None:
+    from stageid.closedloop import reduction
+
+    P = zoh_response([1.0, 3.0], np.poly([50.0, -80.0, -120.0]), DT, F)
+    w0 = 2 * np.pi * np.sqrt(F.min() * F.max())
+    up = np.asarray(unstable, float)
+    du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
+    fit = reduction._RationalFit(P, F, DT, w0, du_n, nz, n_p)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        th = rng.standard_normal(nz + 1 + n_p - up.size)
+        assert np.array_equal(fit.residual(th), _reference_residual(P, F, DT, w0, du_n, nz, n_p, th))
+
+
+def test_reduce_entry_recovers_a_known_entry() -> None:
+    P = zoh_response([1.0, 3.0], np.poly([50.0, -80.0, -120.0]), DT, F)
+    r = reduce_entry(P, F, DT, 1, 3, np.array([50.0]))
+    assert r.eps_complex < 1e-6
+    assert np.sort(r.poles.real) == pytest.approx([-120.0, -80.0, 50.0], rel=1e-5)
