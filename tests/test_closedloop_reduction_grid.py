@@ -69,3 +69,40 @@ def test_reduce_entry_recovers_a_known_entry() -> None:
     r = reduce_entry(P, F, DT, 1, 3, np.array([50.0]))
     assert r.eps_complex < 1e-6
     assert np.sort(r.poles.real) == pytest.approx([-120.0, -80.0, 50.0], rel=1e-5)
+
+
+def _reference_best(P, f, dt, nz, n_p, keep, diagonal):
+    """``reduce_best`` as written with three separate ``reduce_entry`` fits."""
+    cands = []
+    if keep.size and keep.size <= n_p:
+        cands.append(reduce_entry(P, f, dt, nz, n_p, keep))
+    cands.append(reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=False))
+    stable = reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=True)
+    stable_ok = not np.any(stable.poles.real > 0)
+    if stable_ok:
+        cands.append(stable)
+    best = min(cands, key=lambda r: r.eps_complex)
+    if not diagonal and stable_ok and stable.eps_complex <= 1.5 * best.eps_complex:
+        return stable
+    return best
+
+
+@pytest.mark.parametrize(
+    ("poles", "nz", "n_p", "keep", "diagonal"),
+    [
+        ([50.0, -80.0], 0, 2, [50.0], True),  # unstable kept
+        ([50.0, -80.0, -120.0], 1, 3, [], False),  # unstable, nothing kept: free vs reflected-stable
+        ([-30.0 + 400j, -30.0 - 400j, -200.0], 1, 3, [], False),  # stable entry
+        ([9.0, -60.0, -500.0], 1, 3, [], True),
+    ],
+)
+def test_reduce_best_shares_the_free_fit_without_changing_the_choice(poles, nz, n_p, keep, diagonal) -> None:
+    from stageid.closedloop.reduction import reduce_best
+
+    rng = np.random.default_rng(7)
+    P = zoh_response([1.0, 3.0], np.real(np.poly(poles)), DT, F) * (1 + 1e-3 * rng.standard_normal(F.size))
+    keep = np.asarray(keep, float)
+    got = reduce_best(P, F, DT, nz, n_p, keep, diagonal)
+    ref = _reference_best(P, F, DT, nz, n_p, keep, diagonal)
+    assert np.array_equal(got.num, ref.num) and np.array_equal(got.den, ref.den)
+    assert got.eps_complex == ref.eps_complex and got.eps_magnitude == ref.eps_magnitude

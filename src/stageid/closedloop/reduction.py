@@ -184,6 +184,24 @@ def reduce_entry(
     >>> bool(r.eps_complex < 1e-6), np.round(np.sort(r.poles.real), 3).tolist()
     (True, [-80.0, 50.0])
     """
+    fit, theta, up = free_fit(response, freqs_hz, dt, n_zeros, n_poles, unstable_poles, max_nfev)
+    return finish_entry(fit, theta, up, max_nfev, stable_free)
+
+
+def free_fit(
+    response: np.ndarray,
+    freqs_hz: np.ndarray,
+    dt: float,
+    n_zeros: int,
+    n_poles: int,
+    unstable_poles: np.ndarray | None = None,
+    max_nfev: int = 400,
+) -> tuple[_RationalFit, np.ndarray, np.ndarray]:
+    """The first step of :func:`reduce_entry`: Levy start and nonlinear fit with the free poles anywhere.
+
+    Returns ``(fit, theta, kept unstable poles)`` for :func:`finish_entry`; the "free" and the
+    "stable" candidates of :func:`reduce_best` share it (the stable one continues from it).
+    """
     P = np.asarray(response, dtype=complex).reshape(-1)
     f = np.asarray(freqs_hz, dtype=float).reshape(-1)
     up = np.zeros(0, complex) if unstable_poles is None else np.asarray(unstable_poles, dtype=complex).reshape(-1)
@@ -202,15 +220,21 @@ def reduce_entry(
             xtol=1e-12,
             ftol=1e-12,
         )
-        theta = sol.x
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
-    if n_free and stable_free:
+    return fit, sol.x, up
+
+
+def finish_entry(
+    fit: _RationalFit, theta: np.ndarray, up: np.ndarray, max_nfev: int = 400, stable_free: bool = True
+) -> ReducedEntry:
+    """The entry of :func:`free_fit`'s result: free poles reflected and refitted if ``stable_free``, band errors."""
+    if fit.n_poles - up.size and stable_free:
         theta = _reflect_and_refit(fit, theta, max_nfev)
     num, den = fit.polynomials(theta)
-    Pr = zoh_response(num, den, dt, f)
-    eps_mag = float(np.max(np.abs(np.abs(P) - np.abs(Pr)) / np.abs(P)))
-    eps_cplx = float(np.max(np.abs(P - Pr) / np.abs(P)))
+    Pr = zoh_at(num, den, fit.dt, fit.z)
+    eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
+    eps_cplx = float(np.max(np.abs(fit.P - Pr) / np.abs(fit.P)))
     return ReducedEntry(num, den, up, eps_mag, eps_cplx)
 
 
@@ -316,8 +340,10 @@ def reduce_best(
     cands = []
     if keep.size and keep.size <= n_p:
         cands.append(reduce_entry(P, f, dt, nz, n_p, keep))
-    cands.append(reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=False))
-    stable = reduce_entry(P, f, dt, nz, n_p, np.zeros(0), stable_free=True)
+    # the all-free and the all-stable candidates start with the same fit: done once
+    free = free_fit(P, f, dt, nz, n_p, np.zeros(0))
+    cands.append(finish_entry(*free, stable_free=False))
+    stable = finish_entry(*free, stable_free=True)
     stable_ok = not np.any(stable.poles.real > 0)
     if stable_ok:
         cands.append(stable)
