@@ -102,21 +102,24 @@ def cancel_pairs(
     P = np.asarray(poles, dtype=complex).reshape(-1)
     Z = np.asarray(zeros, dtype=complex).reshape(-1)
     sp, sz = z_to_s(P, dt), z_to_s(Z, dt)
-    # distances once; a cancelled pair's row and column are masked with inf (elementwise the same
-    # numbers as recomputing them for the remaining roots, and argmin keeps their order)
+    # distances once; pairs taken nearest first (smallest d / limit, ties in row-major order), as
+    # argmin over the distance matrix with the cancelled rows and columns masked takes them
     d = np.abs(sp[:, None] - sz[None, :]) / np.maximum(np.abs(sp), 1.0)[:, None]
     limit = np.where((sp.real[:, None] > 0) & (sz.real[None, :] > 0), unstable_tol, tol)
-    ratio = d / limit
+    with np.errstate(divide="ignore", invalid="ignore"):  # tol = 0: never cancelled (inf, or 0/0)
+        ratio = (d / limit).ravel()
     keep_p, keep_z = np.ones(P.size, bool), np.ones(Z.size, bool)
     pairs: list[CancelledPair] = []
-    while keep_p.any() and keep_z.any():
-        i, j = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+    # only ratios <= 1 can cancel (d < limit); past them every remaining pair has d > limit
+    cand = np.flatnonzero(ratio <= 1.0)
+    for k in cand[np.argsort(ratio[cand], kind="stable")]:
+        i, j = divmod(int(k), Z.size)
+        if not (keep_p[i] and keep_z[j]):
+            continue
         if d[i, j] >= limit[i, j]:
             break
         pairs.append(CancelledPair(output, input, complex(sp[i]), complex(sz[j]), float(d[i, j])))
         keep_p[i] = keep_z[j] = False
-        ratio[i, :] = np.inf
-        ratio[:, j] = np.inf
     return P[keep_p], Z[keep_z], tuple(pairs)
 
 
