@@ -5,7 +5,7 @@ the same ``G = B/A`` on every round of its alternation (:mod:`stageid.hysteresis
 ``scipy.signal.lfilter`` along ``axis=0`` walks the columns one by one with a strided inner
 loop.  :func:`unit_gain_columns` runs the samples once and all columns together (contiguous,
 vectorised), in the transposed direct form II with ``lfilter``'s arithmetic order, so the
-result is the same to the bit (checked in ``tests/test_stage_identification.py``).
+result is the same to the bit (checked in ``tests/test_stage_dynamics_filter.py``).
 """
 
 from __future__ import annotations
