@@ -67,6 +67,8 @@ def test_dynamics_and_creep_not_at_rest_are_estimated():
     assert est.memory == "ascending"
     assert est.rms_error_percent < 1e-7
     assert validate_record(s, u, y + free + lag, DT, initial="kinds").rms_error_percent > 1e-3
+    memory_only = validate_record(s, u, y + free + lag, DT, initial="memory")
+    assert memory_only.rms_error_percent > 1e-3 and memory_only.n_free == 3
 
 
 def test_kinds_is_the_best_standard_start_with_the_mean_offset():

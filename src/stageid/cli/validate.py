@@ -33,11 +33,12 @@ Examples:
 )
 @click.option(
     "--initial",
-    type=click.Choice(["estimate", "kinds", "model"]),
+    type=click.Choice(["estimate", "memory", "kinds", "model"]),
     default=None,
     help="Hysteresis and stage models: the record's initial condition.  estimate (default, as MATLAB's "
     "compare): offset, hysteresis memory (the three kinds or one earlier minor loop) and the dynamics' and "
-    "creep states fitted on each record; kinds: offset and the best of the three standard memories; model: "
+    "creep states fitted on each record; memory: offset and memory only; kinds: offset and the best of the "
+    "three standard memories; model: "
     "the model's own state and offset.",
 )
 @click.option("--json", "json_out", default=None, type=click.Path(dir_okay=False), help="Write the results as JSON.")

@@ -18,6 +18,9 @@ on the record, with every model parameter fixed, by least squares:
     and, linear in the output, the offset, the initial state of the dynamics (``n`` numbers,
     its free response) and of every creep lag with a non-zero weight (one number each, its
     decaying free response through the dynamics).  ``n_free`` counts them.
+``initial="memory"``
+    The memory as for ``"estimate"`` and the offset; the dynamics and creep start at rest
+    (3 numbers): enough for records that begin after an idle longer than the slowest lag.
 
 The memory is a grid search (the output is piecewise linear in ``M`` and ``m``; the grid's
 step is half a cell of a 20-level Preisach model); the linear part is projected out for every
@@ -38,7 +41,7 @@ from .stage import StageModel
 
 __all__ = ["validate_record", "RecordValidation", "INITIAL_CHOICES", "MEMORY_NODES"]
 
-INITIAL_CHOICES = ("estimate", "kinds")
+INITIAL_CHOICES = ("estimate", "memory", "kinds")
 #: Levels of the input range the earlier minor loop's reversal points ``M``, ``m`` are taken from.
 MEMORY_NODES = 41
 #: Candidates filtered through the dynamics at once (bounds the memory to ~20 MB a record).
@@ -84,7 +87,7 @@ def validate_record(
     u, y : array_like of shape (n_samples,) or (n_samples, 1)
     dt : float, optional
         Sampling period [s] (needed for a model with dynamics or creep; default the model's).
-    initial : {"estimate", "kinds"}, default "estimate"
+    initial : {"estimate", "memory", "kinds"}, default "estimate"
 
     Returns
     -------
@@ -120,7 +123,7 @@ def validate_record(
         raise DataError("the record must be finite with a varying output.")
     step = stage.dt if dt is None else float(dt)
     h = stage.hysteresis
-    memories = candidate_memories(h, uu, initial == "estimate")
+    memories = candidate_memories(h, uu, initial != "kinds")
     fixed = stage.linear_response(_creep_output(stage, uu, step))  # the creep part, same for every memory
     L = linear_columns(stage, uu.size, step) if initial == "estimate" else np.ones((uu.size, 1))
     Q, _ = np.linalg.qr(L)
@@ -142,7 +145,7 @@ def validate_record(
     ym = ym + L @ coef
     e = yy - ym
     rng = float(np.ptp(yy))
-    n_free = L.shape[1] + (2 if initial == "estimate" else 0)
+    n_free = L.shape[1] + (0 if initial == "kinds" else 2)
     return RecordValidation(
         simulated=ym,
         memory=label,
