@@ -52,12 +52,13 @@ class StageProblem:
         ur = max(float(np.ptp(u)) for u, _ in recs)
         self.eps = 0.02 * yr / ur  # PIIdentifier's default min_slope_fraction, slope in operator units
         self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
+        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def columns(self, taus: tuple[float, ...]) -> list[np.ndarray]:
         """Per record the live operator columns and the creep lags, C-ordered (the filter runs
         along the rows); kept for the last ``taus`` (``auto`` asks for each set many times)."""
         key = tuple(taus)
-        if getattr(self, "_columns", (None,))[0] != key:
+        if self._columns[0] != key:
             out = []
             for (u, _), z in zip(self.recs, self.Z):
                 cols = [z[:, self.live]]
