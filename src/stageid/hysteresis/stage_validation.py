@@ -44,8 +44,8 @@ __all__ = ["validate_record", "RecordValidation", "INITIAL_CHOICES", "MEMORY_NOD
 INITIAL_CHOICES = ("estimate", "memory", "kinds")
 #: Levels of the input range the earlier minor loop's reversal points ``M``, ``m`` are taken from.
 MEMORY_NODES = 41
-#: Candidates filtered through the dynamics at once (bounds the memory to ~20 MB a record).
-BLOCK = 200
+#: Samples x candidates filtered through the dynamics at once (~20 MB).
+BLOCK = 2_500_000
 
 
 @dataclass(frozen=True)
@@ -129,8 +129,9 @@ def validate_record(
     Q, _ = np.linalg.qr(L)
     best: Any = None
     labels = list(memories)
-    for start in range(0, len(labels), BLOCK):
-        block = labels[start : start + BLOCK]
+    size = max(1, BLOCK // uu.size)
+    for start in range(0, len(labels), size):
+        block = labels[start : start + size]
         V = np.column_stack([_hysteresis_output(h, memories[k], uu) for k in block])
         E = (yy - fixed)[:, None] - _dynamics(stage, V)
         E -= Q @ (Q.T @ E)
