@@ -203,9 +203,9 @@ import sys
 from stageid.data.datasets import load_dspace_piezo, shared_data_dir
 from stageid.hysteresis import PIIdentifier
 exp = load_dspace_piezo(shared_data_dir() / "piezo_dspace_preisach" / "20_hz_no_lp.mat")
-if sys.argv[1] == "preisach-stage":  # the joint fit with dynamics of order 2, Preisach hysteresis
+if sys.argv[1].endswith("-stage"):  # the joint fit with dynamics of order 2
     from stageid.hysteresis.stage_identification import StageIdentifier
-    StageIdentifier("preisach", dynamics=2, creep=None).fit(exp)
+    StageIdentifier(sys.argv[1][: -len("-stage")], dynamics=2, creep=None).fit(exp)
 else:
     PIIdentifier(sys.argv[1]).fit(exp)
 """
@@ -330,7 +330,13 @@ def main(argv=None) -> int:
         type=int,
         default=0,
         metavar="PAIRS",
-        help="as --whole-process, classical PI against the Preisach stage with dynamics of order 2",
+        help="as --whole-process, classical PI against a stage fit with dynamics of order 2 (--stage-model)",
+    )
+    ap.add_argument(
+        "--stage-model",
+        choices=["preisach", "pi", "modified-pi"],
+        default="preisach",
+        help="the stage's hysteresis for --whole-process-stage (default preisach)",
     )
     ap.add_argument(
         "--preisach",
@@ -341,7 +347,7 @@ def main(argv=None) -> int:
     if args.whole_process:
         return whole_process_times(args.whole_process)
     if args.whole_process_stage:
-        return whole_process_times(args.whole_process_stage, "preisach-stage")
+        return whole_process_times(args.whole_process_stage, f"{args.stage_model}-stage")
     if args.preisach:
         return preisach_times(args.samples, args.repeat)
     if args.identification:

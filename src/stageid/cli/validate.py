@@ -31,6 +31,16 @@ Examples:
     default=None,
     help="Sample time [s] when the files have no `t` column (default: a discrete model's).",
 )
+@click.option(
+    "--initial",
+    type=click.Choice(["estimate", "memory", "kinds", "model"]),
+    default=None,
+    help="Hysteresis and stage models: the record's initial condition.  estimate (default, as MATLAB's "
+    "compare): offset, hysteresis memory (the three kinds or one earlier minor loop) and the dynamics' and "
+    "creep states fitted on each record; memory: offset and memory only; kinds: offset and the best of the "
+    "three standard memories; model: "
+    "the model's own state and offset.",
+)
 @click.option("--json", "json_out", default=None, type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option(
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
@@ -41,6 +51,7 @@ def validate_command(
     inputs: str | None,
     outputs: str | None,
     ts: float | None,
+    initial: str | None,
     json_out: str | None,
     report_dir: str | None,
 ) -> None:
@@ -58,11 +69,24 @@ def validate_command(
     if report_dir is not None:
         check_output_folder(report_dir)
     model = load_model(model_path)
+    hysteresis = not hasattr(model, "frequency_response")
+    if initial not in (None, "model") and not hysteresis:
+        raise click.UsageError(f"--initial {initial} is for hysteresis and stage models; this is an LTI model.")
     experiments = _experiments(model, data, inputs, outputs, ts)
-    result = validate_model(model, experiments, MAX_LAG, ALPHA)
+    records = _initial_conditions(model, experiments, initial or "estimate") if hysteresis else None
+    simulated = None if records is None else [r.simulated for r in records]
+    result = validate_model(model, experiments, MAX_LAG, ALPHA, simulated=simulated)
     summary = validation_json(result)
-    if not hasattr(model, "frequency_response"):
+    if hysteresis:
         _hysteresis_metrics(summary, experiments, result)
+        if records is not None:
+            summary["initial"] = {
+                "method": initial or "estimate",
+                "records": [
+                    {"record": e.name, "memory": r.memory, "offset": r.offset, "n_free": r.n_free}
+                    for e, r in zip(experiments, records)
+                ],
+            }
     if json_out is not None:
         atomic_write_text(json_out, metrics_json(summary))
     if report_dir is not None:
@@ -89,6 +113,15 @@ def _experiments(model, data, inputs, outputs, ts):
         if model_dt is not None and not np.isclose(exp.dt, model_dt, rtol=1e-6):
             raise DataError(f"record {exp.name} has sample time {exp.dt:g} s; the model's is {model_dt:g} s.")
     return tuple(e.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs)) for e in experiments)
+
+
+def _initial_conditions(model, experiments, initial: str):
+    """Per record, :func:`~stageid.hysteresis.stage_validation.validate_record` (None for ``model``)."""
+    if initial == "model":
+        return None
+    from ..hysteresis.stage_validation import validate_record
+
+    return [validate_record(model, e.u[:, 0], e.y[:, 0], e.dt, initial) for e in experiments]
 
 
 def _hysteresis_metrics(summary: dict, experiments, result: dict) -> None:

@@ -34,14 +34,24 @@ SM_ITERATIONS = 8
 
 
 def unit_gain_filter(b: np.ndarray, a: np.ndarray, columns: np.ndarray) -> np.ndarray:
-    """``c[0] + G[c - c[0]]`` for every column of ``columns`` (shape (n_samples, p)), at rest at the first row."""
-    from scipy.signal import lfilter
+    """``c[0] + G[c - c[0]]`` for every column of ``columns`` (shape (n_samples, p)), at rest at the first row.
 
-    c = np.asarray(columns, dtype=float)
+    Equal to ``c[0] + scipy.signal.lfilter(b, a, c - c[0], axis=0)`` to the bit; a compiled
+    loop over the samples with all columns at once (:mod:`.kernels.filters`).
+    """
+    from .kernels.filters import unit_gain_columns
+
+    c = np.ascontiguousarray(columns, dtype=float)
+    bb = np.atleast_1d(np.asarray(b, dtype=float))
+    aa = np.atleast_1d(np.asarray(a, dtype=float))
     if c.shape[0] == 0:
         return c.copy()
-    c0 = c[:1]
-    return c0 + lfilter(b, a, c - c0, axis=0)
+    if aa[0] == 0:
+        raise ModelError("the dynamics' leading denominator coefficient must not be zero.")
+    m = max(bb.size, aa.size)  # lfilter's padding of the shorter polynomial and a[0] = 1
+    bb = np.r_[bb, np.zeros(m - bb.size)] / aa[0]
+    aa = np.r_[aa, np.zeros(m - aa.size)] / aa[0]
+    return unit_gain_columns(bb, aa, c)
 
 
 def _stabilise(a: np.ndarray) -> np.ndarray:

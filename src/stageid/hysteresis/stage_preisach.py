@@ -67,6 +67,7 @@ class PreisachStageProblem(StageProblem):
         self.classical = False
         self.D = second_differences(hysteresis.n_levels)
         self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
+        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
         """The cell states projected on their ``SEARCH_RANK`` leading right singular vectors (creep lags kept)."""
@@ -82,8 +83,6 @@ class PreisachStageProblem(StageProblem):
         ``p`` in ``GRID_POLES``) by the weight fit's residual: the searches on the leading
         directions can end in a lead-lag when a plain delay of one sample fits far better (seen
         on the dSPACE FORC records, RESULTS.md section 4d)."""
-        from .dynamics import unit_gain_filter
-
         nc = cols[0].shape[1] - self.h.n_operators
         best = None
         for d in range(order + 1):
@@ -92,7 +91,7 @@ class PreisachStageProblem(StageProblem):
                 b[d] = 1.0 - p
                 a = np.zeros(order + 1)
                 a[:2] = 1.0, -p
-                filtered = [unit_gain_filter(b, a, c) for c in cols]
+                filtered = self.filtered((b, a), cols, masks)
                 w, off = self.solve_weights(filtered, masks, nc)
                 err = self.sse(filtered, masks, w, off)
                 if best is None or err < best[0]:

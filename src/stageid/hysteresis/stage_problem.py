@@ -52,16 +52,27 @@ class StageProblem:
         ur = max(float(np.ptp(u)) for u, _ in recs)
         self.eps = 0.02 * yr / ur  # PIIdentifier's default min_slope_fraction, slope in operator units
         self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
+        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def columns(self, taus: tuple[float, ...]) -> list[np.ndarray]:
-        out = []
-        for (u, _), z in zip(self.recs, self.Z):
-            cols = [z[:, self.live]]
-            if taus:
-                term = CreepTerm(time_constants=taus, weights=np.zeros(len(taus)), sample_time=self.dt)
-                cols.append(term.lags(u))
-            out.append(np.hstack(cols))
-        return out
+        """Per record the live operator columns and the creep lags, C-ordered (the filter runs
+        along the rows); kept for the last ``taus`` (``auto`` asks for each set many times)."""
+        key = tuple(taus)
+        if self._columns[0] != key:
+            out = []
+            for (u, _), z in zip(self.recs, self.Z):
+                cols = [z[:, self.live]]
+                if taus:
+                    term = CreepTerm(time_constants=taus, weights=np.zeros(len(taus)), sample_time=self.dt)
+                    cols.append(term.lags(u))
+                out.append(np.ascontiguousarray(np.hstack(cols)))
+            self._columns = (key, out)
+        return self._columns[1]
+
+    def filtered(self, ba, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
+        """``G[cols]`` per record at rest; a record without fitted rows (a held-out fold) is
+        passed through unfiltered, since none of its rows is read."""
+        return [unit_gain_filter(ba[0], ba[1], c) if mk.any() else c for c, mk in zip(cols, masks)]
 
     def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
         """Columns the searches for ``G`` run on (all of them here; a reduced set for many columns)."""
@@ -142,7 +153,7 @@ class StageProblem:
                     if ba is None:
                         pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
                         ba = fit_unit_gain_dynamics(pairs, order)
-                    filtered = [unit_gain_filter(ba[0], ba[1], c) for c in cols]
+                    filtered = self.filtered(ba, cols, masks)
                     w_cur, off_cur = self.solve_weights(filtered, masks, nc)
                     err = self.sse(filtered, masks, w_cur, off_cur)
                     if err < best[0]:
@@ -234,6 +245,8 @@ def refine_output_error(problem: StageProblem, cols: list, masks: list, order: i
         b = np.r_[np.sum(a) - np.sum(theta[n:]), theta[n:]]
         blocks = []
         for j, c in enumerate(cols):
+            if rows[j].size == 0:
+                continue
             f = unit_gain_filter(b, a, c)[rows[j]]
             E = np.zeros((rows[j].size, J))
             E[:, j] = 1.0
