@@ -18,6 +18,8 @@ checked by the round trip ``model(inverse(y)) = y``.  Speeds: ``benchmarks/RESUL
 :mod:`.choice`          ``play_sum_auto``, ``cp_sum_auto``: which sum kernel a record gets
 :mod:`.inversion`       per-sample inversion (eq. 5): ``cp_invert_step``, ``cp_invert``,
                         ``cp_invert_creep``; the inverse-PI stream ``play_step``, ``play_stream``
+:mod:`.filters`         ``unit_gain_columns``: many columns through the stage dynamics at once
+                        (bit-equal to ``lfilter``; imported by the stage fit, not re-exported)
 ======================  ==========================================================================
 """
 
