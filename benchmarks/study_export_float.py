@@ -33,12 +33,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_export_c import random_cases  # noqa: E402
-from test_export_float import drive_scale  # noqa: E402
-
 from stageid.export import export_c  # noqa: E402
 from stageid.export.host import build  # noqa: E402
 from stageid.hysteresis import Compensator, ModifiedPIModel  # noqa: E402
+from test_export_c import random_cases  # noqa: E402
+from test_export_float import drive_scale  # noqa: E402
 
 
 def conditioning(model) -> float:
@@ -53,7 +52,7 @@ def one_case(k, model, limits, y, folder: Path, double: bool) -> dict:
     drive = comp.run(y)[:, 0]
     drive_in_f = Compensator(model, limits).run(y.astype(np.float32).astype(float))[:, 0]
     drive_c = build(export_c(model, f"f{k}", inverse=True, limits=limits, single=True), folder).run(y)[:, 0]
-    scale = drive_scale(drive, limits, model)
+    scale = drive_scale(drive)
     row = {
         "model": k,
         "kind": type(model).__name__,

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .c_float_sums import double_fragments, float_fragments, float_helpers
 from .c_reversal_curve import reversal_curve
 from .c_writer import CType, array, literal
 
@@ -93,22 +94,21 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 """
 
 _CP_PASS = """\
-/* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
-   and the slope of F ${beyond} x.  ${why} */
-static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
+${pass_doc}
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params})
 {
-    ${T} f = 0.0${f}, s = 0.0${f};
+    ${T} f = ${f_start}, s = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
 ${branch}
         const ${T} v = ${new_output};
         const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
         zn[i] = v;
-        f += ${p}_w[i] * v;
+${accumulate}
         s += moves ? ${p}_w[i] : 0.0${f};  /* in this form gcc vectorises the loop (-O2 and -O3) */
     }
     *slope = s;
-    return f;
+    return ${result};
 }
 """
 
@@ -144,12 +144,10 @@ _DIRECTIONS = {
 }
 
 _MOVE = """\
-/* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
-   solve has one code path): returns sg F at x; the outputs and the slope as the pass gives them.
-   Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */
-static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
+${move_doc}
+static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params})
 {
-    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope) : -${p}_fall(-m, z, zn, slope);
+    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope${shift_args}) : -${p}_fall(-m, z, zn, slope${shift_args});
 }
 """
 
@@ -165,10 +163,10 @@ typedef struct {
     int rising;
 } ${p}_point;
 
-/* The pass at m = sg x into *at (F there, not sg F); returns sg F. */
-static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
+/* The pass at m = sg x into *at (${value} there, not sg ${value}); returns sg ${value}. */
+static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at${shift_params})
 {
-    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope);
+    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope${shift_args});
     at->f = sg * fm;
     at->rising = sg > 0.0${f};
     return fm;
@@ -184,18 +182,18 @@ static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
    rounding error of F, as the package does: both return the exact root to rounding.  Returns
    where the answer's F, slope and operator outputs are: 0 nowhere (x unchanged), 1 in *at (the
    last iterate), 2 in *far_at (the far end). */
-static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at)
+static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at${solve_params})
 {
-    const ${T} sg = target > s->f ? 1.0${f} : -1.0${f};
-    const ${T} goal = sg * target, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
-    ${T} near = m0, fnear = sg * s->f, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
+    const ${T} sg = ${rising} ? 1.0${f} : -1.0${f};
+    const ${T} goal = ${goal}, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
+    ${T} near = m0, fnear = ${fnear}, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
     ${T} mc = m0, fc = fnear, sc = slope, last = 0.0${f};
     int known = 0, it;
     if (far > edge) far = edge;
     *x_out = s->x;
     if (!(far > m0)) {  /* x at or beyond the limit: the answer is the limit */
         const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
-        ${p}_pass(back, back * sg * far, s->z, far_at);
+        ${p}_pass(back, back * sg * far, s->z, far_at${shift_args});
         *x_out = sg * far;
         return 2;
     }
@@ -209,7 +207,7 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
         } else if (!(xn > near && xn < far)) {
             if (!known) {
                 known = 1;
-                ffar = ${p}_pass(sg, far, s->z, far_at);
+                ffar = ${p}_pass(sg, far, s->z, far_at${shift_args});
                 if (ffar <= goal) {  /* the root is at or past the far end */
                     *x_out = sg * far;
                     return 2;
@@ -219,7 +217,7 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
             if (!(xn > near && xn < far)) xn = 0.5${f} * (near + far);
         }
         last = ${p}_abs(fc - goal);
-        fc = ${p}_pass(sg, xn, s->z, at);
+        fc = ${p}_pass(sg, xn, s->z, at${shift_args});
         *x_out = sg * xn;
         mc = xn;
         sc = at->slope;
@@ -239,12 +237,11 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
 """
 
 _CP_STEP = """\
-    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
-    ${p}_point at, far;
+${target}    ${p}_point at, far;
     ${T} x = s->x;
     int found = 0;  /* 0: x unchanged, 1: x is the last iterate (at), 2: the far end (far) */
-    if (${p}_abs(target - s->f) > ${p}_error(x)) {
-        const int rising = target > s->f;
+    if (${p}_abs(${gap}) > ${p}_error(x)) {
+        const int rising = ${rising};
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
@@ -256,10 +253,10 @@ _CP_STEP = """\
             s->f_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = s->f;
             ++s->turns;
         }
-        found = ${p}_solve(s, target, s->slope, &x, &at, &far);
+        found = ${p}_solve(s, target, s->slope, &x, &at, &far${solve_args});
     }
     if (!found && s->fresh) {  /* a stored state need not be the operators' outputs at x */
-        ${p}_pass(1.0${f}, x, s->z, &at);
+        ${p}_pass(1.0${f}, x, s->z, &at${shift_args});
         s->rising = 1;
         found = 1;
     }
@@ -267,7 +264,7 @@ _CP_STEP = """\
         const ${p}_point *p = found == 1 ? &at : &far;
         int i;
         for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = p->z[i];
-        s->f = p->f;
+${store_f}
         s->slope = p->slope;
         s->rising = p->rising;
         s->x = x;
@@ -335,6 +332,8 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += _tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
     clip, helpers = "", ""
+    pinned_consts, pinned = _pinned(limits, ctype, p)
+    consts += pinned_consts
     if limits is not None:
         consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
         # the rebuild runs in double also with --float: the duality sums cancel (terms up to
@@ -353,10 +352,11 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
         "helpers": helpers,
         "includes": "#include <math.h>\n" if limits is not None and not (np.isfinite(lo) and np.isfinite(hi)) else "",
         "init_body": "\n".join(_init("z", inv.state.z, ctype)),
-        "step_body": _sub(_PI_STEP, ctype, p, clip=clip).rstrip("\n"),
+        "step_body": (_sub(_PI_STEP, ctype, p, clip=clip) + pinned).rstrip("\n"),
     }
 
 
+FLOAT_ROUNDING = 2.0  # float: stop once |F - target| <= this many u SMIN (|x| + R_MAX) (a few ulps of x)
 TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
@@ -371,7 +371,8 @@ _LONG_MOVE = """\
 
 def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
     """The two passes (rise, fall: one template), the reversal curve's first iterate (C text, or ""
-    for none) and the solve."""
+    for none) and the solve; in float with the sums of :mod:`.c_float_sums`."""
+    frag = (float_fragments if ctype.is_float else double_fragments)(ctype, prefix)
     passes = []
     for name, d in _DIRECTIONS.items():
         why = (
@@ -381,10 +382,21 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
         )
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
-        passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
-    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix)
+        doc = Template(frag["pass_doc"]).substitute(filled)
+        passes.append(_sub(_CP_PASS, ctype, prefix, **filled, **{**frag, "pass_doc": doc}))
+    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix, **frag)
     guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
-    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
+    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
+
+
+def _init_f(ctype: CType, p: str) -> str:
+    """C lines that set F at the stored input (in float as a pair: F, then F less its float)."""
+    if not ctype.is_float:
+        return f"        s->f = {p}_move(1.0, s->x, s->z, scratch, &s->slope);\n"
+    return (
+        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f);\n"
+        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f);\n"
+    )
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -397,11 +409,23 @@ def _consistent(model: Any, keep: np.ndarray) -> bool:
     return bool(np.all(np.maximum(up, np.minimum(down, z)) == z))
 
 
+def _pinned(limits: tuple[float, float] | None, ctype: CType, p: str, defined: bool = False) -> tuple[list[str], str]:
+    """Float only: constants (unless ``defined``) and the C lines that make a drive at a limit that
+    limit rounded to float (``x + INPUT_OFFSET`` at the operator input's limit is two roundings
+    off it).  A snap, not a clamp: a stored input beyond a limit moves back as the package's does."""
+    if limits is None or not ctype.is_float:
+        return [], ""
+    consts = [_limit_define(p, "DRIVE_LOW", limits[0], ctype), _limit_define(p, "DRIVE_HIGH", limits[1], ctype)]
+    snap = f"    if (x == {p}_LOW) out[0] = {p}_DRIVE_LOW;\n    if (x == {p}_HIGH) out[0] = {p}_DRIVE_HIGH;\n"
+    return ([] if defined else consts), snap
+
+
 def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str) -> tuple[list[str], str]:
     """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
     q = model.input_warp
     if q == 0.0:
-        return [], f"    out[0] = x + {p}_INPUT_OFFSET;\n"
+        pinned = _pinned(limits, ctype, p)
+        return pinned[0], f"    out[0] = x + {p}_INPUT_OFFSET;\n" + pinned[1]
     consts = [_define(p, "WARP_SCALE", model.warp_scale, ctype), _define(p, "WARP_Q", q, ctype)]
     consts += [_define(p, "WARP_4Q", 4.0 * q, ctype), _define(p, "WARP_UP", 1.0 + q, ctype)]
     consts += [_define(p, "WARP_DOWN", -1.0 + q, ctype), _define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
@@ -410,6 +434,7 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
         consts += [_define(p, "DRIVE_LOW", limits[0], ctype), _define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
+        drive += _pinned(limits, ctype, p, defined=True)[1]
     return consts, drive
 
 
@@ -442,9 +467,10 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     m = int(np.count_nonzero(keep))
     padded = -(-m // PAD) * PAD
     err_w, err_r = residual_bound(model)
-    if ctype.is_float:
-        err_w = 8.0 * 2.0**-24 * float(np.sum(np.abs(model.weights)))
+    if ctype.is_float:  # F - target is exact to rounding: stop at what a float resolves of the drive
+        err_w = FLOAT_ROUNDING * 2.0**-24 * model.min_slope()
     consistent = _consistent(model, keep)
+    frag = (float_fragments if ctype.is_float else double_fragments)(ctype, p)
 
     def pad(v: np.ndarray) -> np.ndarray:  # weight-0 operators with zero thresholds: add exact zeros
         return np.r_[v[keep], np.zeros(padded - m)]
@@ -454,7 +480,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += [_define(p, "SMIN", model.min_slope(), ctype)]
     consts += [_define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
-    consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
+    consts += [_define(p, "BRACKET", 2.0**-22 if ctype.is_float else 1e-15, ctype)]
     consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
     consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
@@ -462,19 +488,27 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     T = ctype.name
     r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
     consts += _tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
+    helpers = ""
+    if ctype.is_float:  # the part of each weight and of the output offset a float misses
+        w32 = pad(model.weights).astype(np.float32)
+        consts += _tables(p, ctype, w_lo=pad(model.weights) - w32.astype(float))
+        off = model.output_offset - float(np.float32(model.output_offset))
+        consts += [_define(p, "OUTPUT_OFFSET_LO", off, ctype)]
+        helpers = "\n" + float_helpers(w32, ctype, p)
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
-    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
+    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi)) or ctype.is_float
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
-        f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
+        + (f"    {T} f_lo;  /* the rest of F (F = f + f_lo) */\n" if ctype.is_float else "")
+        + f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
         "    int turns, oldest;  /* how many, and where the oldest is (a ring of TURNS) */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
+        "helpers": helpers + "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", pad(model.state.z), ctype)
@@ -482,13 +516,12 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->x = {literal(model.state.x, ctype)};",
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
-                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
-                f"        s->f = {p}_move({literal(1.0, ctype)}, s->x, s->z, scratch, &s->slope);\n    }}",
+                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + _init_f(ctype, p) + "    }",
                 "    s->x_turn[0] = s->x;",
                 "    s->f_turn[0] = s->f;",
                 "    s->turns = 1;",
                 "    s->oldest = 0;",
             ]
         ),
-        "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
+        "step_body": _sub(_CP_STEP, ctype, p, drive=drive, **frag).rstrip("\n"),
     }
