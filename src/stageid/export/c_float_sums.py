@@ -34,34 +34,53 @@ import numpy as np
 
 from .c_writer import CType, array
 
-__all__ = ["double_fragments", "float_fragments", "float_helpers", "split"]
+__all__ = ["LANES", "double_fragments", "float_fragments", "float_helpers", "float_pass", "split"]
 
-_PASS_DOC = """\
-/* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
-   and the slope of F ${beyond} x.  ${why} */"""
+#: Independent sums of the float pass: one 16-byte vector of floats (SSE, NEON).
+LANES = 4
 
-_PASS_DOC_FLOAT = """\
-/* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (the target
-   a pair target + target_lo; the rounding errors of every product and sum kept in e and added
-   last), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why} */"""
+_PASS_FLOAT = """\
+/* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
+   the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
+   LANES independent sums, each with its rounding errors kept (TwoSum, TwoProduct), so that the
+   loop vectorises; the lanes are summed the same way at the end. */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
+{
+    ${T} f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, sl[${p}_LANES] = {0.0f};
+    int i, k;
+    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
+        for (k = 0; k < ${p}_LANES; ++k) {
+            const int j = i + k;
+${branch}
+            const ${T} v = ${new_output};
+            const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+            const ${T} pr = ${p}_product(${p}_w[j], v), t = f[k] + pr;
+            zn[j] = v;
+            e[k] += ${p}_sum_error(f[k], pr, t) + ${p}_product_error(j, v, pr) + ${p}_w_lo[j] * v;
+            f[k] = t;
+            sl[k] += moves ? ${p}_w[j] : 0.0f;
+        }
+    }
+    return ${p}_lanes(f, e, sl, slope, target, target_lo);
+}
+"""
 
 _MOVE_DOC = """\
 /* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
    solve has one code path): returns sg ${value} at x; the outputs and the slope as the pass gives them.
    Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */"""
 
-_ACCUMULATE_FLOAT = """\
-        {   /* f + e += w_i v: the product's and the sum's rounding errors go to e */
-            const ${T} pr = ${p}_product(${p}_w[i], v), t = f + pr;
-            e += ${p}_sum_error(f, pr, t) + ${p}_product_error(i, v, pr) + ${p}_w_lo[i] * v;
-            f = t;
-        }"""
-
 _TARGET_FLOAT = """\
     const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
     const ${T} target_lo = ${p}_sum_error(in[0], -${p}_OUTPUT_OFFSET, target) - ${p}_OUTPUT_OFFSET_LO;
     const ${T} d0 = (target - s->f) + (target_lo - s->f_lo);  /* the target less F at x, to rounding */
 """
+
+# a move whose drive change |d0| / slope is within RESOLUTION (|x| + R_MAX) is none (the slope on the
+# side of travel: of the last move, or right after a turn TURN_SLOPE)
+_MOVED_FLOAT = (
+    "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
+)
 
 _STORE_FLOAT = """\
         s->f = target + p->f;  /* F at x as a pair: the target plus the answer's F - target */
@@ -73,6 +92,20 @@ static ${T} ${p}_sum_error(${T} a, ${T} b, ${T} t)
 {
     const ${T} bb = t - a;
     return (a - (t - bb)) + (b - bb);
+}
+
+/* sum_k f[k] + e[k] - target - target_lo with the additions' errors kept; the slope from its lanes. */
+static ${T} ${p}_lanes(const ${T} *f, const ${T} *e, const ${T} *sl, ${T} *slope, ${T} target, ${T} target_lo)
+{
+    ${T} hi = -target, lo = -target_lo;
+    int k;
+    for (k = 0; k < ${p}_LANES; ++k) {
+        const ${T} t = hi + f[k];
+        lo += ${p}_sum_error(hi, f[k], t) + e[k];
+        hi = t;
+        *slope = k == 0 ? sl[0] : *slope + sl[k];
+    }
+    return hi + lo;
 }
 
 #ifdef FP_FAST_FMAF
@@ -99,6 +132,14 @@ def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
     return Template(text).safe_substitute(T=ctype.name, f="f" if ctype.is_float else "", p=prefix, **extra)
 
 
+def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
+    """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``, whose
+    operator index ``i`` becomes the lane's ``j``)."""
+    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}
+    fields["branch"] = "\n".join("    " + line for line in fields["branch"].splitlines())
+    return _fill(_PASS_FLOAT, ctype, prefix, **fields)
+
+
 def split(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Veltkamp's split of float32 ``values`` into halves of 12 significant bits (``hi + lo`` is
     exact), computed in float32 as the C would."""
@@ -110,23 +151,19 @@ def split(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
-    """The placeholders of the double code: F summed in operator order, as the package does
-    (``pass_doc`` still holds the direction's ``${side}``, ``${beyond}``, ``${why}``)."""
+    """The placeholders of the double code: F summed in operator order, as the package does."""
     return {
-        "pass_doc": _fill(_PASS_DOC, ctype, prefix),
         "move_doc": _fill(_MOVE_DOC, ctype, prefix, value="F"),
         "value": "F",
         "shift_params": "",
         "shift_args": "",
         "solve_params": "",
         "solve_args": "",
-        "f_start": "0.0",
-        "accumulate": _fill("        f += ${p}_w[i] * v;", ctype, prefix),
-        "result": "f",
         "rising": "target > s->f",
         "goal": "sg * target",
         "fnear": "sg * s->f",
-        "gap": "target - s->f",
+        "moved": _fill("${p}_abs(target - s->f) > ${p}_error(x)", ctype, prefix),
+        "at_edge": "",
         "target": _fill("    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;\n", ctype, prefix),
         "store_f": "        s->f = p->f;",
     }
@@ -136,20 +173,17 @@ def float_fragments(ctype: CType, prefix: str) -> dict[str, str]:
     """The placeholders of the float code: F - target by error-free transformations."""
     t = ctype.name
     return {
-        "pass_doc": _fill(_PASS_DOC_FLOAT, ctype, prefix),
         "move_doc": _fill(_MOVE_DOC, ctype, prefix, value="(F - target)"),
         "value": "(F - target)",
         "shift_params": f", {t} target, {t} target_lo",
         "shift_args": ", target, target_lo",
         "solve_params": f", {t} target_lo, {t} d0",
         "solve_args": ", target_lo, d0",
-        "f_start": "-target, e = -target_lo",
-        "accumulate": _fill(_ACCUMULATE_FLOAT, ctype, prefix),
-        "result": "f + e",
         "rising": "d0 > 0.0f",
         "goal": "0.0f",
         "fnear": "-sg * d0",
-        "gap": "d0",
+        "moved": _fill(_MOVED_FLOAT, ctype, prefix),
+        "at_edge": _fill("        if (far == m0 && !s->fresh) return 0;  /* already there: nothing moves */\n", ctype, prefix),
         "target": _fill(_TARGET_FLOAT, ctype, prefix),
         "store_f": _fill(_STORE_FLOAT, ctype, prefix),
     }

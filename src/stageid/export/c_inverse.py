@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from .c_float_sums import double_fragments, float_fragments, float_helpers
+from .c_float_sums import LANES, double_fragments, float_fragments, float_helpers, float_pass
 from .c_reversal_curve import reversal_curve
 from .c_writer import CType, array, literal
 
@@ -94,21 +94,22 @@ static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
 """
 
 _CP_PASS = """\
-${pass_doc}
-static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params})
+/* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
+   and the slope of F ${beyond} x.  ${why} */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
 {
-    ${T} f = ${f_start}, s = 0.0${f};
+    ${T} f = 0.0${f}, s = 0.0${f};
     int i;
     for (i = 0; i < ${p}_N_OPERATORS; ++i) {
 ${branch}
         const ${T} v = ${new_output};
         const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
         zn[i] = v;
-${accumulate}
+        f += ${p}_w[i] * v;
         s += moves ? ${p}_w[i] : 0.0${f};  /* in this form gcc vectorises the loop (-O2 and -O3) */
     }
     *slope = s;
-    return ${result};
+    return f;
 }
 """
 
@@ -192,7 +193,7 @@ static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out,
     if (far > edge) far = edge;
     *x_out = s->x;
     if (!(far > m0)) {  /* x at or beyond the limit: the answer is the limit */
-        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
+${at_edge}        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
         ${p}_pass(back, back * sg * far, s->z, far_at${shift_args});
         *x_out = sg * far;
         return 2;
@@ -240,7 +241,7 @@ _CP_STEP = """\
 ${target}    ${p}_point at, far;
     ${T} x = s->x;
     int found = 0;  /* 0: x unchanged, 1: x is the last iterate (at), 2: the far end (far) */
-    if (${p}_abs(${gap}) > ${p}_error(x)) {
+    if (${moved}) {
         const int rising = ${rising};
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
@@ -356,7 +357,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
-FLOAT_ROUNDING = 2.0  # float: stop once |F - target| <= this many u SMIN (|x| + R_MAX) (a few ulps of x)
+FLOAT_ROUNDING = 2.0  # float: solve and stop to this many u (|x| + R_MAX) in x (a few ulps)
 TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
@@ -382,8 +383,10 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
         )
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
-        doc = Template(frag["pass_doc"]).substitute(filled)
-        passes.append(_sub(_CP_PASS, ctype, prefix, **filled, **{**frag, "pass_doc": doc}))
+        if ctype.is_float:
+            passes.append(float_pass(filled, ctype, prefix))
+        else:
+            passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
     move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix, **frag)
     guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
     return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
@@ -465,7 +468,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     lo, hi = _limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
-    padded = -(-m // PAD) * PAD
+    padded = -(-m // (LANES if ctype.is_float else PAD)) * (LANES if ctype.is_float else PAD)
     err_w, err_r = residual_bound(model)
     if ctype.is_float:  # F - target is exact to rounding: stop at what a float resolves of the drive
         err_w = FLOAT_ROUNDING * 2.0**-24 * model.min_slope()
@@ -494,6 +497,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         consts += _tables(p, ctype, w_lo=pad(model.weights) - w32.astype(float))
         off = model.output_offset - float(np.float32(model.output_offset))
         consts += [_define(p, "OUTPUT_OFFSET_LO", off, ctype)]
+        consts += [_define(p, "RESOLUTION", FLOAT_ROUNDING * 2.0**-24, ctype)]
+        consts += [f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */"]
         helpers = "\n" + float_helpers(w32, ctype, p)
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
