@@ -78,9 +78,7 @@ _TARGET_FLOAT = """\
 
 # a move whose drive change |d0| / slope is within RESOLUTION (|x| + R_MAX) is none (the slope on the
 # side of travel: of the last move, or right after a turn TURN_SLOPE)
-_MOVED_FLOAT = (
-    "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
-)
+_MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
 
 _STORE_FLOAT = """\
         s->f = target + p->f;  /* F at x as a pair: the target plus the answer's F - target */
@@ -183,7 +181,9 @@ def float_fragments(ctype: CType, prefix: str) -> dict[str, str]:
         "goal": "0.0f",
         "fnear": "-sg * d0",
         "moved": _fill(_MOVED_FLOAT, ctype, prefix),
-        "at_edge": _fill("        if (far == m0 && !s->fresh) return 0;  /* already there: nothing moves */\n", ctype, prefix),
+        "at_edge": _fill(
+            "        if (far == m0 && !s->fresh) return 0;  /* already there: nothing moves */\n", ctype, prefix
+        ),
         "target": _fill(_TARGET_FLOAT, ctype, prefix),
         "store_f": _fill(_STORE_FLOAT, ctype, prefix),
     }

@@ -357,7 +357,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     }
 
 
-FLOAT_ROUNDING = 2.0  # float: solve and stop to this many u (|x| + R_MAX) in x (a few ulps)
+FLOAT_ROUNDING = 0.5  # float: solve and stop to this many u (|x| + R_MAX) in x (a few ulps)
 TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
