@@ -25,7 +25,9 @@ What the C computes is what :class:`stageid.hysteresis.Compensator` computes (se
   number of passes per sample depends on how many operator corners the reference crosses and
   how far the first iterate lands from the root (``benchmarks/RESULTS-export.md``).
 
-In single precision the stopping bound and the bracket width are those a ``float`` resolves.
+In single precision the passes return ``F(x) - target`` by compensated sums
+(:mod:`stageid.export.c_float_sums`), and the stopping bound and the bracket width are those a
+``float`` resolves of the drive; a drive at a limit is that limit rounded to float.
 """
 
 from __future__ import annotations
@@ -35,9 +37,18 @@ from typing import Any
 
 import numpy as np
 
-from .c_float_sums import LANES, double_fragments, float_fragments, float_helpers, float_pass
+from .c_float_sums import (
+    LANES,
+    double_fragments,
+    float_constants,
+    float_fragments,
+    float_helpers,
+    float_pass,
+    init_f,
+    pinned,
+)
 from .c_reversal_curve import reversal_curve
-from .c_writer import CType, array, literal
+from .c_writer import CType, const_tables, define, limit_define, literal
 
 __all__ = ["pi_inverse_fields", "modified_pi_inverse"]
 
@@ -294,28 +305,10 @@ def _sub(text: str, ctype: CType, prefix: str, **extra: str) -> str:
     return Template(text).substitute(T=ctype.name, f=f, fn=f, p=prefix, **extra)
 
 
-def _define(prefix: str, name: str, value: float, ctype: CType) -> str:
-    return f"#define {prefix}_{name} ({literal(value, ctype)})"
-
-
-def _tables(prefix: str, ctype: CType, **tables: object) -> list[str]:
-    return [
-        f"static const {ctype.name} {prefix}_{name}[{prefix}_N_OPERATORS] = {array(v, ctype)};"
-        for name, v in tables.items()
-    ]
-
-
 def _limits(model: Any, limits: tuple[float, float] | None) -> tuple[float, float]:
     if limits is None:
         return -np.inf, np.inf
     return float(model.to_operator_input(limits[0])), float(model.to_operator_input(limits[1]))
-
-
-def _limit_define(prefix: str, name: str, value: float, ctype: CType) -> str:
-    if np.isfinite(value):
-        return _define(prefix, name, value, ctype)
-    huge = "HUGE_VALF" if ctype.is_float else "HUGE_VAL"
-    return f"#define {prefix}_{name} ({'-' if value < 0 else ''}{huge})"
 
 
 def _init(name: str, values: object, ctype: CType) -> list[str]:
@@ -329,21 +322,21 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     p, inv = prefix, pi_inverse(model)
     lo, hi = _limits(model, limits)
     consts = [f"#define {p}_N_OPERATORS {model.n_operators}"]
-    consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
-    consts += _tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
+    consts += [define(p, "INPUT_OFFSET", model.input_offset, ctype)]
+    consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
+    consts += const_tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
     clip, helpers = "", ""
-    pinned_consts, pinned = _pinned(limits, ctype, p)
-    consts += pinned_consts
+    snap_consts, snap = pinned(limits, ctype, p)
+    consts += snap_consts
     if limits is not None:
-        consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
+        consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
         # the rebuild runs in double also with --float: the duality sums cancel (terms up to
         # sum|w| / w0 times the output), which cost single precision up to 6e-4 of the drive range
         rebuild, suffix = CType("double"), "_d" if ctype.is_float else ""
         tables = {"r": model.r, "w": model.weights, "W": np.cumsum(model.weights), "W_inv": np.cumsum(inv.weights)}
         if ctype.is_float:
             tables["w_inv"] = inv.weights
-        consts += _tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
+        consts += const_tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
         clip = _sub(_PI_CLIP, ctype, p)
         helpers = "\n" + _sub(_PI_REBASE, ctype, p, R="double", d=suffix)
     return {
@@ -353,7 +346,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
         "helpers": helpers,
         "includes": "#include <math.h>\n" if limits is not None and not (np.isfinite(lo) and np.isfinite(hi)) else "",
         "init_body": "\n".join(_init("z", inv.state.z, ctype)),
-        "step_body": (_sub(_PI_STEP, ctype, p, clip=clip) + pinned).rstrip("\n"),
+        "step_body": (_sub(_PI_STEP, ctype, p, clip=clip) + snap).rstrip("\n"),
     }
 
 
@@ -392,16 +385,6 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
     return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
 
 
-def _init_f(ctype: CType, p: str) -> str:
-    """C lines that set F at the stored input (in float as a pair: F, then F less its float)."""
-    if not ctype.is_float:
-        return f"        s->f = {p}_move(1.0, s->x, s->z, scratch, &s->slope);\n"
-    return (
-        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f);\n"
-        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f);\n"
-    )
-
-
 def _consistent(model: Any, keep: np.ndarray) -> bool:
     """Whether the stored outputs are the coupled plays' outputs at the stored x (eq. 3 leaves
     them unchanged), as every state a model reaches by running is."""
@@ -412,32 +395,21 @@ def _consistent(model: Any, keep: np.ndarray) -> bool:
     return bool(np.all(np.maximum(up, np.minimum(down, z)) == z))
 
 
-def _pinned(limits: tuple[float, float] | None, ctype: CType, p: str, defined: bool = False) -> tuple[list[str], str]:
-    """Float only: constants (unless ``defined``) and the C lines that make a drive at a limit that
-    limit rounded to float (``x + INPUT_OFFSET`` at the operator input's limit is two roundings
-    off it).  A snap, not a clamp: a stored input beyond a limit moves back as the package's does."""
-    if limits is None or not ctype.is_float:
-        return [], ""
-    consts = [_limit_define(p, "DRIVE_LOW", limits[0], ctype), _limit_define(p, "DRIVE_HIGH", limits[1], ctype)]
-    snap = f"    if (x == {p}_LOW) out[0] = {p}_DRIVE_LOW;\n    if (x == {p}_HIGH) out[0] = {p}_DRIVE_HIGH;\n"
-    return ([] if defined else consts), snap
-
-
 def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str) -> tuple[list[str], str]:
     """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
     q = model.input_warp
     if q == 0.0:
-        pinned = _pinned(limits, ctype, p)
-        return pinned[0], f"    out[0] = x + {p}_INPUT_OFFSET;\n" + pinned[1]
-    consts = [_define(p, "WARP_SCALE", model.warp_scale, ctype), _define(p, "WARP_Q", q, ctype)]
-    consts += [_define(p, "WARP_4Q", 4.0 * q, ctype), _define(p, "WARP_UP", 1.0 + q, ctype)]
-    consts += [_define(p, "WARP_DOWN", -1.0 + q, ctype), _define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
-    consts += [_define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
+        snap_consts, snap = pinned(limits, ctype, p)
+        return snap_consts, f"    out[0] = x + {p}_INPUT_OFFSET;\n" + snap
+    consts = [define(p, "WARP_SCALE", model.warp_scale, ctype), define(p, "WARP_Q", q, ctype)]
+    consts += [define(p, "WARP_4Q", 4.0 * q, ctype), define(p, "WARP_UP", 1.0 + q, ctype)]
+    consts += [define(p, "WARP_DOWN", -1.0 + q, ctype), define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
+    consts += [define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
     drive = _sub(_UNWARP, ctype, p)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
-        consts += [_define(p, "DRIVE_LOW", limits[0], ctype), _define(p, "DRIVE_HIGH", limits[1], ctype)]
+        consts += [define(p, "DRIVE_LOW", limits[0], ctype), define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
-        drive += _pinned(limits, ctype, p, defined=True)[1]
+        drive += pinned(limits, ctype, p, defined=True)[1]
     return consts, drive
 
 
@@ -458,9 +430,10 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     is never seen; weight-0 operators with zero thresholds pad the rest to a multiple of
     :data:`PAD`, so that gcc vectorises the passes also at -O2 (its cheap cost model there takes
     only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
-    (:func:`stageid.hysteresis.compensator.residual_bound`; in single precision with the unit
-    roundoff of ``float`` and eight roundings instead of ``4 (m + 2)``: a float solve stops at
-    what a float resolves).
+    (:func:`stageid.hysteresis.compensator.residual_bound`).  In single precision the passes
+    return ``F - target`` to about its own rounding (:mod:`.c_float_sums`), so the bound is
+    ``FLOAT_ROUNDING u SMIN (|x| + R_MAX)``: the drive is solved to a float's resolution, not to
+    a rounding bound of F (which would be ``1 / SMIN`` times wider in the drive).
     """
     from ..hysteresis.compensator import residual_bound
 
@@ -479,31 +452,26 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         return np.r_[v[keep], np.zeros(padded - m)]
 
     consts = [f"#define {p}_N_OPERATORS {padded}"]
-    consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
-    consts += [_define(p, "SMIN", model.min_slope(), ctype)]
-    consts += [_define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
-    consts += [_define(p, "BRACKET", 2.0**-22 if ctype.is_float else 1e-15, ctype)]
-    consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
-    consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
+    consts += [define(p, "INPUT_OFFSET", model.input_offset, ctype)]
+    consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
+    consts += [define(p, "SMIN", model.min_slope(), ctype)]
+    consts += [define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
+    consts += [define(p, "BRACKET", 2.0**-22 if ctype.is_float else 1e-15, ctype)]
+    consts += [define(p, "ROUNDING", err_w, ctype), define(p, "R_MAX", err_r, ctype)]
+    consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
     consts += [f"#define {p}_TURNS {TURNS}  /* turns kept for the reversal curves (return-point memory) */"]
     T = ctype.name
     r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
-    consts += _tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
+    consts += const_tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
     helpers = ""
-    if ctype.is_float:  # the part of each weight and of the output offset a float misses
-        w32 = pad(model.weights).astype(np.float32)
-        consts += _tables(p, ctype, w_lo=pad(model.weights) - w32.astype(float))
-        off = model.output_offset - float(np.float32(model.output_offset))
-        consts += [_define(p, "OUTPUT_OFFSET_LO", off, ctype)]
-        consts += [_define(p, "RESOLUTION", FLOAT_ROUNDING * 2.0**-24, ctype)]
-        consts += [f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */"]
-        helpers = "\n" + float_helpers(w32, ctype, p)
+    if ctype.is_float:
+        consts += float_constants(pad(model.weights), model.output_offset, FLOAT_ROUNDING, ctype, p)
+        helpers = "\n" + float_helpers(ctype, p)
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
-    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi)) or ctype.is_float
+    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
@@ -521,7 +489,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->x = {literal(model.state.x, ctype)};",
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
-                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + _init_f(ctype, p) + "    }",
+                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + init_f(ctype, p) + "    }",
                 "    s->x_turn[0] = s->x;",
                 "    s->f_turn[0] = s->f;",
                 "    s->turns = 1;",
