@@ -37,16 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .c_float_sums import (
-    LANES,
-    double_fragments,
-    float_constants,
-    float_fragments,
-    float_helpers,
-    float_pass,
-    init_f,
-    pinned,
-)
+from . import c_float_sums as fs
 from .c_reversal_curve import reversal_curve
 from .c_writer import CType, const_tables, define, limit_define, literal
 
@@ -326,7 +317,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
     consts += const_tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
     clip, helpers = "", ""
-    snap_consts, snap = pinned(limits, ctype, p)
+    snap_consts, snap = fs.pinned(limits, ctype, p)
     consts += snap_consts
     if limits is not None:
         consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
@@ -366,7 +357,7 @@ _LONG_MOVE = """\
 def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
     """The two passes (rise, fall: one template), the reversal curve's first iterate (C text, or ""
     for none) and the solve; in float with the sums of :mod:`.c_float_sums`."""
-    frag = (float_fragments if ctype.is_float else double_fragments)(ctype, prefix)
+    frag = (fs.float_fragments if ctype.is_float else fs.double_fragments)(ctype, prefix)
     passes = []
     for name, d in _DIRECTIONS.items():
         why = (
@@ -377,7 +368,7 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
         if ctype.is_float:
-            passes.append(float_pass(filled, ctype, prefix))
+            passes.append(fs.float_pass(filled, ctype, prefix))
         else:
             passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
     move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix, **frag)
@@ -399,7 +390,7 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
     q = model.input_warp
     if q == 0.0:
-        snap_consts, snap = pinned(limits, ctype, p)
+        snap_consts, snap = fs.pinned(limits, ctype, p)
         return snap_consts, f"    out[0] = x + {p}_INPUT_OFFSET;\n" + snap
     consts = [define(p, "WARP_SCALE", model.warp_scale, ctype), define(p, "WARP_Q", q, ctype)]
     consts += [define(p, "WARP_4Q", 4.0 * q, ctype), define(p, "WARP_UP", 1.0 + q, ctype)]
@@ -409,7 +400,7 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
         consts += [define(p, "DRIVE_LOW", limits[0], ctype), define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
-        drive += pinned(limits, ctype, p, defined=True)[1]
+        drive += fs.pinned(limits, ctype, p, defined=True)[1]
     return consts, drive
 
 
@@ -441,12 +432,12 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     lo, hi = _limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
-    padded = -(-m // (LANES if ctype.is_float else PAD)) * (LANES if ctype.is_float else PAD)
+    padded = -(-m // (fs.LANES if ctype.is_float else PAD)) * (fs.LANES if ctype.is_float else PAD)
     err_w, err_r = residual_bound(model)
     if ctype.is_float:  # F - target is exact to rounding: stop at what a float resolves of the drive
         err_w = FLOAT_ROUNDING * 2.0**-24 * model.min_slope()
     consistent = _consistent(model, keep)
-    frag = (float_fragments if ctype.is_float else double_fragments)(ctype, p)
+    frag = (fs.float_fragments if ctype.is_float else fs.double_fragments)(ctype, p)
 
     def pad(v: np.ndarray) -> np.ndarray:  # weight-0 operators with zero thresholds: add exact zeros
         return np.r_[v[keep], np.zeros(padded - m)]
@@ -466,8 +457,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     consts += const_tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
     helpers = ""
     if ctype.is_float:
-        consts += float_constants(pad(model.weights), model.output_offset, FLOAT_ROUNDING, ctype, p)
-        helpers = "\n" + float_helpers(ctype, p)
+        consts += fs.float_constants(pad(model.weights), model.output_offset, FLOAT_ROUNDING, ctype, p)
+        helpers = "\n" + fs.float_helpers(ctype, p)
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
@@ -489,7 +480,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->x = {literal(model.state.x, ctype)};",
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
-                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + init_f(ctype, p) + "    }",
+                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + fs.init_f(ctype, p) + "    }",
                 "    s->x_turn[0] = s->x;",
                 "    s->f_turn[0] = s->f;",
                 "    s->turns = 1;",
