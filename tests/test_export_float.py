@@ -13,7 +13,7 @@ drive's magnitude, ``2**-22 max |drive|``:
 
 ``benchmarks/study_export_float.py`` runs the same check on 600 models per seed and reports the
 figures under this measure and under the range alone (``benchmarks/RESULTS-export.md``); the
-suite runs the models the old code missed and a dozen fresh ones.
+suite runs the models the old code missed and six fresh ones.
 """
 
 from __future__ import annotations
@@ -68,9 +68,10 @@ def test_compensator_models_the_old_float_code_missed(tmp_path):
     assert max(errors.values()) <= 1.0, errors
 
 
-@pytest.mark.parametrize("seed", [2028, 2029])
+@pytest.mark.parametrize("seed", [2028])
 def test_compensator_random_models_float(tmp_path, seed):
-    # fresh models, limits and references of the same stream (6 per seed; 400 samples each)
+    # fresh models, limits and references of the same stream (400 samples each; the study runs
+    # 600 per seed)
     from test_export_c import random_cases
 
     errors = {k: _float_error(m, lim, y, tmp_path) for k, (m, lim, y) in random_cases(seed, range(6)).items()}
@@ -84,5 +85,5 @@ def test_fused_multiply_adds_do_not_break_the_sums(tmp_path):
     from test_export_c import random_cases
 
     flags = ("-O2", "-ffp-contract=fast", "-march=native")
-    errors = {k: _float_error(m, lim, y, tmp_path, flags) for k, (m, lim, y) in random_cases(2026, MISSED).items()}
+    errors = {k: _float_error(m, lim, y, tmp_path, flags) for k, (m, lim, y) in random_cases(2026, (45, 178)).items()}
     assert max(errors.values()) <= 1.0, errors
