@@ -49,26 +49,31 @@ LANES = 4
 _PASS_FLOAT = """\
 /* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
    the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
-   LANES independent sums, each keeping the rounding errors of its additions (TwoSum) in e, so
-   that the loop vectorises; the lanes are summed the same way at the end. */
+   The terms in one loop (it vectorises as the double pass does), then LANES independent sums
+   keeping the rounding errors of their additions (TwoSum; a vector of floats at a time). */
 static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
 {
-    ${T} f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, sl[${p}_LANES] = {0.0f};
+    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, lo = 0.0f, s = 0.0f;
     int i, k;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+${branch}
+        const ${T} v = ${new_output};
+        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+        zn[i] = v;
+        pr[i] = ${p}_w[i] * v;
+        lo += ${p}_w_lo[i] * v;  /* the part of the double weight its float misses */
+        s += moves ? ${p}_w[i] : 0.0f;
+    }
     for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
         for (k = 0; k < ${p}_LANES; ++k) {
-            const int j = i + k;
-${branch}
-            const ${T} v = ${new_output};
-            const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
-            const ${T} pr = ${p}_w[j] * v, t = f[k] + pr;
-            zn[j] = v;
-            e[k] += ${p}_sum_error(f[k], pr, t) + ${p}_w_lo[j] * v;
+            const ${T} t = f[k] + pr[i + k];
+            e[k] += ${p}_sum_error(f[k], pr[i + k], t);
             f[k] = t;
-            sl[k] += moves ? ${p}_w[j] : 0.0f;
         }
     }
-    return ${p}_lanes(f, e, sl, slope, target, target_lo);
+    *slope = s;
+    e[0] += lo;
+    return ${p}_lanes(f, e, target, target_lo);
 }
 """
 
@@ -99,8 +104,8 @@ static ${T} ${p}_sum_error(${T} a, ${T} b, ${T} t)
     return (a - (t - bb)) + (b - bb);
 }
 
-/* sum_k f[k] + e[k] - target - target_lo with the additions' errors kept; the slope from its lanes. */
-static ${T} ${p}_lanes(const ${T} *f, const ${T} *e, const ${T} *sl, ${T} *slope, ${T} target, ${T} target_lo)
+/* sum_k f[k] + e[k] - target - target_lo with the additions' errors kept. */
+static ${T} ${p}_lanes(const ${T} *f, const ${T} *e, ${T} target, ${T} target_lo)
 {
     ${T} hi = -target, lo = -target_lo;
     int k;
@@ -108,11 +113,9 @@ static ${T} ${p}_lanes(const ${T} *f, const ${T} *e, const ${T} *sl, ${T} *slope
         const ${T} t = hi + f[k];
         lo += ${p}_sum_error(hi, f[k], t) + e[k];
         hi = t;
-        *slope = k == 0 ? sl[0] : *slope + sl[k];
     }
     return hi + lo;
-}
-"""
+}"""
 
 
 def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
@@ -120,11 +123,8 @@ def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
 
 
 def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
-    """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``, whose
-    operator index ``i`` becomes the lane's ``j``)."""
-    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}
-    fields["branch"] = "\n".join("    " + line for line in fields["branch"].splitlines())
-    return _fill(_PASS_FLOAT, ctype, prefix, **fields)
+    """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``)."""
+    return _fill(_PASS_FLOAT, ctype, prefix, **direction)
 
 
 def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
