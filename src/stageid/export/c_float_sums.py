@@ -12,14 +12,13 @@ itself, never forming F (Ogita, Rump and Oishi's Sum2, SIAM J. Sci. Comput. 26, 
 * the terms ``w_i v_i`` in one loop that vectorises as the double pass does, then summed in
   ``LANES`` independent sums that keep the rounding error of every addition (``TwoSum``), the
   lanes and ``-target`` last in the same way; ``w_lo v`` adds the part of the double weight its
-  float misses (the terms could not be summed in the first loop: gcc -O3 then vectorised
-  nothing, 2.9-3.5x the old float time against 1.5x at -O2);
+  float misses (summed inside the first loop, the lanes kept gcc -O3 from vectorising it);
 * the state keeps F at its input as a pair (``f``, ``f_lo``).
 
 ``F(x) - target`` then carries about one rounding of itself plus the roundings of the terms
 ``u / 2 |w_i v_i|``, which are the size of the roundings of the operator outputs ``v_i = x - r_i``
-themselves (so exact products, ``TwoProduct``, were tried and left out: 600 random models gave
-the same errors, within noise).  The solve stops at ``RESOLUTION (|x| + max r)`` in the drive
+themselves (so exact products, ``TwoProduct``, were tried and left out: the same errors within
+noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops at ``RESOLUTION (|x| + max r)`` in the drive
 (half an ulp of ``|x| + max r``), the skip test uses the slope on the side of travel.  The
 transformations need IEEE single arithmetic evaluated as written (``FLT_EVAL_METHOD`` 0, no
 ``-ffast-math``); a fused multiply-add the compiler forms from a product and the sum after it
