@@ -21,7 +21,11 @@ with 20 operators (target <= 100 ns per sample) on four references -- a slow sin
 walk, full-range random jumps (every operator can switch at every sample) and a measured
 displacement record when ../shared/data is present -- to show how the cost depends on the input
 history; and, for reference, the forward modified PI model and the classical-PI compensator.
-The outputs are checked against the Python models before timing (1e-12 relative).
+The outputs are checked against the Python models before timing (1e-12 relative; float 1e-5 of
+the range).
+
+``--float`` exports every case in single precision (``--float``; the driver streams floats, no
+naive loop; the check before timing is 1e-5 of the output range).
 
 ``--paired REV`` times the modified-PI compensator of this tree against the one the package at
 git revision ``REV`` generates (``git archive`` of its ``src``), both compiled into one driver
@@ -88,13 +92,13 @@ int main(int argc, char **argv)
 {{
     const long n = argc > 3 ? atol(argv[1]) : 0;
     const int runs = argc > 3 ? atoi(argv[2]) : 0;
-    double *in = malloc(sizeof(double) * n * {p}_N_INPUTS), *dt = malloc(sizeof(double) * n);
-    double out[{p}_N_OUTPUTS], sink = 0.0;
+    {t} *in = malloc(sizeof({t}) * n * {p}_N_INPUTS), out[{p}_N_OUTPUTS];
+    double *dt = malloc(sizeof(double) * n), sink = 0.0;
     FILE *f = argc > 3 ? fopen(argv[3], "rb") : NULL;
     {p}_state s;
     long k;
     int r;
-    if (!f || fread(in, sizeof(double), n * {p}_N_INPUTS, f) != (size_t)(n * {p}_N_INPUTS)) return 2;
+    if (!f || fread(in, sizeof({t}), n * {p}_N_INPUTS, f) != (size_t)(n * {p}_N_INPUTS)) return 2;
     fclose(f);
     for (r = 0; r < runs; ++r) {{
         double t0, t1, c0, c1;
@@ -176,6 +180,7 @@ _PAIRED = r"""
 #include <time.h>
 #include "old.h"
 #include "new.h"
+typedef double real;  /* the type of the exports */
 
 static double cpu(void)
 {
@@ -204,7 +209,7 @@ static int cmp(const void *a, const void *b)
 }
 
 #define TIMED(P)                                                                     \
-    static double run_##P(const double *in, double *out, long n)                     \
+    static double run_##P(const real *in, real *out, long n)                         \
     {                                                                                \
         P##_state s;                                                                 \
         long k;                                                                      \
@@ -214,7 +219,7 @@ static int cmp(const void *a, const void *b)
         for (k = 0; k < n; ++k) P##_step(&s, in + k, out + k);                       \
         return (cpu() - c0) / n;                                                     \
     }                                                                                \
-    static void steps_##P(const double *in, double *out, double *dt, long n)         \
+    static void steps_##P(const real *in, real *out, double *dt, long n)             \
     {                                                                                \
         P##_state s;                                                                 \
         long k;                                                                      \
@@ -232,12 +237,13 @@ int main(int argc, char **argv)
 {
     const long n = argc > 3 ? atol(argv[1]) : 0;
     const int rounds = argc > 3 ? atoi(argv[2]) : 0;
-    double *in = malloc(sizeof(double) * n), *out = malloc(sizeof(double) * n), *dt = malloc(sizeof(double) * n);
+    real *in = malloc(sizeof(real) * n), *out = malloc(sizeof(real) * n);
+    double *dt = malloc(sizeof(double) * n);
     FILE *f = argc > 3 ? fopen(argv[3], "rb") : NULL;
     double timer, w0, k0, scale;
     long k;
     int r;
-    if (!f || fread(in, sizeof(double), n, f) != (size_t)n) return 2;
+    if (!f || fread(in, sizeof(real), n, f) != (size_t)n) return 2;
     fclose(f);
     for (r = 0; r < rounds; ++r) {  /* alternating: old new, new old, ... */
         double a, b;
@@ -271,7 +277,7 @@ int main(int argc, char **argv)
 """
 
 
-def _old_export(rev: str, model, folder: Path) -> None:
+def _old_export(rev: str, model, folder: Path, single: bool = False) -> None:
     """``old.h`` / ``old.c``: the compensator of ``model`` as the package at git ``rev`` exports it."""
     import pickle
 
@@ -283,25 +289,28 @@ def _old_export(rev: str, model, folder: Path) -> None:
     (folder / "model.pkl").write_bytes(pickle.dumps(model))
     script = (
         "import pickle, sys; from pathlib import Path; from stageid.export import export_c; "
-        "out = Path(sys.argv[1]); code = export_c(pickle.loads((out / 'model.pkl').read_bytes()), 'old', inverse=True); "
+        "out = Path(sys.argv[1]); code = export_c(pickle.loads((out / 'model.pkl').read_bytes()), 'old', inverse=True, "
+        f"single={single}); "
         "[(out / k).write_text(v) for k, v in code.files().items()]"
     )
     env = dict(os.environ, PYTHONPATH=str(src / "src"))
     subprocess.run([sys.executable, "-c", script, str(folder)], check=True, env=env, cwd=str(folder))
 
 
-def paired(rev: str, model, refs: dict, n: int, rounds: int, cflags: list[str], folder: Path) -> list[tuple]:
+def paired(
+    rev: str, model, refs: dict, n: int, rounds: int, cflags: list[str], folder: Path, single: bool = False
+) -> list[tuple]:
     """Old (git ``rev``) against new compensator of ``model``, alternating in one driver, per reference."""
-    _old_export(rev, model, folder)
-    for name, text in export_c(model, "new", inverse=True).files().items():
+    _old_export(rev, model, folder, single)
+    for name, text in export_c(model, "new", inverse=True, single=single).files().items():
         (folder / name).write_text(text)
-    (folder / "paired.c").write_text(_PAIRED)
+    (folder / "paired.c").write_text(_PAIRED.replace("typedef double real;", f"typedef {_real(single)} real;"))
     exe = folder / "paired"
     compile_files([folder / "old.c", folder / "new.c", folder / "paired.c"], exe, flags=(*cflags, f"-I{folder}"))
     rows = []
     for name, ref in refs.items():
         data = folder / "ref.bin"
-        np.ascontiguousarray(ref[:n], dtype=np.float64).tofile(data)
+        np.ascontiguousarray(ref[:n], dtype=np.float32 if single else np.float64).tofile(data)
         out = subprocess.run([str(exe), str(n), str(rounds), str(data)], capture_output=True, text=True, check=True)
         vals: dict[str, list[float]] = {}
         for line in out.stdout.splitlines():
@@ -314,6 +323,10 @@ def paired(rev: str, model, refs: dict, n: int, rounds: int, cflags: list[str], 
     return rows
 
 
+def _real(single: bool) -> str:
+    return "float" if single else "double"
+
+
 def _c_array(a: np.ndarray) -> str:
     return "{" + ", ".join(repr(float(v)) for v in np.asarray(a).reshape(-1)) + "}"
 
@@ -321,6 +334,7 @@ def _c_array(a: np.ndarray) -> str:
 def time_case(code, u: np.ndarray, runs: int, cflags: list[str], folder: Path, naive: StateSpaceModel | None = None):
     """Compile ``code`` with the driver and time it on ``u`` (n_samples, n_inputs); a dict of figures."""
     p = code.prefix
+    single = "const float *in" in code.header
     for name, text in code.files().items():
         (folder / name).write_text(text)
     naive_main = ""
@@ -330,12 +344,12 @@ def time_case(code, u: np.ndarray, runs: int, cflags: list[str], folder: Path, n
             n=naive.n_states, m=naive.n_inputs, q=naive.n_outputs,
         )  # fmt: skip
     (folder / f"{p}_bench.c").write_text(
-        _DRIVER.format(p=p, naive=_NAIVE if naive is not None else "", naive_main=naive_main)
+        _DRIVER.format(p=p, t=_real(single), naive=_NAIVE if naive is not None else "", naive_main=naive_main)
     )
     exe = folder / f"{p}_bench"
     compile_files([folder / f"{p}.c", folder / f"{p}_bench.c"], exe, flags=(*cflags, f"-I{folder}"))
     data = folder / f"{p}_in.bin"
-    np.ascontiguousarray(u, dtype=np.float64).tofile(data)
+    np.ascontiguousarray(u, dtype=np.float32 if single else np.float64).tofile(data)
     out = subprocess.run([str(exe), str(u.shape[0]), str(runs), str(data)], capture_output=True, text=True, check=True)
     vals: dict[str, list[float]] = {}
     for line in out.stdout.splitlines():
@@ -351,6 +365,12 @@ def time_case(code, u: np.ndarray, runs: int, cflags: list[str], folder: Path, n
     if "naive" in vals:
         res["naive"] = float(np.median(vals["naive"]))
     return res
+
+
+def _check(y_c: np.ndarray, y: np.ndarray, single: bool) -> None:
+    """The export agrees with the package: 1e-12 of the largest |y| (double), 1e-5 of its range (float)."""
+    tol = 1e-5 * np.ptp(y) if single else 1e-12 * np.max(np.abs(y))
+    assert np.max(np.abs(y_c - y)) <= tol, np.max(np.abs(y_c - y)) / tol
 
 
 def stage_model(rng) -> StateSpaceModel:
@@ -391,14 +411,19 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=15)
     ap.add_argument("--cflags", default="-O2")
     ap.add_argument("--paired", metavar="REV", help="time the compensator against git revision REV's, alternating")
+    ap.add_argument("--float", action="store_true", help="single-precision exports (--float)")
     args = ap.parse_args(argv)
+    single = args.float
     cc = find_compiler()
     if cc is None:
         print("no C compiler found; nothing to time", file=sys.stderr)
         return 1
     cflags = shlex.split(args.cflags)
     version = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
-    print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores; {version}; flags {args.cflags}")
+    print(
+        f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores; {version}; flags {args.cflags}"
+        f"; {_real(single)}"
+    )
     rng = np.random.default_rng(0)
     n = args.samples
     rows = []
@@ -406,10 +431,9 @@ def main(argv=None) -> int:
         folder = Path(tmp)
         g = stage_model(rng)
         u = rng.normal(size=(n, 2))
-        code = export_c(g, "stage")
-        y = build(code, folder).run(u[:5000])
-        assert np.max(np.abs(y - g.simulate(u[:5000]))) <= 1e-12 * np.max(np.abs(y))
-        res = time_case(code, u, args.runs, cflags, folder, naive=g)
+        code = export_c(g, "stage", single=single)
+        _check(build(code, folder).run(u[:5000]), g.simulate(u[:5000]), single)
+        res = time_case(code, u, args.runs, cflags, folder, naive=None if single else g)
         rows.append(("state space 2x2, order 6", "white noise", res))
         mpi, pi, origin, rec = hysteresis_models(rng)
         lo, hi = mpi.input_limits
@@ -428,16 +452,17 @@ def main(argv=None) -> int:
                 f"| reference | old ({args.paired}) ns/step | new ns/step | old / new [range] | p50 / p99.9 old | p50 / p99.9 new |"
             )
             print("|---|---:|---:|---:|---:|---:|")
-            for name, old, new, ratio, rlo, rhi, t in paired(args.paired, mpi, refs, n, args.runs, cflags, folder):
+            for name, old, new, ratio, rlo, rhi, t in paired(
+                args.paired, mpi, refs, n, args.runs, cflags, folder, single
+            ):
                 print(
                     f"| {name} | {old:.1f} | {new:.1f} | {ratio:.2f} [{rlo:.2f}, {rhi:.2f}] "
                     f"| {t['old50']:.0f} / {t['old999']:.0f} | {t['new50']:.0f} / {t['new999']:.0f} |"
                 )
             return 0
-        comp = export_c(mpi, "comp", inverse=True)
+        comp = export_c(mpi, "comp", inverse=True, single=single)
         for name, ref in refs.items():
-            drive = build(comp, folder).run(ref[:5000])
-            assert np.max(np.abs(drive - Compensator(mpi).run(ref[:5000]))) <= 1e-12 * np.max(np.abs(drive))
+            _check(build(comp, folder).run(ref[:5000]), Compensator(mpi).run(ref[:5000]), single)
             rows.append(
                 (
                     f"modified-PI compensator, 20 operators ({origin})",
@@ -445,7 +470,7 @@ def main(argv=None) -> int:
                     time_case(comp, ref[:, None], args.runs, cflags, folder),
                 )
             )
-        fwd = export_c(mpi, "fwd")
+        fwd = export_c(mpi, "fwd", single=single)
         rows.append(
             (
                 "modified-PI forward, 20 operators",
@@ -453,7 +478,7 @@ def main(argv=None) -> int:
                 time_case(fwd, drives["random walk"][:, None], args.runs, cflags, folder),
             )
         )
-        picomp = export_c(pi, "picomp", inverse=True)
+        picomp = export_c(pi, "picomp", inverse=True, single=single)
         ref = pi.simulate(drives["random walk"])[:, 0]
         rows.append(
             (

@@ -311,7 +311,7 @@ def test_constants_round_trip_exactly(run_c):
         assert run_c(model, u)[0, 0] == gains[0, j] or gains[0, j] == 0.0
 
 
-def _random_invertible(rng):
+def random_invertible(rng):
     """A random PI or modified-PI model: 2-24 operators, some weights 0 or negative, a random
     (often inconsistent) operator state, offsets, an input warp; None if not invertible."""
     m = int(rng.integers(2, 25))
@@ -341,7 +341,7 @@ def test_compensator_random_models_double(run_c, seed):
     rng = np.random.default_rng(100 + seed)
     done = 0
     while done < 6:
-        model = _random_invertible(rng)
+        model = random_invertible(rng)
         if model is None:
             continue
         limits = None if rng.random() < 0.4 else tuple(sorted(rng.uniform(-8, 8, 2)))
@@ -351,20 +351,20 @@ def test_compensator_random_models_double(run_c, seed):
         done += 1
 
 
-def _random_cases(seed, wanted):
-    """The models, limits and references number ``wanted`` of the stream ``_random_invertible``
+def random_cases(seed, wanted, n_samples=400):
+    """The models, limits and references number ``wanted`` of the stream ``random_invertible``
     and ``inputs`` draw from ``default_rng(seed)`` (the randomized check of
-    benchmarks/RESULTS-export.md)."""
+    benchmarks/RESULTS-export.md; references of ``n_samples`` <= 3000 samples)."""
     rng = np.random.default_rng(seed)
     k, out = 0, {}
     while k <= max(wanted):
-        model = _random_invertible(rng)
+        model = random_invertible(rng)
         if model is None:
             continue
         limits = None if rng.random() < 0.4 else tuple(sorted(rng.uniform(-8, 8, 2)))
         u = list(inputs(rng, 3000).values())[k % 3]
         if k in wanted:
-            out[k] = (model, limits, model.with_state(None).simulate(u[:400])[:, 0])
+            out[k] = (model, limits, model.with_state(None).simulate(u[:n_samples])[:, 0])
         k += 1
     return out
 
@@ -375,5 +375,5 @@ def test_compensator_regressions_of_the_randomized_check(run_c):
     # not the operators' outputs at the stored input -- Newton with the consistent state's slope
     # oscillated around the first sample's root for 200 iterates (now: bisection whenever a step
     # does not halve the residual)
-    for model, limits, y_ref in _random_cases(2026, (22, 52, 88)).values():
+    for model, limits, y_ref in random_cases(2026, (22, 52, 88)).values():
         assert_double(run_c(model, y_ref, inverse=True, limits=limits), Compensator(model, limits).run(y_ref))

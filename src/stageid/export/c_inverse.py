@@ -25,7 +25,9 @@ What the C computes is what :class:`stageid.hysteresis.Compensator` computes (se
   number of passes per sample depends on how many operator corners the reference crosses and
   how far the first iterate lands from the root (``benchmarks/RESULTS-export.md``).
 
-In single precision the stopping bound and the bracket width are those a ``float`` resolves.
+In single precision the passes return ``F(x) - target`` by compensated sums
+(:mod:`stageid.export.c_float_sums`), and the stopping bound and the bracket width are those a
+``float`` resolves of the drive; a drive at a limit is that limit rounded to float.
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ from typing import Any
 
 import numpy as np
 
+from . import c_float_sums as fs
 from .c_reversal_curve import reversal_curve
-from .c_writer import CType, array, literal
+from .c_writer import CType, const_tables, define, limit_define, literal
 
 __all__ = ["pi_inverse_fields", "modified_pi_inverse"]
 
@@ -144,12 +147,10 @@ _DIRECTIONS = {
 }
 
 _MOVE = """\
-/* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
-   solve has one code path): returns sg F at x; the outputs and the slope as the pass gives them.
-   Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */
-static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope)
+${move_doc}
+static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params})
 {
-    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope) : -${p}_fall(-m, z, zn, slope);
+    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope${shift_args}) : -${p}_fall(-m, z, zn, slope${shift_args});
 }
 """
 
@@ -165,10 +166,10 @@ typedef struct {
     int rising;
 } ${p}_point;
 
-/* The pass at m = sg x into *at (F there, not sg F); returns sg F. */
-static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
+/* The pass at m = sg x into *at (${value} there, not sg ${value}); returns sg ${value}. */
+static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at${shift_params})
 {
-    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope);
+    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope${shift_args});
     at->f = sg * fm;
     at->rising = sg > 0.0${f};
     return fm;
@@ -184,18 +185,18 @@ static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at)
    rounding error of F, as the package does: both return the exact root to rounding.  Returns
    where the answer's F, slope and operator outputs are: 0 nowhere (x unchanged), 1 in *at (the
    last iterate), 2 in *far_at (the far end). */
-static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at)
+static int ${p}_solve(const ${p}_state *s, ${T} target, ${T} slope, ${T} *x_out, ${p}_point *at, ${p}_point *far_at${solve_params})
 {
-    const ${T} sg = target > s->f ? 1.0${f} : -1.0${f};
-    const ${T} goal = sg * target, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
-    ${T} near = m0, fnear = sg * s->f, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
+    const ${T} sg = ${rising} ? 1.0${f} : -1.0${f};
+    const ${T} goal = ${goal}, m0 = sg * s->x, edge = sg > 0.0${f} ? ${p}_HIGH : -${p}_LOW;
+    ${T} near = m0, fnear = ${fnear}, far = m0 + (goal - fnear) / ${p}_SMIN, ffar = 0.0${f};
     ${T} mc = m0, fc = fnear, sc = slope, last = 0.0${f};
     int known = 0, it;
     if (far > edge) far = edge;
     *x_out = s->x;
     if (!(far > m0)) {  /* x at or beyond the limit: the answer is the limit */
-        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
-        ${p}_pass(back, back * sg * far, s->z, far_at);
+${at_edge}        const ${T} back = far < m0 ? -sg : sg;  /* (reached backwards if x lies beyond it) */
+        ${p}_pass(back, back * sg * far, s->z, far_at${shift_args});
         *x_out = sg * far;
         return 2;
     }
@@ -209,7 +210,7 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
         } else if (!(xn > near && xn < far)) {
             if (!known) {
                 known = 1;
-                ffar = ${p}_pass(sg, far, s->z, far_at);
+                ffar = ${p}_pass(sg, far, s->z, far_at${shift_args});
                 if (ffar <= goal) {  /* the root is at or past the far end */
                     *x_out = sg * far;
                     return 2;
@@ -219,7 +220,7 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
             if (!(xn > near && xn < far)) xn = 0.5${f} * (near + far);
         }
         last = ${p}_abs(fc - goal);
-        fc = ${p}_pass(sg, xn, s->z, at);
+        fc = ${p}_pass(sg, xn, s->z, at${shift_args});
         *x_out = sg * xn;
         mc = xn;
         sc = at->slope;
@@ -239,12 +240,11 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
 """
 
 _CP_STEP = """\
-    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
-    ${p}_point at, far;
+${target}    ${p}_point at, far;
     ${T} x = s->x;
     int found = 0;  /* 0: x unchanged, 1: x is the last iterate (at), 2: the far end (far) */
-    if (${p}_abs(target - s->f) > ${p}_error(x)) {
-        const int rising = target > s->f;
+    if (${moved}) {
+        const int rising = ${rising};
         if (rising != s->rising) {  /* reversal: right after a move only the operators of zero */
             s->slope = ${p}_TURN_SLOPE;  /* loop width move the other way (a first guess) */
             s->rising = rising;
@@ -256,10 +256,10 @@ _CP_STEP = """\
             s->f_turn[(s->oldest + s->turns) & (${p}_TURNS - 1)] = s->f;
             ++s->turns;
         }
-        found = ${p}_solve(s, target, s->slope, &x, &at, &far);
+        found = ${p}_solve(s, target, s->slope, &x, &at, &far${solve_args});
     }
     if (!found && s->fresh) {  /* a stored state need not be the operators' outputs at x */
-        ${p}_pass(1.0${f}, x, s->z, &at);
+        ${p}_pass(1.0${f}, x, s->z, &at${shift_args});
         s->rising = 1;
         found = 1;
     }
@@ -267,7 +267,7 @@ _CP_STEP = """\
         const ${p}_point *p = found == 1 ? &at : &far;
         int i;
         for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = p->z[i];
-        s->f = p->f;
+${store_f}
         s->slope = p->slope;
         s->rising = p->rising;
         s->x = x;
@@ -296,28 +296,10 @@ def _sub(text: str, ctype: CType, prefix: str, **extra: str) -> str:
     return Template(text).substitute(T=ctype.name, f=f, fn=f, p=prefix, **extra)
 
 
-def _define(prefix: str, name: str, value: float, ctype: CType) -> str:
-    return f"#define {prefix}_{name} ({literal(value, ctype)})"
-
-
-def _tables(prefix: str, ctype: CType, **tables: object) -> list[str]:
-    return [
-        f"static const {ctype.name} {prefix}_{name}[{prefix}_N_OPERATORS] = {array(v, ctype)};"
-        for name, v in tables.items()
-    ]
-
-
 def _limits(model: Any, limits: tuple[float, float] | None) -> tuple[float, float]:
     if limits is None:
         return -np.inf, np.inf
     return float(model.to_operator_input(limits[0])), float(model.to_operator_input(limits[1]))
-
-
-def _limit_define(prefix: str, name: str, value: float, ctype: CType) -> str:
-    if np.isfinite(value):
-        return _define(prefix, name, value, ctype)
-    huge = "HUGE_VALF" if ctype.is_float else "HUGE_VAL"
-    return f"#define {prefix}_{name} ({'-' if value < 0 else ''}{huge})"
 
 
 def _init(name: str, values: object, ctype: CType) -> list[str]:
@@ -331,19 +313,21 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     p, inv = prefix, pi_inverse(model)
     lo, hi = _limits(model, limits)
     consts = [f"#define {p}_N_OPERATORS {model.n_operators}"]
-    consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
-    consts += _tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
+    consts += [define(p, "INPUT_OFFSET", model.input_offset, ctype)]
+    consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
+    consts += const_tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
     clip, helpers = "", ""
+    snap_consts, snap = fs.pinned(limits, ctype, p)
+    consts += snap_consts
     if limits is not None:
-        consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
+        consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
         # the rebuild runs in double also with --float: the duality sums cancel (terms up to
         # sum|w| / w0 times the output), which cost single precision up to 6e-4 of the drive range
         rebuild, suffix = CType("double"), "_d" if ctype.is_float else ""
         tables = {"r": model.r, "w": model.weights, "W": np.cumsum(model.weights), "W_inv": np.cumsum(inv.weights)}
         if ctype.is_float:
             tables["w_inv"] = inv.weights
-        consts += _tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
+        consts += const_tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
         clip = _sub(_PI_CLIP, ctype, p)
         helpers = "\n" + _sub(_PI_REBASE, ctype, p, R="double", d=suffix)
     return {
@@ -353,10 +337,11 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
         "helpers": helpers,
         "includes": "#include <math.h>\n" if limits is not None and not (np.isfinite(lo) and np.isfinite(hi)) else "",
         "init_body": "\n".join(_init("z", inv.state.z, ctype)),
-        "step_body": _sub(_PI_STEP, ctype, p, clip=clip).rstrip("\n"),
+        "step_body": (_sub(_PI_STEP, ctype, p, clip=clip) + snap).rstrip("\n"),
     }
 
 
+FLOAT_ROUNDING = 0.5  # float: solve and stop to this many u (|x| + R_MAX) in x (a few ulps)
 TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
 
@@ -371,7 +356,8 @@ _LONG_MOVE = """\
 
 def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) -> str:
     """The two passes (rise, fall: one template), the reversal curve's first iterate (C text, or ""
-    for none) and the solve."""
+    for none) and the solve; in float with the sums of :mod:`.c_float_sums`."""
+    frag = (fs.float_fragments if ctype.is_float else fs.double_fragments)(ctype, prefix)
     passes = []
     for name, d in _DIRECTIONS.items():
         why = (
@@ -381,10 +367,13 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
         )
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
         filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
-        passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
-    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix)
+        if ctype.is_float:
+            passes.append(fs.float_pass(filled, ctype, prefix))
+        else:
+            passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
+    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix, **frag)
     guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
-    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess)
+    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -401,15 +390,17 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     """Constants and C lines that turn the operator input ``x`` into the drive ``out[0]``."""
     q = model.input_warp
     if q == 0.0:
-        return [], f"    out[0] = x + {p}_INPUT_OFFSET;\n"
-    consts = [_define(p, "WARP_SCALE", model.warp_scale, ctype), _define(p, "WARP_Q", q, ctype)]
-    consts += [_define(p, "WARP_4Q", 4.0 * q, ctype), _define(p, "WARP_UP", 1.0 + q, ctype)]
-    consts += [_define(p, "WARP_DOWN", -1.0 + q, ctype), _define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
-    consts += [_define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
+        snap_consts, snap = fs.pinned(limits, ctype, p)
+        return snap_consts, f"    out[0] = x + {p}_INPUT_OFFSET;\n" + snap
+    consts = [define(p, "WARP_SCALE", model.warp_scale, ctype), define(p, "WARP_Q", q, ctype)]
+    consts += [define(p, "WARP_4Q", 4.0 * q, ctype), define(p, "WARP_UP", 1.0 + q, ctype)]
+    consts += [define(p, "WARP_DOWN", -1.0 + q, ctype), define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
+    consts += [define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
     drive = _sub(_UNWARP, ctype, p)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
-        consts += [_define(p, "DRIVE_LOW", limits[0], ctype), _define(p, "DRIVE_HIGH", limits[1], ctype)]
+        consts += [define(p, "DRIVE_LOW", limits[0], ctype), define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
+        drive += fs.pinned(limits, ctype, p, defined=True)[1]
     return consts, drive
 
 
@@ -430,9 +421,10 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     is never seen; weight-0 operators with zero thresholds pad the rest to a multiple of
     :data:`PAD`, so that gcc vectorises the passes also at -O2 (its cheap cost model there takes
     only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
-    (:func:`stageid.hysteresis.compensator.residual_bound`; in single precision with the unit
-    roundoff of ``float`` and eight roundings instead of ``4 (m + 2)``: a float solve stops at
-    what a float resolves).
+    (:func:`stageid.hysteresis.compensator.residual_bound`).  In single precision the passes
+    return ``F - target`` to about its own rounding (:mod:`.c_float_sums`), so the bound is
+    ``FLOAT_ROUNDING u SMIN (|x| + R_MAX)``: the drive is solved to a float's resolution, not to
+    a rounding bound of F (which would be ``1 / SMIN`` times wider in the drive).
     """
     from ..hysteresis.compensator import residual_bound
 
@@ -440,28 +432,33 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     lo, hi = _limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
-    padded = -(-m // PAD) * PAD
+    padded = -(-m // (fs.LANES if ctype.is_float else PAD)) * (fs.LANES if ctype.is_float else PAD)
     err_w, err_r = residual_bound(model)
-    if ctype.is_float:
-        err_w = 8.0 * 2.0**-24 * float(np.sum(np.abs(model.weights)))
+    if ctype.is_float:  # F - target is exact to rounding: stop at what a float resolves of the drive
+        err_w = FLOAT_ROUNDING * 2.0**-24 * model.min_slope()
     consistent = _consistent(model, keep)
+    frag = (fs.float_fragments if ctype.is_float else fs.double_fragments)(ctype, p)
 
     def pad(v: np.ndarray) -> np.ndarray:  # weight-0 operators with zero thresholds: add exact zeros
         return np.r_[v[keep], np.zeros(padded - m)]
 
     consts = [f"#define {p}_N_OPERATORS {padded}"]
-    consts += [_define(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts += [_define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
-    consts += [_define(p, "SMIN", model.min_slope(), ctype)]
-    consts += [_define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
-    consts += [_define(p, "BRACKET", 1e-6 if ctype.is_float else 1e-15, ctype)]
-    consts += [_define(p, "ROUNDING", err_w, ctype), _define(p, "R_MAX", err_r, ctype)]
-    consts += [_limit_define(p, "LOW", lo, ctype), _limit_define(p, "HIGH", hi, ctype)]
+    consts += [define(p, "INPUT_OFFSET", model.input_offset, ctype)]
+    consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
+    consts += [define(p, "SMIN", model.min_slope(), ctype)]
+    consts += [define(p, "TURN_SLOPE", _turn_slope(model), ctype)]
+    consts += [define(p, "BRACKET", 2.0**-22 if ctype.is_float else 1e-15, ctype)]
+    consts += [define(p, "ROUNDING", err_w, ctype), define(p, "R_MAX", err_r, ctype)]
+    consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
     consts += [f"#define {p}_CONSISTENT {int(consistent)}  /* the stored outputs are those at the stored x */"]
     consts += [f"#define {p}_TURNS {TURNS}  /* turns kept for the reversal curves (return-point memory) */"]
     T = ctype.name
     r, rc, ra, rb = (pad(v) for v in model.coupled_play_thresholds())
-    consts += _tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
+    consts += const_tables(p, ctype, r=r, rc=rc, ra=ra, rb=rb, w=pad(model.weights))
+    helpers = ""
+    if ctype.is_float:
+        consts += fs.float_constants(pad(model.weights), model.output_offset, FLOAT_ROUNDING, ctype, p)
+        helpers = "\n" + fs.float_helpers(ctype, p)
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
@@ -470,11 +467,12 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
         f"    {T} x, f, slope;  /* last operator input, F there, its slope on the side of the last move */\n"
-        f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
+        + (f"    {T} f_lo;  /* the rest of F (F = f + f_lo) */\n" if ctype.is_float else "")
+        + f"    {T} x_turn[{TURNS}], f_turn[{TURNS}];  /* the turns still in memory (x and F), the last on top */\n"
         "    int turns, oldest;  /* how many, and where the oldest is (a ring of TURNS) */\n"
         "    int rising, fresh;  /* side of the last move; 1 until the first sample if not CONSISTENT */",
         "constants": "\n".join(consts + warp_consts) + "\n",
-        "helpers": "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
+        "helpers": helpers + "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
         "includes": "#include <math.h>\n" if uses_math else "",
         "init_body": "\n".join(
             _init("z", pad(model.state.z), ctype)
@@ -482,13 +480,12 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
                 f"    s->x = {literal(model.state.x, ctype)};",
                 f"    s->fresh = {int(not consistent)};",
                 "    s->rising = 1;",
-                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n"
-                f"        s->f = {p}_move({literal(1.0, ctype)}, s->x, s->z, scratch, &s->slope);\n    }}",
+                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + fs.init_f(ctype, p) + "    }",
                 "    s->x_turn[0] = s->x;",
                 "    s->f_turn[0] = s->f;",
                 "    s->turns = 1;",
                 "    s->oldest = 0;",
             ]
         ),
-        "step_body": _sub(_CP_STEP, ctype, p, drive=drive).rstrip("\n"),
+        "step_body": _sub(_CP_STEP, ctype, p, drive=drive, **frag).rstrip("\n"),
     }

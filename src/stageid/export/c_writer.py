@@ -24,7 +24,20 @@ import numpy as np
 
 from .._errors import ModelError, ParameterError
 
-__all__ = ["C_KEYWORDS", "CType", "literal", "array", "check_prefix", "comment", "render_pair", "HEADER", "SOURCE"]
+__all__ = [
+    "C_KEYWORDS",
+    "CType",
+    "literal",
+    "array",
+    "define",
+    "limit_define",
+    "const_tables",
+    "check_prefix",
+    "comment",
+    "render_pair",
+    "HEADER",
+    "SOURCE",
+]
 
 #: Reserved words of C99 (and C11's, so a prefix stays valid under newer standards too).
 C_KEYWORDS = frozenset(
@@ -81,6 +94,28 @@ def array(values: object, ctype: CType, per_line: int = 4, indent: str = "    ")
     if len(lines) == 1:
         return "{" + lines[0] + "}"
     return "{\n" + ",\n".join(indent + line for line in lines) + "\n}"
+
+
+def define(prefix: str, name: str, value: float, ctype: CType) -> str:
+    """``#define <prefix>_<name> (<literal>)``."""
+    return f"#define {prefix}_{name} ({literal(value, ctype)})"
+
+
+def limit_define(prefix: str, name: str, value: float, ctype: CType) -> str:
+    """:func:`define` for a drive limit, which may be infinite (``HUGE_VAL`` / ``HUGE_VALF``, from
+    ``<math.h>``)."""
+    if np.isfinite(value):
+        return define(prefix, name, value, ctype)
+    huge = "HUGE_VALF" if ctype.is_float else "HUGE_VAL"
+    return f"#define {prefix}_{name} ({'-' if value < 0 else ''}{huge})"
+
+
+def const_tables(prefix: str, ctype: CType, **tables: object) -> list[str]:
+    """``static const`` arrays ``<prefix>_<name>[<prefix>_N_OPERATORS]``, one per keyword."""
+    return [
+        f"static const {ctype.name} {prefix}_{name}[{prefix}_N_OPERATORS] = {array(v, ctype)};"
+        for name, v in tables.items()
+    ]
 
 
 def check_prefix(prefix: object) -> str:

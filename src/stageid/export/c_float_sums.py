@@ -1,0 +1,208 @@
+"""The modified-PI compensator's sums in single precision: compensated, in float.
+
+In ``float`` the drive is the root of ``F(x) = target``, and the slope of F can be small against
+the weights (``smin`` against ``sum |w|``): an error in F moves the drive ``1 / slope`` times as
+far.  A plain float sum of ``w_i v_i`` carries the roundings of its partial sums (up to ``m u
+sum |w_i v_i|``), so the float solve could only stop at ``8 u sum|w| (|x| + max r)`` in F, and
+the drive stopped short of the root (or did not move at all at the turn of a slow reference) by
+up to a few 1e-5 of its range.  The single-precision code therefore computes ``F(x) - target``
+itself, never forming F (Ogita, Rump and Oishi's Sum2, SIAM J. Sci. Comput. 26, 2005):
+
+* the target less the output offset as a pair (Knuth's ``TwoSum``; the offset as two floats);
+* the terms ``w_i v_i`` in one loop that vectorises as the double pass does, then summed in
+  ``LANES`` independent sums that keep the rounding error of every addition (``TwoSum``), the
+  lanes and ``-target`` last in the same way; ``w_lo v`` adds the part of the double weight its
+  float misses (summed inside the first loop, the lanes kept gcc -O3 from vectorising it);
+* the state keeps F at its input as a pair (``f``, ``f_lo``).
+
+``F(x) - target`` then carries about one rounding of itself plus the roundings of the terms
+``u / 2 |w_i v_i|``, which are the size of the roundings of the operator outputs ``v_i = x - r_i``
+themselves (so exact products, ``TwoProduct``, were tried and left out: the same errors within
+noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops at ``RESOLUTION (|x| + max r)`` in the drive
+(half an ulp of ``|x| + max r``), the skip test uses the slope on the side of travel.  The
+transformations need IEEE single arithmetic evaluated as written (``FLT_EVAL_METHOD`` 0, no
+``-ffast-math``); a fused multiply-add the compiler forms from a product and the sum after it
+leaves the result within the tolerance (tested with ``-ffp-contract=fast -march=native``).
+"""
+
+from __future__ import annotations
+
+from string import Template
+
+import numpy as np
+
+from .c_writer import CType, const_tables, define, limit_define
+
+__all__ = [
+    "LANES",
+    "double_fragments",
+    "float_fragments",
+    "float_helpers",
+    "float_pass",
+    "float_constants",
+    "init_f",
+    "pinned",
+]
+
+#: Independent sums of the float pass: one 16-byte vector of floats (SSE, NEON).
+LANES = 4
+
+_PASS_FLOAT = """\
+/* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
+   the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
+   The terms in one loop (it vectorises as the double pass does), then LANES independent sums
+   keeping the rounding errors of their additions (TwoSum; a vector of floats at a time). */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
+{
+    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, lo = 0.0f, s = 0.0f;
+    int i, k;
+    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+${branch}
+        const ${T} v = ${new_output};
+        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+        zn[i] = v;
+        pr[i] = ${p}_w[i] * v;
+        lo += ${p}_w_lo[i] * v;  /* the part of the double weight its float misses */
+        s += moves ? ${p}_w[i] : 0.0f;
+    }
+    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
+        for (k = 0; k < ${p}_LANES; ++k) {
+            const ${T} t = f[k] + pr[i + k];
+            e[k] += ${p}_sum_error(f[k], pr[i + k], t);
+            f[k] = t;
+        }
+    }
+    *slope = s;
+    e[0] += lo;
+    return ${p}_lanes(f, e, target, target_lo);
+}
+"""
+
+_MOVE_DOC = """\
+/* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
+   solve has one code path): returns sg ${value} at x; the outputs and the slope as the pass gives them.
+   Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */"""
+
+_TARGET_FLOAT = """\
+    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
+    const ${T} target_lo = ${p}_sum_error(in[0], -${p}_OUTPUT_OFFSET, target) - ${p}_OUTPUT_OFFSET_LO;
+    const ${T} d0 = (target - s->f) + (target_lo - s->f_lo);  /* the target less F at x, to rounding */
+"""
+
+# a move whose drive change |d0| / slope is within RESOLUTION (|x| + R_MAX) is none (the slope on the
+# side of travel: of the last move, or right after a turn TURN_SLOPE)
+_MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
+
+_STORE_FLOAT = """\
+        s->f = target + p->f;  /* F at x as a pair: the target plus the answer's F - target */
+        s->f_lo = ${p}_sum_error(target, p->f, s->f) + target_lo;"""
+
+_HELPERS_FLOAT = """\
+/* The rounding error of t = a + b, exactly (Knuth's TwoSum). */
+static ${T} ${p}_sum_error(${T} a, ${T} b, ${T} t)
+{
+    const ${T} bb = t - a;
+    return (a - (t - bb)) + (b - bb);
+}
+
+/* sum_k f[k] + e[k] - target - target_lo with the additions' errors kept. */
+static ${T} ${p}_lanes(const ${T} *f, const ${T} *e, ${T} target, ${T} target_lo)
+{
+    ${T} hi = -target, lo = -target_lo;
+    int k;
+    for (k = 0; k < ${p}_LANES; ++k) {
+        const ${T} t = hi + f[k];
+        lo += ${p}_sum_error(hi, f[k], t) + e[k];
+        hi = t;
+    }
+    return hi + lo;
+}"""
+
+
+def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
+    return Template(text).safe_substitute(T=ctype.name, f="f" if ctype.is_float else "", p=prefix, **extra)
+
+
+def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
+    """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``)."""
+    return _fill(_PASS_FLOAT, ctype, prefix, **direction)
+
+
+def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
+    """The placeholders of the double code: F summed in operator order, as the package does."""
+    return {
+        "move_doc": _fill(_MOVE_DOC, ctype, prefix, value="F"),
+        "value": "F",
+        "shift_params": "",
+        "shift_args": "",
+        "solve_params": "",
+        "solve_args": "",
+        "rising": "target > s->f",
+        "goal": "sg * target",
+        "fnear": "sg * s->f",
+        "moved": _fill("${p}_abs(target - s->f) > ${p}_error(x)", ctype, prefix),
+        "at_edge": "",
+        "target": _fill("    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;\n", ctype, prefix),
+        "store_f": "        s->f = p->f;",
+    }
+
+
+def float_fragments(ctype: CType, prefix: str) -> dict[str, str]:
+    """The placeholders of the float code: F - target by error-free transformations."""
+    t = ctype.name
+    return {
+        "move_doc": _fill(_MOVE_DOC, ctype, prefix, value="(F - target)"),
+        "value": "(F - target)",
+        "shift_params": f", {t} target, {t} target_lo",
+        "shift_args": ", target, target_lo",
+        "solve_params": f", {t} target_lo, {t} d0",
+        "solve_args": ", target_lo, d0",
+        "rising": "d0 > 0.0f",
+        "goal": "0.0f",
+        "fnear": "-sg * d0",
+        "moved": _fill(_MOVED_FLOAT, ctype, prefix),
+        "at_edge": _fill(
+            "        if (far == m0 && !s->fresh) return 0;  /* already there: nothing moves */\n", ctype, prefix
+        ),
+        "target": _fill(_TARGET_FLOAT, ctype, prefix),
+        "store_f": _fill(_STORE_FLOAT, ctype, prefix),
+    }
+
+
+def float_helpers(ctype: CType, prefix: str) -> str:
+    """TwoSum and the sum of the lanes, for the float passes."""
+    return _fill(_HELPERS_FLOAT, ctype, prefix)
+
+
+def float_constants(weights: np.ndarray, output_offset: float, rounding: float, ctype: CType, p: str) -> list[str]:
+    """The part of each (padded) weight and of the output offset a float misses, ``RESOLUTION``
+    (``rounding`` units of ``2**-24``) and ``LANES``."""
+    w32 = np.asarray(weights, dtype=float).astype(np.float32).astype(float)
+    off = output_offset - float(np.float32(output_offset))
+    return [
+        *const_tables(p, ctype, w_lo=np.asarray(weights, dtype=float) - w32),
+        define(p, "OUTPUT_OFFSET_LO", off, ctype),
+        define(p, "RESOLUTION", rounding * 2.0**-24, ctype),
+        f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */",
+    ]
+
+
+def init_f(ctype: CType, p: str) -> str:
+    """C lines that set F at the stored input (in float as a pair: F, then F less its float)."""
+    if not ctype.is_float:
+        return f"        s->f = {p}_move(1.0, s->x, s->z, scratch, &s->slope);\n"
+    return (
+        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f);\n"
+        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f);\n"
+    )
+
+
+def pinned(limits: tuple[float, float] | None, ctype: CType, p: str, defined: bool = False) -> tuple[list[str], str]:
+    """Float only: constants (unless ``defined``) and the C lines that make a drive at a limit that
+    limit rounded to float (``x + INPUT_OFFSET`` at the operator input's limit is two roundings
+    off it).  A snap, not a clamp: a stored input beyond a limit moves back as the package's does."""
+    if limits is None or not ctype.is_float:
+        return [], ""
+    consts = [limit_define(p, "DRIVE_LOW", limits[0], ctype), limit_define(p, "DRIVE_HIGH", limits[1], ctype)]
+    snap = f"    if (x == {p}_LOW) out[0] = {p}_DRIVE_LOW;\n    if (x == {p}_HIGH) out[0] = {p}_DRIVE_HIGH;\n"
+    return ([] if defined else consts), snap
