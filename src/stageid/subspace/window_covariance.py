@@ -33,6 +33,7 @@ estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,7 @@ __all__ = [
     "WindowFilter",
     "lag_spectrum",
     "lag_products",
+    "self_lag_products",
     "overlap_response_covariance",
     "response_directions",
 ]
@@ -111,17 +113,27 @@ class WindowFilter:
         h[positions] = weights
         self.h = h.reshape(2 * horizon, r, -1)
         self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
-        self.H_t = np.ascontiguousarray(self.H.transpose(0, 2, 1))
-        self.H_conj = np.fft.fft(np.conj(self.h), n=n, axis=0)
+
+    @functools.cached_property
+    def H_t(self) -> np.ndarray:
+        return np.ascontiguousarray(self.H.transpose(0, 2, 1))
+
+    @functools.cached_property
+    def H_conj(self) -> np.ndarray:
+        """DFT of ``conj h``: ``conj H(-w)``, no second transform."""
+        return np.conj(np.roll(self.H[::-1], 1, axis=0))
 
     def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
         """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
         (``t = K-(2p-1) .. n-1``), the record zero-padded, from its ``4 p - 2`` end samples."""
-        L = self.h.shape[0]
+        L, r, c = self.h.shape
         pad = np.zeros((L - 1, samples.shape[1]))
         z = np.vstack([pad, samples]) if head else np.vstack([samples, pad])
         win = np.lib.stride_tricks.sliding_window_view(z, L, axis=0)  # (4p-2, r, L)
-        return np.einsum("tra,arc->tc", win, self.h, optimize=True)
+        # real windows times a complex filter: two real products
+        win = win.transpose(0, 2, 1).reshape(win.shape[0], L * r)
+        h = self.h.reshape(L * r, c)
+        return win @ h.real + 1j * (win @ h.imag)
 
 
 def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags: np.ndarray):
@@ -153,6 +165,50 @@ def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags:
         both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[lags % n]
     cb = fb.h.shape[2]
     return both[:, :, :cb], both[:, :, cb:]
+
+
+def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`lag_products` of one filter with itself at the lags ``0 .. 2 p - 1`` only, on half
+    the DFT points: two arrays of shape (2 p, cols, cols).
+
+    ``sum_(a,b) h(a)^T R(l + b - a) conj h(b)`` is split as ``sum_a h(a)^T Q(l - a)`` with
+    ``Q(c) = sum_b R(c + b) conj h(b)`` (``r`` columns per filter column: cheap on ``8 p`` points),
+    kept at ``|c| <= 2 p - 1``, the only ``c`` the lags ``0 .. 2 p - 1`` reach, so the outer sum
+    needs ``4 p`` points, not ``8 p``.  Of the pairs with a window sticking out of a record,
+    only those at ``l >= 0`` are formed, each placed so that none wraps on ``4 p`` points.
+    """
+    p = f.h.shape[0] // 2
+    n, n2, half = S.shape[0], 4 * p, 2 * p - 1
+    c = f.h.shape[2]
+    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo
+    H_rev = np.roll(f.H[::-1], 1, axis=0)
+    Q = np.fft.ifft(np.matmul(S, np.concatenate([np.conj(f.H), H_rev], axis=2)), axis=0)
+    Q2 = np.zeros((n2,) + Q.shape[1:], dtype=complex)
+    Q2[: half + 1] = Q[: half + 1]
+    Q2[n2 - half :] = Q[n - half :]
+    zero = np.zeros((half, c), dtype=complex)
+    xs, ys = [], []
+    for samples in stats.heads:
+        # the first window outside (t < 0), the second anywhere: t + l <= 2p - 2, no wrap
+        x = f.edge_series(samples, True)
+        xs.append(np.concatenate([x[:half], zero]))
+        ys.append(np.hstack([np.conj(x), x]))
+    for samples in stats.tails:
+        x = f.edge_series(samples, False)
+        moved, outer = np.concatenate([x[half:], zero]), np.concatenate([zero, x[half:]])
+        # both windows outside (moved to the start), then the first inside and the second outside
+        xs += [moved, np.concatenate([x[:half], zero])]
+        ys += [np.hstack([np.conj(moved), moved]), np.hstack([np.conj(outer), outer])]
+    # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T, X~(w) = sum_t x_t e^(+i w t)
+    Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
+    Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
+    left = np.concatenate([f.H[:: n // n2].transpose(0, 2, 1), -Xt], axis=2)  # H on 4p points: every 2nd
+    right = np.concatenate([np.fft.fft(Q2, axis=0), Y], axis=1)
+    both = np.empty((2 * p, c, 2 * c), dtype=complex)
+    step = max(1, BLOCK_ENTRIES // (n2 * right.shape[2]))  # a few MB per block: it stays in cache
+    for lo in range(0, c, step):
+        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[: 2 * p]
+    return both[:, :, :c], both[:, :, c:]
 
 
 def overlap_response_covariance(
@@ -195,14 +251,14 @@ def overlap_response_covariance(
     lags = np.arange(2 * p)
     # a_t = (P V)^T x_t: the regressor filter, one column per (k, j)
     fa = WindowFilter(column_cov @ V, xi, p, r, n)
-    A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in lag_products(fa, fa, S, stats, lags))
+    A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in self_lag_products(fa, S, stats))
     # b_t = L^+ (y_p - theta x)_t: the residual filter, one column per (k, i)
     E = np.zeros((p * q, 2 * p * r))
     E[:, yi] = np.eye(p * q)
     E[:, xi] = -theta
     fb = WindowFilter(E.T @ Lp.reshape(nz * q, p * q).T, np.arange(2 * p * r), p, r, n)
     dof = max(float(n_windows) - d, 1.0)
-    B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in lag_products(fb, fb, S, stats, lags))
+    B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in self_lag_products(fb, S, stats))
     N = nz * q * m
     # sum over l >= 1 of B(l) (.) A(l); the negative lags add its (conjugate) transpose
     half_c = np.einsum("ckilx,ckjly->kijlxy", B_c[1:], A_c[1:], optimize=True).reshape(N, N)
