@@ -32,7 +32,7 @@ realisation whose order cannot fit the system (measured in ``studies/uncertainty
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -55,6 +55,7 @@ __all__ = [
     "response_std",
     "eq9_response_covariance",
     "weighted_parts",
+    "column_solve",
     "channel_delta_std",
     "realised_response_uncertainty",
 ]
@@ -245,6 +246,20 @@ def weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return theta_w, post.covariance * p * np.outer(c, c), post.noise_cov * np.outer(wp, wp), w
 
 
+def column_solve(post: Posterior) -> Callable[[np.ndarray], np.ndarray]:
+    """``V -> P V`` in the coordinates of :func:`weighted_parts` (without its factor ``p``): a
+    solve with the posterior information instead of its inverse (``Posterior.covariance``), the
+    same definiteness test (Cholesky) and the same fallback (the pseudo-inverse)."""
+    _, c = weight_scales(output_weights(post), post.horizon, post.n_inputs)
+    info = post.information
+    try:
+        np.linalg.cholesky(info)
+        return lambda V: c[:, None] * np.linalg.solve(info, c[:, None] * V)
+    except np.linalg.LinAlgError:
+        pinv = np.linalg.pinv(info, hermitian=True)
+        return lambda V: c[:, None] * (pinv @ (c[:, None] * V))
+
+
 def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:
     """The channel's model in the coordinates of its realisation: unit-RMS channels, outputs times ``w``."""
     ow = (w / sy)[:, None]
@@ -263,15 +278,18 @@ def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float, overlap: str 
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
     su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
-    theta_w, col_cov, noise_cov, w = weighted_parts(post)
     exact = overlap == "exact" or (overlap == "auto" and ch.window_lags is not None)
     if exact and ch.window_lags is None:
         raise DataError("`overlap='exact'` needs the fit's lag statistics; this fit has none (update or forgetting).")
     if exact:
+        w = output_weights(post)
+        theta_w = weighted_theta(post.theta, w, p, m, q)
         grid = covariance_grid(ch.band, int(estimator.n_frequencies), max(q, m), MAX_OVERLAP_COLUMNS)
         stats = ch.window_lags.weighted(np.concatenate([np.ones(m), w]))  # z = [u; w y], the realisation's outputs
-        G9, cov, pseudo = overlap_response_covariance(theta_w, col_cov / p, stats, post.n_windows, p, m, q, grid, dt)
+        solve = column_solve(post)
+        G9, cov, pseudo = overlap_response_covariance(theta_w, solve, stats, post.n_windows, p, m, q, grid, dt)
     else:
+        theta_w, col_cov, noise_cov, w = weighted_parts(post)
         grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
         G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))

@@ -34,6 +34,7 @@ estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,6 +49,7 @@ __all__ = [
     "lag_spectrum",
     "lag_products",
     "self_lag_products",
+    "lag_sum",
     "overlap_response_covariance",
     "response_directions",
 ]
@@ -213,7 +215,7 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
 
 def overlap_response_covariance(
     theta: np.ndarray,
-    column_cov: np.ndarray,
+    column_cov: np.ndarray | Callable[[np.ndarray], np.ndarray],
     stats: WindowLags,
     n_windows: float,
     horizon: int,
@@ -228,8 +230,9 @@ def overlap_response_covariance(
     ----------
     theta : ndarray of shape (p q, d)
         Posterior mean in the coordinates of ``lag_corr``.
-    column_cov : ndarray of shape (d, d)
-        ``P`` (the inverse of the posterior information ``sum x x^T + P_0^-1``), same coordinates.
+    column_cov : ndarray of shape (d, d), or a callable
+        ``P`` (the inverse of the posterior information ``sum x x^T + P_0^-1``), same coordinates,
+        or ``V -> P V`` (a solve with the information: no inverse formed).
     stats : WindowLags
         Of the records, in the same coordinates.
     n_windows : float
@@ -248,26 +251,33 @@ def overlap_response_covariance(
     n = 8 * p  # > 8 p - 4: no lag |l| <= 2p - 1 wraps (module docstring)
     S = lag_spectrum(stats.lags, n)
     # lags 0 .. 2p - 1 only: the products at -l are those at l transposed (and conjugated for cov)
-    lags = np.arange(2 * p)
     # a_t = (P V)^T x_t: the regressor filter, one column per (k, j)
-    fa = WindowFilter(column_cov @ V, xi, p, r, n)
-    A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in self_lag_products(fa, S, stats))
+    PV = column_cov(V) if callable(column_cov) else column_cov @ V
+    A_c, A_p = self_lag_products(WindowFilter(PV, xi, p, r, n), S, stats)
     # b_t = L^+ (y_p - theta x)_t: the residual filter, one column per (k, i)
     E = np.zeros((p * q, 2 * p * r))
     E[:, yi] = np.eye(p * q)
     E[:, xi] = -theta
     fb = WindowFilter(E.T @ Lp.reshape(nz * q, p * q).T, np.arange(2 * p * r), p, r, n)
+    B_c, B_p = self_lag_products(fb, S, stats)
     dof = max(float(n_windows) - d, 1.0)
-    B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in self_lag_products(fb, S, stats))
+    # sum over l >= 0 of B(l) (.) A(l), lag 0 at half weight; the negative lags add its (conjugate) transpose
+    half_c = lag_sum(B_c, A_c, nz, q, m) / dof
+    half_p = lag_sum(B_p, A_p, nz, q, m) / dof
+    return G, half_c + np.conj(half_c).T, half_p + half_p.T
+
+
+def lag_sum(B: np.ndarray, A: np.ndarray, nz: int, q: int, m: int) -> np.ndarray:
+    """``sum_l w_l B(l)[(k,i),(k',i')] A(l)[(k,j),(k',j')]`` over the lags of ``B`` and ``A``
+    (shapes (n_lags, nz q, nz q) and (n_lags, nz m, nz m)), ``w_0 = 1/2``, else 1, as a matrix
+    over ``(k, i, j)`` x ``(k', i', j')``: one product over the lags per pair ``(k, k')``."""
+    L = B.shape[0]
+    Bt = B.reshape(L, nz, q, nz, q).transpose(1, 3, 2, 4, 0).reshape(nz, nz, q * q, L)
+    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 0, 2, 4).reshape(nz, nz, L, m * m)
+    At[:, :, 0] *= 0.5
+    out = np.matmul(Bt, At).reshape(nz, nz, q, q, m, m)
     N = nz * q * m
-    # sum over l >= 1 of B(l) (.) A(l); the negative lags add its (conjugate) transpose
-    half_c = np.einsum("ckilx,ckjly->kijlxy", B_c[1:], A_c[1:], optimize=True).reshape(N, N)
-    half_p = np.einsum("ckilx,ckjly->kijlxy", B_p[1:], A_p[1:], optimize=True).reshape(N, N)
-    zero_c = np.einsum("kilx,kjly->kijlxy", B_c[0], A_c[0]).reshape(N, N)
-    zero_p = np.einsum("kilx,kjly->kijlxy", B_p[0], A_p[0]).reshape(N, N)
-    cov = zero_c + half_c + np.conj(half_c).T
-    pseudo = zero_p + half_p + half_p.T
-    return G, cov, pseudo
+    return out.transpose(0, 2, 4, 1, 3, 5).reshape(N, N)
 
 
 def response_directions(
