@@ -33,13 +33,26 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).parents[1] / "studies" / "uncertainty"))
 from run_study import two_mode_plant  # noqa: E402
 
-from _subspace_systems import band_limited, record  # noqa: E402
+from _subspace_systems import band_limited, random_stage, record  # noqa: E402
 
 
 def p558_direct():
     g = ps.model()
     exp = record(g, band_limited(20000, 3, g.dt, 1) * np.array([10.0, 100.0, 100.0]), 0.01, 1)
     return lambda: HankelMAP(order=15).fit(exp)
+
+
+def p558_direct_long():
+    g = ps.model()
+    exp = record(g, band_limited(50000, 3, g.dt, 1) * np.array([10.0, 100.0, 100.0]), 0.01, 1)
+    return lambda: HankelMAP(order=15).fit(exp)
+
+
+def unseen(seed: int, m: int, q: int, modes: int, n: int, noise: float, **kw):
+    """The unseen stages of ``studies/uncertainty/run_study.py`` (its seed 1), the record made once."""
+    g = random_stage(seed, m=m, q=q, modes=modes)
+    exp = record(g, band_limited(n, m, g.dt, 1), noise, 1, names=False)
+    return lambda: HankelMAP(order=kw.get("order", g.n_states), horizon=kw.get("horizon", "auto")).fit(exp)
 
 
 def p558_channels():
@@ -63,8 +76,16 @@ def band_of(res):
     return res.band
 
 
-CASES = {"p558 direct (horizon auto, order 15)": p558_direct, "p558 per channel (auto horizon)": p558_channels,
-         "frd 1x2 (order auto)": frd}  # fmt: skip
+CASES = {
+    "p558 direct (20 000 samples, horizon auto, order 15)": p558_direct,
+    "p558 direct (50 000 samples, horizon auto, order 15)": p558_direct_long,
+    "p558 per channel (auto horizon)": p558_channels,
+    "unseen 1x2 (6000 samples, horizon 25, order 4)": lambda: unseen(9, 1, 2, 2, 6000, 0.02, horizon=25, order=4),
+    "unseen 2x2 (20 000 samples)": lambda: unseen(22, 2, 2, 4, 20000, 0.01),
+    "unseen SISO (8000 samples)": lambda: unseen(32, 1, 1, 3, 8000, 0.03),
+    "unseen 3x2 (12 000 samples)": lambda: unseen(42, 2, 3, 3, 12000, 0.01),
+    "frd 1x2 (order auto)": frd,
+}
 
 
 def _timed(run) -> tuple[float, float]:

@@ -153,7 +153,7 @@ class TangentProjection:
         # the Gram matrix's eigenpairs are the SVD of the real-stacked [Re Jn; Im Jn] at a seventh
         # of its cost; its precision (eps relative to the largest eigenvalue) is why the kept
         # directions are also capped by the known number of similarity directions
-        ev, V = np.linalg.eigh(np.real(np.conj(Jn).T @ Jn))
+        ev, V = np.linalg.eigh(Jn.real.T @ Jn.real + Jn.imag.T @ Jn.imag)  # Re(Jn^H Jn): two real products
         ev, V = ev[::-1], V[:, ::-1]
         ok = int(np.sum(ev > GAUGE_TOLERANCE**2 * max(float(ev[0]), 1e-300))) if ev.size else 0
         keep = min(ok, max(P - n_gauge, 1))
