@@ -41,6 +41,7 @@ from .._threads import single_blas_thread
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .map_estimator import Posterior
+from .realisation_bias import local_misfit_bias, misfit_noise
 from .realization import realize
 from .records import check_freqs
 from .weighting import output_weights, weight_scales, weighted_theta
@@ -266,7 +267,9 @@ def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: 
     return model.A, model.B * su[None, :], model.C * ow, model.D * su[None, :] * ow
 
 
-def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto") -> np.ndarray:
+def channel_delta_std(
+    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "none"
+) -> np.ndarray:
     """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
 
     ``overlap``: ``"exact"`` takes the eq. 9 covariance under overlapping windows
@@ -296,10 +299,16 @@ def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float, overlap: str 
     scale = np.where(scale > 0, scale, 1.0)
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
     feed = bool(estimator.feedthrough)
-    _, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
+    Gm, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
     proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
     factor = proj.parameter_factor(cov, pseudo)
     std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
+    if bias == "local":
+        K = J.reshape(-1, J.shape[3]) @ proj.basis
+        noise = misfit_noise(K, proj.functionals, cov, pseudo).reshape(Gm.shape)
+        b2 = local_misfit_bias(grid, np.abs(Gm - G9) ** 2, noise, Gm, freqs)
+        Gf = model_response(StateSpaceModel(A, B, C, D, dt), freqs)
+        std = np.sqrt(std**2 + b2 * np.abs(Gf) ** 2)
     return std * (sy / w)[None, :, None] / su[None, None, :]
 
 
@@ -342,6 +351,7 @@ def realised_response_uncertainty(
     n_samples: int = DEFAULT_SAMPLES,
     seed: int = 0,
     overlap: str = "auto",
+    bias: str = "none",
 ) -> FrequencyResponse:
     """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
 
@@ -376,7 +386,7 @@ def realised_response_uncertainty(
     stds = []
     for ch in result.channels:
         if method == "delta":
-            stds.append(channel_delta_std(ch, est, f, dt, overlap))
+            stds.append(channel_delta_std(ch, est, f, dt, overlap, bias))
         else:
             stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
     model = result.model
