@@ -25,22 +25,17 @@ LOCAL_WINDOW = 0.1
 SIGNIFICANCE_Z = 2.326
 
 
-def misfit_noise(K: np.ndarray, functionals: np.ndarray, cov: np.ndarray, pseudo: np.ndarray) -> np.ndarray:
-    """``E|r_noise|^2`` per response entry of the grid, ``r_noise = K Re(F dG) - dG``.
+def misfit_noise(K: np.ndarray, phi_cov: np.ndarray, phi_dG: np.ndarray, dG_var: np.ndarray) -> np.ndarray:
+    """``E|r_noise|^2`` per response entry of the grid, ``r_noise = K phi - dG``, ``phi = Re(F dG)``.
 
     ``K`` (N, r) complex: the model's response change per tangent coordinate (``J basis``);
-    ``functionals`` (r, N): ``F`` of :class:`~.uncertainty.TangentProjection`; ``cov``, ``pseudo``
-    (N, N): ``E[dG dG^H]`` and ``E[dG dG^T]``.  Shape (N,), real.
+    ``phi_cov`` (r, r) and ``phi_dG`` (r, N): ``Cov(phi)`` and ``E[phi conj(dG)^T]``
+    (:meth:`~.uncertainty.TangentProjection.moments`); ``dG_var`` (N,): ``E|dG|^2``.
+    ``E|K phi|^2 - 2 Re E[(K phi) conj dG] + E|dG|^2``, shape (N,), real.
     """
-    N = cov.shape[0]
-    eye = np.eye(N)
-    # r = Mx Re dG + My Im dG, with the real and imaginary parts' covariances from cov and pseudo
-    Mx = K @ functionals.real - eye
-    My = -(K @ functionals.imag) - 1j * eye
-    Sxx, Syy = 0.5 * np.real(cov + pseudo), 0.5 * np.real(cov - pseudo)
-    Sxy = 0.5 * np.imag(pseudo - cov)
-    out = np.sum((Mx @ Sxx + My @ Sxy.T) * np.conj(Mx), axis=1) + np.sum((Mx @ Sxy + My @ Syy) * np.conj(My), axis=1)
-    return np.maximum(out.real, 0.0)
+    fitted = np.real(np.sum((K @ phi_cov) * np.conj(K), axis=1))
+    cross = np.real(np.sum(K * phi_dG.T, axis=1))
+    return np.maximum(fitted - 2.0 * cross + dG_var, 0.0)
 
 
 def local_misfit_bias(

@@ -164,11 +164,18 @@ class TangentProjection:
         basis = (V[:, :keep] / s[None, :]) / norms[:, None]
         return cls(functionals, basis)
 
-    def parameter_factor(self, cov: np.ndarray, pseudo: np.ndarray) -> np.ndarray:
-        """``L`` with ``L L^T = Cov(dx)`` (clipped at zero eigenvalues), shape (n_params, r)."""
+    def moments(self, cov: np.ndarray, pseudo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``Cov(phi)`` (r, r) and ``E[phi conj(dG)^T]`` (r, N) for ``phi = Re(F vec dG)``, from
+        ``E[dG dG^H]`` and ``E[dG dG^T]``."""
         F = self.functionals
-        phi = 0.5 * np.real((F @ cov) @ np.conj(F).T + (F @ pseudo) @ F.T)
-        ev, V = np.linalg.eigh(0.5 * (phi + phi.T))
+        Fc, Fp = F @ cov, F @ pseudo
+        phi = 0.5 * np.real(Fc @ np.conj(F).T + Fp @ F.T)
+        return 0.5 * (phi + phi.T), 0.5 * (Fc + np.conj(Fp))
+
+    def parameter_factor(self, phi_cov: np.ndarray) -> np.ndarray:
+        """``L`` with ``L L^T = Cov(dx)`` (clipped at zero eigenvalues) from ``Cov(phi)``
+        (:meth:`moments`), shape (n_params, r)."""
+        ev, V = np.linalg.eigh(phi_cov)
         return self.basis @ (V * np.sqrt(np.clip(ev, 0.0, None))[None, :])
 
 
@@ -301,11 +308,11 @@ def channel_delta_std(
     feed = bool(estimator.feedthrough)
     Gm, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
     proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
-    factor = proj.parameter_factor(cov, pseudo)
-    std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
+    phi_cov, phi_dG = proj.moments(cov, pseudo)
+    std = response_std((A, B, C, D), proj.parameter_factor(phi_cov), response_points(freqs, dt), feed)
     if bias == "local":
         K = J.reshape(-1, J.shape[3]) @ proj.basis
-        noise = misfit_noise(K, proj.functionals, cov, pseudo).reshape(Gm.shape)
+        noise = misfit_noise(K, phi_cov, phi_dG, np.real(np.diag(cov))).reshape(Gm.shape)
         b2 = local_misfit_bias(grid, np.abs(Gm - G9) ** 2, noise, Gm, freqs)
         Gf = model_response(StateSpaceModel(A, B, C, D, dt), freqs)
         std = np.sqrt(std**2 + b2 * np.abs(Gf) ** 2)
