@@ -48,7 +48,7 @@ HORIZON: int | str = "auto"
 #: Eq. 9 covariance of the Hankel-MAP cases (--overlap=exact|inflate; default "auto" = exact).
 OVERLAP = "auto"
 #: The realisation-misfit bias term of the Hankel-MAP cases (--bias=local|none).
-BIAS = "none"
+BIAS = "local"
 #: Suffix of the output file (the column cap, when ``--columns=N`` is given).
 TAG = ""
 

@@ -24,9 +24,12 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
   least-squares fit on a grid) and ``refine=False`` it is the default.
 
 Per-input-channel fits (eq. 19-22) are independent (disjoint records): the stacked model's
-column ``j`` is the ``j``-th sub-model's, with its own posterior.  Neither way counts the bias
-of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) or of a
-realisation whose order cannot fit the system (measured in ``studies/uncertainty/RESULTS.md``).
+column ``j`` is the ``j``-th sub-model's, with its own posterior.  The realisation's own bias
+(an order that cannot follow the eq. 9 response, a compromise of the refinement) is added by
+``bias="local"`` (the default of ``"delta"``): the misfit between the model and the eq. 9
+response beyond its noise expectation, where it is significant (:mod:`.realisation_bias`).
+The bias of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) is
+not counted (measured in ``studies/uncertainty/RESULTS.md``).
 """
 
 from __future__ import annotations
@@ -275,7 +278,7 @@ def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: 
 
 
 def channel_delta_std(
-    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "none"
+    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "local"
 ) -> np.ndarray:
     """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
 
@@ -283,7 +286,8 @@ def channel_delta_std(
     (:mod:`.window_covariance`, from the lag statistics the fit kept); ``"inflate"`` the
     matrix-normal ``p P (x) Sigma`` (windows counted as independent, ``P`` times ``p`` for their
     overlap: a rough allowance); ``"auto"`` the first when the fit kept its lag statistics (not
-    after ``update``, with forgetting, or on records shorter than ``8 p``).
+    after ``update``, with forgetting, or on records shorter than ``8 p``).  ``bias``: ``"local"``
+    adds the realisation's misfit beyond its noise (:mod:`.realisation_bias`), ``"none"`` not.
     """
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
@@ -348,6 +352,8 @@ def _psd_factor(M: np.ndarray) -> np.ndarray:
 UNCERTAINTY_METHODS = ("auto", "delta", "sampling")
 #: ``overlap`` of :func:`realised_response_uncertainty` (:func:`channel_delta_std`).
 OVERLAP_RULES = ("auto", "exact", "inflate")
+#: ``bias`` of :func:`realised_response_uncertainty` (:mod:`.realisation_bias`).
+BIAS_RULES = ("local", "none")
 
 
 @single_blas_thread
@@ -358,7 +364,7 @@ def realised_response_uncertainty(
     n_samples: int = DEFAULT_SAMPLES,
     seed: int = 0,
     overlap: str = "auto",
-    bias: str = "none",
+    bias: str = "local",
 ) -> FrequencyResponse:
     """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
 
@@ -373,18 +379,23 @@ def realised_response_uncertainty(
         Draws and seed of ``sampling`` (whose posterior is the matrix-normal one with ``p P``).
     overlap : {"auto", "exact", "inflate"}
         The eq. 9 covariance of ``delta`` (:func:`channel_delta_std`).
+    bias : {"local", "none"}
+        ``delta`` only: ``local`` adds the realisation's misfit beyond its noise where it is
+        significant (:mod:`.realisation_bias`); ``none`` the propagated scatter alone.
 
     Raises
     ------
     DataError
         Frequencies that are not finite, negative or above Nyquist; an unknown ``method`` or
-        ``overlap``; ``overlap="exact"`` for a fit without lag statistics.
+        ``overlap`` or ``bias``; ``overlap="exact"`` for a fit without lag statistics.
     """
     f = check_freqs(freqs_hz, result.model.dt)
     if method not in UNCERTAINTY_METHODS:
         raise DataError(f"`method` must be one of {', '.join(UNCERTAINTY_METHODS)}; got {method!r}.")
     if overlap not in OVERLAP_RULES:
         raise DataError(f"`overlap` must be one of {', '.join(OVERLAP_RULES)}; got {overlap!r}.")
+    if bias not in BIAS_RULES:
+        raise DataError(f"`bias` must be one of {', '.join(BIAS_RULES)}; got {bias!r}.")
     est = result.estimator
     if method == "auto":
         method = "delta" if est.realization == "frequency" and est.refine else "sampling"
