@@ -186,13 +186,32 @@ def response_std(
     abcd: tuple[np.ndarray, ...], factor: np.ndarray, points: np.ndarray, feedthrough: bool = True
 ) -> np.ndarray:
     """``sqrt(E|dG|^2)`` at ``points`` for parameters with ``Cov(dx) = factor factor^T``, shape
-    (n_points, q, m); evaluated in blocks of ``CHUNK`` points (the Jacobian's memory)."""
+    (n_points, q, m); in blocks of ``CHUNK`` points.
+
+    ``J dx`` for every column of ``factor`` without forming ``J``: ``C R (dA R B + dB) + dC R B
+    + dD`` (:func:`model_jacobian`), about a quarter of the flops of ``J @ factor``.
+    """
+    A, B, C, D = abcd
+    n, m, q, r = A.shape[0], B.shape[1], C.shape[0], factor.shape[1]
+    LA = factor[: n * n].reshape(n, n, r)  # dA[a, b] per column
+    LB = factor[n * n : n * n + n * m].reshape(n, m, r)
+    LC = factor[n * n + n * m : n * n + n * m + q * n].reshape(q, n, r)
+    LA_t = LA.transpose(1, 0, 2).reshape(n, n * r)  # [b, (a, col)]
+    LC_t = LC.transpose(1, 0, 2).reshape(n, q * r)  # [b, (i, col)]
     out = []
     for lo in range(0, points.size, CHUNK):
-        _, J = model_jacobian(*abcd, points[lo : lo + CHUNK], feedthrough)
-        J2 = J.reshape(-1, J.shape[3])
-        var = (J2.real @ factor) ** 2 + (J2.imag @ factor) ** 2  # a real factor: two real products
-        out.append(np.sqrt(np.sum(var, axis=1)).reshape(J.shape[:3]))
+        x = points[lo : lo + CHUNK]
+        nz = x.size
+        R = np.linalg.inv(x[:, None, None] * np.eye(n)[None] - A[None])
+        CR = C[None] @ R  # (nz, q, n)
+        RBt = (R @ B[None]).transpose(0, 2, 1).reshape(nz * m, n)  # [(z, j), b]
+        # sum_b dA[a, b] (R B)[b, j] + dB[a, j]: a real factor times a complex matrix, two real products
+        M = (RBt.real @ LA_t + 1j * (RBt.imag @ LA_t)).reshape(nz, m, n, r) + LB.transpose(1, 0, 2)[None]
+        dG = np.matmul(CR, M.transpose(0, 2, 1, 3).reshape(nz, n, m * r)).reshape(nz, q, m, r)
+        dG += (RBt.real @ LC_t + 1j * (RBt.imag @ LC_t)).reshape(nz, m, q, r).transpose(0, 2, 1, 3)
+        if feedthrough:
+            dG += factor[n * n + n * m + q * n :].reshape(q, m, r)[None]
+        out.append(np.sqrt(np.sum(dG.real**2 + dG.imag**2, axis=3)))
     return np.concatenate(out, axis=0)
 
 
