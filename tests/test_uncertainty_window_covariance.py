@@ -40,9 +40,7 @@ def test_self_lag_products_equal_the_sums_over_whole_windows(p):
     # record (two records, a drifting output: large end corrections at both ends)
     rng = np.random.default_rng(p)
     r = 3
-    recs = [
-        (rng.standard_normal((n, 1)), np.cumsum(rng.standard_normal((n, 2)), axis=0) * 0.3 + 5) for n in (200, 333)
-    ]
+    recs = [(rng.standard_normal((n, 1)), np.cumsum(rng.standard_normal((n, 2)), axis=0) * 0.3 + 5) for n in (200, 333)]
     stats = window_lags(recs, p)
     n = 8 * p
     h = rng.standard_normal((2 * p * r, 4)) + 1j * rng.standard_normal((2 * p * r, 4))

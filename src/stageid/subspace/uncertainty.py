@@ -69,10 +69,9 @@ DEFAULT_SAMPLES = 40
 #: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
 MAX_COVARIANCE_ENTRIES = 300
 #: For the covariance under overlapping windows (``overlap="exact"``): at most this many
-#: frequencies times ``max(q, m)``; its spectra are ``8 p x n_freqs max(q, m) x 2 n_freqs max(q, m)``.
-#: A cost/resolution trade-off: fewer frequencies under-resolve lightly damped modes and widen
-#: the bands (unseen 3x2 stages: 97.7 % coverage at 96, 98.6 % at 72, 99.2 % at 60), more cost
-#: (P-558: 0.52 s at 96, 0.20 s at 72); ``studies/uncertainty/RESULTS.md``.
+#: frequencies times ``max(q, m)``; the cost grows with its square.  A cost/resolution
+#: trade-off: fewer frequencies under-resolve lightly damped modes and widen the bands
+#: (``studies/uncertainty/RESULTS.md``, ``benchmarks/RESULTS-uncertainty.md``).
 MAX_OVERLAP_COLUMNS = 72
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256

@@ -26,9 +26,13 @@ their first and last ``4 p - 2`` samples (:class:`WindowLags`, kept by the fit),
 spectral identity ``sum_(a,b) h(a)^T R(l + b - a) conj h'(b) = 1/n sum_w e^(i w l) H(w)^T S(w) conj H'(w)``
 with ``S`` the DFT of ``R`` (no lag wraps for ``n = 8 p``), minus the pairs in which a window
 sticks out of a record (:func:`lag_products`).  Only the lags ``l >= 0`` are formed: those at
-``-l`` are their (conjugate) transposes.  Cost ``~ 8 p (n_freqs max(q, m))^2 (m + q)``,
-independent of the record length; the covariance under overlapping windows of Hankel-Toeplitz
-estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``.
+``-l`` are their (conjugate) transposes.  The uncertainty takes them from
+:func:`self_lag_products`, which splits the double sum so that the products and the inverse
+DFT need ``4 p`` points instead of ``8 p``: cost ``~ 4 p (n_freqs max(q, m))^2`` times
+``(m + q + 3 n_records)`` for the products and ``log(4 p)`` for the transform, independent of
+the record length (``benchmarks/RESULTS-uncertainty.md``).  The covariance under overlapping
+windows of Hankel-Toeplitz estimates and its calibration are measured in
+``studies/uncertainty/RESULTS.md``.
 """
 
 from __future__ import annotations
