@@ -181,7 +181,8 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     ``Q(c) = sum_b R(c + b) conj h(b)`` (``r`` columns per filter column: cheap on ``8 p`` points),
     kept at ``|c| <= 2 p - 1``, the only ``c`` the lags ``0 .. 2 p - 1`` reach, so the outer sum
     needs ``4 p`` points, not ``8 p``.  Of the pairs with a window sticking out of a record,
-    only those at ``l >= 0`` are formed, each placed so that none wraps on ``4 p`` points.
+    only those at ``l >= 0`` are formed (at a head the first window is outside, at a tail the
+    second), and none of them wraps on ``4 p`` points.
     """
     p = f.h.shape[0] // 2
     n, n2, half = S.shape[0], 4 * p, 2 * p - 1
@@ -200,11 +201,11 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
         xs.append(np.concatenate([x[:half], zero]))
         ys.append(np.hstack([np.conj(x), x]))
     for samples in stats.tails:
+        # the second window outside (t + l >= K), the first anywhere: t + l <= 4p - 3, no wrap
         x = f.edge_series(samples, False)
-        moved, outer = np.concatenate([x[half:], zero]), np.concatenate([zero, x[half:]])
-        # both windows outside (moved to the start), then the first inside and the second outside
-        xs += [moved, np.concatenate([x[:half], zero])]
-        ys += [np.hstack([np.conj(moved), moved]), np.hstack([np.conj(outer), outer])]
+        outer = np.concatenate([zero, x[half:]])
+        xs.append(x)
+        ys.append(np.hstack([np.conj(outer), outer]))
     # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T, X~(w) = sum_t x_t e^(+i w t)
     Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
     Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
