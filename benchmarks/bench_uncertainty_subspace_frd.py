@@ -9,8 +9,9 @@ covariance, repeated; medians of wall and CPU time and of the per-run ratios to 
 
 ``--columns`` times the exact uncertainty alone on the P-558 direct fit for several column caps
 (``MAX_OVERLAP_COLUMNS``), CPU medians, with the change of the std against the default cap.
+``--profile`` prints where the uncertainty's time goes (cProfile, per Hankel-MAP case).
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli|--columns]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli|--columns|--profile]
 """
 
 from __future__ import annotations
@@ -114,6 +115,8 @@ def main() -> None:
         return cli(repeats)
     if "--columns" in sys.argv:
         return columns(repeats)
+    if "--profile" in sys.argv:
+        return profile(repeats)
     for name, make in CASES.items():
         variants = _variants(make())
         for run in variants.values():
@@ -166,6 +169,27 @@ def columns(repeats: int) -> None:
             f"median {change[c][0]:.3f}, 99th percentile {change[c][1]:.3f}",
             flush=True,
         )
+
+
+def profile(repeats: int) -> None:
+    """Where the uncertainty's time goes: cProfile of ``repeats`` calls per Hankel-MAP case (after one)."""
+    import cProfile
+    import pstats
+
+    for name, make in CASES.items():
+        res = make()()
+        if not hasattr(res, "channels"):
+            continue
+        lo, hi = band_of(res)
+        f = np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 200)
+        res.response_uncertainty(f)
+        prof = cProfile.Profile()
+        prof.enable()
+        for _ in range(repeats):
+            res.response_uncertainty(f)
+        prof.disable()
+        print(f"{name}, {repeats} calls:")
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(r"stageid|linalg|fft", 14)
 
 
 def cli(repeats: int) -> None:
