@@ -1,13 +1,20 @@
-"""The realisation-misfit bias term of the realised Hankel-MAP bands (stageid.subspace.realisation_bias, issue 20)."""
+"""The realised Hankel-MAP bands: the realisation-misfit bias term (stageid.subspace.realisation_bias) and
+the propagation to the model's response (stageid.subspace.uncertainty.response_std), issue 20."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from _subspace_systems import band_limited, random_stage, record
 from stageid.subspace import HankelMAP
 from stageid.subspace.realisation_bias import local_misfit_bias, misfit_noise
-from stageid.subspace.uncertainty import TangentProjection, realised_response_uncertainty
+from stageid.subspace.uncertainty import (
+    TangentProjection,
+    model_jacobian,
+    realised_response_uncertainty,
+    response_std,
+)
 
 
 def test_misfit_noise_is_the_mean_squared_residual_of_the_projection():
@@ -60,3 +67,19 @@ def test_a_correct_model_gets_no_bias_term_and_an_order_too_low_one_does():
     # the order-2 model's error is its bias: the scatter alone covers little of it, the bias term most
     assert np.mean(err <= 1.73 * s0) < 0.5
     assert np.mean(err <= 1.73 * s1) > np.mean(err <= 1.73 * s0) + 0.3
+
+
+@pytest.mark.parametrize("feedthrough", [True, False])
+def test_response_std_is_the_jacobian_times_the_factor(feedthrough):
+    # J dx formed without J equals the explicit Jacobian's product, with and without D
+    rng = np.random.default_rng(2)
+    n, m, q = 5, 2, 3
+    A = 0.3 * rng.standard_normal((n, n))
+    B, C, D = rng.standard_normal((n, m)), rng.standard_normal((q, n)), rng.standard_normal((q, m))
+    P = n * n + n * m + q * n + (q * m if feedthrough else 0)
+    factor = rng.standard_normal((P, 7))
+    x = np.exp(2j * np.pi * np.linspace(0.01, 0.45, 300))  # more than one CHUNK of points
+    _, J = model_jacobian(A, B, C, D, x, feedthrough)
+    dG = J.reshape(-1, P) @ factor
+    want = np.sqrt(np.sum(np.abs(dG) ** 2, axis=1)).reshape(x.size, q, m)
+    np.testing.assert_allclose(response_std((A, B, C, D), factor, x, feedthrough), want, rtol=1e-12)
