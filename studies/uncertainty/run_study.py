@@ -17,6 +17,10 @@ is 1 for a calibrated std.  Cases:
   0.5-1.5), ``FRDIdentification(order=4)``; ``frd-residual``: the same without the std.
 
     .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...] [--horizon=P]
+        [--overlap=exact|inflate] [--bias=local|none] [--columns=N]
+
+``--bias`` is the realisation-misfit term of the Hankel-MAP bands (default ``local``, as the
+library), ``--columns`` the exact covariance's column cap (``MAX_OVERLAP_COLUMNS``).
 
 Writes ``output/<case>.json`` (per seed, per entry) and prints a summary table.
 """
