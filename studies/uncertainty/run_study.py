@@ -17,10 +17,11 @@ is 1 for a calibrated std.  Cases:
   0.5-1.5), ``FRDIdentification(order=4)``; ``frd-residual``: the same without the std.
 
     .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...] [--horizon=P]
-        [--overlap=exact|inflate] [--bias=local|none] [--columns=N]
+        [--overlap=exact|inflate] [--bias=local|none] [--columns=N] [--grid=modes|even]
 
 ``--bias`` is the realisation-misfit term of the Hankel-MAP bands (default ``local``, as the
-library), ``--columns`` the exact covariance's column cap (``MAX_OVERLAP_COLUMNS``).
+library), ``--columns`` the exact covariance's column cap (``MAX_OVERLAP_COLUMNS``), ``--grid``
+the placement of its frequencies (default ``modes``, as the library; ``even`` the former grid).
 
 Writes ``output/<case>.json`` (per seed, per entry) and prints a summary table.
 """
@@ -53,6 +54,8 @@ HORIZON: int | str = "auto"
 OVERLAP = "auto"
 #: The realisation-misfit bias term of the Hankel-MAP cases (--bias=local|none).
 BIAS = "local"
+#: Placement of the exact covariance's frequencies (--grid=modes|even).
+GRID = "modes"
 #: Suffix of the output file (the column cap, when ``--columns=N`` is given).
 TAG = ""
 
@@ -149,7 +152,7 @@ def run(case: str, n_seeds: int) -> dict:
         if isinstance(res, FRDResultTypes):
             fr = res.response_uncertainty(FREQS)
         else:
-            fr = realised_response_uncertainty(res, FREQS, overlap=OVERLAP, bias=BIAS)
+            fr = realised_response_uncertainty(res, FREQS, overlap=OVERLAP, bias=BIAS, grid=GRID)
         t_unc.append(time.perf_counter() - t)
         t_fit.append(tf)
         err = np.abs(fr.response - g.frequency_response(FREQS))
@@ -187,7 +190,7 @@ def run(case: str, n_seeds: int) -> dict:
 
 
 def main() -> None:
-    global HORIZON, OVERLAP, FRDResultTypes, TAG, BIAS
+    global HORIZON, OVERLAP, FRDResultTypes, TAG, BIAS, GRID
     from stageid.frf.identification import FRDResult
 
     FRDResultTypes = (FRDResult,)
@@ -200,6 +203,9 @@ def main() -> None:
         if a.startswith("--bias="):
             BIAS = a.split("=", 1)[1]
             TAG += f"-bias-{BIAS}"
+        if a.startswith("--grid="):
+            GRID = a.split("=", 1)[1]
+            TAG += f"-grid-{GRID}"
         if a.startswith("--columns="):  # the exact covariance's column cap (default MAX_OVERLAP_COLUMNS)
             import stageid.subspace.uncertainty as unc
 

@@ -39,13 +39,20 @@ def misfit_noise(K: np.ndarray, phi_cov: np.ndarray, phi_dG: np.ndarray, dG_var:
 
 
 def local_misfit_bias(
-    grid: np.ndarray, misfit: np.ndarray, noise: np.ndarray, G_grid: np.ndarray, freqs: np.ndarray
+    grid: np.ndarray,
+    misfit: np.ndarray,
+    noise: np.ndarray,
+    G_grid: np.ndarray,
+    freqs: np.ndarray,
+    weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """``b^2(f)``: the squared relative misfit beyond its noise on ``grid`` (``misfit`` =
     ``|r|^2``, ``noise`` = ``E|r_noise|^2``, ``G_grid`` the model's response, each (n_grid, q, m)),
     averaged over ``LOCAL_WINDOW`` of the grid on either side, clipped at zero and interpolated
     to ``freqs``; outside the grid the larger of the nearest edge's value and the grid's mean.
-    Shape (n_freqs, q, m)."""
+    Shape (n_freqs, q, m).  ``weights`` (the quadrature weights of an uneven grid,
+    :mod:`.covariance_grid`): the window is then ``LOCAL_WINDOW`` of the band on either side in
+    frequency and the average weighted; None: ``LOCAL_WINDOW`` of the points, unweighted."""
     # only entries whose misfit over the grid exceeds its noise at the 1 % level (a chi-square
     # with two degrees of freedom per point): below that the local excess is the noise's own scatter
     nu = 2.0 * grid.size
@@ -54,10 +61,16 @@ def local_misfit_bias(
     scale = np.abs(G_grid) ** 2
     scale = np.maximum(scale, 1e-12 * max(float(scale.max()), 1e-300))
     excess = (misfit - noise) / scale
-    h = max(1, int(round(LOCAL_WINDOW * grid.size)))
-    kernel = np.ones(2 * h + 1)
-    count = np.convolve(np.ones(grid.size), kernel, mode="same")
-    smooth = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, excess) / count[:, None, None]
+    if weights is None:
+        h = max(1, int(round(LOCAL_WINDOW * grid.size)))
+        kernel = np.ones(2 * h + 1)
+        count = np.convolve(np.ones(grid.size), kernel, mode="same")
+        smooth = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, excess) / count[:, None, None]
+    else:
+        # uneven points (dense at resonances): a window in frequency, each point by the share it stands for
+        near = np.abs(grid[:, None] - grid[None, :]) <= LOCAL_WINDOW * (grid[-1] - grid[0])
+        W = near * np.asarray(weights, dtype=float)[None, :]
+        smooth = np.einsum("kl,lij->kij", W / W.sum(axis=1, keepdims=True), excess)
     smooth = np.maximum(smooth, 0.0)
     out = np.empty((freqs.size,) + excess.shape[1:])
     for i in range(excess.shape[1]):

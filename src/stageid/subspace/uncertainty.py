@@ -41,6 +41,7 @@ import numpy as np
 
 from .._errors import DataError
 from .._threads import single_blas_thread
+from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .map_estimator import Posterior
@@ -296,7 +297,7 @@ def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: 
 
 
 def channel_delta_std(
-    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "local"
+    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "local", grid: str = "modes"
 ) -> np.ndarray:
     """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
 
@@ -306,6 +307,8 @@ def channel_delta_std(
     overlap: a rough allowance); ``"auto"`` the first when the fit kept its lag statistics (not
     after ``update``, with forgetting, or on records shorter than ``8 p``).  ``bias``: ``"local"``
     adds the realisation's misfit beyond its noise (:mod:`.realisation_bias`), ``"none"`` not.
+    ``grid`` (``"exact"`` only): where the covariance is formed, ``"modes"`` (more points at the
+    realised model's lightly damped modes) or ``"even"`` (:mod:`.covariance_grid`).
     """
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
@@ -316,26 +319,30 @@ def channel_delta_std(
     if exact:
         w = output_weights(post)
         theta_w = weighted_theta(post.theta, w, p, m, q)
-        grid = covariance_grid(ch.band, int(estimator.n_frequencies), max(q, m), MAX_OVERLAP_COLUMNS)
+        budget = MAX_OVERLAP_COLUMNS // max(q, m)
+        f_grid, quad = placed_grid(ch.band, int(estimator.n_frequencies), budget, ch.model.A, dt, grid)
         stats = ch.window_lags.weighted(np.concatenate([np.ones(m), w]))  # z = [u; w y], the realisation's outputs
         solve = column_solve(post)
-        G9, cov, pseudo = overlap_response_covariance(theta_w, solve, stats, post.n_windows, p, m, q, grid, dt)
+        G9, cov, pseudo = overlap_response_covariance(theta_w, solve, stats, post.n_windows, p, m, q, f_grid, dt)
     else:
         theta_w, col_cov, noise_cov, w = weighted_parts(post)
-        grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
-        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
+        f_grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
+        quad = np.ones(f_grid.size)
+        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, f_grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
     feed = bool(estimator.feedthrough)
-    Gm, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
-    proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
+    Gm, J = model_jacobian(A, B, C, D, response_points(f_grid, dt), feed)
+    # the fit's weight per column, times the share of the fit's frequencies each point stands for
+    proj = TangentProjection.from_jacobian(J, quad[:, None, None] / scale[None, None, :] ** 2, n_gauge=A.shape[0] ** 2)
     phi_cov, phi_dG = proj.moments(cov, pseudo)
     std = response_std((A, B, C, D), proj.parameter_factor(phi_cov), response_points(freqs, dt), feed)
     if bias == "local":
         K = J.reshape(-1, J.shape[3]) @ proj.basis
         noise = misfit_noise(K, phi_cov, phi_dG, np.real(np.diag(cov))).reshape(Gm.shape)
-        b2 = local_misfit_bias(grid, np.abs(Gm - G9) ** 2, noise, Gm, freqs)
+        uneven = None if np.all(quad == quad[0]) else quad
+        b2 = local_misfit_bias(f_grid, np.abs(Gm - G9) ** 2, noise, Gm, freqs, uneven)
         Gf = model_response(StateSpaceModel(A, B, C, D, dt), freqs)
         std = np.sqrt(std**2 + b2 * np.abs(Gf) ** 2)
     return std * (sy / w)[None, :, None] / su[None, None, :]
@@ -383,6 +390,7 @@ def realised_response_uncertainty(
     seed: int = 0,
     overlap: str = "auto",
     bias: str = "local",
+    grid: str = "modes",
 ) -> FrequencyResponse:
     """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
 
@@ -400,6 +408,9 @@ def realised_response_uncertainty(
     bias : {"local", "none"}
         ``delta`` only: ``local`` adds the realisation's misfit beyond its noise where it is
         significant (:mod:`.realisation_bias`); ``none`` the propagated scatter alone.
+    grid : {"modes", "even"}
+        ``delta`` with the exact covariance: its frequencies placed at the realised model's
+        lightly damped modes and evenly between, or evenly (:mod:`.covariance_grid`).
 
     Raises
     ------
@@ -414,6 +425,8 @@ def realised_response_uncertainty(
         raise DataError(f"`overlap` must be one of {', '.join(OVERLAP_RULES)}; got {overlap!r}.")
     if bias not in BIAS_RULES:
         raise DataError(f"`bias` must be one of {', '.join(BIAS_RULES)}; got {bias!r}.")
+    if grid not in GRID_PLACEMENTS:
+        raise DataError(f"`grid` must be one of {', '.join(GRID_PLACEMENTS)}; got {grid!r}.")
     est = result.estimator
     if method == "auto":
         method = "delta" if est.realization == "frequency" and est.refine else "sampling"
@@ -423,7 +436,7 @@ def realised_response_uncertainty(
     stds = []
     for ch in result.channels:
         if method == "delta":
-            stds.append(channel_delta_std(ch, est, f, dt, overlap, bias))
+            stds.append(channel_delta_std(ch, est, f, dt, overlap, bias, grid))
         else:
             stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
     model = result.model
