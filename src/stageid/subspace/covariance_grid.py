@@ -95,7 +95,9 @@ def mode_indices(fit_grid: np.ndarray, budget: int, modes: np.ndarray) -> np.nda
     # the mixture's cumulative distribution on a fine grid, inverted at the budget's quantiles
     f = np.linspace(lo, hi, 64 * n_fit)
     fd, h = narrow[:, 0][:, None], narrow[:, 1][:, None]
-    arc = (np.arctan((f[None] - fd) / h) - np.arctan((lo - fd) / h)) / (np.arctan((hi - fd) / h) - np.arctan((lo - fd) / h))
+    arc = (np.arctan((f[None] - fd) / h) - np.arctan((lo - fd) / h)) / (
+        np.arctan((hi - fd) / h) - np.arctan((lo - fd) / h)
+    )
     cdf = 0.5 * (f - lo) / (hi - lo) + 0.5 * arc.mean(axis=0)
     targets = np.interp((np.arange(budget) + 0.5) / budget, cdf, f)
     idx = np.rint((targets - lo) / (hi - lo) * (n_fit - 1)).astype(int)

@@ -41,9 +41,9 @@ import numpy as np
 
 from .._errors import DataError
 from .._threads import single_blas_thread
-from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
+from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from .map_estimator import Posterior
 from .realisation_bias import local_misfit_bias, misfit_noise
 from .realization import realize
