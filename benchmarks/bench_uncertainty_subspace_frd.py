@@ -2,8 +2,8 @@
 
 Alternating paired runs (the machine is shared): for each case, ``fit`` alone, ``fit`` then
 ``response_uncertainty`` on the default grid (200 log-spaced points over the identified
-band), and for Hankel-MAP also ``fit`` then the uncertainty with the old ``overlap="inflate"``
-covariance, repeated; medians of wall and CPU time and of the per-run ratios to ``fit``.
+band), and for Hankel-MAP also ``fit`` then the uncertainty with the former even covariance
+grid (``grid="even"``) and with the old ``overlap="inflate"`` covariance, repeated; medians of wall and CPU time and of the per-run ratios to ``fit``.
 ``--cli`` instead times ``stageid identify statespace`` on one P-558 record with and without
 ``--uncertainty`` (whole processes, alternating).
 
@@ -101,7 +101,10 @@ def _variants(fit):
         return np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 200)
 
     out = {"fit": fit, "fit + uncertainty": lambda: (lambda r: r.response_uncertainty(grid(r)))(fit())}
-    if hasattr(fit(), "channels"):  # Hankel-MAP: also the old covariance
+    if hasattr(fit(), "channels"):  # Hankel-MAP: also the former even covariance grid and the old covariance
+        out["fit + uncertainty (even grid)"] = lambda: (
+            lambda r: realised_response_uncertainty(r, grid(r), grid="even")
+        )(fit())
         out["fit + uncertainty (inflate)"] = lambda: (
             lambda r: realised_response_uncertainty(r, grid(r), overlap="inflate")
         )(fit())

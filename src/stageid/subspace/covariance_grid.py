@@ -25,10 +25,14 @@ study was run with it):
    them inside the half-power band (``|theta| < 45 deg``): the density of the points of mode
    ``i`` in frequency is ``h / (pi (h^2 + (f - f_d)^2))`` (a Cauchy density, cut to the band).
 3. Half the points follow the modes (their densities averaged), half the even background:
-   the frequencies are the ``budget`` quantiles (at ``(k + 1/2) / budget``) of
-   ``1/2 uniform(band) + 1/2 mean_i Cauchy(f_d_i, h_i)``.  The half that stays even keeps
-   the background at twice the even subset's spacing, where the response is a sum of mode
-   tails and smooth.
+   the frequencies are the ``budget`` quantiles (at ``k / (budget - 1)``, so both ends of the
+   band are kept, as by the even subset) of ``1/2 uniform(band) + 1/2 mean_i Cauchy(f_d_i, h_i)``.
+   The half that stays even keeps the background at twice the even subset's spacing, where the
+   response is a sum of mode tails and smooth.  Each of ``M`` modes gets ``(budget - 1) / 2M``
+   quantile steps, half of them across its half-power band: at least one point there while
+   ``M <= (budget - 1) / 4``, and at least three within ``f_d +- 3 h`` (80 % of its circle)
+   while ``M <= 0.4 (budget - 1) / 3`` (before step 4, which moves a point by up to half the
+   fit's spacing).
 4. Every point is moved to the nearest frequency of the fit's grid (the quadrature then
    approximates the fit's own sum, and the full grid reproduces it); duplicates are dropped,
    so at most ``budget`` points remain, all inside the band and so below Nyquist.  The
@@ -36,7 +40,9 @@ study was run with it):
    any other kept one (halves at ties).
 
 No constant of the rule was set from a coverage figure; the measured effect is in
-``studies/uncertainty/RESULTS.md``.
+``studies/uncertainty/RESULTS.md`` (the first version took the quantiles at
+``(k + 1/2) / budget``: the band's ends were then outside the grid, where the bias term of
+:mod:`.realisation_bias` extrapolates, and it widened some bands there 10-170x).
 """
 
 from __future__ import annotations
@@ -99,7 +105,7 @@ def mode_indices(fit_grid: np.ndarray, budget: int, modes: np.ndarray) -> np.nda
         np.arctan((hi - fd) / h) - np.arctan((lo - fd) / h)
     )
     cdf = 0.5 * (f - lo) / (hi - lo) + 0.5 * arc.mean(axis=0)
-    targets = np.interp((np.arange(budget) + 0.5) / budget, cdf, f)
+    targets = np.interp(np.linspace(0.0, 1.0, budget), cdf, f)
     idx = np.rint((targets - lo) / (hi - lo) * (n_fit - 1)).astype(int)
     return np.unique(np.clip(idx, 0, n_fit - 1))
 

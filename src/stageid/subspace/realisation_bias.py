@@ -52,12 +52,21 @@ def local_misfit_bias(
     to ``freqs``; outside the grid the larger of the nearest edge's value and the grid's mean.
     Shape (n_freqs, q, m).  ``weights`` (the quadrature weights of an uneven grid,
     :mod:`.covariance_grid`): the window is then ``LOCAL_WINDOW`` of the band on either side in
-    frequency and the average weighted; None: ``LOCAL_WINDOW`` of the points, unweighted."""
+    frequency, the average weighted, and the significance test is on the weighted sums with
+    Satterthwaite's degrees of freedom ``2 (sum w n)^2 / sum (w n)^2``; None: ``LOCAL_WINDOW`` of
+    the points, unweighted, two degrees of freedom per point (the former rule)."""
     # only entries whose misfit over the grid exceeds its noise at the 1 % level (a chi-square
     # with two degrees of freedom per point): below that the local excess is the noise's own scatter
-    nu = 2.0 * grid.size
-    level = (1.0 - 2.0 / (9.0 * nu) + SIGNIFICANCE_Z * np.sqrt(2.0 / (9.0 * nu))) ** 3  # Wilson-Hilferty
-    significant = misfit.sum(axis=0) > level * noise.sum(axis=0)
+    if weights is None:
+        nu = 2.0 * grid.size
+        significant = misfit.sum(axis=0) > _chi2_level(nu) * noise.sum(axis=0)
+    else:
+        # uneven points: the weighted sums of the quadrature; their noise is dominated by the few
+        # points at resonances, so the degrees of freedom are Satterthwaite's, not two per point
+        wn = np.asarray(weights, dtype=float)[:, None, None] * noise
+        nu = 2.0 * wn.sum(axis=0) ** 2 / np.maximum((wn**2).sum(axis=0), 1e-300)
+        wm = np.asarray(weights, dtype=float)[:, None, None] * misfit
+        significant = wm.sum(axis=0) > _chi2_level(np.maximum(nu, 1.0)) * wn.sum(axis=0)
     scale = np.abs(G_grid) ** 2
     scale = np.maximum(scale, 1e-12 * max(float(scale.max()), 1e-300))
     excess = (misfit - noise) / scale
@@ -77,5 +86,12 @@ def local_misfit_bias(
         for j in range(excess.shape[2]):
             out[:, i, j] = np.interp(freqs, grid, smooth[:, i, j])
     outside = (freqs < grid[0]) | (freqs > grid[-1])
-    out[outside] = np.maximum(out[outside], np.maximum(excess.mean(axis=0), 0.0)[None])
+    w = np.ones(grid.size) if weights is None else np.asarray(weights, dtype=float)
+    mean = np.einsum("k,kij->ij", w / w.sum(), excess)  # the grid's mean, each point by its share
+    out[outside] = np.maximum(out[outside], np.maximum(mean, 0.0)[None])
     return out * significant[None]
+
+
+def _chi2_level(nu):
+    """Upper ``SIGNIFICANCE_Z`` quantile of ``chi2(nu) / nu`` (Wilson-Hilferty)."""
+    return (1.0 - 2.0 / (9.0 * nu) + SIGNIFICANCE_Z * np.sqrt(2.0 / (9.0 * nu))) ** 3
