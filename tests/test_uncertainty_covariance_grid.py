@@ -11,6 +11,7 @@ from stageid._errors import DataError
 from stageid.models import StateSpaceModel
 from stageid.subspace import HankelMAP
 from stageid.subspace.covariance_grid import even_indices, placed_grid, quadrature_weights, resonances
+from stageid.subspace.realisation_bias import local_misfit_bias
 
 
 def modal_model(modes, dt=0.002):
@@ -95,3 +96,19 @@ def test_std_on_mode_grid_matches_the_fits_full_grid(siso_fit, monkeypatch):
 def test_unknown_grid_is_a_data_error(siso_fit):
     with pytest.raises(DataError, match="grid"):
         unc.realised_response_uncertainty(siso_fit, [10.0], grid="log")
+
+
+def test_misfit_test_on_an_uneven_grid_holds_its_level():
+    # pure noise, the noise of three points (the resonance's) 50x the rest: the weighted test
+    # with Satterthwaite's degrees of freedom rejects ~1 % of the 4000 draws; two degrees of
+    # freedom per point would reject far more (the sum is dominated by three points)
+    rng = np.random.default_rng(5)
+    grid = np.linspace(1.0, 100.0, 23)
+    weights = rng.uniform(2.0, 15.0, grid.size)
+    noise = np.ones((grid.size, 1, 4000))
+    noise[[8, 9, 10]] *= 50.0
+    misfit = noise * rng.exponential(size=noise.shape)  # |r|^2 of a circular Gaussian of variance noise
+    G = np.ones_like(noise)
+    b2 = local_misfit_bias(grid, misfit, noise, G, np.array([50.0]), weights)
+    rejected = np.mean(b2[0, 0] > 0)
+    assert rejected < 0.025
