@@ -3,11 +3,13 @@
 For each case and seed the model is identified once and ``realised_response_uncertainty`` is
 evaluated with the exact covariance on (a) the former even grid at ``MAX_OVERLAP_COLUMNS``,
 (b) the mode placement (``grid="modes"``, :mod:`stageid.subspace.covariance_grid`) at the same
-cap and (c) an even grid at ``--ref=N`` columns (default 144), the reference.  Printed per case:
+cap (and at the further caps of ``--modes-caps=48,36``) and (c) an even grid at ``--ref=N``
+columns (default 144; ``--ref=100000``: every frequency of the fit, its own sum), the reference.  Printed per case:
 the median and the 90th percentile over points x entries x seeds of ``|std / std_ref - 1|``
 (the error of the band's width), and the uncertainty's CPU time of (a) and (b).
 
     .venv/bin/python studies/uncertainty/grid_check.py [n_seeds] [case ...] [--ref=N] [--bias=none]
+        [--modes-caps=48,36]
 """
 
 from __future__ import annotations
@@ -39,7 +41,10 @@ def main() -> None:
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     ref = 144
     bias = "local"
+    extra: list[int] = []
     for a in sys.argv[1:]:
+        if a.startswith("--modes-caps="):
+            extra = [int(c) for c in a.split("=", 1)[1].split(",")]
         if a.startswith("--ref="):
             ref = int(a.split("=", 1)[1])
         if a.startswith("--bias="):
@@ -48,21 +53,22 @@ def main() -> None:
     cases = args[1:] or ["random", "random-mimo", "random-3x2", "random-siso", "p558", "p558-channels"]
     cap = unc.MAX_OVERLAP_COLUMNS
     for case in cases:
-        err = {"even": [], "modes": []}
-        cpu = {"even": [], "modes": []}
+        variants = [("even", cap), ("modes", cap)] + [("modes", c) for c in extra]
+        err = {v: [] for v in variants}
+        cpu = {v: [] for v in variants}
         for seed in range(n):
             _, res, _ = rs.CASES[case](seed)
             s_ref, _ = std_of(res, "even", ref, bias)
-            for g in ("even", "modes"):
-                s, c = std_of(res, g, cap, bias)
-                err[g].append(np.abs(s / s_ref - 1).ravel())
-                cpu[g].append(c)
+            for v in variants:
+                s, c = std_of(res, v[0], v[1], bias)
+                err[v].append(np.abs(s / s_ref - 1).ravel())
+                cpu[v].append(c)
         line = [f"{case:14s} seeds {n}, ref {ref} cols:"]
-        for g in ("even", "modes"):
-            e = np.concatenate(err[g])
+        for v in variants:
+            e = np.concatenate(err[v])
             line.append(
-                f"{g} {cap} cols: |std/ref-1| median {np.median(e):.3f}, p90 {np.quantile(e, 0.9):.3f}, "
-                f"max {e.max():.2f}; cpu {np.median(cpu[g]):.3f} s;"
+                f"{v[0]} {v[1]} cols: |std/ref-1| median {np.median(e):.3f}, p90 {np.quantile(e, 0.9):.3f}, "
+                f"max {e.max():.2f}; cpu {np.median(cpu[v]):.3f} s;"
             )
         print(" ".join(line), flush=True)
 

@@ -70,9 +70,9 @@ DEFAULT_SAMPLES = 40
 #: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
 MAX_COVARIANCE_ENTRIES = 300
 #: For the covariance under overlapping windows (``overlap="exact"``): at most this many
-#: frequencies times ``max(q, m)``; the cost grows with its square.  A cost/resolution
-#: trade-off: fewer frequencies under-resolve lightly damped modes and widen the bands
-#: (``studies/uncertainty/RESULTS.md``, ``benchmarks/RESULTS-uncertainty.md``).
+#: frequencies times ``max(q, m)``; the cost grows with its square.  Where they go is
+#: :mod:`.covariance_grid` (``grid``): placed at the lightly damped modes they reproduce the
+#: fit's full grid far better than evenly (``studies/uncertainty/RESULTS.md``).
 MAX_OVERLAP_COLUMNS = 72
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256
