@@ -2,15 +2,16 @@
 
 Alternating paired runs (the machine is shared): for each case, ``fit`` alone, ``fit`` then
 ``response_uncertainty`` on the default grid (200 log-spaced points over the identified
-band), and for Hankel-MAP also ``fit`` then the uncertainty with the old ``overlap="inflate"``
-covariance, repeated; medians of wall and CPU time and of the per-run ratios to ``fit``.
+band), and for Hankel-MAP also ``fit`` then the uncertainty with the former even covariance
+grid (``grid="even"``) and with the old ``overlap="inflate"`` covariance, repeated; medians of wall and CPU time and of the per-run ratios to ``fit``.
 ``--cli`` instead times ``stageid identify statespace`` on one P-558 record with and without
 ``--uncertainty`` (whole processes, alternating).
 
 ``--columns`` times the exact uncertainty alone on the P-558 direct fit for several column caps
 (``MAX_OVERLAP_COLUMNS``), CPU medians, with the change of the std against the default cap.
+``--profile`` prints where the uncertainty's time goes (cProfile, per Hankel-MAP case).
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli|--columns]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_uncertainty_subspace_frd.py [repeats] [--cli|--columns|--profile]
 """
 
 from __future__ import annotations
@@ -33,13 +34,26 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).parents[1] / "studies" / "uncertainty"))
 from run_study import two_mode_plant  # noqa: E402
 
-from _subspace_systems import band_limited, record  # noqa: E402
+from _subspace_systems import band_limited, random_stage, record  # noqa: E402
 
 
 def p558_direct():
     g = ps.model()
     exp = record(g, band_limited(20000, 3, g.dt, 1) * np.array([10.0, 100.0, 100.0]), 0.01, 1)
     return lambda: HankelMAP(order=15).fit(exp)
+
+
+def p558_direct_long():
+    g = ps.model()
+    exp = record(g, band_limited(50000, 3, g.dt, 1) * np.array([10.0, 100.0, 100.0]), 0.01, 1)
+    return lambda: HankelMAP(order=15).fit(exp)
+
+
+def unseen(seed: int, m: int, q: int, modes: int, n: int, noise: float, **kw):
+    """The unseen stages of ``studies/uncertainty/run_study.py`` (its seed 1), the record made once."""
+    g = random_stage(seed, m=m, q=q, modes=modes)
+    exp = record(g, band_limited(n, m, g.dt, 1), noise, 1, names=False)
+    return lambda: HankelMAP(order=kw.get("order", g.n_states), horizon=kw.get("horizon", "auto")).fit(exp)
 
 
 def p558_channels():
@@ -63,8 +77,16 @@ def band_of(res):
     return res.band
 
 
-CASES = {"p558 direct (horizon auto, order 15)": p558_direct, "p558 per channel (auto horizon)": p558_channels,
-         "frd 1x2 (order auto)": frd}  # fmt: skip
+CASES = {
+    "p558 direct (20 000 samples, horizon auto, order 15)": p558_direct,
+    "p558 direct (50 000 samples, horizon auto, order 15)": p558_direct_long,
+    "p558 per channel (auto horizon)": p558_channels,
+    "unseen 1x2 (6000 samples, horizon 25, order 4)": lambda: unseen(9, 1, 2, 2, 6000, 0.02, horizon=25, order=4),
+    "unseen 2x2 (20 000 samples)": lambda: unseen(22, 2, 2, 4, 20000, 0.01),
+    "unseen SISO (8000 samples)": lambda: unseen(32, 1, 1, 3, 8000, 0.03),
+    "unseen 3x2 (12 000 samples)": lambda: unseen(42, 2, 3, 3, 12000, 0.01),
+    "frd 1x2 (order auto)": frd,
+}
 
 
 def _timed(run) -> tuple[float, float]:
@@ -79,7 +101,10 @@ def _variants(fit):
         return np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 200)
 
     out = {"fit": fit, "fit + uncertainty": lambda: (lambda r: r.response_uncertainty(grid(r)))(fit())}
-    if hasattr(fit(), "channels"):  # Hankel-MAP: also the old covariance
+    if hasattr(fit(), "channels"):  # Hankel-MAP: also the former even covariance grid and the old covariance
+        out["fit + uncertainty (even grid)"] = lambda: (
+            lambda r: realised_response_uncertainty(r, grid(r), grid="even")
+        )(fit())
         out["fit + uncertainty (inflate)"] = lambda: (
             lambda r: realised_response_uncertainty(r, grid(r), overlap="inflate")
         )(fit())
@@ -93,6 +118,8 @@ def main() -> None:
         return cli(repeats)
     if "--columns" in sys.argv:
         return columns(repeats)
+    if "--profile" in sys.argv:
+        return profile(repeats)
     for name, make in CASES.items():
         variants = _variants(make())
         for run in variants.values():
@@ -145,6 +172,27 @@ def columns(repeats: int) -> None:
             f"median {change[c][0]:.3f}, 99th percentile {change[c][1]:.3f}",
             flush=True,
         )
+
+
+def profile(repeats: int) -> None:
+    """Where the uncertainty's time goes: cProfile of ``repeats`` calls per Hankel-MAP case (after one)."""
+    import cProfile
+    import pstats
+
+    for name, make in CASES.items():
+        res = make()()
+        if not hasattr(res, "channels"):
+            continue
+        lo, hi = band_of(res)
+        f = np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 200)
+        res.response_uncertainty(f)
+        prof = cProfile.Profile()
+        prof.enable()
+        for _ in range(repeats):
+            res.response_uncertainty(f)
+        prof.disable()
+        print(f"{name}, {repeats} calls:")
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(r"stageid|linalg|fft", 14)
 
 
 def cli(repeats: int) -> None:

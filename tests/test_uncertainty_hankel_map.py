@@ -105,6 +105,8 @@ def test_result_is_a_frequency_response_of_the_model():
         res.response_uncertainty(f, method="bootstrap")
     with pytest.raises(DataError, match="overlap"):
         realised_response_uncertainty(res, f, overlap="hac")
+    with pytest.raises(DataError, match="bias"):
+        realised_response_uncertainty(res, f, bias="flat")
 
 
 def test_markov_route_uses_posterior_draws():

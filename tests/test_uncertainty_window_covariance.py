@@ -8,14 +8,73 @@ import pytest
 from _subspace_systems import band_limited, random_stage, record
 from stageid.subspace import HankelMAP
 from stageid.subspace.hankel_toeplitz import dense_regression, regressor_indices
-from stageid.subspace.uncertainty import weighted_parts
+from stageid.subspace.uncertainty import column_solve, weighted_parts
 from stageid.subspace.window_covariance import (
     WindowFilter,
     lag_products,
     lag_spectrum,
+    lag_sum,
     overlap_response_covariance,
+    self_lag_products,
     window_lags,
 )
+
+
+def _explicit_lag_products(recs, p, h, lags):
+    """``sum_t s_t conj(s_(t+l))^T`` and ``sum_t s_t s_(t+l)^T`` over the whole windows, by hand."""
+    out_c = np.zeros((lags.size, h.shape[1], h.shape[1]), dtype=complex)
+    out_p = np.zeros_like(out_c)
+    for u, y in recs:
+        z = np.hstack([u, y])
+        K = z.shape[0] - 2 * p + 1
+        s = np.stack([z[t : t + 2 * p].reshape(-1) for t in range(K)]) @ h
+        for i, lag in enumerate(lags):
+            out_c[i] += s[: K - lag].T @ np.conj(s[lag:])
+            out_p[i] += s[: K - lag].T @ s[lag:]
+    return out_c, out_p
+
+
+@pytest.mark.parametrize("p", [3, 4])
+def test_self_lag_products_equal_the_sums_over_whole_windows(p):
+    # lags 0..2p-1 on 4p DFT points: every pair of whole windows, none with a window outside a
+    # record (two records, a drifting output: large end corrections at both ends)
+    rng = np.random.default_rng(p)
+    r = 3
+    recs = [(rng.standard_normal((n, 1)), np.cumsum(rng.standard_normal((n, 2)), axis=0) * 0.3 + 5) for n in (200, 333)]
+    stats = window_lags(recs, p)
+    n = 8 * p
+    h = rng.standard_normal((2 * p * r, 4)) + 1j * rng.standard_normal((2 * p * r, 4))
+    got_c, got_p = self_lag_products(WindowFilter(h, np.arange(2 * p * r), p, r, n), lag_spectrum(stats.lags, n), stats)
+    want_c, want_p = _explicit_lag_products(recs, p, h, np.arange(2 * p))
+    np.testing.assert_allclose(got_c, want_c, rtol=0, atol=1e-12 * np.abs(want_c).max())
+    np.testing.assert_allclose(got_p, want_p, rtol=0, atol=1e-12 * np.abs(want_p).max())
+
+
+def test_lag_sum_is_the_sum_over_lags_of_the_kronecker_products():
+    rng = np.random.default_rng(1)
+    L, nz, q, m = 5, 3, 2, 3
+    B = rng.standard_normal((L, nz * q, nz * q)) + 1j * rng.standard_normal((L, nz * q, nz * q))
+    A = rng.standard_normal((L, nz * m, nz * m)) + 1j * rng.standard_normal((L, nz * m, nz * m))
+    w = np.r_[0.5, np.ones(L - 1)]
+    Bk, Ak = B.reshape(L, nz, q, nz, q), A.reshape(L, nz, m, nz, m)
+    want = np.zeros((nz, q, m, nz, q, m), dtype=complex)
+    for c in range(L):
+        for k in range(nz):
+            for kk in range(nz):
+                want[k, :, :, kk] += w[c] * np.einsum("ix,jy->ijxy", Bk[c, k, :, kk], Ak[c, k, :, kk])
+    A0 = A.copy()
+    np.testing.assert_allclose(lag_sum(B, A, nz, q, m), want.reshape(nz * q * m, -1), rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(A, A0)  # the caller's array is not modified
+
+
+def test_column_solve_applies_the_posterior_covariance():
+    g = random_stage(8, m=1, q=2, modes=2)
+    res = HankelMAP(horizon=10, order=4).fit(record(g, band_limited(3000, 1, g.dt, 0), 0.02, 0, names=False))
+    post = res.channels[0].scaled_posterior
+    V = np.random.default_rng(0).standard_normal((post.information.shape[0], 5))
+    _, col_cov, _, _ = weighted_parts(post)
+    want = col_cov / post.horizon @ V
+    np.testing.assert_allclose(column_solve(post)(V), want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
 
 
 def test_lag_products_equal_the_sums_over_whole_windows():

@@ -17,6 +17,11 @@ is 1 for a calibrated std.  Cases:
   0.5-1.5), ``FRDIdentification(order=4)``; ``frd-residual``: the same without the std.
 
     .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...] [--horizon=P]
+        [--overlap=exact|inflate] [--bias=local|none] [--columns=N] [--grid=modes|even]
+
+``--bias`` is the realisation-misfit term of the Hankel-MAP bands (default ``local``, as the
+library), ``--columns`` the exact covariance's column cap (``MAX_OVERLAP_COLUMNS``), ``--grid``
+the placement of its frequencies (default ``modes``, as the library; ``even`` the former grid).
 
 Writes ``output/<case>.json`` (per seed, per entry) and prints a summary table.
 """
@@ -47,6 +52,12 @@ FREQS = np.geomspace(1.5, 98.0, 200)  # inside the excited 1-100 Hz band
 HORIZON: int | str = "auto"
 #: Eq. 9 covariance of the Hankel-MAP cases (--overlap=exact|inflate; default "auto" = exact).
 OVERLAP = "auto"
+#: The realisation-misfit bias term of the Hankel-MAP cases (--bias=local|none).
+BIAS = "local"
+#: Placement of the exact covariance's frequencies (--grid=modes|even).
+GRID = "modes"
+#: Suffix of the output file (the column cap, when ``--columns=N`` is given).
+TAG = ""
 
 
 def p558(seed: int):
@@ -141,7 +152,7 @@ def run(case: str, n_seeds: int) -> dict:
         if isinstance(res, FRDResultTypes):
             fr = res.response_uncertainty(FREQS)
         else:
-            fr = realised_response_uncertainty(res, FREQS, overlap=OVERLAP)
+            fr = realised_response_uncertainty(res, FREQS, overlap=OVERLAP, bias=BIAS, grid=GRID)
         t_unc.append(time.perf_counter() - t)
         t_fit.append(tf)
         err = np.abs(fr.response - g.frequency_response(FREQS))
@@ -174,12 +185,12 @@ def run(case: str, n_seeds: int) -> dict:
     }
     OUT.mkdir(exist_ok=True)
     summary["overlap"] = OVERLAP
-    (OUT / f"{case}-{OVERLAP}.json").write_text(json.dumps(summary, indent=1))
+    (OUT / f"{case}-{OVERLAP}{TAG}.json").write_text(json.dumps(summary, indent=1))
     return summary
 
 
 def main() -> None:
-    global HORIZON, OVERLAP, FRDResultTypes
+    global HORIZON, OVERLAP, FRDResultTypes, TAG, BIAS, GRID
     from stageid.frf.identification import FRDResult
 
     FRDResultTypes = (FRDResult,)
@@ -189,6 +200,17 @@ def main() -> None:
             HORIZON = int(a.split("=", 1)[1])
         if a.startswith("--overlap="):
             OVERLAP = a.split("=", 1)[1]
+        if a.startswith("--bias="):
+            BIAS = a.split("=", 1)[1]
+            TAG += f"-bias-{BIAS}"
+        if a.startswith("--grid="):
+            GRID = a.split("=", 1)[1]
+            TAG += f"-grid-{GRID}"
+        if a.startswith("--columns="):  # the exact covariance's column cap (default MAX_OVERLAP_COLUMNS)
+            import stageid.subspace.uncertainty as unc
+
+            unc.MAX_OVERLAP_COLUMNS = int(a.split("=", 1)[1])
+            TAG += f"-{unc.MAX_OVERLAP_COLUMNS}col"
     n = int(args[0]) if args else 20
     cases = args[1:] or list(CASES)
     for case in cases:

@@ -24,15 +24,18 @@ grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posteri
   least-squares fit on a grid) and ``refine=False`` it is the default.
 
 Per-input-channel fits (eq. 19-22) are independent (disjoint records): the stacked model's
-column ``j`` is the ``j``-th sub-model's, with its own posterior.  Neither way counts the bias
-of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) or of a
-realisation whose order cannot fit the system (measured in ``studies/uncertainty/RESULTS.md``).
+column ``j`` is the ``j``-th sub-model's, with its own posterior.  The realisation's own bias
+(an order that cannot follow the eq. 9 response, a compromise of the refinement) is added by
+``bias="local"`` (the default of ``"delta"``): the misfit between the model and the eq. 9
+response beyond its noise expectation, where it is significant (:mod:`.realisation_bias`).
+The bias of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) is
+not counted (measured in ``studies/uncertainty/RESULTS.md``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -40,7 +43,9 @@ from .._errors import DataError
 from .._threads import single_blas_thread
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
+from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from .map_estimator import Posterior
+from .realisation_bias import local_misfit_bias, misfit_noise
 from .realization import realize
 from .records import check_freqs
 from .weighting import output_weights, weight_scales, weighted_theta
@@ -55,6 +60,7 @@ __all__ = [
     "response_std",
     "eq9_response_covariance",
     "weighted_parts",
+    "column_solve",
     "channel_delta_std",
     "realised_response_uncertainty",
 ]
@@ -64,10 +70,9 @@ DEFAULT_SAMPLES = 40
 #: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
 MAX_COVARIANCE_ENTRIES = 300
 #: For the covariance under overlapping windows (``overlap="exact"``): at most this many
-#: frequencies times ``max(q, m)``; its spectra are ``8 p x n_freqs max(q, m) x 2 n_freqs max(q, m)``.
-#: A cost/resolution trade-off: fewer frequencies under-resolve lightly damped modes and widen
-#: the bands (unseen 3x2 stages: 97.7 % coverage at 96, 98.6 % at 72, 99.2 % at 60), more cost
-#: (P-558: 0.52 s at 96, 0.20 s at 72); ``studies/uncertainty/RESULTS.md``.
+#: frequencies times ``max(q, m)``; the cost grows with its square.  Where they go is
+#: :mod:`.covariance_grid` (``grid``): placed at the lightly damped modes they reproduce the
+#: fit's full grid far better than evenly (``studies/uncertainty/RESULTS.md``).
 MAX_OVERLAP_COLUMNS = 72
 #: Frequencies per block where a Jacobian over many frequencies is formed.
 CHUNK = 256
@@ -152,7 +157,7 @@ class TangentProjection:
         # the Gram matrix's eigenpairs are the SVD of the real-stacked [Re Jn; Im Jn] at a seventh
         # of its cost; its precision (eps relative to the largest eigenvalue) is why the kept
         # directions are also capped by the known number of similarity directions
-        ev, V = np.linalg.eigh(np.real(np.conj(Jn).T @ Jn))
+        ev, V = np.linalg.eigh(Jn.real.T @ Jn.real + Jn.imag.T @ Jn.imag)  # Re(Jn^H Jn): two real products
         ev, V = ev[::-1], V[:, ::-1]
         ok = int(np.sum(ev > GAUGE_TOLERANCE**2 * max(float(ev[0]), 1e-300))) if ev.size else 0
         keep = min(ok, max(P - n_gauge, 1))
@@ -162,11 +167,18 @@ class TangentProjection:
         basis = (V[:, :keep] / s[None, :]) / norms[:, None]
         return cls(functionals, basis)
 
-    def parameter_factor(self, cov: np.ndarray, pseudo: np.ndarray) -> np.ndarray:
-        """``L`` with ``L L^T = Cov(dx)`` (clipped at zero eigenvalues), shape (n_params, r)."""
+    def moments(self, cov: np.ndarray, pseudo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``Cov(phi)`` (r, r) and ``E[phi conj(dG)^T]`` (r, N) for ``phi = Re(F vec dG)``, from
+        ``E[dG dG^H]`` and ``E[dG dG^T]``."""
         F = self.functionals
-        phi = 0.5 * np.real((F @ cov) @ np.conj(F).T + (F @ pseudo) @ F.T)
-        ev, V = np.linalg.eigh(0.5 * (phi + phi.T))
+        Fc, Fp = F @ cov, F @ pseudo
+        phi = 0.5 * np.real(Fc @ np.conj(F).T + Fp @ F.T)
+        return 0.5 * (phi + phi.T), 0.5 * (Fc + np.conj(Fp))
+
+    def parameter_factor(self, phi_cov: np.ndarray) -> np.ndarray:
+        """``L`` with ``L L^T = Cov(dx)`` (clipped at zero eigenvalues) from ``Cov(phi)``
+        (:meth:`moments`), shape (n_params, r)."""
+        ev, V = np.linalg.eigh(phi_cov)
         return self.basis @ (V * np.sqrt(np.clip(ev, 0.0, None))[None, :])
 
 
@@ -174,13 +186,32 @@ def response_std(
     abcd: tuple[np.ndarray, ...], factor: np.ndarray, points: np.ndarray, feedthrough: bool = True
 ) -> np.ndarray:
     """``sqrt(E|dG|^2)`` at ``points`` for parameters with ``Cov(dx) = factor factor^T``, shape
-    (n_points, q, m); evaluated in blocks of ``CHUNK`` points (the Jacobian's memory)."""
+    (n_points, q, m); in blocks of ``CHUNK`` points.
+
+    ``J dx`` for every column of ``factor`` without forming ``J``: ``C R (dA R B + dB) + dC R B
+    + dD`` (:func:`model_jacobian`), about a quarter of the flops of ``J @ factor``.
+    """
+    A, B, C, D = abcd
+    n, m, q, r = A.shape[0], B.shape[1], C.shape[0], factor.shape[1]
+    LA = factor[: n * n].reshape(n, n, r)  # dA[a, b] per column
+    LB = factor[n * n : n * n + n * m].reshape(n, m, r)
+    LC = factor[n * n + n * m : n * n + n * m + q * n].reshape(q, n, r)
+    LA_t = LA.transpose(1, 0, 2).reshape(n, n * r)  # [b, (a, col)]
+    LC_t = LC.transpose(1, 0, 2).reshape(n, q * r)  # [b, (i, col)]
     out = []
     for lo in range(0, points.size, CHUNK):
-        _, J = model_jacobian(*abcd, points[lo : lo + CHUNK], feedthrough)
-        J2 = J.reshape(-1, J.shape[3])
-        var = (J2.real @ factor) ** 2 + (J2.imag @ factor) ** 2  # a real factor: two real products
-        out.append(np.sqrt(np.sum(var, axis=1)).reshape(J.shape[:3]))
+        x = points[lo : lo + CHUNK]
+        nz = x.size
+        R = np.linalg.inv(x[:, None, None] * np.eye(n)[None] - A[None])
+        CR = C[None] @ R  # (nz, q, n)
+        RBt = (R @ B[None]).transpose(0, 2, 1).reshape(nz * m, n)  # [(z, j), b]
+        # sum_b dA[a, b] (R B)[b, j] + dB[a, j]: a real factor times a complex matrix, two real products
+        M = (RBt.real @ LA_t + 1j * (RBt.imag @ LA_t)).reshape(nz, m, n, r) + LB.transpose(1, 0, 2)[None]
+        dG = np.matmul(CR, M.transpose(0, 2, 1, 3).reshape(nz, n, m * r)).reshape(nz, q, m, r)
+        dG += (RBt.real @ LC_t + 1j * (RBt.imag @ LC_t)).reshape(nz, m, q, r).transpose(0, 2, 1, 3)
+        if feedthrough:
+            dG += factor[n * n + n * m + q * n :].reshape(q, m, r)[None]
+        out.append(np.sqrt(np.sum(dG.real**2 + dG.imag**2, axis=3)))
     return np.concatenate(out, axis=0)
 
 
@@ -245,43 +276,75 @@ def weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return theta_w, post.covariance * p * np.outer(c, c), post.noise_cov * np.outer(wp, wp), w
 
 
+def column_solve(post: Posterior) -> Callable[[np.ndarray], np.ndarray]:
+    """``V -> P V`` in the coordinates of :func:`weighted_parts` (without its factor ``p``): a
+    solve with the posterior information instead of its inverse (``Posterior.covariance``), the
+    same definiteness test (Cholesky) and the same fallback (the pseudo-inverse)."""
+    _, c = weight_scales(output_weights(post), post.horizon, post.n_inputs)
+    info = post.information
+    try:
+        np.linalg.cholesky(info)
+        return lambda V: c[:, None] * np.linalg.solve(info, c[:, None] * V)
+    except np.linalg.LinAlgError:
+        pinv = np.linalg.pinv(info, hermitian=True)
+        return lambda V: c[:, None] * (pinv @ (c[:, None] * V))
+
+
 def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:
     """The channel's model in the coordinates of its realisation: unit-RMS channels, outputs times ``w``."""
     ow = (w / sy)[:, None]
     return model.A, model.B * su[None, :], model.C * ow, model.D * su[None, :] * ow
 
 
-def channel_delta_std(ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto") -> np.ndarray:
+def channel_delta_std(
+    ch, estimator, freqs: np.ndarray, dt: float, overlap: str = "auto", bias: str = "local", grid: str = "modes"
+) -> np.ndarray:
     """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
 
     ``overlap``: ``"exact"`` takes the eq. 9 covariance under overlapping windows
     (:mod:`.window_covariance`, from the lag statistics the fit kept); ``"inflate"`` the
     matrix-normal ``p P (x) Sigma`` (windows counted as independent, ``P`` times ``p`` for their
     overlap: a rough allowance); ``"auto"`` the first when the fit kept its lag statistics (not
-    after ``update``, with forgetting, or on records shorter than ``8 p``).
+    after ``update``, with forgetting, or on records shorter than ``8 p``).  ``bias``: ``"local"``
+    adds the realisation's misfit beyond its noise (:mod:`.realisation_bias`), ``"none"`` not.
+    ``grid`` (``"exact"`` only): where the covariance is formed, ``"modes"`` (more points at the
+    realised model's lightly damped modes) or ``"even"`` (:mod:`.covariance_grid`).
     """
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
     su, sy = ch.scales if ch.scales is not None else (np.ones(m), np.ones(q))
-    theta_w, col_cov, noise_cov, w = weighted_parts(post)
     exact = overlap == "exact" or (overlap == "auto" and ch.window_lags is not None)
     if exact and ch.window_lags is None:
         raise DataError("`overlap='exact'` needs the fit's lag statistics; this fit has none (update or forgetting).")
     if exact:
-        grid = covariance_grid(ch.band, int(estimator.n_frequencies), max(q, m), MAX_OVERLAP_COLUMNS)
+        w = output_weights(post)
+        theta_w = weighted_theta(post.theta, w, p, m, q)
+        budget = MAX_OVERLAP_COLUMNS // max(q, m)
+        f_grid, quad = placed_grid(ch.band, int(estimator.n_frequencies), budget, ch.model.A, dt, grid)
         stats = ch.window_lags.weighted(np.concatenate([np.ones(m), w]))  # z = [u; w y], the realisation's outputs
-        G9, cov, pseudo = overlap_response_covariance(theta_w, col_cov / p, stats, post.n_windows, p, m, q, grid, dt)
+        solve = column_solve(post)
+        G9, cov, pseudo = overlap_response_covariance(theta_w, solve, stats, post.n_windows, p, m, q, f_grid, dt)
     else:
-        grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
-        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, grid, dt)
+        theta_w, col_cov, noise_cov, w = weighted_parts(post)
+        f_grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
+        quad = np.ones(f_grid.size)
+        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, f_grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)
     feed = bool(estimator.feedthrough)
-    _, J = model_jacobian(A, B, C, D, response_points(grid, dt), feed)
-    proj = TangentProjection.from_jacobian(J, (1.0 / scale**2)[None, None, :], n_gauge=A.shape[0] ** 2)
-    factor = proj.parameter_factor(cov, pseudo)
-    std = response_std((A, B, C, D), factor, response_points(freqs, dt), feed)
+    Gm, J = model_jacobian(A, B, C, D, response_points(f_grid, dt), feed)
+    # the fit's weight per column, times the share of the fit's frequencies each point stands for
+    proj = TangentProjection.from_jacobian(J, quad[:, None, None] / scale[None, None, :] ** 2, n_gauge=A.shape[0] ** 2)
+    phi_cov, phi_dG = proj.moments(cov, pseudo)
+    std = response_std((A, B, C, D), proj.parameter_factor(phi_cov), response_points(freqs, dt), feed)
+    if bias == "local":
+        K = J.reshape(-1, J.shape[3]) @ proj.basis
+        noise = misfit_noise(K, phi_cov, phi_dG, np.real(np.diag(cov))).reshape(Gm.shape)
+        uneven = None if np.all(quad == quad[0]) else quad
+        b2 = local_misfit_bias(f_grid, np.abs(Gm - G9) ** 2, noise, Gm, freqs, uneven)
+        Gf = model_response(StateSpaceModel(A, B, C, D, dt), freqs)
+        std = np.sqrt(std**2 + b2 * np.abs(Gf) ** 2)
     return std * (sy / w)[None, :, None] / su[None, None, :]
 
 
@@ -314,6 +377,8 @@ def _psd_factor(M: np.ndarray) -> np.ndarray:
 UNCERTAINTY_METHODS = ("auto", "delta", "sampling")
 #: ``overlap`` of :func:`realised_response_uncertainty` (:func:`channel_delta_std`).
 OVERLAP_RULES = ("auto", "exact", "inflate")
+#: ``bias`` of :func:`realised_response_uncertainty` (:mod:`.realisation_bias`).
+BIAS_RULES = ("local", "none")
 
 
 @single_blas_thread
@@ -324,6 +389,8 @@ def realised_response_uncertainty(
     n_samples: int = DEFAULT_SAMPLES,
     seed: int = 0,
     overlap: str = "auto",
+    bias: str = "local",
+    grid: str = "modes",
 ) -> FrequencyResponse:
     """The realised model's response with ``std = sqrt(E|G_est - G|^2)`` (see the module docstring).
 
@@ -338,27 +405,38 @@ def realised_response_uncertainty(
         Draws and seed of ``sampling`` (whose posterior is the matrix-normal one with ``p P``).
     overlap : {"auto", "exact", "inflate"}
         The eq. 9 covariance of ``delta`` (:func:`channel_delta_std`).
+    bias : {"local", "none"}
+        ``delta`` only: ``local`` adds the realisation's misfit beyond its noise where it is
+        significant (:mod:`.realisation_bias`); ``none`` the propagated scatter alone.
+    grid : {"modes", "even"}
+        ``delta`` with the exact covariance: its frequencies placed at the realised model's
+        lightly damped modes and evenly between, or evenly (:mod:`.covariance_grid`).
 
     Raises
     ------
     DataError
         Frequencies that are not finite, negative or above Nyquist; an unknown ``method`` or
-        ``overlap``; ``overlap="exact"`` for a fit without lag statistics.
+        ``overlap`` or ``bias``; ``overlap="exact"`` for a fit without lag statistics.
     """
     f = check_freqs(freqs_hz, result.model.dt)
     if method not in UNCERTAINTY_METHODS:
         raise DataError(f"`method` must be one of {', '.join(UNCERTAINTY_METHODS)}; got {method!r}.")
     if overlap not in OVERLAP_RULES:
         raise DataError(f"`overlap` must be one of {', '.join(OVERLAP_RULES)}; got {overlap!r}.")
+    if bias not in BIAS_RULES:
+        raise DataError(f"`bias` must be one of {', '.join(BIAS_RULES)}; got {bias!r}.")
+    if grid not in GRID_PLACEMENTS:
+        raise DataError(f"`grid` must be one of {', '.join(GRID_PLACEMENTS)}; got {grid!r}.")
     est = result.estimator
     if method == "auto":
         method = "delta" if est.realization == "frequency" and est.refine else "sampling"
     dt = result.model.dt
-    rng = np.random.default_rng(seed)
+    # only the draws need a generator: numpy.random's import is a tenth of a command-line run's uncertainty
+    rng = np.random.default_rng(seed) if method == "sampling" else None
     stds = []
     for ch in result.channels:
         if method == "delta":
-            stds.append(channel_delta_std(ch, est, f, dt, overlap))
+            stds.append(channel_delta_std(ch, est, f, dt, overlap, bias, grid))
         else:
             stds.append(channel_sampling_std(ch, est, f, dt, int(n_samples), rng))
     model = result.model

@@ -26,13 +26,19 @@ their first and last ``4 p - 2`` samples (:class:`WindowLags`, kept by the fit),
 spectral identity ``sum_(a,b) h(a)^T R(l + b - a) conj h'(b) = 1/n sum_w e^(i w l) H(w)^T S(w) conj H'(w)``
 with ``S`` the DFT of ``R`` (no lag wraps for ``n = 8 p``), minus the pairs in which a window
 sticks out of a record (:func:`lag_products`).  Only the lags ``l >= 0`` are formed: those at
-``-l`` are their (conjugate) transposes.  Cost ``~ 8 p (n_freqs max(q, m))^2 (m + q)``,
-independent of the record length; the covariance under overlapping windows of Hankel-Toeplitz
-estimates and its calibration are measured in ``studies/uncertainty/RESULTS.md``.
+``-l`` are their (conjugate) transposes.  The uncertainty takes them from
+:func:`self_lag_products`, which splits the double sum so that the products and the inverse
+DFT need ``4 p`` points instead of ``8 p``: cost ``~ 4 p (n_freqs max(q, m))^2`` times
+``(m + q + 3 n_records)`` for the products and ``log(4 p)`` for the transform, independent of
+the record length (``benchmarks/RESULTS-uncertainty.md``).  The covariance under overlapping
+windows of Hankel-Toeplitz estimates and its calibration are measured in
+``studies/uncertainty/RESULTS.md``.
 """
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +52,8 @@ __all__ = [
     "WindowFilter",
     "lag_spectrum",
     "lag_products",
+    "self_lag_products",
+    "lag_sum",
     "overlap_response_covariance",
     "response_directions",
 ]
@@ -111,17 +119,27 @@ class WindowFilter:
         h[positions] = weights
         self.h = h.reshape(2 * horizon, r, -1)
         self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
-        self.H_t = np.ascontiguousarray(self.H.transpose(0, 2, 1))
-        self.H_conj = np.fft.fft(np.conj(self.h), n=n, axis=0)
+
+    @functools.cached_property
+    def H_t(self) -> np.ndarray:
+        return np.ascontiguousarray(self.H.transpose(0, 2, 1))
+
+    @functools.cached_property
+    def H_conj(self) -> np.ndarray:
+        """DFT of ``conj h``: ``conj H(-w)``, no second transform."""
+        return np.conj(np.roll(self.H[::-1], 1, axis=0))
 
     def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
         """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
         (``t = K-(2p-1) .. n-1``), the record zero-padded, from its ``4 p - 2`` end samples."""
-        L = self.h.shape[0]
+        L, r, c = self.h.shape
         pad = np.zeros((L - 1, samples.shape[1]))
         z = np.vstack([pad, samples]) if head else np.vstack([samples, pad])
         win = np.lib.stride_tricks.sliding_window_view(z, L, axis=0)  # (4p-2, r, L)
-        return np.einsum("tra,arc->tc", win, self.h, optimize=True)
+        # real windows times a complex filter: two real products
+        win = win.transpose(0, 2, 1).reshape(win.shape[0], L * r)
+        h = self.h.reshape(L * r, c)
+        return win @ h.real + 1j * (win @ h.imag)
 
 
 def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags: np.ndarray):
@@ -155,9 +173,54 @@ def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags:
     return both[:, :, :cb], both[:, :, cb:]
 
 
+def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`lag_products` of one filter with itself at the lags ``0 .. 2 p - 1`` only, on half
+    the DFT points: two arrays of shape (2 p, cols, cols).
+
+    ``sum_(a,b) h(a)^T R(l + b - a) conj h(b)`` is split as ``sum_a h(a)^T Q(l - a)`` with
+    ``Q(c) = sum_b R(c + b) conj h(b)`` (``r`` columns per filter column: cheap on ``8 p`` points),
+    kept at ``|c| <= 2 p - 1``, the only ``c`` the lags ``0 .. 2 p - 1`` reach, so the outer sum
+    needs ``4 p`` points, not ``8 p``.  Of the pairs with a window sticking out of a record,
+    only those at ``l >= 0`` are formed (at a head the first window is outside, at a tail the
+    second), and none of them wraps on ``4 p`` points.
+    """
+    p = f.h.shape[0] // 2
+    n, n2, half = S.shape[0], 4 * p, 2 * p - 1
+    c = f.h.shape[2]
+    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo
+    H_rev = np.roll(f.H[::-1], 1, axis=0)
+    Q = np.fft.ifft(np.matmul(S, np.concatenate([np.conj(f.H), H_rev], axis=2)), axis=0)
+    Q2 = np.zeros((n2,) + Q.shape[1:], dtype=complex)
+    Q2[: half + 1] = Q[: half + 1]
+    Q2[n2 - half :] = Q[n - half :]
+    zero = np.zeros((half, c), dtype=complex)
+    xs, ys = [], []
+    for samples in stats.heads:
+        # the first window outside (t < 0), the second anywhere: t + l <= 2p - 2, no wrap
+        x = f.edge_series(samples, True)
+        xs.append(np.concatenate([x[:half], zero]))
+        ys.append(np.hstack([np.conj(x), x]))
+    for samples in stats.tails:
+        # the second window outside (t + l >= K), the first anywhere: t + l <= 4p - 3, no wrap
+        x = f.edge_series(samples, False)
+        outer = np.concatenate([zero, x[half:]])
+        xs.append(x)
+        ys.append(np.hstack([np.conj(outer), outer]))
+    # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T, X~(w) = sum_t x_t e^(+i w t)
+    Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
+    Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
+    left = np.concatenate([f.H[:: n // n2].transpose(0, 2, 1), -Xt], axis=2)  # H on 4p points: every 2nd
+    right = np.concatenate([np.fft.fft(Q2, axis=0), Y], axis=1)
+    both = np.empty((2 * p, c, 2 * c), dtype=complex)
+    step = max(1, BLOCK_ENTRIES // (n2 * right.shape[2]))  # a few MB per block: it stays in cache
+    for lo in range(0, c, step):
+        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[: 2 * p]
+    return both[:, :, :c], both[:, :, c:]
+
+
 def overlap_response_covariance(
     theta: np.ndarray,
-    column_cov: np.ndarray,
+    column_cov: np.ndarray | Callable[[np.ndarray], np.ndarray],
     stats: WindowLags,
     n_windows: float,
     horizon: int,
@@ -172,8 +235,9 @@ def overlap_response_covariance(
     ----------
     theta : ndarray of shape (p q, d)
         Posterior mean in the coordinates of ``lag_corr``.
-    column_cov : ndarray of shape (d, d)
-        ``P`` (the inverse of the posterior information ``sum x x^T + P_0^-1``), same coordinates.
+    column_cov : ndarray of shape (d, d), or a callable
+        ``P`` (the inverse of the posterior information ``sum x x^T + P_0^-1``), same coordinates,
+        or ``V -> P V`` (a solve with the information: no inverse formed).
     stats : WindowLags
         Of the records, in the same coordinates.
     n_windows : float
@@ -192,26 +256,33 @@ def overlap_response_covariance(
     n = 8 * p  # > 8 p - 4: no lag |l| <= 2p - 1 wraps (module docstring)
     S = lag_spectrum(stats.lags, n)
     # lags 0 .. 2p - 1 only: the products at -l are those at l transposed (and conjugated for cov)
-    lags = np.arange(2 * p)
     # a_t = (P V)^T x_t: the regressor filter, one column per (k, j)
-    fa = WindowFilter(column_cov @ V, xi, p, r, n)
-    A_c, A_p = (a.reshape(lags.size, nz, m, nz, m) for a in lag_products(fa, fa, S, stats, lags))
+    PV = column_cov(V) if callable(column_cov) else column_cov @ V
+    A_c, A_p = self_lag_products(WindowFilter(PV, xi, p, r, n), S, stats)
     # b_t = L^+ (y_p - theta x)_t: the residual filter, one column per (k, i)
     E = np.zeros((p * q, 2 * p * r))
     E[:, yi] = np.eye(p * q)
     E[:, xi] = -theta
     fb = WindowFilter(E.T @ Lp.reshape(nz * q, p * q).T, np.arange(2 * p * r), p, r, n)
+    B_c, B_p = self_lag_products(fb, S, stats)
     dof = max(float(n_windows) - d, 1.0)
-    B_c, B_p = (b.reshape(lags.size, nz, q, nz, q) / dof for b in lag_products(fb, fb, S, stats, lags))
+    # sum over l >= 0 of B(l) (.) A(l), lag 0 at half weight; the negative lags add its (conjugate) transpose
+    half_c = lag_sum(B_c, A_c, nz, q, m) / dof
+    half_p = lag_sum(B_p, A_p, nz, q, m) / dof
+    return G, half_c + np.conj(half_c).T, half_p + half_p.T
+
+
+def lag_sum(B: np.ndarray, A: np.ndarray, nz: int, q: int, m: int) -> np.ndarray:
+    """``sum_l w_l B(l)[(k,i),(k',i')] A(l)[(k,j),(k',j')]`` over the lags of ``B`` and ``A``
+    (shapes (n_lags, nz q, nz q) and (n_lags, nz m, nz m)), ``w_0 = 1/2``, else 1, as a matrix
+    over ``(k, i, j)`` x ``(k', i', j')``: one product over the lags per pair ``(k, k')``."""
+    L = B.shape[0]
+    Bt = B.reshape(L, nz, q, nz, q).transpose(1, 3, 2, 4, 0).reshape(nz, nz, q * q, L)
+    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 0, 2, 4).reshape(nz, nz, L, m * m)
+    At[:, :, 0] *= 0.5
+    out = np.matmul(Bt, At).reshape(nz, nz, q, q, m, m)
     N = nz * q * m
-    # sum over l >= 1 of B(l) (.) A(l); the negative lags add its (conjugate) transpose
-    half_c = np.einsum("ckilx,ckjly->kijlxy", B_c[1:], A_c[1:], optimize=True).reshape(N, N)
-    half_p = np.einsum("ckilx,ckjly->kijlxy", B_p[1:], A_p[1:], optimize=True).reshape(N, N)
-    zero_c = np.einsum("kilx,kjly->kijlxy", B_c[0], A_c[0]).reshape(N, N)
-    zero_p = np.einsum("kilx,kjly->kijlxy", B_p[0], A_p[0]).reshape(N, N)
-    cov = zero_c + half_c + np.conj(half_c).T
-    pseudo = zero_p + half_p + half_p.T
-    return G, cov, pseudo
+    return out.transpose(0, 2, 4, 1, 3, 5).reshape(N, N)
 
 
 def response_directions(
