@@ -18,6 +18,7 @@ is 1 for a calibrated std.  Cases:
 
     .venv/bin/python studies/uncertainty/run_study.py [n_seeds] [case ...] [--horizon=P]
         [--overlap=exact|inflate] [--bias=local|none] [--columns=N] [--grid=modes|even]
+        [--first-seed=K] [--stage-offset=K]
 
 ``--bias`` is the realisation-misfit term of the Hankel-MAP bands (default ``local``, as the
 library), ``--columns`` the exact covariance's column cap (``MAX_OVERLAP_COLUMNS``), ``--grid``
@@ -58,6 +59,10 @@ BIAS = "local"
 GRID = "modes"
 #: Suffix of the output file (the column cap, when ``--columns=N`` is given).
 TAG = ""
+#: Noise seeds are FIRST_SEED .. FIRST_SEED + n - 1 (--first-seed=K: fresh noise on the same stages).
+FIRST_SEED = 0
+#: Added to the random stages' seeds (--stage-offset=K: stages no one has looked at).
+STAGE_OFFSET = 0
 
 
 def p558(seed: int):
@@ -77,7 +82,7 @@ def p558_channels(seed: int):
 
 
 def random_case(seed: int):
-    g = random_stage(8 + seed % 2, m=1, q=2, modes=2)
+    g = random_stage(STAGE_OFFSET + 8 + seed % 2, m=1, q=2, modes=2)
     exp = record(g, band_limited(6000, 1, g.dt, seed), 0.02, seed, names=False)
     t = time.perf_counter()
     res = HankelMAP(horizon=25, order=4).fit(exp)
@@ -85,7 +90,7 @@ def random_case(seed: int):
 
 
 def random_mimo(seed: int):
-    g = random_stage(21 + seed % 2)  # 2x2, four resonances at 8-90 Hz, 0.5-3 % damping
+    g = random_stage(STAGE_OFFSET + 21 + seed % 2)  # 2x2, four resonances at 8-90 Hz, 0.5-3 % damping
     exp = record(g, band_limited(20000, 2, g.dt, seed), 0.01, seed, names=False)
     t = time.perf_counter()
     res = HankelMAP(order=g.n_states).fit(exp)
@@ -94,7 +99,7 @@ def random_mimo(seed: int):
 
 def random_siso(seed: int):
     # unseen: SISO stages with three resonances, 8000 samples, 3 % noise (seeds 31-32)
-    g = random_stage(31 + seed % 2, m=1, q=1, modes=3)
+    g = random_stage(STAGE_OFFSET + 31 + seed % 2, m=1, q=1, modes=3)
     exp = record(g, band_limited(8000, 1, g.dt, seed), 0.03, seed, names=False)
     t = time.perf_counter()
     res = HankelMAP(order=g.n_states).fit(exp)
@@ -103,7 +108,7 @@ def random_siso(seed: int):
 
 def random_3x2(seed: int):
     # unseen: 3 outputs, 2 inputs, three resonances, 12000 samples, 1 % noise (seeds 41-42)
-    g = random_stage(41 + seed % 2, m=2, q=3, modes=3)
+    g = random_stage(STAGE_OFFSET + 41 + seed % 2, m=2, q=3, modes=3)
     exp = record(g, band_limited(12000, 2, g.dt, seed), 0.01, seed, names=False)
     t = time.perf_counter()
     res = HankelMAP(order=g.n_states).fit(exp)
@@ -146,7 +151,7 @@ CASES = {
 
 def run(case: str, n_seeds: int) -> dict:
     z, ratio, t_fit, t_unc = [], [], [], []
-    for seed in range(n_seeds):
+    for seed in range(FIRST_SEED, FIRST_SEED + n_seeds):
         g, res, tf = CASES[case](seed)
         t = time.perf_counter()
         if isinstance(res, FRDResultTypes):
@@ -190,7 +195,7 @@ def run(case: str, n_seeds: int) -> dict:
 
 
 def main() -> None:
-    global HORIZON, OVERLAP, FRDResultTypes, TAG, BIAS, GRID
+    global HORIZON, OVERLAP, FRDResultTypes, TAG, BIAS, GRID, FIRST_SEED, STAGE_OFFSET
     from stageid.frf.identification import FRDResult
 
     FRDResultTypes = (FRDResult,)
@@ -206,6 +211,12 @@ def main() -> None:
         if a.startswith("--grid="):
             GRID = a.split("=", 1)[1]
             TAG += f"-grid-{GRID}"
+        if a.startswith("--first-seed="):
+            FIRST_SEED = int(a.split("=", 1)[1])
+            TAG += f"-from{FIRST_SEED}"
+        if a.startswith("--stage-offset="):
+            STAGE_OFFSET = int(a.split("=", 1)[1])
+            TAG += f"-stages+{STAGE_OFFSET}"
         if a.startswith("--columns="):  # the exact covariance's column cap (default MAX_OVERLAP_COLUMNS)
             import stageid.subspace.uncertainty as unc
 

@@ -39,10 +39,9 @@ study was run with it):
    weight of a kept frequency is the number of the fit's frequencies nearer to it than to
    any other kept one (halves at ties).
 
-No constant of the rule was set from a coverage figure; the measured effect is in
-``studies/uncertainty/RESULTS.md`` (the first version took the quantiles at
-``(k + 1/2) / budget``: the band's ends were then outside the grid, where the bias term of
-:mod:`.realisation_bias` extrapolates, and it widened some bands there 10-170x).
+No constant of the rule was set from a coverage figure; the measured effect, and why the band's
+ends are kept (the bias term of :mod:`.realisation_bias` would extrapolate there), are in
+``studies/uncertainty/RESULTS.md``.
 """
 
 from __future__ import annotations
