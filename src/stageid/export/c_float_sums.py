@@ -50,20 +50,24 @@ LANES = 4
 _PASS_FLOAT = """\
 /* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
    the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
-   The terms in one loop (it vectorises as the double pass does), then LANES independent sums
-   keeping the rounding errors of their additions (TwoSum; a vector of floats at a time). */
+   Every sum in LANES independent lanes (a vector of floats at a time: an in-order sum would put
+   one scalar addition per operator on the critical path); the terms' sum keeps the rounding
+   errors of its additions (TwoSum) in a second loop (in the first, gcc -O3 did not vectorise). */
 static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
 {
-    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, lo = 0.0f, s = 0.0f;
+    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, sl[${p}_LANES] = {0.0f};
     int i, k;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
+        for (k = 0; k < ${p}_LANES; ++k) {
+            const int j = i + k;
 ${branch}
-        const ${T} v = ${new_output};
-        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
-        zn[i] = v;
-        pr[i] = ${p}_w[i] * v;
-        lo += ${p}_w_lo[i] * v;  /* the part of the double weight its float misses */
-        s += moves ? ${p}_w[i] : 0.0f;
+            const ${T} v = ${new_output};
+            const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+            zn[j] = v;
+            pr[j] = ${p}_w[j] * v;
+            e[k] += ${p}_w_lo[j] * v;  /* the part of the double weight its float misses */
+            sl[k] += moves ? ${p}_w[j] : 0.0f;
+        }
     }
     for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
         for (k = 0; k < ${p}_LANES; ++k) {
@@ -72,8 +76,7 @@ ${branch}
             f[k] = t;
         }
     }
-    *slope = s;
-    e[0] += lo;
+    *slope = (sl[0] + sl[1]) + (sl[2] + sl[3]);
     return ${p}_lanes(f, e, target, target_lo);
 }
 """
@@ -125,7 +128,10 @@ def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
 
 def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
     """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``)."""
-    return _fill(_PASS_FLOAT, ctype, prefix, **direction)
+    # the operator loop runs in blocks of LANES: operator j = i + k, one level deeper
+    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}
+    fields["branch"] = "\n".join("    " + line for line in fields["branch"].splitlines())
+    return _fill(_PASS_FLOAT, ctype, prefix, **fields)
 
 
 def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
