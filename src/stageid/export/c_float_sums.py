@@ -49,35 +49,33 @@ LANES = 4
 
 _PASS_FLOAT = """\
 /* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
-   the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
-   Every sum in LANES independent lanes (a vector of floats at a time: an in-order sum would put
-   one scalar addition per operator on the critical path); the terms' sum keeps the rounding
-   errors of its additions (TwoSum) in a second loop (in the first, gcc -O3 did not vectorise). */
-static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
+   the target), the operator outputs there (zn), the slope of F ${beyond} x and the size of the
+   terms' roundings (err).  ${why}
+   Every sum in LANES lanes, operator j in lane j % LANES: entry j + LANES of each array is the lane's
+   sum up to operator j, a recurrence of distance LANES that vectorises (gcc -O2 and -O3) without
+   reordering a sum; the terms' sum keeps the rounding error of every addition (TwoSum) in E. */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo, ${T} *err)
 {
-    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, sl[${p}_LANES] = {0.0f};
-    int i, k;
-    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
-        for (k = 0; k < ${p}_LANES; ++k) {
-            const int j = i + k;
+    ${T} F[${p}_N_OPERATORS + ${p}_LANES], E[${p}_N_OPERATORS + ${p}_LANES];
+    ${T} S[${p}_N_OPERATORS + ${p}_LANES], A[${p}_N_OPERATORS + ${p}_LANES];
+    const int n = ${p}_N_OPERATORS;
+    int j;
+    for (j = 0; j < ${p}_LANES; ++j) F[j] = E[j] = S[j] = A[j] = 0.0f;  /* the lanes start at 0 (an initialiser would clear all: rep stos at -O2) */
+    for (j = 0; j < ${p}_N_OPERATORS; ++j) {
 ${branch}
-            const ${T} v = ${new_output};
-            const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
-            zn[j] = v;
-            pr[j] = ${p}_w[j] * v;
-            e[k] += ${p}_w_lo[j] * v;  /* the part of the double weight its float misses */
-            sl[k] += moves ? ${p}_w[j] : 0.0f;
-        }
+        const ${T} v = ${new_output};
+        const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
+        const ${T} pr = ${p}_w[j] * v, t = F[j] + pr;
+        zn[j] = v;
+        /* the addition's error, and the part of the double weight its float misses */
+        E[j + ${p}_LANES] = E[j] + ${p}_sum_error(F[j], pr, t) + ${p}_w_lo[j] * v;
+        F[j + ${p}_LANES] = t;
+        S[j + ${p}_LANES] = S[j] + (moves ? ${p}_w[j] : 0.0f);
+        A[j + ${p}_LANES] = A[j] + (pr < 0.0f ? -pr : pr);  /* sum |w_i v_i| */
     }
-    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
-        for (k = 0; k < ${p}_LANES; ++k) {
-            const ${T} t = f[k] + pr[i + k];
-            e[k] += ${p}_sum_error(f[k], pr[i + k], t);
-            f[k] = t;
-        }
-    }
-    *slope = (sl[0] + sl[1]) + (sl[2] + sl[3]);
-    return ${p}_lanes(f, e, target, target_lo);
+    *slope = (S[n] + S[n + 1]) + (S[n + 2] + S[n + 3]);
+    *err = ${p}_TERMS_ROUNDING * ((A[n] + A[n + 1]) + (A[n + 2] + A[n + 3]));
+    return ${p}_lanes(F + n, E + n, target, target_lo);
 }
 """
 
@@ -95,6 +93,10 @@ _TARGET_FLOAT = """\
 # a move whose drive change |d0| / slope is within RESOLUTION (|x| + R_MAX) is none (the slope on the
 # side of travel: of the last move, or right after a turn TURN_SLOPE)
 _MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
+
+# the solve stops where F - target is within the roundings of its terms (u |w_i v_i|: the product
+# and the operator output x - r_i, half an ulp each): a Newton step from there only chases them
+_STOP_FLOAT = "${p}_max(${p}_error(xn), at->err)"
 
 _STORE_FLOAT = """\
         s->f = target + p->f;  /* F at x as a pair: the target plus the answer's F - target */
@@ -128,9 +130,7 @@ def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
 
 def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
     """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``)."""
-    # the operator loop runs in blocks of LANES: operator j = i + k, one level deeper
-    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}
-    fields["branch"] = "\n".join("    " + line for line in fields["branch"].splitlines())
+    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}  # (j: i names no operator here)
     return _fill(_PASS_FLOAT, ctype, prefix, **fields)
 
 
@@ -150,6 +150,11 @@ def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
         "at_edge": "",
         "target": _fill("    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;\n", ctype, prefix),
         "store_f": "        s->f = p->f;",
+        "err_param": "",
+        "err_arg": "",
+        "err_member": "",
+        "err_at": "",
+        "stop": _fill("${p}_error(xn)", ctype, prefix),
     }
 
 
@@ -172,6 +177,11 @@ def float_fragments(ctype: CType, prefix: str) -> dict[str, str]:
         ),
         "target": _fill(_TARGET_FLOAT, ctype, prefix),
         "store_f": _fill(_STORE_FLOAT, ctype, prefix),
+        "err_param": f", {t} *err",
+        "err_arg": ", err",
+        "err_member": ", err",
+        "err_at": ", &at->err",
+        "stop": _fill(_STOP_FLOAT, ctype, prefix),
     }
 
 
@@ -189,6 +199,7 @@ def float_constants(weights: np.ndarray, output_offset: float, rounding: float, 
         *const_tables(p, ctype, w_lo=np.asarray(weights, dtype=float) - w32),
         define(p, "OUTPUT_OFFSET_LO", off, ctype),
         define(p, "RESOLUTION", rounding * 2.0**-24, ctype),
+        define(p, "TERMS_ROUNDING", 2.0**-24, ctype),
         f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */",
     ]
 
@@ -198,8 +209,9 @@ def init_f(ctype: CType, p: str) -> str:
     if not ctype.is_float:
         return f"        s->f = {p}_move(1.0, s->x, s->z, scratch, &s->slope);\n"
     return (
-        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f);\n"
-        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f);\n"
+        f"        {ctype.name} err;\n"
+        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f, &err);\n"
+        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f, &err);\n"
     )
 
 
