@@ -199,7 +199,7 @@ def float_constants(weights: np.ndarray, output_offset: float, rounding: float, 
         *const_tables(p, ctype, w_lo=np.asarray(weights, dtype=float) - w32),
         define(p, "OUTPUT_OFFSET_LO", off, ctype),
         define(p, "RESOLUTION", rounding * 2.0**-24, ctype),
-        define(p, "TERMS_ROUNDING", 2.0**-24, ctype),
+        define(p, "TERMS_ROUNDING", 2.0**-25, ctype),
         f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */",
     ]
 
