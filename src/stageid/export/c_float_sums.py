@@ -9,17 +9,22 @@ up to a few 1e-5 of its range.  The single-precision code therefore computes ``F
 itself, never forming F (Ogita, Rump and Oishi's Sum2, SIAM J. Sci. Comput. 26, 2005):
 
 * the target less the output offset as a pair (Knuth's ``TwoSum``; the offset as two floats);
-* the terms ``w_i v_i`` in one loop that vectorises as the double pass does, then summed in
-  ``LANES`` independent sums that keep the rounding error of every addition (``TwoSum``), the
-  lanes and ``-target`` last in the same way; ``w_lo v`` adds the part of the double weight its
-  float misses (summed inside the first loop, the lanes kept gcc -O3 from vectorising it);
+* the terms ``w_i v_i`` summed in ``LANES`` independent sums that keep the rounding error of
+  every addition (``TwoSum``), the lanes and ``-target`` last in the same way; ``w_lo v`` adds
+  the part of the double weight its float misses.  Each lane is a recurrence of distance
+  ``LANES`` over arrays in the operator loop (entry ``j + LANES`` the lane's sum up to operator
+  ``j``): gcc vectorises it at -O2 and -O3 without reordering a sum, where lane arrays reduced
+  in a nested loop were outer-loop vectorised or unrolled to scalar code at -O3;
 * the state keeps F at its input as a pair (``f``, ``f_lo``).
 
 ``F(x) - target`` then carries about one rounding of itself plus the roundings of the terms
 ``u / 2 |w_i v_i|``, which are the size of the roundings of the operator outputs ``v_i = x - r_i``
 themselves (so exact products, ``TwoProduct``, were tried and left out: the same errors within
-noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops at ``RESOLUTION (|x| + max r)`` in the drive
-(half an ulp of ``|x| + max r``), the skip test uses the slope on the side of travel.  The
+noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops where ``|F - target|`` is
+within ``RESOLUTION SMIN (|x| + max r)`` (half an ulp of ``|x| + max r`` in the drive) or within
+the products' roundings ``u / 2 sum |w_i v_i|`` (the pass sums them too): a Newton step from
+there only chases those roundings, and it cost a second pass on a quarter of a slow sine's
+samples.  The skip test uses the slope on the side of travel.  The
 transformations need IEEE single arithmetic evaluated as written (``FLT_EVAL_METHOD`` 0, no
 ``-ffast-math``); a fused multiply-add the compiler forms from a product and the sum after it
 leaves the result within the tolerance (tested with ``-ffp-contract=fast -march=native``).
@@ -94,8 +99,8 @@ _TARGET_FLOAT = """\
 # side of travel: of the last move, or right after a turn TURN_SLOPE)
 _MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
 
-# the solve stops where F - target is within the roundings of its terms (u |w_i v_i|: the product
-# and the operator output x - r_i, half an ulp each): a Newton step from there only chases them
+# the solve also stops where F - target is within the products' roundings (u / 2 sum |w_i v_i|, the
+# pass's err): a Newton step from there only chases them (u: seed 0's ill-conditioned walk 2x off)
 _STOP_FLOAT = "${p}_max(${p}_error(xn), at->err)"
 
 _STORE_FLOAT = """\
@@ -192,7 +197,7 @@ def float_helpers(ctype: CType, prefix: str) -> str:
 
 def float_constants(weights: np.ndarray, output_offset: float, rounding: float, ctype: CType, p: str) -> list[str]:
     """The part of each (padded) weight and of the output offset a float misses, ``RESOLUTION``
-    (``rounding`` units of ``2**-24``) and ``LANES``."""
+    (``rounding`` units of ``2**-24``), ``TERMS_ROUNDING`` (``u / 2``) and ``LANES``."""
     w32 = np.asarray(weights, dtype=float).astype(np.float32).astype(float)
     off = output_offset - float(np.float32(output_offset))
     return [
