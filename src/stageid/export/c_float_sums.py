@@ -72,8 +72,8 @@ ${branch}
         const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
         const ${T} pr = ${p}_w[j] * v, t = F[j] + pr;
         zn[j] = v;
-        /* the addition's error, the product's (with a fast fmaf) and the part of the double weight its float misses */
-        E[j + ${p}_LANES] = E[j] + ${p}_sum_error(F[j], pr, t) + (${p}_PRODUCT_ERROR(${p}_w[j], v, pr) + ${p}_w_lo[j] * v);
+        /* the addition's error, and the part of the double weight its float misses */
+        E[j + ${p}_LANES] = E[j] + ${p}_sum_error(F[j], pr, t) + ${p}_w_lo[j] * v;
         F[j + ${p}_LANES] = t;
         S[j + ${p}_LANES] = S[j] + (moves ? ${p}_w[j] : 0.0f);
         A[j + ${p}_LANES] = A[j] + (pr < 0.0f ? -pr : pr);  /* sum |w_i v_i| */
@@ -108,14 +108,6 @@ _STORE_FLOAT = """\
         s->f_lo = ${p}_sum_error(target, p->f, s->f) + target_lo;"""
 
 _HELPERS_FLOAT = """\
-/* The rounding error of a * b (= ab rounded), exactly, where a fused multiply-add is an instruction
-   (TwoProduct; fewer second passes on ill-conditioned models); else the product stays rounded. */
-#if defined(FP_FAST_FMAF)
-#define ${p}_PRODUCT_ERROR(a, b, ab) fmaf(a, b, -(ab))
-#else
-#define ${p}_PRODUCT_ERROR(a, b, ab) (-0.0f) /* x + -0 is x: the compiler drops the addition */
-#endif
-
 /* The rounding error of t = a + b, exactly (Knuth's TwoSum). */
 static ${T} ${p}_sum_error(${T} a, ${T} b, ${T} t)
 {

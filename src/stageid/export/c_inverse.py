@@ -463,7 +463,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     curve = reversal_curve(model, keep, ctype, p)
     consts += curve[0] if curve else []
     warp_consts, drive = _drive(model, limits, ctype, p)
-    uses_math = ctype.is_float or model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))  # (fmaf)
+    uses_math = model.input_warp != 0.0 or not (np.isfinite(lo) and np.isfinite(hi))
     return {
         "title": "compensator of a modified Prandtl-Ishlinskii model (per-sample inversion)",
         "members": f"    {T} z[{padded}];  /* outputs of the operators of nonzero weight (then padding) */\n"
