@@ -23,8 +23,8 @@ themselves (so exact products, ``TwoProduct``, were tried and left out: the same
 noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops where ``|F - target|`` is
 within ``RESOLUTION SMIN (|x| + max r)`` (half an ulp of ``|x| + max r`` in the drive) or within
 the products' roundings ``u / 2 sum |w_i v_i|`` (the pass sums them too): a Newton step from
-there only chases those roundings, and it cost a second pass on a quarter of a slow sine's
-samples.  The skip test uses the slope on the side of travel.  The
+there only chases those roundings, at the cost of a second pass.  The skip test uses the slope
+on the side of travel.  The
 transformations need IEEE single arithmetic evaluated as written (``FLT_EVAL_METHOD`` 0, no
 ``-ffast-math``); a fused multiply-add the compiler forms from a product and the sum after it
 leaves the result within the tolerance (tested with ``-ffp-contract=fast -march=native``).
@@ -78,7 +78,7 @@ ${branch}
         S[j + ${p}_LANES] = S[j] + (moves ? ${p}_w[j] : 0.0f);
         A[j + ${p}_LANES] = A[j] + (pr < 0.0f ? -pr : pr);  /* sum |w_i v_i| */
     }
-    *slope = (S[n] + S[n + 1]) + (S[n + 2] + S[n + 3]);
+    *slope = (S[n] + S[n + 1]) + (S[n + 2] + S[n + 3]);  /* the LANES (4) lanes */
     *err = ${p}_TERMS_ROUNDING * ((A[n] + A[n + 1]) + (A[n + 2] + A[n + 3]));
     return ${p}_lanes(F + n, E + n, target, target_lo);
 }
@@ -100,7 +100,8 @@ _TARGET_FLOAT = """\
 _MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
 
 # the solve also stops where F - target is within the products' roundings (u / 2 sum |w_i v_i|, the
-# pass's err): a Newton step from there only chases them (u: seed 0's ill-conditioned walk 2x off)
+# pass's err): a Newton step from there only chases them (u / 2, not u: with u the ill-conditioned
+# walks lost accuracy, benchmarks/RESULTS-export.md)
 _STOP_FLOAT = "${p}_max(${p}_error(xn), at->err)"
 
 _STORE_FLOAT = """\
