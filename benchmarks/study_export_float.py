@@ -1,7 +1,7 @@
 """How far the ``--float`` compensator lands from ``stageid compensate``, over many random models.
 
 Run:  nice .venv/bin/python benchmarks/study_export_float.py [--models 500] [--seed 2026]
-      [--samples 400] [--double] [--json out.json]
+      [--samples 400] [--double] [--json out.json] [--cflags "-O2 -march=native"]
 
 The models, drive limits and references are the stream of ``tests/test_export_c.py``
 (``random_cases``: PI and modified-PI compensators with 2-24 operators, weights 0 or slightly
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 import tempfile
 from pathlib import Path
@@ -48,11 +49,13 @@ def conditioning(model) -> float:
     return float(np.sum(np.abs(w)) / smin)
 
 
-def one_case(k, model, limits, y, folder: Path, double: bool) -> dict:
+def one_case(k, model, limits, y, folder: Path, double: bool, flags: tuple[str, ...] = ("-O2",)) -> dict:
     comp = Compensator(model, limits)
     drive = comp.run(y)[:, 0]
     drive_in_f = Compensator(model, limits).run(y.astype(np.float32).astype(float))[:, 0]
-    drive_c = build(export_c(model, f"f{k}", inverse=True, limits=limits, single=True), folder).run(y)[:, 0]
+    drive_c = build(export_c(model, f"f{k}", inverse=True, limits=limits, single=True), folder, flags=flags).run(y)[
+        :, 0
+    ]
     scale = float_tolerance(drive) / 1e-5  # the range, or the floor of a (nearly) constant drive
     span = float(np.ptp(drive))
     row = {
@@ -107,15 +110,16 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=400)
     ap.add_argument("--double", action="store_true", help="also check the double export")
     ap.add_argument("--json", type=Path, help="write every model's figures here")
+    ap.add_argument("--cflags", default="-O2", help="flags of the float build (-march=native: fmaf products)")
     args = ap.parse_args(argv)
     cases = random_cases(args.seed, range(args.models), args.samples)
     rows = []
     with tempfile.TemporaryDirectory(prefix="study_float_") as tmp:
         for k, (model, limits, y) in cases.items():
-            rows.append(one_case(k, model, limits, y, Path(tmp), args.double))
+            rows.append(one_case(k, model, limits, y, Path(tmp), args.double, tuple(shlex.split(args.cflags))))
             for lib in Path(tmp).glob("*"):  # one model at a time: keep the folder small
                 lib.unlink()
-    print(f"# seed {args.seed}, {args.models} models, references of {args.samples} samples")
+    print(f"# seed {args.seed}, {args.models} models, references of {args.samples} samples; {args.cflags}")
     print(summary(rows))
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

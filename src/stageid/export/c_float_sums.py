@@ -9,17 +9,22 @@ up to a few 1e-5 of its range.  The single-precision code therefore computes ``F
 itself, never forming F (Ogita, Rump and Oishi's Sum2, SIAM J. Sci. Comput. 26, 2005):
 
 * the target less the output offset as a pair (Knuth's ``TwoSum``; the offset as two floats);
-* the terms ``w_i v_i`` in one loop that vectorises as the double pass does, then summed in
-  ``LANES`` independent sums that keep the rounding error of every addition (``TwoSum``), the
-  lanes and ``-target`` last in the same way; ``w_lo v`` adds the part of the double weight its
-  float misses (summed inside the first loop, the lanes kept gcc -O3 from vectorising it);
+* the terms ``w_i v_i`` summed in ``LANES`` independent sums that keep the rounding error of
+  every addition (``TwoSum``), the lanes and ``-target`` last in the same way; ``w_lo v`` adds
+  the part of the double weight its float misses.  Each lane is a recurrence of distance
+  ``LANES`` over arrays in the operator loop (entry ``j + LANES`` the lane's sum up to operator
+  ``j``): gcc vectorises it at -O2 and -O3 without reordering a sum, where lane arrays reduced
+  in a nested loop were outer-loop vectorised or unrolled to scalar code at -O3;
 * the state keeps F at its input as a pair (``f``, ``f_lo``).
 
 ``F(x) - target`` then carries about one rounding of itself plus the roundings of the terms
 ``u / 2 |w_i v_i|``, which are the size of the roundings of the operator outputs ``v_i = x - r_i``
 themselves (so exact products, ``TwoProduct``, were tried and left out: the same errors within
-noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops at ``RESOLUTION (|x| + max r)`` in the drive
-(half an ulp of ``|x| + max r``), the skip test uses the slope on the side of travel.  The
+noise; figures in ``benchmarks/RESULTS-export.md``).  The solve stops where ``|F - target|`` is
+within ``RESOLUTION SMIN (|x| + max r)`` (half an ulp of ``|x| + max r`` in the drive) or within
+the products' roundings ``u / 2 sum |w_i v_i|`` (the pass sums them too): a Newton step from
+there only chases those roundings, at the cost of a second pass.  The skip test uses the slope
+on the side of travel.  The
 transformations need IEEE single arithmetic evaluated as written (``FLT_EVAL_METHOD`` 0, no
 ``-ffast-math``); a fused multiply-add the compiler forms from a product and the sum after it
 leaves the result within the tolerance (tested with ``-ffp-contract=fast -march=native``).
@@ -49,32 +54,33 @@ LANES = 4
 
 _PASS_FLOAT = """\
 /* F(x) - target with F(x) = sum_i w_i CP_i(x; z_i), for x ${side} the state's input (target + target_lo
-   the target), the operator outputs there (zn) and the slope of F ${beyond} x.  ${why}
-   The terms in one loop (it vectorises as the double pass does), then LANES independent sums
-   keeping the rounding errors of their additions (TwoSum; a vector of floats at a time). */
-static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo)
+   the target), the operator outputs there (zn), the slope of F ${beyond} x and the size of the
+   terms' roundings (err).  ${why}
+   Every sum in LANES lanes, operator j in lane j % LANES: entry j + LANES of each array is the lane's
+   sum up to operator j, a recurrence of distance LANES that vectorises (gcc -O2 and -O3) without
+   reordering a sum; the terms' sum keeps the rounding error of every addition (TwoSum) in E. */
+static ${T} ${p}_${name}(${T} x, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope, ${T} target, ${T} target_lo, ${T} *err)
 {
-    ${T} pr[${p}_N_OPERATORS], f[${p}_LANES] = {0.0f}, e[${p}_LANES] = {0.0f}, lo = 0.0f, s = 0.0f;
-    int i, k;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {
+    ${T} F[${p}_N_OPERATORS + ${p}_LANES], E[${p}_N_OPERATORS + ${p}_LANES];
+    ${T} S[${p}_N_OPERATORS + ${p}_LANES], A[${p}_N_OPERATORS + ${p}_LANES];
+    const int n = ${p}_N_OPERATORS;
+    int j;
+    for (j = 0; j < ${p}_LANES; ++j) F[j] = E[j] = S[j] = A[j] = 0.0f;  /* the lanes start at 0 (an initialiser would clear all: rep stos at -O2) */
+    for (j = 0; j < ${p}_N_OPERATORS; ++j) {
 ${branch}
         const ${T} v = ${new_output};
         const int moves = (${on_branch}) & (${moves});  /* on the branch, where it has slope 1 */
-        zn[i] = v;
-        pr[i] = ${p}_w[i] * v;
-        lo += ${p}_w_lo[i] * v;  /* the part of the double weight its float misses */
-        s += moves ? ${p}_w[i] : 0.0f;
+        const ${T} pr = ${p}_w[j] * v, t = F[j] + pr;
+        zn[j] = v;
+        /* the addition's error, and the part of the double weight its float misses */
+        E[j + ${p}_LANES] = E[j] + ${p}_sum_error(F[j], pr, t) + ${p}_w_lo[j] * v;
+        F[j + ${p}_LANES] = t;
+        S[j + ${p}_LANES] = S[j] + (moves ? ${p}_w[j] : 0.0f);
+        A[j + ${p}_LANES] = A[j] + (pr < 0.0f ? -pr : pr);  /* sum |w_i v_i| */
     }
-    for (i = 0; i < ${p}_N_OPERATORS; i += ${p}_LANES) {
-        for (k = 0; k < ${p}_LANES; ++k) {
-            const ${T} t = f[k] + pr[i + k];
-            e[k] += ${p}_sum_error(f[k], pr[i + k], t);
-            f[k] = t;
-        }
-    }
-    *slope = s;
-    e[0] += lo;
-    return ${p}_lanes(f, e, target, target_lo);
+    *slope = (S[n] + S[n + 1]) + (S[n + 2] + S[n + 3]);  /* the LANES (4) lanes */
+    *err = ${p}_TERMS_ROUNDING * ((A[n] + A[n + 1]) + (A[n + 2] + A[n + 3]));
+    return ${p}_lanes(F + n, E + n, target, target_lo);
 }
 """
 
@@ -92,6 +98,11 @@ _TARGET_FLOAT = """\
 # a move whose drive change |d0| / slope is within RESOLUTION (|x| + R_MAX) is none (the slope on the
 # side of travel: of the last move, or right after a turn TURN_SLOPE)
 _MOVED_FLOAT = "${p}_abs(d0) > ${p}_RESOLUTION * (${p}_abs(x) + ${p}_R_MAX) * ((d0 > 0.0f) == s->rising ? s->slope : ${p}_TURN_SLOPE)"
+
+# the solve also stops where F - target is within the products' roundings (u / 2 sum |w_i v_i|, the
+# pass's err): a Newton step from there only chases them (u / 2, not u: with u the ill-conditioned
+# walks lost accuracy, benchmarks/RESULTS-export.md)
+_STOP_FLOAT = "${p}_max(${p}_error(xn), at->err)"
 
 _STORE_FLOAT = """\
         s->f = target + p->f;  /* F at x as a pair: the target plus the answer's F - target */
@@ -125,7 +136,8 @@ def _fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
 
 def float_pass(direction: dict[str, str], ctype: CType, prefix: str) -> str:
     """The float pass of one direction (``direction``: the filled fields of ``_DIRECTIONS``)."""
-    return _fill(_PASS_FLOAT, ctype, prefix, **direction)
+    fields = {k: v.replace("[i]", "[j]") for k, v in direction.items()}  # (j: i names no operator here)
+    return _fill(_PASS_FLOAT, ctype, prefix, **fields)
 
 
 def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
@@ -144,6 +156,11 @@ def double_fragments(ctype: CType, prefix: str) -> dict[str, str]:
         "at_edge": "",
         "target": _fill("    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;\n", ctype, prefix),
         "store_f": "        s->f = p->f;",
+        "err_param": "",
+        "err_arg": "",
+        "err_member": "",
+        "err_at": "",
+        "stop": _fill("${p}_error(xn)", ctype, prefix),
     }
 
 
@@ -166,6 +183,11 @@ def float_fragments(ctype: CType, prefix: str) -> dict[str, str]:
         ),
         "target": _fill(_TARGET_FLOAT, ctype, prefix),
         "store_f": _fill(_STORE_FLOAT, ctype, prefix),
+        "err_param": f", {t} *err",
+        "err_arg": ", err",
+        "err_member": ", err",
+        "err_at": ", &at->err",
+        "stop": _fill(_STOP_FLOAT, ctype, prefix),
     }
 
 
@@ -176,13 +198,14 @@ def float_helpers(ctype: CType, prefix: str) -> str:
 
 def float_constants(weights: np.ndarray, output_offset: float, rounding: float, ctype: CType, p: str) -> list[str]:
     """The part of each (padded) weight and of the output offset a float misses, ``RESOLUTION``
-    (``rounding`` units of ``2**-24``) and ``LANES``."""
+    (``rounding`` units of ``2**-24``), ``TERMS_ROUNDING`` (``u / 2``) and ``LANES``."""
     w32 = np.asarray(weights, dtype=float).astype(np.float32).astype(float)
     off = output_offset - float(np.float32(output_offset))
     return [
         *const_tables(p, ctype, w_lo=np.asarray(weights, dtype=float) - w32),
         define(p, "OUTPUT_OFFSET_LO", off, ctype),
         define(p, "RESOLUTION", rounding * 2.0**-24, ctype),
+        define(p, "TERMS_ROUNDING", 2.0**-25, ctype),
         f"#define {p}_LANES {LANES}  /* independent sums of a pass (one vector of floats) */",
     ]
 
@@ -192,8 +215,9 @@ def init_f(ctype: CType, p: str) -> str:
     if not ctype.is_float:
         return f"        s->f = {p}_move(1.0, s->x, s->z, scratch, &s->slope);\n"
     return (
-        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f);\n"
-        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f);\n"
+        f"        {ctype.name} err;\n"
+        f"        s->f = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, 0.0f, 0.0f, &err);\n"
+        f"        s->f_lo = {p}_move(1.0f, s->x, s->z, scratch, &s->slope, s->f, 0.0f, &err);\n"
     )
 
 

@@ -148,9 +148,9 @@ _DIRECTIONS = {
 
 _MOVE = """\
 ${move_doc}
-static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params})
+static ${T} ${p}_move(${T} sg, ${T} m, const ${T} *restrict z, ${T} *restrict zn, ${T} *slope${shift_params}${err_param})
 {
-    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope${shift_args}) : -${p}_fall(-m, z, zn, slope${shift_args});
+    return sg > 0.0${f} ? ${p}_rise(m, z, zn, slope${shift_args}${err_arg}) : -${p}_fall(-m, z, zn, slope${shift_args}${err_arg});
 }
 """
 
@@ -162,14 +162,14 @@ static ${T} ${p}_error(${T} x) { return ${p}_ROUNDING * (${p}_abs(x) + ${p}_R_MA
 
 /* F, its slope on the side of travel (rising: right of x) and the operator outputs at an iterate. */
 typedef struct {
-    ${T} f, slope, z[${p}_N_OPERATORS];
+    ${T} f, slope${err_member}, z[${p}_N_OPERATORS];
     int rising;
 } ${p}_point;
 
 /* The pass at m = sg x into *at (${value} there, not sg ${value}); returns sg ${value}. */
 static ${T} ${p}_pass(${T} sg, ${T} m, const ${T} *z, ${p}_point *at${shift_params})
 {
-    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope${shift_args});
+    const ${T} fm = ${p}_move(sg, m, z, at->z, &at->slope${shift_args}${err_at});
     at->f = sg * fm;
     at->rising = sg > 0.0${f};
     return fm;
@@ -224,7 +224,7 @@ ${guess}        if (xn == mc) return it > 0;  /* the step is below the resolutio
         *x_out = sg * xn;
         mc = xn;
         sc = at->slope;
-        if (${p}_abs(fc - goal) <= ${p}_error(xn)) return 1;
+        if (${p}_abs(fc - goal) <= ${stop}) return 1;
         if (fc < goal) {
             near = xn;
             fnear = fc;
@@ -423,8 +423,9 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
     (:func:`stageid.hysteresis.compensator.residual_bound`).  In single precision the passes
     return ``F - target`` to about its own rounding (:mod:`.c_float_sums`), so the bound is
-    ``FLOAT_ROUNDING u SMIN (|x| + R_MAX)``: the drive is solved to a float's resolution, not to
-    a rounding bound of F (which would be ``1 / SMIN`` times wider in the drive).
+    ``FLOAT_ROUNDING u SMIN (|x| + R_MAX)`` or the products' roundings of the pass: the drive is
+    solved to a float's resolution, not to a rounding bound of F (which would be ``1 / SMIN``
+    times wider in the drive).
     """
     from ..hysteresis.compensator import residual_bound
 
