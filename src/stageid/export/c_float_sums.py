@@ -87,7 +87,7 @@ ${branch}
 _MOVE_DOC = """\
 /* The pass on a move in the move's coordinate m = sg x (a fall taken as a rise of -x, so that the
    solve has one code path): returns sg ${value} at x; the outputs and the slope as the pass gives them.
-   Two loops, not one on mirrored tables: the extra negations cost 10-20 % at -O3. */"""
+   Two loops, not one on mirrored tables: the extra negations slow -O3 (RESULTS-export.md). */"""
 
 _TARGET_FLOAT = """\
     const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
