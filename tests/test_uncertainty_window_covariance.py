@@ -11,7 +11,6 @@ from stageid.subspace.hankel_toeplitz import dense_regression, regressor_indices
 from stageid.subspace.uncertainty import column_solve, weighted_parts
 from stageid.subspace.window_covariance import (
     WindowFilter,
-    lag_products,
     lag_spectrum,
     lag_sum,
     overlap_response_covariance,
@@ -77,36 +76,6 @@ def test_column_solve_applies_the_posterior_covariance():
     np.testing.assert_allclose(column_solve(post)(V), want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
 
 
-def test_lag_products_equal_the_sums_over_whole_windows():
-    # sum_t s_t conj(s'_(t+l)) and sum_t s_t s'_(t+l) over windows wholly inside each record,
-    # against the explicit windows (two records, a drifting output: large end corrections)
-    rng = np.random.default_rng(0)
-    p, r = 3, 2
-    recs = [(rng.standard_normal((n, 1)), np.cumsum(rng.standard_normal((n, 1)), axis=0) * 0.3 + 5) for n in (300, 420)]
-    stats = window_lags(recs, p)
-    n = 8 * p
-    h = rng.standard_normal((2 * p * r, 2)) + 1j * rng.standard_normal((2 * p * r, 2))
-    h2 = rng.standard_normal((2 * p * r, 3)) + 1j * rng.standard_normal((2 * p * r, 3))
-    lags = np.arange(-(2 * p - 1), 2 * p)
-    got_c, got_p = lag_products(
-        WindowFilter(h, np.arange(2 * p * r), p, r, n), WindowFilter(h2, np.arange(2 * p * r), p, r, n),
-        lag_spectrum(stats.lags, n), stats, lags,
-    )  # fmt: skip
-    want_c, want_p = np.zeros_like(got_c), np.zeros_like(got_p)
-    for u, y in recs:
-        z = np.hstack([u, y])
-        K = z.shape[0] - 2 * p + 1
-        windows = np.stack([z[t : t + 2 * p].reshape(-1) for t in range(K)])
-        s, s2 = windows @ h, windows @ h2
-        for i, lag in enumerate(lags):
-            a, b = (s[: K - lag], s2[lag:]) if lag >= 0 else (s[-lag:], s2[: K + lag])
-            want_c[i] += a.T @ np.conj(b)
-            want_p[i] += a.T @ b
-    # the spectral sums are exact: rounding only
-    np.testing.assert_allclose(got_c, want_c, rtol=0, atol=1e-12 * np.abs(want_c).max())
-    np.testing.assert_allclose(got_p, want_p, rtol=0, atol=1e-12 * np.abs(want_p).max())
-
-
 def test_short_records_keep_no_lag_statistics():
     u, y = np.zeros((30, 1)), np.zeros((30, 1))
     assert window_lags([(u, y)], 4) is None  # 30 < 8 p
@@ -153,6 +122,6 @@ def test_lag_statistics_hold_the_fit_gram(horizon):
     # the lag products of the unit regressor filters are X^T X (lag 0) and X(t)^T X(t+1)
     pos, _ = regressor_indices(horizon, 1, 2)
     f = WindowFilter(ones, pos, horizon, 3, n)
-    got, _ = lag_products(f, f, lag_spectrum(stats.lags, n), stats, np.array([0, 1]))
+    got, _ = self_lag_products(f, lag_spectrum(stats.lags, n), stats)
     np.testing.assert_allclose(got[0].real, X.T @ X, rtol=0, atol=1e-10 * np.abs(X.T @ X).max())
     np.testing.assert_allclose(got[1].real, X[:-1].T @ X[1:], rtol=0, atol=1e-10 * np.abs(X.T @ X).max())

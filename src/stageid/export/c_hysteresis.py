@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
-from .c_writer import CType, array, literal
+from .c_writer import CType, array, define, literal
 
 __all__ = ["forward_fields", "inverse_fields"]
 
@@ -87,10 +87,6 @@ def _sub(text: str, ctype: CType, prefix: str) -> str:
     return Template(text).substitute(T=ctype.name, f="f" if ctype.is_float else "", p=prefix)
 
 
-def _const(prefix: str, name: str, value: float, ctype: CType) -> str:
-    return f"#define {prefix}_{name} ({literal(value, ctype)})"
-
-
 def _table(prefix: str, name: str, values: object, ctype: CType, size: str) -> str:
     return f"static const {ctype.name} {prefix}_{name}[{size}] = {array(values, ctype)};"
 
@@ -115,8 +111,8 @@ def forward_fields(model: Any, ctype: CType, prefix: str, dt: float | None = Non
 
     p, m = prefix, model.n_operators
     classical = isinstance(model, PIModel)
-    consts = [f"#define {p}_N_OPERATORS {m}", _const(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts.append(_const(p, "OUTPUT_OFFSET", model.output_offset, ctype))
+    consts = [f"#define {p}_N_OPERATORS {m}", define(p, "INPUT_OFFSET", model.input_offset, ctype)]
+    consts.append(define(p, "OUTPUT_OFFSET", model.output_offset, ctype))
     consts.append(_table(p, "r", model.r, ctype, f"{p}_N_OPERATORS"))
     if not classical:
         for name in ("rc", "ra", "rb"):
@@ -124,8 +120,8 @@ def forward_fields(model: Any, ctype: CType, prefix: str, dt: float | None = Non
     consts.append(_table(p, "w", model.weights, ctype, f"{p}_N_OPERATORS"))
     warp = not classical and model.input_warp != 0.0
     if warp:
-        consts.append(_const(p, "WARP_SCALE", model.warp_scale, ctype))
-        consts.append(_const(p, "WARP_QR", model.input_warp * model.warp_scale, ctype))
+        consts.append(define(p, "WARP_SCALE", model.warp_scale, ctype))
+        consts.append(define(p, "WARP_QR", model.input_warp * model.warp_scale, ctype))
     members = [f"    {ctype.name} z[{m}];  /* operator outputs */"]
     init = _init_lines("z", model.state.z, ctype)
     body = [f"    const {ctype.name} u = in[0];", f"    const {ctype.name} d = u - {p}_INPUT_OFFSET;"]

@@ -433,7 +433,8 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     lo, hi = _limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
-    padded = -(-m // (fs.LANES if ctype.is_float else PAD)) * (fs.LANES if ctype.is_float else PAD)
+    block = fs.LANES if ctype.is_float else PAD  # operators per vector of the passes
+    padded = -(-m // block) * block
     err_w, err_r = residual_bound(model)
     if ctype.is_float:  # F - target is exact to rounding: stop at what a float resolves of the drive
         err_w = FLOAT_ROUNDING * 2.0**-24 * model.min_slope()

@@ -67,7 +67,6 @@ class PreisachStageProblem(StageProblem):
         self.classical = False
         self.D = second_differences(hysteresis.n_levels)
         self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
-        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
         """The cell states projected on their ``SEARCH_RANK`` leading right singular vectors (creep lags kept)."""

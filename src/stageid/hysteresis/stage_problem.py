@@ -34,6 +34,8 @@ class StageProblem:
     #: which it stops early (0: never; the PI fit runs all its rounds).
     n_alternations = N_ALTERNATIONS
     settle = 0.0
+    #: (creep time constants, their columns): the last set asked for (see :meth:`columns`)
+    _columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def __init__(self, hysteresis: Any, recs: list, kinds: list[str], dt: float) -> None:
         self.h = hysteresis
@@ -52,7 +54,6 @@ class StageProblem:
         ur = max(float(np.ptp(u)) for u, _ in recs)
         self.eps = 0.02 * yr / ur  # PIIdentifier's default min_slope_fraction, slope in operator units
         self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
-        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def columns(self, taus: tuple[float, ...]) -> list[np.ndarray]:
         """Per record the live operator columns and the creep lags, C-ordered (the filter runs

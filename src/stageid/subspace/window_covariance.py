@@ -25,10 +25,9 @@ the lag correlations ``R(c) = sum_t z(t) z(t+c)^T`` of the records up to ``c = 4
 their first and last ``4 p - 2`` samples (:class:`WindowLags`, kept by the fit), through the
 spectral identity ``sum_(a,b) h(a)^T R(l + b - a) conj h'(b) = 1/n sum_w e^(i w l) H(w)^T S(w) conj H'(w)``
 with ``S`` the DFT of ``R`` (no lag wraps for ``n = 8 p``), minus the pairs in which a window
-sticks out of a record (:func:`lag_products`).  Only the lags ``l >= 0`` are formed: those at
-``-l`` are their (conjugate) transposes.  The uncertainty takes them from
-:func:`self_lag_products`, which splits the double sum so that the products and the inverse
-DFT need ``4 p`` points instead of ``8 p``: cost ``~ 4 p (n_freqs max(q, m))^2`` times
+sticks out of a record.  Only the lags ``l >= 0`` are formed: those at ``-l`` are their
+(conjugate) transposes.  :func:`self_lag_products` forms them, splitting the double sum so that
+the products and the inverse DFT need ``4 p`` points instead of ``8 p``: cost ``~ 4 p (n_freqs max(q, m))^2`` times
 ``(m + q + 3 n_records)`` for the products and ``log(4 p)`` for the transform, independent of
 the record length (``benchmarks/RESULTS-uncertainty.md``).  The covariance under overlapping
 windows of Hankel-Toeplitz estimates and its calibration are measured in
@@ -37,7 +36,6 @@ windows of Hankel-Toeplitz estimates and its calibration are measured in
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -51,7 +49,6 @@ __all__ = [
     "window_lags",
     "WindowFilter",
     "lag_spectrum",
-    "lag_products",
     "self_lag_products",
     "lag_sum",
     "overlap_response_covariance",
@@ -120,15 +117,6 @@ class WindowFilter:
         self.h = h.reshape(2 * horizon, r, -1)
         self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
 
-    @functools.cached_property
-    def H_t(self) -> np.ndarray:
-        return np.ascontiguousarray(self.H.transpose(0, 2, 1))
-
-    @functools.cached_property
-    def H_conj(self) -> np.ndarray:
-        """DFT of ``conj h``: ``conj H(-w)``, no second transform."""
-        return np.conj(np.roll(self.H[::-1], 1, axis=0))
-
     def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
         """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
         (``t = K-(2p-1) .. n-1``), the record zero-padded, from its ``4 p - 2`` end samples."""
@@ -142,40 +130,10 @@ class WindowFilter:
         return win @ h.real + 1j * (win @ h.imag)
 
 
-def lag_products(fa: WindowFilter, fb: WindowFilter, S, stats: WindowLags, lags: np.ndarray):
-    """``sum_t s_t conj(s'_(t+l))^T`` and ``sum_t s_t s'_(t+l)^T`` over the pairs of windows lying
-    wholly inside a record, at ``lags``: the zero-padded sum from the lag correlations (module
-    docstring) minus the pairs in which a window sticks out of a record, summed as spectra before
-    one inverse DFT.  Two arrays of shape (n_lags, cols_a, cols_b)."""
-    n = S.shape[0]
-    half = fa.h.shape[0] - 1  # 2p - 1 partial windows at each end
-    xs, ys = [], []
-    for edges, head in ((stats.heads, True), (stats.tails, False)):
-        out = (np.arange(2 * half) < half) if head else (np.arange(2 * half) >= half)
-        for samples in edges:
-            x = fa.edge_series(samples, head)
-            y = fb.edge_series(samples, head)
-            y = np.hstack([np.conj(y), y])
-            # pairs with the first window outside, plus pairs with only the second outside
-            xs += [x * out[:, None], x * ~out[:, None]]
-            ys += [y, y * out[:, None]]
-    # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T with X~(w) = sum_t x_t e^(+i w t),
-    # so both sums are one product [H_a^T S, -X~^T] [conj H_b; Y] per frequency
-    Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n, axis=1)).transpose(1, 2, 0)  # (n, cols_a, pieces)
-    Y = np.fft.fft(np.stack(ys), n=n, axis=1).transpose(1, 0, 2)
-    left = np.concatenate([np.matmul(fa.H_t, S), -Xt], axis=2)
-    right = np.concatenate([np.conj(np.concatenate([fb.H, fb.H_conj], axis=2)), Y], axis=1)
-    both = np.empty((lags.size, left.shape[1], right.shape[2]), dtype=complex)
-    step = max(1, BLOCK_ENTRIES // (n * right.shape[2]))  # a few MB per block: it stays in cache
-    for lo in range(0, left.shape[1], step):
-        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[lags % n]
-    cb = fb.h.shape[2]
-    return both[:, :, :cb], both[:, :, cb:]
-
-
 def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`lag_products` of one filter with itself at the lags ``0 .. 2 p - 1`` only, on half
-    the DFT points: two arrays of shape (2 p, cols, cols).
+    """``sum_t s_t conj(s_(t+l))^T`` and ``sum_t s_t s_(t+l)^T`` of one filter over the pairs of
+    windows lying wholly inside a record, at the lags ``0 .. 2 p - 1``, on half the DFT points:
+    two arrays of shape (2 p, cols, cols).
 
     ``sum_(a,b) h(a)^T R(l + b - a) conj h(b)`` is split as ``sum_a h(a)^T Q(l - a)`` with
     ``Q(c) = sum_b R(c + b) conj h(b)`` (``r`` columns per filter column: cheap on ``8 p`` points),
