@@ -294,18 +294,10 @@ def test_cli_creep_flag(tmp_path, capsys):
 def test_measured_piezo_forc_records_with_creep():
     """Issue 5, point 7: identified on the 20 Hz FORC record only, <= 2 % max error there and a
     better 40 Hz prediction than without creep (studies/hysteresis/RESULTS.md section 2)."""
-    from stageid.data.datasets import SHARED_DATA, load_dspace_piezo
+    from _dspace_records import dspace_record
     from stageid.hysteresis import align_record, max_error_percent
 
-    folder = None if SHARED_DATA is None else SHARED_DATA / "piezo_dspace_preisach"
-    if folder is None or not folder.is_dir():
-        pytest.skip("shared/data/piezo_dspace_preisach not found")
-
-    def record(name):
-        exp = load_dspace_piezo(folder / f"{name}.mat")
-        u, y = exp.u[:, 0], exp.y[:, 0]
-        start = max(0, int(np.flatnonzero(np.abs(np.diff(u)) > 1e-9)[0]) - int(round(0.1 / exp.dt)))
-        return u[start:-10], y[start:-10], exp.dt  # same trimming as studies/hysteresis/run_study.py
+    record = dspace_record
 
     u, y, dt = record("20_hz_no_lp")
     uv, yv, _ = record("40_hz_no_lp")

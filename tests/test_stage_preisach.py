@@ -255,17 +255,10 @@ def test_measured_forc_records_preisach_stage():
     """Preisach stage on the dSPACE 20 + 100 Hz FORC records (RESULTS.md section 4d): the 40 Hz
     record within the issue's 1.5 % max; the 100 Hz record no longer stuck in a lead-lag (its RMS
     was 0.69 % before the lag-and-delay starts, 0.23 % with them)."""
-    from stageid.data.datasets import SHARED_DATA, load_dspace_piezo
-
-    folder = None if SHARED_DATA is None else SHARED_DATA / "piezo_dspace_preisach"
-    if folder is None or not folder.is_dir():
-        pytest.skip("shared/data/piezo_dspace_preisach not found")
+    from _dspace_records import dspace_record
 
     def record(name):
-        exp = load_dspace_piezo(folder / f"{name}.mat")
-        u, y = exp.u[:, 0], exp.y[:, 0]
-        start = max(0, int(np.flatnonzero(np.abs(np.diff(u)) > 1e-9)[0]) - int(round(0.1 / exp.dt)))
-        return u[start:-10], y[start:-10]  # same trimming as studies/hysteresis/run_study.py
+        return dspace_record(name)[:2]
 
     train = [record("20_hz_no_lp"), record("100_hz_no_lp")]
     fit = StageIdentifier("preisach", dynamics=1, creep=(0.01, 0.1, 1.0), sample_time=1e-4).fit(train)

@@ -119,18 +119,11 @@ def test_measured_tracking_records_start_after_an_earlier_minor_loop():
     """dSPACE tracking records (RESULTS.md section 4e): with the memory estimated (3 numbers) the
     triangle and sine records drop from 1.12-1.15 % to 0.51-0.52 % RMS; the 40 Hz FORC record,
     which starts at a known memory (idle at -90 V), keeps the standard start."""
-    from stageid.data.datasets import SHARED_DATA, load_dspace_piezo
+    from _dspace_records import dspace_record
     from stageid.hysteresis.stage_identification import StageIdentifier
 
-    folder = None if SHARED_DATA is None else SHARED_DATA / "piezo_dspace_preisach"
-    if folder is None or not folder.is_dir():
-        pytest.skip("shared/data/piezo_dspace_preisach not found")
-
     def record(name):
-        exp = load_dspace_piezo(folder / f"{name}.mat")
-        u, y = exp.u[:, 0], exp.y[:, 0]
-        start = max(0, int(np.flatnonzero(np.abs(np.diff(u)) > 1e-9)[0]) - int(round(0.1 / exp.dt)))
-        return u[start:-10], y[start:-10]  # same trimming as studies/hysteresis/run_study.py
+        return dspace_record(name)[:2]
 
     train = [record("20_hz_no_lp"), record("100_hz_no_lp")]
     model = StageIdentifier("preisach", dynamics=1, creep=(0.01, 0.1, 1.0), sample_time=DT).fit(train).model
