@@ -234,10 +234,11 @@ class HankelMAP(Estimator):
             When no model can be realised.
         """
         self.validate_params()
-        return self._fit(as_records(data, "HankelMAP.fit"), previous=None)
+        return self.fit_records(as_records(data, "HankelMAP.fit"), previous=None)
 
-    def _fit(self, exps: tuple[Experiment, ...], previous: HankelMAPResult | None) -> HankelMAPResult:
-        """The method on records (a first fit, or an update continuing ``previous``)."""
+    def fit_records(self, exps: tuple[Experiment, ...], previous: HankelMAPResult | None) -> HankelMAPResult:
+        """The method on checked records: a first fit, or an update continuing ``previous``
+        (what :meth:`HankelMAPResult.update` calls)."""
         first, notes = exps[0], []
         dt = first.dt
         if previous is not None:

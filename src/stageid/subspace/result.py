@@ -117,7 +117,7 @@ class HankelMAPResult:
         DataError
             When the new records have other channels or another sample time than this result.
         """
-        return self.estimator._fit(as_records(data, "HankelMAPResult.update"), previous=self)
+        return self.estimator.fit_records(as_records(data, "HankelMAPResult.update"), previous=self)
 
     # --------------------------------------------------------- uncertainty
     def markov_parameters(self, n_parameters: int | None = None) -> tuple[np.ndarray, np.ndarray]:
