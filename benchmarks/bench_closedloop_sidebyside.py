@@ -8,7 +8,8 @@ against the true plant (basis-invariant: frequency responses over 20-300 Hz and 
 poles), and the report says whether the two trees' plant responses are equal.
 
 Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo;
-``maglev-s<seed>`` with noise seeds ``seed, seed + 1, seed + 2`` instead of 0, 1, 2) and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
+``maglev-s<seed>`` with noise seeds ``seed, seed + 1, seed + 2`` instead of 0, 1, 2) and
+``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
 axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR); ``pem-oe``,
 ``pem-armax`` and ``pem-bj`` time the stageid PEM runs of ``bench_closedloop.py`` (fit = its
 simulation fit on the validation record).

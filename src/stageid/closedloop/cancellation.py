@@ -171,20 +171,21 @@ class PlantEntries:
         d = self.plant.D[[i]][:, [j]] / (nb * nc)
         return StateSpaceModel(self.A, b / nb, c / nc, d, self.plant.dt)
 
-    def _controllable_part(self, j: int, g: StateSpaceModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _parts(self, i: int, j: int):
+        """``(g, Ac, Bc, Cc, Qo)``: the entry, its controllable part and that part's observable basis."""
+        g = self.entry(i, j)
         if j not in self._controllable:
             Qc = controllable_basis(g.A, _unit(g.B), self.tol)
             self._controllable[j] = (Qc, Qc.T @ g.A @ Qc, Qc.T @ g.B)
-        return self._controllable[j]
+        Qc, Ac, Bc = self._controllable[j]
+        Cc = g.C @ Qc
+        return g, Ac, Bc, Cc, controllable_basis(Ac.T, _unit(Cc.T), self.tol)
 
     def minimal(self, i: int, j: int) -> StateSpaceModel:
         """``minimal_realization(entry(i, j), tol)``."""
-        g = self.entry(i, j)
-        if g.n_states == 0:
-            return g
-        Qc, Ac, Bc = self._controllable_part(j, g)
-        Cc = g.C @ Qc
-        Qo = controllable_basis(Ac.T, _unit(Cc.T), self.tol)
+        if self.plant.n_states == 0:
+            return self.entry(i, j)
+        g, Ac, Bc, Cc, Qo = self._parts(i, j)
         return StateSpaceModel(Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo, g.D.copy(), g.dt)
 
     def poles_zeros(self, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
@@ -193,15 +194,13 @@ class PlantEntries:
         Where the observability step keeps every controllable state (every maglev entry), the
         controllable part ``(Ac, Bc, Cc)`` is itself minimal: its poles, the eigenvalues of
         ``Ac``, are then computed once per input, and the zeros from the same realisation.
-        Otherwise both come from :meth:`minimal`.
+        Otherwise both come from the realisation :meth:`minimal` returns.
         """
-        g = self.entry(i, j)
-        if g.n_states == 0:
-            return _siso_pz(g)
-        Qc, Ac, Bc = self._controllable_part(j, g)
-        Cc = g.C @ Qc
-        if controllable_basis(Ac.T, _unit(Cc.T), self.tol).shape[1] < Ac.shape[0]:
-            return _siso_pz(self.minimal(i, j))
+        if self.plant.n_states == 0:
+            return _siso_pz(self.entry(i, j))
+        g, Ac, Bc, Cc, Qo = self._parts(i, j)
+        if Qo.shape[1] < Ac.shape[0]:
+            return _siso_pz(StateSpaceModel(Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo, g.D.copy(), g.dt))
         if j not in self._poles:
             self._poles[j] = np.linalg.eigvals(Ac)
         zeros = StateSpaceModel(Ac, Bc, Cc, g.D.copy(), g.dt).zeros(minimal=False)

@@ -129,7 +129,7 @@ def steiglitz_mcbride_orders(segs, orders, nk: int, n_iter: int) -> dict[int, tu
     rows = sum(uu.size for uu, _ in segs)
     F = np.ones(1)
     theta: dict[int, np.ndarray] = {}
-    for _ in range(n_iter):
+    for it in range(n_iter):
         W = np.empty((rows, 2 * nmax + 1), order="F")
         r0 = 0
         for uu, yy in segs:
@@ -141,11 +141,14 @@ def steiglitz_mcbride_orders(segs, orders, nk: int, n_iter: int) -> dict[int, tu
                 fill_shifted(W[r0 : r0 + n_, 2 * k + 1 : 2 * k + 2], uf, nk + k)
             W[r0 : r0 + n_, 2 * nmax] = yf
             r0 += n_
-        theta = prefix_lstsq(W, [2 * n for n in orders], "Steiglitz-McBride")
+        # until the last pass only the pre-filter, the largest order that solves, is needed
+        last = it == n_iter - 1
+        sizes = sorted({2 * n for n in orders}, reverse=True)
+        theta = prefix_lstsq(W, sizes, "Steiglitz-McBride", first_only=not last)
         if not theta:
             return {}
         F = stabilize(np.concatenate([[1.0], theta[max(theta)][0::2]]))
-    return {k // 2: (th[1::2], stabilize(np.concatenate([[1.0], th[0::2]]))) for k, th in theta.items()}
+    return {k // 2: (theta[k][1::2], stabilize(np.concatenate([[1.0], theta[k][0::2]]))) for k in sorted(theta)}
 
 
 def hannan_rissanen(w: list[np.ndarray], nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
