@@ -6,8 +6,10 @@
   order, and each smaller order the least squares of its own regressor on the same pre-filtered
   data;
 * the screen's orders give a 2x2 plant as accurate as the issue asks (diagonal < 1 %, coupling
-  < 5 % of the peak, unstable poles < 1 %) on a record where a screen of six own passes after
-  the common ones did not (1.65 % diagonal, 4.0 % pole error);
+  < 5 % of the peak, unstable poles < 1 %) on a record where the screen with six common passes
+  and two own passes per order did not (1.65 % diagonal, 4.0 % pole error; the common passes
+  alone, without the own pass, pick order 5 for the order-2 system of
+  ``test_closedloop_pem.test_select_order_finds_the_true_order``);
 * :func:`~stageid.models.minimal.controllable_basis` and the shared poles of the cancellation
   give the subspaces and roots of the reference formulas.
 """
