@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 #: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
-SCREEN_ITERATIONS = 3
+SCREEN_ITERATIONS = 6
 #: then passes of each order with its own pre-filter
 SCREEN_OWN_ITERATIONS = 1
 #: own passes the selected order's PEM start adds to the screen's estimate
