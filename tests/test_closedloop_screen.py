@@ -142,8 +142,11 @@ def test_controllable_basis_spans_the_reference_subspace(seed, m):
     n, k = 14, 4 + seed  # the last k states are not reached from B
     A = rng.standard_normal((n, n)) / np.sqrt(n)
     A[n - k :, : n - k] = 0.0  # the reached block is invariant
+    w = n - k - 1  # reached, but only weakly: the rank threshold decides it
+    A[w, :w] = 0.0
+    A[w, 0] = 1e-3
     B = np.zeros((n, m))
-    B[: n - k] = rng.standard_normal((n - k, m))
+    B[:w] = rng.standard_normal((w, m))
     T = np.linalg.qr(rng.standard_normal((n, n)))[0]  # hide the structure
     A, B = T @ A @ T.T, T @ B
     want = _reference_basis(A, B / np.linalg.norm(B, 2), 1e-9)
