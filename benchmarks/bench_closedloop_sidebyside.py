@@ -7,8 +7,9 @@ alike.  Besides the times (wall and process CPU) every worker reports the accura
 against the true plant (basis-invariant: frequency responses over 20-300 Hz and the unstable
 poles), and the report says whether the two trees' plant responses are equal.
 
-Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo)
-and ``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
+Cases: ``maglev`` (the reference stage of Shakir & Kim, three chirp records, as in the demo;
+``maglev-s<seed>`` with noise seeds ``seed, seed + 1, seed + 2`` instead of 0, 1, 2) and
+``2x2-s<seed>`` (the test plant of ``tests/_closedloop_plant2x2.py``, one 1 um chirp per
 axis at 70 dB SNR, as in the CLI test; ``2x2-s<seed>-<snr>db`` for another SNR); ``pem-oe``,
 ``pem-armax`` and ``pem-bj`` time the stageid PEM runs of ``bench_closedloop.py`` (fit = its
 simulation fit on the validation record).
@@ -38,12 +39,13 @@ def _build(case: str):
     from stageid.closedloop import ClosedLoopIdentification, simulate_closed_loop
     from stageid.data import Experiment
 
-    if case == "maglev":
+    if case == "maglev" or case.startswith("maglev-s"):
         from stageid.plants import maglev
 
         outs = list(maglev.OUTPUTS)
         refs = [f"r_{o}" for o in outs]
-        tables = [maglev.simulate_chirp(a, seed=k) for k, a in enumerate(outs)]
+        seed0 = int(case.split("-s")[1]) if "-s" in case else 0  # noise seeds seed0, seed0 + 1, seed0 + 2
+        tables = [maglev.simulate_chirp(a, seed=seed0 + k) for k, a in enumerate(outs)]
         exps = [t.experiment(refs, outs, name=f"chirp-{a}") for t, a in zip(tables, outs)]
         return ClosedLoopIdentification(maglev.controller(), band=(20.0, 300.0)), exps, maglev.model()
     sys.path.insert(0, str(HERE.parent / "tests"))

@@ -4,7 +4,7 @@ The preallocated regressors must equal the ``np.hstack``/``np.vstack`` of shifte
 replace (bit for bit, including the sign of the leading zeros), the Jacobian must be the
 derivative of the residual, the Steiglitz-McBride start continued from a saved ``F`` must
 equal the uninterrupted one, and the screened order selection must return exactly the model
-``pem`` gives for the selected order.
+``fit_pem`` gives for the selected order from the screen's state.
 """
 
 import numpy as np
@@ -12,7 +12,7 @@ import pytest
 import scipy.signal as ss
 
 from stageid.closedloop import initial, order_selection, polynomial, regression
-from stageid.closedloop.pem import jacobian, pem
+from stageid.closedloop.pem import fit_pem, jacobian, pem
 
 
 def _reference_shifted(x, lags, start):
@@ -97,11 +97,14 @@ def test_steiglitz_mcbride_continued_from_a_saved_F_equals_the_full_run():
 
 @pytest.mark.parametrize("structure", ["oe", "bj"])
 def test_screened_selection_returns_the_pem_model_of_the_selected_order(structure):
+    # the winner's PEM starts from the screen's estimate of its order (continued by its own passes)
     us, ys = _records(seed=4, noise=0.05)
     m, scores = order_selection.select_order(us, ys, structure, orders=[1, 2, 3, 4, 5])
     n = m.F.size - 1
     o = {"nb": n, "nf": n} if structure == "oe" else {"nb": n, "nf": n, "nc": 2, "nd": 2}
-    ref = pem(us, ys, structure, o)
+    screen, states = order_selection.screen_orders(regression.records(us, ys), [1, 2, 3, 4, 5], 1, "bic")
+    assert n == min(screen, key=screen.get)
+    ref = fit_pem(us, ys, structure, o, 1, 1.0, 200, None, states[n])
     assert list(scores) == [n]
     for name in "ABCDF":
         assert np.array_equal(getattr(m, name), getattr(ref, name)), name

@@ -145,7 +145,7 @@ class PlantEntries:
     The balancing of ``A`` is the same for every entry, and the controllable part (the first
     half of :func:`~stageid.models.minimal.minimal_matrices`) the same for every entry of one
     input: both are computed once and shared (the numbers are those of the entry-by-entry
-    route).
+    route), and so are the poles where that part is already minimal (:meth:`poles_zeros`).
     """
 
     def __init__(self, plant: StateSpaceModel, minimal_tol: float | None) -> None:
@@ -158,6 +158,7 @@ class PlantEntries:
         self.A = A
         self.tol = minimal_tol if minimal_tol is not None else 1e-8 * max(1.0, np.linalg.norm(A, 2))
         self._controllable: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._poles: dict[int, np.ndarray] = {}
 
     def entry(self, i: int, j: int) -> StateSpaceModel:
         b = self.plant.B[:, [j]]
@@ -170,18 +171,40 @@ class PlantEntries:
         d = self.plant.D[[i]][:, [j]] / (nb * nc)
         return StateSpaceModel(self.A, b / nb, c / nc, d, self.plant.dt)
 
-    def minimal(self, i: int, j: int) -> StateSpaceModel:
-        """``minimal_realization(entry(i, j), tol)``."""
+    def _parts(self, i: int, j: int):
+        """``(g, Ac, Bc, Cc, Qo)``: the entry, its controllable part and that part's observable basis."""
         g = self.entry(i, j)
-        if g.n_states == 0:
-            return g
         if j not in self._controllable:
             Qc = controllable_basis(g.A, _unit(g.B), self.tol)
             self._controllable[j] = (Qc, Qc.T @ g.A @ Qc, Qc.T @ g.B)
         Qc, Ac, Bc = self._controllable[j]
         Cc = g.C @ Qc
-        Qo = controllable_basis(Ac.T, _unit(Cc.T), self.tol)
+        return g, Ac, Bc, Cc, controllable_basis(Ac.T, _unit(Cc.T), self.tol)
+
+    def minimal(self, i: int, j: int) -> StateSpaceModel:
+        """``minimal_realization(entry(i, j), tol)``."""
+        if self.plant.n_states == 0:
+            return self.entry(i, j)
+        g, Ac, Bc, Cc, Qo = self._parts(i, j)
         return StateSpaceModel(Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo, g.D.copy(), g.dt)
+
+    def poles_zeros(self, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Poles and zeros (``z``-plane) of one minimal realisation of entry ``(i, j)``.
+
+        Where the observability step keeps every controllable state (every maglev entry), the
+        controllable part ``(Ac, Bc, Cc)`` is itself minimal: its poles, the eigenvalues of
+        ``Ac``, are then computed once per input, and the zeros from the same realisation.
+        Otherwise both come from the realisation :meth:`minimal` returns.
+        """
+        if self.plant.n_states == 0:
+            return _siso_pz(self.entry(i, j))
+        g, Ac, Bc, Cc, Qo = self._parts(i, j)
+        if Qo.shape[1] < Ac.shape[0]:
+            return _siso_pz(StateSpaceModel(Qo.T @ Ac @ Qo, Qo.T @ Bc, Cc @ Qo, g.D.copy(), g.dt))
+        if j not in self._poles:
+            self._poles[j] = np.linalg.eigvals(Ac)
+        zeros = StateSpaceModel(Ac, Bc, Cc, g.D.copy(), g.dt).zeros(minimal=False)
+        return self._poles[j].copy(), zeros
 
 
 def cancel_entries(
@@ -232,7 +255,7 @@ def cancel_entries(
     for i in range(plant.n_outputs):
         nr, dr = [], []
         for j in range(plant.n_inputs):
-            poles, zeros = _siso_pz(split.minimal(i, j))
+            poles, zeros = split.poles_zeros(i, j)
             kp, kz, pairs = cancel_pairs(poles, zeros, dt, tol, i, j)
             # rebuild the numerator over a wide grid with the kept poles fixed (linear least squares on
             # the entry's own response): robust when a pencil zero of a large entry is inaccurate

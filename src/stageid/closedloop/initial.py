@@ -20,14 +20,16 @@ from .polynomial import PolynomialModel, check_orders, fit_length, residual, sta
 from .regression import (
     check_dt,
     check_moving,
+    fill_shifted,
     lstsq,
     lstsq_qr,
+    prefix_lstsq,
     records,
     regressor,
     shifted,
 )
 
-__all__ = ["arx", "steiglitz_mcbride", "hannan_rissanen", "start", "SM_ITERATIONS"]
+__all__ = ["arx", "steiglitz_mcbride", "steiglitz_mcbride_orders", "hannan_rissanen", "start", "SM_ITERATIONS"]
 
 #: Steiglitz-McBride passes of a PEM start
 SM_ITERATIONS = 8
@@ -113,6 +115,42 @@ def steiglitz_mcbride(
     return B, F
 
 
+def steiglitz_mcbride_orders(segs, orders, nk: int, n_iter: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Output-error estimates ``{n: (B, F)}`` (``nb = nf = n``) of every order, one least squares per pass.
+
+    The passes are those of :func:`steiglitz_mcbride` for the largest order; each smaller order
+    is estimated from the same pre-filtered data.  The lags are interleaved
+    (``-yf(t-1), uf(t-nk), -yf(t-2), uf(t-nk-1), ...``), so order ``n``'s regressor is the leading
+    ``2n`` columns and one Householder QR per pass gives every order
+    (:func:`~stageid.closedloop.regression.prefix_lstsq`), as an ARX order scan does.  Orders whose
+    regression fails are left out; the next pre-filter is the largest remaining order's ``F``.
+    """
+    nmax = max(orders)
+    rows = sum(uu.size for uu, _ in segs)
+    F = np.ones(1)
+    theta: dict[int, np.ndarray] = {}
+    for it in range(n_iter):
+        W = np.empty((rows, 2 * nmax + 1), order="F")
+        r0 = 0
+        for uu, yy in segs:
+            n_ = yy.size
+            yf = ss.lfilter([1.0], F, yy)
+            uf = ss.lfilter([1.0], F, uu)
+            for k in range(nmax):
+                fill_shifted(W[r0 : r0 + n_, 2 * k : 2 * k + 1], yf, 1 + k, negate=True)
+                fill_shifted(W[r0 : r0 + n_, 2 * k + 1 : 2 * k + 2], uf, nk + k)
+            W[r0 : r0 + n_, 2 * nmax] = yf
+            r0 += n_
+        # until the last pass only the pre-filter, the largest order that solves, is needed
+        last = it == n_iter - 1
+        sizes = sorted({2 * n for n in orders}, reverse=True)
+        theta = prefix_lstsq(W, sizes, "Steiglitz-McBride", first_only=not last)
+        if not theta:
+            return {}
+        F = stabilize(np.concatenate([[1.0], theta[max(theta)][0::2]]))
+    return {k // 2: (theta[k][1::2], stabilize(np.concatenate([[1.0], theta[k][0::2]]))) for k in sorted(theta)}
+
+
 def hannan_rissanen(w: list[np.ndarray], nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
     """ARMA ``D w = C e`` start values ``(C, D)``: a long AR model gives ``e``, then one regression.
 
@@ -177,8 +215,9 @@ _STARTS = {"arx": _from_arx, "armax": _from_arx, "oe": _from_steiglitz_mcbride, 
 def start(segs, structure, orders, nk, dt, initial=None, sm_start=None):
     """Start polynomials ``(A, B, C, D, F)`` for ``structure``: the given model, else the linear estimate.
 
-    ``sm_start = (k, F)`` says a Steiglitz-McBride run is already ``k`` iterations in, at ``F``
-    (the order screen of :func:`~stageid.closedloop.order_selection.select_order`).
+    ``sm_start = (k, F)`` says ``k`` Steiglitz-McBride passes are done, ending at ``F`` (the
+    order screen of :func:`~stageid.closedloop.order_selection.select_order`): the start runs
+    the remaining ``SM_ITERATIONS - k`` from there.
     """
     make = _from_model if initial is not None else _STARTS[structure]
     return make(segs, orders, nk, dt, initial, sm_start)

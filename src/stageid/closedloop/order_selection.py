@@ -14,15 +14,26 @@ import numpy as np
 import scipy.signal as ss
 
 from .._errors import DataError, IdentificationError
-from .initial import steiglitz_mcbride
+from .initial import SM_ITERATIONS, steiglitz_mcbride, steiglitz_mcbride_orders
 from .pem import fit_pem
 from .polynomial import STRUCTURES, PolynomialModel, structure_orders
 from .regression import check_dt, check_moving, records
 
-__all__ = ["select_order", "screen_orders", "criterion_value", "SCREEN_ITERATIONS"]
+__all__ = [
+    "select_order",
+    "screen_orders",
+    "criterion_value",
+    "SCREEN_ITERATIONS",
+    "SCREEN_OWN_ITERATIONS",
+    "START_ITERATIONS",
+]
 
-#: Steiglitz-McBride passes of the screen (the selected order's start continues from there)
+#: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
 SCREEN_ITERATIONS = 6
+#: then passes of each order with its own pre-filter
+SCREEN_OWN_ITERATIONS = 1
+#: own passes the selected order's PEM start adds to the screen's estimate
+START_ITERATIONS = 2
 
 
 def criterion_value(criterion: str, n_samples: int, loss: float, n_parameters: int) -> float:
@@ -32,20 +43,24 @@ def criterion_value(criterion: str, n_samples: int, loss: float, n_parameters: i
 
 
 def screen_orders(segs, orders: Sequence[int], nk: int, criterion: str) -> tuple[dict[int, float], dict[int, tuple]]:
-    """Criterion of a Steiglitz-McBride estimate per order, and the state each run reached.
+    """Criterion of a Steiglitz-McBride estimate per order, and the ``F`` each estimate reached.
 
-    Returns ``(scores, states)``; ``states[n] = (SCREEN_ITERATIONS, F)`` lets the PEM start of
-    the selected order continue where the screen stopped.  Orders whose regression fails are
-    left out.
+    :data:`SCREEN_ITERATIONS` passes pre-filtered by the largest order's ``F`` give every order's
+    estimate from one QR per pass (:func:`~stageid.closedloop.initial.steiglitz_mcbride_orders`);
+    then :data:`SCREEN_OWN_ITERATIONS` pass of each order with its own pre-filter, which removes
+    the bias a foreign pre-filter leaves in the smaller orders.  Returns ``(scores, states)``;
+    ``states[n] = (SM_ITERATIONS - START_ITERATIONS, F)`` lets the PEM start of the selected
+    order run :data:`START_ITERATIONS` more own passes from there.  Orders whose regression
+    fails are left out.
     """
     N = sum(s_[0].size for s_ in segs)
     scores, states = {}, {}
-    for n in orders:
+    for n, (_, F0) in steiglitz_mcbride_orders(segs, orders, nk, SCREEN_ITERATIONS).items():
         try:
-            B, F = steiglitz_mcbride(segs, n, n, nk, n_iter=SCREEN_ITERATIONS)
+            B, F = steiglitz_mcbride(segs, n, n, nk, n_iter=SCREEN_OWN_ITERATIONS, F0=F0)
         except IdentificationError:
             continue
-        states[n] = (SCREEN_ITERATIONS, F)
+        states[n] = (SM_ITERATIONS - START_ITERATIONS, F)
         bu = np.concatenate([np.zeros(nk), B])
         res = np.concatenate([yy - ss.lfilter(bu, F, uu) for uu, yy in segs])
         scores[n] = criterion_value(criterion, N, float(np.mean(res**2)), 2 * n)

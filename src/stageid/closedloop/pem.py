@@ -88,9 +88,9 @@ def pem(
 def fit_pem(u, y, structure, orders, nk, dt, max_nfev=200, initial=None, sm_start=None) -> PolynomialModel:
     """:func:`pem` with one more option for the order screen.
 
-    ``sm_start = (k, F)``: the Steiglitz-McBride start is already ``k`` iterations in, at ``F``
-    (the order screen passes the state it reached, so those iterations are not run again; the
-    result is the same).
+    ``sm_start = (k, F)``: the Steiglitz-McBride start counts ``k`` passes done and continues
+    from ``F`` (the order screen passes its estimate of the order, so only the remaining passes
+    are run).
     """
     orders = check_orders(structure, dict(orders or {}), nk)
     dt = check_dt(dt)

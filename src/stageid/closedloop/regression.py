@@ -24,6 +24,7 @@ __all__ = [
     "regressor",
     "lstsq",
     "lstsq_qr",
+    "prefix_lstsq",
     "svd_solve",
 ]
 
@@ -207,3 +208,30 @@ def lstsq_qr(W: np.ndarray, what: str, strict: bool = True) -> np.ndarray:
         return lstsq(np.ascontiguousarray(W[:, :-1]), np.array(W[:, -1]), what, strict)
     R, z = qr_triangle(W)
     return triangle_lstsq(R, z, m, what, strict)
+
+
+def prefix_lstsq(W: np.ndarray, sizes, what: str, first_only: bool = False) -> dict[int, np.ndarray]:
+    """:func:`lstsq` (not strict) of ``W[:, :k] theta = W[:, -1]`` for every ``k`` in ``sizes``, from one QR.
+
+    The leading ``k x k`` block of the triangle of ``W`` and the first ``k`` entries of ``Q^T y``
+    are those of the QR of ``W[:, :k]`` alone, so one Householder QR serves every leading column
+    block (an order-recursive least squares).  Column scaling and rank decision per block as in
+    :func:`triangle_lstsq`.  ``W`` is overwritten; sizes whose block has an identically zero
+    column are left out.  ``first_only``: stop at the first size (in the given order) solved.
+    """
+    m, k1 = W.shape
+    out: dict[int, np.ndarray] = {}
+    tall = m >= 2 * k1 and W.flags.f_contiguous
+    if tall:
+        R, z = qr_triangle(W)
+    for k in sizes:
+        try:
+            if tall:
+                out[k] = triangle_lstsq(R[:k, :k], z[:k], m, what, strict=False)
+            else:  # short records: the plain route, block by block
+                out[k] = lstsq(np.ascontiguousarray(W[:, :k]), np.array(W[:, -1]), what, strict=False)
+        except IdentificationError:
+            continue
+        if first_only:
+            break
+    return out

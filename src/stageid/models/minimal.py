@@ -20,24 +20,35 @@ def controllable_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
     """Orthonormal basis, shape (n, r), of the controllable subspace span[B, AB, A^2 B, ...].
 
     Built block by block (a Krylov staircase); each new block is orthogonalised twice
-    against the basis found so far and its rank decided by an SVD with threshold ``tol``.
+    against the basis found so far and its rank decided by an SVD with threshold ``tol``
+    (for a single column its norm, which is that singular value).  The basis is written into
+    one preallocated array: growing it by ``hstack`` per block copied it ``r`` times.
     """
     n = A.shape[0]
-    Q = np.zeros((n, 0))
+    Q = np.zeros((n, n), order="F")
+    r = 0
     V = B
-    while Q.shape[1] < n:
+    while r < n:
         for _ in range(2):
-            V = V - Q @ (Q.T @ V)
+            V = V - Q[:, :r] @ (Q[:, :r].T @ V)
         if V.size == 0:
             break
-        U, s, _ = np.linalg.svd(V, full_matrices=False)
-        r = int(np.sum(s > tol))
-        if r == 0:
-            break
-        Qnew = U[:, :r]
-        Q = np.hstack([Q, Qnew])
-        V = A @ Qnew
-    return Q
+        if V.shape[1] == 1:
+            s = float(np.linalg.norm(V))
+            if not s > tol:
+                break
+            Qnew = V / s
+        else:
+            U, sv, _ = np.linalg.svd(V, full_matrices=False)
+            k = int(np.sum(sv > tol))
+            if k == 0:
+                break
+            Qnew = U[:, :k]
+        k = min(Qnew.shape[1], n - r)
+        Q[:, r : r + k] = Qnew[:, :k]
+        r += k
+        V = A @ Qnew[:, :k]
+    return Q[:, :r]
 
 
 def minimal_matrices(
