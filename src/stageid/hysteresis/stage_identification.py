@@ -24,7 +24,17 @@ Procedure (:meth:`StageIdentifier.fit`):
    its RMS error on the one left out (own offset), summed over the records; with a single
    record the first 60 % of it is fitted and the rest scored.  The simplest candidate within
    ``AUTO_TOLERANCE`` of the best is then fitted on all records.
-4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
+4. **Modes from the disturbance** (``disturbance_modes="auto"``, the default, with any
+   dynamics but ``None``): the residual of the fit of steps 2-3 on every record goes to
+   :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
+   lightly damped modes a broadband disturbance rings in every record, which the drives
+   themselves do not excite.  Found modes become a fixed unit-DC-gain resonance filter in
+   series with ``G`` (:func:`~.disturbance_modes.resonance_filter`), and step 2 is fitted
+   again with the same order and creep (weights, creep, offsets and the low-order ``G``
+   jointly, the modes fixed).  ``auto`` does not decide on a mode by held-out error, which
+   cannot see a mode the drives do not excite: the mode's significance in the residual
+   spectrum decides, and the order and creep are chosen before it.
+5. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
    inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
    hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
    only: a Preisach grid has no thresholds to search.)
@@ -36,7 +46,7 @@ model (zero state, first record's offset).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -44,6 +54,7 @@ import numpy as np
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
+from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .identification import MODEL_KINDS, PIIdentifier
 from .preisach_identification import PreisachIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
@@ -89,6 +100,8 @@ class StageFit:
         ``(order, creep time constants, held-out RMS % summed over folds)`` per candidate when
         something was ``"auto"``; empty otherwise.
     message : str
+    modes : tuple of DisturbanceMode
+        The modes of the dynamics taken from the records' disturbance spectrum (step 4).
     """
 
     model: StageModel
@@ -100,6 +113,7 @@ class StageFit:
     creep_time_constants: tuple[float, ...]
     held_out: tuple[tuple[int, tuple[float, ...], float], ...]
     message: str
+    modes: tuple[DisturbanceMode, ...] = ()
 
     def summary(self) -> str:
         """A short text report."""
@@ -119,6 +133,11 @@ class StageFit:
             lines.append(
                 "  dynamics poles at "
                 + ", ".join(f"{f:.4g} Hz" if np.isfinite(f) else "z = 0 (a one-sample delay)" for f in sorted(hz))
+            )
+        for m in self.modes:
+            lines.append(
+                f"  mode from the disturbance spectrum: {m.frequency_hz:.4g} Hz, damping {m.damping:.3g} "
+                f"(peak {m.peak_ratio:.3g} x the floor)"
             )
         for order, taus, score in self.held_out:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
@@ -148,6 +167,9 @@ class StageIdentifier(Estimator):
         Preisach only: cells per axis of the grid (as :class:`~stageid.hysteresis.PreisachIdentifier`).
     smoothing : float, default 1e-4
         Preisach only: weight of the smoothness penalty (as :class:`~stageid.hysteresis.PreisachIdentifier`).
+    disturbance_modes : "auto" or None, default "auto"
+        ``"auto"``: lightly damped modes found in the records' disturbance spectrum are put in
+        the dynamics (step 4; only when ``dynamics`` is not None); ``None``: never.
 
     Examples
     --------
@@ -176,6 +198,7 @@ class StageIdentifier(Estimator):
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
         "n_levels": [Interval(int, 2, None, closed="left")],
         "smoothing": [Interval(float, 0, None, closed="left")],
+        "disturbance_modes": [Options("auto"), None],
     }
 
     def __init__(
@@ -189,6 +212,7 @@ class StageIdentifier(Estimator):
         sample_time: float | None = None,
         n_levels: int = 20,
         smoothing: float = 1e-4,
+        disturbance_modes: str | None = "auto",
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -199,6 +223,7 @@ class StageIdentifier(Estimator):
         self.sample_time = sample_time
         self.n_levels = n_levels
         self.smoothing = smoothing
+        self.disturbance_modes = disturbance_modes
 
     @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> StageFit:
@@ -244,7 +269,20 @@ class StageIdentifier(Estimator):
         everything = [np.ones(u.size, bool) for u, _ in recs]
         w, c, offsets, ba = problem.fit(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
-        if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
+        modes: tuple[DisturbanceMode, ...] = ()
+        if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 4
+            modes = disturbance_modes(
+                problem.residuals(model, offsets),
+                [u for u, _ in recs],
+                dt,
+                None if model.dynamics is None else model.dynamics.poles(),
+            )
+            if modes:
+                problem.prefilter = resonance_filter(modes, dt)
+                w, c, offsets, ba = problem.fit(order, taus, everything)
+                model = problem.build(w, c, offsets[0], taus, ba, *names)
+                model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
+        if model.dynamics is not None and self.model != "preisach":  # step 5: thresholds again, G inverted
             problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         max_e, rms_e = problem.errors(model, offsets)
         return StageFit(
@@ -256,9 +294,14 @@ class StageIdentifier(Estimator):
             dynamics_order=model.dynamics_order,
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
+            modes=modes,
             message=f"{base_message}; weights, creep and dynamics "
             + (f"alternated {N_ALTERNATIONS} times" if problem.settle == 0 else "alternated until settled")
-            + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
+            + (
+                "."
+                if model.dynamics_order == order + 2 * len(modes)
+                else f"; order-{order} dynamics did not lower the residual: none."
+            ),
         )
 
     def _first_step(self, data, inputs, outputs, recs, dt):
@@ -287,8 +330,9 @@ class StageIdentifier(Estimator):
         ).fit(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         second = StageProblem(base.model, recs, kinds, dt)
+        second.prefilter = problem.prefilter
         w, c, offsets2, ba = second.fit(order, taus, everything)
-        model2 = second.build(w, c, offsets2[0], taus, ba, *names)
+        model2 = replace(second.build(w, c, offsets2[0], taus, ba, *names), disturbance_modes=model.disturbance_modes)
         old = problem.errors(model, problem.offsets_of(model, recs))[1]
         new = second.errors(model2, offsets2)[1]
         if sum(new) < sum(old):
