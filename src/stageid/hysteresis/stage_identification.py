@@ -33,7 +33,8 @@ Procedure (:meth:`StageIdentifier.fit`):
    again with the same order and creep (weights, creep, offsets and the low-order ``G``
    jointly, the modes fixed).  ``auto`` does not decide on a mode by held-out error, which
    cannot see a mode the drives do not excite: the mode's significance in the residual
-   spectrum decides, and the order and creep are chosen before it.
+   spectrum decides.  With ``auto`` order or creep, step 3 runs again with the modes in
+   place (the held-out scores reported are that second run's).
 5. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
    inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
    hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
@@ -63,7 +64,7 @@ from .stage_inverse import invert_dynamics
 from .stage_preisach import PreisachStageProblem, best_start_kinds
 from .stage_problem import N_ALTERNATIONS, StageProblem
 
-__all__ = ["StageIdentifier", "StageFit", "AUTO_ORDERS", "AUTO_CREEP"]
+__all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
 
 AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
@@ -143,6 +144,18 @@ class StageFit:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
         lines.append(f"  {self.message}")
         return "\n".join(lines)
+
+
+def choose_candidate(problem: StageProblem, orders: tuple[int, ...], creeps: tuple) -> tuple[int, tuple, list]:
+    """``(order, creep time constants, held-out scores)``: the simplest candidate within
+    ``AUTO_TOLERANCE`` of the best held-out error (step 3), or the only candidate."""
+    if len(orders) * len(creeps) == 1:
+        return orders[0], creeps[0], []
+    held_out = [(n, taus, problem.held_out_score(n, taus)) for taus in creeps for n in orders]
+    best = min(c[2] for c in held_out)
+    simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
+    order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
+    return order, taus, held_out
 
 
 class StageIdentifier(Estimator):
@@ -255,30 +268,18 @@ class StageIdentifier(Estimator):
             )
         orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
         problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
-        held_out: list[tuple[int, tuple[float, ...], float]] = []
-        if len(orders) * len(creeps) > 1:
-            for taus in creeps:
-                for n in orders:
-                    held_out.append((n, taus, problem.held_out_score(n, taus)))
-            # the simplest candidate within AUTO_TOLERANCE of the best held-out error
-            best = min(c[2] for c in held_out)
-            simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
-            order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
-        else:
-            order, taus = orders[0], creeps[0]
+        order, taus, held_out = choose_candidate(problem, orders, creeps)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         w, c, offsets, ba = problem.fit(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
         modes: tuple[DisturbanceMode, ...] = ()
         if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 4
-            modes = disturbance_modes(
-                problem.residuals(model, offsets),
-                [u for u, _ in recs],
-                dt,
-                None if model.dynamics is None else model.dynamics.poles(),
-            )
+            poles = None if model.dynamics is None else model.dynamics.poles()
+            modes = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles)
             if modes:
                 problem.prefilter = resonance_filter(modes, dt)
+                # the order and creep are chosen again with the modes in place
+                order, taus, held_out = choose_candidate(problem, orders, creeps)
                 w, c, offsets, ba = problem.fit(order, taus, everything)
                 model = problem.build(w, c, offsets[0], taus, ba, *names)
                 model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
