@@ -13,18 +13,22 @@ puts in series with its low-order dynamics (:mod:`.stage_identification`).
 tracking records are validation data and did not set it):
 
 1. Residual ``e_j`` of the current stage fit on every record ``j`` (own offset and start).
-2. Welch PSD of every residual: Hann segments of ``SEGMENT_SECONDS`` (rounded to a power of
-   two samples; 1024 at 10 kHz, about 10 Hz bins), half overlap.  Records shorter than
-   ``MIN_SEGMENTS`` segments take no part; with none left there is no mode.
+2. Welch PSD of every residual, Hann segments, half overlap, on a common grid of
+   ``SEGMENT_SECONDS`` bins (a power of two samples; 1024 at 10 kHz, about 10 Hz).  A record's
+   segments are longer when its drive fundamental ``f0`` (the largest peak of the drive's
+   spectrum) is closer than ``LINE_SPACING`` common bins, so that its harmonics are always at
+   least ``LINE_SPACING`` of its own bins apart (4096 samples for a 20 Hz drive at 10 kHz).
+   A record shorter than ``MIN_SEGMENTS`` of its segments takes no part; with none left there
+   is no mode.
 3. The detection spectrum is the **bin-wise minimum** over the records' PSDs: a stationary
    disturbance rings the mode in every record at the same level, while harmonics of one
    record's drive (model error) sit at that record's own frequencies and do not survive the
    minimum.  So a mode must stand in every record (agreement between records).  Harmonics
-   common to several records (200 Hz of a 20 Hz and a 100 Hz drive) would survive it, so a
-   record whose drive fundamental ``f0`` (the largest peak of the drive's PSD) is at least
-   ``LINE_SPACING`` bins leaves out the bins within ``LINE_HALF_WIDTH`` bins of ``k f0``
-   (a record with denser harmonics smears them into its floor); a bin every record leaves out
-   takes the mean of its neighbours for the floor, but is neither a candidate nor fitted.
+   common to several records (200 Hz of a 20 Hz and a 100 Hz drive) would survive it, so
+   every record leaves out its bins within ``LINE_HALF_WIDTH`` of its own bins of ``k f0``
+   and averages the rest into the common bins.  Only common bins that every record keeps are
+   candidates and are fitted (elsewhere a line of one record would stand alone); the others
+   are interpolated from their neighbours for the floor.
 4. The floor at frequency ``f`` is the median of the detection spectrum over ``[f/2, 2f]``.
    Candidates are local maxima in ``[BAND[0], BAND[1]] * fs`` whose ratio to the floor is at
    least ``CANDIDATE_RATIO``, strongest first, at most ``MAX_MODES`` accepted.
@@ -34,8 +38,9 @@ tracking records are validation data and did not set it):
    **mode** when the fitted peak over the floor is at least ``PEAK_RATIO``, the damping is at
    most ``MAX_DAMPING`` (lightly damped), and the half-power width ``2 zeta fn`` is at least one
    bin (narrower is a periodic line, not a mode rung by broadband noise).
-6. A mode within the half-power band of an accepted one, or of a pole of the current
-   dynamics with damping below ``MAX_DAMPING``, is not added again.
+6. A candidate within ``SEPARATION`` half-power half-widths (``zeta fn``) of an accepted
+   mode, or of a pole of the current dynamics with damping below ``MAX_DAMPING``, is not
+   added (the shoulder of a mode, or a mode the input-output fit already has).
 """
 
 from __future__ import annotations
@@ -58,6 +63,7 @@ __all__ = [
     "MAX_MODES",
     "SPAN",
     "LINE_SPACING",
+    "SEPARATION",
     "LINE_HALF_WIDTH",
 ]
 
@@ -79,6 +85,8 @@ PEAK_RATIO = 6.0
 MAX_DAMPING = 0.05
 #: Most modes taken.
 MAX_MODES = 2
+#: Half-power half-widths around a mode or pole within which no further mode is taken.
+SEPARATION = 5.0
 #: The fit window around a candidate: [f / SPAN, f * SPAN].
 SPAN = 1.4
 
@@ -105,23 +113,31 @@ def _segment(dt: float) -> int:
 
 
 def residual_spectra(residuals: list[np.ndarray], drives: list[np.ndarray], dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(f, P)``: the frequencies and the Welch PSDs of the residuals, one row per long-enough
-    record, NaN at the drive harmonics a record leaves out (rule 3)."""
+    """``(f, P)``: the common frequency grid and the residuals' PSDs on it, one row per record
+    that takes part, NaN where a record has only harmonic bins (rules 2-3)."""
     from scipy.signal import welch
 
-    nper = _segment(dt)
-    rows, f = [], np.zeros(0)
+    base = _segment(dt)
+    rows = []
+    f = np.fft.rfftfreq(base, dt)
+    df = f[1] - f[0]
     for e, u in zip(residuals, drives):
+        f0 = _fundamental(np.asarray(u, float), dt)
+        # segments long enough that the harmonics are LINE_SPACING bins apart
+        nper = base if f0 <= 0 else max(base, int(2 ** np.ceil(np.log2(LINE_SPACING / (f0 * dt)))))
         if e.size < nper * (MIN_SEGMENTS + 1) // 2:
             continue
-        f, p = welch(np.asarray(e, float) - np.mean(e), fs=1.0 / dt, window="hann", nperseg=nper)
-        df = f[1] - f[0]
-        f0 = _fundamental(np.asarray(u, float), dt)
-        if f0 >= LINE_SPACING * df:
-            k = np.round(f / f0)
-            p = np.where((k >= 1) & (np.abs(f - k * f0) <= LINE_HALF_WIDTH * df), np.nan, p)
-        rows.append(p)
-    return f, np.array(rows)
+        ff, p = welch(np.asarray(e, float) - np.mean(e), fs=1.0 / dt, window="hann", nperseg=nper)
+        if f0 > 0:
+            k = np.round(ff / f0)
+            p = np.where((k >= 1) & (np.abs(ff - k * f0) <= LINE_HALF_WIDTH * (ff[1] - ff[0])), np.nan, p)
+        # the mean of the kept fine bins within every common bin
+        idx = np.clip(np.round(ff / df).astype(int), 0, f.size - 1)
+        kept = ~np.isnan(p)
+        total = np.bincount(idx[kept], p[kept], minlength=f.size)
+        count = np.bincount(idx[kept], minlength=f.size)
+        rows.append(np.where(count > 0, total / np.maximum(count, 1), np.nan))
+    return f, np.array(rows).reshape(len(rows), f.size)
 
 
 def _fundamental(u: np.ndarray, dt: float) -> float:
@@ -132,14 +148,16 @@ def _fundamental(u: np.ndarray, dt: float) -> float:
     return float(np.argmax(spec[1:]) + 1) / (n * dt)
 
 
-def _detection_spectrum(P: np.ndarray) -> np.ndarray:
-    """Bin-wise minimum over the records; a bin all records leave out takes its neighbours' mean."""
-    s = np.nanmin(np.where(np.isnan(P), np.inf, P), axis=0)
-    gap = ~np.isfinite(s)
-    if gap.any() and not gap.all():
+def _detection_spectrum(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(s, measured)``: the bin-wise minimum over the records, and where every record has
+    the bin; elsewhere ``s`` is its neighbours' (interpolated, for the floor only)."""
+    measured = np.all(~np.isnan(P), axis=0)
+    s = np.full(P.shape[1], np.nan)
+    s[measured] = P[:, measured].min(axis=0)
+    if measured.any() and not measured.all():
         idx = np.arange(s.size)
-        s[gap] = np.interp(idx[gap], idx[~gap], s[~gap])
-    return s
+        s[~measured] = np.interp(idx[~measured], idx[measured], s[measured])
+    return s, measured
 
 
 def _floor(f: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -217,8 +235,9 @@ def disturbance_modes(
     f, P = residual_spectra(residuals, drives, dt)
     if P.shape[0] == 0:
         return ()
-    s = _detection_spectrum(P)
-    measured = np.any(~np.isnan(P), axis=0)
+    s, measured = _detection_spectrum(P)
+    if not measured.any():
+        return ()
     floor = _floor(f, s)
     fs = 1.0 / dt
     df = f[1] - f[0]
@@ -242,7 +261,7 @@ def disturbance_modes(
         if any(lo <= fn <= hi for lo, hi in bands):
             continue
         taken.append(DisturbanceMode(fn, zeta, peak))
-        bands.append((fn * (1 - zeta), fn * (1 + zeta)))
+        bands.append((fn * (1 - SEPARATION * zeta), fn * (1 + SEPARATION * zeta)))
     return tuple(sorted(taken, key=lambda m: m.frequency_hz))
 
 
@@ -258,7 +277,7 @@ def _pole_bands(poles: np.ndarray | None, dt: float) -> list[tuple[float, float]
         zeta = -s.real / wn
         if zeta < MAX_DAMPING:
             fn = wn / (2 * np.pi)
-            out.append((fn * (1 - zeta), fn * (1 + zeta)))
+            out.append((fn * (1 - SEPARATION * zeta), fn * (1 + SEPARATION * zeta)))
     return out
 
 

@@ -157,7 +157,10 @@ class StageProblem:
                 for _ in range(self.n_alternations):
                     if ba is None:
                         pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
-                        ba = fit_unit_gain_dynamics(pairs, order)
+                        try:
+                            ba = fit_unit_gain_dynamics(pairs, order)
+                        except (IdentificationError, np.linalg.LinAlgError):
+                            break  # this start cannot go on (a regressor vanished); keep the best seen
                     filtered = self.filtered(ba, cols, masks)
                     w_cur, off_cur = self.solve_weights(filtered, masks, nc)
                     err = self.sse(filtered, masks, w_cur, off_cur)
