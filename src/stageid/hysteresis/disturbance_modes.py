@@ -64,6 +64,7 @@ __all__ = [
     "SPAN",
     "LINE_SPACING",
     "SEPARATION",
+    "MAX_NFEV",
     "LINE_HALF_WIDTH",
 ]
 
@@ -85,6 +86,9 @@ PEAK_RATIO = 6.0
 MAX_DAMPING = 0.05
 #: Most modes taken.
 MAX_MODES = 2
+#: Most residual evaluations of one peak fit (the fits on the FORC records take 10-33; a
+#: candidate on a steep model-error floor can wander for thousands).
+MAX_NFEV = 200
 #: Half-power half-widths around a mode or pole within which no further mode is taken.
 SEPARATION = 5.0
 #: The fit window around a candidate: [f / SPAN, f * SPAN].
@@ -209,7 +213,7 @@ def _fit_peak(f: np.ndarray, s: np.ndarray, measured: np.ndarray, fp: float, flo
     p0 = np.r_[1.0, np.log(zeta0), np.log(k0), np.log(floor0), 0.0]
     lo = np.r_[1 / SPAN, np.log(1e-4), -np.inf, -np.inf, -20.0]
     hi = np.r_[SPAN, np.log(1.0), np.inf, np.inf, 20.0]
-    res = least_squares(lambda p: model(p) - sw, p0, bounds=(lo, hi), loss="soft_l1", f_scale=0.5)
+    res = least_squares(lambda p: model(p) - sw, p0, bounds=(lo, hi), loss="soft_l1", f_scale=0.5, max_nfev=MAX_NFEV)
     fn, zeta = float(res.x[0] * fp), float(np.exp(res.x[1]))
     # the peak as the Welch estimate sees it (window-smoothed), not the resonance's own
     peak = np.exp(res.x[2]) * float(np.max(_expected(fw, fn, zeta, df, kernel, over)))
