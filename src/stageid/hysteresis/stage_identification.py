@@ -24,21 +24,21 @@ Procedure (:meth:`StageIdentifier.fit`):
    its RMS error on the one left out (own offset), summed over the records; with a single
    record the first 60 % of it is fitted and the rest scored.  The simplest candidate within
    ``AUTO_TOLERANCE`` of the best is then fitted on all records.
-4. **Modes from the disturbance** (``disturbance_modes="auto"``, the default, with any
-   dynamics but ``None``): the residual of the fit of steps 2-3 on every record goes to
+4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
+   inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
+   hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
+   only: a Preisach grid has no thresholds to search.)
+5. **Modes from the disturbance** (``disturbance_modes="auto"``, the default, with any
+   dynamics but ``None``): the residual of the fit of steps 2-4 on every record goes to
    :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
    lightly damped modes a broadband disturbance rings in every record, which the drives
    themselves do not excite.  Found modes become a fixed unit-DC-gain resonance filter in
    series with ``G`` (:func:`~.disturbance_modes.resonance_filter`), and step 2 is fitted
-   again with the same order and creep (weights, creep, offsets and the low-order ``G``
+   again with the same order and creep and the thresholds of step 4 (weights, creep, offsets and the low-order ``G``
    jointly, the modes fixed).  ``auto`` does not decide on a mode by held-out error, which
    cannot see a mode the drives do not excite: the mode's significance in the residual
    spectrum decides.  With ``auto`` order or creep, step 3 runs again with the modes in
    place (the held-out scores reported are that second run's).
-5. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
-   inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
-   hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
-   only: a Preisach grid has no thresholds to search.)
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
@@ -272,8 +272,10 @@ class StageIdentifier(Estimator):
         everything = [np.ones(u.size, bool) for u, _ in recs]
         w, c, offsets, ba = problem.fit(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
+        if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
+            problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         modes: tuple[DisturbanceMode, ...] = ()
-        if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 4
+        if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 5
             poles = None if model.dynamics is None else model.dynamics.poles()
             modes = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles)
             if modes:
@@ -283,8 +285,6 @@ class StageIdentifier(Estimator):
                 w, c, offsets, ba = problem.fit(order, taus, everything)
                 model = problem.build(w, c, offsets[0], taus, ba, *names)
                 model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
-        if model.dynamics is not None and self.model != "preisach":  # step 5: thresholds again, G inverted
-            problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         max_e, rms_e = problem.errors(model, offsets)
         return StageFit(
             model=model,
@@ -331,9 +331,8 @@ class StageIdentifier(Estimator):
         ).fit(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         second = StageProblem(base.model, recs, kinds, dt)
-        second.prefilter = problem.prefilter
         w, c, offsets2, ba = second.fit(order, taus, everything)
-        model2 = replace(second.build(w, c, offsets2[0], taus, ba, *names), disturbance_modes=model.disturbance_modes)
+        model2 = second.build(w, c, offsets2[0], taus, ba, *names)
         old = problem.errors(model, problem.offsets_of(model, recs))[1]
         new = second.errors(model2, offsets2)[1]
         if sum(new) < sum(old):
