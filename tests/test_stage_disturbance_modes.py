@@ -113,6 +113,10 @@ def test_white_residuals_never_give_a_mode_and_a_rung_mode_is_found():
     assert abs(mode.frequency_hz - 700.0) < 14.0 and 0.01 < mode.damping < 0.0225
     # a pole already in the dynamics at that mode: not added again
     assert disturbance_modes(rung, drives, DT, poles=np.roots(a)) == ()
+    # ... nor when the fit has it a little more damped than a mode (0.08 > MAX_DAMPING)
+    assert disturbance_modes(rung, drives, DT, poles=np.roots(_resonance(700.0, 0.08)[1])) == ()
+    # a well-damped pair far away does not hide it
+    assert len(disturbance_modes(rung, drives, DT, poles=np.roots(_resonance(2500.0, 0.08)[1]))) == 1
     # a record too short for MIN_SEGMENTS segments takes no part
     assert disturbance_modes([r[:1500] for r in rung], [u[:1500] for u in drives], DT) == ()
 

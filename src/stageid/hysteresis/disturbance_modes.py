@@ -39,8 +39,11 @@ tracking records are validation data and did not set it):
    most ``MAX_DAMPING`` (lightly damped), and the half-power width ``2 zeta fn`` is at least one
    bin (narrower is a periodic line, not a mode rung by broadband noise).
 6. A candidate within ``SEPARATION`` half-power half-widths (``zeta fn``) of an accepted
-   mode, or of a pole of the current dynamics with damping below ``MAX_DAMPING``, is not
-   added (the shoulder of a mode, or a mode the input-output fit already has).
+   mode is not added (its shoulder); nor one within ``SEPARATION`` times the larger of its
+   own damping and ``min(zeta_p, MAX_DAMPING)`` (relative) of a complex pole pair of the
+   current dynamics with damping ``zeta_p < POLE_DAMPING`` (a resonance the input-output
+   fit already has, even a little more damped than a mode; added after the validation figures,
+   changes none of them: the real records' fits have no complex poles).
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ __all__ = [
     "SPAN",
     "LINE_SPACING",
     "SEPARATION",
+    "POLE_DAMPING",
     "MAX_NFEV",
     "LINE_HALF_WIDTH",
 ]
@@ -89,6 +93,8 @@ MAX_MODES = 2
 #: Most residual evaluations of one peak fit (the fits on the FORC records take 10-33; a
 #: candidate on a steep model-error floor can wander for thousands).
 MAX_NFEV = 200
+#: A complex pole pair of the dynamics below this damping already holds a resonance (rule 6).
+POLE_DAMPING = 0.3
 #: Half-power half-widths around a mode or pole within which no further mode is taken.
 SEPARATION = 5.0
 #: The fit window around a candidate: [f / SPAN, f * SPAN].
@@ -250,7 +256,9 @@ def disturbance_modes(
     peaks = [k for k in range(1, f.size - 1) if inside[k] and ratio[k] >= max(ratio[k - 1], ratio[k + 1])]
     peaks = sorted((k for k in peaks if ratio[k] >= CANDIDATE_RATIO), key=lambda k: -ratio[k])
     taken: list[DisturbanceMode] = []
-    bands = _pole_bands(poles, dt)
+    resonant = _resonant_poles(poles, dt)
+    # before the fit the candidate's damping is unknown: the poles' own half-widths (capped)
+    bands = [(fp * (1 - SEPARATION * zp), fp * (1 + SEPARATION * zp)) for fp, zp in resonant]
     for k in peaks:
         if len(taken) >= MAX_MODES:
             break
@@ -264,24 +272,25 @@ def disturbance_modes(
             continue
         if any(lo <= fn <= hi for lo, hi in bands):
             continue
+        if any(abs(fn - fp) <= SEPARATION * max(zeta, zp) * fp for fp, zp in resonant):
+            continue
         taken.append(DisturbanceMode(fn, zeta, peak))
         bands.append((fn * (1 - SEPARATION * zeta), fn * (1 + SEPARATION * zeta)))
     return tuple(sorted(taken, key=lambda m: m.frequency_hz))
 
 
-def _pole_bands(poles: np.ndarray | None, dt: float) -> list[tuple[float, float]]:
-    """Half-power bands of the lightly damped poles already in the dynamics."""
+def _resonant_poles(poles: np.ndarray | None, dt: float) -> list[tuple[float, float]]:
+    """``(fn, min(zeta, MAX_DAMPING))`` of the complex pole pairs of the dynamics with damping
+    below ``POLE_DAMPING`` (rule 6)."""
     out = []
     for z in np.atleast_1d(poles if poles is not None else []):
         z = complex(z)
         if z == 0 or z.imag <= 0:
             continue
         s = np.log(z) / dt
-        wn = abs(s)
-        zeta = -s.real / wn
-        if zeta < MAX_DAMPING:
-            fn = wn / (2 * np.pi)
-            out.append((fn * (1 - SEPARATION * zeta), fn * (1 + SEPARATION * zeta)))
+        zeta = -s.real / abs(s)
+        if zeta < POLE_DAMPING:
+            out.append((abs(s) / (2 * np.pi), min(zeta, MAX_DAMPING)))
     return out
 
 
