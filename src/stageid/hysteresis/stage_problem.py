@@ -245,14 +245,13 @@ class StageProblem:
         return max_e, rms_e
 
 
-def refine_output_error(problem: StageProblem, cols: list, masks: list, order: int, start=None):
+def refine_output_error(problem: StageProblem, cols: list, masks: list, order: int):
     """``(b, a)`` minimising the output error with the weights projected out (variable projection).
 
     Parameters ``(a_1..a_n, b_1..b_n)``, ``b_0 = sum a - sum b_i`` (``G(1) = 1``); the inner fit
     is unconstrained least squares of the weights and offsets on strided rows; an unstable
-    ``A`` scores a large residual.  Started from ``start`` ``(b, a)`` when given, else from ``n``
-    poles at 0.5 and a numerator spread over the delays (a stage's sub-millisecond lag and delay
-    at 10 kHz).
+    ``A`` scores a large residual.  Started from ``n`` poles at 0.5 and a numerator spread over
+    the delays (a stage's sub-millisecond lag and delay at 10 kHz).
     """
     from scipy.optimize import least_squares
 
@@ -281,8 +280,6 @@ def refine_output_error(problem: StageProblem, cols: list, masks: list, order: i
 
     a0 = np.poly(np.full(n, 0.5))
     b_tail = np.full(n, np.sum(a0) / (n + 1))
-    if start is not None:  # a given (b, a) of this order
-        a0, b_tail = np.asarray(start[1], float), np.asarray(start[0], float)[1:]
     try:
         res = least_squares(residual, np.r_[a0[1:], b_tail], method="trf", diff_step=1e-6, max_nfev=60 * n)
     except (ValueError, np.linalg.LinAlgError):
