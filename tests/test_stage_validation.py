@@ -126,7 +126,10 @@ def test_measured_tracking_records_start_after_an_earlier_minor_loop():
         return dspace_record(name)[:2]
 
     train = [record("20_hz_no_lp"), record("100_hz_no_lp")]
-    model = StageIdentifier("preisach", dynamics=1, creep=(0.01, 0.1, 1.0), sample_time=DT).fit(train).model
+    # the model of section 4e, without the 745 Hz mode from the disturbance (section 4f), whose
+    # smaller error would hide what the memory does here
+    ident = StageIdentifier("preisach", dynamics=1, creep=(0.01, 0.1, 1.0), sample_time=DT, disturbance_modes=None)
+    model = ident.fit(train).model
     for name in ("tri50_1", "sine50_1"):
         u, y = record(name)
         assert validate_record(model, u, y, DT, "kinds").rms_error_percent > 1.0  # measured 1.12, 1.15

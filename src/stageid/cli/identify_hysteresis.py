@@ -116,6 +116,16 @@ Examples:
     "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics). "
     "Writes a model of kind `stage`; needs a time axis.",
 )
+@click.option(
+    "--disturbance-modes",
+    "modes",
+    type=click.Choice(["auto", "none"]),
+    default="auto",
+    show_default=True,
+    help="With --dynamics: auto puts the lightly damped modes that a broadband disturbance rings in "
+    "every record's residual (drive harmonics left out) into the dynamics, with unit DC gain, and "
+    "refits; none: never. The summary and the JSON list the modes taken.",
+)
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option(
     "-o",
@@ -148,6 +158,7 @@ def identify(
     creep: tuple[float, ...] | str | None = None,
     dynamics: int | str | None = None,
     n_levels: int = 20,
+    modes: str = "auto",
 ) -> None:
     """Identify a PI, modified-PI or Preisach hysteresis model from one or more DATA records.
 
@@ -183,7 +194,7 @@ def identify(
             weight_uncertainty="auto" if report_dir is not None else "none",
         ).fit(list(exps))
     else:
-        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels)
+        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes)
     write_model_output(out, fit.model)
     if not quiet:
         say(fit.summary())
@@ -209,7 +220,7 @@ def identify(
         say(f"report written to {path}", err=True)
 
 
-def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels):
+def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):
     """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt.
     A Preisach model holds no creep term of its own, so any --creep makes it a stage."""
     from ..hysteresis.stage_identification import StageIdentifier
@@ -222,4 +233,5 @@ def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, d
         initial_state=initial_state,
         input_warp=input_warp,
         n_levels=n_levels,
+        disturbance_modes=None if modes == "none" else modes,
     ).fit(list(exps))

@@ -12,7 +12,12 @@ JSON (``stageid.hysteresis/1``)::
     {"format": "stageid.hysteresis/1", "kind": "stage",
      "hysteresis": {... a pi / modified-pi model, creep included, or a preisach model ...},
      "dynamics": {... a stageid.lti/1 statespace model, discrete ...} | null,
-     "creep": {... see stageid.hysteresis.creep ...}}   # optional; preisach hysteresis only
+     "creep": {... see stageid.hysteresis.creep ...},   # optional; preisach hysteresis only
+     "disturbance_modes": [{"frequency_hz": f, "damping": z}, ...]}   # optional, see below
+
+``disturbance_modes`` records which modes of ``dynamics`` the identification took from the
+records' disturbance spectrum (:mod:`.disturbance_modes`); they are part of ``dynamics``
+already, the list is a record of where they came from.
 
 The object composes with :mod:`stageid.models`: :attr:`StageModel.dynamics` is a plain
 ``StateSpaceModel`` (poles, frequency response, python-control conversion), and
@@ -77,6 +82,7 @@ class StageModel:
     hysteresis: Any
     dynamics: Any = None
     creep: CreepTerm | None = None
+    disturbance_modes: tuple[tuple[float, float], ...] = ()
 
     kind = STAGE_KIND
 
@@ -85,6 +91,12 @@ class StageModel:
             raise ModelError(
                 f"`hysteresis` must be a PIModel, ModifiedPIModel or PreisachModel; got {type(self.hysteresis).__name__}."
             )
+        modes = tuple(tuple(float(v) for v in m) for m in self.disturbance_modes)
+        if any(len(m) != 2 or not all(np.isfinite(m)) or min(m) <= 0 for m in modes):
+            raise ModelError(f"`disturbance_modes` must be (frequency Hz, damping) pairs > 0; got {modes}.")
+        object.__setattr__(self, "disturbance_modes", modes)
+        if modes and self.dynamics is None:
+            raise ModelError("`disturbance_modes` name modes of the dynamics; this stage has none.")
         if self.creep is not None:
             if not isinstance(self.creep, CreepTerm):
                 raise ModelError(f"`creep` must be a CreepTerm or None; got {type(self.creep).__name__}.")
@@ -210,6 +222,8 @@ class StageModel:
         }
         if self.creep is not None:  # absent otherwise: PI stage files stay as they were
             d["creep"] = self.creep.to_dict()
+        if self.disturbance_modes:  # which modes of `dynamics` came from the disturbance spectrum
+            d["disturbance_modes"] = [{"frequency_hz": f, "damping": z} for f, z in self.disturbance_modes]
         return d
 
     @classmethod
@@ -218,7 +232,7 @@ class StageModel:
         from ..models.serialization import lti_from_dict
         from .serialization import model_from_dict
 
-        keys = {"format", "kind", "hysteresis", "dynamics", "creep"}
+        keys = {"format", "kind", "hysteresis", "dynamics", "creep", "disturbance_modes"}
         if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d:
             raise ModelFormatError(
                 f"a stage model needs `hysteresis`, `dynamics` and optionally `creep`; got {shown(d)}."
@@ -236,7 +250,15 @@ class StageModel:
             if not isinstance(g, dict) or g.get("kind") != "statespace":
                 raise ModelFormatError(f"`dynamics` must be a stageid.lti/1 statespace model or null; got {shown(g)}.")
             dyn = lti_from_dict(g)
+        modes = d.get("disturbance_modes", [])
+        if not isinstance(modes, list) or not all(
+            isinstance(m, dict) and set(m) == {"frequency_hz", "damping"} for m in modes
+        ):
+            raise ModelFormatError(
+                f"`disturbance_modes` must be a list of {{frequency_hz, damping}}; got {shown(modes)}."
+            )
         try:
-            return cls(hysteresis=h, dynamics=dyn, creep=creep)
+            pairs = tuple((m["frequency_hz"], m["damping"]) for m in modes)
+            return cls(hysteresis=h, dynamics=dyn, creep=creep, disturbance_modes=pairs)
         except ModelError as exc:
             raise ModelFormatError(str(exc)) from None

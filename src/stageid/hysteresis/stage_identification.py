@@ -28,6 +28,17 @@ Procedure (:meth:`StageIdentifier.fit`):
    inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
    hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
    only: a Preisach grid has no thresholds to search.)
+5. **Modes from the disturbance** (``disturbance_modes="auto"``, the default, with any
+   dynamics but ``None``): the residual of the fit of steps 2-4 on every record goes to
+   :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
+   lightly damped modes a broadband disturbance rings in every record, which the drives
+   themselves do not excite.  Found modes become a fixed unit-DC-gain resonance filter in
+   series with ``G`` (:func:`~.disturbance_modes.resonance_filter`), and step 2 is fitted
+   again with the same order and creep and the thresholds of step 4 (weights, creep, offsets and the low-order ``G``
+   jointly, the modes fixed).  ``auto`` does not decide on a mode by held-out error, which
+   cannot see a mode the drives do not excite: the mode's significance in the residual
+   spectrum decides.  With ``auto`` order or creep, step 3 runs again with the modes in
+   place (the held-out scores reported are that second run's).
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
@@ -36,7 +47,7 @@ model (zero state, first record's offset).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -44,6 +55,7 @@ import numpy as np
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
+from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .identification import MODEL_KINDS, PIIdentifier
 from .preisach_identification import PreisachIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
@@ -52,7 +64,7 @@ from .stage_inverse import invert_dynamics
 from .stage_preisach import PreisachStageProblem, best_start_kinds
 from .stage_problem import N_ALTERNATIONS, StageProblem
 
-__all__ = ["StageIdentifier", "StageFit", "AUTO_ORDERS", "AUTO_CREEP"]
+__all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
 
 AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
@@ -89,6 +101,8 @@ class StageFit:
         ``(order, creep time constants, held-out RMS % summed over folds)`` per candidate when
         something was ``"auto"``; empty otherwise.
     message : str
+    modes : tuple of DisturbanceMode
+        The modes of the dynamics taken from the records' disturbance spectrum (step 4).
     """
 
     model: StageModel
@@ -100,6 +114,7 @@ class StageFit:
     creep_time_constants: tuple[float, ...]
     held_out: tuple[tuple[int, tuple[float, ...], float], ...]
     message: str
+    modes: tuple[DisturbanceMode, ...] = ()
 
     def summary(self) -> str:
         """A short text report."""
@@ -120,10 +135,27 @@ class StageFit:
                 "  dynamics poles at "
                 + ", ".join(f"{f:.4g} Hz" if np.isfinite(f) else "z = 0 (a one-sample delay)" for f in sorted(hz))
             )
+        for m in self.modes:
+            lines.append(
+                f"  mode from the disturbance spectrum: {m.frequency_hz:.4g} Hz, damping {m.damping:.3g} "
+                f"(peak {m.peak_ratio:.3g} x the floor)"
+            )
         for order, taus, score in self.held_out:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
         lines.append(f"  {self.message}")
         return "\n".join(lines)
+
+
+def choose_candidate(problem: StageProblem, orders: tuple[int, ...], creeps: tuple) -> tuple[int, tuple, list]:
+    """``(order, creep time constants, held-out scores)``: the simplest candidate within
+    ``AUTO_TOLERANCE`` of the best held-out error (step 3), or the only candidate."""
+    if len(orders) * len(creeps) == 1:
+        return orders[0], creeps[0], []
+    held_out = [(n, taus, problem.held_out_score(n, taus)) for taus in creeps for n in orders]
+    best = min(c[2] for c in held_out)
+    simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
+    order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
+    return order, taus, held_out
 
 
 class StageIdentifier(Estimator):
@@ -148,6 +180,9 @@ class StageIdentifier(Estimator):
         Preisach only: cells per axis of the grid (as :class:`~stageid.hysteresis.PreisachIdentifier`).
     smoothing : float, default 1e-4
         Preisach only: weight of the smoothness penalty (as :class:`~stageid.hysteresis.PreisachIdentifier`).
+    disturbance_modes : "auto" or None, default "auto"
+        ``"auto"``: lightly damped modes found in the records' disturbance spectrum are put in
+        the dynamics (step 4; only when ``dynamics`` is not None); ``None``: never.
 
     Examples
     --------
@@ -176,6 +211,7 @@ class StageIdentifier(Estimator):
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
         "n_levels": [Interval(int, 2, None, closed="left")],
         "smoothing": [Interval(float, 0, None, closed="left")],
+        "disturbance_modes": [Options("auto"), None],
     }
 
     def __init__(
@@ -189,6 +225,7 @@ class StageIdentifier(Estimator):
         sample_time: float | None = None,
         n_levels: int = 20,
         smoothing: float = 1e-4,
+        disturbance_modes: str | None = "auto",
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -199,6 +236,7 @@ class StageIdentifier(Estimator):
         self.sample_time = sample_time
         self.n_levels = n_levels
         self.smoothing = smoothing
+        self.disturbance_modes = disturbance_modes
 
     @single_blas_thread
     def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> StageFit:
@@ -230,22 +268,23 @@ class StageIdentifier(Estimator):
             )
         orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
         problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
-        held_out: list[tuple[int, tuple[float, ...], float]] = []
-        if len(orders) * len(creeps) > 1:
-            for taus in creeps:
-                for n in orders:
-                    held_out.append((n, taus, problem.held_out_score(n, taus)))
-            # the simplest candidate within AUTO_TOLERANCE of the best held-out error
-            best = min(c[2] for c in held_out)
-            simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
-            order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
-        else:
-            order, taus = orders[0], creeps[0]
+        order, taus, held_out = choose_candidate(problem, orders, creeps)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         w, c, offsets, ba = problem.fit(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
         if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
             problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
+        modes: tuple[DisturbanceMode, ...] = ()
+        if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 5
+            poles = None if model.dynamics is None else model.dynamics.poles()
+            modes = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles)
+            if modes:
+                problem.prefilter = resonance_filter(modes, dt)
+                # the order and creep are chosen again with the modes in place
+                order, taus, held_out = choose_candidate(problem, orders, creeps)
+                w, c, offsets, ba = problem.fit(order, taus, everything)
+                model = problem.build(w, c, offsets[0], taus, ba, *names)
+                model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
         max_e, rms_e = problem.errors(model, offsets)
         return StageFit(
             model=model,
@@ -256,9 +295,14 @@ class StageIdentifier(Estimator):
             dynamics_order=model.dynamics_order,
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
+            modes=modes,
             message=f"{base_message}; weights, creep and dynamics "
             + (f"alternated {N_ALTERNATIONS} times" if problem.settle == 0 else "alternated until settled")
-            + ("." if model.dynamics_order == order else f"; order-{order} dynamics did not lower the residual: none."),
+            + (
+                "."
+                if model.dynamics_order == order + 2 * len(modes)
+                else f"; order-{order} dynamics did not lower the residual: none."
+            ),
         )
 
     def _first_step(self, data, inputs, outputs, recs, dt):

@@ -148,6 +148,7 @@ class PreisachStageProblem(StageProblem):
         creep = None
         if taus:
             creep = CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=self.dt)
+        ba = self.with_prefilter(ba)
         dyn = None if ba is None else transfer_to_statespace(ba[0] / (np.sum(ba[0]) / np.sum(ba[1])), ba[1], self.dt)
         return StageModel(h, dyn, creep)
 

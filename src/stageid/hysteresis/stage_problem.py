@@ -36,6 +36,9 @@ class StageProblem:
     settle = 0.0
     #: (creep time constants, their columns): the last set asked for (see :meth:`columns`)
     _columns: tuple[Any, list[np.ndarray]] = (None, [])
+    #: ``(b, a)`` of fixed unit-DC-gain dynamics every column runs through before the fitted
+    #: ``G`` (the modes found in the disturbance, :mod:`.disturbance_modes`); None: none
+    prefilter: tuple[np.ndarray, np.ndarray] | None = None
 
     def __init__(self, hysteresis: Any, recs: list, kinds: list[str], dt: float) -> None:
         self.h = hysteresis
@@ -58,7 +61,7 @@ class StageProblem:
     def columns(self, taus: tuple[float, ...]) -> list[np.ndarray]:
         """Per record the live operator columns and the creep lags, C-ordered (the filter runs
         along the rows); kept for the last ``taus`` (``auto`` asks for each set many times)."""
-        key = tuple(taus)
+        key = (tuple(taus), None if self.prefilter is None else tuple(map(tuple, self.prefilter)))
         if self._columns[0] != key:
             out = []
             for (u, _), z in zip(self.recs, self.Z):
@@ -66,7 +69,8 @@ class StageProblem:
                 if taus:
                     term = CreepTerm(time_constants=taus, weights=np.zeros(len(taus)), sample_time=self.dt)
                     cols.append(term.lags(u))
-                out.append(np.ascontiguousarray(np.hstack(cols)))
+                both = np.ascontiguousarray(np.hstack(cols))
+                out.append(both if self.prefilter is None else unit_gain_filter(*self.prefilter, both))
             self._columns = (key, out)
         return self._columns[1]
 
@@ -153,7 +157,10 @@ class StageProblem:
                 for _ in range(self.n_alternations):
                     if ba is None:
                         pairs = [(cols[j][:end] @ w_cur, self.recs[j][1][:end] - off_cur[j]) for j, end in segs]
-                        ba = fit_unit_gain_dynamics(pairs, order)
+                        try:
+                            ba = fit_unit_gain_dynamics(pairs, order)
+                        except (IdentificationError, np.linalg.LinAlgError):
+                            break  # this start cannot go on (a regressor vanished); keep the best seen
                     filtered = self.filtered(ba, cols, masks)
                     w_cur, off_cur = self.solve_weights(filtered, masks, nc)
                     err = self.sse(filtered, masks, w_cur, off_cur)
@@ -201,8 +208,17 @@ class StageProblem:
         h = replace(self.h, weights=weights, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,))
         if taus:
             h = replace(h, creep=CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=self.dt))
+        ba = self.with_prefilter(ba)
         dyn = None if ba is None else transfer_to_statespace(ba[0] / (np.sum(ba[0]) / np.sum(ba[1])), ba[1], self.dt)
         return StageModel(h, dyn)
+
+    def with_prefilter(self, ba):
+        """The fitted ``(b, a)`` (or None) in series with the fixed prefilter."""
+        if self.prefilter is None:
+            return ba
+        if ba is None:
+            return self.prefilter
+        return np.convolve(ba[0], self.prefilter[0]), np.convolve(ba[1], self.prefilter[1])
 
     def offsets_of(self, model: StageModel, recs: list) -> np.ndarray:
         """Each record's offset: the model's plus its mean residual."""
@@ -212,12 +228,18 @@ class StageProblem:
             out.append(float(np.mean(y - model.with_hysteresis(h).simulate(u, self.dt)[:, 0])) + h.output_offset)
         return np.array(out)
 
-    def errors(self, model: StageModel, offsets) -> tuple[list[float], list[float]]:
-        max_e, rms_e = [], []
+    def residuals(self, model: StageModel, offsets) -> list[np.ndarray]:
+        """Measured minus modelled output per record (own offset and starting state)."""
+        out = []
         for (u, y), kind, off in zip(self.recs, self.kinds, offsets):
             h = model.hysteresis
             h = replace(h.with_state(h.consistent_state(u[0], kind)), output_offset=float(off))
-            e = y - model.with_hysteresis(h).simulate(u, self.dt)[:, 0]
+            out.append(y - model.with_hysteresis(h).simulate(u, self.dt)[:, 0])
+        return out
+
+    def errors(self, model: StageModel, offsets) -> tuple[list[float], list[float]]:
+        max_e, rms_e = [], []
+        for (_, y), e in zip(self.recs, self.residuals(model, offsets)):
             max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
             rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
         return max_e, rms_e
