@@ -36,8 +36,7 @@ CASES = ("maglev", "2x2-s10", "2x2-s20")
 # ------------------------------------------------------------------------------ worker side
 def _build(case: str):
     """``(estimator, experiments, true continuous plant)`` of one case."""
-    from stageid.closedloop import ClosedLoopIdentification, simulate_closed_loop
-    from stageid.data import Experiment
+    from stageid.closedloop import ClosedLoopIdentification
 
     if case == "maglev" or case.startswith("maglev-s"):
         from stageid.plants import maglev
@@ -50,17 +49,10 @@ def _build(case: str):
         return ClosedLoopIdentification(maglev.controller(), band=(20.0, 300.0)), exps, maglev.model()
     sys.path.insert(0, str(HERE.parent / "tests"))
     import _closedloop_plant2x2 as p2
-    from stageid.signals import chirp
 
     spec = case.split("-s")[1].split("-")  # "2x2-s<seed>" or "2x2-s<seed>-<snr>db"
     seed, snr = int(spec[0]), (float(spec[1].removesuffix("db")) if len(spec) > 1 else 70.0)
-    r = chirp(0.0, 2500.0, duration=2.0, dt=p2.DT, amplitude=1e-6)
-    exps = []
-    for j in range(2):
-        R = np.zeros((r.size, 2))
-        R[:, j] = r
-        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, snr, seed=seed + j)
-        exps.append(Experiment(R, y, p2.DT))
+    exps = p2.chirp_experiments((seed, seed + 1), snr)
     return ClosedLoopIdentification(p2.controller(), band=(20.0, 300.0)), exps, p2.plant()
 
 

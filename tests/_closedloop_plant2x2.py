@@ -31,3 +31,20 @@ def controller():
         [[m1[0], [0.0]], [[0.0], m2[0]]], [[m1[1], [1.0]], [[1.0], m2[1]]], None, ("e1", "e2"), ("F1", "F2")
     )
     return K.to_statespace(minimal=False).c2d(DT, "tustin")
+
+
+def chirp_experiments(seeds: tuple[int, int], snr_db: float = 70.0, duration: float = 2.0) -> list:
+    """One 1 um chirp (0-2.5 kHz) per reference axis, simulated in the loop at ``snr_db``; the
+    record of axis ``j`` draws its noise from ``seeds[j]``."""
+    from stageid.closedloop import simulate_closed_loop
+    from stageid.data import Experiment
+    from stageid.signals import chirp
+
+    r = chirp(0.0, 2500.0, duration=duration, dt=DT, amplitude=1e-6)
+    exps = []
+    for j in range(2):
+        R = np.zeros((r.size, 2))
+        R[:, j] = r
+        y, _ = simulate_closed_loop(plant(), controller(), R, DT, snr_db, seed=seeds[j])
+        exps.append(Experiment(R, y, DT, ("r1", "r2"), ("y1", "y2")))
+    return exps

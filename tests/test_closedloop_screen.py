@@ -21,11 +21,9 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from stageid.closedloop import ClosedLoopIdentification, cancellation, initial, regression, simulate_closed_loop
-from stageid.data import Experiment
+from stageid.closedloop import ClosedLoopIdentification, cancellation, initial, regression
 from stageid.models import StateSpaceModel
 from stageid.models.minimal import controllable_basis
-from stageid.signals import chirp
 
 sys.path.insert(0, str(Path(__file__).parent))
 import _closedloop_plant2x2 as p2  # noqa: E402
@@ -95,13 +93,7 @@ def test_order_scan_is_steiglitz_mcbride_of_the_largest_order_and_least_squares_
 
 
 def _accuracy_2x2(seed, snr_db):
-    r = chirp(0.0, 2500.0, duration=2.0, dt=p2.DT, amplitude=1e-6)
-    exps = []
-    for j in range(2):
-        R = np.zeros((r.size, 2))
-        R[:, j] = r
-        y, _ = simulate_closed_loop(p2.plant(), p2.controller(), R, p2.DT, snr_db, seed=seed + j)
-        exps.append(Experiment(R, y, p2.DT))
+    exps = p2.chirp_experiments((seed, seed + 1), snr_db)
     res = ClosedLoopIdentification(p2.controller(), band=(20.0, 300.0)).fit(exps)
     f = np.geomspace(20.0, 300.0, 300)
     Gt, Gh = p2.plant().frequency_response(f), res.plant.frequency_response(f)

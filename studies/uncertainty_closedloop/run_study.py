@@ -27,13 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from stageid.closedloop import ClosedLoopIdentification, simulate_closed_loop
+from stageid.closedloop import ClosedLoopIdentification
 from stageid.closedloop.covariance import closed_loop_covariance
 from stageid.closedloop.loop_model import group_by_reference
 from stageid.closedloop.uncertainty import BIAS_RULES, plant_uncertainty
 from stageid.data import Experiment
 from stageid.plants import maglev
-from stageid.signals import chirp
 
 sys.path.insert(0, str(Path(__file__).parents[2] / "tests"))
 import _closedloop_plant2x2 as plant2x2  # noqa: E402
@@ -50,14 +49,7 @@ def maglev_experiments(seed: int) -> list[Experiment]:
 
 
 def plant2x2_experiments(seed: int) -> list[Experiment]:
-    r = chirp(0.0, 2500.0, duration=2.0, dt=plant2x2.DT, amplitude=1e-6)
-    exps = []
-    for j in range(2):
-        R = np.zeros((r.size, 2))
-        R[:, j] = r
-        y, _ = simulate_closed_loop(plant2x2.plant(), plant2x2.controller(), R, plant2x2.DT, 70.0, 100 * seed + j)
-        exps.append(Experiment(R, y, plant2x2.DT, ("r1", "r2"), ("y1", "y2")))
-    return exps
+    return plant2x2.chirp_experiments((100 * seed, 100 * seed + 1))
 
 
 PLANTS = {
