@@ -232,8 +232,9 @@ def resonance(lines: list[str], recs: dict, train: list, fit) -> None:
     """The ~740 Hz resonance of the tracking records: their small-signal response (Welch H1),
     the drive power near it in every record, and the model with it added, weights refitted on
     the FORC records only."""
-    from scipy.signal import cont2discrete, csd, welch
+    from scipy.signal import csd, welch
 
+    from stageid.hysteresis.dynamics import zoh_resonance
     from stageid.hysteresis.stage_preisach import PreisachStageProblem, best_start_kinds
     from stageid.hysteresis.stage_validation import validate_record
 
@@ -265,9 +266,8 @@ def resonance(lines: list[str], recs: dict, train: list, fit) -> None:
     for fn, zeta in ((None, 0.0), (740.0, 0.02), (740.0, 0.03), (1000.0, 0.02)):
         b, a = b0, a0
         if fn is not None:
-            wn = 2 * np.pi * fn
-            bd, ad, _ = cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), DT, method="zoh")
-            b, a = np.convolve(b0, np.ravel(bd)), np.convolve(a0, ad)
+            bd, ad = zoh_resonance(fn, zeta, DT)
+            b, a = np.convolve(b0, bd), np.convolve(a0, ad)
             b = np.r_[b, np.zeros(max(0, a.size - b.size))]
             a = np.r_[a, np.zeros(max(0, b.size - a.size))]
         w, offsets = problem.solve_weights(problem.filtered((b, a), cols, masks), masks, len(taus))

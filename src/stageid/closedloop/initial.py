@@ -129,8 +129,9 @@ def steiglitz_mcbride_orders(segs, orders, nk: int, n_iter: int) -> dict[int, tu
     rows = sum(uu.size for uu, _ in segs)
     F = np.ones(1)
     theta: dict[int, np.ndarray] = {}
+    sizes = sorted({2 * n for n in orders}, reverse=True)
+    W = np.empty((rows, 2 * nmax + 1), order="F")  # refilled every pass (the QR overwrites it)
     for it in range(n_iter):
-        W = np.empty((rows, 2 * nmax + 1), order="F")
         r0 = 0
         for uu, yy in segs:
             n_ = yy.size
@@ -143,7 +144,6 @@ def steiglitz_mcbride_orders(segs, orders, nk: int, n_iter: int) -> dict[int, tu
             r0 += n_
         # until the last pass only the pre-filter, the largest order that solves, is needed
         last = it == n_iter - 1
-        sizes = sorted({2 * n for n in orders}, reverse=True)
         theta = prefix_lstsq(W, sizes, "Steiglitz-McBride", first_only=not last)
         if not theta:
             return {}

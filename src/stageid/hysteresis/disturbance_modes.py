@@ -52,6 +52,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .dynamics import zoh_resonance
+
 __all__ = [
     "DisturbanceMode",
     "disturbance_modes",
@@ -300,13 +302,8 @@ def resonance_filter(modes: tuple[DisturbanceMode, ...], dt: float) -> tuple[np.
     Each mode is ``wn^2 / (s^2 + 2 zeta wn s + wn^2)`` held over a sample (no zeros near the
     mode: its numerator is ``b_1 z^-1 + b_2 z^-2``).
     """
-    from scipy.signal import cont2discrete
-
     b, a = np.ones(1), np.ones(1)
     for m in modes:
-        wn = 2 * np.pi * m.frequency_hz
-        num, den, _ = cont2discrete(([wn**2], [1.0, 2 * m.damping * wn, wn**2]), dt, method="zoh")
-        num = np.atleast_1d(np.squeeze(num))
-        num = num * np.sum(den) / np.sum(num)
+        num, den = zoh_resonance(m.frequency_hz, m.damping, dt)
         b, a = np.convolve(b, num), np.convolve(a, den)
     return b, a

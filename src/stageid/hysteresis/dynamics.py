@@ -27,10 +27,27 @@ import numpy as np
 
 from .._errors import IdentificationError, ModelError
 
-__all__ = ["fit_unit_gain_dynamics", "unit_gain_filter", "transfer_to_statespace", "statespace_to_transfer"]
+__all__ = [
+    "fit_unit_gain_dynamics",
+    "unit_gain_filter",
+    "zoh_resonance",
+    "transfer_to_statespace",
+    "statespace_to_transfer",
+]
 
 #: Steiglitz-McBride iterations (the fit converges in a few on the records we tried).
 SM_ITERATIONS = 8
+
+
+def zoh_resonance(frequency_hz: float, damping: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(b, a)`` in ``z^-1`` of ``wn^2 / (s^2 + 2 zeta wn s + wn^2)`` held over a sample (ZOH),
+    scaled to unit DC gain (the sampled numerator is ``b_1 z^-1 + b_2 z^-2``)."""
+    from scipy.signal import cont2discrete
+
+    wn = 2 * np.pi * frequency_hz
+    num, den, _ = cont2discrete(([wn**2], [1.0, 2 * damping * wn, wn**2]), dt, method="zoh")
+    num = np.ravel(num)
+    return num / (np.sum(num) / np.sum(den)), den
 
 
 def unit_gain_filter(b: np.ndarray, a: np.ndarray, columns: np.ndarray) -> np.ndarray:

@@ -44,6 +44,7 @@ import numpy as np
 from .._errors import ModelError, ModelFormatError
 from ..checks import is_real, shown
 from ..data.experiment import Experiment
+from ..hysteresis.dynamics import zoh_resonance
 from ..hysteresis.pi import ModifiedPIModel
 from ..hysteresis.serialization import register_kind
 from . import experiment_seed
@@ -200,13 +201,9 @@ class PiezoActuator:
 
 
 def _lowpass(y: np.ndarray, dt: float, f_n: float, zeta: float) -> np.ndarray:
-    from scipy.signal import cont2discrete, lfilter
+    from scipy.signal import lfilter
 
-    wn = 2 * np.pi * f_n
-    num, den, _ = cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), dt, method="zoh")
-    num = np.ravel(num)
-    gain = np.sum(num) / np.sum(den)
-    return lfilter(num / gain, den, y)
+    return lfilter(*zoh_resonance(f_n, zeta, dt), y)
 
 
 def model() -> PiezoActuator:
