@@ -52,12 +52,37 @@ def test_reduced_problem_follows_scipy_trf(seed, max_nfev):
 def test_qr_reduction_keeps_what_the_iteration_uses():
     fun, jac, x0 = _exp_problem()
     J, f = jac(x0), fun(x0)
-    J_r, f_r = qr_reduce(J, f)
+    J_r, f_r, _ = qr_reduce(J, f)
     assert J_r.shape == (5, 4) and f_r.shape == (5,) and not np.any(f_r[:4])
     np.testing.assert_allclose(J_r.T @ J_r, J.T @ J, rtol=1e-12)
     np.testing.assert_allclose(J_r.T @ f_r, J.T @ f, rtol=1e-10)
     np.testing.assert_allclose(np.linalg.norm(f_r), np.linalg.norm(f), rtol=1e-13)
     np.testing.assert_allclose(np.linalg.norm(J_r, axis=0), np.linalg.norm(J, axis=0), rtol=1e-13)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_qr_reduction_gives_the_gauss_newton_decrement(seed):
+    fun, jac, x0 = _exp_problem(seed)
+    x0 = x0 + 0.3 * np.random.default_rng(seed).standard_normal(4)
+    J, f = jac(x0), fun(x0)
+    p = np.linalg.lstsq(J, -f, rcond=None)[0]
+    expected = 1.0 - np.sum((J @ p + f) ** 2) / np.sum(f**2)
+    assert 0.01 < expected < 1.0  # away from the optimum: a decrement worth checking
+    np.testing.assert_allclose(qr_reduce(J, f)[2], expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_decrement_stop_ends_where_little_is_left_to_gain(seed):
+    fun, jac, x0 = _exp_problem(seed)
+    full = reduced_least_squares(fun, jac, x0, 200)
+    tol = 1e-4
+    got = reduced_least_squares(fun, jac, x0, 200, decrement_tol=tol)
+    assert got.status == 1 and got.nfev < full.nfev
+    loss, loss_full = np.sum(fun(got.x) ** 2), np.sum(fun(full.x) ** 2)
+    assert np.isclose(np.linalg.norm(got.fun), np.sqrt(loss), rtol=1e-12)
+    assert loss_full <= loss <= loss_full * (1 + 10 * tol)
+    # and where it stopped, the linearised problem offers less than the tolerance
+    assert qr_reduce(jac(got.x), fun(got.x))[2] < tol
 
 
 @pytest.mark.parametrize("x0", [(-1.2, 1.0), (-3.0, -2.0), (2.5, -1.0)])

@@ -110,3 +110,26 @@ def test_bad_arguments_raise_stageid_errors() -> None:
         pem(u[:20], y[:20], "oe", {"nb": 4, "nf": 4})
     with pytest.raises(IdentificationError, match="zero"):
         arx(np.zeros(200), y, 2, 2)
+
+
+@pytest.mark.parametrize("pair", [(0, 1), (1, 0)])
+def test_decrement_stop_gives_up_less_than_the_statistical_excess(monkeypatch, pair) -> None:
+    """The 2x2 test plant's coupling pairs at the screen's order (order 15-16, cond(J) ~ 1e13):
+    the default stop saves evaluations and costs less loss than an estimate's own excess d / N."""
+    import importlib
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from _closedloop_plant2x2 import chirp_experiments
+
+    pem_module = importlib.import_module("stageid.closedloop.pem")
+    j, i = pair  # reference j, output i
+    exp = chirp_experiments((10, 11))[j]
+    r, y = exp.u[:, j], exp.y[:, i]
+    stopped, _ = select_order(r, y, "oe", range(2, 17), 1, exp.dt)
+    monkeypatch.setattr(pem_module, "STOP_FRACTION", 0.0)
+    full, _ = select_order(r, y, "oe", range(2, 17), 1, exp.dt)
+    assert stopped.F.size == full.F.size >= 15  # the same screen's choice
+    excess = stopped.loss / full.loss - 1.0
+    assert -1e-9 < excess < stopped.n_parameters / stopped.n_samples
+    assert stopped.converged and stopped.n_iterations < 0.75 * full.n_iterations

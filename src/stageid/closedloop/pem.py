@@ -115,9 +115,10 @@ def _minimise(segs, structure, orders, nk, dt, max_nfev, polys) -> PolynomialMod
     yscale = max(np.sqrt(np.mean(np.concatenate([s[1] for s in segs]) ** 2)), 1e-300)
     segs_s = [(uu, yy / yscale) for uu, yy in segs]
     fun, jac, parts = _loss_functions(segs_s, orders, nk)
+    stop = decrement_tol(sum(orders.values()), sum(uu.size for uu, _ in segs))
     try:
         sol = reduced_least_squares(
-            fun, jac, pack(A, B / yscale, C, D, F), max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12
+            fun, jac, pack(A, B / yscale, C, D, F), max_nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12, decrement_tol=stop
         )
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentificationError(f"the {structure} prediction-error optimisation failed: {exc}") from None
@@ -183,3 +184,19 @@ def jacobian(A, B, C, D, F, nk, orders, u, y, parts=None, out=None) -> np.ndarra
     if orders["nf"]:
         blocks.append((ss.lfilter(D, DCF, yu), orders["nf"], 1, False))
     return regressor([blocks], u.size, out=out)
+
+
+#: fraction of the statistical excess loss ``d / N`` that a Gauss-Newton step must still offer
+STOP_FRACTION = 0.01
+
+
+def decrement_tol(n_parameters: int, n_samples: int) -> float:
+    """Relative Gauss-Newton decrement below which the optimiser stops: ``STOP_FRACTION * d / N``.
+
+    An estimate from ``N`` samples with ``d`` parameters sits, on average, ``d / N`` of the loss
+    above the true parameters' loss (Ljung 1999, sec. 16.4).  Once the linearised problem offers
+    less than a hundredth of that, the remaining steps move the model far less than its own
+    standard error.  The decrement is the whole decrease the full Gauss-Newton step predicts, so
+    unlike the decrease of one trust-region step it stays large along a narrow valley.
+    """
+    return STOP_FRACTION * n_parameters / max(n_samples, 1)
