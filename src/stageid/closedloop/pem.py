@@ -4,7 +4,9 @@ The parameters of a structure of :mod:`~stageid.closedloop.polynomial` minimise 
 ``V_N = sum e(t)^2``, with the prediction error of eq. 14, ``e = D/C (A y - B/F u)``, by
 :func:`~stageid.closedloop.reduced_lsq.reduced_least_squares` (SciPy's trust-region ``trf`` on the
 QR-reduced problem) with the analytic Jacobian,
-started from the linear estimates of :mod:`~stageid.closedloop.initial`.  The predictor is
+started from the linear estimates of :mod:`~stageid.closedloop.initial`, and stopped once the
+Gauss-Newton step offers less than a hundredth of the estimate's statistical excess loss
+(:func:`decrement_tol`).  The predictor is
 kept stable: roots of ``C`` and ``F`` that leave the unit circle are reflected into it
 (Ljung 1999, sec. 10.5) before the loss is evaluated.
 
@@ -24,7 +26,24 @@ from .polynomial import PolynomialModel, check_orders, pack, residual_parts, sta
 from .reduced_lsq import reduced_least_squares
 from .regression import check_dt, check_moving, records, regressor
 
-__all__ = ["pem", "fit_pem", "jacobian"]
+__all__ = ["pem", "fit_pem", "jacobian", "decrement_tol", "STOP_FRACTION"]
+
+
+#: fraction of the statistical excess loss ``d / N`` that a Gauss-Newton step must still offer
+STOP_FRACTION = 0.01
+
+
+def decrement_tol(n_parameters: int, n_samples: int) -> float:
+    """Relative Gauss-Newton decrement below which the optimiser stops: ``STOP_FRACTION * d / N``.
+
+    The parameters estimated from ``N`` samples with ``d`` parameters are uncertain by an amount
+    worth ``d / N`` of the loss: on fresh data their expected loss exceeds the true parameters'
+    by that fraction (Akaike's FPE; Ljung 1999, ch. 16).  Once the linearised problem offers
+    less than a hundredth of that, the remaining steps move the model far less than its own
+    standard error.  The decrement is the whole decrease the full Gauss-Newton step predicts, so
+    unlike the decrease of one trust-region step it stays large along a narrow valley.
+    """
+    return STOP_FRACTION * n_parameters / max(n_samples, 1)
 
 
 def pem(
@@ -184,19 +203,3 @@ def jacobian(A, B, C, D, F, nk, orders, u, y, parts=None, out=None) -> np.ndarra
     if orders["nf"]:
         blocks.append((ss.lfilter(D, DCF, yu), orders["nf"], 1, False))
     return regressor([blocks], u.size, out=out)
-
-
-#: fraction of the statistical excess loss ``d / N`` that a Gauss-Newton step must still offer
-STOP_FRACTION = 0.01
-
-
-def decrement_tol(n_parameters: int, n_samples: int) -> float:
-    """Relative Gauss-Newton decrement below which the optimiser stops: ``STOP_FRACTION * d / N``.
-
-    An estimate from ``N`` samples with ``d`` parameters sits, on average, ``d / N`` of the loss
-    above the true parameters' loss (Ljung 1999, sec. 16.4).  Once the linearised problem offers
-    less than a hundredth of that, the remaining steps move the model far less than its own
-    standard error.  The decrement is the whole decrease the full Gauss-Newton step predicts, so
-    unlike the decrease of one trust-region step it stays large along a narrow valley.
-    """
-    return STOP_FRACTION * n_parameters / max(n_samples, 1)
