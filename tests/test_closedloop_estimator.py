@@ -17,7 +17,7 @@ from stageid.closedloop import (
     reduce_entry,
     simulate_closed_loop,
 )
-from stageid.closedloop.reduction import zoh_response
+from stageid.closedloop.zoh import zoh_response
 from stageid.data import Experiment
 from stageid.models import TransferMatrix
 from stageid.plants.maglev import lead_lag

@@ -5,7 +5,7 @@
 * :func:`~stageid.closedloop.regression.lstsq_qr` (one QR of ``[Phi | Y]``, gelsd's rank rule
   on ``R``) gives :func:`~stageid.closedloop.regression.lstsq`'s solution and rank decisions;
 * the shared balancing / controllable parts of the cancellation, the direct canonical form of
-  the reduction and its ``trim_leading`` give the very numbers of the routes they replace.
+  the reduction and ``zoh.trim_leading`` give the very numbers of the routes they replace.
 """
 
 import numpy as np
@@ -15,7 +15,7 @@ import scipy.signal as ss
 from scipy.optimize import least_squares
 
 from stageid._errors import IdentificationError
-from stageid.closedloop import cancellation, deduction, reduction, regression
+from stageid.closedloop import cancellation, deduction, regression, zoh
 from stageid.closedloop.reduced_lsq import qr_reduce, reduced_least_squares
 from stageid.models import StateSpaceModel, TransferMatrix, minimal_realization
 
@@ -161,11 +161,11 @@ def test_controller_canonical_and_trim_leading_equal_scipy_and_numpy():
         num = rng.standard_normal(nn) * 10 ** rng.uniform(-3, 6, nn)
         if k % 5 == 0:
             num[0] = 0.0
-        for x, y in zip(ss.tf2ss(num, den), reduction.controller_canonical(num, den)):
+        for x, y in zip(ss.tf2ss(num, den), zoh.controller_canonical(num, den)):
             assert x.shape == y.shape and np.array_equal(x, y)
         x = np.concatenate([np.zeros(k % 4), num])
-        assert np.array_equal(np.trim_zeros(x, "f"), reduction.trim_leading(x))
-    assert reduction.trim_leading(np.zeros(3)).size == 0
+        assert np.array_equal(np.trim_zeros(x, "f"), zoh.trim_leading(x))
+    assert zoh.trim_leading(np.zeros(3)).size == 0
 
 
 def _plant(seed=3, n=24, p=2):

@@ -1,8 +1,9 @@
-"""The reduced fits evaluate the ZOH response on a grid computed once (``reduction.zoh_at``).
+"""The reduced fits evaluate the ZOH response on a grid computed once (``zoh.zoh_at``).
 
 ``zoh_at`` must give the numbers of :func:`zoh_response` (the same arithmetic, bit for bit) and
 those of an independent ZOH discretisation; the reduction's residual must be the one written
 with ``np.polymul`` and :func:`zoh_response` on the frequencies, so that the fits are unchanged.
+The fits' analytic Jacobian (``zoh.zoh_derivatives``) must be the derivative of ``zoh_at``.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from stageid.closedloop.reduction import reduce_entry, zoh_at, zoh_response
+from stageid.closedloop.reduction import reduce_entry
+from stageid.closedloop.zoh import zoh_at, zoh_derivatives, zoh_response
 
 DT = 2e-4
 F = np.geomspace(20.0, 300.0, 120)
@@ -23,6 +25,35 @@ CASES = [
     ([1.0], np.poly([-100.0, -100.0, -100.0])),  # a triple pole (no partial fractions)
     ([4.0, 1.0], [2.0, 0.0]),  # an integrator, non-monic denominator
 ]
+
+
+@pytest.mark.parametrize(("num", "den"), CASES)
+def test_zoh_derivatives_are_those_of_zoh_at(num, den) -> None:
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    num, den = num / den[0], den / den[0]  # the fits' polynomials: monic denominator
+    z = np.exp(2j * np.pi * F * DT)
+    H, d_num, d_den = zoh_derivatives(num, den, DT, z)
+    np.testing.assert_allclose(H, zoh_at(num, den, DT, z), rtol=1e-12)
+    assert d_num.shape == (F.size, den.size) and d_den.shape == (F.size, den.size - 1)
+
+    pad = den.size - num.size
+
+    def central(k, of_den):  # central difference of zoh_at in one coefficient
+        p = (den if of_den else num).copy()
+        h = 1e-6 * max(1.0, abs(p[k]))
+        hi, lo = p.copy(), p.copy()
+        hi[k] += h
+        lo[k] -= h
+        if of_den:
+            return (zoh_at(num, hi, DT, z) - zoh_at(num, lo, DT, z)) / (2 * h)
+        return (zoh_at(hi, den, DT, z) - zoh_at(lo, den, DT, z)) / (2 * h)
+
+    scale = np.max(np.abs(H))
+    for k in range(num.size):  # the columns of the padding's zeros are the fits' unused ones
+        np.testing.assert_allclose(d_num[:, pad + k], central(k, False), rtol=0, atol=1e-6 * scale)
+    for i in range(den.size - 1):
+        fd = central(i + 1, True)
+        np.testing.assert_allclose(d_den[:, i], fd, rtol=0, atol=1e-6 * max(np.max(np.abs(fd)), scale))
 
 
 @pytest.mark.parametrize(("num", "den"), CASES)

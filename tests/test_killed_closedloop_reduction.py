@@ -20,8 +20,8 @@ from stageid.closedloop.reduction import (
     keep_full_order,
     paper_orders,
     reduce_entry,
-    zoh_response,
 )
+from stageid.closedloop.zoh import zoh_response
 from stageid.models import TransferMatrix
 
 DT = 2e-4

@@ -20,13 +20,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.signal as ss
 from scipy.optimize import least_squares
 
 from .._errors import IdentificationError, ModelError
 from ..models import TransferMatrix
 from .cancellation import EntryPoleZero, z_to_s
+from .zoh import zoh_at, zoh_derivatives
 
 __all__ = [
     "ReducedEntry",
@@ -35,8 +34,6 @@ __all__ = [
     "reduce_plant",
     "keep_full_order",
     "entry_unstable_poles",
-    "zoh_response",
-    "zoh_at",
     "paper_orders",
 ]
 
@@ -76,59 +73,6 @@ def paper_orders(n: int) -> dict[tuple[int, int], tuple[int, int]]:
     """The paper's structure for an ``n x n`` plant: ``(n_zeros, n_poles)`` = (0, 2) on the
     diagonal, (1, 3) off it (third order; one zero allowed as in eq. 22c and 24b)."""
     return {(i, j): ((0, 2) if i == j else (1, 3)) for i in range(n) for j in range(n)}
-
-
-def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarray) -> np.ndarray:
-    """Frequency response of the ZOH equivalent of the continuous ``num/den`` at ``freqs_hz``.
-
-    Computed exactly from ``expm`` of the controllable-canonical realisation (no
-    ``(z - e^{p dt})`` partial fractions, so repeated poles are fine).
-    """
-    num = np.atleast_1d(np.asarray(num, dtype=float))
-    den = np.atleast_1d(np.asarray(den, dtype=float))
-    return zoh_at(num, den, dt, np.exp(2j * np.pi * np.asarray(freqs_hz, dtype=float) * dt))
-
-
-def zoh_at(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) -> np.ndarray:
-    """:func:`zoh_response` at given points ``z = exp(j 2 pi f dt)`` (1-D float ``num``, ``den``):
-    the reduced fits evaluate it for every residual on one grid."""
-    num_t, den_t = trim_leading(num), trim_leading(den)
-    if den_t.size == 1 and num_t.size <= 1:  # a static gain: tf2ss would give it one state at z = 1
-        return np.full(z.shape, complex(num_t.sum() / den_t[0]))
-    A, B, C, D = controller_canonical(num, den)
-    n = A.shape[0]
-    blk = np.zeros((n + 1, n + 1))
-    blk[:n, :n] = A * dt
-    blk[:n, n:] = B * dt
-    E = sla.expm(blk)
-    Ad, Bd = E[:n, :n], E[:n, n:]
-    M = z[:, None, None] * np.eye(n)[None] - Ad[None]
-    X = np.linalg.solve(M, np.broadcast_to(Bd, (z.size, n, 1)))
-    return (C[None] @ X)[:, 0, 0] + D[0, 0]
-
-
-def trim_leading(p: np.ndarray) -> np.ndarray:
-    """``np.trim_zeros(p, "f")`` for a 1-D array (without its generic, slower machinery)."""
-    nz = np.flatnonzero(p)
-    return p[nz[0] :] if nz.size else p[:0]
-
-
-def controller_canonical(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``scipy.signal.tf2ss(num, den)`` for a proper SISO ``num/den`` (the same numbers, without its
-    argument handling: the reduced fits call it for every residual).  Cases where ``tf2ss`` would
-    trim or warn about tiny leading numerator coefficients, or refuse, go to ``tf2ss`` itself."""
-    den_t = trim_leading(den)
-    numn, dn = num / den_t[0], den_t / den_t[0]
-    K = dn.size
-    if numn.size == 0 or abs(numn[0]) <= 1e-14 or numn.size > K or K == 1:
-        return ss.tf2ss(num, den)
-    nump = np.concatenate([np.zeros(K - numn.size), numn])
-    A = np.zeros((K - 1, K - 1))
-    A[0] = -dn[1:]
-    A[1:, :-1] = np.eye(K - 2)
-    B = np.zeros((K - 1, 1))
-    B[0, 0] = 1.0
-    return A, B, (nump[1:] - nump[0] * dn[1:])[None, :], np.array([[nump[0]]])
 
 
 def _poly_from_params(a: np.ndarray) -> np.ndarray:
@@ -179,6 +123,7 @@ def reduce_entry(
     --------
     >>> import numpy as np
     >>> f = np.linspace(20, 300, 60)
+    >>> from stageid.closedloop.zoh import zoh_response
     >>> P = zoh_response([3.0], np.poly([50.0, -80.0]), 2e-4, f)
     >>> r = reduce_entry(P, f, 2e-4, 0, 2, np.array([50.0]))
     >>> bool(r.eps_complex < 1e-6), np.round(np.sort(r.poles.real), 3).tolist()
@@ -215,6 +160,7 @@ def free_fit(
         sol = least_squares(
             fit.residual,
             theta,
+            jac=fit.jacobian,
             method="lm" if theta.size * 2 <= 2 * f.size else "trf",
             max_nfev=max_nfev,
             xtol=1e-12,
@@ -265,7 +211,7 @@ def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> n
         return theta
     roots = np.where(roots.real > 0, -np.conj(roots), roots)
     theta = np.concatenate([theta[:nb], np.real(np.poly(roots))[1:]])
-    refit = least_squares(fit.residual, theta, method="trf", max_nfev=max_nfev).x
+    refit = least_squares(fit.residual, theta, jac=fit.jacobian, method="trf", max_nfev=max_nfev).x
     # the refit is unconstrained: on a truly unstable entry it walks back to the unstable
     # optimum, and the promise is stable free poles, so the reflected fit stands then
     if np.any(np.roots(_poly_from_params(refit[nb:])).real > 0):
@@ -322,6 +268,22 @@ class _RationalFit:
         num, den = self.polynomials(th)
         r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.P
         return np.concatenate([r.real, r.imag])
+
+    def jacobian(self, th: np.ndarray) -> np.ndarray:
+        """``d residual / d th``: the chain rule through :func:`zoh_derivatives` (exact, no differences)."""
+        num, den = self.polynomials(th)
+        _, d_num, d_den = zoh_derivatives(num, den, self.dt, self.z)
+        nb = self.n_zeros + 1
+        scale = 1.0 / self.den_scale[0]
+        cols = [d_num[:, -nb:] * (self.num_scale * scale)[None, :]]
+        n_free = th.size - nb
+        for k in range(n_free):  # d den / d a_k: du_n times s^(n_free - 1 - k), scaled like den
+            e = np.zeros(n_free + 1)
+            e[k + 1] = 1.0
+            dd = np.convolve(self.du_n, e) * self.den_scale * scale
+            cols.append((d_den @ dd[1:])[:, None])
+        dH = np.column_stack(cols) / self.P[:, None]
+        return np.vstack([dH.real, dH.imag])
 
 
 def reduce_best(

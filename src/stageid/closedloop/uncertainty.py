@@ -49,7 +49,8 @@ from .._errors import DataError, IdentificationError
 from .._threads import single_blas_thread
 from ..frf.frd import FrequencyResponse
 from .covariance import transfer_gradient, transfer_gradient_at
-from .reduction import ReducedEntry, zoh_response
+from .reduction import ReducedEntry
+from .zoh import zoh_response
 
 __all__ = [
     "BIAS_RULES",
