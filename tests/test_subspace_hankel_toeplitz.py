@@ -108,6 +108,25 @@ def test_window_gram_from_lags_equals_reference():
     np.testing.assert_allclose(window_gram(z, R, 5), window_gram_python(z, R, 5), atol=1e-11)
 
 
+@pytest.mark.parametrize(("horizon", "r", "n_segments"), [(1, 1, 1), (2, 3, 4), (7, 2, 3), (12, 5, 6)])
+def test_gram_from_lags_equals_the_explicit_window_sum_over_segments(horizon, r, n_segments):
+    # the diagonal-view recursion against sum_k w(k) w(k)^T formed window by window, both
+    # triangles; segments from one window (L samples) upwards
+    from stageid.subspace.correlations import gram_from_lags
+
+    rng = np.random.default_rng([horizon, r, n_segments])
+    L = 2 * horizon
+    segments = [rng.standard_normal((L + int(k), r)) for k in rng.integers(0, 5 * L, n_segments)]
+    R = sum(lag_correlations(s, L - 1) for s in segments)
+    heads = np.stack([s[:L] for s in segments])
+    tails = np.stack([s[-L:] for s in segments])
+    W = gram_from_lags(R, heads, tails)
+    windows = np.concatenate([np.stack([s[k : k + L].ravel() for k in range(len(s) - L + 1)]) for s in segments])
+    expected = windows.T @ windows
+    # sums of a few hundred unit-variance products: rounding ~1e-13 of the largest entry
+    np.testing.assert_allclose(W, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
 @pytest.mark.parametrize("horizon", [1, 4, 9])
 def test_segments_statistics_equal_the_sum_over_ranges_and_the_dense_regression(horizon):
     from stageid.subspace.hankel_toeplitz import dense_regression, segments_statistics, window_statistics

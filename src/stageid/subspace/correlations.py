@@ -14,7 +14,15 @@ from numpy.lib.stride_tricks import as_strided
 
 from .._errors import DataError
 
-__all__ = ["lag_correlations", "RecordRows", "gram_from_lags", "window_gram", "window_gram_python", "input_periodogram"]
+__all__ = [
+    "lag_correlations",
+    "RecordRows",
+    "gram_from_lags",
+    "diagonal_rows",
+    "window_gram",
+    "window_gram_python",
+    "input_periodogram",
+]
 
 
 def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> np.ndarray:
@@ -144,11 +152,12 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
 
     i.e. the lag correlation minus products of the first and of the last ``L`` samples
     only.  Both corrections are running sums along the block diagonals of
-    ``sum_segments h h^T`` (heads) and ``f f^T`` (tails): with ``M = sum h h^T``, the head
-    correction ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the
-    same recursion backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.
-    The recursion runs one block row at a time, so no ``(L r) x (L r)`` temporary besides
-    the result is formed.
+    ``M = sum_segments h h^T`` (heads) and of ``sum f f^T`` (tails): the head correction
+    ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the same recursion
+    backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.  Each is one
+    product ``H^T H`` and one pass down the block rows of a view that starts every block row
+    at its diagonal block (:func:`diagonal_rows`), where the recursion is a plain running
+    sum of block rows; the upper block triangle so corrected is then mirrored.
 
     Parameters
     ----------
@@ -170,27 +179,51 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
     Rc[:, : L - 1, :] = R[:0:-1].transpose(2, 0, 1)
     s_i, s_c, s_j = Rc.strides
     toeplitz = as_strided(Rc[:, L - 1 :, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
-    W = np.empty((L, r, L, r))
-    W[...] = toeplitz
-    W = W.reshape(Lr, Lr)
-    prev = np.empty((r, Lr))
-    cur = np.empty((r, Lr))
+    # one spare row: the diagonal views of the last block row run past the matrix
+    buf = np.empty((Lr + 1, Lr))
+    buf[:Lr].reshape(L, r, L, r)[...] = toeplitz
+    W_diag = diagonal_rows(buf, L, r)
+    M = np.empty((Lr + 1, Lr))
+    M_diag = diagonal_rows(M, L, r)
+    acc = np.empty((r, Lr))
     for block, forward in ((heads, True), (tails, False)):
         H = np.ascontiguousarray(block.reshape(block.shape[0], Lr))
-        prev[:] = 0.0
-        rows = range(1, L) if forward else range(L - 2, -1, -1)
-        for a in rows:
-            src = (a - 1) if forward else (a + 1)
-            Ms = H[:, src * r : (src + 1) * r].T @ H  # block row `src` of sum h h^T, (r, L r)
-            if forward:  # S[a, b] = S[a-1, b-1] + M[a-1, b-1]
-                np.add(prev[:, :-r], Ms[:, :-r], out=cur[:, r:])
-                cur[:, :r] = 0.0
-            else:  # S[a, b] = S[a+1, b+1] + M[a+1, b+1]
-                np.add(prev[:, r:], Ms[:, r:], out=cur[:, :-r])
-                cur[:, -r:] = 0.0
-            W[a * r : (a + 1) * r] -= cur
-            prev, cur = cur, prev
+        np.matmul(H.T, H, out=M[:Lr])
+        acc[:] = 0.0
+        if forward:  # S[a] = S[a-1] + M[a-1] along the diagonals
+            for a in range(1, L):
+                acc += M_diag[a - 1]
+                W_diag[a] -= acc
+        else:  # S[a] = S[a+1] + M[a+1]; the wrapped part of M's rows must add nothing
+            _zero_lower_blocks(M, L, r)
+            for a in range(L - 2, -1, -1):
+                acc += M_diag[a + 1]
+                W_diag[a] -= acc
+    W = buf[:Lr]
+    for a in range(1, L):  # the diagonal views wrote only the upper blocks correctly
+        W[a * r : (a + 1) * r, : a * r] = W[: a * r, a * r : (a + 1) * r].T
     return W
+
+
+def diagonal_rows(buf: np.ndarray, L: int, r: int) -> np.ndarray:
+    """View ``V[a, i, c r + j] = buf[a r + i, (a + c) r + j]`` of an ``(L r + 1, L r)`` buffer.
+
+    Block row ``a`` of the ``(L r) x (L r)`` matrix in ``buf[:L r]`` from its diagonal block
+    on, so ``V[a, :, c r : (c+1) r]`` is block ``(a, a + c)`` and the recursion along the block
+    diagonals becomes a sum over ``a``.  Columns ``c >= L - a`` wrap into the strictly lower
+    blocks of the following rows (the last row into the spare row): they are not blocks
+    ``(a, a + c)``.
+    """
+    s = buf.itemsize
+    Lr = L * r
+    return as_strided(buf, shape=(L, r, Lr), strides=((r * Lr + r) * s, Lr * s, s))
+
+
+def _zero_lower_blocks(M: np.ndarray, L: int, r: int) -> None:
+    """Zero the strictly lower blocks and the spare row of an ``(L r + 1, L r)`` buffer."""
+    M[L * r] = 0.0
+    for a in range(1, L):
+        M[a * r : (a + 1) * r, : a * r] = 0.0
 
 
 def window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
