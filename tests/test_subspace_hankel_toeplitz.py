@@ -108,7 +108,10 @@ def test_window_gram_from_lags_equals_reference():
     np.testing.assert_allclose(window_gram(z, R, 5), window_gram_python(z, R, 5), atol=1e-11)
 
 
-@pytest.mark.parametrize(("horizon", "r", "n_segments"), [(1, 1, 1), (2, 3, 4), (7, 2, 3), (12, 5, 6)])
+# the last two form M = H^T H in two bands of block rows (36 + 14 and 51 + 29)
+@pytest.mark.parametrize(
+    ("horizon", "r", "n_segments"), [(1, 1, 1), (2, 3, 4), (7, 2, 3), (12, 5, 6), (25, 6, 3), (40, 4, 2)]
+)
 def test_gram_from_lags_equals_the_explicit_window_sum_over_segments(horizon, r, n_segments):
     # the diagonal-view recursion against sum_k w(k) w(k)^T formed window by window, both
     # triangles; segments from one window (L samples) upwards

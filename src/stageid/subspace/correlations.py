@@ -154,10 +154,11 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
     only.  Both corrections are running sums along the block diagonals of
     ``M = sum_segments h h^T`` (heads) and of ``sum f f^T`` (tails): the head correction
     ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the same recursion
-    backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.  Each is one
-    product ``H^T H`` and one pass down the block rows of a view that starts every block row
-    at its diagonal block (:func:`diagonal_rows`), where the recursion is a plain running
-    sum of block rows; the upper block triangle so corrected is then mirrored.
+    backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.  Each is the
+    product ``H^T H``, formed a band of block rows at a time, and one pass down the block rows
+    of a view that starts every block row at its diagonal block (:func:`diagonal_rows`), where
+    the recursion is a plain running sum of block rows; the upper block triangle so corrected
+    is then mirrored.
 
     Parameters
     ----------
@@ -183,22 +184,26 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
     buf = np.empty((Lr + 1, Lr))
     buf[:Lr].reshape(L, r, L, r)[...] = toeplitz
     W_diag = diagonal_rows(buf, L, r)
-    M = np.empty((Lr + 1, Lr))
-    M_diag = diagonal_rows(M, L, r)
+    # M is formed a band of block rows at a time (~0.5 MB): a whole (L r)^2 temporary costs
+    # more in first-touch page faults and cache misses than the extra products
+    n_band = max(1, min(L, (1 << 16) // (r * Lr)))
+    band = np.empty((n_band * r + 1) * Lr)
     acc = np.empty((r, Lr))
+    starts = range(0, L, n_band)
     for block, forward in ((heads, True), (tails, False)):
         H = np.ascontiguousarray(block.reshape(block.shape[0], Lr))
-        np.matmul(H.T, H, out=M[:Lr])
         acc[:] = 0.0
-        if forward:  # S[a] = S[a-1] + M[a-1] along the diagonals
-            for a in range(1, L):
-                acc += M_diag[a - 1]
-                W_diag[a] -= acc
-        else:  # S[a] = S[a+1] + M[a+1]; the wrapped part of M's rows must add nothing
-            _zero_lower_blocks(M, L, r)
-            for a in range(L - 2, -1, -1):
-                acc += M_diag[a + 1]
-                W_diag[a] -= acc
+        for a0 in starts if forward else reversed(starts):
+            a1 = min(L, a0 + n_band)
+            M_diag = _band_diagonal_rows(band, H, a0, a1, r)
+            if forward:  # S[a] = S[a-1] + M[a-1] along the diagonals
+                for k in range(a0, min(a1, L - 1)):
+                    acc += M_diag[k - a0]
+                    W_diag[k + 1] -= acc
+            else:  # S[a] = S[a+1] + M[a+1]
+                for k in range(a1 - 1, max(a0, 1) - 1, -1):
+                    acc += M_diag[k - a0]
+                    W_diag[k - 1] -= acc
     W = buf[:Lr]
     for a in range(1, L):  # the diagonal views wrote only the upper blocks correctly
         W[a * r : (a + 1) * r, : a * r] = W[: a * r, a * r : (a + 1) * r].T
@@ -219,11 +224,22 @@ def diagonal_rows(buf: np.ndarray, L: int, r: int) -> np.ndarray:
     return as_strided(buf, shape=(L, r, Lr), strides=((r * Lr + r) * s, Lr * s, s))
 
 
-def _zero_lower_blocks(M: np.ndarray, L: int, r: int) -> None:
-    """Zero the strictly lower blocks and the spare row of an ``(L r + 1, L r)`` buffer."""
-    M[L * r] = 0.0
-    for a in range(1, L):
-        M[a * r : (a + 1) * r, : a * r] = 0.0
+def _band_diagonal_rows(band: np.ndarray, H: np.ndarray, a0: int, a1: int, r: int) -> np.ndarray:
+    """Block rows ``a0 .. a1-1`` of ``M = H^T H`` in ``band`` (flat scratch), as the diagonal
+    rows of :func:`diagonal_rows`: ``V[k - a0, i, c r + j] = M[k r + i, (k + c) r + j]``.
+
+    The strictly lower blocks, where the views of rows ``c >= L - k`` wrap, are zeroed, so a
+    running sum over the rows adds nothing there.
+    """
+    Lr = H.shape[1]
+    rows = (a1 - a0) * r
+    M = band[: (rows + 1) * Lr].reshape(rows + 1, Lr)
+    np.matmul(H[:, a0 * r : a1 * r].T, H, out=M[:rows])
+    M[rows] = 0.0
+    for t in range(a1 - a0):
+        M[t * r : (t + 1) * r, : (a0 + t) * r] = 0.0
+    s = band.itemsize
+    return as_strided(band[a0 * r :], shape=(a1 - a0, r, Lr), strides=((r * Lr + r) * s, Lr * s, s))
 
 
 def window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
