@@ -547,6 +547,24 @@ def test_huge_finite_samples_read_but_are_refused_as_identification_data(tmp_pat
         table.experiment(inputs=["u"], outputs=["y"])
 
 
+def test_sample_check_finds_the_first_bad_sample_whatever_the_sum_does():
+    # check_samples decides by the sum first: a sum that overflows with every sample finite
+    # must pass, and a NaN or a too large sample of either sign must still be found and placed
+    from stageid.data.experiment import check_samples
+
+    big = np.array([[1e308, 1.0], [1e308, 2.0]])  # finite samples, infinite sum
+    check_samples(big, ["a", "b"], max_abs=np.inf)
+    with pytest.raises(DataError, match=r"column 'a' has 1e\+308 at row 0"):
+        check_samples(big, ["a", "b"])
+    low = np.array([[1.0, 2.0], [3.0, -1e200]])
+    with pytest.raises(DataError, match=r"column 'b' has -1e\+200 at row 1"):
+        check_samples(low, ["a", "b"])
+    both = np.array([[1e308, 1e308], [1.0, np.nan]])
+    with pytest.raises(DataError, match=r"column 'b' has NaN at row 1"):
+        check_samples(both, ["a", "b"], max_abs=np.inf)
+    check_samples(np.zeros((0, 2)), ["a", "b"])
+
+
 def test_a_header_longer_than_the_sniffed_bytes_is_read_whole(tmp_path):
     name = "x" * 70000
     path = tmp_path / "long.csv"
