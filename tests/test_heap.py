@@ -45,6 +45,20 @@ def test_every_wrapped_fit_primes(monkeypatch):
     assert calls == [1]
 
 
+def test_reading_a_table_primes_before_the_reader_allocates(monkeypatch, tmp_path):
+    # the reader's freed arrays are what the fit after it reuses, so it must prime first
+    from stageid.data import io, npz_format, write_npz
+
+    events = []
+    monkeypatch.setattr(io, "prime_heap", lambda: events.append("prime"))
+    real = npz_format.read_npz
+    monkeypatch.setattr(io, "read_npz", lambda *a, **k: events.append("read") or real(*a, **k))
+    path = tmp_path / "r.npz"
+    write_npz(path, {"u": [1.0, 2.0, 3.0], "y": [0.0, 1.0, 0.5]}, dt=0.1)
+    io.read_table(path)
+    assert events == ["prime", "read"]
+
+
 @pytest.mark.skipif(not _heap._is_glibc(), reason="glibc's malloc thresholds only")
 def test_primed_processes_reuse_freed_blocks_instead_of_faulting_them_in_again():
     def faults(priming: str) -> int:

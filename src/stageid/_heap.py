@@ -9,9 +9,10 @@ upwards only after the process frees a large mapped block (to that block's size,
 every fit faults the same pages in again, a large share of a short fit's time (measured in
 ``benchmarks/RESULTS-subspace.md``, "Page faults").
 
-:func:`prime_heap` allocates and frees one untouched 16 MB block at the first fit of a
-process, which moves glibc to the state any process that has freed a 16 MB array is in
-(thresholds 16 MB / 32 MB); no page is touched and nothing else changes.  It does nothing
+:func:`prime_heap` allocates and frees one untouched 16 MB block at the first fit or table
+read (:func:`stageid.data.read_table`) of a process, which moves glibc to the state any
+process that has freed a 16 MB array is in (thresholds 16 MB / 32 MB); no page is touched and
+nothing else changes.  It does nothing
 off glibc or when the environment variable ``STAGEID_HEAP_PRIMING`` is ``0``.
 """
 

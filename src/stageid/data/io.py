@@ -25,6 +25,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import DataError
+from .._heap import prime_heap
 from .csv_format import read_csv, write_csv
 from .files import PathLike
 from .mat_format import read_mat
@@ -74,6 +75,9 @@ def read_table(path: PathLike, ts: float | None = None, *, time_rtol: float = DE
     5
     """
     suffix = Path(path).suffix.lower()
+    # before the reader's temporaries: freed, they then stay in the heap for the fit that
+    # usually follows instead of being faulted in again (stageid._heap)
+    prime_heap()
     readers = {".csv": read_csv, ".npz": read_npz, ".mat": read_mat}
     if suffix not in readers:
         raise DataError(f"file '{Path(path).name}' has extension '{suffix}'; expected one of .csv, .npz, .mat.")
