@@ -12,8 +12,8 @@ every fit faults the same pages in again, a large share of a short fit's time (m
 :func:`prime_heap` allocates and frees one untouched 16 MB block at the first fit or table
 read (:func:`stageid.data.read_table`) of a process, which moves glibc to the state any
 process that has freed a 16 MB array is in (thresholds 16 MB / 32 MB); no page is touched and
-nothing else changes.  It does nothing
-off glibc or when the environment variable ``STAGEID_HEAP_PRIMING`` is ``0``.
+nothing else changes.  It does nothing off glibc or when the environment variable
+``STAGEID_HEAP_PRIMING`` is ``0``.
 """
 
 from __future__ import annotations
