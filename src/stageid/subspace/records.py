@@ -50,10 +50,14 @@ def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
         raise DataError(f"new data must have the sample time of the fitted model, {model.dt:g} s; got {first.dt:g} s.")
 
 
-def _column_means(x: np.ndarray) -> np.ndarray:
-    """``x.mean(axis=0)`` column by column: a strided pass per column is much faster here than
-    numpy's axis-0 reduction of a few-column array."""
-    return np.array([x[:, j].mean() for j in range(x.shape[1])])
+def _minus_column_means(x: np.ndarray) -> np.ndarray:
+    """``x - x.mean(axis=0)`` as a new array, column by column: a strided pass per column is
+    faster here than numpy's axis-0 reduction and row broadcasting over a few-column array."""
+    out = np.empty_like(x)
+    for j in range(x.shape[1]):
+        col = x[:, j]
+        np.subtract(col, col.mean(), out=out[:, j])
+    return out
 
 
 def prepared_records(exps: Sequence[Experiment], detrend: bool) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -72,7 +76,7 @@ def prepared_records(exps: Sequence[Experiment], detrend: bool) -> list[tuple[np
         u = np.asarray(e.u, dtype=float)
         y = np.asarray(e.y, dtype=float)
         if detrend:  # one new array each: the subtraction is the copy
-            out.append((u - _column_means(u), y - _column_means(y)))
+            out.append((_minus_column_means(u), _minus_column_means(y)))
         else:
             out.append((u.copy(), y.copy()))
     return out
@@ -115,8 +119,9 @@ def to_unit_rms(
     else:
         su, sy = channel_scales(records)
     for u, y in records:
-        u /= su
-        y /= sy
+        for x, scale in ((u, su), (y, sy)):
+            for j in range(x.shape[1]):  # column by column: see _minus_column_means
+                x[:, j] /= scale[j]
     return su, sy
 
 
