@@ -547,6 +547,7 @@ def test_huge_finite_samples_read_but_are_refused_as_identification_data(tmp_pat
         table.experiment(inputs=["u"], outputs=["y"])
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # an overflowing sum is not the user's news
 def test_sample_check_finds_the_first_bad_sample_whatever_the_sum_does():
     # check_samples decides by the sum first: a sum that overflows with every sample finite
     # must pass, and a NaN or a too large sample of either sign must still be found and placed

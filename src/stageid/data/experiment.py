@@ -51,7 +51,9 @@ def check_samples(
     # the sum is finite when every sample is (NaN and inf propagate; an overflow only sends us
     # to the exact search): no record-sized temporaries, whose first-touch page faults cost
     # more than the check itself in a command-line run
-    if not np.isfinite(values.sum()):
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is an answer here, not news
+        total = values.sum()
+    if not np.isfinite(total):
         bad = ~np.isfinite(values)
         if bad.any():
             row, col = (int(i) for i in np.argwhere(bad)[0])
