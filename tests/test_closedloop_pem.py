@@ -117,10 +117,8 @@ def test_decrement_stop_gives_up_less_than_the_statistical_excess(monkeypatch, p
     """The 2x2 test plant's coupling pairs at the screen's order (order 15-16, cond(J) ~ 1e13):
     the default stop saves evaluations and costs less loss than an estimate's own excess d / N."""
     import importlib
-    import sys
 
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
-    from _closedloop_plant2x2 import chirp_experiments
+    from _closedloop_plant2x2 import chirp_experiments  # tests/ is on sys.path (see conftest.py)
 
     pem_module = importlib.import_module("stageid.closedloop.pem")
     j, i = pair  # reference j, output i

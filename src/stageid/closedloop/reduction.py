@@ -252,6 +252,11 @@ class _RationalFit:
         self.z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
         self.num_scale = w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
         self.den_scale = w0 ** (-np.arange(n_poles, -1, -1, dtype=float))
+        # d den / d a_k (du_n times s^(n_free - 1 - k), scaled like den): fixed, so built once
+        n_free = n_poles + 1 - du_n.size
+        unit = np.eye(n_free + 1)[1:]
+        self.den_jac = np.array([np.convolve(du_n, e) for e in unit]).reshape(n_free, n_poles + 1)
+        self.den_jac = (self.den_jac * (self.den_scale / self.den_scale[0]))[:, 1:].T
 
     def polynomials(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(num, den)`` in ``s`` (descending, monic ``den``) of the parameters ``th``."""
@@ -274,15 +279,8 @@ class _RationalFit:
         num, den = self.polynomials(th)
         _, d_num, d_den = zoh_derivatives(num, den, self.dt, self.z)
         nb = self.n_zeros + 1
-        scale = 1.0 / self.den_scale[0]
-        cols = [d_num[:, -nb:] * (self.num_scale * scale)[None, :]]
-        n_free = th.size - nb
-        for k in range(n_free):  # d den / d a_k: du_n times s^(n_free - 1 - k), scaled like den
-            e = np.zeros(n_free + 1)
-            e[k + 1] = 1.0
-            dd = np.convolve(self.du_n, e) * self.den_scale * scale
-            cols.append((d_den @ dd[1:])[:, None])
-        dH = np.column_stack(cols) / self.P[:, None]
+        dH = np.hstack([d_num[:, -nb:] * (self.num_scale / self.den_scale[0]), d_den @ self.den_jac])
+        dH /= self.P[:, None]
         return np.vstack([dH.real, dH.imag])
 
 

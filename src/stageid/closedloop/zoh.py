@@ -51,11 +51,8 @@ def zoh_derivatives(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) 
     ``expm`` is differentiated exactly (its Frechet derivative), so the fits need no differences.
     """
     n = den.size - 1
-    nump = np.concatenate([np.zeros(n + 1 - num.size), num])
-    A = np.zeros((n, n))
-    A[0] = -den[1:]
-    A[1:, :-1] = np.eye(n - 1)
-    C = nump[1:] - nump[0] * den[1:]
+    A, _, C, D = controller_canonical(num, den)  # the realisation zoh_at differentiates
+    C, d0 = C[0], D[0, 0]
     # expm of [[K, K_1 .. K_n], [0, K, 0 ..], ..] (K the hold's block, K_i = dK / d den_i): its
     # first block row holds expm(K) and every Frechet derivative L(K, K_i) (Van Loan 1978)
     m = n + 1
@@ -70,14 +67,14 @@ def zoh_derivatives(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) 
     M = z[:, None, None] * np.eye(n)[None] - Ad[None]
     X = np.linalg.solve(M, np.broadcast_to(Bd[:, None], (z.size, n, 1)))[:, :, 0]  # (zI - Ad)^-1 Bd
     V = np.linalg.solve(np.swapaxes(M, 1, 2), np.broadcast_to(C[:, None], (z.size, n, 1)))[:, :, 0]
-    H = X @ C + nump[0]
+    H = X @ C + d0
     d_num = np.empty((z.size, n + 1), dtype=complex)
     d_num[:, 0] = 1.0 - X @ den[1:]
     d_num[:, 1:] = X
     d_den = np.empty((z.size, n), dtype=complex)
     for i in range(n):
         dE = E[:, (i + 1) * m : (i + 2) * m]
-        d_den[:, i] = -nump[0] * X[:, i] + np.einsum("kj,kj->k", V, X @ dE[:n, :n].T + dE[:n, n])
+        d_den[:, i] = -d0 * X[:, i] + np.einsum("kj,kj->k", V, X @ dE[:n, :n].T + dE[:n, n])
     return H, d_num, d_den
 
 
