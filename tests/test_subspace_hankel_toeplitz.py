@@ -10,6 +10,7 @@ from stageid.subspace.hankel_toeplitz import (
     dense_regression,
     record_statistics,
     regressor_indices,
+    response_systems,
     theta_frequency_response,
     window_statistics,
 )
@@ -98,6 +99,22 @@ def test_model_response_equals_truth_on_exact_data():
     Gt = g.frequency_response(f)
     # lightly damped poles (|z| ~ 0.997): A^p is not small, yet the model is exact up to rounding
     np.testing.assert_allclose(G, Gt, atol=1e-6 * np.abs(Gt).max())
+
+
+@pytest.mark.parametrize("p, m, q", [(1, 1, 1), (2, 1, 3), (5, 2, 1), (7, 3, 2), (50, 3, 3)])
+def test_model_response_equals_the_least_squares_solution_of_the_block_rows(p, m, q):
+    # reference: the normal equations of the (n_freqs, p q, q) block-row systems formed directly;
+    # the response is evaluated from their Laurent coefficients (other summation order: rounding)
+    rng = np.random.default_rng(p + 10 * m + 100 * q)
+    theta = 0.3 * rng.standard_normal((p * q, 2 * p * m + p * q)) / p
+    f = np.concatenate([[0.0, 250.0], rng.uniform(0, 250, 40)])
+    lhs, rhs, _, _ = response_systems(theta, p, m, q, f, 0.002)
+    lh = np.conj(lhs).transpose(0, 2, 1)
+    expected = np.linalg.solve(lh @ lhs, lh @ rhs)
+    G = theta_frequency_response(theta, p, m, q, f, 0.002)
+    assert G.shape == (f.size, q, m)
+    np.testing.assert_allclose(G, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
+    assert theta_frequency_response(theta, p, m, q, f[:0], 0.002).shape == (0, q, m)
 
 
 def test_window_gram_from_lags_equals_reference():
