@@ -44,12 +44,15 @@ def _model_response(
     (``eig``: ``numpy.linalg.eig(A)`` when the caller has it already)."""
     lam, V = np.linalg.eig(A) if eig is None else eig
     Vi = np.linalg.inv(V)
+    nz, q, n, m = zs.size, C.shape[0], A.shape[0], B.shape[1]
     inv = 1.0 / (zs[:, None] - lam[None, :])  # (nz, n)
-    CVi = (C @ V)[None, :, :] * inv[:, None, :]  # (nz, q, n)
+    # V, Vi and Vi B are the same at every z: one product each over all z, not nz small ones
+    CVi = ((C @ V)[None, :, :] * inv[:, None, :]).reshape(nz * q, n)  # rows (z, output)
     ViB = Vi @ B
-    CR = CVi @ Vi
-    RB = (V[None, :, :] * inv[:, None, :]) @ ViB
-    G = CVi @ ViB + D[None]
+    CR = (CVi @ Vi).reshape(nz, q, n)
+    RB = (V @ (inv.T[:, :, None] * ViB[:, None, :]).reshape(n, nz * m)).reshape(n, nz, m)
+    RB = np.ascontiguousarray(RB.transpose(1, 0, 2))  # (nz, n, m), laid out as the normal equations read it
+    G = (CVi @ ViB).reshape(nz, q, m) + D[None]
     return G, CR, RB
 
 
