@@ -88,11 +88,22 @@ def test_refinement_never_increases_the_cost_and_recovers_a_perturbed_model():
     assert np.abs(est.frequency_response(f) - G).max() < 1e-4 * np.abs(G).max()
 
 
-@pytest.mark.parametrize("feedthrough, n", [(True, 4), (False, 4), (False, 1)])
-def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough, n):
+@pytest.mark.parametrize(
+    "feedthrough, n, q, m",
+    [
+        (True, 4, 3, 2),
+        (False, 4, 3, 2),
+        (False, 1, 3, 2),
+        (True, 1, 1, 1),
+        (True, 2, 1, 3),
+        (False, 15, 3, 3),
+        (True, 7, 2, 1),
+    ],
+)
+def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough, n, q, m):
     from stageid.subspace.refinement import _normal_equations
 
-    nz, q, m = 40, 3, 2
+    nz = 40
     rng = np.random.default_rng(1)
     a = rng.standard_normal((nz, q, n)) + 1j * rng.standard_normal((nz, q, n))
     b = rng.standard_normal((nz, n, m)) + 1j * rng.standard_normal((nz, n, m))

@@ -65,47 +65,79 @@ def fit_cost(abcd: tuple[np.ndarray, ...], G: np.ndarray, zs: np.ndarray) -> flo
     return c if np.isfinite(c) else float("inf")
 
 
-def _re_mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """``Re(X @ Y)`` with two real products instead of a complex one."""
-    out = X.real @ Y.real
-    out -= X.imag @ Y.imag
-    return out
-
-
 @lru_cache(maxsize=8)
-def _hermitian_plan(n: int) -> tuple[np.ndarray, ...]:
-    """Index plan of :func:`_hermitian_block`: the ``i <= k`` and ``i < k`` pairs of an ``n x n``
-    matrix, where each entry of the ``(i, j), (k, l)`` block reads its pair products, and the signs."""
+def _normal_plan(n: int, m: int, q: int, feedthrough: bool) -> tuple[np.ndarray, ...]:
+    """Where each entry of the normal equations reads the two products of :func:`_normal_equations`.
+
+    ``Kr = Lr^T Rr`` with the columns of ``Lr``: ``Re Ma`` over the pairs ``i <= k``, ``Re conj(a w)``
+    over ``(r, i)`` and ``w``, and of ``Rr``: ``Re Mb`` over ``j <= l``, ``Re conj(b)`` over ``(j, c)``
+    and ones; ``Ki = Li^T Ri`` with ``Im Ma`` over ``i < k``, ``Im conj(a w)``, ``Im Mb`` over ``j < l``
+    and ``Im conj(b)`` (``Ma``, ``Mb`` Hermitian: their other pairs follow by symmetry).  Every
+    entry is ``Kr[.] +- Ki[.]`` (or 0): the plan holds the flat index into ``[Kr, 0]`` and into
+    ``[Ki, -Ki, 0]``.  Returns the ``i <= k`` and ``i < k`` pairs (flat) and the two index arrays.
+    """
     iu, ku = np.triu_indices(n)
     ia, ka = np.triu_indices(n, 1)
+    nsu, nsa = iu.size, ia.size
     sym = np.empty((n, n), dtype=np.intp)
-    sym[iu, ku] = sym[ku, iu] = np.arange(iu.size)
+    sym[iu, ku] = sym[ku, iu] = np.arange(nsu)
     asym = np.zeros((n, n), dtype=np.intp)
-    asym[ia, ka] = asym[ka, ia] = np.arange(ia.size)
-    sign = np.zeros((n, n))
-    sign[ia, ka], sign[ka, ia] = 1.0, -1.0
-    idx_r = (sym[:, None, :, None] * iu.size + sym[None, :, None, :]).reshape(n * n, n * n)
-    idx_i = (asym[:, None, :, None] * ia.size + asym[None, :, None, :]).reshape(n * n, n * n)
-    signs = (sign[:, None, :, None] * sign[None, :, None, :]).reshape(n * n, n * n)
-    return iu * n + ku, ia * n + ka, idx_r, idx_i, signs
+    asym[ia, ka] = asym[ka, ia] = np.arange(nsa)
+    sign = np.zeros((n, n), dtype=np.intp)
+    sign[ia, ka], sign[ka, ia] = 1, -1
+    ncr, nci = nsu + n * m + 1, nsa + n * m  # columns of Kr and Ki
+    nki = (nsa + q * n) * nci
+    row_w, col_1 = nsu + q * n, nsu + n * m  # Kr's row of w and column of ones
+    nA, nB, nC, nD = n * n, n * m, q * n, (q * m if feedthrough else 0)
+    P = nA + nB + nC + nD
+    ir = np.full((P, P), ncr * (row_w + 1), dtype=np.intp)  # the 0 appended to Kr
+    ii = np.full((P, P), 2 * nki, dtype=np.intp)  # the 0 appended to [Ki, -Ki]
 
+    def put(r0, c0, rows, cols, kr, ki=None, sgn=1):
+        shape = np.broadcast_shapes(np.shape(rows), np.shape(cols), np.shape(kr))
+        R, C = np.broadcast_to(r0 + rows, shape), np.broadcast_to(c0 + cols, shape)
+        ir[R, C] = ir[C, R] = np.broadcast_to(kr, shape)
+        if ki is not None:
+            ki = np.broadcast_to(np.where(np.broadcast_to(sgn, shape) > 0, ki, ki + nki), shape)
+            ii[R, C] = ii[C, R] = np.where(np.broadcast_to(sgn, shape) == 0, 2 * nki, ki)
 
-def _hermitian_block(Ma: np.ndarray, Mb: np.ndarray) -> np.ndarray:
-    """``X[(i, j), (k, l)] = Re sum_z Ma[z, i, k] Mb[z, j, l]`` for Hermitian ``Ma[z]`` and ``Mb[z]``.
+    def grid(*sizes):
+        return np.meshgrid(*[np.arange(k) for k in sizes], indexing="ij", sparse=True)
 
-    The real parts are symmetric and the imaginary parts antisymmetric in each pair, so the sum
-    needs the ``i <= k`` (real) and ``i < k`` (imaginary) pairs only: about a quarter of the flops
-    of the full product (the ``A`` block of the normal equations).
-    """
-    nz, n, _ = Ma.shape
-    su, sa, idx_r, idx_i, signs = _hermitian_plan(n)
-    Ma2, Mb2 = Ma.reshape(nz, n * n), Mb.reshape(nz, n * n)
-    Kr = Ma2.real[:, su].T @ Mb2.real[:, su]
-    Ki = Ma2.imag[:, sa].T @ Mb2.imag[:, sa]
-    out = Kr.take(idx_r)
-    if sa.size:  # no i < k pairs for one state
-        out -= signs * Ki.take(idx_i)
-    return out
+    iA, iB, iC, iD = 0, nA, nA + nB, nA + nB + nC
+    caw_r, caw_i = nsu + np.arange(q * n).reshape(q, n), nsa + np.arange(q * n).reshape(q, n)  # rows (r, i)
+    i, j, k, l = grid(n, n, n, n)  # AA[(i,j),(k,l)] = Re sum Ma[i,k] Mb[j,l]
+    put(
+        iA,
+        iA,
+        i * n + j,
+        k * n + l,
+        sym[i, k] * ncr + sym[j, l],
+        asym[i, k] * nci + asym[j, l],
+        -sign[i, k] * sign[j, l],
+    )
+    i, j, k, c = grid(n, n, n, m)  # AB[(i,j),(k,c)] = Re sum Ma[i,k] conj(b)[j,c]
+    put(
+        iA, iB, i * n + j, k * m + c, sym[i, k] * ncr + nsu + j * m + c, asym[i, k] * nci + nsa + j * m + c, -sign[i, k]
+    )
+    i, j, r, l = grid(n, n, q, n)  # AC[(i,j),(r,l)] = Re sum conj(a w)[r,i] Mb[j,l]
+    put(iA, iC, i * n + j, r * n + l, caw_r[r, i] * ncr + sym[j, l], caw_i[r, i] * nci + asym[j, l], -sign[j, l])
+    i, k, c = grid(n, n, m)  # BB[(i,c),(k,c)] = Re sum Ma[i,k]
+    put(iB, iB, i * m + c, k * m + c, sym[i, k] * ncr + col_1)
+    i, c, r, j = grid(n, m, q, n)  # BC[(i,c),(r,j)] = Re sum conj(a w)[r,i] b[j,c]
+    put(iB, iC, i * m + c, r * n + j, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c)
+    r, i, j = grid(q, n, n)  # CC[(r,i),(r,j)] = Re sum w Mb[i,j]
+    put(iC, iC, r * n + i, r * n + j, row_w * ncr + sym[i, j])
+    if feedthrough:
+        i, j, r, c = grid(n, n, q, m)  # AD[(i,j),(r,c)] = Re sum conj(a w)[r,i] conj(b)[j,c]
+        put(iA, iD, i * n + j, r * m + c, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c, -1)
+        i, c, r = grid(n, m, q)  # BD[(i,c),(r,c)] = Re sum conj(a w)[r,i]
+        put(iB, iD, i * m + c, r * m + c, caw_r[r, i] * ncr + col_1)
+        r, i, c = grid(q, n, m)  # CD[(r,i),(r,c)] = Re sum w conj(b)[i,c]
+        put(iC, iD, r * n + i, r * m + c, row_w * ncr + nsu + i * m + c)
+        d = np.arange(q * m)
+        put(iD, iD, d, d, row_w * ncr + col_1)
+    return iu * n + ku, ia * n + ka, ir, ii
 
 
 def _normal_equations(
@@ -114,50 +146,36 @@ def _normal_equations(
     """``J^T J`` and ``J^T r`` of the frequency fit over ``vec(A), vec(B), vec(C), vec(D)``.
 
     Uses the product structure ``dG/dA_ij = (C R)[:, i] (R B)[j, :]`` so the Jacobian itself
-    is never formed: every block is a weighted sum over frequencies of small outer products.
-    ``a = C R`` (nz, q, n), ``b = R B`` (nz, n, m), ``e`` the residual (nz, q, m).  The blocks
-    are written straight into one preallocated matrix (few large temporaries: see
-    :func:`~stageid.subspace.hankel_toeplitz.lag_correlations` on why that matters).
+    is never formed: every block is a weighted sum over frequencies of small outer products,
+    ``a = C R`` (nz, q, n), ``b = R B`` (nz, n, m), ``e`` the residual (nz, q, m).  All blocks
+    of ``J^T J`` are entries of two real products over the frequencies (:func:`_normal_plan`):
+    the Hermitian ``Ma = (a w)^H a`` and ``Mb = conj(b) b^T`` need their ``i <= k`` real and
+    ``i < k`` imaginary pairs only, about half the flops of the full products.
     """
     nz, q, n = a.shape
     m = b.shape[2]
-    nA, nB, nC, nD = n * n, n * m, q * n, (q * m if feedthrough else 0)
-    iA, iB, iC, iD = 0, nA, nA + nB, nA + nB + nC
-    P = iD + nD
-    JtJ = np.empty((P, P))
+    su, sa, ir, ii = _normal_plan(n, m, q, feedthrough)
     aw = a * w[:, None, None]
-    caw = np.conj(aw).reshape(nz, q * n)  # (z, (r, i))
     cb = np.conj(b)
-    Ma = np.matmul(np.conj(aw).transpose(0, 2, 1), a)  # weighted a^H a, (z, i, k)
-    Mb = np.matmul(cb, b.transpose(0, 2, 1))  # conj(b) b^T, (z, j, l)
-    Ma2 = Ma.reshape(nz, n * n)
-    Mb2 = Mb.reshape(nz, n * n)
-    cb2 = cb.reshape(nz, n * m)
-
-    def put(r0: int, c0: int, blk: np.ndarray) -> None:
-        JtJ[r0 : r0 + blk.shape[0], c0 : c0 + blk.shape[1]] = blk
-        if r0 != c0:
-            JtJ[c0 : c0 + blk.shape[1], r0 : r0 + blk.shape[0]] = blk.T
-
-    # AA[i,j,k,l] = Re sum_z w Ma[i,k] Mb[j,l]
-    JtJ[:nA, :nA] = _hermitian_block(Ma, Mb)
-    put(iA, iB, _re_mm(Ma2.T, cb2).reshape(n, n, n, m).transpose(0, 2, 1, 3).reshape(nA, nB))
-    put(iA, iC, _re_mm(caw.T, Mb2).reshape(q, n, n, n).transpose(1, 2, 0, 3).reshape(nA, nC))
-    put(iB, iB, np.kron(Ma.sum(axis=0).real, np.eye(m)))
-    put(iB, iC, _re_mm(caw.T, b.reshape(nz, n * m)).reshape(q, n, n, m).transpose(1, 3, 0, 2).reshape(nB, nC))
-    put(iC, iC, np.kron(np.eye(q), (w @ Mb2).real.reshape(n, n)))
+    Ma = np.matmul(np.conj(aw).transpose(0, 2, 1), a).reshape(nz, n * n)  # (z, (i, k))
+    Mb = np.matmul(cb, b.transpose(0, 2, 1)).reshape(nz, n * n)  # (z, (j, l))
+    nsu, nsa = su.size, sa.size
+    Lr, Rr = np.empty((nz, nsu + q * n + 1)), np.empty((nz, nsu + n * m + 1))
+    Lr[:, :nsu], Lr[:, nsu:-1], Lr[:, -1] = Ma.real[:, su], aw.real.reshape(nz, q * n), w
+    Rr[:, :nsu], Rr[:, nsu:-1], Rr[:, -1] = Mb.real[:, su], b.real.reshape(nz, n * m), 1.0
+    Li, Ri = np.empty((nz, nsa + q * n)), np.empty((nz, nsa + n * m))
+    Li[:, :nsa], Li[:, nsa:] = Ma.imag[:, sa], -aw.imag.reshape(nz, q * n)
+    Ri[:, :nsa], Ri[:, nsa:] = Mb.imag[:, sa], -b.imag.reshape(nz, n * m)
+    Ki = (Li.T @ Ri).ravel()
+    JtJ = np.append((Lr.T @ Rr).ravel(), 0.0).take(ir)
+    JtJ += np.concatenate([Ki, -Ki, [0.0]]).take(ii)
     ew = e * w[:, None, None]
-    gA = np.matmul(np.matmul(np.conj(a).transpose(0, 2, 1), ew), cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
-    gB = np.matmul(np.conj(a).transpose(0, 2, 1), ew).sum(axis=0).real.reshape(-1)
-    gC = np.matmul(ew, cb.transpose(0, 2, 1)).sum(axis=0).real.reshape(-1)
-    grads = [gA, gB, gC]
+    X = (np.conj(a)[:, :, :, None] * ew[:, :, None, :]).sum(axis=1)  # a^H e w per frequency, (z, i, c)
+    cbt = cb.transpose(1, 0, 2).reshape(n, nz * m)
+    gA = (X.transpose(1, 0, 2).reshape(n, nz * m) @ cbt.T).real.reshape(-1)
+    gC = (ew.transpose(1, 0, 2).reshape(q, nz * m) @ cbt.T).real.reshape(-1)
+    grads = [gA, X.sum(axis=0).real.reshape(-1), gC]
     if feedthrough:
-        put(iA, iD, _re_mm(caw.T, cb2).reshape(q, n, n, m).transpose(1, 2, 0, 3).reshape(nA, nD))
-        sa = np.conj(aw).sum(axis=0).real  # (r, i)
-        put(iB, iD, np.einsum("ri,cd->icrd", sa, np.eye(m)).reshape(nB, nD))
-        sb = (w[:, None, None] * cb).sum(axis=0).real  # (i, c)
-        put(iC, iD, np.einsum("rs,ic->risc", np.eye(q), sb).reshape(nC, nD))
-        put(iD, iD, w.sum() * np.eye(nD))
         grads.append(ew.sum(axis=0).real.reshape(-1))
     return JtJ, np.concatenate(grads)
 
