@@ -374,9 +374,8 @@ def _response_system(
 
 
 def response_bytes(horizon: int, n_inputs: int, n_outputs: int, n_frequencies: int) -> float:
-    """Memory :func:`response_systems` takes (a bound for :func:`theta_frequency_response` too):
-    its complex ``(n_freqs, p q, m + q)`` systems, their normal equations and temporaries
-    (about six of them)."""
+    """Memory :func:`response_systems` takes (a bound for :func:`theta_frequency_response`): its
+    complex ``(n_freqs, p q, m + q)`` systems, their normal equations and temporaries (six)."""
     p, m, q = float(horizon), float(n_inputs), float(n_outputs)
     return 16.0 * 6.0 * n_frequencies * (p * q * (m + q) + 2.0 * p)
 
@@ -408,34 +407,21 @@ def response_systems(
 
 
 def _block_diagonal_sums(M: np.ndarray, p: int, r: int, c: int) -> np.ndarray:
-    """Sums of the block diagonals of ``M`` (``p x p`` blocks of shape (r, c)), shape (2p - 1, r, c):
-    entry ``d + p - 1`` is ``sum_i M_(i, i + d)``.
-
-    The block rows are laid out, last first, in rows of ``2 p`` blocks: read back in rows of
-    ``2 p - 1`` blocks, block row ``p - 1 - i`` moves ``i`` places to the right, which aligns
-    every block diagonal in one column.
-    """
+    """``out[d + p - 1] = sum_i M_(i, i + d)`` over the ``p x p`` blocks (r, c) of ``M``: the block
+    rows, last first, in rows of ``2 p`` blocks, read back in rows of ``2 p - 1`` (row ``p - 1 - i``
+    moves ``i`` blocks right, which puts every block diagonal in one column)."""
     skew = np.zeros((p, 2 * p, r, c))
     skew[:, :p] = M.reshape(p, r, p, c).transpose(0, 2, 1, 3)[::-1]
     return skew.reshape(2 * p * p, r, c)[: p * (2 * p - 1)].reshape(p, 2 * p - 1, r, c).sum(axis=0)
 
 
 def _response_coefficients(theta: np.ndarray, p: int, m: int, q: int) -> np.ndarray:
-    """Coefficients of the normal equations of :func:`response_systems` as Laurent polynomials in ``z``.
-
-    With ``lhs_j = z^j I - sum_i z^(i-p) Phi_ji`` and ``rhs_j = sum_i z^(i-p) Gamma_ji + z^i D_ji``
-    (block row ``j``), ``[lhs^H lhs, lhs^H rhs] = sum_x z^x C_x`` for ``|z| = 1``, ``x`` from
-    ``1 - 2p`` to ``2p - 1``: the products ``Phi^T [Phi Gamma D_p]`` summed along their block
-    diagonals, and the block diagonals of ``[Phi Gamma D_p]`` themselves.
-
-    Returns
-    -------
-    ndarray of shape (4p - 1, q, q + m): ``C_x`` at index ``x + 2p - 1``
-    """
+    """``C`` (4p - 1, q, q + m) with ``[lhs^H lhs, lhs^H rhs] = sum_x z^x C_(x + 2p - 1)`` on ``|z| = 1``
+    (:func:`response_systems`: ``lhs_j = z^j I - sum_i z^(i-p) Phi_ji``, ``rhs_j = sum_i z^(i-p)
+    Gamma_ji + z^i D_ji``): block-diagonal sums of ``Phi^T [Phi Gamma D_p]`` and ``[Phi Gamma D_p]``."""
     Gam, Phi, Dp = split_theta(theta, p, m, q)
     k = q + 2 * m
-    blocks = np.concatenate([Phi.reshape(p * q, p, q), Gam.reshape(p * q, p, m), Dp.reshape(p * q, p, m)], axis=2)
-    blocks = blocks.reshape(p * q, p * k)
+    blocks = np.concatenate([Phi.reshape(-1, p, q), Gam.reshape(-1, p, m), Dp.reshape(-1, p, m)], 2).reshape(p * q, -1)
     prod = _block_diagonal_sums(Phi.T @ blocks, p, q, k)  # sum_j Phi_ji^T [..]_j(i+d)
     own = _block_diagonal_sums(blocks, p, q, k)  # sum_j [..]_j(j+d)
     o = 2 * p - 1
@@ -458,15 +444,11 @@ def theta_frequency_response(
 
     For a sinusoid ``u(k) = U z^k``, ``y(k) = G U z^k`` (``z = exp(j 2 pi f dt)``) every
     block row ``j`` of eq. 9 gives ``(z^j I - Phi_j(z)) G = Gamma_j(z) + D_j(z)``; the ``p q``
-    equations (:func:`response_systems`) are solved for ``G`` by least squares.  The data
-    determine the model's predictions only where they have energy, so this response is
-    accurate over the excited band even when ``Gamma``, ``Phi`` and ``D_p`` individually are not
-    (band-limited data).
-
-    The normal equations (``q x q`` per frequency; ``lhs`` has full column rank because its
-    block row for the largest power of ``z`` dominates) are evaluated from their Laurent
-    coefficients in ``z`` (:func:`_response_coefficients`): two real products over ``2p``
-    powers instead of forming the ``(n_freqs, p q, q + m)`` systems.
+    equations (:func:`response_systems`) are solved for ``G`` by least squares, through their
+    ``q x q`` normal equations evaluated from Laurent coefficients in ``z`` (never forming the
+    ``(n_freqs, p q, q + m)`` systems).  The data determine the model's predictions only where
+    they have energy, so this response is accurate over the excited band even when ``Gamma``,
+    ``Phi`` and ``D_p`` individually are not (band-limited data).
 
     Returns
     -------
