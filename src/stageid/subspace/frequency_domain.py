@@ -36,9 +36,8 @@ def _resolvent_rows(A: np.ndarray, C: np.ndarray, zs: np.ndarray) -> np.ndarray:
     n = A.shape[0]
     lam, V = np.linalg.eig(A)
     if np.linalg.cond(V) < 1e8:
-        CV = C @ V
-        Vi = np.linalg.inv(V)
-        return (CV[None, :, :] * (1.0 / (zs[:, None] - lam[None, :]))[:, None, :]) @ Vi
+        CVz = ((C @ V)[None, :, :] * (1.0 / (zs[:, None] - lam[None, :]))[:, None, :]).reshape(-1, n)
+        return (CVz @ np.linalg.inv(V)).reshape(zs.size, C.shape[0], n)  # one product over all z
     eye = np.eye(n)
     return np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in zs])
 
