@@ -255,10 +255,13 @@ def refine_frequency_fit(
         dg[dg <= 0] = max(float(dg.max(initial=0.0)), 1.0) * 1e-12
         improved = False
         rel = 0.0
+        damped = np.empty_like(JtJ)
         for _ in range(12):
             try:
+                np.copyto(damped, JtJ)
+                damped.flat[:: damped.shape[0] + 1] += mu * dg
                 # LU instead of Cholesky: numpy only (importing scipy.linalg costs more than the fit)
-                step = np.linalg.solve(JtJ + mu * np.diag(dg), -g)
+                step = np.linalg.solve(damped, -g)
             except np.linalg.LinAlgError:
                 mu *= nu
                 nu *= 2.0
