@@ -170,7 +170,7 @@ def _normal_equations(
     JtJ = np.append((Lr.T @ Rr).ravel(), 0.0).take(ir)
     JtJ += np.concatenate([Ki, -Ki, [0.0]]).take(ii)
     ew = e * w[:, None, None]
-    X = (np.conj(a)[:, :, :, None] * ew[:, :, None, :]).sum(axis=1)  # a^H e w per frequency, (z, i, c)
+    X = np.matmul(np.conj(a).transpose(0, 2, 1), ew)  # a^H e w per frequency, (z, i, c)
     cbt = cb.transpose(1, 0, 2).reshape(n, nz * m)
     gA = (X.transpose(1, 0, 2).reshape(n, nz * m) @ cbt.T).real.reshape(-1)
     gC = (ew.transpose(1, 0, 2).reshape(q, nz * m) @ cbt.T).real.reshape(-1)
