@@ -18,7 +18,7 @@ import numpy as np
 
 from .._errors import IdentificationError
 from .hankel_toeplitz import theta_frequency_response
-from .refinement import MULTI_START_MISFIT, REFINE_TOL, fit_cost, refine_frequency_fit
+from .refinement import MULTI_START_MISFIT, REFINE_TOL, fit_cost, model_response, refine_frequency_fit
 
 __all__ = [
     "frequency_realization",
@@ -296,12 +296,16 @@ def refine_from_starts(
     alt = balanced_start(Gs, freqs, dt, order, feedthrough)
     if alt is not None:
         starts.append(alt)
-        starts.sort(key=lambda s: fit_cost(s, Gs, zs))
+    # each start's response serves both its cost and the first step of its refinement
+    starts = [(s, model_response(s, zs)) for s in starts]
+    if len(starts) > 1:
+        starts.sort(key=lambda s: fit_cost(s[0], Gs, zs, s[1]))
     best = None
-    for k, start in enumerate(starts):
+    for k, (start, response) in enumerate(starts):
         if k and best[4]["cost"] <= MULTI_START_MISFIT * energy:
             break
-        out = refine_frequency_fit(*start, Gs, zs, feedthrough=feedthrough, max_iter=max_iter, tol=REFINE_TOL)
+        kw = {} if response is None else {"response": response}
+        out = refine_frequency_fit(*start, Gs, zs, feedthrough=feedthrough, max_iter=max_iter, tol=REFINE_TOL, **kw)
         if best is None or out[4]["cost"] < best[4]["cost"]:
             best = out
     assert best is not None

@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["refine_frequency_fit", "fit_cost", "refinement_bytes", "REFINE_TOL", "MULTI_START_MISFIT"]
+__all__ = ["refine_frequency_fit", "fit_cost", "model_response", "refinement_bytes", "REFINE_TOL", "MULTI_START_MISFIT"]
 
 #: Relative cost decrease below which the refinement stops: later steps move the response far
 #: less than its own uncertainty (measurements: ``benchmarks/RESULTS-subspace.md``).
@@ -56,12 +56,24 @@ def _model_response(
     return G, CR, RB
 
 
-def fit_cost(abcd: tuple[np.ndarray, ...], G: np.ndarray, zs: np.ndarray) -> float:
-    """``sum |C (zI - A)^-1 B + D - G|^2`` over the frequencies (inf when not finite)."""
+def model_response(abcd: tuple[np.ndarray, ...], zs: np.ndarray) -> tuple | None:
+    """``(numpy.linalg.eig(A), G, C R, R B)`` of ``abcd = (A, B, C, D)`` at the points ``zs``, with
+    ``R = (zI - A)^-1`` (None when the eigensolver fails): the cost of a start
+    (:func:`fit_cost`) and the first step of :func:`refine_frequency_fit` from it share it."""
     try:
-        c = float(np.sum(np.abs(_model_response(*abcd, zs)[0] - G) ** 2))
+        eig = np.linalg.eig(abcd[0])
+        return (eig, *_model_response(*abcd, zs, eig))
     except np.linalg.LinAlgError:
+        return None
+
+
+def fit_cost(abcd: tuple[np.ndarray, ...], G: np.ndarray, zs: np.ndarray, response: tuple | None = None) -> float:
+    """``sum |C (zI - A)^-1 B + D - G|^2`` over the frequencies (inf when not finite);
+    ``response``: :func:`model_response` of ``abcd`` when the caller has it."""
+    response = model_response(abcd, zs) if response is None else response
+    if response is None:
         return float("inf")
+    c = float(np.sum(np.abs(response[1] - G) ** 2))
     return c if np.isfinite(c) else float("inf")
 
 
@@ -219,6 +231,7 @@ def refine_frequency_fit(
     feedthrough: bool = True,
     max_iter: int = 30,
     tol: float = 1e-6,
+    response: tuple | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
     """Levenberg-Marquardt refinement of a realisation on the frequency-response fit.
 
@@ -226,7 +239,8 @@ def refine_frequency_fit(
     the frequency domain) over all entries of ``A, B, C, D``.  The parameterisation is
     redundant (similarity transforms); the damping makes the steps well defined.  Steps that
     move a stable model's pole outside the unit circle or do not lower the cost are
-    rejected, so the result is never worse than the start.
+    rejected, so the result is never worse than the start.  ``response``: the start's
+    :func:`model_response` when the caller has it (saves computing it again).
 
     Returns
     -------
@@ -234,10 +248,12 @@ def refine_frequency_fit(
     """
     nz = G.shape[0]
     w = np.ones(nz) if weights is None else np.asarray(weights, dtype=float)
-    eig0 = np.linalg.eig(A)  # the stability flag's and the first response's
+    if response is None:
+        eig0 = np.linalg.eig(A)  # the stability flag's and the first response's
+        Gm, CR, RB = _model_response(A, B, C, D, zs, eig0)
+    else:
+        eig0, Gm, CR, RB = response
     was_stable = np.max(np.abs(eig0[0])) < 1.0
-
-    Gm, CR, RB = _model_response(A, B, C, D, zs, eig0)
     res = Gm - G
     cost0 = cost = _weighted_cost(res, w)
     # Levenberg-Marquardt with Nielsen's damping update (Madsen, Nielsen & Tingleff 2004, "Methods
