@@ -200,3 +200,47 @@ def test_balanced_start_gives_none_when_the_truncation_fails(monkeypatch):
 
     monkeypatch.setattr(frequency_domain, "balanced_truncation", broken)
     assert balanced_start(g.frequency_response(f), f, g.dt, g.n_states, feedthrough=False) is None
+
+
+def _random_realisation(rng, n, m, q, nz):
+    A = rng.standard_normal((n, n))
+    A *= 0.95 / np.max(np.abs(np.linalg.eigvals(A)))
+    B, C, D = rng.standard_normal((n, m)), rng.standard_normal((q, n)), rng.standard_normal((q, m))
+    zs = np.exp(1j * np.sort(rng.uniform(0.0, np.pi, nz)))
+    return A, B, C, D, zs
+
+
+@pytest.mark.parametrize("n, m, q", [(1, 1, 1), (4, 2, 3), (15, 3, 3), (30, 3, 3), (6, 1, 2)])
+def test_model_response_and_resolvent_rows_equal_direct_solves(n, m, q):
+    # reference: (zI - A)^-1 by a linear solve at every z (the product forms use A's eigenvectors)
+    from stageid.subspace.frequency_domain import _resolvent_rows
+    from stageid.subspace.refinement import fit_cost, model_response
+
+    rng = np.random.default_rng(n + 10 * m + 100 * q)
+    A, B, C, D, zs = _random_realisation(rng, n, m, q, 50)
+    R = np.stack([np.linalg.inv(z * np.eye(n) - A) for z in zs])
+    eig, G, CR, RB = model_response((A, B, C, D), zs)
+    np.testing.assert_allclose(eig[0], np.linalg.eig(A)[0], rtol=0, atol=0)
+    for got, expected in ((G, C @ R @ B + D), (CR, C @ R), (RB, R @ B), (_resolvent_rows(A, C, zs), C @ R)):
+        assert got.shape == expected.shape and got.flags.c_contiguous
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-11 * np.abs(expected).max())
+    target = C @ R @ B + D + 0.01 * rng.standard_normal((zs.size, q, m))
+    assert fit_cost((A, B, C, D), target, zs) == pytest.approx(np.sum(np.abs(C @ R @ B + D - target) ** 2), rel=1e-10)
+
+
+def test_refinement_from_a_given_start_response_is_the_same_refinement():
+    from stageid.subspace.refinement import fit_cost, model_response
+
+    rng = np.random.default_rng(4)
+    A, B, C, D, zs = _random_realisation(rng, 5, 2, 2, 60)
+    target = np.stack([C @ np.linalg.solve(z * np.eye(5) - A, B) + D for z in zs])
+    start = (A + 0.02 * rng.standard_normal((5, 5)), B, C, D)
+    response = model_response(start, zs)
+    assert fit_cost(start, target, zs, response) == fit_cost(start, target, zs)
+    plain = refine_frequency_fit(*start, target, zs, max_iter=4)
+    shared = refine_frequency_fit(*start, target, zs, max_iter=4, response=response)
+    for x, y in zip(plain[:4], shared[:4]):
+        np.testing.assert_array_equal(x, y)
+    assert plain[4] == shared[4] and plain[4]["cost"] < plain[4]["cost0"]
+    assert model_response((np.full((2, 2), np.nan), B[:2], C[:, :2], D), zs) is None
+    assert fit_cost((np.full((2, 2), np.nan), B[:2], C[:, :2], D), target, zs) == float("inf")
