@@ -25,11 +25,12 @@ MULTI_START_MISFIT = 1e-3
 
 def refinement_bytes(order: int, n_inputs: int, n_outputs: int, n_frequencies: int) -> float:
     """Memory the refinement of an ``order``-state realisation takes: the normal-equation
-    matrix over ``A, B, C, D`` (``P^2`` for ``P`` parameters) with the ``A`` block's product
-    and its solver copy, and the ``(n_frequencies, n, n)`` complex resolvent products."""
+    matrix over ``A, B, C, D`` (``P^2`` for ``P`` parameters), its damped and solver copies and
+    gather temporary, the gather plan (two indices per entry), and the
+    ``(n_frequencies, n, n)`` complex resolvent products."""
     n, m, q = float(order), float(n_inputs), float(n_outputs)
     P = n * n + n * m + q * n + q * m
-    return 8.0 * (3.0 * P * P + 2.0 * n**4) + 16.0 * 6.0 * n_frequencies * n * (n + m + q)
+    return 8.0 * 6.0 * P * P + 16.0 * 6.0 * n_frequencies * n * (n + m + q)
 
 
 def _model_response(
