@@ -244,3 +244,32 @@ def test_refinement_from_a_given_start_response_is_the_same_refinement():
     assert plain[4] == shared[4] and plain[4]["cost"] < plain[4]["cost0"]
     assert model_response((np.full((2, 2), np.nan), B[:2], C[:, :2], D), zs) is None
     assert fit_cost((np.full((2, 2), np.nan), B[:2], C[:, :2], D), target, zs) == float("inf")
+
+
+@pytest.mark.parametrize("feedthrough, weighted", [(False, False), (True, False), (True, True)])
+def test_fit_input_matrices_equal_the_least_squares_solution(feedthrough, weighted):
+    # reference: lstsq on the stacked real and imaginary parts of C (zI - A)^-1 [B] + [D] = G
+    from stageid.subspace.frequency_domain import fit_input_matrices
+
+    rng = np.random.default_rng(11)
+    n, m, q, nz = 6, 2, 3, 40
+    A, B, C, D, zs = _random_realisation(rng, n, m, q, nz)
+    G = rng.standard_normal((nz, q, m)) + 1j * rng.standard_normal((nz, q, m))
+    w = rng.uniform(0.2, 2.0, nz) if weighted else np.ones(nz)
+    # the second case: a decoupled state that C does not see, so the problem is rank deficient
+    A2, C2 = A.copy(), C.copy()
+    A2[-1, :], A2[:, -1], A2[-1, -1], C2[:, -1] = 0.0, 0.0, 0.5, 0.0
+
+    def reference(A, C):
+        R = np.stack([C @ np.linalg.inv(z * np.eye(n) - A) for z in zs])
+        M = np.concatenate([R] + ([np.broadcast_to(np.eye(q), (nz, q, q))] if feedthrough else []), axis=2)
+        M = M.reshape(nz * q, -1) * np.repeat(np.sqrt(w), q)[:, None]
+        rhs = G.reshape(nz * q, m) * np.repeat(np.sqrt(w), q)[:, None]
+        return np.linalg.lstsq(np.vstack([M.real, M.imag]), np.vstack([rhs.real, rhs.imag]), rcond=None)[0]
+
+    for Ax, Cx in ((A, C), (A2, C2)):
+        Bf, Df = fit_input_matrices(Ax, Cx, G, zs, feedthrough, w if weighted else None)
+        expected = reference(Ax, Cx)
+        scale = np.abs(expected).max()
+        np.testing.assert_allclose(Bf, expected[:n], rtol=0, atol=1e-10 * scale)
+        np.testing.assert_allclose(Df, expected[n:] if feedthrough else 0.0, rtol=0, atol=1e-10 * scale)
