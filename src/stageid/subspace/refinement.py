@@ -103,16 +103,20 @@ def _normal_plan(n: int, m: int, q: int, feedthrough: bool) -> tuple[np.ndarray,
     row_w, col_1 = nsu + q * n, nsu + n * m  # Kr's row of w and column of ones
     nA, nB, nC, nD = n * n, n * m, q * n, (q * m if feedthrough else 0)
     P = nA + nB + nC + nD
-    ir = np.full((P, P), ncr * (row_w + 1), dtype=np.intp)  # the 0 appended to Kr
-    ii = np.full((P, P), 2 * nki, dtype=np.intp)  # the 0 appended to [Ki, -Ki]
+    zr, zi = ncr * (row_w + 1), 2 * nki  # the 0 appended to Kr and to [Ki, -Ki]
+    ir = np.empty((P, P), dtype=np.intp)
+    ii = np.empty((P, P), dtype=np.intp)
 
-    def put(r0, c0, rows, cols, kr, ki=None, sgn=1):
-        shape = np.broadcast_shapes(np.shape(rows), np.shape(cols), np.shape(kr))
-        R, C = np.broadcast_to(r0 + rows, shape), np.broadcast_to(c0 + cols, shape)
-        ir[R, C] = ir[C, R] = np.broadcast_to(kr, shape)
-        if ki is not None:
-            ki = np.broadcast_to(np.where(np.broadcast_to(sgn, shape) > 0, ki, ki + nki), shape)
-            ii[R, C] = ii[C, R] = np.where(np.broadcast_to(sgn, shape) == 0, 2 * nki, ki)
+    def put(r0, c0, kr, ki=zi, sgn=0):
+        # one block (rows = its first two grid axes, columns = the last two) and its mirror
+        shape = np.broadcast_shapes(np.shape(kr), np.shape(ki), np.shape(sgn))
+        rows, cols = shape[0] * shape[1], shape[2] * shape[3]
+        kr = np.broadcast_to(kr, shape).reshape(rows, cols)
+        ki = np.where(sgn > 0, ki, np.where(sgn < 0, ki + nki, zi))
+        ki = np.broadcast_to(ki, shape).reshape(rows, cols)
+        for out, v in ((ir, kr), (ii, ki)):
+            out[r0 : r0 + rows, c0 : c0 + cols] = v
+            out[c0 : c0 + cols, r0 : r0 + rows] = v.T
 
     def grid(*sizes):
         return np.meshgrid(*[np.arange(k) for k in sizes], indexing="ij", sparse=True)
@@ -120,36 +124,26 @@ def _normal_plan(n: int, m: int, q: int, feedthrough: bool) -> tuple[np.ndarray,
     iA, iB, iC, iD = 0, nA, nA + nB, nA + nB + nC
     caw_r, caw_i = nsu + np.arange(q * n).reshape(q, n), nsa + np.arange(q * n).reshape(q, n)  # rows (r, i)
     i, j, k, l = grid(n, n, n, n)  # AA[(i,j),(k,l)] = Re sum Ma[i,k] Mb[j,l]
-    put(
-        iA,
-        iA,
-        i * n + j,
-        k * n + l,
-        sym[i, k] * ncr + sym[j, l],
-        asym[i, k] * nci + asym[j, l],
-        -sign[i, k] * sign[j, l],
-    )
+    put(iA, iA, sym[i, k] * ncr + sym[j, l], asym[i, k] * nci + asym[j, l], -sign[i, k] * sign[j, l])
     i, j, k, c = grid(n, n, n, m)  # AB[(i,j),(k,c)] = Re sum Ma[i,k] conj(b)[j,c]
-    put(
-        iA, iB, i * n + j, k * m + c, sym[i, k] * ncr + nsu + j * m + c, asym[i, k] * nci + nsa + j * m + c, -sign[i, k]
-    )
+    put(iA, iB, sym[i, k] * ncr + nsu + j * m + c, asym[i, k] * nci + nsa + j * m + c, -sign[i, k])
     i, j, r, l = grid(n, n, q, n)  # AC[(i,j),(r,l)] = Re sum conj(a w)[r,i] Mb[j,l]
-    put(iA, iC, i * n + j, r * n + l, caw_r[r, i] * ncr + sym[j, l], caw_i[r, i] * nci + asym[j, l], -sign[j, l])
-    i, k, c = grid(n, n, m)  # BB[(i,c),(k,c)] = Re sum Ma[i,k]
-    put(iB, iB, i * m + c, k * m + c, sym[i, k] * ncr + col_1)
+    put(iA, iC, caw_r[r, i] * ncr + sym[j, l], caw_i[r, i] * nci + asym[j, l], -sign[j, l])
+    i, c, k, d = grid(n, m, n, m)  # BB[(i,c),(k,c)] = Re sum Ma[i,k]
+    put(iB, iB, np.where(c == d, sym[i, k] * ncr + col_1, zr))
     i, c, r, j = grid(n, m, q, n)  # BC[(i,c),(r,j)] = Re sum conj(a w)[r,i] b[j,c]
-    put(iB, iC, i * m + c, r * n + j, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c)
-    r, i, j = grid(q, n, n)  # CC[(r,i),(r,j)] = Re sum w Mb[i,j]
-    put(iC, iC, r * n + i, r * n + j, row_w * ncr + sym[i, j])
+    put(iB, iC, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c, 1)
+    r, i, s, j = grid(q, n, q, n)  # CC[(r,i),(r,j)] = Re sum w Mb[i,j]
+    put(iC, iC, np.where(r == s, row_w * ncr + sym[i, j], zr))
     if feedthrough:
         i, j, r, c = grid(n, n, q, m)  # AD[(i,j),(r,c)] = Re sum conj(a w)[r,i] conj(b)[j,c]
-        put(iA, iD, i * n + j, r * m + c, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c, -1)
-        i, c, r = grid(n, m, q)  # BD[(i,c),(r,c)] = Re sum conj(a w)[r,i]
-        put(iB, iD, i * m + c, r * m + c, caw_r[r, i] * ncr + col_1)
-        r, i, c = grid(q, n, m)  # CD[(r,i),(r,c)] = Re sum w conj(b)[i,c]
-        put(iC, iD, r * n + i, r * m + c, row_w * ncr + nsu + i * m + c)
-        d = np.arange(q * m)
-        put(iD, iD, d, d, row_w * ncr + col_1)
+        put(iA, iD, caw_r[r, i] * ncr + nsu + j * m + c, caw_i[r, i] * nci + nsa + j * m + c, -1)
+        i, c, r, d = grid(n, m, q, m)  # BD[(i,c),(r,c)] = Re sum conj(a w)[r,i]
+        put(iB, iD, np.where(c == d, caw_r[r, i] * ncr + col_1, zr))
+        r, i, s, c = grid(q, n, q, m)  # CD[(r,i),(r,c)] = Re sum w conj(b)[i,c]
+        put(iC, iD, np.where(r == s, row_w * ncr + nsu + i * m + c, zr))
+        r, c, s, d = grid(q, m, q, m)  # DD = sum w I
+        put(iD, iD, np.where((r == s) & (c == d), row_w * ncr + col_1, zr))
     return iu * n + ku, ia * n + ka, ir, ii
 
 
