@@ -155,14 +155,15 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
         R[c] - sum_{t < a} s(t) s(t+c)^T - sum_{t = K+a}^{n_s-1-c} s(t) s(t+c)^T,
 
     i.e. the lag correlation minus products of the first and of the last ``L`` samples
-    only.  Both corrections are running sums along the block diagonals of
-    ``M = sum_segments h h^T`` (heads) and of ``sum f f^T`` (tails): the head correction
-    ``S`` obeys ``S[a, b] = S[a-1, b-1] + M[a-1, b-1]`` (and the tail one the same recursion
-    backwards), so any number of segments costs ``O(L^2 r^2 n_segments)``.  Each is the
-    product ``H^T H``, formed a band of block rows at a time, and one pass down the block rows
-    of a view that starts every block row at its diagonal block (:func:`diagonal_rows`), where
-    the recursion is a plain running sum of block rows; the upper block triangle so corrected
-    is then mirrored.
+    only.  Along a block diagonal, block ``(a, a+c)`` differs from ``(a-1, a-1+c)`` by the
+    window that leaves and the one that enters, ``f(a) f(a+c)^T - h(a-1) h(a-1+c)^T`` with
+    ``h`` the heads and ``f`` the tails (summed over the segments): block ``(a, a+c)`` of
+    ``N = F^T F - H'^T H'``, ``H'`` the heads delayed by one sample.  So each block row is the
+    previous one plus a block row of ``N``, from a virtual block row ``-1`` of
+    ``R[c] - sum_t f(t) f(t+c)^T``: one pass down the block rows of a view that starts every
+    block row at its diagonal block (:func:`diagonal_rows`), ``N`` formed a band of block rows
+    at a time, for any number of segments at ``O(L^2 r^2 n_segments)``.  The upper block
+    triangle so formed is then mirrored.
 
     Parameters
     ----------
@@ -177,37 +178,33 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
     """
     L, r, _ = R.shape
     Lr = L * r
-    # block (a, b) of the Toeplitz part is R_ext[b - a] (lags -(L-1) .. L-1, R[-c] = R[c]^T):
-    # with Rc[i, L-1+c, j] = R_ext[c, i, j], row (a, i) of W is Rc[i, L-1-a : 2L-1-a, :]
-    Rc = np.empty((r, 2 * L - 1, r))
-    Rc[:, L - 1 :, :] = R.transpose(1, 0, 2)
-    Rc[:, : L - 1, :] = R[:0:-1].transpose(2, 0, 1)
-    s_i, s_c, s_j = Rc.strides
-    toeplitz = as_strided(Rc[:, L - 1 :, :], shape=(L, r, L, r), strides=(-s_c, s_i, s_c, s_j), writeable=False)
-    # one spare row: the diagonal views of the last block row run past the matrix
+    n_seg = heads.shape[0]
+    tails = np.asarray(tails, dtype=float)
+    # the tails' own lag sums (zero-padded FFT: no wrap), for the virtual block row -1
+    X = np.fft.rfft(tails, n=2 * L, axis=1).view(float)  # (n_seg, L + 1, 2r): re, im side by side
+    P = np.matmul(X.transpose(1, 2, 0), X.transpose(1, 0, 2))
+    own = np.fft.irfft(P[:, 0::2, 0::2] + P[:, 1::2, 1::2] + 1j * (P[:, 0::2, 1::2] - P[:, 1::2, 0::2]), 2 * L, 0)
+    prev = (R - own[:L]).transpose(1, 0, 2).reshape(r, Lr)  # row (-1, i) from its diagonal block on
+    # N = G^T G2: G the delayed heads and the tails, G2 the same with the tails negated
+    G2 = np.zeros((2 * n_seg, L, r))
+    G2[:n_seg, 1:] = heads[:, : L - 1]
+    G2[n_seg:] = tails
+    G = np.ascontiguousarray(G2.reshape(2 * n_seg, Lr).T)
+    G2[:n_seg] *= -1.0
+    G2 = G2.reshape(2 * n_seg, Lr)
+    # one spare row for the diagonal views (the parts of them used stay in the upper blocks)
     buf = np.empty((Lr + 1, Lr))
-    buf[:Lr].reshape(L, r, L, r)[...] = toeplitz
     W_diag = diagonal_rows(buf, L, r)
-    # M is formed a band of block rows at a time (~0.5 MB): a whole (L r)^2 temporary costs
+    # N is formed a band of block rows at a time (~0.5 MB): a whole (L r)^2 temporary costs
     # more in first-touch page faults and cache misses than the extra products
     n_band = max(1, min(L, (1 << 16) // (r * Lr)))
-    band = np.empty((n_band * r + 1) * Lr)
-    acc = np.empty((r, Lr))
-    starts = range(0, L, n_band)
-    for block, forward in ((heads, True), (tails, False)):
-        H = np.ascontiguousarray(block.reshape(block.shape[0], Lr))
-        acc[:] = 0.0
-        for a0 in starts if forward else reversed(starts):
-            a1 = min(L, a0 + n_band)
-            M_diag = _band_diagonal_rows(band, H, a0, a1, r)
-            if forward:  # S[a] = S[a-1] + M[a-1] along the diagonals
-                for k in range(a0, min(a1, L - 1)):
-                    acc += M_diag[k - a0]
-                    W_diag[k + 1] -= acc
-            else:  # S[a] = S[a+1] + M[a+1]
-                for k in range(a1 - 1, max(a0, 1) - 1, -1):
-                    acc += M_diag[k - a0]
-                    W_diag[k - 1] -= acc
+    band = np.empty((n_band * r + 1) * Lr)  # one spare row: the view of the last row runs past
+    for a0 in range(0, L, n_band):
+        a1 = min(L, a0 + n_band)
+        N_diag = _band_diagonal_rows(band, G, G2, a0, a1, r)
+        for a in range(a0, a1):
+            # W[a, a + c] = W[a-1, a-1+c] + f(a) f(a+c)^T - h(a-1) h(a-1+c)^T, c < L - a
+            prev = np.add(prev[:, : Lr - a * r], N_diag[a - a0, :, : Lr - a * r], out=W_diag[a, :, : Lr - a * r])
     W = buf[:Lr]
     for a in range(1, L):  # the diagonal views wrote only the upper blocks correctly
         W[a * r : (a + 1) * r, : a * r] = W[: a * r, a * r : (a + 1) * r].T
@@ -228,22 +225,19 @@ def diagonal_rows(buf: np.ndarray, L: int, r: int) -> np.ndarray:
     return as_strided(buf, shape=(L, r, Lr), strides=((r * Lr + r) * s, Lr * s, s))
 
 
-def _band_diagonal_rows(band: np.ndarray, H: np.ndarray, a0: int, a1: int, r: int) -> np.ndarray:
-    """Block rows ``a0 .. a1-1`` of ``M = H^T H`` in ``band`` (flat scratch), as the diagonal
-    rows of :func:`diagonal_rows`: ``V[k - a0, i, c r + j] = M[k r + i, (k + c) r + j]``.
+def _band_diagonal_rows(band: np.ndarray, G: np.ndarray, G2: np.ndarray, a0: int, a1: int, r: int) -> np.ndarray:
+    """Block rows ``a0 .. a1-1`` of ``N = G G2`` from block column ``a0`` on, in ``band`` (flat
+    scratch), as the diagonal rows of :func:`diagonal_rows`: ``V[k - a0, i, c r + j] =
+    N[k r + i, (k + c) r + j]``.
 
-    The strictly lower blocks, where the views of rows ``c >= L - k`` wrap, are zeroed, so a
-    running sum over the rows adds nothing there.
+    Only the entries ``c < L - k`` are blocks of ``N`` (the rest of a view row runs into the
+    next row of the band).
     """
-    Lr = H.shape[1]
+    w = G2.shape[1] - a0 * r  # the band's width: no block left of the diagonal block is needed
     rows = (a1 - a0) * r
-    M = band[: (rows + 1) * Lr].reshape(rows + 1, Lr)
-    np.matmul(H[:, a0 * r : a1 * r].T, H, out=M[:rows])
-    M[rows] = 0.0
-    for t in range(a1 - a0):
-        M[t * r : (t + 1) * r, : (a0 + t) * r] = 0.0
+    np.matmul(G[a0 * r : a1 * r], G2[:, a0 * r :], out=band[: rows * w].reshape(rows, w))
     s = band.itemsize
-    return as_strided(band[a0 * r :], shape=(a1 - a0, r, Lr), strides=((r * Lr + r) * s, Lr * s, s))
+    return as_strided(band, shape=(a1 - a0, r, w), strides=((r * w + r) * s, w * s, s))
 
 
 def window_gram(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
