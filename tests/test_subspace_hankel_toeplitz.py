@@ -160,3 +160,32 @@ def test_segments_statistics_reject_short_ranges():
         segments_statistics(u, y, [(0, 50), (60, 70)], 5)
     with pytest.raises(DataError, match="at least one"):
         segments_statistics(u, y, [], 5)
+
+
+@pytest.mark.parametrize(("M", "r", "n_joints"), [(1, 1, 1), (5, 2, 3), (40, 3, 2), (119, 6, 4)])
+def test_straddling_lags_equal_the_products_across_each_joint(M, r, n_joints):
+    # the pairs (t, t + c) with t before the joint and t + c after it, for c = 0 .. M, by hand
+    from stageid.subspace.correlations import straddling_lags
+
+    rng = np.random.default_rng([M, r, n_joints])
+    z = rng.standard_normal((n_joints, 2 * M, r))
+    got = straddling_lags(z[:, :M], z[:, M:])
+    want = np.zeros((M + 1, r, r))
+    for s in z:
+        for c in range(1, M + 1):
+            want[c] += s[M - c : M].T @ s[M : M + c]
+    assert got.shape == (M + 1, r, r)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_gram_from_lags_takes_column_major_end_samples():
+    # records read column by column (CSV) give Fortran-ordered samples; their spectra follow
+    # that layout, which the real-and-imaginary view of the FFT products must not assume away
+    from stageid.subspace.correlations import gram_from_lags
+
+    rng = np.random.default_rng(7)
+    z = np.asfortranarray(rng.standard_normal((90, 3)))
+    R = lag_correlations(z, 9)
+    want = gram_from_lags(R, np.ascontiguousarray(z[None, :10]), np.ascontiguousarray(z[None, -10:]))
+    got = gram_from_lags(R, np.asfortranarray(z[None, :10]), np.asfortranarray(z[None, -10:]))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())

@@ -16,6 +16,8 @@ from .._errors import DataError
 
 __all__ = [
     "lag_correlations",
+    "spectral_products",
+    "straddling_lags",
     "RecordRows",
     "gram_from_lags",
     "diagonal_rows",
@@ -81,16 +83,71 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
         k = stop - start + 1
         src.fill(rows[: k * block], start * block)
         seg[:k, :block, :] = rows[: k * block].reshape(k, block, r)
-        F = np.fft.rfft(seg[:k], axis=1).view(float)  # (k, block+1, 2r): re, im of each channel
+        F = _real_view(np.fft.rfft(seg[:k], axis=1))  # (k, block+1, 2r)
         Fa = F[:-1].transpose(1, 2, 0)
         P[0] += np.matmul(Fa, F[:-1].transpose(1, 0, 2))
         P[1] += np.matmul(Fa, F[1:].transpose(1, 0, 2))
         start = stop
-    # conj(a)^T b = (ar br + ai bi) + j (ar bi - ai br); S[f] = sum_k conj(F_k)^T (F_k + sign F_(k+1))
-    C = P[..., 0::2, 0::2] + P[..., 1::2, 1::2] + 1j * (P[..., 0::2, 1::2] - P[..., 1::2, 0::2])
+    # S[f] = sum_k conj(F_k)^T (F_k + sign F_(k+1))
+    C = spectral_products(P, conjugate=True)
     S = C[0] + sign[:, :, None] * C[1]
     R = np.fft.irfft(S, n=nfft, axis=0)[: max_lag + 1]
     return np.ascontiguousarray(R)
+
+
+def spectral_products(P: np.ndarray, conjugate: bool) -> np.ndarray:
+    """``sum_k conj(a_k)^T b_k`` (or ``sum_k a_k^T b_k``) of complex vectors from the real products
+    ``P = sum_k [ar ai]^T [br bi]`` of their real and imaginary parts side by side (interleaved,
+    as ``ndarray.view(float)`` of a complex array lays them out), over any leading axes.
+
+    ``conj(a) b = (ar br + ai bi) + j (ar bi - ai br)`` and ``a b = (ar br - ai bi) + j (ar bi + ai br)``:
+    real matrix products of views, no conjugated copies of the spectra.
+    """
+    rr, ii, ri, ir = P[..., 0::2, 0::2], P[..., 1::2, 1::2], P[..., 0::2, 1::2], P[..., 1::2, 0::2]
+    if conjugate:
+        return rr + ii + 1j * (ri - ir)
+    return rr - ii + 1j * (ri + ir)
+
+
+def _real_view(F: np.ndarray) -> np.ndarray:
+    """A complex array as real numbers, the real and imaginary part of each entry side by side
+    (a copy only when its last axis is not contiguous: FFTs follow their input's layout)."""
+    return np.ascontiguousarray(F).view(float)
+
+
+def straddling_lags(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Lag products of the sample pairs that straddle joints, summed over the joints.
+
+    Joint ``j`` has the ``M`` samples ``before[j]`` just before it and ``after[j]`` from it on;
+    with ``s = [before[j]; after[j]]`` the result is ``X[c] = sum_j sum_{M-c <= t < M} s(t) s(t+c)^T``
+    for ``c = 0 .. M`` (``X[0] = 0``): what the lag correlations of a record hold beyond the sum
+    of those of its pieces cut at the joints, when every piece is longer than ``M``.  A
+    convolution of the reversed ``before`` with ``after`` (zero-padded FFTs of ``2 M`` points).
+
+    Parameters
+    ----------
+    before, after : ndarray of shape (n_joints, M, r)
+
+    Returns
+    -------
+    ndarray of shape (M + 1, r, r)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> z = np.random.default_rng(0).standard_normal((40, 2))
+    >>> X = straddling_lags(z[None, 17:20], z[None, 20:23])
+    >>> bool(np.allclose(X[2], z[18:20].T @ z[20:22]))
+    True
+    """
+    n_joints, M, r = before.shape
+    A = _real_view(np.fft.rfft(before[:, ::-1], n=2 * M, axis=1))  # (n_joints, M + 1, 2r)
+    B = _real_view(np.fft.rfft(after, n=2 * M, axis=1))
+    # sum_(t' = 0)^(c-1) before(M-1-t') after(c-1-t')^T is the convolution's term c - 1
+    conv = np.fft.irfft(spectral_products(np.matmul(A.transpose(1, 2, 0), B.transpose(1, 0, 2)), False), 2 * M, 0)
+    out = np.zeros((M + 1, r, r))
+    out[1:] = conv[:M]
+    return out
 
 
 class RecordRows:
@@ -181,9 +238,9 @@ def gram_from_lags(R: np.ndarray, heads: np.ndarray, tails: np.ndarray) -> np.nd
     n_seg = heads.shape[0]
     tails = np.asarray(tails, dtype=float)
     # the tails' own lag sums (zero-padded FFT: no wrap), for the virtual block row -1
-    X = np.fft.rfft(tails, n=2 * L, axis=1).view(float)  # (n_seg, L + 1, 2r): re, im side by side
+    X = _real_view(np.fft.rfft(tails, n=2 * L, axis=1))  # (n_seg, L + 1, 2r)
     P = np.matmul(X.transpose(1, 2, 0), X.transpose(1, 0, 2))
-    own = np.fft.irfft(P[:, 0::2, 0::2] + P[:, 1::2, 1::2] + 1j * (P[:, 0::2, 1::2] - P[:, 1::2, 0::2]), 2 * L, 0)
+    own = np.fft.irfft(spectral_products(P, conjugate=True), 2 * L, 0)
     prev = (R - own[:L]).transpose(1, 0, 2).reshape(r, Lr)  # row (-1, i) from its diagonal block on
     # N = G^T G2: G the delayed heads and the tails, G2 the same with the tails negated
     G2 = np.zeros((2 * n_seg, L, r))
