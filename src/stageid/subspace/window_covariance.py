@@ -62,7 +62,10 @@ BLOCK_ENTRIES = 1 << 18
 @dataclass(frozen=True, eq=False)
 class WindowLags:
     """What :func:`overlap_response_covariance` needs of the records, kept by the fit (a few
-    ``(m + q)^2 p`` numbers, not the records).
+    ``(m + q)^2 p`` numbers, not the records).  Taken once per fit at its largest candidate
+    horizon, they also give the records' eq. 9 statistics at any horizon up to it
+    (:meth:`statistics`) and, less the held-out segments', the training segments' lag
+    correlations (:func:`~.selection.split_statistics`).
 
     Attributes
     ----------
@@ -78,7 +81,7 @@ class WindowLags:
     lags: np.ndarray
     heads: np.ndarray
     tails: np.ndarray
-    lengths: tuple[int, ...] = ()
+    lengths: tuple[int, ...]
 
     def weighted(self, scale: np.ndarray) -> WindowLags:
         """The same for ``z`` times ``scale`` (per channel)."""
