@@ -189,3 +189,26 @@ def test_gram_from_lags_takes_column_major_end_samples():
     want = gram_from_lags(R, np.ascontiguousarray(z[None, :10]), np.ascontiguousarray(z[None, -10:]))
     got = gram_from_lags(R, np.asfortranarray(z[None, :10]), np.asfortranarray(z[None, -10:]))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("block", [1, 3, 8, 64])
+def test_record_rows_fill_the_frames_with_the_joined_ranges(block):
+    # ranges joined by zero gaps, written frame after frame into the data halves of FFT frames:
+    # pieces starting and ending inside a frame, spanning several, gaps, and rows past the end
+    from stageid.subspace.correlations import RecordRows
+
+    rng = np.random.default_rng(block)
+    u, y = rng.standard_normal((200, 2)), rng.standard_normal((200, 1))
+    ranges, gap = [(3, 40), (41, 42), (90, 200)], 5
+    joined = np.vstack(
+        [np.vstack([np.hstack([u[a:b], y[a:b]]), np.zeros((gap, 3))]) for a, b in ranges[:-1]]
+        + [np.hstack([u[90:], y[90:]])]
+    )
+    src = RecordRows([u, y], ranges, gap=gap)
+    assert src.n == joined.shape[0]
+    padded = np.vstack([joined, np.zeros((4 * block + 100, 3))])
+    for lo in (0, 1, block, 37, src.n - 2):
+        frames = np.full((5, 2 * block, 3), np.nan)  # rows not written would stay NaN
+        src.fill(frames[:, :block], lo)
+        np.testing.assert_array_equal(frames[:, :block].reshape(-1, 3), padded[lo : lo + 5 * block])
+        assert np.isnan(frames[:, block:]).all()

@@ -74,15 +74,13 @@ def lag_correlations(z: np.ndarray, max_lag: int, block: int | None = None) -> n
     # allocator's free lists and stay in cache (figures: benchmarks/RESULTS-subspace.md)
     chunk = min(n_blocks, max(1, (1 << 17) // (nfft * max(r, 1))))
     seg = np.zeros((chunk + 1, nfft, r))  # zero-padded blocks, reused by every batch
-    rows = np.empty(((chunk + 1) * block, r))
     start = 0
     # Spectra are computed batch by batch; the first spectrum of the next batch is needed
     # for the last block of the current one, so batches overlap by one block.
     while start < n_blocks:
         stop = min(n_blocks, start + chunk)
         k = stop - start + 1
-        src.fill(rows[: k * block], start * block)
-        seg[:k, :block, :] = rows[: k * block].reshape(k, block, r)
+        src.fill(seg[:k, :block], start * block)
         F = _real_view(np.fft.rfft(seg[:k], axis=1))  # (k, block+1, 2r)
         Fa = F[:-1].transpose(1, 2, 0)
         P[0] += np.matmul(Fa, F[:-1].transpose(1, 0, 2))
@@ -167,18 +165,43 @@ class RecordRows:
         self.n = v
 
     def fill(self, out: np.ndarray, lo: int) -> None:
-        """``out[:] =`` rows ``lo .. lo + len(out) - 1`` (zero in the gaps and past the end)."""
-        out[:] = 0.0
-        hi = lo + out.shape[0]
+        """Rows ``lo ..`` into ``out`` of shape (n_frames, block, r), frame after frame (the data
+        halves of the zero-padded FFT frames, written in place), zero in the gaps and past the end."""
+        n_frames, block, _ = out.shape
+        hi = lo + n_frames * block
+        done = 0  # rows of `out` written so far
         for v, a, b in self.pieces:
             s, e = max(lo, v), min(hi, v + b - a)
             if s >= e:
                 continue
+            _put_rows(out, done, s - lo, None)
             c = 0
             for blk in self.blocks:
                 w = blk.shape[1]
-                out[s - lo : e - lo, c : c + w] = blk[a + s - v : a + e - v]
+                _put_rows(out[:, :, c : c + w], s - lo, e - lo, blk[a + s - v : a + e - v])
                 c += w
+            done = e - lo
+        _put_rows(out, done, n_frames * block, None)
+
+
+def _put_rows(out: np.ndarray, s: int, e: int, rows: np.ndarray | None) -> None:
+    """``rows`` (zeros when None) into rows ``s .. e-1`` of ``out`` of shape (n_frames, block, w)
+    read frame after frame: at most three assignments (a partial frame, whole frames, a partial frame)."""
+    if s >= e:
+        return
+    block = out.shape[1]
+    j0, o0 = divmod(s, block)
+    j1, o1 = divmod(e, block)
+    if j0 == j1:
+        out[j0, o0:o1] = 0.0 if rows is None else rows
+        return
+    first = block - o0
+    out[j0, o0:] = 0.0 if rows is None else rows[:first]
+    if j1 > j0 + 1:
+        n = (j1 - j0 - 1) * block
+        out[j0 + 1 : j1] = 0.0 if rows is None else rows[first : first + n].reshape(j1 - j0 - 1, block, -1)
+    if o1:
+        out[j1, :o1] = 0.0 if rows is None else rows[e - s - o1 :]
 
 
 def window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:
