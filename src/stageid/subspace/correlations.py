@@ -120,7 +120,7 @@ def straddling_lags(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     with ``s = [before[j]; after[j]]`` the result is ``X[c] = sum_j sum_{M-c <= t < M} s(t) s(t+c)^T``
     for ``c = 0 .. M`` (``X[0] = 0``): what the lag correlations of a record hold beyond the sum
     of those of its pieces cut at the joints, when every piece is longer than ``M``.  A
-    convolution of the reversed ``before`` with ``after`` (zero-padded FFTs of ``2 M`` points).
+    convolution of the reversed ``before`` with ``after`` (zero-padded FFTs of ``>= 2 M`` points).
 
     Parameters
     ----------
@@ -139,10 +139,11 @@ def straddling_lags(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     True
     """
     n_joints, M, r = before.shape
-    A = _real_view(np.fft.rfft(before[:, ::-1], n=2 * M, axis=1))  # (n_joints, M + 1, 2r)
-    B = _real_view(np.fft.rfft(after, n=2 * M, axis=1))
+    nfft = 1 << int(np.ceil(np.log2(2 * M)))  # >= 2 M - 1: no wrap; a power of two: fast
+    A = _real_view(np.fft.rfft(before[:, ::-1], n=nfft, axis=1))  # (n_joints, nfft / 2 + 1, 2r)
+    B = _real_view(np.fft.rfft(after, n=nfft, axis=1))
     # sum_(t' = 0)^(c-1) before(M-1-t') after(c-1-t')^T is the convolution's term c - 1
-    conv = np.fft.irfft(spectral_products(np.matmul(A.transpose(1, 2, 0), B.transpose(1, 0, 2)), False), 2 * M, 0)
+    conv = np.fft.irfft(spectral_products(np.matmul(A.transpose(1, 2, 0), B.transpose(1, 0, 2)), False), nfft, 0)
     out = np.zeros((M + 1, r, r))
     out[1:] = conv[:M]
     return out
