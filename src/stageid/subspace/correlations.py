@@ -4,7 +4,9 @@ Every regression sample of eq. 9 is one window of ``2 p`` consecutive samples of
 ``z(t) = [u(t); y(t)]``; the Gram matrix of the windows is the lag correlations of ``z``
 (computed in blocks with FFTs, cost independent of ``p``) minus exact corrections for the
 first and last samples of every record or segment.  :mod:`.hankel_toeplitz` builds its
-:class:`~stageid.subspace.hankel_toeplitz.WindowStatistics` from these.
+:class:`~stageid.subspace.hankel_toeplitz.WindowStatistics` from these.  The lag products
+straddling the boundaries between segments (:func:`straddling_lags`) turn a record's lag
+correlations into those of its segments.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ __all__ = [
     "spectral_products",
     "straddling_lags",
     "RecordRows",
+    "range_ends",
     "gram_from_lags",
     "diagonal_rows",
     "window_gram",
@@ -203,6 +206,16 @@ def _put_rows(out: np.ndarray, s: int, e: int, rows: np.ndarray | None) -> None:
         out[j0 + 1 : j1] = 0.0 if rows is None else rows[first : first + n].reshape(j1 - j0 - 1, block, -1)
     if o1:
         out[j1, :o1] = 0.0 if rows is None else rows[e - s - o1 :]
+
+
+def range_ends(
+    u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, int]], length: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The first and the last ``length`` samples of ``z = [u y]`` in every sample range:
+    two arrays of shape (n_ranges, length, n_inputs + n_outputs)."""
+    heads = np.stack([np.hstack([u[a : a + length], y[a : a + length]]) for a, _ in ranges])
+    tails = np.stack([np.hstack([u[b - length : b], y[b - length : b]]) for _, b in ranges])
+    return heads, tails
 
 
 def window_gram_python(z: np.ndarray, R: np.ndarray, horizon: int) -> np.ndarray:

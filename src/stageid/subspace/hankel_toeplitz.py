@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from .._errors import DataError
-from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, window_gram
+from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, range_ends, window_gram
 
 __all__ = [
     "WindowStatistics",
@@ -33,7 +33,6 @@ __all__ = [
     "window_statistics",
     "record_statistics",
     "segments_statistics",
-    "range_ends",
     "lag_statistics",
     "regressor_indices",
     "dense_regression",
@@ -320,16 +319,6 @@ def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, in
     R = lag_correlations(RecordRows([u, y], ranges, gap=L), L - 1)
     heads, tails = range_ends(u, y, ranges, L)
     return lag_statistics(R, heads, tails, int(sum(b - a - L + 1 for a, b in ranges)), u.shape[1])
-
-
-def range_ends(
-    u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, int]], length: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """The first and the last ``length`` samples of ``z = [u y]`` in every sample range:
-    two arrays of shape (n_ranges, length, n_inputs + n_outputs)."""
-    heads = np.stack([np.hstack([u[a : a + length], y[a : a + length]]) for a, _ in ranges])
-    tails = np.stack([np.hstack([u[b - length : b], y[b - length : b]]) for _, b in ranges])
-    return heads, tails
 
 
 def lag_statistics(R: np.ndarray, heads: np.ndarray, tails: np.ndarray, count: int, n_inputs: int) -> WindowStatistics:

@@ -26,11 +26,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from .correlations import RecordRows, input_periodogram, lag_correlations, straddling_lags
+from .correlations import RecordRows, input_periodogram, lag_correlations, range_ends, straddling_lags
 from .hankel_toeplitz import (
     WindowStatistics,
     lag_statistics,
-    range_ends,
     record_statistics,
     row_residuals,
     segments_statistics,
