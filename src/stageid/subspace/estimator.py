@@ -297,7 +297,7 @@ class HankelMAP(Estimator):
         short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
-        # eq. 9 (the held-out split already holds the whole records' windows when not forgetting)
+        # eq. 9 (without forgetting, from the whole records' lag correlations taken above)
         pooled = prev is None and lam == 1.0
         stats = pooled_split(train, val, horizon, recs, self.validation_fraction, whole) if pooled else None
         if stats is None:
