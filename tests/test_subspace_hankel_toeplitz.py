@@ -177,3 +177,55 @@ def test_segments_statistics_reject_short_ranges():
         segments_statistics(u, y, [(0, 50), (60, 70)], 5)
     with pytest.raises(DataError, match="at least one"):
         segments_statistics(u, y, [], 5)
+
+
+@pytest.mark.parametrize(("M", "r", "n_joints"), [(1, 1, 1), (5, 2, 3), (40, 3, 2), (119, 6, 4)])
+def test_straddling_lags_equal_the_products_across_each_joint(M, r, n_joints):
+    # the pairs (t, t + c) with t before the joint and t + c after it, for c = 0 .. M, by hand
+    from stageid.subspace.correlations import straddling_lags
+
+    rng = np.random.default_rng([M, r, n_joints])
+    z = rng.standard_normal((n_joints, 2 * M, r))
+    got = straddling_lags(z[:, :M], z[:, M:])
+    want = np.zeros((M + 1, r, r))
+    for s in z:
+        for c in range(1, M + 1):
+            want[c] += s[M - c : M].T @ s[M : M + c]
+    assert got.shape == (M + 1, r, r)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_gram_from_lags_takes_column_major_end_samples():
+    # records read column by column (CSV) give Fortran-ordered samples; their spectra follow
+    # that layout, which the real-and-imaginary view of the FFT products must not assume away
+    from stageid.subspace.correlations import gram_from_lags
+
+    rng = np.random.default_rng(7)
+    z = np.asfortranarray(rng.standard_normal((90, 3)))
+    R = lag_correlations(z, 9)
+    want = gram_from_lags(R, np.ascontiguousarray(z[None, :10]), np.ascontiguousarray(z[None, -10:]))
+    got = gram_from_lags(R, np.asfortranarray(z[None, :10]), np.asfortranarray(z[None, -10:]))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("block", [1, 3, 8, 64])
+def test_record_rows_fill_the_frames_with_the_joined_ranges(block):
+    # ranges joined by zero gaps, written frame after frame into the data halves of FFT frames:
+    # pieces starting and ending inside a frame, spanning several, gaps, and rows past the end
+    from stageid.subspace.correlations import RecordRows
+
+    rng = np.random.default_rng(block)
+    u, y = rng.standard_normal((200, 2)), rng.standard_normal((200, 1))
+    ranges, gap = [(3, 40), (41, 42), (90, 200)], 5
+    joined = np.vstack(
+        [np.vstack([np.hstack([u[a:b], y[a:b]]), np.zeros((gap, 3))]) for a, b in ranges[:-1]]
+        + [np.hstack([u[90:], y[90:]])]
+    )
+    src = RecordRows([u, y], ranges, gap=gap)
+    assert src.n == joined.shape[0]
+    padded = np.vstack([joined, np.zeros((4 * block + 100, 3))])
+    for lo in (0, 1, block, 37, src.n - 2):
+        frames = np.full((5, 2 * block, 3), np.nan)  # rows not written would stay NaN
+        src.fill(frames[:, :block], lo)
+        np.testing.assert_array_equal(frames[:, :block].reshape(-1, 3), padded[lo : lo + 5 * block])
+        assert np.isnan(frames[:, block:]).all()

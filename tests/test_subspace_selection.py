@@ -16,6 +16,7 @@ from stageid.subspace.selection import (
     select_horizon,
     split_statistics,
 )
+from stageid.subspace.window_covariance import window_lags
 
 
 def _records(n, seed=3):
@@ -43,6 +44,53 @@ def test_pooled_split_equals_the_whole_records_statistics(n):
         assert pooled.count == whole.count and pooled.n_windows == whole.n_windows
         np.testing.assert_allclose(pooled.W, whole.W, rtol=0, atol=1e-12 * np.abs(whole.W).max())
         np.testing.assert_array_equal(pooled.input_power, whole.input_power)
+
+
+@pytest.mark.parametrize("n", [5000, 20000])
+@pytest.mark.parametrize("n_records", [1, 2])
+def test_split_from_the_whole_records_lags_equals_the_split_by_segments(n, n_records, monkeypatch):
+    # with the whole records' lag correlations, the training segments' are the whole less the
+    # held-out segments' and the products straddling the range boundaries: the same statistics
+    # as one pass per group of ranges (to rounding), for every candidate, and no such pass made
+    import stageid.subspace.selection as selection
+
+    _, recs = _records(n)
+    recs = recs[:n_records]
+    cands = horizon_candidates(2, 2, [u.shape[0] for u, _ in recs])
+    want = split_statistics(recs, cands, 1.0, 0.25)
+    whole = window_lags(recs, max(cands))
+
+    def no_pass(*args, **kwargs):
+        raise AssertionError("a pass over the segments")
+
+    monkeypatch.setattr(selection, "segments_statistics", no_pass)
+    got = split_statistics(recs, cands, 1.0, 0.25, whole)
+    for g, w in zip(got, want):
+        assert sorted(g) == sorted(w) == sorted(cands)
+        for p in cands:
+            assert g[p].count == w[p].count and g[p].n_windows == w[p].n_windows and g[p].horizon == p
+            np.testing.assert_allclose(g[p].W, w[p].W, rtol=0, atol=1e-12 * np.abs(w[p].W).max())
+    # and the whole records' statistics from the same lags, every candidate
+    for p in cands:
+        pooled = pooled_split(*got, p, recs, 0.25, whole)
+        ref = hankel_toeplitz_statistics(recs, p)
+        assert pooled.count == ref.count and pooled.n_windows == ref.n_windows
+        np.testing.assert_allclose(pooled.W, ref.W, rtol=0, atol=1e-12 * np.abs(ref.W).max())
+        np.testing.assert_array_equal(pooled.input_power, ref.input_power)
+
+
+def test_split_keeps_the_pass_by_segments_where_the_whole_lags_do_not_serve():
+    # forgetting, ranges too short for the largest candidate, or lags of a smaller horizon than
+    # it: the statistics by segments (the same numbers bit for bit), whatever lags are given
+    _, recs = _records(1200)
+    recs = recs[:1]  # 7 segments of 171-172 samples
+    for forgetting, cands, top in ((0.99, [8, 12], 12), (1.0, [8, 12, 90], 90), (1.0, [8, 12, 16], 12)):
+        got = split_statistics(recs, cands, forgetting, 0.25, window_lags(recs, top))
+        want = split_statistics(recs, cands, forgetting, 0.25)
+        for g, w in zip(got, want):
+            assert sorted(g) == sorted(w)
+            for p in w:
+                np.testing.assert_array_equal(g[p].W, w[p].W)
 
 
 @pytest.mark.parametrize("strength", [1e-5, 1e-2])

@@ -125,3 +125,36 @@ def test_lag_statistics_hold_the_fit_gram(horizon):
     got, _ = self_lag_products(f, lag_spectrum(stats.lags, n), stats)
     np.testing.assert_allclose(got[0].real, X.T @ X, rtol=0, atol=1e-10 * np.abs(X.T @ X).max())
     np.testing.assert_allclose(got[1].real, X[:-1].T @ X[1:], rtol=0, atol=1e-10 * np.abs(X.T @ X).max())
+
+
+def test_lags_of_a_larger_horizon_serve_the_smaller_ones():
+    # one pass at the largest candidate: its lags cut to a smaller horizon are that horizon's
+    # (to rounding: the FFT blocks differ), and rebuild the whole records' eq. 9 statistics
+    from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics
+
+    g = random_stage(5, m=2, q=2)
+    recs = [(e.u, e.y) for e in (record(g, band_limited(n, 2, g.dt, n), 0.01, n, names=False) for n in (900, 640))]
+    top = window_lags(recs, 20)
+    assert top.horizon == 20 and top.lengths == (900, 640)
+    for p in (20, 13, 8, 1):
+        got, want = top.at(p), window_lags(recs, p)
+        assert got.horizon == p and got.lengths == want.lengths
+        np.testing.assert_allclose(got.lags, want.lags, rtol=0, atol=1e-12 * np.abs(want.lags).max())
+        np.testing.assert_array_equal(got.heads, want.heads)
+        np.testing.assert_array_equal(got.tails, want.tails)
+        s, ref = top.statistics(p, 2), hankel_toeplitz_statistics(recs, p)
+        assert (s.count, s.n_windows, s.horizon, s.n_inputs, s.n_outputs) == (ref.count, ref.n_windows, p, 2, 2)
+        np.testing.assert_allclose(s.W, ref.W, rtol=0, atol=1e-12 * np.abs(ref.W).max())
+
+
+def test_a_chosen_horizon_keeps_its_own_lag_statistics():
+    # the fit takes the lags once at its largest candidate; what it keeps is the chosen horizon's
+    g = random_stage(8, m=1, q=2, modes=2)
+    exp = record(g, band_limited(4000, 1, g.dt, 1), 0.02, 1, names=False)
+    res = HankelMAP(order=4, detrend=False).fit(exp)
+    ch = res.channels[0]
+    su, sy = ch.scales
+    want = window_lags([(exp.u / su, exp.y / sy)], ch.horizon)
+    assert ch.window_lags.horizon == ch.horizon < max(res.channels[0].horizon_table.values)
+    np.testing.assert_allclose(ch.window_lags.lags, want.lags, rtol=0, atol=1e-12 * np.abs(want.lags).max())
+    np.testing.assert_allclose(ch.window_lags.heads, want.heads, rtol=1e-14)

@@ -72,7 +72,7 @@ from .selection import (
     select_order,
     split_statistics,
 )
-from .window_covariance import window_lags
+from .window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -286,18 +286,20 @@ class HankelMAP(Estimator):
         # section 3.2: the horizon, given or chosen by held-out prediction error
         train, val = {}, {}
         horizon_table = order_table = None
+        cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
+        # one lag pass over the whole records serves their statistics, the kept WindowLags and
+        # (less the held-out segments') the training segments' statistics
+        whole = window_lags(recs, max(cands)) if prev is None and lam == 1.0 else None
         if horizon == "auto" or order == "auto":
-            cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
-            train, val = split_statistics(recs, cands, lam, self.validation_fraction)
+            train, val = split_statistics(recs, cands, lam, self.validation_fraction, whole)
         if horizon == "auto":
             horizon, horizon_table = select_horizon(train, val, cands, lambda s: prior_of(s, self.prior, su, sy))
         short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
-        # eq. 9 (the held-out split already holds the whole records' windows when not forgetting)
-        stats = (
-            pooled_split(train, val, horizon, recs, self.validation_fraction) if prev is None and lam == 1.0 else None
-        )
+        # eq. 9 (without forgetting, from the whole records' lag correlations taken above)
+        pooled = prev is None and lam == 1.0
+        stats = pooled_split(train, val, horizon, recs, self.validation_fraction, whole) if pooled else None
         if stats is None:
             stats = hankel_toeplitz_statistics(recs, horizon, lam)
         # eq. 16-18 (an update continues the previous posterior, which holds the prior)
@@ -342,7 +344,7 @@ class HankelMAP(Estimator):
             order_table,
             cost,
             scales=(su.copy(), sy.copy()),
-            window_lags=window_lags(recs, horizon) if prev is None and lam == 1.0 else None,
+            window_lags=_kept_lags(whole, recs, horizon) if pooled else None,
         )
 
     # ----------------------------------------------------------------- helpers
@@ -382,6 +384,12 @@ class HankelMAP(Estimator):
                 f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate."
             )
             _excitation_warning(msg, notes, stacklevel=7)
+
+
+def _kept_lags(whole: WindowLags | None, recs, horizon: int) -> WindowLags | None:
+    """The fit's :class:`WindowLags` at ``horizon``, from those of the largest candidate when
+    the records held them."""
+    return whole.at(horizon) if whole is not None and whole.horizon >= horizon else window_lags(recs, horizon)
 
 
 def _excitation_warning(msg: str, notes: list[str], stacklevel: int) -> None:

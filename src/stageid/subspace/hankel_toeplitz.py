@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from .._errors import DataError
-from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, window_gram
+from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, range_ends, window_gram
 
 __all__ = [
     "WindowStatistics",
@@ -33,6 +33,7 @@ __all__ = [
     "window_statistics",
     "record_statistics",
     "segments_statistics",
+    "lag_statistics",
     "regressor_indices",
     "dense_regression",
     "split_theta",
@@ -316,10 +317,17 @@ def segments_statistics(u: np.ndarray, y: np.ndarray, ranges: list[tuple[int, in
     if short:
         raise DataError(f"horizon {p} needs ranges of more than {L} samples; got {short[0][1] - short[0][0]}.")
     R = lag_correlations(RecordRows([u, y], ranges, gap=L), L - 1)
-    heads = np.stack([np.hstack([u[a : a + L], y[a : a + L]]) for a, _ in ranges])
-    tails = np.stack([np.hstack([u[b - L : b], y[b - L : b]]) for _, b in ranges])
-    count = int(sum(b - a - L + 1 for a, b in ranges))
-    return WindowStatistics(gram_from_lags(R, heads, tails), float(count), p, u.shape[1], y.shape[1], None, None, count)
+    heads, tails = range_ends(u, y, ranges, L)
+    return lag_statistics(R, heads, tails, int(sum(b - a - L + 1 for a, b in ranges)), u.shape[1])
+
+
+def lag_statistics(R: np.ndarray, heads: np.ndarray, tails: np.ndarray, count: int, n_inputs: int) -> WindowStatistics:
+    """:class:`WindowStatistics` (no input spectrum) of the windows inside segments, from their
+    summed lag correlations ``R`` (lags ``0 .. 2 p - 1``), the first and last ``2 p`` samples
+    of each (``heads``, ``tails``) and the number of windows (:func:`~.correlations.gram_from_lags`)."""
+    L, r, _ = R.shape
+    W = gram_from_lags(R, heads, tails)
+    return WindowStatistics(W, float(count), L // 2, n_inputs, r - n_inputs, None, None, int(count))
 
 
 def dense_regression(u: np.ndarray, y: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:

@@ -26,12 +26,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from .correlations import input_periodogram
-from .hankel_toeplitz import WindowStatistics, record_statistics, row_residuals, segments_statistics
+from .correlations import RecordRows, input_periodogram, lag_correlations, range_ends, straddling_lags
+from .hankel_toeplitz import (
+    WindowStatistics,
+    lag_statistics,
+    record_statistics,
+    row_residuals,
+    segments_statistics,
+)
 from .map_estimator import Posterior, Prior, map_estimate
 from .nested_horizons import lead_parts, nested_lead_parts
 from .realization import realize
 from .weighting import noise_weights, output_weights
+from .window_covariance import WindowLags
 
 __all__ = [
     "SelectionTable",
@@ -186,19 +193,87 @@ def central_statistics(stats: WindowStatistics, horizon: int) -> WindowStatistic
 
 
 def split_statistics(
-    records: Sequence[tuple[np.ndarray, np.ndarray]], cands: list[int], forgetting: float, validation_fraction: float
+    records: Sequence[tuple[np.ndarray, np.ndarray]],
+    cands: list[int],
+    forgetting: float,
+    validation_fraction: float,
+    whole: WindowLags | None = None,
 ) -> tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]]:
     """Eq. 9 statistics of the training and of the held-out segments, per candidate horizon.
 
     One Gram matrix per segment at its largest usable horizon, summed per horizon; smaller
     horizons use its leading block (exact statistics over a slightly smaller window set).
     The training windows are weighted by ``forgetting`` (each range as a record of its own).
+    Given the whole records' lag correlations (``whole``, at a horizon of at least the largest
+    candidate), when every range holds the largest candidate and there is no forgetting, the
+    training segments' lag correlations are the whole records' less the held-out segments'
+    and the products straddling the range boundaries (:func:`_split_from_whole`): no FFT pass
+    over the training segments.
     """
     train: dict[int, WindowStatistics] = {}
     val: dict[int, WindowStatistics] = {}
+    top = max(cands)
+    splits = [held_out_segments(u.shape[0], validation_fraction) for u, _ in records]
+    every_range_holds_top = all(b - a >= 2 * top + 1 for tr, va in splits for a, b in tr + va)
+    if whole is not None and forgetting == 1.0 and whole.horizon >= top and every_range_holds_top:
+        t, v = _split_from_whole(records, splits, top, whole)
+        tops: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({top: t}, {top: v})
+    else:
+        tops = _split_tops(records, splits, cands, forgetting)
+    for acc, target in zip(tops, (train, val)):
+        for p in cands:
+            for ph, stats in acc.items():
+                if ph >= p:
+                    sp = _leading(stats, p)
+                    target[p] = sp if p not in target else target[p] + sp
+    return train, val
+
+
+def _split_from_whole(
+    records: Sequence[tuple[np.ndarray, np.ndarray]],
+    splits: list[tuple[list[tuple[int, int]], list[tuple[int, int]]]],
+    horizon: int,
+    whole: WindowLags,
+) -> tuple[WindowStatistics, WindowStatistics]:
+    """Training and held-out statistics at ``horizon``, every range holding it: the held-out
+    lag correlations from one pass over the held-out ranges, the training ones as the whole
+    records' less those and the products straddling the range boundaries (each such pair
+    joins two neighbouring ranges, the ranges being longer than the largest lag); exact to
+    rounding."""
+    L = 2 * horizon
+    m = records[0][0].shape[1]
+    R_val = np.zeros((L,) + whole.lags.shape[1:])
+    ends: list[list[np.ndarray]] = [[], [], [], []]  # training heads, tails, held-out heads, tails
+    joints: list[list[np.ndarray]] = [[], []]  # the L - 1 samples before and after every boundary
+    for (u, y), (tr, va) in zip(records, splits):
+        R_val += lag_correlations(RecordRows([u, y], va, gap=L), L - 1)
+        for i, ranges in enumerate((tr, va)):
+            for k, part in enumerate(range_ends(u, y, ranges, L)):
+                ends[2 * i + k].append(part)
+        cuts = sorted(b for _, b in tr + va)[:-1]
+        if cuts:
+            for k, part in enumerate(range_ends(u, y, [(c - L + 1, c + L - 1) for c in cuts], L - 1)):
+                joints[k].append(part)
+    R_train = whole.lags[:L] - R_val
+    if joints[0]:
+        R_train -= straddling_lags(np.concatenate(joints[0]), np.concatenate(joints[1]))
+    out = []
+    for i, R in enumerate((R_train, R_val)):
+        count = sum(b - a - L + 1 for split in splits for a, b in split[i])
+        out.append(lag_statistics(R, np.concatenate(ends[2 * i]), np.concatenate(ends[2 * i + 1]), count, m))
+    return out[0], out[1]
+
+
+def _split_tops(
+    records: Sequence[tuple[np.ndarray, np.ndarray]],
+    splits: list[tuple[list[tuple[int, int]], list[tuple[int, int]]]],
+    cands: list[int],
+    forgetting: float,
+) -> tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]]:
+    """Training and held-out statistics per largest usable horizon of their ranges, one pass
+    over each group of ranges (with forgetting, one per range)."""
     tops: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
-    for u, y in records:
-        tr, va = held_out_segments(u.shape[0], validation_fraction)
+    for (u, y), (tr, va) in zip(records, splits):
         for ranges, acc, weight in ((tr, tops[0], forgetting), (va, tops[1], 1.0)):
             groups: dict[int, list[tuple[int, int]]] = {}
             for a, b in ranges:
@@ -212,13 +287,7 @@ def split_statistics(
                     tops_ = [record_statistics(u[a:b], y[a:b], [ph], weight, with_spectrum=False)[ph] for a, b in rngs]
                 for top in tops_:
                     acc[ph] = top if ph not in acc else acc[ph] + top
-    for acc, target in zip(tops, (train, val)):
-        for p in cands:
-            for ph, top in acc.items():
-                if ph >= p:
-                    sp = _leading(top, p)
-                    target[p] = sp if p not in target else target[p] + sp
-    return train, val
+    return tops
 
 
 def pooled_split(
@@ -227,23 +296,27 @@ def pooled_split(
     horizon: int,
     records: Sequence[tuple[np.ndarray, np.ndarray]],
     validation_fraction: float,
+    whole: WindowLags | None = None,
 ) -> WindowStatistics | None:
-    """The whole records' eq. 9 statistics from the held-out split (not forgetting); None
-    when the split cannot be completed cheaply.
+    """The whole records' eq. 9 statistics (not forgetting), with their input spectrum: from
+    their lag correlations ``whole`` when given (at a horizon of at least ``horizon``), else
+    completed from the held-out split; None when the split cannot be completed cheaply.
 
     The split lacks the windows that straddle segment boundaries and, for horizons below a
     range's largest usable one, the last windows of each range (see :func:`split_statistics`);
     those are added from one :func:`segments_statistics` pass over short sample ranges around
-    the range ends.  The result equals the statistics of the whole records up to rounding and
-    saves a second pass over long records; the input spectrum is added (the split has none).
+    the range ends.  Either way the result equals the statistics of the whole records up to
+    rounding and saves a second pass over long records.
     """
+    if whole is not None and whole.horizon >= horizon:
+        s = whole.statistics(horizon, records[0][0].shape[1])
+        return WindowStatistics(s.W, s.n_windows, horizon, s.n_inputs, s.n_outputs, *_periodogram(records), s.count)
     if horizon not in train or horizon not in val:
         return None
     keys = sorted(set(train) | set(val))
     t, v = train[horizon], val[horizon]
     W = t.W + v.W  # a fresh matrix: the missing windows are added in place (no further copies)
     n_windows, count = t.n_windows + v.n_windows, t.count + v.count
-    power = None
     for u, y in records:
         missing = _missing_ranges(u.shape[0], keys, horizon, validation_fraction)
         if missing is None:
@@ -252,11 +325,17 @@ def pooled_split(
             extra = segments_statistics(u, y, missing, horizon)
             W += extra.W
             n_windows, count = n_windows + extra.n_windows, count + extra.count
-        pw, fq = input_periodogram(u)
-        power = pw if power is None else power + pw
     if count != sum(u.shape[0] - 2 * horizon + 1 for u, _ in records):
         return None
-    return WindowStatistics(W, n_windows, horizon, t.n_inputs, t.n_outputs, power, fq, count)
+    return WindowStatistics(W, n_windows, horizon, t.n_inputs, t.n_outputs, *_periodogram(records), count)
+
+
+def _periodogram(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """The records' input periodograms, summed (:func:`~.correlations.input_periodogram`)."""
+    power, freqs = input_periodogram(records[0][0])
+    for u, _ in records[1:]:
+        power = power + input_periodogram(u)[0]
+    return power, freqs
 
 
 def _missing_ranges(n: int, keys: list[int], horizon: int, validation_fraction: float) -> list[tuple[int, int]] | None:

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .correlations import RecordRows, lag_correlations
-from .hankel_toeplitz import regressor_indices, response_systems
+from .hankel_toeplitz import WindowStatistics, lag_statistics, regressor_indices, response_systems
 
 __all__ = [
     "WindowLags",
@@ -62,7 +62,10 @@ BLOCK_ENTRIES = 1 << 18
 @dataclass(frozen=True, eq=False)
 class WindowLags:
     """What :func:`overlap_response_covariance` needs of the records, kept by the fit (a few
-    ``(m + q)^2 p`` numbers, not the records).
+    ``(m + q)^2 p`` numbers, not the records).  Taken once per fit at its largest candidate
+    horizon, they also give the records' eq. 9 statistics at any horizon up to it
+    (:meth:`statistics`) and, less the held-out segments', the training segments' lag
+    correlations (:func:`~.selection.split_statistics`).
 
     Attributes
     ----------
@@ -71,15 +74,40 @@ class WindowLags:
     heads, tails : ndarray of shape (n_records, 4 p - 2, m + q)
         The first and last ``4 p - 2`` samples of every record: the windows sticking out of a
         record (which ``R`` counts, zero-padded) are subtracted exactly from them.
+    lengths : tuple of int
+        The records' numbers of samples.
     """
 
     lags: np.ndarray
     heads: np.ndarray
     tails: np.ndarray
+    lengths: tuple[int, ...]
 
     def weighted(self, scale: np.ndarray) -> WindowLags:
         """The same for ``z`` times ``scale`` (per channel)."""
-        return WindowLags(self.lags * np.outer(scale, scale)[None], self.heads * scale, self.tails * scale)
+        return WindowLags(
+            self.lags * np.outer(scale, scale)[None], self.heads * scale, self.tails * scale, self.lengths
+        )
+
+    @property
+    def horizon(self) -> int:
+        """The horizon ``p`` the lags are for (``4 p - 1`` of them)."""
+        return (self.lags.shape[0] + 1) // 4
+
+    def at(self, horizon: int) -> WindowLags:
+        """The same for a horizon up to :attr:`horizon` (fewer lags and end samples)."""
+        p = int(horizon)
+        if p == self.horizon:
+            return self
+        e = 4 * p - 2
+        return WindowLags(self.lags[: e + 1].copy(), self.heads[:, :e].copy(), self.tails[:, -e:].copy(), self.lengths)
+
+    def statistics(self, horizon: int, n_inputs: int) -> WindowStatistics:
+        """The records' eq. 9 statistics at a horizon up to :attr:`horizon` (no input spectrum):
+        their lag correlations less the windows sticking out (:func:`~.correlations.gram_from_lags`)."""
+        L = 2 * int(horizon)
+        count = sum(n - L + 1 for n in self.lengths)
+        return lag_statistics(self.lags[:L], self.heads[:, :L], self.tails[:, -L:], count, n_inputs)
 
 
 def window_lags(records: list[tuple[np.ndarray, np.ndarray]], horizon: int) -> WindowLags | None:
@@ -95,7 +123,7 @@ def window_lags(records: list[tuple[np.ndarray, np.ndarray]], horizon: int) -> W
         R += lag_correlations(RecordRows([u, y]), L - 1)
     heads = np.stack([np.hstack([u[: L - 1], y[: L - 1]]) for u, y in records])
     tails = np.stack([np.hstack([u[-(L - 1) :], y[-(L - 1) :]]) for u, y in records])
-    return WindowLags(R, heads, tails)
+    return WindowLags(R, heads, tails, tuple(u.shape[0] for u, _ in records))
 
 
 def lag_spectrum(R: np.ndarray, n: int) -> np.ndarray:
