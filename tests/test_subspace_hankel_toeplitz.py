@@ -10,11 +10,10 @@ from stageid.subspace.hankel_toeplitz import (
     dense_regression,
     record_statistics,
     regressor_indices,
-    response_systems,
-    theta_frequency_response,
     window_statistics,
 )
 from stageid.subspace.map_estimator import batch_posterior
+from stageid.subspace.theta_response import response_systems, theta_frequency_response
 
 
 @pytest.mark.parametrize(

@@ -6,8 +6,8 @@ Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one n
 
 =======================  ===================================================================
 ``hankel_toeplitz``      2.1 Simplified Hankel-Toeplitz model: eq. 9 statistics
-                         (``hankel_toeplitz_statistics``), ``theta`` split (eq. 16), the
-                         model's frequency response
+                         (``hankel_toeplitz_statistics``), ``theta`` split (eq. 16)
+``theta_response``       2.1 the eq. 9 model's frequency response (and its posterior spread)
 ``correlations``         2.1 the window Gram matrix of eq. 9 from lag correlations (FFT)
 ``map_estimator``        2.3 MAP online estimation: prior, posterior, eq. 17-18
                          (``map_posterior``); ``method`` -> prior (``METHODS``)

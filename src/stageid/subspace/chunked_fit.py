@@ -32,13 +32,14 @@ from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
 from .chunked_order import select_order_chunked
 from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
-from .hankel_toeplitz import WindowStatistics, response_bytes, statistics_bytes
+from .hankel_toeplitz import WindowStatistics, statistics_bytes
 from .map_estimator import METHODS, map_posterior
 from .realization import realize
 from .records import excited_band
 from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
 from .selection import held_out_segments, horizon_candidates, select_horizon
+from .theta_response import response_bytes
 
 __all__ = ["fit_chunked", "chunked_split_statistics"]
 

@@ -43,7 +43,7 @@ from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
 from .channels import channel_groups, stack_channel_models
-from .hankel_toeplitz import hankel_toeplitz_statistics, response_bytes, statistics_bytes
+from .hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
 from .map_estimator import (
     LS_RIDGE_STRENGTH,
     LS_SINGULAR_PIVOT,
@@ -72,6 +72,7 @@ from .selection import (
     select_order,
     split_statistics,
 )
+from .theta_response import response_bytes
 from .window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]

@@ -21,10 +21,10 @@ from ..checks import is_integer
 from ..data.experiment import Experiment
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import theta_response_std
 from .map_estimator import Posterior
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
+from .theta_response import theta_response_std
 from .weighting import output_weights, weight_scales, weighted_theta
 from .window_covariance import WindowLags
 

@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .correlations import RecordRows, lag_correlations
-from .hankel_toeplitz import WindowStatistics, lag_statistics, regressor_indices, response_systems
+from .hankel_toeplitz import WindowStatistics, lag_statistics, regressor_indices
+from .theta_response import response_systems
 
 __all__ = [
     "WindowLags",
