@@ -284,10 +284,20 @@ def column_solve(post: Posterior) -> Callable[[np.ndarray], np.ndarray]:
     info = post.information
     try:
         np.linalg.cholesky(info)
-        return lambda V: c[:, None] * np.linalg.solve(info, c[:, None] * V)
+        return lambda V: c[:, None] * _real_apply(lambda X: np.linalg.solve(info, X), c[:, None] * V)
     except np.linalg.LinAlgError:
         pinv = np.linalg.pinv(info, hermitian=True)
-        return lambda V: c[:, None] * (pinv @ (c[:, None] * V))
+        return lambda V: c[:, None] * _real_apply(lambda X: pinv @ X, c[:, None] * V)
+
+
+def _real_apply(op: Callable[[np.ndarray], np.ndarray], V: np.ndarray) -> np.ndarray:
+    """``op(V)`` for a linear ``op`` with a real matrix and a complex ``V``: one real call on
+    ``[Re V, Im V]`` (a complex right-hand side would make numpy factor the matrix as complex)."""
+    if not np.iscomplexobj(V):
+        return op(V)
+    k = V.shape[1]
+    X = op(np.hstack([V.real, V.imag]))
+    return X[:, :k] + 1j * X[:, k:]
 
 
 def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:

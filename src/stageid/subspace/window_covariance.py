@@ -173,10 +173,14 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     """
     p = f.h.shape[0] // 2
     n, n2, half = S.shape[0], 4 * p, 2 * p - 1
-    c = f.h.shape[2]
-    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo
-    H_rev = np.roll(f.H[::-1], 1, axis=0)
-    Q = np.fft.ifft(np.matmul(S, np.concatenate([np.conj(f.H), H_rev], axis=2)), axis=0)
+    r, c = f.h.shape[1:]
+    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo; in place: fewer large temporaries
+    M = np.empty(f.H.shape[:2] + (2 * c,), dtype=complex)
+    np.conj(f.H, out=M[:, :, :c])
+    M[0, :, c:] = f.H[0]
+    M[1:, :, c:] = f.H[:0:-1]
+    Q = np.matmul(S, M)
+    np.fft.ifft(Q, axis=0, out=Q)
     Q2 = np.zeros((n2,) + Q.shape[1:], dtype=complex)
     Q2[: half + 1] = Q[: half + 1]
     Q2[n2 - half :] = Q[n - half :]
@@ -197,7 +201,9 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
     Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
     left = np.concatenate([f.H[:: n // n2].transpose(0, 2, 1), -Xt], axis=2)  # H on 4p points: every 2nd
-    right = np.concatenate([np.fft.fft(Q2, axis=0), Y], axis=1)
+    right = np.empty((n2, r + Y.shape[1], 2 * c), dtype=complex)
+    np.fft.fft(Q2, axis=0, out=right[:, :r])
+    right[:, r:] = Y
     both = np.empty((2 * p, c, 2 * c), dtype=complex)
     step = max(1, BLOCK_ENTRIES // (n2 * right.shape[2]))  # a few MB per block: it stays in cache
     for lo in range(0, c, step):
