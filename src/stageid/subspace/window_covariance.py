@@ -204,11 +204,14 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     right = np.empty((n2, r + Y.shape[1], 2 * c), dtype=complex)
     np.fft.fft(Q2, axis=0, out=right[:, :r])
     right[:, r:] = Y
-    both = np.empty((2 * p, c, 2 * c), dtype=complex)
+    # stored lag-last (the transform's output lines are contiguous, and :func:`lag_sum`'s
+    # regrouping copies runs of lags), returned as (lag, row, column) views
+    store = np.empty((c, 2 * c, n2), dtype=complex)
+    both = store.transpose(2, 0, 1)
     step = max(1, BLOCK_ENTRIES // (n2 * right.shape[2]))  # a few MB per block: it stays in cache
     for lo in range(0, c, step):
-        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[: 2 * p]
-    return both[:, :, :c], both[:, :, c:]
+        np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0, out=both[:, lo : lo + step])
+    return both[: 2 * p, :, :c], both[: 2 * p, :, c:]
 
 
 def overlap_response_covariance(
@@ -270,10 +273,12 @@ def lag_sum(B: np.ndarray, A: np.ndarray, nz: int, q: int, m: int) -> np.ndarray
     (shapes (n_lags, nz q, nz q) and (n_lags, nz m, nz m)), ``w_0 = 1/2``, else 1, as a matrix
     over ``(k, i, j)`` x ``(k', i', j')``: one product over the lags per pair ``(k, k')``."""
     L = B.shape[0]
+    # both regrouped lags-last (contiguous runs when the lags are, as from :func:`self_lag_products`)
     Bt = B.reshape(L, nz, q, nz, q).transpose(1, 3, 2, 4, 0).reshape(nz, nz, q * q, L)
-    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 0, 2, 4).reshape(nz, nz, L, m * m)
-    At[:, :, 0] *= 0.5
-    out = np.matmul(Bt, At).reshape(nz, nz, q, q, m, m)
+    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 2, 4, 0).reshape(nz, nz, m * m, L)
+    # lag 0 at half weight: its term taken off again (no in-place scaling of what may be a view)
+    out = np.matmul(Bt, At.swapaxes(2, 3)) - 0.5 * Bt[..., :1] * At[:, :, None, :, 0]
+    out = out.reshape(nz, nz, q, q, m, m)
     N = nz * q * m
     return out.transpose(0, 2, 4, 1, 3, 5).reshape(N, N)
 
