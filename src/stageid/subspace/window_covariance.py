@@ -138,13 +138,18 @@ def lag_spectrum(R: np.ndarray, n: int) -> np.ndarray:
 
 class WindowFilter:
     """A filter of the windows, ``s_t = sum_pos h[pos]^T w_t[pos]`` (one column per output), with
-    the DFTs the lag products need (``n`` points over the window positions)."""
+    the DFTs the lag products need over the window positions: ``H`` on ``n / 2`` points and, on
+    ``n`` points, the real DFT ``H_parts`` of ``[Re h, Im h]`` (the window signal is real)."""
 
     def __init__(self, weights: np.ndarray, positions: np.ndarray, horizon: int, r: int, n: int):
-        h = np.zeros((2 * horizon * r, weights.shape[1]), dtype=complex)
-        h[positions] = weights
-        self.h = h.reshape(2 * horizon, r, -1)
-        self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
+        c = weights.shape[1]
+        parts = np.zeros((2 * horizon * r, 2 * c))  # [Re h, Im h]
+        parts[positions, :c] = np.real(weights)
+        parts[positions, c:] = np.imag(weights)
+        self.parts = parts.reshape(2 * horizon, r, 2 * c)
+        self.h = (parts[:, :c] + 1j * parts[:, c:]).reshape(2 * horizon, r, c)
+        self.H = np.fft.fft(self.h, n=n // 2, axis=0)  # sum_a h(a) e^(-i w a)
+        self.H_parts = np.fft.rfft(self.parts, n=n, axis=0)
 
     def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
         """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
@@ -153,10 +158,10 @@ class WindowFilter:
         pad = np.zeros((L - 1, samples.shape[1]))
         z = np.vstack([pad, samples]) if head else np.vstack([samples, pad])
         win = np.lib.stride_tricks.sliding_window_view(z, L, axis=0)  # (4p-2, r, L)
-        # real windows times a complex filter: two real products
+        # real windows times a complex filter: one real product with [Re h, Im h]
         win = win.transpose(0, 2, 1).reshape(win.shape[0], L * r)
-        h = self.h.reshape(L * r, c)
-        return win @ h.real + 1j * (win @ h.imag)
+        s = win @ self.parts.reshape(L * r, 2 * c)
+        return s[:, :c] + 1j * s[:, c:]
 
 
 def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tuple[np.ndarray, np.ndarray]:
@@ -174,16 +179,15 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     p = f.h.shape[0] // 2
     n, n2, half = S.shape[0], 4 * p, 2 * p - 1
     r, c = f.h.shape[1:]
-    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo; in place: fewer large temporaries
-    M = np.empty(f.H.shape[:2] + (2 * c,), dtype=complex)
-    np.conj(f.H, out=M[:, :, :c])
-    M[0, :, c:] = f.H[0]
-    M[1:, :, c:] = f.H[:0:-1]
-    Q = np.matmul(S, M)
-    np.fft.ifft(Q, axis=0, out=Q)
-    Q2 = np.zeros((n2,) + Q.shape[1:], dtype=complex)
-    Q2[: half + 1] = Q[: half + 1]
-    Q2[n2 - half :] = Q[n - half :]
+    # R and the window signal are real: Q(c) = Q_re(c) - i Q_im(c) from one real correlation with
+    # [Re h, Im h] (half the spectrum); the pseudo's sum_b R(c + b) h(b) is its conjugate
+    parts = np.fft.irfft(np.matmul(S[: n // 2 + 1], np.conj(f.H_parts)), n=n, axis=0)
+    Q2 = np.zeros((n2, r, c), dtype=complex)
+    Q2.real[: half + 1] = parts[: half + 1, :, :c]
+    Q2.real[n2 - half :] = parts[n - half :, :, :c]
+    Q2.imag[: half + 1] = parts[: half + 1, :, c:]
+    Q2.imag[n2 - half :] = parts[n - half :, :, c:]
+    np.conjugate(Q2, out=Q2)
     zero = np.zeros((half, c), dtype=complex)
     xs, ys = [], []
     for samples in stats.heads:
@@ -200,9 +204,12 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T, X~(w) = sum_t x_t e^(+i w t)
     Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
     Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
-    left = np.concatenate([f.H[:: n // n2].transpose(0, 2, 1), -Xt], axis=2)  # H on 4p points: every 2nd
+    left = np.concatenate([f.H.transpose(0, 2, 1), -Xt], axis=2)
     right = np.empty((n2, r + Y.shape[1], 2 * c), dtype=complex)
-    np.fft.fft(Q2, axis=0, out=right[:, :r])
+    np.fft.fft(Q2, axis=0, out=right[:, :r, :c])
+    # the DFT of conj(Q) at w is conj(DFT of Q) at -w
+    np.conjugate(right[0, :r, :c], out=right[0, :r, c:])
+    np.conjugate(right[:0:-1, :r, :c], out=right[1:, :r, c:])
     right[:, r:] = Y
     # stored lag-last (the transform's output lines are contiguous, and :func:`lag_sum`'s
     # regrouping copies runs of lags), returned as (lag, row, column) views
