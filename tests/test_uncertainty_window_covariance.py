@@ -49,6 +49,56 @@ def test_self_lag_products_equal_the_sums_over_whole_windows(p):
     np.testing.assert_allclose(got_p, want_p, rtol=0, atol=1e-12 * np.abs(want_p).max())
 
 
+def test_self_lag_products_in_several_blocks_equal_the_sums_over_whole_windows(monkeypatch):
+    # blocks of a few rows (each transform written into its rows of the lags-last store): the
+    # same sums as one block and as by hand
+    import stageid.subspace.window_covariance as wc
+
+    rng = np.random.default_rng(7)
+    p, r = 3, 3
+    recs = [(rng.standard_normal((n, 2)), rng.standard_normal((n, 1)) + 2) for n in (150, 97)]
+    stats = window_lags(recs, p)
+    n = 8 * p
+    h = rng.standard_normal((2 * p * r, 11)) + 1j * rng.standard_normal((2 * p * r, 11))
+    S = lag_spectrum(stats.lags, n)
+    one_c, one_p = self_lag_products(WindowFilter(h, np.arange(2 * p * r), p, r, n), S, stats)
+    monkeypatch.setattr(wc, "BLOCK_ENTRIES", 4 * p * 22 * 3)  # 3 rows per block: 4 blocks, the last short
+    got_c, got_p = self_lag_products(WindowFilter(h, np.arange(2 * p * r), p, r, n), S, stats)
+    want_c, want_p = _explicit_lag_products(recs, p, h, np.arange(2 * p))
+    assert got_c.shape == got_p.shape == (2 * p, 11, 11)
+    np.testing.assert_allclose(got_c, want_c, rtol=0, atol=1e-12 * np.abs(want_c).max())
+    np.testing.assert_allclose(got_p, want_p, rtol=0, atol=1e-12 * np.abs(want_p).max())
+    np.testing.assert_allclose(got_c, one_c, rtol=0, atol=1e-13 * np.abs(want_c).max())
+
+
+def _explicit_lag_sum(B, A, nz, q, m):
+    L = B.shape[0]
+    w = np.r_[0.5, np.ones(L - 1)]
+    Bk, Ak = B.reshape(L, nz, q, nz, q), A.reshape(L, nz, m, nz, m)
+    want = np.zeros((nz, q, m, nz, q, m), dtype=complex)
+    for c in range(L):
+        for k in range(nz):
+            for kk in range(nz):
+                want[k, :, :, kk] += w[c] * np.einsum("ix,jy->ijxy", Bk[c, k, :, kk], Ak[c, k, :, kk])
+    return want.reshape(nz * q * m, -1)
+
+
+@pytest.mark.parametrize("q, m", [(1, 1), (2, 1), (1, 3), (2, 2)])
+def test_lag_sum_of_lags_last_views_leaves_them_alone(q, m):
+    # the layout self_lag_products returns (views of a lags-last store, half its lags): one input
+    # or output makes lag_sum's regrouping a view too, which must not be scaled in place
+    rng = np.random.default_rng(q + 3 * m)
+    L, nz = 4, 3
+    store_b = rng.standard_normal((nz * q, nz * q, 2 * L)) + 1j * rng.standard_normal((nz * q, nz * q, 2 * L))
+    store_a = rng.standard_normal((nz * m, nz * m, 2 * L)) + 1j * rng.standard_normal((nz * m, nz * m, 2 * L))
+    B, A = store_b.transpose(2, 0, 1)[:L], store_a.transpose(2, 0, 1)[:L]
+    A0, B0 = A.copy(), B.copy()
+    got = lag_sum(B, A, nz, q, m)
+    np.testing.assert_allclose(got, _explicit_lag_sum(B0, A0, nz, q, m), rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(A, A0)
+    np.testing.assert_array_equal(B, B0)
+
+
 def test_lag_sum_is_the_sum_over_lags_of_the_kronecker_products():
     rng = np.random.default_rng(1)
     L, nz, q, m = 5, 3, 2, 3
@@ -74,6 +124,20 @@ def test_column_solve_applies_the_posterior_covariance():
     _, col_cov, _, _ = weighted_parts(post)
     want = col_cov / post.horizon @ V
     np.testing.assert_allclose(column_solve(post)(V), want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
+
+
+def test_column_solve_of_a_complex_right_hand_side():
+    # real and imaginary parts solved as one real system: the same as the complex product
+    g = random_stage(8, m=1, q=2, modes=2)
+    res = HankelMAP(horizon=10, order=4).fit(record(g, band_limited(3000, 1, g.dt, 0), 0.02, 0, names=False))
+    post = res.channels[0].scaled_posterior
+    rng = np.random.default_rng(1)
+    V = rng.standard_normal((post.information.shape[0], 5)) + 1j * rng.standard_normal((post.information.shape[0], 5))
+    _, col_cov, _, _ = weighted_parts(post)
+    want = col_cov / post.horizon @ V
+    got = column_solve(post)(V)
+    assert np.iscomplexobj(got)
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
 
 
 def test_short_records_keep_no_lag_statistics():

@@ -196,19 +196,23 @@ def response_std(
     LA = factor[: n * n].reshape(n, n, r)  # dA[a, b] per column
     LB = factor[n * n : n * n + n * m].reshape(n, m, r)
     LC = factor[n * n + n * m : n * n + n * m + q * n].reshape(q, n, r)
-    LA_t = LA.transpose(1, 0, 2).reshape(n, n * r)  # [b, (a, col)]
+    LA_f = LA.reshape(n, n * r)  # [a, (b, col)]
+    LB_f = LB.reshape(n, m * r)  # [a, (j, col)]
     LC_t = LC.transpose(1, 0, 2).reshape(n, q * r)  # [b, (i, col)]
     out = []
     for lo in range(0, points.size, CHUNK):
         x = points[lo : lo + CHUNK]
         nz = x.size
         R = np.linalg.inv(x[:, None, None] * np.eye(n)[None] - A[None])
-        CR = C[None] @ R  # (nz, q, n)
-        RBt = (R @ B[None]).transpose(0, 2, 1).reshape(nz * m, n)  # [(z, j), b]
-        # sum_b dA[a, b] (R B)[b, j] + dB[a, j]: a real factor times a complex matrix, two real products
-        M = (RBt.real @ LA_t + 1j * (RBt.imag @ LA_t)).reshape(nz, m, n, r) + LB.transpose(1, 0, 2)[None]
-        dG = np.matmul(CR, M.transpose(0, 2, 1, 3).reshape(nz, n, m * r)).reshape(nz, q, m, r)
-        dG += (RBt.real @ LC_t + 1j * (RBt.imag @ LC_t)).reshape(nz, m, q, r).transpose(0, 2, 1, 3)
+        CR = (C[None] @ R).reshape(nz * q, n)  # [(z, i), a]
+        RBt = (R @ B[None]).transpose(0, 2, 1)  # (nz, m, n): [z, j, b]
+        # (C R dA) (R B) + C R dB: the real factor times the complex C R first (two real products
+        # each), then the small product with R B per point, no regrouping of a large array
+        T = (CR.real @ LA_f + 1j * (CR.imag @ LA_f)).reshape(nz, q, n, r)
+        dG = np.matmul(RBt[:, None], T)  # (nz, q, m, r)
+        dG += (CR.real @ LB_f + 1j * (CR.imag @ LB_f)).reshape(nz, q, m, r)
+        RBf = RBt.reshape(nz * m, n)
+        dG += (RBf.real @ LC_t + 1j * (RBf.imag @ LC_t)).reshape(nz, m, q, r).transpose(0, 2, 1, 3)
         if feedthrough:
             dG += factor[n * n + n * m + q * n :].reshape(q, m, r)[None]
         out.append(np.sqrt(np.sum(dG.real**2 + dG.imag**2, axis=3)))
@@ -284,10 +288,20 @@ def column_solve(post: Posterior) -> Callable[[np.ndarray], np.ndarray]:
     info = post.information
     try:
         np.linalg.cholesky(info)
-        return lambda V: c[:, None] * np.linalg.solve(info, c[:, None] * V)
+        return lambda V: c[:, None] * _real_apply(lambda X: np.linalg.solve(info, X), c[:, None] * V)
     except np.linalg.LinAlgError:
         pinv = np.linalg.pinv(info, hermitian=True)
-        return lambda V: c[:, None] * (pinv @ (c[:, None] * V))
+        return lambda V: c[:, None] * _real_apply(lambda X: pinv @ X, c[:, None] * V)
+
+
+def _real_apply(op: Callable[[np.ndarray], np.ndarray], V: np.ndarray) -> np.ndarray:
+    """``op(V)`` for a linear ``op`` with a real matrix and a complex ``V``: one real call on
+    ``[Re V, Im V]`` (a complex right-hand side would make numpy factor the matrix as complex)."""
+    if not np.iscomplexobj(V):
+        return op(V)
+    k = V.shape[1]
+    X = op(np.hstack([V.real, V.imag]))
+    return X[:, :k] + 1j * X[:, k:]
 
 
 def _fit_coordinates(model: StateSpaceModel, su: np.ndarray, sy: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:

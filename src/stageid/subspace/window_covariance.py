@@ -138,13 +138,18 @@ def lag_spectrum(R: np.ndarray, n: int) -> np.ndarray:
 
 class WindowFilter:
     """A filter of the windows, ``s_t = sum_pos h[pos]^T w_t[pos]`` (one column per output), with
-    the DFTs the lag products need (``n`` points over the window positions)."""
+    the DFTs the lag products need over the window positions: ``H`` on ``n / 2`` points and, on
+    ``n`` points, the real DFT ``H_parts`` of ``[Re h, Im h]`` (the window signal is real)."""
 
     def __init__(self, weights: np.ndarray, positions: np.ndarray, horizon: int, r: int, n: int):
-        h = np.zeros((2 * horizon * r, weights.shape[1]), dtype=complex)
-        h[positions] = weights
-        self.h = h.reshape(2 * horizon, r, -1)
-        self.H = np.fft.fft(self.h, n=n, axis=0)  # sum_a h(a) e^(-i w a)
+        c = weights.shape[1]
+        parts = np.zeros((2 * horizon * r, 2 * c))  # [Re h, Im h]
+        parts[positions, :c] = np.real(weights)
+        parts[positions, c:] = np.imag(weights)
+        self.parts = parts.reshape(2 * horizon, r, 2 * c)
+        self.h = (parts[:, :c] + 1j * parts[:, c:]).reshape(2 * horizon, r, c)
+        self.H = np.fft.fft(self.h, n=n // 2, axis=0)  # sum_a h(a) e^(-i w a)
+        self.H_parts = np.fft.rfft(self.parts, n=n, axis=0)
 
     def edge_series(self, samples: np.ndarray, head: bool) -> np.ndarray:
         """``s_t`` of the ``4 p - 2`` windows at a record's head (``t = -(2p-1) .. 2p-2``) or tail
@@ -153,10 +158,10 @@ class WindowFilter:
         pad = np.zeros((L - 1, samples.shape[1]))
         z = np.vstack([pad, samples]) if head else np.vstack([samples, pad])
         win = np.lib.stride_tricks.sliding_window_view(z, L, axis=0)  # (4p-2, r, L)
-        # real windows times a complex filter: two real products
+        # real windows times a complex filter: one real product with [Re h, Im h]
         win = win.transpose(0, 2, 1).reshape(win.shape[0], L * r)
-        h = self.h.reshape(L * r, c)
-        return win @ h.real + 1j * (win @ h.imag)
+        s = win @ self.parts.reshape(L * r, 2 * c)
+        return s[:, :c] + 1j * s[:, c:]
 
 
 def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tuple[np.ndarray, np.ndarray]:
@@ -173,13 +178,16 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     """
     p = f.h.shape[0] // 2
     n, n2, half = S.shape[0], 4 * p, 2 * p - 1
-    c = f.h.shape[2]
-    # conj H(w) for cov, H(-w) (the DFT of h read backwards) for pseudo
-    H_rev = np.roll(f.H[::-1], 1, axis=0)
-    Q = np.fft.ifft(np.matmul(S, np.concatenate([np.conj(f.H), H_rev], axis=2)), axis=0)
-    Q2 = np.zeros((n2,) + Q.shape[1:], dtype=complex)
-    Q2[: half + 1] = Q[: half + 1]
-    Q2[n2 - half :] = Q[n - half :]
+    r, c = f.h.shape[1:]
+    # R and the window signal are real: Q(c) = Q_re(c) - i Q_im(c) from one real correlation with
+    # [Re h, Im h] (half the spectrum); the pseudo's sum_b R(c + b) h(b) is its conjugate
+    parts = np.fft.irfft(np.matmul(S[: n // 2 + 1], np.conj(f.H_parts)), n=n, axis=0)
+    Q2 = np.zeros((n2, r, c), dtype=complex)
+    Q2.real[: half + 1] = parts[: half + 1, :, :c]
+    Q2.real[n2 - half :] = parts[n - half :, :, :c]
+    Q2.imag[: half + 1] = parts[: half + 1, :, c:]
+    Q2.imag[n2 - half :] = parts[n - half :, :, c:]
+    np.conjugate(Q2, out=Q2)
     zero = np.zeros((half, c), dtype=complex)
     xs, ys = [], []
     for samples in stats.heads:
@@ -196,13 +204,21 @@ def self_lag_products(f: WindowFilter, S: np.ndarray, stats: WindowLags) -> tupl
     # sum_t x_t y_(t+l)^T is the inverse DFT of X~(w) Y(w)^T, X~(w) = sum_t x_t e^(+i w t)
     Xt = np.conj(np.fft.fft(np.conj(np.stack(xs)), n=n2, axis=1)).transpose(1, 2, 0)  # (n2, cols, pieces)
     Y = np.fft.fft(np.stack(ys), n=n2, axis=1).transpose(1, 0, 2)  # (n2, pieces, 2 cols)
-    left = np.concatenate([f.H[:: n // n2].transpose(0, 2, 1), -Xt], axis=2)  # H on 4p points: every 2nd
-    right = np.concatenate([np.fft.fft(Q2, axis=0), Y], axis=1)
-    both = np.empty((2 * p, c, 2 * c), dtype=complex)
+    left = np.concatenate([f.H.transpose(0, 2, 1), -Xt], axis=2)
+    right = np.empty((n2, r + Y.shape[1], 2 * c), dtype=complex)
+    np.fft.fft(Q2, axis=0, out=right[:, :r, :c])
+    # the DFT of conj(Q) at w is conj(DFT of Q) at -w
+    np.conjugate(right[0, :r, :c], out=right[0, :r, c:])
+    np.conjugate(right[:0:-1, :r, :c], out=right[1:, :r, c:])
+    right[:, r:] = Y
+    # stored lag-last (the transform's output lines are contiguous, and :func:`lag_sum`'s
+    # regrouping copies runs of lags), returned as (lag, row, column) views
+    store = np.empty((c, 2 * c, n2), dtype=complex)
+    both = store.transpose(2, 0, 1)
     step = max(1, BLOCK_ENTRIES // (n2 * right.shape[2]))  # a few MB per block: it stays in cache
     for lo in range(0, c, step):
-        both[:, lo : lo + step] = np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0)[: 2 * p]
-    return both[:, :, :c], both[:, :, c:]
+        np.fft.ifft(np.matmul(left[:, lo : lo + step], right), axis=0, out=both[:, lo : lo + step])
+    return both[: 2 * p, :, :c], both[: 2 * p, :, c:]
 
 
 def overlap_response_covariance(
@@ -264,10 +280,12 @@ def lag_sum(B: np.ndarray, A: np.ndarray, nz: int, q: int, m: int) -> np.ndarray
     (shapes (n_lags, nz q, nz q) and (n_lags, nz m, nz m)), ``w_0 = 1/2``, else 1, as a matrix
     over ``(k, i, j)`` x ``(k', i', j')``: one product over the lags per pair ``(k, k')``."""
     L = B.shape[0]
+    # both regrouped lags-last (contiguous runs when the lags are, as from :func:`self_lag_products`)
     Bt = B.reshape(L, nz, q, nz, q).transpose(1, 3, 2, 4, 0).reshape(nz, nz, q * q, L)
-    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 0, 2, 4).reshape(nz, nz, L, m * m)
-    At[:, :, 0] *= 0.5
-    out = np.matmul(Bt, At).reshape(nz, nz, q, q, m, m)
+    At = A.reshape(L, nz, m, nz, m).transpose(1, 3, 2, 4, 0).reshape(nz, nz, m * m, L)
+    # lag 0 at half weight: its term taken off again (no in-place scaling of what may be a view)
+    out = np.matmul(Bt, At.swapaxes(2, 3)) - 0.5 * Bt[..., :1] * At[:, :, None, :, 0]
+    out = out.reshape(nz, nz, q, q, m, m)
     N = nz * q * m
     return out.transpose(0, 2, 4, 1, 3, 5).reshape(N, N)
 
