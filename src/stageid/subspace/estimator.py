@@ -290,7 +290,8 @@ class HankelMAP(Estimator):
         cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
         # one lag pass over the whole records serves their statistics, the kept WindowLags and
         # (less the held-out segments') the training segments' statistics
-        whole = window_lags(recs, max(cands)) if prev is None and lam == 1.0 else None
+        pooled = prev is None and lam == 1.0  # a first fit without forgetting: whole-record statistics
+        whole = window_lags(recs, max(cands)) if pooled else None
         if horizon == "auto" or order == "auto":
             train, val = split_statistics(recs, cands, lam, self.validation_fraction, whole)
         if horizon == "auto":
@@ -299,7 +300,6 @@ class HankelMAP(Estimator):
         if short:
             raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
         # eq. 9 (without forgetting, from the whole records' lag correlations taken above)
-        pooled = prev is None and lam == 1.0
         stats = pooled_split(train, val, horizon, recs, self.validation_fraction, whole) if pooled else None
         if stats is None:
             stats = hankel_toeplitz_statistics(recs, horizon, lam)

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .correlations import RecordRows, lag_correlations
+from .correlations import RecordRows, lag_correlations, range_ends
 from .hankel_toeplitz import WindowStatistics, lag_statistics, regressor_indices
 from .theta_response import response_systems
 
@@ -122,8 +122,9 @@ def window_lags(records: list[tuple[np.ndarray, np.ndarray]], horizon: int) -> W
     R = np.zeros((L, r, r))
     for u, y in records:
         R += lag_correlations(RecordRows([u, y]), L - 1)
-    heads = np.stack([np.hstack([u[: L - 1], y[: L - 1]]) for u, y in records])
-    tails = np.stack([np.hstack([u[-(L - 1) :], y[-(L - 1) :]]) for u, y in records])
+    ends = [range_ends(u, y, [(0, u.shape[0])], L - 1) for u, y in records]
+    heads = np.concatenate([h for h, _ in ends])
+    tails = np.concatenate([t for _, t in ends])
     return WindowLags(R, heads, tails, tuple(u.shape[0] for u, _ in records))
 
 
