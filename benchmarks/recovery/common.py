@@ -59,7 +59,7 @@ def time_column(n: int, fs: float, style: str, rng: np.random.Generator | None =
     if style == "repr":
         return [repr(float(v)) for v in np.arange(n) / fs]
     if style == "fixed":
-        return ["%.6f" % v for v in np.arange(n) / fs]
+        return [f"{v:.6f}" for v in np.arange(n) / fs]
     if style == "cumsum":
         t = np.cumsum(np.full(n, 1.0 / fs)) - 1.0 / fs
         return [repr(float(v)) for v in t]
