@@ -2,10 +2,8 @@
 
 The fits solve many small and medium linear problems (a few hundred unknowns at most).
 OpenBLAS's thread pool does not pay for itself there, and on a loaded machine its waiting
-threads cost a great deal: on the 2-core development machine, with one other process
-busy, the maglev closed-loop fit took 67.5 s with the default pool and 11.3 s with one
-thread; ``HankelMAP`` at N = 50 000 took 0.6-1.6 s against 0.19-0.22 s (medians of 3,
-2026-12-01).  :func:`single_blas_thread` wraps a fit so that BLAS/LAPACK use one thread
+threads cost several times the work itself (figures in ``benchmarks/RESULTS-closedloop.md``,
+"One BLAS thread inside the fits").  :func:`single_blas_thread` wraps a fit so that BLAS/LAPACK use one thread
 while it runs and the caller's setting is restored afterwards.
 
 Set the environment variable ``STAGEID_BLAS_THREADS`` to a positive number to use that

@@ -7,7 +7,7 @@ import click
 from .._errors import DataError
 from ._common import check_output, check_output_folder, read_experiments, say, split_names
 
-MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence), issue 20
+MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence)
 ALPHA = 0.01  # each test at the 1 % level
 
 

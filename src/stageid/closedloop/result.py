@@ -83,7 +83,7 @@ class ClosedLoopResult:
     covariance: ClosedLoopCovariance | None = None
 
     def response_uncertainty(self, freqs_hz: Sequence[float] | np.ndarray) -> FrequencyResponse:
-        """The returned plant's response with ``std = sqrt(E|G_est - G|^2)`` per entry (issue 20).
+        """The returned plant's response with ``std = sqrt(E|G_est - G|^2)`` per entry.
 
         The PEM parameter covariance propagated through eq. 18 and the reduction by the delta
         method, the reduction's bias included (:mod:`~stageid.closedloop.uncertainty`).

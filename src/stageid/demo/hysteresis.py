@@ -37,7 +37,7 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
             "stage: hysteresis + 1 kHz resonance",
             "100 Hz scan, rate-indep. / stage inverse",
             f"{scan['rate-independent inverse']:.1f} / {scan['stage inverse']:.1f} % FSR",
-            "issue 16: <= 2 % FSR",
+            "target <= 2 % FSR",
         ],
         [
             "actuator hysteresis",

@@ -147,7 +147,7 @@ def _add_section(report, metrics, f, true, sweep, result, updated, errors, val_r
                 str([ch.horizon for ch in updated.channels]),
             ],
         ],
-        caption="Frequency-response error of the identified model against the reference (issue target: 2 % diagonal, 1 % couplings).",
+        caption="Frequency-response error of the identified model against the reference (target: 2 % of peak on the diagonal, 1 % on the couplings).",
     )
     _add_model_figures(report, metrics, f, true, sweep, updated)
     exp, y_hat = overlays[0]

@@ -1,4 +1,4 @@
-"""Uncertainty of the PI / modified-PI weights: block-robust least-squares covariance (issue 20).
+"""Uncertainty of the PI / modified-PI weights: block-robust least-squares covariance.
 
 With the thresholds fixed (step 1, and step 3's search for the modified PI) the output is
 linear in the weights, the offsets and the creep weights, ``y = X beta + e``, solved under the

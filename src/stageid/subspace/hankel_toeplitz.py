@@ -117,7 +117,7 @@ class WindowStatistics:
         xi, yi = regressor_indices(self.horizon, self.n_inputs, self.n_outputs)
         # whole rows first, then the columns of that smaller matrix: ~2.5x faster than three
         # np.ix_ gathers at d = 540; row indexing rather than `take`, which first copies a
-        # strided W (the leading block of a larger horizon's) whole (RESULTS-subspace.md, issue 18)
+        # strided W (the leading block of a larger horizon's) whole (RESULTS-subspace.md)
         rows = self.W[np.concatenate([xi, yi])]
         x_cols = rows[:, xi]
         out = (x_cols[: xi.size], x_cols[xi.size :], rows[xi.size :][:, yi])

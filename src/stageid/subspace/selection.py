@@ -377,7 +377,7 @@ def select_horizon(
     :mod:`.weighting`).  Unlike the multi-step error over all ``p`` block rows, which scores
     each horizon on its own rows, this compares the candidates on the same samples, and it
     keeps preferring larger horizons while they remove truncation bias
-    (``benchmarks/RESULTS-subspace.md``, issue 18).  The normal equations of the candidates
+    (``benchmarks/RESULTS-subspace.md``).  The normal equations of the candidates
     are then nested, so one Cholesky factor serves all (:mod:`.nested_horizons`); when they are
     not (records or segments too short for the largest candidate, priors of another kind,
     singular flat-prior equations), each candidate is solved on its own.
