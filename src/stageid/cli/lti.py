@@ -70,13 +70,13 @@ def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> fl
 
     None when the file has its own time axis (read_table rejects a ts that disagrees with `t`).
     """
-    from ._common import read_table_checked
+    from ..data.io import read_table
 
     fallback = model_dt if model_dt is not None else (1.0 if rate_independent else None)
     if fallback is None:
         return None
     try:
-        read_table_checked(path, ts=None)
+        read_table(path, ts=None)
     except DataError as exc:
         if "time column" in str(exc) or "sample time" in str(exc):
             return fallback

@@ -35,6 +35,7 @@ __all__ = [
     "UNIFORM_RTOL",
     "JITTER_NOTE",
     "TimeGrid",
+    "jitter_note",
     "check_period",
     "time_grid",
     "StampScan",
@@ -92,14 +93,15 @@ class TimeGrid:
     dt: float
     jitter: float = 0.0
 
-    def note(self, where: str = "") -> str:
-        """One line on the jitter when it exceeds :data:`JITTER_NOTE`, else ``""``."""
-        if self.jitter <= JITTER_NOTE:
-            return ""
-        return (
-            f"note: {where}time stamps deviate from the uniform {seconds(self.dt)} s grid by up to "
-            f"{self.jitter:.3g} of the period (accepted up to {UNIFORM_RTOL:g})."
-        )
+
+def jitter_note(jitter: float, dt: float, where: str = "") -> str:
+    """One line on a record's jitter (a fraction of ``dt``) when it exceeds :data:`JITTER_NOTE`, else ``""``."""
+    if not jitter > JITTER_NOTE:
+        return ""
+    return (
+        f"note: {where}time stamps deviate from the uniform {seconds(dt)} s grid by up to "
+        f"{jitter:.3g} of the period (accepted up to {UNIFORM_RTOL:g} beyond their rounding)."
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,7 +168,7 @@ def scan_stamps(t: np.ndarray, k0: int, scan: StampScan, where: str, rtol: float
         scan,
         max_deviation=max(scan.max_deviation, float(np.max(np.abs(deviation)))),
         sxy=scan.sxy + float(np.dot(k[first:] - kbar, deviation[first:])),
-        resolution=max(scan.resolution, stamp_resolution(t, steps, scan.dt_ends)),
+        resolution=max(scan.resolution, stamp_resolution(t, steps, scan.dt_ends, rtol)),
     )
 
 
@@ -203,13 +205,14 @@ def simplest_period(dt: float, uncertainty: float) -> float:
     return dt
 
 
-def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float) -> float:
+def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = UNIFORM_RTOL) -> float:
     """How far rounding alone can move a stamp of ``t`` (steps ``steps``) off its grid [s].
 
     Double stamps: a few ulps of the largest stamp (``4 eps max|t|``; at epoch times that is
     0.24 % of a 10 kHz period).  Stamps that are all float32 values: a float32 spacing.  Stamps
-    that are all multiples of a decimal quantum finer than the period with steps that differ
-    (fixed-decimal text of a period that is not a multiple of it): half that quantum.
+    that are all multiples of a decimal quantum between ``rtol * dt`` and the period, with steps
+    that differ (fixed-decimal text of a period that is not a multiple of it): half that quantum
+    (a finer quantum is within the uniformity tolerance anyway).
     """
     big = float(np.max(np.abs(t)))
     out = 4.0 * float(np.finfo(float).eps) * big
@@ -217,7 +220,7 @@ def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float) -> float:
         out = max(out, float(np.spacing(np.float32(big))))
     if steps.size and float(np.ptp(steps)) > 2.0 * out:
         quantum = decimal_quantum(t, big)
-        if quantum < dt:
+        if rtol * dt < quantum < dt:
             out = max(out, 0.5 * quantum)
     return out
 
