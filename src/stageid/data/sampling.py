@@ -70,15 +70,16 @@ def seconds(value: float) -> str:
 
 def check_period(value: object, label: str = "dt", where: str = "", error: type[Exception] = DataError) -> float:
     """``value`` as a period in seconds within [MIN_PERIOD, MAX_PERIOD], else ``error`` in one line."""
+    name = f"`{label}`" if label.isidentifier() else label  # a parameter's name, or words
     try:
         dt = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError, OverflowError):
-        raise error(f"{where}`{label}` must be a positive number of seconds; got {value!r}.") from None
+        raise error(f"{where}{name} must be a positive number of seconds; got {value!r}.") from None
     if not math.isfinite(dt) or dt <= 0:
-        raise error(f"{where}`{label}` must be a positive finite number of seconds; got {value!r}.")
+        raise error(f"{where}{name} must be a positive finite number of seconds; got {value!r}.")
     if not MIN_PERIOD <= dt <= MAX_PERIOD:
         raise error(
-            f"{where}`{label}` must be a period between {MIN_PERIOD:g} s and {MAX_PERIOD:g} s "
+            f"{where}{name} must be a period between {MIN_PERIOD:g} s and {MAX_PERIOD:g} s "
             f"(its rate 1/dt and the fits' arithmetic stay finite); got {dt!r} s."
         )
     return dt
