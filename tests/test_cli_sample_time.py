@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import run_main
 
+from conftest import run_main
 from stageid.models import StateSpaceModel, load_model, save_model
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks" / "recovery"))
@@ -24,7 +24,10 @@ def _signals(n: int, seed: int) -> dict[str, np.ndarray]:
     """A drive of a few sines and the response of a first-order lag with a hysteretic term."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / FS
-    u = sum(a * np.sin(2 * np.pi * f * t + p) for a, f, p in zip(rng.uniform(1, 3, 4), (5, 13, 41, 97), rng.uniform(0, 6, 4)))
+    u = sum(
+        a * np.sin(2 * np.pi * f * t + p)
+        for a, f, p in zip(rng.uniform(1, 3, 4), (5, 13, 41, 97), rng.uniform(0, 6, 4))
+    )
     x = np.zeros(n)
     for k in range(1, n):
         x[k] = 0.95 * x[k - 1] + 0.05 * u[k - 1]
@@ -106,7 +109,9 @@ def test_jitter_beyond_rounding_is_noted_in_one_line(tmp_path):
 def test_records_with_clocks_1e4_apart_are_refused_with_distinct_digits(tmp_path):
     a = write_record(tmp_path / "a.csv", _signals(4988, 1), FS, "repr")
     b = write_record(tmp_path / "b.csv", _signals(4988, 2), FS * (1 + 1e-4), "repr")
-    line = _one_line_exit_2("identify", "statespace", a, b, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "s.json")
+    line = _one_line_exit_2(
+        "identify", "statespace", a, b, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "s.json"
+    )
     assert "0.0001 s" in line and "9.999000099990002e-05 s" in line and "1e-06" in line
 
 
@@ -121,7 +126,9 @@ def test_chunked_npy_folder_time_column(tmp_path):
         "-o", tmp_path / "s.json")  # fmt: skip
     assert load_model(tmp_path / "s.json").dt == 1e-4
     np.save(folder / "t.npy", np.arange(24000) * 1e-320)
-    line = _one_line_exit_2("identify", "statespace", folder, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "x.json")
+    line = _one_line_exit_2(
+        "identify", "statespace", folder, "--inputs", "u", "--outputs", "y", "-o", tmp_path / "x.json"
+    )
     assert "period between 1e-15 s and 1e+12 s" in line
 
 
@@ -130,7 +137,9 @@ def _bad_time_file(folder: Path, scale: float | None) -> str:
     cols = _signals(500, 5)
     head = "u,y" if scale is None else "t,u,y"
     rows = [
-        ",".join(([] if scale is None else [repr(float(k * scale))]) + [repr(float(cols["u"][k])), repr(float(cols["y"][k]))])
+        ",".join(
+            ([] if scale is None else [repr(float(k * scale))]) + [repr(float(cols["u"][k])), repr(float(cols["y"][k]))]
+        )
         for k in range(500)
     ]
     path = folder / f"bad{scale}.csv"
@@ -189,7 +198,6 @@ def test_real_dspace_forc_records_share_one_period(tmp_path):
     """The FORC records trimmed as the hysteresis study trims them, written to CSV and read back
     as `identify hysteresis` reads them: one period for the creep fit."""
     from _dspace_records import dspace_record
-
     from stageid.cli._common import read_experiments
     from stageid.data import write_csv
     from stageid.hysteresis.records import sampling_period
