@@ -59,6 +59,8 @@ PERIOD_RTOL = 1e-6
 UNIFORM_RTOL = 1e-3
 #: Jitter worth a note: above the drift of double stamps accumulated sample by sample.
 JITTER_NOTE = 1e-5
+#: Coarsest decimal quantum of fixed-decimal stamps accepted as their rounding, as a fraction of the period.
+MAX_QUANTUM = 0.05
 #: A step beyond this many periods is a gap (lost samples), refused with its row.
 GAP_STEPS = 1.5
 
@@ -76,7 +78,7 @@ def check_period(value: object, label: str = "dt", where: str = "", error: type[
     except (TypeError, ValueError, OverflowError):
         raise error(f"{where}{name} must be a positive number of seconds; got {value!r}.") from None
     if not math.isfinite(dt) or dt <= 0:
-        raise error(f"{where}{name} must be a positive finite number of seconds; got {value!r}.")
+        raise error(f"{where}{name} must be a positive number of seconds; got {value!r}.")
     if not MIN_PERIOD <= dt <= MAX_PERIOD:
         raise error(
             f"{where}{name} must be a period between {MIN_PERIOD:g} s and {MAX_PERIOD:g} s "
@@ -110,12 +112,13 @@ class StampScan:
     """What one pass over a time column gathers (range by range for long records): the first stamp,
     the end-to-end step ``dt_ends``, the largest deviation from that line [s], the least-squares
     slope correction's numerator ``sxy`` (sum over k of (k - kbar) * deviation), and the stamps'
-    rounding [s]."""
+    rounding [s]; ``worst_row`` is the row of the largest deviation."""
 
     n: int
     t_first: float
     dt_ends: float
     max_deviation: float = 0.0
+    worst_row: int = 0
     sxy: float = 0.0
     resolution: float = 0.0
 
@@ -152,22 +155,31 @@ def scan_stamps(t: np.ndarray, k0: int, scan: StampScan, where: str, rtol: float
     checked by :func:`grid_from_scan` once the whole column has been seen.
     """
     steps = np.diff(t)
-    bad = np.flatnonzero(~(steps > 0) | (steps > GAP_STEPS * scan.dt_ends))
-    if bad.size:
-        k = int(bad[0])
-        kind = "a gap" if steps[k] > 0 else "a repeated or earlier stamp"
+    back = np.flatnonzero(~(steps > 0))
+    if back.size:
+        k = int(back[0])
         raise DataError(
-            f"{where}time column 't' has {kind} at row {k0 + k + 1} (data rows counted from 0): t={float(t[k + 1])!r} "
+            f"{where}time column 't' must be strictly increasing; row {k0 + k + 1} has t={float(t[k + 1])!r} "
+            f"after t={float(t[k])!r} at row {k0 + k} (data rows counted from 0)."
+        )
+    gaps = np.flatnonzero(steps > GAP_STEPS * scan.dt_ends)
+    if gaps.size:
+        k = int(gaps[0])
+        raise DataError(
+            f"{where}time column 't' has a gap at row {k0 + k + 1} (data rows counted from 0): t={float(t[k + 1])!r} "
             f"after t={float(t[k])!r}, a step of {float(steps[k]) / scan.dt_ends:.6g} periods of "
             f"{seconds(scan.dt_ends)} s; expected a uniform grid."
         )
     k = np.arange(k0, k0 + t.shape[0], dtype=float)
     deviation = (t - scan.t_first) - k * scan.dt_ends  # small numbers: the slope sum keeps its digits
+    worst = int(np.argmax(np.abs(deviation)))
+    largest = abs(float(deviation[worst]))
     kbar = (scan.n - 1) / 2.0
     first = 1 if k0 > 0 else 0  # the overlapping row was counted with the previous range
     return dataclasses.replace(
         scan,
-        max_deviation=max(scan.max_deviation, float(np.max(np.abs(deviation)))),
+        max_deviation=max(scan.max_deviation, largest),
+        worst_row=scan.worst_row if scan.max_deviation >= largest else k0 + worst,
         sxy=scan.sxy + float(np.dot(k[first:] - kbar, deviation[first:])),
         resolution=max(scan.resolution, stamp_resolution(t, steps, scan.dt_ends, rtol)),
     )
@@ -183,8 +195,9 @@ def grid_from_scan(scan: StampScan, where: str = "", rtol: float = UNIFORM_RTOL)
     tolerance = max(rtol * dt, rounding)
     if scan.max_deviation > tolerance:
         raise DataError(
-            f"{where}time column 't' is not uniform: a stamp lies {scan.max_deviation / dt:.3g} periods off the "
-            f"uniform {seconds(dt)} s grid; expected within {rtol:g} of the period (or the stamps' rounding)."
+            f"{where}time column 't' is not uniform: the stamp at row {scan.worst_row} (data rows counted from 0) "
+            f"lies {scan.max_deviation / dt:.3g} periods off the uniform {seconds(dt)} s grid; expected within "
+            f"{rtol:g} of the period (or the stamps' rounding; pass time_rtol= to accept more clock jitter)."
         )
     # |slope error| <= 3 max|error| / n for any stamp errors (sum |k - kbar| / sxx <= 3 / n)
     uncertainty = 3.0 * max(scan.max_deviation, scan.resolution) / max(n - 1, 1)
@@ -211,9 +224,10 @@ def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = 
 
     Double stamps: a few ulps of the largest stamp (``4 eps max|t|``; at epoch times that is
     0.24 % of a 10 kHz period).  Stamps that are all float32 values: a float32 spacing.  Stamps
-    that are all multiples of a decimal quantum between ``rtol * dt`` and the period, with steps
-    that differ (fixed-decimal text of a period that is not a multiple of it): half that quantum
-    (a finer quantum is within the uniformity tolerance anyway).
+    that are all multiples of a decimal quantum between ``rtol * dt`` and :data:`MAX_QUANTUM` of
+    the period, with steps that differ (fixed-decimal text of a period that is not a multiple of
+    it): half that quantum (a finer quantum is within the uniformity tolerance anyway; coarser
+    stamps cannot tell a lost sample from rounding).
     """
     big = float(np.max(np.abs(t)))
     out = 4.0 * float(np.finfo(float).eps) * big
@@ -221,7 +235,7 @@ def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = 
         out = max(out, float(np.spacing(np.float32(big))))
     if steps.size and float(np.ptp(steps)) > 2.0 * out:
         quantum = decimal_quantum(t, big)
-        if rtol * dt < quantum < dt:
+        if rtol * dt < quantum <= MAX_QUANTUM * dt:
             out = max(out, 0.5 * quantum)
     return out
 
