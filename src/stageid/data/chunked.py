@@ -21,7 +21,9 @@ Layouts
     (n_samples, k) holds the columns ``<name>_1 .. <name>_k`` (the rule of the ``.npz`` and
     ``.mat`` readers for 2-D arrays); ``--ts`` gives the sample time.
 
-When more than one source gives the sample time they must agree (within ``time_rtol``).
+The sample time follows the one rule of :mod:`stageid.data.sampling`: the ``t`` column's
+least-squares period, uniform within ``time_rtol``; when more than one source gives it they must
+agree to ``PERIOD_RTOL``.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from .._errors import DataError
 from ..atomic import note_input
 from .sampling import (
     PERIOD_RTOL,
+    UNIFORM_RTOL,
     StampScan,
     check_period,
     ends_step,
@@ -168,7 +171,7 @@ def open_chunked(
     inputs: Sequence[str],
     outputs: Sequence[str],
     ts: float | None = None,
-    time_rtol: float = 1e-6,
+    time_rtol: float = UNIFORM_RTOL,
 ) -> ChunkedRecord:
     """The record of an HDF5 file, a Zarr store or ``.npy`` file(s) (see the module notes).
 

@@ -49,8 +49,8 @@ def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
         )
     if not same_period(first.dt, model.dt):
         raise DataError(
-            f"new data must have the sample time of the fitted model, {seconds(model.dt)} s (to {PERIOD_RTOL:g} "
-            f"relative); got {seconds(first.dt)} s."
+            f"new data must have the sample time of the fitted model, {seconds(model.dt)} s; got {seconds(first.dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
         )
 
 
