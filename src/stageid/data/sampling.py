@@ -38,6 +38,7 @@ __all__ = [
     "jitter_note",
     "check_period",
     "time_grid",
+    "ends_step",
     "StampScan",
     "scan_stamps",
     "grid_from_scan",
@@ -130,6 +131,15 @@ def time_grid(t: np.ndarray, where: str = "", rtol: float = UNIFORM_RTOL) -> Tim
     ------
     DataError
         A period out of range, a repeat, reversal or gap (with its row), or a stamp off the grid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data.sampling import time_grid
+    >>> float((np.arange(4988) / 10000)[-1] / 4987)  # the end-to-end step is an ulp off
+    9.999999999999999e-05
+    >>> time_grid(np.arange(4988) / 10000).dt
+    0.0001
     """
     t = np.asarray(t, dtype=float)
     scan = StampScan(int(t.shape[0]), float(t[0]), ends_step(float(t[0]), float(t[-1]), t.shape[0], where))
