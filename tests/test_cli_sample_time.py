@@ -210,3 +210,25 @@ def test_real_dspace_forc_records_share_one_period(tmp_path):
         write_csv(paths[-1], {"t": t0 + dt * np.arange(u.size), "V": u, "y": y})
     exps = read_experiments([str(p) for p in paths], ["V"], ["y"], None)
     assert sampling_period(list(exps), None) == 1e-4
+
+
+def test_batch_jobs_follow_the_rule(files, tmp_path):
+    """A batch runs the verbs on workers: unequal repr records fit, a subnormal period fails its row in one line."""
+    from _batch_records import read_summary, write_manifest
+    from dask_cluster import TestCluster
+
+    bad = _bad_time_file(tmp_path, 1e-320)
+    manifest = write_manifest(
+        tmp_path / "jobs.csv",
+        [
+            ("two", f"identify statespace {files['a']} {files['b']} --inputs u --outputs y --order 1 --horizon 8"),
+            ("bad", f"frf {bad} --inputs u --outputs y"),
+        ],
+    )
+    with TestCluster(n_workers=1) as cluster:
+        rc, _, err = run_main("batch", manifest, "--out", tmp_path / "out", "--scheduler", cluster.address)
+    rows = {r["name"]: r for r in read_summary(tmp_path / "out")}
+    assert rc == 1, err  # one job failed, the summary is complete
+    assert rows["two"]["status"] == "ok" and load_model(tmp_path / "out" / "two.json").dt == 1e-4
+    assert rows["bad"]["status"] == "failed" and "period between 1e-15 s and 1e+12 s" in rows["bad"]["error"]
+    assert "\n" not in rows["bad"]["error"]
