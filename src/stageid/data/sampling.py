@@ -253,12 +253,17 @@ def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = 
 def decimal_quantum(t: np.ndarray, big: float) -> float:
     """The coarsest power of ten all stamps are multiples of (to double rounding); inf when none is."""
     floor = 1e3 * float(np.finfo(float).eps) * max(big, 1e-300)  # finer quanta are lost in double rounding
+    head = t[:1000]  # candidates are tried on the first stamps, the one that fits them on all
+
+    def multiples(x: np.ndarray, quantum: float) -> bool:
+        scaled = x / quantum
+        return bool(np.max(np.abs(scaled - np.round(scaled))) <= 1e-6)
+
     for digits in range(-3, 16):
         quantum = 10.0**-digits
         if quantum < floor:
             break
-        scaled = t / quantum
-        if np.max(np.abs(scaled - np.round(scaled))) <= 1e-6:
+        if multiples(head, quantum) and multiples(t, quantum):
             return quantum
     return math.inf
 
