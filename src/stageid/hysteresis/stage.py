@@ -120,8 +120,11 @@ class StageModel:
         if not abs(dc - 1.0) <= DC_GAIN_TOLERANCE:
             raise ModelError(f"`dynamics` must have DC gain 1 (the hysteresis keeps the output's units); got {dc:.9g}.")
         creep = self.creep_term
-        if creep is not None and not np.isclose(creep.sample_time, g.dt, rtol=1e-9):
-            raise ModelError(f"the dynamics' dt {g.dt:g} s differs from the creep term's {creep.sample_time:g} s.")
+        if creep is not None and not same_period(creep.sample_time, g.dt):
+            raise ModelError(
+                f"the dynamics' dt {seconds(g.dt)} s differs from the creep term's {seconds(creep.sample_time)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
 
     # ------------------------------------------------------------------ the hysteresis' face
     @property
