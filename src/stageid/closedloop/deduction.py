@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .._errors import IdentificationError, ModelError
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from ..models import StateSpaceModel, TransferMatrix
 
 __all__ = [
@@ -70,8 +71,11 @@ def as_discrete_controller(
     K = _as_ss(controller)
     if K.dt is None:
         return K.c2d(dt, method)
-    if not np.isclose(K.dt, dt, rtol=1e-6, atol=0.0):
-        raise ModelError(f"the controller's sample time {K.dt:g} s differs from the data's {dt:g} s.")
+    if not same_period(K.dt, dt):
+        raise ModelError(
+            f"the controller's sample time {seconds(K.dt)} s differs from the data's {seconds(dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
+        )
     return K
 
 

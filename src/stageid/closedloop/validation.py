@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError, ModelError
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from ..models import StateSpaceModel, TransferMatrix, feedback
 from .regression import lstsq, shifted
 
@@ -28,8 +29,10 @@ def _discrete_plant(plant: StateSpaceModel | TransferMatrix, dt: float) -> State
     g = plant.to_statespace(minimal=False) if isinstance(plant, TransferMatrix) else plant
     if g.dt is None:
         return g.c2d(dt, "zoh")
-    if not np.isclose(g.dt, dt, rtol=1e-6):
-        raise ModelError(f"the plant's sample time {g.dt:g} s differs from {dt:g} s.")
+    if not same_period(g.dt, dt):
+        raise ModelError(
+            f"the plant's sample time {seconds(g.dt)} s differs from {seconds(dt)} s (tolerance {PERIOD_RTOL:g} relative)."
+        )
     return g
 
 

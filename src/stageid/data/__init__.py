@@ -18,6 +18,10 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 ``decimate``           anti-aliased down-sampling
 =====================  ==========================================================
 
+The sampling period of a record follows one rule, in :mod:`stageid.data.sampling`: the
+least-squares period of a time column, uniformity to a stated tolerance, periods of records
+compared to one relative tolerance.
+
 Loaders for the real records in ``../shared/data`` live in :mod:`stageid.data.datasets`;
 the readers and writers are in :mod:`stageid.data.io` (one module per format family:
 :mod:`~stageid.data.csv_format`, :mod:`~stageid.data.npz_format`, :mod:`~stageid.data.mat_format`).

@@ -33,6 +33,7 @@ import numpy as np
 
 from .._errors import ModelError, ModelFormatError
 from ..checks import shown
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from .common import as_input
 from .creep import CreepTerm
 from .dynamics import statespace_to_transfer, unit_gain_filter
@@ -119,8 +120,11 @@ class StageModel:
         if not abs(dc - 1.0) <= DC_GAIN_TOLERANCE:
             raise ModelError(f"`dynamics` must have DC gain 1 (the hysteresis keeps the output's units); got {dc:.9g}.")
         creep = self.creep_term
-        if creep is not None and not np.isclose(creep.sample_time, g.dt, rtol=1e-9):
-            raise ModelError(f"the dynamics' dt {g.dt:g} s differs from the creep term's {creep.sample_time:g} s.")
+        if creep is not None and not same_period(creep.sample_time, g.dt):
+            raise ModelError(
+                f"the dynamics' dt {seconds(g.dt)} s differs from the creep term's {seconds(creep.sample_time)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
 
     # ------------------------------------------------------------------ the hysteresis' face
     @property
@@ -204,8 +208,11 @@ class StageModel:
         """
         u_in = as_input(u, self.inputs[0])
         step = self.dt
-        if dt is not None and step is not None and self.dynamics is not None and not np.isclose(dt, step, rtol=1e-6):
-            raise ModelError(f"the input's sample time {dt:g} s differs from the stage dynamics' {step:g} s.")
+        if dt is not None and step is not None and self.dynamics is not None and not same_period(dt, step):
+            raise ModelError(
+                f"the input's sample time {seconds(dt)} s differs from the stage dynamics' {seconds(step)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
         v = self.hysteresis.simulate(u_in, dt if dt is not None else step)[:, 0]
         if self.creep is not None:
             v = v + self.creep.run(u_in, dt if dt is not None else step)[0]
