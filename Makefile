@@ -26,7 +26,7 @@ bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run_all.py
 
-# Mutation testing of the estimators' core (cosmic-ray; long, not part of `make test`).
+# Mutation testing of the estimators' core and the newer tools (cosmic-ray; long, not part of `make test`).
 # MUTATION_GROUPS: groups of tests/mutation/run.py (default all); MUTATION_BUDGET: seconds per group.
 MUTATION_GROUPS ?=
 MUTATION_BUDGET ?= 3600

@@ -75,14 +75,17 @@ def test_welch_pools_one_record_per_input():
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_std_is_calibrated_welch_and_lpm(seed):
-    # RMS of |H_est - H_true| / std must lie in 0.7-1.4 (the calibration band)
+    # RMS of |H_est - H_true| / std: 1.09-1.19 for Welch (its leakage bias at the 5 % damped peak
+    # is an error the std does not describe), 1.08-1.10 for the LPM (a std estimated from few
+    # degrees of freedom: E[1 / var_hat] > 1 / var).  The bands catch a std 15-20 % off; the
+    # overlap correction is checked exactly in test_frf_welch_overlap.py.
     g = _resonant(zeta=0.05)
     rng = np.random.default_rng(seed)
     u = rng.standard_normal((2**15, 1))
     exp = Experiment(u, g.simulate(u) + 0.05 * rng.standard_normal(u.shape), DT)
-    for frd in (welch_frf(exp, 512), lpm_frf(exp)):
+    for frd, band in ((welch_frf(exp, 512), (0.95, 1.3)), (lpm_frf(exp), (0.95, 1.2))):
         ratio = np.sqrt(np.mean(np.abs(frd.response - g.frequency_response(frd.freqs)) ** 2 / frd.std**2))
-        assert 0.7 <= ratio <= 1.4, ratio
+        assert band[0] <= ratio <= band[1], ratio
 
 
 def test_std_is_calibrated_mimo_welch():
@@ -95,7 +98,7 @@ def test_std_is_calibrated_mimo_welch():
     H[:, 0, 1] = 0.3
     H[:, 1, 1] = (1 + 0.5 / z) / (1 - 0.9 / z)
     ratio = np.sqrt(np.mean(np.abs(frd.response - H) ** 2 / frd.std**2))
-    assert 0.7 <= ratio <= 1.4, ratio
+    assert 0.95 <= ratio <= 1.3, ratio  # 1.08-1.20 over seeds 4-7: leakage of the Butterworth entry adds
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -149,7 +152,9 @@ def test_periodic_std_is_calibrated():
         mse.append(np.abs(frd.response - g.frequency_response(frd.freqs)) ** 2)
         var.append(frd.std**2)
     ratio = np.sqrt(np.mean(np.array(mse) / np.array(var)))
-    assert 0.7 <= ratio <= 1.4, ratio
+    # a variance estimated from 8 periods (14 real degrees of freedom) gives E[|e|^2 / var_hat] = 14 / 12,
+    # a ratio of 1.08; 1.09-1.10 seen over seeds
+    assert 1.0 <= ratio <= 1.2, ratio
 
 
 @pytest.mark.parametrize(
@@ -231,4 +236,4 @@ def test_lpm_default_window_holds_each_record_regression_when_records_excite_one
     err = np.max(np.abs(frd.response - G), axis=(0, 1)) / np.max(np.abs(G), axis=(0, 1))
     assert np.all(err < 0.02), err
     ratio = np.sqrt(np.mean((np.abs(frd.response - G) / frd.std) ** 2))
-    assert 0.7 < ratio < 1.4, ratio
+    assert 0.95 < ratio < 1.2, ratio  # 1.06 on this record: few degrees of freedom per window, as above

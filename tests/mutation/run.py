@@ -1,4 +1,4 @@
-"""Mutation testing of the estimators' core modules with cosmic-ray (``make mutation``).
+"""Mutation testing of the estimators' and tools' core modules with cosmic-ray (``make mutation``).
 
 Not part of ``make test``.  Each group mutates a few modules in place, one mutant at a time,
 and runs the tests that cover them (``pytest -x``: a mutant is killed at its first failing
@@ -77,6 +77,55 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
             "tests/test_closedloop_deduction.py",
             "tests/test_closedloop_estimator.py",
         ],
+    ),
+    "frf": (
+        ["src/stageid/frf/welch.py", "src/stageid/frf/periodic.py", "src/stageid/frf/lpm.py"],
+        ["tests/test_frf_welch_overlap.py", "tests/test_frf_estimates.py"],
+    ),
+    "frd-fit": (
+        ["src/stageid/frf/identification.py", "src/stageid/frf/fit_uncertainty.py"],
+        ["tests/test_frf_identify.py", "tests/test_uncertainty_frd.py", "tests/test_frf_cli.py"],
+    ),
+    "export": (
+        ["src/stageid/export/c_lti.py", "src/stageid/export/c_writer.py"],
+        [
+            "tests/test_export_lti_forms.py",
+            # the LTI cases of the C tests (the hysteresis and compensator ones take minutes)
+            "tests/test_export_c.py::test_statespace_matches_simulate",
+            "tests/test_export_c.py::test_transfer_matrix_matches_simulate",
+            "tests/test_export_c.py::test_static_gain_and_delay_only",
+            "tests/test_export_c.py::test_continuous_models_discretised_on_the_way",
+            "tests/test_export_c.py::test_constants_round_trip_exactly",
+            "tests/test_export_c.py::test_hysteresis_forward_matches_simulate",  # c_writer's arrays
+        ],
+    ),
+    "batch": (
+        ["src/stageid/batch/runner.py", "src/stageid/batch/state.py"],
+        ["tests/test_batch_runner.py", "tests/test_batch_jobs.py", "tests/test_batch.py"],
+    ),
+    "validation": (
+        ["src/stageid/validation/residuals.py", "src/stageid/validation/metrics.py"],
+        [
+            "tests/test_validation_residual_statistics.py",
+            "tests/test_validation_residuals.py",
+            "tests/test_cli_validate.py",
+        ],
+    ),
+    "disturbance-modes": (
+        ["src/stageid/hysteresis/disturbance_modes.py"],
+        ["tests/test_stage_disturbance_modes.py"],
+    ),
+    "creep": (
+        ["src/stageid/hysteresis/creep.py"],
+        ["tests/test_hysteresis_creep.py"],
+    ),
+    "preisach": (
+        ["src/stageid/hysteresis/preisach.py", "src/stageid/hysteresis/preisach_identification.py"],
+        ["tests/test_hysteresis_preisach.py", "tests/test_stage_preisach.py"],
+    ),
+    "stage": (
+        ["src/stageid/hysteresis/stage.py", "src/stageid/hysteresis/stage_identification.py"],
+        ["tests/test_hysteresis_stage.py", "tests/test_stage_dynamics_filter.py", "tests/test_stage_validation.py"],
     ),
 }
 
