@@ -13,10 +13,12 @@ refinement on the complex response:
    exactly by the inverse Tustin transform (stability preserved both ways);
 4. the order, given or chosen on held-out frequencies (every fourth line left out of the
    fit; :func:`select_order`);
-5. the McKelvey realisation and a balanced truncation of one of twice the order as starts,
-   unstable poles reflected, each refined by Levenberg-Marquardt on
+5. four subspace starts (:func:`fit_starts`: the McKelvey realisation on the well-weighted
+   lines and frequency-weighted on all, and balanced truncations of realisations of twice
+   the order, likewise), unstable poles reflected, each refined by Levenberg-Marquardt on
    ``sum_k w_k ||G_model(z_k) - G_k||^2`` (:func:`stageid.subspace.refinement.refine_frequency_fit`,
-   steps that leave the unit disc rejected); the better end is kept;
+   steps that leave the unit disc rejected) until a step lowers the cost by less than
+   ``REFINE_TOL`` of it; the lowest cost is kept;
 6. the delay put back as ``d`` shift states per input.
 """
 
@@ -34,6 +36,7 @@ from ..subspace.frequency_domain import balanced_start, fit_input_matrices, freq
 from ..subspace.refinement import refine_frequency_fit
 from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
+from .vector_fitting import vector_fit_start
 from .welch import welch_frf
 
 __all__ = [
@@ -155,7 +158,8 @@ class FRDIdentification(Estimator):
     max_delay : int
         Largest delay tried by ``delay="auto"``.
     max_iter : int
-        Iterations of the output-error refinement.
+        Most iterations of the output-error refinement of each start (a safeguard: it stops
+        when a step lowers the cost by less than ``REFINE_TOL`` of it, or no step lowers it).
 
     Examples
     --------
@@ -190,7 +194,7 @@ class FRDIdentification(Estimator):
         delay: int | str = 0,
         max_order: int = 20,
         max_delay: int = 20,
-        max_iter: int = 100,
+        max_iter: int = 1000,
     ) -> None:
         self.order = order
         self.dt = dt
@@ -357,18 +361,6 @@ def _max_order(n_freqs: int, q: int, m: int) -> int:
 REALIZATION_WEIGHT = 1e-4
 
 
-def _realize(G, fz, T, order, w=None):
-    """McKelvey realisation on the well-weighted lines, unstable poles reflected, ``B``, ``D``
-    refitted on all lines with their weights."""
-    keep = slice(None) if w is None else w >= REALIZATION_WEIGHT * w.max()
-    A, B, C, D, sv = frequency_realization(G[keep], fz[keep], T, order)
-    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
-        A = reflect_unstable(A)
-    zs = np.exp(2j * np.pi * fz * T)
-    B, D = fit_input_matrices(A, C, G, zs, True, w)
-    return A, B, C, D, sv
-
-
 #: Refinement iterations of each candidate of the order selection.
 SELECTION_ITER = 15
 #: Orders tried past the last one that improved the held-out error by 10 %.
@@ -424,17 +416,62 @@ def select_delay(
     return best[0], errors
 
 
-def _fit_at_order(G, fz, T, order, w, max_iter):
-    """Realisation and balanced start, each refined (weighted output error); the better end."""
+def _stable_start(A, C, G, zs, w) -> tuple[np.ndarray, ...] | None:
+    """``(A, B, C, D)`` with unstable poles of ``A`` reflected and ``B``, ``D`` fitted with the
+    weights ``w`` on all lines (None when not finite)."""
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(C))):
+        return None
+    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
+        A = reflect_unstable(A)
+    B, D = fit_input_matrices(A, C, G, zs, True, w)
+    return (A, B, C, D) if np.all(np.isfinite(B)) and np.all(np.isfinite(D)) else None
+
+
+def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
+    """The starting models of the output-error fit and the singular values of the realisation.
+
+    Four subspace fits, which fail in different ways: the McKelvey realisation on the
+    well-weighted lines (noise-only lines left out), the same with every line weighted by
+    ``w`` (frequency-weighted subspace: the lines count as the cost counts them), and the
+    balanced truncation of a realisation of twice the order, unweighted on the well-weighted
+    lines and weighted on all.  Each has its unstable poles reflected and ``B``, ``D``
+    fitted with the weights.
+    """
     zs = np.exp(2j * np.pi * fz * T)
-    A, B, C, D, sv = _realize(G, fz, T, order, w)
-    starts = [(A, B, C, D)]
-    alt = balanced_start(G, fz, T, order)
-    if alt is not None:
-        Aa, _, Ca, _ = alt
-        if np.max(np.abs(np.linalg.eigvals(Aa)), initial=0.0) < 1.0:
-            Ba, Da = fit_input_matrices(Aa, Ca, G, zs, True, w)
-            starts.append((Aa, Ba, Ca, Da))
+    keep = w >= REALIZATION_WEIGHT * w.max()
+    A, _, C, _, sv = frequency_realization(G[keep], fz[keep], T, order)
+    candidates = [(A, C)]
+    try:
+        Aw, _, Cw, _, _ = frequency_realization(G, fz, T, order, weights=w)
+        candidates.append((Aw, Cw))
+    except (IdentificationError, np.linalg.LinAlgError):
+        pass
+    for alt in (balanced_start(G[keep], fz[keep], T, order), balanced_start(G, fz, T, order, weights=w)):
+        if alt is not None:
+            candidates.append((alt[0], alt[2]))
+    try:
+        vf = vector_fit_start(G, zs, order, w)
+    except np.linalg.LinAlgError:
+        vf = None
+    if vf is not None:
+        candidates.append(vf)
+    starts = []
+    for Ac, Cc in candidates:
+        try:
+            start = _stable_start(Ac, Cc, G, zs, w)
+        except np.linalg.LinAlgError:
+            start = None
+        if start is not None:
+            starts.append(start)
+    return starts, sv
+
+
+def _fit_at_order(G, fz, T, order, w, max_iter):
+    """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept."""
+    zs = np.exp(2j * np.pi * fz * T)
+    starts, sv = fit_starts(G, fz, T, order, w)
+    if not starts:
+        raise IdentificationError(f"no realisation of order {order} could be formed from this frequency response.")
     best = None
     for start in starts:
         if max_iter == 0:
