@@ -4,8 +4,9 @@ optimum of the same model class started from the truth.
 A draw (all from the seed): 1x1, 2x2 or 3x3; order 2-8 (one real pole when odd, the rest
 lightly damped modes, damping 0.3-5 %, natural frequencies spread over a decade, rank-one
 coupled mode shapes); 200-600 log-spaced lines over a band reaching half a decade past the
-outer modes; complex noise of ``noise`` times each column's peak, its std written beside the
-response; a continuous model (``--continuous``) or a discrete one (``--dt``, the truth
+outer modes; complex noise of ``noise`` times each column's peak (two draws in three) or
+times each entry's magnitude line by line (one in three), its std written beside the
+response (no std column when ``noise`` is 0); a continuous model (``--continuous``) or a discrete one (``--dt``, the truth
 discretised by zero-order hold).  The response is written as ``stageid frf`` writes it (CSV,
 ``f_hz``, ``re_``/``im_``/``std_`` columns) and fitted with ``identify frd --order N``.
 
@@ -14,7 +15,11 @@ reference: :func:`reference_fit`, the cost of ``identify frd`` (:func:`weighted_
 minimised by scipy's Levenberg-Marquardt over a pole-residue form of the same class,
 started from the truth.  cost_ratio: fit's cost over the reference's (both on the noisy
 data).  recovered: the fit's error at most ``RECOVERY_FACTOR`` times the reference's plus
-``RECOVERY_SLACK`` % of peak (the slack for noise-free draws, where both are at rounding).
+``RECOVERY_SLACK`` % of peak (the slack for noise-free draws, where both are at rounding), or
+the fit's cost below the reference's by more than ``BELOW_REFERENCE``: then the optimum
+near the truth is only a local one, the fit has found a better optimum of its cost (a pair
+on a noise spike instead of a weak, well-damped mode), and its extra error belongs to the
+cost, not to the search; such draws say ``below reference`` in their detail.
 """
 
 from __future__ import annotations
@@ -37,6 +42,8 @@ ESTIMATOR = "FRD fit"
 RECOVERY_FACTOR = 1.5
 #: ... plus this much (% of peak): noise-free draws put both errors at rounding level.
 RECOVERY_SLACK = 0.01
+#: ... or when its cost is below the reference's by more than this fraction.
+BELOW_REFERENCE = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,10 +109,12 @@ def flexure(seed: int, noise: float) -> Draw:
         A, B = _zoh(A, B, dt)
     truth = response(A, B, C, np.zeros((size, size)), points(freqs, dt))
     peak = np.max(np.abs(truth), axis=(0, 1))
+    relative = rng.random() < 1.0 / 3.0
     std = None
     G = truth
     if noise > 0:
-        std = np.broadcast_to(noise * peak[None, None, :], truth.shape).copy()
+        level = np.abs(truth) if relative else np.broadcast_to(peak[None, None, :], truth.shape)
+        std = noise * level
         e = rng.standard_normal(truth.shape) + 1j * rng.standard_normal(truth.shape)
         G = truth + std / math.sqrt(2.0) * e
     return Draw(A, B, C, dt, freqs, G, std, truth)
@@ -125,13 +134,20 @@ def weighted_cost(model_response: np.ndarray, draw: Draw) -> float:
     """The cost ``identify frd`` minimises (weight ``std``, or none without one), up to a constant:
     ``sum_k w_k sum_ij |(G_model - G)_ij / s_j|^2`` with ``s_j`` each column's data peak and
     ``w_k = 1 / mean_ij (std_ij / s_j)^2``."""
+    s, w = cost_weights(draw)
+    return float(np.sum(w[:, None, None] * np.abs((model_response - draw.response) / s[None, None, :]) ** 2))
+
+
+def cost_weights(draw: Draw) -> tuple[np.ndarray, np.ndarray]:
+    """Column scales and line weights of :func:`weighted_cost`: the scale of a column is its
+    peak over the lines whose unscaled weight is at least 1e-6 of the largest (the lines
+    ``identify frd`` counts), the weights ``1 / mean_ij (std_ij / s_j)^2``."""
     G = draw.response
-    s = np.max(np.abs(G), axis=(0, 1))
     if draw.std is None:
-        w = np.ones(G.shape[0])
-    else:
-        w = 1.0 / np.mean((draw.std / s[None, None, :]) ** 2, axis=(1, 2))
-    return float(np.sum(w[:, None, None] * np.abs((model_response - G) / s[None, None, :]) ** 2))
+        return np.max(np.abs(G), axis=(0, 1)), np.ones(G.shape[0])
+    raw = 1.0 / np.mean(draw.std**2, axis=(1, 2))
+    s = np.max(np.abs(G[raw >= 1e-6 * raw.max()]), axis=(0, 1))
+    return s, 1.0 / np.mean((draw.std / s[None, None, :]) ** 2, axis=(1, 2))
 
 
 def _residues(A, B, C):
@@ -157,8 +173,7 @@ def reference_fit(draw: Draw) -> tuple[np.ndarray, float]:
     q, m = draw.C.shape[0], draw.B.shape[1]
     pts = points(draw.freqs, draw.dt)
     G = draw.response
-    s = np.max(np.abs(G), axis=(0, 1))
-    w = np.ones(G.shape[0]) if draw.std is None else 1.0 / np.mean((draw.std / s[None, None, :]) ** 2, axis=(1, 2))
+    s, w = cost_weights(draw)
     sw = np.sqrt(w)[:, None, None] / s[None, None, :]
 
     # each residue c b^T fixes c and b up to a factor: b's largest entry is held at 1 (the gauge)
@@ -294,6 +309,9 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     seconds = time.perf_counter() - t0
     fit_G = load_model(out).frequency_response(draw.freqs)
     error = max_error(fit_G, draw.truth)
-    ratio = weighted_cost(fit_G, draw) / ref_cost if ref_cost > 0 else math.nan
-    recovered = error <= RECOVERY_FACTOR * ref_error + RECOVERY_SLACK
+    # noise-free, both costs are at rounding level and their ratio says nothing
+    ratio = weighted_cost(fit_G, draw) / ref_cost if noise > 0 else math.nan
+    below = bool(ratio < 1.0 - BELOW_REFERENCE)
+    recovered = error <= RECOVERY_FACTOR * ref_error + RECOVERY_SLACK or below
+    detail += ", below reference" if below else ""
     return Row(seed, recovered, error, "% of peak", ref_error, ratio, noise, f"{detail}, {seconds:.2f} s")

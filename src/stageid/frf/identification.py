@@ -36,6 +36,7 @@ from ..subspace.frequency_domain import balanced_start, fit_input_matrices, freq
 from ..subspace.refinement import refine_frequency_fit
 from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
+from .mode_exchange import exchanged_modes, residual_peaks
 from .vector_fitting import vector_fit_start
 from .welch import welch_frf
 
@@ -249,7 +250,7 @@ class FRDIdentification(Estimator):
         delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
-        A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter)
+        A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter, exchange=True)
         std = None if frd.std is None else frd.std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
@@ -298,7 +299,9 @@ def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) ->
         if frd.std is None:
             raise DataError("--weight std needs std_<out>_<in> columns in the frequency response; it has none.")
         var = np.mean((frd.std / scale[None, None, :]) ** 2, axis=(1, 2))
-        floor = 1e-12 * max(float(var.max()), 1e-300)  # a zero std would give one frequency all the weight
+        if not var.max() > 0:  # an exact (computed) response: every line alike
+            var = np.ones_like(var)
+        floor = 1e-12 * float(var.max())  # a zero std would give one frequency all the weight
         w = 1.0 / np.maximum(var, floor)
     elif weight == "coherence":
         if frd.coherence is None:
@@ -466,8 +469,9 @@ def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.nda
     return starts, sv
 
 
-def _fit_at_order(G, fz, T, order, w, max_iter):
-    """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept."""
+def _fit_at_order(G, fz, T, order, w, max_iter, exchange=False):
+    """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept,
+    then (``exchange``) improved by :func:`improve_by_exchange`."""
     zs = np.exp(2j * np.pi * fz * T)
     starts, sv = fit_starts(G, fz, T, order, w)
     if not starts:
@@ -483,12 +487,44 @@ def _fit_at_order(G, fz, T, order, w, max_iter):
             out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
         if best is None or out[4]["cost"] < best[4]["cost"]:
             best = out
+    if exchange and max_iter > 0:
+        best = improve_by_exchange(best, G, zs, w, max_iter)
     A, B, C, D, _ = best
     if not all(np.all(np.isfinite(x)) for x in (A, B, C, D)):
         raise IdentificationError(f"the fit of order {order} is not finite.")
     if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
         raise IdentificationError(f"no stable model of order {order} was found.")
     return A, B, C, D, sv
+
+
+#: An exchange is kept when it lowers the cost by more than this fraction (less is refinement noise).
+EXCHANGE_GAIN = 1e-6
+
+
+def improve_by_exchange(best: tuple, G, zs, w, max_iter: int) -> tuple:
+    """Mode exchanges (:mod:`stageid.frf.mode_exchange`) at each of the largest residual peaks,
+    refined; the best kept while it lowers the weighted cost, at most one round per pole pair."""
+    for _ in range(best[0].shape[0] // 2):
+        A, B, C, D, info = best
+        residual = StateSpaceModel(A, B, C, D, dt=1.0).frequency_response(np.angle(zs) / (2.0 * np.pi)) - G
+        found = None
+        for peak in residual_peaks(residual, w):
+            try:
+                proposal = exchanged_modes(A, B, C, residual, zs, w, peak)
+                start = None if proposal is None else _stable_start(*proposal, G, zs, w)
+            except np.linalg.LinAlgError:
+                start = None
+            if start is None:
+                continue
+            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
+            if out[4]["cost"] < info["cost"] * (1.0 - EXCHANGE_GAIN) and (
+                found is None or out[4]["cost"] < found[4]["cost"]
+            ):
+                found = out
+        if found is None:
+            break
+        best = found
+    return best
 
 
 def add_input_delay(A, B, C, D, delay: int) -> tuple[np.ndarray, ...]:

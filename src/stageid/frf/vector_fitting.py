@@ -145,8 +145,9 @@ def vector_fit_start(
         A[k, k] = a
         C[:, k] = np.linalg.svd(X[k].reshape(q, m))[0][:, 0]
     for k, a in enumerate(upper):
-        i, row = real.size + 2 * k, real.size + 2 * k
-        residue = (X[row] + 1j * X[row + 1]).reshape(q, m)  # alpha phi_1 + beta phi_2 = (alpha + j beta) / (z - a) + c.c.
+        i = real.size + 2 * k
+        # alpha phi_1 + beta phi_2 = (alpha + j beta) / (z - a) + its conjugate
+        residue = (X[i] + 1j * X[i + 1]).reshape(q, m)
         c = np.linalg.svd(residue)[0][:, 0]
         # the block [[Re a, Im a], [-Im a, Re a]] has eigenvector [1, j] for a: output direction c
         A[i : i + 2, i : i + 2] = [[a.real, a.imag], [-a.imag, a.real]]
