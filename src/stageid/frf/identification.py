@@ -13,12 +13,11 @@ refinement on the complex response:
    exactly by the inverse Tustin transform (stability preserved both ways);
 4. the order, given or chosen on held-out frequencies (every fourth line left out of the
    fit; :func:`select_order`);
-5. four subspace starts (:func:`fit_starts`: the McKelvey realisation on the well-weighted
-   lines and frequency-weighted on all, and balanced truncations of realisations of twice
-   the order, likewise), unstable poles reflected, each refined by Levenberg-Marquardt on
-   ``sum_k w_k ||G_model(z_k) - G_k||^2`` (:func:`stageid.subspace.refinement.refine_frequency_fit`,
-   steps that leave the unit disc rejected) until a step lowers the cost by less than
-   ``REFINE_TOL`` of it; the lowest cost is kept;
+5. the weighted output-error fit at its optimum (:mod:`stageid.frf.fit_search`): four
+   subspace starts and a vector fit, each refined by Levenberg-Marquardt on
+   ``sum_k w_k ||G_model(z_k) - G_k||^2`` (steps that leave the unit disc rejected) until a
+   step lowers the cost by less than ``REFINE_TOL`` of it, the lowest kept, then mode
+   exchanges while they lower it further;
 6. the delay put back as ``d`` shift states per input.
 """
 
@@ -32,12 +31,9 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..models import StateSpaceModel
-from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
-from ..subspace.refinement import refine_frequency_fit
+from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
-from .mode_exchange import exchanged_modes, residual_peaks
-from .vector_fitting import vector_fit_start
 from .welch import welch_frf
 
 __all__ = [
@@ -53,9 +49,6 @@ __all__ = [
 #: Lines whose weight is below this fraction of the largest count neither for the column
 #: scaling nor for :attr:`FRDResult.column_errors` (their data are noise by their own std).
 SIGNIFICANT_WEIGHT = 1e-6
-#: Relative cost decrease below which the output-error refinement stops (finer than the
-#: subspace default: an FRF has no prior to hide behind, every digit of the fit shows).
-REFINE_TOL = 1e-7
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,7 +153,8 @@ class FRDIdentification(Estimator):
         Largest delay tried by ``delay="auto"``.
     max_iter : int
         Most iterations of the output-error refinement of each start (a safeguard: it stops
-        when a step lowers the cost by less than ``REFINE_TOL`` of it, or no step lowers it).
+        when a step lowers the cost by less than
+        :data:`stageid.frf.fit_search.REFINE_TOL` of it, or no step lowers it).
 
     Examples
     --------
@@ -250,7 +244,7 @@ class FRDIdentification(Estimator):
         delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
-        A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter, exchange=True)
+        A, B, C, D, sv = fit_at_order(Gd, fz, T, order, w, self.max_iter, exchange=True)
         std = None if frd.std is None else frd.std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
@@ -359,11 +353,6 @@ def _max_order(n_freqs: int, q: int, m: int) -> int:
     return max(1, min((2 * n_freqs * m) // (m + q) - 2 - q, 400))
 
 
-#: The (unweighted) subspace step sees only the lines whose weight is at least this fraction
-#: of the largest: noise-only lines (outside the excited band) would otherwise dominate it.
-REALIZATION_WEIGHT = 1e-4
-
-
 #: Refinement iterations of each candidate of the order selection.
 SELECTION_ITER = 15
 #: Orders tried past the last one that improved the held-out error by 10 %.
@@ -375,7 +364,7 @@ def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER) -> float
     test = np.zeros(fz.size, bool)
     test[2::4] = True
     try:
-        A, B, C, D, _ = _fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
+        A, B, C, D, _ = fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
         Gm = StateSpaceModel(A, B, C, D, dt=T).frequency_response(fz[test])
     except (IdentificationError, np.linalg.LinAlgError, ValueError):
         return float("inf")
@@ -417,114 +406,6 @@ def select_delay(
     if not np.isfinite(best[1]):
         raise IdentificationError(f"no delay from 0 to {max_delay} gave a realisation of order {order}.")
     return best[0], errors
-
-
-def _stable_start(A, C, G, zs, w) -> tuple[np.ndarray, ...] | None:
-    """``(A, B, C, D)`` with unstable poles of ``A`` reflected and ``B``, ``D`` fitted with the
-    weights ``w`` on all lines (None when not finite)."""
-    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(C))):
-        return None
-    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
-        A = reflect_unstable(A)
-    B, D = fit_input_matrices(A, C, G, zs, True, w)
-    return (A, B, C, D) if np.all(np.isfinite(B)) and np.all(np.isfinite(D)) else None
-
-
-def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
-    """The starting models of the output-error fit and the singular values of the realisation.
-
-    Four subspace fits, which fail in different ways: the McKelvey realisation on the
-    well-weighted lines (noise-only lines left out), the same with every line weighted by
-    ``w`` (frequency-weighted subspace: the lines count as the cost counts them), and the
-    balanced truncation of a realisation of twice the order, unweighted on the well-weighted
-    lines and weighted on all.  Each has its unstable poles reflected and ``B``, ``D``
-    fitted with the weights.
-    """
-    zs = np.exp(2j * np.pi * fz * T)
-    keep = w >= REALIZATION_WEIGHT * w.max()
-    A, _, C, _, sv = frequency_realization(G[keep], fz[keep], T, order)
-    candidates = [(A, C)]
-    try:
-        Aw, _, Cw, _, _ = frequency_realization(G, fz, T, order, weights=w)
-        candidates.append((Aw, Cw))
-    except (IdentificationError, np.linalg.LinAlgError):
-        pass
-    for alt in (balanced_start(G[keep], fz[keep], T, order), balanced_start(G, fz, T, order, weights=w)):
-        if alt is not None:
-            candidates.append((alt[0], alt[2]))
-    try:
-        vf = vector_fit_start(G, zs, order, w)
-    except np.linalg.LinAlgError:
-        vf = None
-    if vf is not None:
-        candidates.append(vf)
-    starts = []
-    for Ac, Cc in candidates:
-        try:
-            start = _stable_start(Ac, Cc, G, zs, w)
-        except np.linalg.LinAlgError:
-            start = None
-        if start is not None:
-            starts.append(start)
-    return starts, sv
-
-
-def _fit_at_order(G, fz, T, order, w, max_iter, exchange=False):
-    """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept,
-    then (``exchange``) improved by :func:`improve_by_exchange`."""
-    zs = np.exp(2j * np.pi * fz * T)
-    starts, sv = fit_starts(G, fz, T, order, w)
-    if not starts:
-        raise IdentificationError(f"no realisation of order {order} could be formed from this frequency response.")
-    best = None
-    for start in starts:
-        if max_iter == 0:
-            cost = float(
-                np.sum(w[:, None, None] * np.abs(StateSpaceModel(*start, dt=T).frequency_response(fz) - G) ** 2)
-            )
-            out = (*start, {"cost": cost})
-        else:
-            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
-        if best is None or out[4]["cost"] < best[4]["cost"]:
-            best = out
-    if exchange and max_iter > 0:
-        best = improve_by_exchange(best, G, zs, w, max_iter)
-    A, B, C, D, _ = best
-    if not all(np.all(np.isfinite(x)) for x in (A, B, C, D)):
-        raise IdentificationError(f"the fit of order {order} is not finite.")
-    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
-        raise IdentificationError(f"no stable model of order {order} was found.")
-    return A, B, C, D, sv
-
-
-#: An exchange is kept when it lowers the cost by more than this fraction (less is refinement noise).
-EXCHANGE_GAIN = 1e-6
-
-
-def improve_by_exchange(best: tuple, G, zs, w, max_iter: int) -> tuple:
-    """Mode exchanges (:mod:`stageid.frf.mode_exchange`) at each of the largest residual peaks,
-    refined; the best kept while it lowers the weighted cost, at most one round per pole pair."""
-    for _ in range(best[0].shape[0] // 2):
-        A, B, C, D, info = best
-        residual = StateSpaceModel(A, B, C, D, dt=1.0).frequency_response(np.angle(zs) / (2.0 * np.pi)) - G
-        found = None
-        for peak in residual_peaks(residual, w):
-            try:
-                proposal = exchanged_modes(A, B, C, residual, zs, w, peak)
-                start = None if proposal is None else _stable_start(*proposal, G, zs, w)
-            except np.linalg.LinAlgError:
-                start = None
-            if start is None:
-                continue
-            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
-            if out[4]["cost"] < info["cost"] * (1.0 - EXCHANGE_GAIN) and (
-                found is None or out[4]["cost"] < found[4]["cost"]
-            ):
-                found = out
-        if found is None:
-            break
-        best = found
-    return best
 
 
 def add_input_delay(A, B, C, D, delay: int) -> tuple[np.ndarray, ...]:
