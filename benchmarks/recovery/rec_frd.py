@@ -315,3 +315,37 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     recovered = error <= RECOVERY_FACTOR * ref_error + RECOVERY_SLACK or below
     detail += ", below reference" if below else ""
     return Row(seed, recovered, error, "% of peak", ref_error, ratio, noise, f"{detail}, {seconds:.2f} s")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python rec_frd.py [N_SEEDS] [NOISE ...]``: the draws one by one and a summary per noise."""
+    import sys
+    import tempfile
+
+    args = sys.argv[1:] if argv is None else argv
+    n_seeds = int(args[0]) if args else 40
+    levels = [float(a) for a in args[1:]] or [0.0, 0.005, 0.01, 0.02]
+    with tempfile.TemporaryDirectory() as tmp:
+        for noise in levels:
+            start = time.perf_counter()
+            rows = [case(seed, pathlib.Path(tmp), noise) for seed in range(n_seeds)]
+            per_case = (time.perf_counter() - start) / n_seeds
+            for r in rows:
+                print(
+                    f"{noise:g} {r.seed:3d} {r.recovered!s:5} {r.error:.4g} {r.reference_error:.4g} "
+                    f"{r.cost_ratio:.6f} {r.detail} {r.failed}"
+                )
+            err = np.array([r.error for r in rows])
+            ref = np.array([r.reference_error for r in rows])
+            ratio = np.array([r.cost_ratio for r in rows])
+            print(
+                f"noise {noise:g}: recovered {sum(r.recovered for r in rows)}/{n_seeds}, failed "
+                f"{sum(bool(r.failed) for r in rows)}, error median {np.nanmedian(err):.4g} worst {np.nanmax(err):.4g}, "
+                f"reference median {np.median(ref):.4g} worst {np.max(ref):.4g}, cost ratio quantiles 50/95/max "
+                f"{np.nanquantile(ratio, 0.5):.6f}/{np.nanquantile(ratio, 0.95):.6f}/{np.nanmax(ratio):.6f}, "
+                f"below reference {sum('below reference' in r.detail for r in rows)}, {per_case:.2f} s per case"
+            )
+
+
+if __name__ == "__main__":
+    main()
