@@ -16,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import IdentificationError
-from ..models import StateSpaceModel
 from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
-from ..subspace.refinement import refine_frequency_fit
+from ..subspace.refinement import model_response, refine_frequency_fit
 from .mode_exchange import exchanged_modes, residual_peaks
 from .vector_fitting import vector_fit_start
 
@@ -45,7 +44,7 @@ def stable_start(A, C, G, zs, w) -> tuple[np.ndarray, ...] | None:
     return (A, B, C, D) if np.all(np.isfinite(B)) and np.all(np.isfinite(D)) else None
 
 
-def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
+def fit_starts(G, fz, T, order, w, thorough: bool = True) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
     """The starting models of the output-error fit and the singular values of the realisation.
 
     Five fits, which fail in different ways: the McKelvey realisation on the well-weighted
@@ -54,21 +53,25 @@ def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.nda
     truncation of a realisation of twice the order, likewise both ways, and vector fitting
     (:mod:`.vector_fitting`, weighted).  Each has its unstable poles reflected and ``B``,
     ``D`` fitted with the weights; the singular values are the first realisation's.
+    Not ``thorough`` (the short fits that choose the order): the first realisation and the
+    weighted balanced truncation only.
     """
     zs = np.exp(2j * np.pi * fz * T)
     keep = w >= REALIZATION_WEIGHT * w.max()
     A, _, C, _, sv = frequency_realization(G[keep], fz[keep], T, order)
     candidates = [(A, C)]
-    try:
-        Aw, _, Cw, _, _ = frequency_realization(G, fz, T, order, weights=w)
-        candidates.append((Aw, Cw))
-    except (IdentificationError, np.linalg.LinAlgError):
-        pass
-    for alt in (balanced_start(G[keep], fz[keep], T, order), balanced_start(G, fz, T, order, weights=w)):
+    if thorough:
+        try:
+            Aw, _, Cw, _, _ = frequency_realization(G, fz, T, order, weights=w)
+            candidates.append((Aw, Cw))
+        except (IdentificationError, np.linalg.LinAlgError):
+            pass
+    alts = [balanced_start(G[keep], fz[keep], T, order)] if thorough else []
+    for alt in [*alts, balanced_start(G, fz, T, order, weights=w)]:
         if alt is not None:
             candidates.append((alt[0], alt[2]))
     try:
-        vf = vector_fit_start(G, zs, order, w)
+        vf = vector_fit_start(G, zs, order, w) if thorough else None
     except np.linalg.LinAlgError:
         vf = None
     if vf is not None:
@@ -84,25 +87,32 @@ def fit_starts(G, fz, T, order, w) -> tuple[list[tuple[np.ndarray, ...]], np.nda
     return starts, sv
 
 
-def fit_at_order(G, fz, T, order, w, max_iter, exchange=False):
+def fit_at_order(G, fz, T, order, w, max_iter, thorough=False):
     """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept,
-    then (``exchange``) improved by :func:`improve_by_exchange`."""
+    then (``thorough``) improved by :func:`improve_by_exchange`.  Not ``thorough``: two starts
+    and no exchange (the short fits that choose the order and the delay)."""
     zs = np.exp(2j * np.pi * fz * T)
-    starts, sv = fit_starts(G, fz, T, order, w)
+    starts, sv = fit_starts(G, fz, T, order, w, thorough)
     if not starts:
         raise IdentificationError(f"no realisation of order {order} could be formed from this frequency response.")
-    best = None
+    best, seen = None, []
     for start in starts:
+        response = model_response(start, zs)  # its cost here, and the refinement's first step
+        if response is None:
+            continue
+        cost = float(np.sum(w[:, None, None] * np.abs(response[1] - G) ** 2))
+        if not np.isfinite(cost) or any(abs(cost - c) <= 1e-12 * c for c in seen):
+            continue  # the same start again (equal weights make the weighted fits the plain ones)
+        seen.append(cost)
         if max_iter == 0:
-            cost = float(
-                np.sum(w[:, None, None] * np.abs(StateSpaceModel(*start, dt=T).frequency_response(fz) - G) ** 2)
-            )
             out = (*start, {"cost": cost})
         else:
-            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
+            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL, response=response)
         if best is None or out[4]["cost"] < best[4]["cost"]:
             best = out
-    if exchange and max_iter > 0:
+    if best is None:
+        raise IdentificationError(f"no start of order {order} has a finite response.")
+    if thorough and max_iter > 0:
         best = improve_by_exchange(best, G, zs, w, max_iter)
     A, B, C, D, _ = best
     if not all(np.all(np.isfinite(x)) for x in (A, B, C, D)):
@@ -121,7 +131,10 @@ def improve_by_exchange(best: tuple, G, zs, w, max_iter: int) -> tuple:
     refined; the best kept while it lowers the weighted cost, at most one round per pole pair."""
     for _ in range(best[0].shape[0] // 2):
         A, B, C, D, info = best
-        residual = StateSpaceModel(A, B, C, D, dt=1.0).frequency_response(np.angle(zs) / (2.0 * np.pi)) - G
+        response = model_response((A, B, C, D), zs)
+        if response is None:
+            break
+        residual = response[1] - G
         found = None
         for peak in residual_peaks(residual, w):
             try:

@@ -244,7 +244,7 @@ class FRDIdentification(Estimator):
         delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
-        A, B, C, D, sv = fit_at_order(Gd, fz, T, order, w, self.max_iter, exchange=True)
+        A, B, C, D, sv = fit_at_order(Gd, fz, T, order, w, self.max_iter, thorough=True)
         std = None if frd.std is None else frd.std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]

@@ -83,8 +83,12 @@ def exchanged_modes(
         return None
     energy = []
     for b in pairs:
-        Ab, Bb, Cb = Am[b, b], Bm[b], Cm[:, b]
-        term = np.stack([Cb @ np.linalg.solve(z * np.eye(2) - Ab, Bb) for z in zs])
+        (a11, a12), (a21, a22) = Am[b, b]
+        # (z I - A_b)^-1 of a 2x2 block in closed form, all lines at once
+        inv = np.empty((zs.size, 2, 2), complex)
+        inv[:, 0, 0], inv[:, 0, 1], inv[:, 1, 0], inv[:, 1, 1] = zs - a22, a12, a21, zs - a11
+        inv /= ((zs - a11) * (zs - a22) - a12 * a21)[:, None, None]
+        term = np.einsum("qi,zij,jm->zqm", Cm[:, b], inv, Bm[b])
         energy.append(float(np.sum(w[:, None, None] * np.abs(term) ** 2)))
     weakest = pairs[int(np.argmin(energy))]
     theta = float(np.angle(zs[peak]))

@@ -24,10 +24,11 @@ import numpy as np
 
 __all__ = ["vector_fit_poles", "vector_fit_start", "initial_poles"]
 
-#: Pole relocations of :func:`vector_fit_poles` (it stops earlier once the poles settle).
-VF_ITER = 30
+#: Pole relocations of :func:`vector_fit_poles` (it stops earlier once the poles settle): the
+#: poles of a start need not be exact, the refinement takes them the rest of the way.
+VF_ITER = 10
 #: Poles within this distance of the last iteration's (on the unit-circle scale) have settled.
-VF_SETTLED = 1e-10
+VF_SETTLED = 1e-8
 
 
 def initial_poles(zs: np.ndarray, order: int) -> np.ndarray:
