@@ -30,11 +30,7 @@ import pathlib
 import time
 
 import numpy as np
-
-try:  # run as a module of the benchmark package, or imported by the tests with benchmarks/ on the path
-    from .common import CliFailure, Row, run_cli
-except ImportError:  # pragma: no cover - imported as a top-level module
-    from common import CliFailure, Row, run_cli
+from common import CliFailure, Row, run_cli
 
 ESTIMATOR = "FRD fit"
 
