@@ -106,6 +106,15 @@ def vector_fit_poles(G: np.ndarray, zs: np.ndarray, order: int, weights: np.ndar
     Relocates :func:`initial_poles` up to ``VF_ITER`` times (see the module docstring); each
     step weighs line ``k`` by ``weights[k]`` (default all 1).  The poles are inside the unit
     disc, closed under conjugation.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> zs = np.exp(1j * np.linspace(0.05, 3.0, 200))
+    >>> G = (1 / (zs - 0.9 * np.exp(0.6j)) + 1 / (zs - 0.9 * np.exp(-0.6j)))[:, None, None]
+    >>> poles = vector_fit_poles(G, zs, 2)
+    >>> bool(np.allclose(np.sort_complex(poles), [0.9 * np.exp(-0.6j), 0.9 * np.exp(0.6j)]))
+    True
     """
     w = np.ones(zs.size) if weights is None else np.asarray(weights, dtype=float)
     sw = np.sqrt(w)
