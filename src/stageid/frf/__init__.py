@@ -10,6 +10,9 @@ module                    what it holds
 :mod:`.lpm_lanes`         the same for interior lines, 16 at a time with 4-wide vectors
 :mod:`.periodic`          averaging over periods of periodic excitation, noise from the scatter
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
+:mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
+:mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
+:mod:`.mode_exchange`     weakest pole pair moved to a residual peak, out of local minima
 :mod:`.fit_uncertainty`   covariance of that fit from the data's std, ``FRDResult.response_uncertainty``
 :mod:`.plotting`          Bode figure with a +-2 std band and a coherence panel
 ========================  =================================================================

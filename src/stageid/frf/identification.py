@@ -13,10 +13,11 @@ refinement on the complex response:
    exactly by the inverse Tustin transform (stability preserved both ways);
 4. the order, given or chosen on held-out frequencies (every fourth line left out of the
    fit; :func:`select_order`);
-5. the McKelvey realisation and a balanced truncation of one of twice the order as starts,
-   unstable poles reflected, each refined by Levenberg-Marquardt on
-   ``sum_k w_k ||G_model(z_k) - G_k||^2`` (:func:`stageid.subspace.refinement.refine_frequency_fit`,
-   steps that leave the unit disc rejected); the better end is kept;
+5. the weighted output-error fit at its optimum (:mod:`stageid.frf.fit_search`): four
+   subspace starts and a vector fit, each refined by Levenberg-Marquardt on
+   ``sum_k w_k ||G_model(z_k) - G_k||^2`` (steps that leave the unit disc rejected) until a
+   step lowers the cost by less than ``REFINE_TOL`` of it, the lowest kept, then mode
+   exchanges while they lower it further;
 6. the delay put back as ``d`` shift states per input.
 """
 
@@ -30,8 +31,7 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..models import StateSpaceModel
-from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
-from ..subspace.refinement import refine_frequency_fit
+from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
 from .welch import welch_frf
@@ -49,9 +49,6 @@ __all__ = [
 #: Lines whose weight is below this fraction of the largest count neither for the column
 #: scaling nor for :attr:`FRDResult.column_errors` (their data are noise by their own std).
 SIGNIFICANT_WEIGHT = 1e-6
-#: Relative cost decrease below which the output-error refinement stops (finer than the
-#: subspace default: an FRF has no prior to hide behind, every digit of the fit shows).
-REFINE_TOL = 1e-7
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,7 +152,9 @@ class FRDIdentification(Estimator):
     max_delay : int
         Largest delay tried by ``delay="auto"``.
     max_iter : int
-        Iterations of the output-error refinement.
+        Most iterations of the output-error refinement of each start (a safeguard: it stops
+        when a step lowers the cost by less than
+        :data:`stageid.frf.fit_search.REFINE_TOL` of it, or no step lowers it).
 
     Examples
     --------
@@ -190,7 +189,7 @@ class FRDIdentification(Estimator):
         delay: int | str = 0,
         max_order: int = 20,
         max_delay: int = 20,
-        max_iter: int = 100,
+        max_iter: int = 1000,
     ) -> None:
         self.order = order
         self.dt = dt
@@ -245,7 +244,7 @@ class FRDIdentification(Estimator):
         delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
-        A, B, C, D, sv = _fit_at_order(Gd, fz, T, order, w, self.max_iter)
+        A, B, C, D, sv = fit_at_order(Gd, fz, T, order, w, self.max_iter, thorough=True)
         std = None if frd.std is None else frd.std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
@@ -294,7 +293,9 @@ def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) ->
         if frd.std is None:
             raise DataError("--weight std needs std_<out>_<in> columns in the frequency response; it has none.")
         var = np.mean((frd.std / scale[None, None, :]) ** 2, axis=(1, 2))
-        floor = 1e-12 * max(float(var.max()), 1e-300)  # a zero std would give one frequency all the weight
+        if not var.max() > 0:  # an exact (computed) response: every line alike
+            var = np.ones_like(var)
+        floor = 1e-12 * float(var.max())  # a zero std would give one frequency all the weight
         w = 1.0 / np.maximum(var, floor)
     elif weight == "coherence":
         if frd.coherence is None:
@@ -352,23 +353,6 @@ def _max_order(n_freqs: int, q: int, m: int) -> int:
     return max(1, min((2 * n_freqs * m) // (m + q) - 2 - q, 400))
 
 
-#: The (unweighted) subspace step sees only the lines whose weight is at least this fraction
-#: of the largest: noise-only lines (outside the excited band) would otherwise dominate it.
-REALIZATION_WEIGHT = 1e-4
-
-
-def _realize(G, fz, T, order, w=None):
-    """McKelvey realisation on the well-weighted lines, unstable poles reflected, ``B``, ``D``
-    refitted on all lines with their weights."""
-    keep = slice(None) if w is None else w >= REALIZATION_WEIGHT * w.max()
-    A, B, C, D, sv = frequency_realization(G[keep], fz[keep], T, order)
-    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
-        A = reflect_unstable(A)
-    zs = np.exp(2j * np.pi * fz * T)
-    B, D = fit_input_matrices(A, C, G, zs, True, w)
-    return A, B, C, D, sv
-
-
 #: Refinement iterations of each candidate of the order selection.
 SELECTION_ITER = 15
 #: Orders tried past the last one that improved the held-out error by 10 %.
@@ -380,7 +364,7 @@ def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER) -> float
     test = np.zeros(fz.size, bool)
     test[2::4] = True
     try:
-        A, B, C, D, _ = _fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
+        A, B, C, D, _ = fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
         Gm = StateSpaceModel(A, B, C, D, dt=T).frequency_response(fz[test])
     except (IdentificationError, np.linalg.LinAlgError, ValueError):
         return float("inf")
@@ -422,36 +406,6 @@ def select_delay(
     if not np.isfinite(best[1]):
         raise IdentificationError(f"no delay from 0 to {max_delay} gave a realisation of order {order}.")
     return best[0], errors
-
-
-def _fit_at_order(G, fz, T, order, w, max_iter):
-    """Realisation and balanced start, each refined (weighted output error); the better end."""
-    zs = np.exp(2j * np.pi * fz * T)
-    A, B, C, D, sv = _realize(G, fz, T, order, w)
-    starts = [(A, B, C, D)]
-    alt = balanced_start(G, fz, T, order)
-    if alt is not None:
-        Aa, _, Ca, _ = alt
-        if np.max(np.abs(np.linalg.eigvals(Aa)), initial=0.0) < 1.0:
-            Ba, Da = fit_input_matrices(Aa, Ca, G, zs, True, w)
-            starts.append((Aa, Ba, Ca, Da))
-    best = None
-    for start in starts:
-        if max_iter == 0:
-            cost = float(
-                np.sum(w[:, None, None] * np.abs(StateSpaceModel(*start, dt=T).frequency_response(fz) - G) ** 2)
-            )
-            out = (*start, {"cost": cost})
-        else:
-            out = refine_frequency_fit(*start, G, zs, weights=w, max_iter=max_iter, tol=REFINE_TOL)
-        if best is None or out[4]["cost"] < best[4]["cost"]:
-            best = out
-    A, B, C, D, _ = best
-    if not all(np.all(np.isfinite(x)) for x in (A, B, C, D)):
-        raise IdentificationError(f"the fit of order {order} is not finite.")
-    if np.max(np.abs(np.linalg.eigvals(A)), initial=0.0) >= 1.0:
-        raise IdentificationError(f"no stable model of order {order} was found.")
-    return A, B, C, D, sv
 
 
 def add_input_delay(A, B, C, D, delay: int) -> tuple[np.ndarray, ...]:

@@ -85,7 +85,13 @@ def fit_input_matrices(
 
 
 def frequency_realization(
-    G: np.ndarray, freqs: np.ndarray, dt: float, order: int, block_rows: int | None = None, feedthrough: bool = True
+    G: np.ndarray,
+    freqs: np.ndarray,
+    dt: float,
+    order: int,
+    block_rows: int | None = None,
+    feedthrough: bool = True,
+    weights: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """State-space realisation from frequency-response samples (McKelvey et al. 1996).
 
@@ -106,6 +112,11 @@ def frequency_realization(
         ``r > order / q``; default ``max(order + 1, 2 ceil(order / q) + 2)`` capped so the
         problem stays overdetermined.
     feedthrough : bool
+    weights : ndarray of shape (n_freqs,), optional
+        Non-negative weight of each frequency: the columns of ``Y`` and ``U`` that belong to
+        frequency ``k`` are scaled by ``sqrt(w_k)`` (the relation ``Y = O_r X + T_r U`` holds
+        column by column, so the scaled data keep it), and ``B``, ``D`` are fitted with the
+        same weights.  Noise-only lines then no longer bend the subspace.
 
     Returns
     -------
@@ -135,17 +146,19 @@ def frequency_realization(
             f"frequency realisation of order {order} needs more frequency points than {nf} for {q} outputs and {m} inputs."
         )
     zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-    Us, s = _observability_basis(G, zs, r)
+    Us, s = _observability_basis(G, zs, r, weights)
     if order > Us.shape[1]:
         raise IdentificationError(f"order {order} exceeds the {Us.shape[1]} available singular values.")
     O = Us[:, :order]
     C = O[:q]
     A = np.linalg.lstsq(O[:-q], O[q:], rcond=None)[0]
-    B, D = fit_input_matrices(A, C, G, zs, feedthrough)
+    B, D = fit_input_matrices(A, C, G, zs, feedthrough, weights)
     return A, B, C, D, s
 
 
-def _observability_basis(G: np.ndarray, zs: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
+def _observability_basis(
+    G: np.ndarray, zs: np.ndarray, r: int, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Left singular vectors and values of ``Y`` with the row space of ``U`` removed
     (:func:`frequency_realization`), ``Y = [W_r(z_k) (x) G_k]``, ``U = [W_r(z_k) (x) I_m]``.
 
@@ -153,10 +166,13 @@ def _observability_basis(G: np.ndarray, zs: np.ndarray, r: int) -> tuple[np.ndar
     column against one orthonormal basis of ``W``'s rows (real and imaginary parts side by
     side), and the singular pairs come from the ``rq x rq`` Gram matrix of the projected ``Y``:
     the same subspace as the LQ factorisation of ``[U; Y]`` (McKelvey et al. 1996) at a third
-    of its cost for ``r = 2n + 1``.
+    of its cost for ``r = 2n + 1``.  ``weights`` scale frequency ``k``'s columns of both by
+    ``sqrt(w_k)``.
     """
     nf, q, m = G.shape
     powers = zs[None, :] ** np.arange(r)[:, None]  # (r, nf)
+    if weights is not None:
+        powers = powers * np.sqrt(np.asarray(weights, dtype=float))[None, :]
     Wr = np.hstack([powers.real, powers.imag])  # (r, 2 nf)
     Qw = np.linalg.qr(Wr.T)[0]  # (2 nf, r)
     gram = np.zeros((r * q, r * q))
@@ -233,7 +249,7 @@ def balanced_truncation(
 
 
 def balanced_start(
-    G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feedthrough: bool = True
+    G: np.ndarray, freqs: np.ndarray, dt: float, order: int, feedthrough: bool = True, weights: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """A starting realisation of ``order`` states: :func:`frequency_realization` of twice the
     order, reduced by :func:`balanced_truncation`, then ``B``, ``D`` fitted again on ``G``.
@@ -242,12 +258,13 @@ def balanced_start(
     keeps the dominant part, so on white-input records the refinement starts far closer to
     its end (figures: ``benchmarks/RESULTS-subspace.md``).  On band-limited records the
     truncation, which weighs all frequencies alike, can start worse: the caller keeps the
-    better start.
+    better start.  ``weights``: per-frequency weights of both fits (see
+    :func:`frequency_realization`).
 
     Returns None when the larger realisation is not possible (too few frequencies) or not stable.
     """
     try:
-        A, B, C, D, _ = frequency_realization(G, freqs, dt, 2 * order, feedthrough=feedthrough)
+        A, B, C, D, _ = frequency_realization(G, freqs, dt, 2 * order, feedthrough=feedthrough, weights=weights)
     except (IdentificationError, np.linalg.LinAlgError):
         return None
     try:
@@ -256,7 +273,7 @@ def balanced_start(
             return None
         Ar, _, Cr, _ = red
         zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
-        Br, Dr = fit_input_matrices(Ar, Cr, G, zs, feedthrough)
+        Br, Dr = fit_input_matrices(Ar, Cr, G, zs, feedthrough, weights)
     except np.linalg.LinAlgError:  # an SVD or eigensolver that does not converge: no start
         return None
     if not all(np.all(np.isfinite(x)) for x in (Ar, Br, Cr, Dr)):
