@@ -158,7 +158,9 @@ class PreisachIdentifier(Estimator):
         lo = min(float(u.min()) for u, _ in recs)
         hi = max(float(u.max()) for u, _ in recs)
         if self.input_range is None and not lo < hi:
-            raise DataError(f"a Preisach model needs an input that varies; got a constant input ({lo:g}) in every record.")
+            raise DataError(
+                f"a Preisach model needs an input that varies; got a constant input ({lo:g}) in every record."
+            )
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         n = int(self.n_levels)
