@@ -183,8 +183,10 @@ class PIIdentifier(Estimator):
         The least-squares problems use at most this many (evenly strided) samples, >= 10; the
         operators always run over every sample.
     max_evaluations : int, optional
-        Limit of the nonlinear search (modified PI: weight fits), >= 1; default 1000 with the
-        input warp (its search runs a second, chained simplex) and 500 without.
+        Limit of the nonlinear search (modified PI: weight fits), >= 1.  Default: a first search
+        of 1000 weight fits with the input warp (its search runs a second, chained simplex) and
+        500 without, then restarts from the best point until the residual settles (relative
+        decrease below 1e-6; at most 20000 weight fits in all).
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
@@ -320,7 +322,9 @@ class PIIdentifier(Estimator):
             kinds = choose_initial_states(problem, theta, kinds, at_rest, classical)
         n_eval, success, message = 0, True, "classical PI: constrained least squares."
         if not classical:  # step 3: the CP thresholds, then the starting states again
-            found = search_thresholds(problem, theta, kinds, R, lo, hi, bool(self.input_warp), self._budget())
+            # no limit given: the search goes on past its first budget until the residual settles
+            settle = self.max_evaluations is None
+            found = search_thresholds(problem, theta, kinds, R, lo, hi, bool(self.input_warp), self._budget(), settle)
             theta, n_eval, success, message = found.theta, found.n_evaluations, found.success, found.message
             if self.initial_state == "auto":
                 kinds = choose_initial_states(problem, theta, kinds, at_rest, False)
