@@ -31,6 +31,7 @@ __all__ = [
     "held_out_error",
     "training_cost",
     "verdict",
+    "run",
 ]
 
 #: All records of one case get one length.  Records of different lengths at one rate are what
@@ -110,7 +111,16 @@ def held_out_error(prediction: np.ndarray, truth: np.ndarray) -> float:
     return 100.0 * float(np.sqrt(np.mean((e - e.mean()) ** 2))) / float(np.ptp(truth))
 
 
-def verdict(seed: int, noise: float, error: float, reference_error: float, cost_ratio: float, detail: str) -> Row:
+def run(model, u: np.ndarray) -> np.ndarray:
+    """Output from the zero (demagnetised) state at the first sample: the records start at rest."""
+    return model.with_state(model.consistent_state(u[0], "zero")).simulate(u)[:, 0]
+
+
+def verdict(seed: int, noise: float, models: tuple, held: np.ndarray, cost_ratio: float, detail: str) -> Row:
+    """The row of a draw from ``(truth, fit, reference)`` models and the held-out input."""
+    truth, fitted, ref = models
+    y_held = run(truth, held)
+    error, reference_error = held_out_error(run(fitted, held), y_held), held_out_error(run(ref, held), y_held)
     recovered = error <= max(RECOVERED_PERCENT, REFERENCE_FACTOR * reference_error)
     return Row(
         seed=seed,

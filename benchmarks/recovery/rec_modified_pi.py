@@ -16,7 +16,7 @@ import pathlib
 
 import numpy as np
 from common import CliFailure, Row
-from hysteresis_draws import draw_records, failed, fit_cli, held_out_error, noisy, training_cost, verdict
+from hysteresis_draws import draw_records, failed, fit_cli, noisy, run, training_cost, verdict
 
 ESTIMATOR = "Modified PI"
 
@@ -49,11 +49,6 @@ def weight_problem(inputs: list[np.ndarray], outputs: list[np.ndarray], amplitud
 
 def build(problem, theta: np.ndarray, weights: np.ndarray):
     return problem.build(theta, weights, 0.0, "V", "y", -problem.R, problem.R, (-problem.R, problem.R))
-
-
-def run(model, u: np.ndarray) -> np.ndarray:
-    """Output from the zero state at the first sample (the records start at rest)."""
-    return model.with_state(model.consistent_state(u[0], "zero")).simulate(u)[:, 0]
 
 
 def reference(problem, theta0: np.ndarray):
@@ -95,12 +90,4 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     ref = reference(weight_problem(inputs, outputs, amplitude, n), theta)
     cost = training_cost([run(fitted, u) for u in inputs], outputs)
     ref_cost = training_cost([run(ref, u) for u in inputs], outputs)
-    y_held = run(truth, held)
-    return verdict(
-        seed,
-        noise,
-        held_out_error(run(fitted, held), y_held),
-        held_out_error(run(ref, held), y_held),
-        cost / ref_cost,
-        detail,
-    )
+    return verdict(seed, noise, (truth, fitted, ref), held, cost / ref_cost, detail)

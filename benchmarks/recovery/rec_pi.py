@@ -14,7 +14,7 @@ import pathlib
 
 import numpy as np
 from common import CliFailure, Row
-from hysteresis_draws import draw_records, failed, fit_cli, held_out_error, noisy, training_cost, verdict
+from hysteresis_draws import draw_records, failed, fit_cli, noisy, run, training_cost, verdict
 
 ESTIMATOR = "PI"
 
@@ -27,11 +27,6 @@ def draw_truth(rng: np.random.Generator, amplitude: float, n: int):
     plays *= float(rng.uniform(0.5, 2.0)) / plays.sum()  # hysteresis weight relative to the linear part
     weights = np.r_[1.0, plays] * float(rng.uniform(0.002, 0.02))  # um/V
     return PIModel(r=np.arange(n) * amplitude / n, weights=weights)
-
-
-def run(model, u: np.ndarray) -> np.ndarray:
-    """Output from the zero state at the first sample (the records start at rest)."""
-    return model.with_state(model.consistent_state(u[0], "zero")).simulate(u)[:, 0]
 
 
 def reference(truth, inputs: list[np.ndarray], outputs: list[np.ndarray]):
@@ -64,12 +59,4 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     ref = reference(truth, inputs, outputs)
     cost = training_cost([run(fitted, u) for u in inputs], outputs)
     ref_cost = training_cost([run(ref, u) for u in inputs], outputs)
-    y_held = run(truth, held)
-    return verdict(
-        seed,
-        noise,
-        held_out_error(run(fitted, held), y_held),
-        held_out_error(run(ref, held), y_held),
-        cost / ref_cost,
-        detail,
-    )
+    return verdict(seed, noise, (truth, fitted, ref), held, cost / ref_cost, detail)

@@ -83,9 +83,14 @@ def _grid(objective: _Objective, centre: float, input_warp: bool) -> list[tuple[
 
 
 def _descend(
-    objective: _Objective, th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int
+    objective: _Objective,
+    th_start: np.ndarray,
+    f_start: float,
+    free: np.ndarray,
+    maxfev: int,
+    method: str = "Nelder-Mead",
 ) -> tuple[float, np.ndarray, bool]:
-    """Bounded Nelder-Mead over the parameters ``free`` (indices into theta) from ``th_start``."""
+    """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from ``th_start``."""
     from scipy.optimize import minimize
 
     scale, lower, upper = objective.scale, objective.lower, objective.upper
@@ -98,18 +103,15 @@ def _descend(
 
     x0 = base[free] / scale[free]
     lb, ub = lower[free] / scale[free], upper[free] / scale[free]
-    steps = _STEPS[free]
-    k = free.size
-    simplex = np.vstack(
-        [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
-    )
-    res = minimize(
-        sub,
-        x0,
-        method="Nelder-Mead",
-        bounds=list(zip(lb, ub)),
-        options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start},
-    )
+    options = {"maxfev": maxfev, "xtol": 1e-6}
+    if method == "Nelder-Mead":
+        steps = _STEPS[free]
+        k = free.size
+        simplex = np.vstack(
+            [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
+        )
+        options = {"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start}
+    res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options)
     th = base.copy()
     th[free] = res.x * scale[free]
     return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
@@ -121,36 +123,14 @@ def _settle(objective: _Objective, th: np.ndarray, f: float, free: np.ndarray) -
     out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls."""
     while objective.count < SETTLE_LIMIT:
         f_round = f
-        for step in (_powell, _descend):
-            f_new, th_new, _ = step(objective, th, f, free, min(SETTLE_CHUNK, SETTLE_LIMIT - objective.count))
+        for method in ("Powell", "Nelder-Mead"):
+            budget = min(SETTLE_CHUNK, SETTLE_LIMIT - objective.count)
+            f_new, th_new, _ = _descend(objective, th, f, free, budget, method)
             if f_new < f:
                 f, th = f_new, th_new
         if not f < f_round * (1.0 - SETTLE_TOLERANCE):
             return f, th, True
     return f, th, False
-
-
-def _powell(
-    objective: _Objective, th_start: np.ndarray, f_start: float, free: np.ndarray, maxfev: int
-) -> tuple[float, np.ndarray, bool]:
-    """Bounded Powell search over the parameters ``free`` from ``th_start``."""
-    from scipy.optimize import minimize
-
-    scale, lower, upper = objective.scale, objective.lower, objective.upper
-    base = np.array(th_start, dtype=float)
-
-    def sub(v: np.ndarray) -> float:
-        th = base.copy()
-        th[free] = np.asarray(v) * scale[free]
-        return objective.at(th)
-
-    bounds = list(zip(lower[free] / scale[free], upper[free] / scale[free]))
-    res = minimize(
-        sub, base[free] / scale[free], method="Powell", bounds=bounds, options={"maxfev": maxfev, "xtol": 1e-6}
-    )
-    th = base.copy()
-    th[free] = res.x * scale[free]
-    return float(res.fun), np.clip(th, lower, upper), bool(res.success)
 
 
 def search_thresholds(
