@@ -44,11 +44,24 @@ def test_identify_preisach_writes_a_model_that_simulate_reproduces(tmp_path):
     np.testing.assert_array_equal(model.weights, direct.weights)  # the CLI is the estimator
 
 
-def test_a_grid_finer_than_the_records_is_one_line_exit_2_no_file(tmp_path, capsys):
+def test_a_grid_finer_than_the_records_is_filled_with_one_line(tmp_path, capsys):
     path, _ = _record(tmp_path)
     out = tmp_path / "p.json"
     args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
-    assert main([*args, "--levels", "30", "-o", str(out)]) == 2
+    assert main([*args, "--levels", "30", "-o", str(out)]) == 0
+    text = capsys.readouterr().out.strip().splitlines()
+    filled = [line for line in text if "the smoothness prior filled" in line]
+    assert len(filled) == 1 and "cells the records leave undetermined" in filled[0]
+    assert out.exists()
+
+
+def test_a_constant_input_is_one_line_exit_2_no_file(tmp_path, capsys):
+    path = tmp_path / "c.csv"
+    y = np.sin(np.arange(300) / 9.0)
+    np.savetxt(path, np.c_[np.arange(300) * 1e-3, np.full(300, 2.5), y], delimiter=",", header="t,V,y", comments="")
+    out = tmp_path / "p.json"
+    args = ["identify", "hysteresis", str(path), "--input", "V", "--output", "y", "--model", "preisach"]
+    assert main([*args, "--levels", "8", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip()
-    assert "finer than the records resolve" in err and "\n" not in err
+    assert "constant input" in err and "\n" not in err
     assert not out.exists()

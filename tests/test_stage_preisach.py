@@ -201,15 +201,17 @@ def test_cli_rate_independent_preisach_is_unchanged(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "extra, cause",
+    "extra, cause, constant",
     [
-        (["--levels", "60", "--dynamics", "1", "--creep", "0.01"], "finer than the records resolve"),
-        (["--levels", str(LEVELS), "--dynamics", "40"], "an order these records support"),
+        # a grid finer than the records is filled by the smoothness prior; only an input that
+        # never moves (no cell determined) is refused
+        (["--levels", "60", "--dynamics", "1", "--creep", "0.01"], "constant input", True),
+        (["--levels", str(LEVELS), "--dynamics", "40"], "an order these records support", False),
     ],
 )
-def test_cli_bad_preisach_stage_input_is_one_line_exit_2_no_file(tmp_path, capsys, extra, cause):
+def test_cli_bad_preisach_stage_input_is_one_line_exit_2_no_file(tmp_path, capsys, extra, cause, constant):
     _, recs = _records()
-    short = [Experiment(e.u[:1500], e.y[:1500], DT, ("V",), ("y",)) for e in recs]
+    short = [Experiment(e.u[:1500] * (0 if constant else 1), e.y[:1500], DT, ("V",), ("y",)) for e in recs]
     paths = _write(tmp_path, short)
     out = tmp_path / "s.json"
     args = ["identify", "hysteresis", *paths, "--input", "V", "--output", "y", "--model", "preisach"]

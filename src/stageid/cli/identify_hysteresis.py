@@ -70,7 +70,7 @@ Examples:
     default=20,
     show_default=True,
     help="Preisach only: cells per axis of the grid over the input range (n(n+1)/2 weights); "
-    "a grid finer than the records resolve is refused.",
+    "cells the records leave undetermined are filled by a smoothness prior (the summary says how many).",
 )
 @click.option(
     "--operators",

@@ -7,7 +7,10 @@ input).  The weights solve
     min_{w >= 0, y0}  ||Phi w + y0 - y||^2 + lambda ||D w||^2,
 
 ``D`` the second differences along ``alpha`` and along ``beta`` inside the triangle, ``lambda``
-= ``smoothing`` times the mean diagonal of ``Phi' Phi``.  Each record gets its own offset
+= ``smoothing`` (at least ``PRIOR_FLOOR``) times the mean diagonal of ``Phi' Phi``.  The penalty
+is a smoothness prior: where the records leave cells undetermined (no reversal pair inside them)
+it fills them from their neighbours, while the cells the data determine barely feel it.  Each
+record gets its own offset
 (centred columns); the stacked records are reduced to the triangular factor ``R`` of their QR
 decomposition (``||A w - b|| = ||R w - Q'b||`` up to a constant) and ``scipy.optimize.nnls``
 (Lawson-Hanson) solves ``[R; sqrt(lambda) D] w = [Q'b; 0]``, a problem of the cells' size.
@@ -26,11 +29,15 @@ from ..checks import is_real
 from .preisach import PreisachModel
 from .records import read_records
 
-__all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences"]
+__all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences", "filled_cells"]
 
-#: Smallest singular value of the centred cell states, relative to the largest, that the data
-#: must give: below it some cell weights are not resolved by the records (grid too fine).
-RESOLUTION_TOLERANCE = 1e-6
+#: Smallest smoothness weight (relative to the mean diagonal of ``Phi' Phi``): even with
+#: ``smoothing=0`` the prior outweighs the data in directions whose singular value is below
+#: 1e-6 of the largest (rounding-level information), so those cells take the smoothest values.
+PRIOR_FLOOR = 1e-12
+#: A cell whose resolution (diagonal of ``(G + lambda D'D)^-1 G``, 1 = set by the data alone)
+#: falls below this is counted as filled by the prior.
+FILLED_RESOLUTION = 0.5
 
 
 def _is_range(value: Any) -> bool:
@@ -67,6 +74,17 @@ def second_differences(n: int) -> np.ndarray:
     return np.array(rows).reshape(-1, len(index))
 
 
+def filled_cells(R: np.ndarray, lam: float, D: np.ndarray) -> int:
+    """Cells set by the prior rather than the data: resolution ``diag((G + lam D'D)^-1 G)``
+    (``G = R'R``) below ``FILLED_RESOLUTION`` (the model resolution matrix of inverse theory)."""
+    G = R.T @ R
+    try:
+        res = np.diag(np.linalg.solve(G + lam * (D.T @ D), G))
+    except np.linalg.LinAlgError:  # a grid too small for second differences, records that miss cells
+        res = np.diag(np.linalg.lstsq(G + lam * (D.T @ D), G, rcond=None)[0])
+    return int(np.sum(res < FILLED_RESOLUTION))
+
+
 @dataclass(frozen=True)
 class PreisachFit:
     """Result of :meth:`PreisachIdentifier.fit` (no training data kept).
@@ -78,18 +96,24 @@ class PreisachFit:
         Per record, in % of that record's output range.
     output_offsets : tuple of float
         Fitted output offset of each record.
+    filled_cells : int
+        Cells the records leave (nearly) undetermined, whose weights the smoothness prior set.
     """
 
     model: PreisachModel
     max_error_percent: tuple[float, ...]
     rms_error_percent: tuple[float, ...]
     output_offsets: tuple[float, ...]
+    filled_cells: int = 0
 
     def summary(self) -> str:
         errs = ", ".join(
             f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
         )
-        return f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} cells): {errs}"
+        head = f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} cells): {errs}"
+        if not self.filled_cells:
+            return head
+        return f"{head}; the smoothness prior filled {self.filled_cells} cells the records leave undetermined"
 
 
 class PreisachIdentifier(Estimator):
@@ -107,7 +131,13 @@ class PreisachIdentifier(Estimator):
     Raises (from fit)
     -----------------
     DataError
-        Records that do not resolve the grid (one line naming the cause).
+        Records whose input never moves (they determine no cell; one line).
+
+    Notes
+    -----
+    Cells that no reversal pair of the records reaches (a grid finer than the records, an input
+    that covers part of the triangle) are filled by the smoothness prior, never refused;
+    :attr:`PreisachFit.filled_cells` counts them and the summary says so in one line.
     """
 
     parameter_constraints = {
@@ -127,11 +157,17 @@ class PreisachIdentifier(Estimator):
         recs, in_name, out_name = read_records(data, inputs, outputs)
         lo = min(float(u.min()) for u, _ in recs)
         hi = max(float(u.max()) for u, _ in recs)
+        if self.input_range is None and not lo < hi:
+            raise DataError(
+                f"a Preisach model needs an input that varies; got a constant input ({lo:g}) in every record."
+            )
         if self.input_range is not None:
             lo, hi = (float(v) for v in self.input_range)
         n = int(self.n_levels)
         A, b, means = self._centred_problem(recs, (lo, hi), n)
-        w = self._solve(A, b)
+        lam = max(float(self.smoothing), PRIOR_FLOOR) * float(np.mean(np.sum(A**2, axis=0)))
+        D = second_differences(n)
+        w = self._solve(A, b, lam, D)
         offsets = tuple(float(my - mp @ w) for mp, my in means)
         model = PreisachModel((lo, hi), w, offsets[0], inputs=(in_name,), outputs=(out_name,), input_limits=(lo, hi))
         maxe, rmse = [], []
@@ -140,7 +176,13 @@ class PreisachIdentifier(Estimator):
             span = float(np.ptp(y))
             maxe.append(100 * float(np.max(np.abs(e))) / span)
             rmse.append(100 * float(np.sqrt(np.mean(e**2))) / span)
-        return PreisachFit(model.with_state(model.consistent_state(recs[0][0][0])), tuple(maxe), tuple(rmse), offsets)
+        return PreisachFit(
+            model.with_state(model.consistent_state(recs[0][0][0])),
+            tuple(maxe),
+            tuple(rmse),
+            offsets,
+            filled_cells(A, lam, D),
+        )
 
     def _centred_problem(self, recs: list, input_range: tuple, n: int) -> tuple[np.ndarray, np.ndarray, list]:
         """Centred cell states and outputs of all records stacked (one offset per record)."""
@@ -155,20 +197,18 @@ class PreisachIdentifier(Estimator):
         # so NNLS and the resolution check work on a square matrix of the cells' size
         Q, R = np.linalg.qr(np.vstack(blocks))
         c = Q.T @ np.concatenate(rhs)
-        s = np.linalg.svd(R, compute_uv=False)
-        weak = int(np.sum(s <= RESOLUTION_TOLERANCE * s[0]))
-        if weak:
+        # the prior fills what the data leave open, but it needs some cell that the input moves
+        if not np.any(np.abs(R) > 0):
+            u0 = recs[0][0][0]
             raise DataError(
-                f"a Preisach grid of {n} levels is finer than the records resolve "
-                f"({weak} of {R.shape[1]} cell weights undetermined); use fewer levels."
+                f"a Preisach model needs an input that moves across its grid [{input_range[0]:g}, "
+                f"{input_range[1]:g}]; got a constant input ({u0:g}) in every record."
             )
         return R, c, means
 
-    def _solve(self, R: np.ndarray, c: np.ndarray) -> np.ndarray:
+    def _solve(self, R: np.ndarray, c: np.ndarray, lam: float, D: np.ndarray) -> np.ndarray:
         from scipy.optimize import nnls
 
-        D = second_differences(int(self.n_levels))
-        lam = float(self.smoothing) * float(np.mean(np.sum(R**2, axis=0)))
         w, _ = nnls(np.vstack([R, np.sqrt(lam) * D]), np.r_[c, np.zeros(D.shape[0])], maxiter=50 * R.shape[1])
         if not np.all(np.isfinite(w)):
             raise IdentificationError("the Preisach weight problem gave non-finite weights.")
