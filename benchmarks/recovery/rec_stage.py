@@ -32,7 +32,6 @@ import math
 import pathlib
 
 import numpy as np
-
 from common import TIME_STYLES, CliFailure, Row, run_cli, write_record
 
 ESTIMATOR = "Stage model"
@@ -168,7 +167,14 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
         paths.append(write_record(workdir / f"stage{seed}_{k}.csv", {"V": u, "y": y}, FS, style, rng))
     out = workdir / f"stage{seed}.json"
     argv = ["identify", "hysteresis", *paths, "--input", "V", "--output", "y", "--model", "pi"]
-    argv += ["--operators", str(n_ops), "--dynamics", str(max(order, 1)), "--creep", "none" if tau is None else f"{tau!r}"]
+    argv += [
+        "--operators",
+        str(n_ops),
+        "--dynamics",
+        str(max(order, 1)),
+        "--creep",
+        "none" if tau is None else f"{tau!r}",
+    ]
     detail = f"order {order}, creep {'none' if tau is None else f'{tau:.3g} s'}, {n_ops} operators, {style} time"
     try:
         run_cli([*argv, "--quiet", "-o", str(out)])
