@@ -5,7 +5,7 @@ grid (``r_i = i A / n``, ``A`` the drives' half range, 4-8 operators), an option
 (``tau`` 0.05-0.5 s), and unit-DC-gain dynamics of order 0, 1 (a lag at 300-3000 Hz) or 2 (a
 resonance at 100-800 Hz, damping 0.3-5 %), at 10 kHz.  Two identification records (a decaying
 triangle at 10-40 Hz and a band-limited random drive) are written with the seed's time-column
-style and white output noise of ``noise`` times the output range (RMS); a third record (a
+style and white output noise of RMS ``noise`` times the output's RMS (about its mean); a third record (a
 decaying sine at another rate) is held out.
 
 The fit runs through the command line with the truth's structure given explicitly (the
@@ -162,7 +162,7 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     recs, paths = [], []
     for k, u in enumerate((tri, rand)):
         clean = true.simulate(u)[:, 0]
-        y = clean + noise * np.ptp(clean) * rng.standard_normal(u.size)
+        y = clean + noise * np.std(clean) * rng.standard_normal(u.size)
         recs.append((u, y))
         paths.append(write_record(workdir / f"stage{seed}_{k}.csv", {"V": u, "y": y}, FS, style, rng))
     out = workdir / f"stage{seed}.json"
