@@ -1,7 +1,7 @@
 """The stage recipe trained on each pair of the dSPACE FORC records, validated on the tracking records.
 
 Run: ``OMP_NUM_THREADS=1 python studies/hysteresis/stage_pairs_study.py [--modes auto|spectrum]
-[--pair A+B ...]``; prints one Markdown row per pair (the table of ``studies/hysteresis/RESULTS.md``
+[--pair A+B ...] [--order N --creep TAU ...]``; prints one Markdown row per pair (the table of ``studies/hysteresis/RESULTS.md``
 section 4h).
 
 The recipe is the one a user passes for a rate-dependent stage per the README:
@@ -29,6 +29,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", default="auto", choices=("auto", "spectrum"))
     parser.add_argument("--pair", action="append", default=None)
+    parser.add_argument("--order", type=int, default=None, help="a fixed order instead of auto")
+    parser.add_argument("--creep", type=float, nargs="+", default=None, help="fixed creep time constants [s]")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(HERE.parents[1] / "tests"))
     from _dspace_records import dspace_record
@@ -40,7 +42,9 @@ def main(argv: list[str] | None = None) -> None:
     for pair in args.pair or PAIRS:
         train = [dspace_record(n)[:2] for n in pair.split("+")]
         start = time.process_time()
-        est = StageIdentifier("preisach", dynamics="auto", creep="auto", sample_time=DT, disturbance_modes=args.modes)
+        dynamics = "auto" if args.order is None else args.order
+        creep = "auto" if args.creep is None else tuple(args.creep)
+        est = StageIdentifier("preisach", dynamics=dynamics, creep=creep, sample_time=DT, disturbance_modes=args.modes)
         fit = est.fit(train)
         seconds = time.process_time() - start
         rms = [validate_record(fit.model, *dspace_record(n), "estimate").rms_error_percent for n in TRACKING]
