@@ -310,13 +310,18 @@ class StageIdentifier(Estimator):
         """``(True, order, taus, held-out scores, model, offsets)`` with the modes in the dynamics
         when they lower the held-out error of the choice without them (``"spectrum"``: always);
         else ``(False, note)``."""
-        without = problem.held_out_score(order, taus) if self.disturbance_modes == "auto" else np.nan
+        evidence = self.disturbance_modes == "auto"
+        without = problem.held_out_score(order, taus) if evidence else np.nan
         problem.prefilter = resonance_filter(modes, problem.dt)
         # with auto order or creep both are chosen again with the modes in place
         order_m, taus_m, held_out = choose_candidate(problem, orders, creeps)
-        with_modes = min(c[2] for c in held_out) if held_out else problem.held_out_score(order_m, taus_m)
+        if held_out:
+            with_modes = min(c[2] for c in held_out)
+        else:
+            with_modes = problem.held_out_score(order_m, taus_m) if evidence else np.nan
+            held_out = [(order_m, taus_m, with_modes)] if evidence else []
         hz = ", ".join(f"{m.frequency_hz:.4g} Hz" for m in modes)
-        if self.disturbance_modes == "auto" and not modes_improve(without, with_modes):
+        if evidence and not modes_improve(without, with_modes):
             problem.prefilter = None
             return False, (
                 f"modes at {hz} from the disturbance spectrum did not lower the held-out error "
@@ -326,7 +331,7 @@ class StageIdentifier(Estimator):
         w, c, offsets, ba = problem.fit(order_m, taus_m, everything)
         model = problem.build(w, c, offsets[0], taus_m, ba, *names)
         model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
-        return True, order_m, taus_m, held_out or [(order_m, taus_m, with_modes)], model, offsets
+        return True, order_m, taus_m, held_out, model, offsets
 
     def _first_step(self, data, inputs, outputs, recs, dt):
         """Step 1: the rate-independent hysteresis, the records' starting states and the step-2 problem."""
