@@ -1,7 +1,7 @@
 """Randomised recovery of the rate-dependent stage model (``stageid identify hysteresis --dynamics N``).
 
 A draw (``case``) is a random classical PI hysteresis on the identification's own threshold
-grid (``r_i = i A / n``, ``A`` the drives' half range, 4-8 operators), an optional creep lag
+grid (``r_i = i R / n``, ``R`` the identification drives' half range, 4-8 operators), an optional creep lag
 (``tau`` 0.05-0.5 s), and unit-DC-gain dynamics of order 0, 1 (a lag at 300-3000 Hz) or 2 (a
 resonance at 100-800 Hz, damping 0.3-5 %), at 10 kHz.  Two identification records (a decaying
 triangle at 10-40 Hz and a band-limited random drive) are written with the seed's time-column
@@ -44,8 +44,10 @@ ERROR_LIMIT = 1.0
 COST_LIMIT = 1.05
 
 
-def _true_stage(rng: np.random.Generator):
-    """``(StageModel, order, creep tau or None, n_operators)`` drawn from ``rng``."""
+def _true_stage(rng: np.random.Generator, half_range: float, centre: float):
+    """``(StageModel, order, creep tau or None, n_operators)`` drawn from ``rng``, thresholds on
+    the grid the identification puts over the drives' half range, plays centred where it
+    centres them (the middle of the range), at rest at input 0."""
     from scipy.signal import cont2discrete
 
     from stageid.hysteresis import PIModel
@@ -54,7 +56,7 @@ def _true_stage(rng: np.random.Generator):
     from stageid.hysteresis.stage import StageModel
 
     n = int(rng.integers(4, 9))
-    r = np.arange(n) * AMPLITUDE / n
+    r = np.arange(n) * half_range / n
     w = np.r_[rng.uniform(0.6, 1.2), rng.uniform(0.02, 0.4, n - 1) / np.sqrt(np.arange(1, n))]
     tau = float(rng.uniform(0.05, 0.5)) if rng.random() < 0.5 else None
     creep = None if tau is None else CreepTerm(time_constants=[tau], weights=[rng.uniform(0.02, 0.08)], sample_time=DT)
@@ -69,7 +71,8 @@ def _true_stage(rng: np.random.Generator):
         b, a, _ = cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), DT, "zoh")
         b = np.ravel(b)
         dyn = transfer_to_statespace(b * np.sum(a) / np.sum(b), a, DT)
-    return StageModel(PIModel(r=r, weights=w, creep=creep), dyn), order, tau, n
+    h = PIModel(r=r, weights=w, creep=creep, input_offset=centre)
+    return StageModel(h.with_state(h.consistent_state(0.0, "zero")), dyn), order, tau, n
 
 
 def _drives(rng: np.random.Generator) -> list[np.ndarray]:
@@ -154,9 +157,11 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     from stageid.hysteresis.stage import StageModel
 
     rng = np.random.default_rng(seed)
-    true, order, tau, n_ops = _true_stage(rng)
-    style = TIME_STYLES[seed % len(TIME_STYLES)]
     tri, rand, held = _drives(rng)
+    # the fit's thresholds are i R / n with R the identification drives' half range, centred
+    lo, hi = min(tri.min(), rand.min()), max(tri.max(), rand.max())
+    true, order, tau, n_ops = _true_stage(rng, 0.5 * (hi - lo), 0.5 * (hi + lo))
+    style = TIME_STYLES[seed % len(TIME_STYLES)]
     if style == "float32":  # float32 time stamps only resolve short records at 10 kHz
         style = "repr"
     recs, paths = [], []
