@@ -16,8 +16,9 @@ import rec_stage  # noqa: E402
 @pytest.mark.parametrize(
     ("seed", "order"),
     [
+        # 13, 8 and 2 were refused ("one sampling period for all records") before the shared rule
         (13, 0),  # no dynamics, offset time column: --dynamics 1 must be dropped on held-out evidence
-        (8, 0),  # creep with an offset time column: refused for "one sampling period" before the shared rule
+        (8, 0),  # creep with an offset time column
         (2, 1),  # a lag, accumulated (cumsum) time column
         (6, 2),  # a resonance and creep, fixed-decimal time column
     ],
