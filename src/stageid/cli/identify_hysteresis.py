@@ -113,18 +113,21 @@ Examples:
     callback=_order,
     metavar="N|auto|none",
     help="Fit a stage model: hysteresis -> creep -> discrete linear dynamics of order N with unit DC "
-    "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics). "
+    "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics; "
+    "an order N that does not lower the held-out error is dropped, and the summary says so). "
     "Writes a model of kind `stage`; needs a time axis.",
 )
 @click.option(
     "--disturbance-modes",
     "modes",
-    type=click.Choice(["auto", "none"]),
+    type=click.Choice(["auto", "spectrum", "none"]),
     default="auto",
     show_default=True,
-    help="With --dynamics: auto puts the lightly damped modes that a broadband disturbance rings in "
-    "every record's residual (drive harmonics left out) into the dynamics, with unit DC gain, and "
-    "refits; none: never. The summary and the JSON list the modes taken.",
+    help="With --dynamics: the lightly damped modes that a broadband disturbance rings in every "
+    "record's residual (drive harmonics left out) go into the dynamics, with unit DC gain, and the "
+    "model is refitted; auto keeps them when they lower the held-out error (each record left out "
+    "in turn), spectrum whenever they are found (a mode the drives do not excite); none: never. "
+    "The summary and the JSON list the modes taken.",
 )
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")
 @click.option(

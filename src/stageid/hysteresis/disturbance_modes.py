@@ -29,7 +29,10 @@ tracking records are validation data and did not set it):
    and averages the rest into the common bins.  Only common bins that every record keeps are
    candidates and are fitted (elsewhere a line of one record would stand alone); the others
    are interpolated from their neighbours for the floor.
-4. The floor at frequency ``f`` is the median of the detection spectrum over ``[f/2, 2f]``.
+4. The floor at frequency ``f`` is the median of the detection spectrum over ``[f/2, 2f]``,
+   and never below the numerical floor: the PSD of white noise of RMS ``PRECISION_ULPS``
+   rounding units of the records' largest output (``output_scale``), so a residual at the
+   level of floating-point rounding (a noise-free record the model holds) never yields a mode.
    Candidates are local maxima in ``[BAND[0], BAND[1]] * fs`` whose ratio to the floor is at
    least ``CANDIDATE_RATIO``, strongest first, at most ``MAX_MODES`` accepted.
 5. Each candidate's spectrum over ``[f/SPAN, f*SPAN]`` is fitted (log least squares, robust
@@ -72,6 +75,8 @@ __all__ = [
     "POLE_DAMPING",
     "MAX_NFEV",
     "LINE_HALF_WIDTH",
+    "PRECISION_ULPS",
+    "numerical_floor",
 ]
 
 #: A record whose drive fundamental spans at least this many bins leaves out its harmonics ...
@@ -101,6 +106,9 @@ POLE_DAMPING = 0.3
 SEPARATION = 5.0
 #: The fit window around a candidate: [f / SPAN, f * SPAN].
 SPAN = 1.4
+#: RMS of the numerical floor in units of ``eps * output_scale``: filters and creep lags run
+#: over tens of thousands of samples, whose rounding adds up far beyond one unit.
+PRECISION_ULPS = 1e4
 
 
 @dataclass(frozen=True)
@@ -200,8 +208,16 @@ def _expected(f: np.ndarray, fn: float, zeta: float, df: float, kernel: np.ndarr
     return mag @ kernel
 
 
-def _fit_peak(f: np.ndarray, s: np.ndarray, measured: np.ndarray, fp: float, floor0: float, dt: float):
-    """``(fn, zeta, peak over floor)`` of ``floor + K |R|^2`` fitted to ``s`` near ``fp``."""
+def numerical_floor(output_scale: float, dt: float) -> float:
+    """One-sided PSD of white noise of RMS ``PRECISION_ULPS * eps * output_scale`` (rule 4)."""
+    return 2.0 * dt * (PRECISION_ULPS * np.finfo(float).eps * abs(float(output_scale))) ** 2
+
+
+def _fit_peak(
+    f: np.ndarray, s: np.ndarray, measured: np.ndarray, fp: float, floor0: float, dt: float, least: float = 0.0
+):
+    """``(fn, zeta, peak over floor)`` of ``floor + K |R|^2`` fitted to ``s`` near ``fp``; the
+    fitted floor counts as at least ``least`` (the numerical floor)."""
     from scipy.optimize import least_squares
 
     over = 8
@@ -225,11 +241,15 @@ def _fit_peak(f: np.ndarray, s: np.ndarray, measured: np.ndarray, fp: float, flo
     fn, zeta = float(res.x[0] * fp), float(np.exp(res.x[1]))
     # the peak as the Welch estimate sees it (window-smoothed), not the resonance's own
     peak = np.exp(res.x[2]) * float(np.max(_expected(fw, fn, zeta, df, kernel, over)))
-    return fn, zeta, float(1 + peak / np.exp(res.x[3]))
+    return fn, zeta, float(1 + peak / max(np.exp(res.x[3]), least))
 
 
 def disturbance_modes(
-    residuals: list[np.ndarray], drives: list[np.ndarray], dt: float, poles: np.ndarray | None = None
+    residuals: list[np.ndarray],
+    drives: list[np.ndarray],
+    dt: float,
+    poles: np.ndarray | None = None,
+    output_scale: float | None = None,
 ) -> tuple[DisturbanceMode, ...]:
     """The lightly damped modes that the rule of this module finds in the records' residuals.
 
@@ -243,6 +263,9 @@ def disturbance_modes(
         Sampling period [s].
     poles : ndarray, optional
         Discrete poles of the dynamics already in the model (rule 6).
+    output_scale : float, optional
+        The records' largest absolute output, which sets the numerical floor (rule 4); by
+        default the largest absolute residual (a floor that only rules out pure rounding).
     """
     f, P = residual_spectra(residuals, drives, dt)
     if P.shape[0] == 0:
@@ -250,7 +273,10 @@ def disturbance_modes(
     s, measured = _detection_spectrum(P)
     if not measured.any():
         return ()
-    floor = _floor(f, s)
+    if output_scale is None:
+        output_scale = max(float(np.max(np.abs(e))) for e in residuals)
+    least = numerical_floor(output_scale, dt)
+    floor = np.maximum(_floor(f, s), least)
     fs = 1.0 / dt
     df = f[1] - f[0]
     inside = (f >= BAND[0] * fs) & (f <= BAND[1] * fs) & measured
@@ -267,7 +293,7 @@ def disturbance_modes(
         if any(lo <= f[k] <= hi for lo, hi in bands):
             continue
         try:
-            fn, zeta, peak = _fit_peak(f, s, measured, float(f[k]), float(floor[k]), dt)
+            fn, zeta, peak = _fit_peak(f, s, measured, float(f[k]), float(floor[k]), dt, least)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if peak < PEAK_RATIO or zeta > MAX_DAMPING or 2 * zeta * fn < df:

@@ -33,10 +33,14 @@ __all__ = [
     "zoh_resonance",
     "transfer_to_statespace",
     "statespace_to_transfer",
+    "describe_pole",
+    "ZERO_POLE",
 ]
 
 #: Steiglitz-McBride iterations (the fit converges in a few on the records we tried).
 SM_ITERATIONS = 8
+#: A pole of smaller modulus is reported as "z ~ 0" (a one-sample delay within rounding).
+ZERO_POLE = 1e-6
 
 
 def zoh_resonance(frequency_hz: float, damping: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -225,3 +229,26 @@ def fit_hammerstein(records: list[tuple[np.ndarray, np.ndarray]], order: int) ->
     if b is None or not np.all(np.isfinite(b)):
         raise IdentificationError(f"the dynamics fit of order {n} failed (non-finite coefficients).")
     return b, a
+
+
+def describe_pole(z: complex, dt: float) -> str:
+    """A discrete pole in words: its frequency ``|ln z| / (2 pi dt)`` when that is within the
+    Nyquist frequency, else its place in the z-plane ("z ~ 0", "z = -0.3 (negative real axis)"):
+    a pole near the origin or on the negative real axis has no continuous-time frequency that
+    the sampling resolves, and a figure above Nyquist would mislead.
+
+    Examples
+    --------
+    >>> describe_pole(0.9, 1e-4), describe_pole(-0.3, 1e-4), describe_pole(1e-13, 1e-4)
+    ('167.7 Hz', 'z = -0.3 (negative real axis)', 'z ~ 0')
+    """
+    z = complex(z)
+    if abs(z) < ZERO_POLE:
+        return "z ~ 0"
+    if abs(z.imag) <= 1e-12 * abs(z) and z.real < 0:
+        return f"z = {z.real:.3g} (negative real axis)"
+    s = np.log(z)
+    if abs(s) > np.pi:  # beyond Nyquist: the pole sits close to the origin
+        shown = f"{z.real:.3g}" if z.imag == 0 else f"{z.real:.3g}{z.imag:+.3g}j"
+        return f"z = {shown} (near 0, faster than the sampling resolves)"
+    return f"{abs(s) / (2 * np.pi * dt):.4g} Hz"

@@ -19,26 +19,31 @@ Procedure (:meth:`StageIdentifier.fit`):
    from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
    the variable-projection fit :func:`~.stage_problem.refine_output_error`), keeping the least
    residual: never worse than no dynamics on the fitted rows.
-3. **auto** (``dynamics="auto"``, ``creep="auto"``): every candidate (orders
-   ``AUTO_ORDERS``, creep sets ``AUTO_CREEP``) is fitted on all records but one and scored by
-   its RMS error on the one left out (own offset), summed over the records; with a single
-   record the first 60 % of it is fitted and the rest scored.  The simplest candidate within
-   ``AUTO_TOLERANCE`` of the best is then fitted on all records.
+3. **Order and creep by held-out evidence** (:mod:`.stage_selection`): every candidate is
+   fitted on all records but one and scored by its RMS error on the one left out (own
+   offset), summed over the records; with a single record the first 60 % of it is fitted and
+   the rest scored.  ``auto`` (orders ``AUTO_ORDERS``, creep sets ``AUTO_CREEP``) takes the
+   simplest candidate within ``AUTO_TOLERANCE`` of the best.  A fixed order ``N`` is kept
+   only when its held-out error is below that of no dynamics (same creep); otherwise the
+   model has none and the summary says so, so ``dynamics=N`` is never worse held out than
+   no dynamics.  The choice is then fitted on all records.
 4. **Thresholds again** when dynamics were found: step 1 on the outputs with ``G`` stably
    inverted (:func:`~.stage_inverse.invert_dynamics`; the first pass saw the dynamics as
    hysteresis), then step 2; kept only when the summed RMS error on the records drops.  (PI
    only: a Preisach grid has no thresholds to search.)
-5. **Modes from the disturbance** (``disturbance_modes="auto"``, the default, with any
-   dynamics but ``None``): the residual of the fit of steps 2-4 on every record goes to
+5. **Modes from the disturbance** (``disturbance_modes`` not None, with any dynamics but
+   ``None``): the residual of the fit of steps 2-4 on every record goes to
    :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
    lightly damped modes a broadband disturbance rings in every record, which the drives
-   themselves do not excite.  Found modes become a fixed unit-DC-gain resonance filter in
-   series with ``G`` (:func:`~.disturbance_modes.resonance_filter`), and step 2 is fitted
-   again with the same order and creep and the thresholds of step 4 (weights, creep, offsets and the low-order ``G``
-   jointly, the modes fixed).  ``auto`` does not decide on a mode by held-out error, which
-   cannot see a mode the drives do not excite: the mode's significance in the residual
-   spectrum decides.  With ``auto`` order or creep, step 3 runs again with the modes in
-   place (the held-out scores reported are that second run's).
+   themselves do not excite, above a floor that is never below numerical precision.  Found
+   modes become a fixed unit-DC-gain resonance filter in series with ``G``
+   (:func:`~.disturbance_modes.resonance_filter`); with ``auto`` order or creep, step 3 runs
+   again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
+   low-order ``G`` jointly, the modes fixed).  ``"auto"`` (the default) keeps the modes only
+   when the held-out error with them is below the held-out error without them, and otherwise
+   says in the summary that they were left out; ``"spectrum"`` keeps them on the spectral
+   evidence alone (a mode the identification drives do not excite, which held-out error on
+   those records cannot see).
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
@@ -56,6 +61,7 @@ from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
+from .dynamics import describe_pole
 from .identification import MODEL_KINDS, PIIdentifier
 from .preisach_identification import PreisachIdentifier
 from .records import STATE_CHOICES, read_records, sampling_period
@@ -63,13 +69,12 @@ from .stage import StageModel
 from .stage_inverse import invert_dynamics
 from .stage_preisach import PreisachStageProblem, best_start_kinds
 from .stage_problem import N_ALTERNATIONS, StageProblem
+from .stage_selection import choose_candidate, fixed_order, modes_improve
 
 __all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
 
 AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
-#: Relative margin within which ``auto`` prefers the candidate with fewer parameters.
-AUTO_TOLERANCE = 0.02
 #: At least this many samples per dynamics coefficient (2n + 1 of them) in every record.
 SAMPLES_PER_COEFFICIENT = 50
 
@@ -128,13 +133,9 @@ class StageFit:
         for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
         if self.model.dynamics is not None:
-            poles = self.model.dynamics.poles()
-            with np.errstate(divide="ignore"):  # a pole at z = 0 (a delay) has no frequency
-                hz = np.abs(np.log(poles.astype(complex))) / (2 * np.pi * self.model.dt)
-            lines.append(
-                "  dynamics poles at "
-                + ", ".join(f"{f:.4g} Hz" if np.isfinite(f) else "z = 0 (a one-sample delay)" for f in sorted(hz))
-            )
+            # by frequency as the continuous equivalent has it; a pole at z = 0 has none and comes last
+            poles = sorted(self.model.dynamics.poles(), key=lambda z: abs(np.log(complex(z))) if z != 0 else np.inf)
+            lines.append("  dynamics poles at " + ", ".join(describe_pole(z, self.model.dt) for z in poles))
         for m in self.modes:
             lines.append(
                 f"  mode from the disturbance spectrum: {m.frequency_hz:.4g} Hz, damping {m.damping:.3g} "
@@ -144,18 +145,6 @@ class StageFit:
             lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
         lines.append(f"  {self.message}")
         return "\n".join(lines)
-
-
-def choose_candidate(problem: StageProblem, orders: tuple[int, ...], creeps: tuple) -> tuple[int, tuple, list]:
-    """``(order, creep time constants, held-out scores)``: the simplest candidate within
-    ``AUTO_TOLERANCE`` of the best held-out error (step 3), or the only candidate."""
-    if len(orders) * len(creeps) == 1:
-        return orders[0], creeps[0], []
-    held_out = [(n, taus, problem.held_out_score(n, taus)) for taus in creeps for n in orders]
-    best = min(c[2] for c in held_out)
-    simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
-    order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)
-    return order, taus, held_out
 
 
 class StageIdentifier(Estimator):
@@ -168,7 +157,8 @@ class StageIdentifier(Estimator):
         As in :class:`~stageid.hysteresis.PIIdentifier` (PI kinds).
     dynamics : int >= 1, "auto" or None, default "auto"
         Order of the linear dynamics; ``None``: none; ``"auto"``: picked from ``AUTO_ORDERS``
-        (0-4) by held-out error.
+        (0-4) by held-out error.  An order ``N`` is kept only when it lowers the held-out
+        error below that of no dynamics (step 3).
     creep : sequence of positive seconds, "auto" or None, default "auto"
         Creep time constants; ``"auto"``: picked from ``AUTO_CREEP`` by held-out error.
     initial_state : {"auto", "zero", "ascending", "descending"}, default "auto"
@@ -180,9 +170,10 @@ class StageIdentifier(Estimator):
         Preisach only: cells per axis of the grid (as :class:`~stageid.hysteresis.PreisachIdentifier`).
     smoothing : float, default 1e-4
         Preisach only: weight of the smoothness penalty (as :class:`~stageid.hysteresis.PreisachIdentifier`).
-    disturbance_modes : "auto" or None, default "auto"
-        ``"auto"``: lightly damped modes found in the records' disturbance spectrum are put in
-        the dynamics (step 4; only when ``dynamics`` is not None); ``None``: never.
+    disturbance_modes : {"auto", "spectrum"} or None, default "auto"
+        Lightly damped modes found in the records' disturbance spectrum are put in the dynamics
+        (step 5; only when ``dynamics`` is not None): ``"auto"`` when they lower the held-out
+        error, ``"spectrum"`` whenever found; ``None``: never.
 
     Examples
     --------
@@ -211,7 +202,7 @@ class StageIdentifier(Estimator):
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
         "n_levels": [Interval(int, 2, None, closed="left")],
         "smoothing": [Interval(float, 0, None, closed="left")],
-        "disturbance_modes": [Options("auto"), None],
+        "disturbance_modes": [Options("auto", "spectrum"), None],
     }
 
     def __init__(
@@ -268,24 +259,31 @@ class StageIdentifier(Estimator):
             )
         orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
         problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
-        order, taus, held_out = choose_candidate(problem, orders, creeps)
-        everything = [np.ones(u.size, bool) for u, _ in recs]
-        w, c, offsets, ba = problem.fit(order, taus, everything)
-        model = problem.build(w, c, offsets[0], taus, ba, *names)
-        if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
-            problem, model, offsets = self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
+        notes: list[str] = []
+        if self.dynamics in (None, "auto"):
+            order, taus, held_out = choose_candidate(problem, orders, creeps)
+        else:  # a fixed order is kept only with held-out evidence (never worse than none)
+            _, taus, scores = choose_candidate(problem, orders, creeps)
+            order, held_out, note = fixed_order(problem, orders[0], taus, scores)
+            notes += [note] if note else []
+        problem, model, offsets = self._fit_chosen(problem, recs, kinds, dt, order, taus, names)
         modes: tuple[DisturbanceMode, ...] = ()
-        if self.disturbance_modes == "auto" and self.dynamics is not None:  # step 5
+        if self.disturbance_modes is not None and self.dynamics is not None:  # step 5
             poles = None if model.dynamics is None else model.dynamics.poles()
-            modes = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles)
-            if modes:
-                problem.prefilter = resonance_filter(modes, dt)
-                # the order and creep are chosen again with the modes in place
-                order, taus, held_out = choose_candidate(problem, orders, creeps)
-                w, c, offsets, ba = problem.fit(order, taus, everything)
-                model = problem.build(w, c, offsets[0], taus, ba, *names)
-                model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
+            scale = max(float(np.max(np.abs(y))) for _, y in recs)
+            found = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles, scale)
+            if found:
+                orders_m = orders if self.dynamics == "auto" else (order,)
+                outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names)
+                if outcome[0]:
+                    _, order, taus, held_out, model, offsets = outcome
+                    modes = found
+                else:
+                    notes.append(outcome[1])
         max_e, rms_e = problem.errors(model, offsets)
+        fitted = "alternated " + (f"{N_ALTERNATIONS} times" if problem.settle == 0 else "until settled")
+        if model.dynamics_order != order + 2 * len(modes):
+            notes.append(f"order-{order} dynamics did not lower the residual: none")
         return StageFit(
             model=model,
             max_error_percent=tuple(max_e),
@@ -296,14 +294,44 @@ class StageIdentifier(Estimator):
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
             modes=modes,
-            message=f"{base_message}; weights, creep and dynamics "
-            + (f"alternated {N_ALTERNATIONS} times" if problem.settle == 0 else "alternated until settled")
-            + (
-                "."
-                if model.dynamics_order == order + 2 * len(modes)
-                else f"; order-{order} dynamics did not lower the residual: none."
-            ),
+            message=f"{base_message}; weights, creep and dynamics {fitted}" + "".join(f"; {n}" for n in notes) + ".",
         )
+
+    def _fit_chosen(self, problem, recs, kinds, dt, order, taus, names):
+        """``(problem, model, offsets)`` of the chosen order and creep on all records (steps 2 and 4)."""
+        everything = [np.ones(u.size, bool) for u, _ in recs]
+        w, c, offsets, ba = problem.fit(order, taus, everything)
+        model = problem.build(w, c, offsets[0], taus, ba, *names)
+        if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
+            return self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
+        return problem, model, offsets
+
+    def _with_modes(self, problem, modes, orders, creeps, order, taus, names):
+        """``(True, order, taus, held-out scores, model, offsets)`` with the modes in the dynamics
+        when they lower the held-out error of the choice without them (``"spectrum"``: always);
+        else ``(False, note)``."""
+        evidence = self.disturbance_modes == "auto"
+        without = problem.held_out_score(order, taus) if evidence else np.nan
+        problem.prefilter = resonance_filter(modes, problem.dt)
+        # with auto order or creep both are chosen again with the modes in place
+        order_m, taus_m, held_out = choose_candidate(problem, orders, creeps)
+        if held_out:
+            with_modes = min(c[2] for c in held_out)
+        else:
+            with_modes = problem.held_out_score(order_m, taus_m) if evidence else np.nan
+            held_out = [(order_m, taus_m, with_modes)] if evidence else []
+        hz = ", ".join(f"{m.frequency_hz:.4g} Hz" for m in modes)
+        if evidence and not modes_improve(without, with_modes):
+            problem.prefilter = None
+            return False, (
+                f"modes at {hz} from the disturbance spectrum did not lower the held-out error "
+                f"({with_modes:.3f} % against {without:.3f} % without): left out"
+            )
+        everything = [np.ones(u.size, bool) for u, _ in problem.recs]
+        w, c, offsets, ba = problem.fit(order_m, taus_m, everything)
+        model = problem.build(w, c, offsets[0], taus_m, ba, *names)
+        model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
+        return True, order_m, taus_m, held_out, model, offsets
 
     def _first_step(self, data, inputs, outputs, recs, dt):
         """Step 1: the rate-independent hysteresis, the records' starting states and the step-2 problem."""
