@@ -13,7 +13,7 @@ highest mode plus a half, below Nyquist) as a percentage of the true response's 
 Reference: the same output-error cost minimised from the truth over the output matrices ``C``
 and ``D`` with the true ``A``, ``B`` (a linear least-squares problem, so its optimum is exact);
 cost ratio = the fit's simulated output error (sum of squares over all records) / the
-reference's. Recovered when the error is at most 5 % of the peak plus three times the
+reference's. Recovered when the error is at most 2 % of the peak plus three times the
 reference's error (the noise floor of the draw).
 """
 
@@ -147,4 +147,4 @@ def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     # noise-free draws: the reference reaches rounding level, where a ratio says nothing
     ratio = cost / ref_cost if ref_cost > 1e-12 * energy else float("nan")
     detail += f", fit order {fit.n_states}"
-    return Row(seed, error <= 5.0 + 3 * ref_error, error, "% of peak", ref_error, ratio, noise, detail)
+    return Row(seed, error <= 2.0 + 3 * ref_error, error, "% of peak", ref_error, ratio, noise, detail)

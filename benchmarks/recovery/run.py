@@ -233,7 +233,7 @@ def summarise(outcomes: list[Outcome], dropped: dict[str, int] | None = None) ->
                 estimator=group[0].estimator, module=module, draws=len(group),
                 recovered=sum(o.recovered for o in group), low_noise_draws=len(low),
                 low_noise_recovered=sum(o.recovered for o in low),
-                unit=next((o.unit for o in group if o.unit), ""),
+                unit=next((o.unit for o in group if o.unit and not o.failed), ""),
                 median_error=_median(errors), worst_error=max(errors, default=math.nan, key=_nan_low),
                 median_reference_error=_median([o.reference_error for o in group]),
                 cost_ratio_median=_median(ratios),

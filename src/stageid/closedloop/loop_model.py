@@ -8,6 +8,7 @@ a SISO prediction-error fit of output ``i`` on reference ``j`` over the experime
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -16,7 +17,11 @@ from ..data import Experiment, as_experiments
 from ..models import TransferMatrix
 from .polynomial import PolynomialModel
 
-__all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "identify_pairs"]
+__all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "at_rest", "identify_pairs"]
+
+#: passes of the rest-level estimate, and the least relative drop of the loss a pass must bring
+REST_PASSES = 3
+REST_GAIN = 0.01
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
@@ -78,12 +83,50 @@ def group_by_reference(exps: Sequence[Experiment]) -> dict[int, list[Experiment]
     return groups
 
 
+def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int, list[Experiment]]:
+    """The records as deviations from the loop at rest before their first sample.
+
+    Outputs are taken relative to their first sample (the loop is strictly proper, so ``y[0]``
+    is the rest output). The excited reference is taken relative to its rest level, which is
+    its first sample only when the excitation starts from rest: a multisine starts at a
+    non-zero value, and subtracting that value would add a step the loop never saw. The level
+    of each record is estimated with the diagonal pair ``T_jj``: from the first sample, the
+    step offset ``c`` that best explains the fit's residual (linear least squares on the
+    model's step response) is added while it lowers the loss by more than :data:`REST_GAIN`.
+    """
+    out = {}
+    for j, group in groups.items():
+        r = [e.u[:, j].astype(float) for e in group]
+        y = [e.y[:, j] - e.y[0, j] for e in group]
+        levels = np.array([rk[0] for rk in r])
+        dt = group[0].dt
+        loss = np.inf
+        for _ in range(REST_PASSES):
+            m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
+            res = [yk - m.simulate(rk - lk) for rk, yk, lk in zip(r, y, levels)]
+            step = [m.simulate(np.ones(rk.size)) for rk in r]
+            c = np.array([-(s @ e) / max(s @ s, 1e-300) for s, e in zip(step, res)])
+            now = sum(float(e @ e) for e in res)
+            after = sum(float((e + ck * s) @ (e + ck * s)) for e, s, ck in zip(res, step, c))
+            if not (after < (1.0 - REST_GAIN) * now and now < loss):
+                break
+            loss, levels = now, levels + c
+        out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
+    return out
+
+
+def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
+    u = exp.u - exp.u[0]
+    u[:, j] = exp.u[:, j] - level
+    return replace(exp, u=u, y=exp.y - exp.y[0])
+
+
 def identify_pairs(
     groups: dict[int, list[Experiment]], fit_pair: PairFit
 ) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray]:
     """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14).
 
-    Records are taken relative to their first sample (the loop starts at rest around it).
+    The records are deviations from the loop at rest (:func:`at_rest`).
 
     Returns
     -------
@@ -98,9 +141,9 @@ def identify_pairs(
     num = [[None] * p for _ in range(p)]
     den = [[None] * p for _ in range(p)]
     for j, group in groups.items():
-        r = [e.u[:, j] - e.u[0, j] for e in group]
+        r = [e.u[:, j] for e in group]
         for i in range(p):
-            y = [e.y[:, i] - e.y[0, i] for e in group]
+            y = [e.y[:, i] for e in group]
             m = fit_pair(r, y, dt)
             models[(i, j)] = m
             sim = np.concatenate([m.simulate(rk) for rk in r])
