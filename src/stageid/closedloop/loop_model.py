@@ -19,9 +19,13 @@ from .polynomial import PolynomialModel
 
 __all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "at_rest", "identify_pairs"]
 
-#: passes of the rest-level estimate, and the least relative drop of the loss a pass must bring
-REST_PASSES = 3
-REST_GAIN = 0.01
+#: passes of the rest-level estimate; the least relative drop of the loss a pass must bring; and
+#: the share of the first fit's loss the final level must reach to be kept: a step the loop never
+#: saw dominates the residual, while a smaller gain is the model's own error, which an offset
+#: would only hide
+REST_PASSES = 8
+REST_STEP_GAIN = 0.01
+REST_KEEP = 0.5
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
@@ -92,25 +96,30 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
     non-zero value, and subtracting that value would add a step the loop never saw. The level
     of each record is estimated with the diagonal pair ``T_jj``: from the first sample, the
     step offset ``c`` that best explains the fit's residual (linear least squares on the
-    model's step response) is added while it lowers the loss by more than :data:`REST_GAIN`.
+    model's step response) is added and the pair refitted while a pass lowers the loss by more
+    than :data:`REST_STEP_GAIN`; the level is kept only when the loss falls below
+    :data:`REST_KEEP` times the first fit's, else the first sample stays the rest level.
     """
     out = {}
     for j, group in groups.items():
         r = [e.u[:, j].astype(float) for e in group]
         y = [e.y[:, j] - e.y[0, j] for e in group]
-        levels = np.array([rk[0] for rk in r])
+        first = levels = np.array([rk[0] for rk in r])
         dt = group[0].dt
-        loss = np.inf
+        loss0 = None
         for _ in range(REST_PASSES):
             m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
             res = [yk - m.simulate(rk - lk) for rk, yk, lk in zip(r, y, levels)]
+            loss = sum(float(e @ e) for e in res)
+            loss0 = loss if loss0 is None else loss0
             step = [m.simulate(np.ones(rk.size)) for rk in r]
             c = np.array([-(s @ e) / max(s @ s, 1e-300) for s, e in zip(step, res)])
-            now = sum(float(e @ e) for e in res)
             after = sum(float((e + ck * s) @ (e + ck * s)) for e, s, ck in zip(res, step, c))
-            if not (after < (1.0 - REST_GAIN) * now and now < loss):
+            if not after < (1.0 - REST_STEP_GAIN) * loss:
                 break
-            loss, levels = now, levels + c
+            levels, loss = levels + c, after
+        if not loss < REST_KEEP * loss0:
+            levels = first
         out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
 
