@@ -118,20 +118,20 @@ def flush_messages(print_them: bool = True) -> None:
             click.echo(text, err=err)
 
 
-# Data loggers often store time stamps in single precision: their steps scatter by ~1e-4 of dt
-# (the dSPACE and EMPS records in shared/data). A missing or repeated sample is still a
-# deviation of 100 % and is rejected.
-CLI_TIME_RTOL = 1e-3
-
-
 def read_table_checked(path: str | os.PathLike[str], ts: float | None):
     """Read a CSV/NPZ/MAT file into a :class:`~stageid.data.io.Table` (``ts`` when no ``t`` column).
 
-    The time axis must be uniform to ``CLI_TIME_RTOL`` of the sample time.
+    The time axis follows the sample-time rule (:mod:`stageid.data.sampling`); clock jitter
+    beyond the stamps' rounding is accepted up to its tolerance and noted in one line.
     """
     from ..data.io import read_table
+    from ..data.sampling import jitter_note
 
-    return read_table(path, ts=ts, time_rtol=CLI_TIME_RTOL)
+    table = read_table(path, ts=ts)
+    note = jitter_note(table.jitter, table.dt, f"file '{Path(path).name}': ") if table.dt is not None else ""
+    if note:
+        say(note, err=True)
+    return table
 
 
 def read_experiments(

@@ -35,7 +35,7 @@ def chunked_record(
     else None.  UsageError: chunked inputs with others, an option ``what`` that needs the
     records in memory, or a ``scheduler`` for in-memory records (it would be ignored)."""
     from ..data.chunked import is_chunked_path, open_chunked
-    from ._common import CLI_TIME_RTOL
+    from ..data.sampling import UNIFORM_RTOL
 
     chunked = [p for p in paths if is_chunked_path(p)]
     if not chunked:
@@ -51,7 +51,7 @@ def chunked_record(
         )
     if what:
         raise click.UsageError(f"{what} needs the records in memory; chunked inputs (.h5, .hdf5, .npy, Zarr) do not.")
-    return open_chunked(paths[0], inputs, outputs, ts, CLI_TIME_RTOL)
+    return open_chunked(paths[0], inputs, outputs, ts, UNIFORM_RTOL)
 
 
 @contextlib.contextmanager

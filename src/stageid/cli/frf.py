@@ -111,12 +111,12 @@ def frf_command(
 def _read_records(paths, inputs, outputs, ts) -> list:
     """Welch's records: NPZ archives of 1-D float columns are read channel by channel (no table
     copy; samples checked segment batch by segment batch), everything else as experiments."""
+    from ..data.sampling import UNIFORM_RTOL
     from ..frf.records import read_npz_record
-    from ._common import CLI_TIME_RTOL
 
     records = []
     for p in paths:
-        rec = read_npz_record(p, inputs, outputs, ts, CLI_TIME_RTOL) if str(p).lower().endswith(".npz") else None
+        rec = read_npz_record(p, inputs, outputs, ts, UNIFORM_RTOL) if str(p).lower().endswith(".npz") else None
         records.append(rec if rec is not None else read_experiments([p], inputs, outputs, ts)[0])
     from ..frf.records import as_channel_records
 

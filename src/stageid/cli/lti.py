@@ -41,6 +41,7 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     """
     import numpy as np
 
+    from ..data.sampling import PERIOD_RTOL, same_period, seconds
     from ..models import load_model
     from ._common import check_output, read_table_checked, write_table_output
 
@@ -51,8 +52,11 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     file_ts = ts if ts is not None else _default_ts(input_path, model_dt, rate_independent)
     table = read_table_checked(input_path, ts=file_ts)
     u = np.column_stack([table.column(name) for name in model.inputs])
-    if model_dt is not None and not np.isclose(table.dt, model_dt, rtol=1e-6):
-        raise DataError(f"the input's sample time {table.dt:g} s differs from the model's {model_dt:g} s.")
+    if model_dt is not None and not same_period(table.dt, model_dt):
+        raise DataError(
+            f"the input's sample time {seconds(table.dt)} s differs from the model's {seconds(model_dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
+        )
     y = model.simulate(u, dt=table.dt)
     columns = {name: y[:, k] for k, name in enumerate(model.outputs)}
     if rate_independent and ts is None and file_ts is not None:
@@ -66,13 +70,13 @@ def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> fl
 
     None when the file has its own time axis (read_table rejects a ts that disagrees with `t`).
     """
-    from ._common import read_table_checked
+    from ..data.io import read_table
 
     fallback = model_dt if model_dt is not None else (1.0 if rate_independent else None)
     if fallback is None:
         return None
     try:
-        read_table_checked(path, ts=None)
+        read_table(path, ts=None)
     except DataError as exc:
         if "time column" in str(exc) or "sample time" in str(exc):
             return fallback

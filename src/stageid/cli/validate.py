@@ -97,7 +97,7 @@ def validate_command(
 
 def _experiments(model, data, inputs, outputs, ts):
     """The records' columns for the model's channels, renamed to them; the sample time checked."""
-    import numpy as np
+    from ..data.sampling import PERIOD_RTOL, same_period, seconds
 
     ins = split_names(inputs, "--inputs") or tuple(model.inputs)
     outs = split_names(outputs, "--outputs") or tuple(model.outputs)
@@ -110,8 +110,11 @@ def _experiments(model, data, inputs, outputs, ts):
     model_dt = getattr(model, "dt", None)
     experiments = read_experiments(data, ins, outs, ts, fallback_ts=model_dt)
     for exp in experiments:
-        if model_dt is not None and not np.isclose(exp.dt, model_dt, rtol=1e-6):
-            raise DataError(f"record {exp.name} has sample time {exp.dt:g} s; the model's is {model_dt:g} s.")
+        if model_dt is not None and not same_period(exp.dt, model_dt):
+            raise DataError(
+                f"record {exp.name} has sample time {seconds(exp.dt)} s; the model's is {seconds(model_dt)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
     return tuple(e.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs)) for e in experiments)
 
 

@@ -21,7 +21,9 @@ Layouts
     (n_samples, k) holds the columns ``<name>_1 .. <name>_k`` (the rule of the ``.npz`` and
     ``.mat`` readers for 2-D arrays); ``--ts`` gives the sample time.
 
-When more than one source gives the sample time they must agree (within ``time_rtol``).
+The sample time follows the one rule of :mod:`stageid.data.sampling`: the ``t`` column's
+least-squares period, uniform within ``time_rtol``; when more than one source gives it they must
+agree to ``PERIOD_RTOL``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,17 @@ import numpy as np
 
 from .._errors import DataError
 from ..atomic import note_input
+from .sampling import (
+    PERIOD_RTOL,
+    UNIFORM_RTOL,
+    StampScan,
+    check_period,
+    ends_step,
+    grid_from_scan,
+    same_period,
+    scan_stamps,
+    seconds,
+)
 from .table import TIME_COLUMN
 
 __all__ = [
@@ -158,7 +171,7 @@ def open_chunked(
     inputs: Sequence[str],
     outputs: Sequence[str],
     ts: float | None = None,
-    time_rtol: float = 1e-6,
+    time_rtol: float = UNIFORM_RTOL,
 ) -> ChunkedRecord:
     """The record of an HDF5 file, a Zarr store or ``.npy`` file(s) (see the module notes).
 
@@ -267,12 +280,10 @@ def _attribute_dt(attrs, where: str) -> float | None:
     if "dt" not in attrs:
         return None
     try:
-        dt = float(np.asarray(attrs["dt"]).reshape(()))
+        value = float(np.asarray(attrs["dt"]).reshape(()))
     except (TypeError, ValueError):
         raise DataError(f"{where}: the 'dt' attribute must be one number of seconds; got {attrs['dt']!r}.") from None
-    if not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"{where}: the 'dt' attribute must be a positive number of seconds; got {dt!r}.")
-    return dt
+    return check_period(value, "dt", f"{where}: the attribute ")
 
 
 def _sample_time(path, kind, entries, n, attr_dt, ts, rtol, where) -> float:
@@ -288,28 +299,32 @@ def _sample_time(path, kind, entries, n, attr_dt, ts, rtol, where) -> float:
     if attr_dt is not None:
         given.append(("the 'dt' attribute", attr_dt))
     if ts is not None:
-        given.append(("--ts", float(ts)))
+        given.append(("ts", check_period(ts, "ts", f"{where}: ")))
     if not given:
         raise DataError(f"{where}: no sample time; expected a 'dt' attribute, a 't' column or --ts.")
     first_name, first = given[0]
     for other_name, other in given[1:]:
-        if abs(other - first) > max(rtol, 1e-12) * first:
-            raise DataError(f"{where}: {other_name} ({other:g} s) disagrees with {first_name} ({first:g} s).")
-    return float(ts) if ts is not None else float(first)
+        if not same_period(other, first):
+            raise DataError(
+                f"{where}: {other_name} ({seconds(other)} s) disagrees with {first_name} ({seconds(first)} s); "
+                f"expected agreement to {PERIOD_RTOL:g} relative."
+            )
+    return float(given[-1][1])
 
 
 def _uniform_step(rec: ChunkedRecord, n: int, rtol: float, where: str) -> float:
-    """The step of a time column checked range by range to be uniform within ``rtol`` of it."""
-    t0, t1 = rec.read(0, 1)[0, 0], rec.read(n - 1, n)[0, 0]
-    dt = float((t1 - t0) / (n - 1))
-    if not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"{where}: the time column 't' must increase; got {t0!r} to {t1!r}.")
+    """The period of a time column by the sample-time rule, read range by range."""
+    prefix = f"{where}: "
+    t_first, t_last = float(rec.read(0, 1)[0, 0]), float(rec.read(n - 1, n)[0, 0])
+    if not (np.isfinite(t_first) and np.isfinite(t_last)):
+        raise DataError(f"{prefix}the time column 't' must be finite; got {t_first!r} to {t_last!r}.")
+    scan = StampScan(n, t_first, ends_step(t_first, t_last, n, prefix))
     for a in range(0, n - 1, TIME_CHUNK):
-        t = rec.read(a, min(n, a + TIME_CHUNK + 1))[:, 0]
-        steps = np.diff(t)
-        if not np.all(np.isfinite(t)) or steps.max() > dt * (1 + rtol) or steps.min() < dt * (1 - rtol):
-            raise DataError(f"{where}: the time column 't' must increase uniformly (to {rtol:g} of its step).")
-    return dt
+        t = rec.read(a, min(n, a + TIME_CHUNK + 1))[:, 0].astype(float)
+        if not np.all(np.isfinite(t)):
+            raise DataError(f"{prefix}the time column 't' must be finite; rows {a} to {a + t.shape[0] - 1} are not.")
+        scan = scan_stamps(t, a, scan, prefix, rtol)
+    return grid_from_scan(scan, prefix, rtol).dt
 
 
 def map_reduce(

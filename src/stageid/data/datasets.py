@@ -24,6 +24,7 @@ import numpy as np
 from .._errors import DataError
 from .experiment import Experiment
 from .io import PathLike
+from .sampling import UNIFORM_RTOL
 from .table import Table, time_axis
 
 __all__ = [
@@ -38,8 +39,7 @@ __all__ = [
 
 ENV_VAR = "STAGEID_SHARED_DATA"
 # Logged time stamps are single precision: measured step jitter is 3e-5 (EMPS), 1e-4
-# (smarthysteresis) and 2e-4 (dSPACE) of dt, so the loaders accept steps within 1e-3 of dt.
-_LOGGER_TIME_RTOL = 1e-3
+# (smarthysteresis) and 2e-4 (dSPACE) of dt, within the sample-time rule's UNIFORM_RTOL.
 
 
 def shared_data_dir() -> Path | None:
@@ -155,7 +155,7 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
         except (KeyError, ValueError, IndexError, TypeError):
             nominal = None
     _check_time(t, where)
-    t0, dt = time_axis(t, where, nominal, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(t, where, nominal, UNIFORM_RTOL)
     return Experiment(
         u=volt[:, None],
         y=disp[:, None],
@@ -215,7 +215,7 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
     if data.shape[0] == 0:
         raise DataError(f"file '{p.name}' is empty; expected lines of index, time, displacement, voltage.")
     _check_time(data[:, 0], where)
-    t0, dt = time_axis(data[:, 0], where, None, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(data[:, 0], where, None, UNIFORM_RTOL)
     return Experiment(
         u=data[:, 2:3],
         y=data[:, 1:2],
@@ -276,7 +276,7 @@ def load_emps(path: PathLike) -> Table:
     for k, col in zip(names, columns):
         if col.size != t.size:
             raise DataError(f"{where}variable '{k}' has {col.size} samples but t has {t.size}; expected one length.")
-    t0, dt = time_axis(t, where, None, _LOGGER_TIME_RTOL)
+    t0, dt = time_axis(t, where, None, UNIFORM_RTOL)
     return Table(
         names=tuple(names),
         values=np.column_stack(columns),

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import DataError
+from .sampling import check_period, shared_period
 
 __all__ = ["Experiment", "as_experiments", "check_samples", "MAX_ABS_SAMPLE"]
 
@@ -127,12 +128,7 @@ class Experiment:
             raise DataError(
                 f"inputs and outputs must have the same number of samples; got {u.shape[0]} input rows and {y.shape[0]} output rows."
             )
-        try:
-            dt = float(self.dt)
-        except (TypeError, ValueError):
-            raise DataError(f"`dt` must be a positive number of seconds; got {self.dt!r}.") from None
-        if not np.isfinite(dt) or dt <= 0:
-            raise DataError(f"`dt` must be a positive number of seconds; got {self.dt!r}.")
+        dt = check_period(self.dt, "dt")
         in_names = tuple(str(n) for n in self.input_names) or _default_names("u", u.shape[1])
         out_names = tuple(str(n) for n in self.output_names) or _default_names("y", y.shape[1])
         if len(in_names) != u.shape[1]:
@@ -291,8 +287,9 @@ def _indices(kind: str, names: tuple[str, ...], wanted: Sequence[str] | None) ->
 def as_experiments(data: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:
     """Normalise one experiment or a sequence of them into a checked tuple.
 
-    All experiments must share the sample time and the channel names; identification
-    methods use this to accept several records (e.g. one per excited input).
+    All experiments must share the sample time (to ``PERIOD_RTOL``, :mod:`stageid.data.sampling`;
+    those that differ by rounding are given the first one's) and the channel names;
+    identification methods use this to accept several records (e.g. one per excited input).
     """
     exps = (data,) if isinstance(data, Experiment) else tuple(data)
     if not exps:
@@ -301,9 +298,9 @@ def as_experiments(data: Experiment | Sequence[Experiment]) -> tuple[Experiment,
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects; got {type(e).__name__}.")
     first = exps[0]
+    dt = shared_period([e.dt for e in exps], [e.name or f"record {i}" for i, e in enumerate(exps)], "experiments")
+    exps = tuple(e if e.dt == dt else replace(e, dt=dt) for e in exps)
     for e in exps[1:]:
-        if not np.isclose(e.dt, first.dt, rtol=1e-9, atol=0.0):
-            raise DataError(f"all experiments must share one sample time; got {first.dt:g} s and {e.dt:g} s.")
         if e.input_names != first.input_names or e.output_names != first.output_names:
             raise DataError(
                 f"all experiments must have the same channels; got inputs {list(first.input_names)} / outputs "

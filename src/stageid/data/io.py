@@ -8,8 +8,8 @@ Conventions shared by every reader and every error message
 * **Rows are data rows counted from 0**: row 0 is the first sample (in a CSV file, the first
   line after the header).  Messages about a CSV cell also give the 1-based file line.
 * The column named ``t`` (seconds) is the time axis, not a data column: it must be strictly
-  increasing and uniform, and becomes ``Table.t0`` and ``Table.dt``.  Without it the sample
-  time must be passed as ``ts``.
+  increasing and uniform, and becomes ``Table.t0`` and ``Table.dt`` by the one sample-time
+  rule (:mod:`stageid.data.sampling`).  Without it the sample time must be passed as ``ts``.
 * Bad input raises a one-line :class:`~stageid.DataError` naming the file, column and row.
 * A file whose content would need more memory than is available (a compressed member that
   inflates to gigabytes) is refused before it is read (:class:`~stageid.ResourceError`).
@@ -44,10 +44,11 @@ def read_table(path: PathLike, ts: float | None = None, *, time_rtol: float = DE
         The file.  See :func:`read_csv`, :func:`read_npz` and :func:`read_mat` for each format.
     ts : float, optional
         Sample time in seconds.  Required when the file has no ``t`` column; when it has
-        one, ``ts`` must agree with its step (within ``time_rtol``) and is then used as dt.
+        one, ``ts`` must agree with its period (to ``PERIOD_RTOL`` of
+        :mod:`stageid.data.sampling`) and is then used as dt.
     time_rtol : float
-        Allowed deviation of each time step from the mean step, relative to dt.  The
-        default 1e-6 accepts exactly written time stamps; single-precision loggers need ~1e-3.
+        Allowed deviation of each stamp from the uniform grid beyond the stamps' own rounding,
+        relative to dt (default ``UNIFORM_RTOL`` = 1e-3: clock jitter of a real-time target).
 
     Returns
     -------

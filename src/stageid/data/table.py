@@ -10,6 +10,7 @@ readers share to keep them (:func:`assemble_table`, :func:`time_axis`, ...):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ import numpy as np
 from .._errors import DataError, NoSampleTimeError
 from ..checks import shown
 from .experiment import Experiment, check_samples
+from .sampling import PERIOD_RTOL, UNIFORM_RTOL, TimeGrid, check_period, same_period, seconds, time_grid
 
 __all__ = [
     "Table",
@@ -29,12 +31,13 @@ __all__ = [
     "check_unique_names",
     "check_finite",
     "time_axis",
+    "time_column_grid",
     "assemble_table",
     "stack_columns",
 ]
 
 TIME_COLUMN = "t"
-DEFAULT_TIME_RTOL = 1e-6
+DEFAULT_TIME_RTOL = UNIFORM_RTOL
 
 
 # ====================================================================== Table
@@ -58,6 +61,9 @@ class Table:
         One unit string per column (``""`` = unknown); default all empty.
     source : str
         Where the table came from (the file name for tables read from disk).
+    jitter : float
+        Largest deviation of the file's time stamps from the uniform grid beyond their rounding,
+        as a fraction of ``dt`` (0 without a time column); see :mod:`stageid.data.sampling`.
 
     Raises
     ------
@@ -81,6 +87,7 @@ class Table:
     t0: float = 0.0
     units: tuple[str, ...] = ()
     source: str = ""
+    jitter: float = 0.0
 
     def __post_init__(self) -> None:
         where = file_prefix(str(self.source))
@@ -112,7 +119,7 @@ class Table:
         check_finite(values, names, where)
         dt = self.dt
         if dt is not None:
-            dt = positive_seconds("dt", dt, where)
+            dt = check_period(dt, "dt", where)
         try:
             t0 = float(self.t0)
         except (TypeError, ValueError):
@@ -269,14 +276,8 @@ def file_prefix(source: str) -> str:
 
 
 def positive_seconds(label: str, value: object, where: str = "") -> float:
-    """``value`` as a positive finite float (a sample time), else :class:`DataError` naming ``label``."""
-    try:
-        out = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise DataError(f"{where}`{label}` must be a positive number of seconds; got {value!r}.") from None
-    if not math.isfinite(out) or out <= 0:
-        raise DataError(f"{where}`{label}` must be a positive number of seconds; got {value!r}.")
-    return out
+    """``value`` as a sample time in seconds (:func:`~stageid.data.sampling.check_period`), else DataError."""
+    return check_period(value, label, where)
 
 
 def check_unique_names(names: Sequence[str], where: str) -> None:
@@ -294,53 +295,32 @@ def check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
 
 
 def time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
-    """Check a time column (finite already) and return ``(t0, dt)``."""
-    n = t.shape[0]
-    if n < 2:
+    """Check a time column (finite already) and return ``(t0, dt)`` (:func:`time_column_grid`)."""
+    grid = time_column_grid(t, where, ts, rtol)
+    return grid.t0, grid.dt
+
+
+def time_column_grid(t: np.ndarray, where: str, ts: float | None, rtol: float) -> TimeGrid:
+    """The grid of a time column by the sample-time rule (:mod:`stageid.data.sampling`).
+
+    A ``ts`` given beside the column must agree with its period (to ``PERIOD_RTOL``) and is then
+    the period.
+    """
+    if ts is not None:
+        ts = check_period(ts, "ts", where)
+    if t.shape[0] < 2:
         if ts is None:
             raise DataError(f"{where}the time column '{TIME_COLUMN}' has a single sample, so dt is unknown; pass ts=.")
-        return float(t[0]), ts
-    steps = np.diff(t)
-    nonpos = np.flatnonzero(steps <= 0)
-    if nonpos.size:
-        k = int(nonpos[0])
+        return TimeGrid(float(t[0]), ts)
+    grid = time_grid(t, where, rtol)
+    if ts is None:
+        return grid
+    if not same_period(ts, grid.dt):
         raise DataError(
-            f"{where}time column '{TIME_COLUMN}' must be strictly increasing; row {k + 1} has t={float(t[k + 1])!r} "
-            f"after t={float(t[k])!r} at row {k} (data rows counted from 0)."
+            f"{where}ts={seconds(ts)} s disagrees with the period {seconds(grid.dt)} s of the time column "
+            f"'{TIME_COLUMN}' (tolerance {PERIOD_RTOL:g} relative)."
         )
-    dt = float(t[-1] - t[0]) / (n - 1)
-    tol = _step_tolerance(t, dt, rtol)
-    uneven = np.flatnonzero(np.abs(steps - dt) > tol)
-    if uneven.size:
-        k = int(uneven[0])
-        raise DataError(
-            f"{where}time column '{TIME_COLUMN}' is not uniform: the step from row {k} to row {k + 1} is {float(steps[k])!r} s, "
-            f"expected dt={dt!r} s within {tol:.3g} s (relative tolerance {rtol:g}; pass time_rtol= to accept clock jitter)."
-        )
-    if ts is not None:
-        # the mean step spreads the rounding of two stamps over n - 1 steps
-        if abs(ts - dt) > max(rtol * dt, _stamp_rounding(t) / (n - 1)):
-            raise DataError(
-                f"{where}ts={ts!r} s disagrees with the time column '{TIME_COLUMN}', whose step is {dt!r} s."
-            )
-        dt = ts
-    return float(t[0]), dt
-
-
-def _step_tolerance(t: np.ndarray, dt: float, rtol: float) -> float:
-    """Allowed deviation of a time step from ``dt``: ``max(rtol * dt, 4 eps max|t|)``.
-
-    Stored time stamps are rounded to float64, whose spacing grows with their magnitude: at
-    epoch times (``t ~ 1.7e9`` s) it is 2.4e-7 s, 0.24 % of a 10 kHz sample time, so a
-    difference of two stamps carries an error of up to one such spacing whatever the clock
-    did.  The second term accepts exactly that rounding and nothing more.
-    """
-    return max(rtol * dt, _stamp_rounding(t))
-
-
-def _stamp_rounding(t: np.ndarray) -> float:
-    """A bound on the float64 rounding of a difference of two stamps of ``t``: ``4 eps max|t|``."""
-    return 4.0 * float(np.finfo(float).eps) * float(np.max(np.abs(t)))
+    return dataclasses.replace(grid, dt=ts)
 
 
 def assemble_table(
@@ -363,7 +343,8 @@ def assemble_table(
         i = names.index(TIME_COLUMN)
         if units[i] not in ("", "s"):
             raise DataError(f"{where}the time column '{TIME_COLUMN}' must be in seconds; got unit '{units[i]}'.")
-        t0, dt = time_axis(values[:, i], where, ts, time_rtol)
+        grid = time_column_grid(values[:, i], where, ts, time_rtol)
+        t0, dt, jitter = grid.t0, grid.dt, grid.jitter
         keep = [j for j in range(len(names)) if j != i]
         values = values[:, keep]
         names = [names[j] for j in keep]
@@ -371,10 +352,10 @@ def assemble_table(
     else:
         if ts is None:
             raise NoSampleTimeError(f"{where}no time column '{TIME_COLUMN}'; pass ts= (the sample time in seconds).")
-        t0, dt = 0.0, ts
+        t0, dt, jitter = 0.0, check_period(ts, "ts", where), 0.0
     if not names:
         raise DataError(f"{where}only a time column '{TIME_COLUMN}' was found; expected at least one data column.")
-    return Table(names=tuple(names), values=values, dt=dt, t0=t0, units=tuple(units), source=source)
+    return Table(names=tuple(names), values=values, dt=dt, t0=t0, units=tuple(units), source=source, jitter=jitter)
 
 
 def stack_columns(names: Sequence[str], columns: Sequence[np.ndarray], where: str) -> np.ndarray:

@@ -17,6 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError
+from ..data.sampling import check_period, shared_period
+from ..data.table import time_column_grid
 
 __all__ = ["ChannelRecord", "as_channel_records", "read_npz_record", "check_finite_batch"]
 
@@ -63,10 +65,10 @@ def as_channel_records(data) -> tuple[ChannelRecord, ...]:
             )
             for e in as_experiments(data)
         )
+    dt = shared_period([r.dt for r in recs], [r.name or f"record {i}" for i, r in enumerate(recs)])
+    recs = tuple(r if r.dt == dt else dataclasses.replace(r, dt=dt) for r in recs)
     first = recs[0]
     for r in recs[1:]:
-        if not np.isclose(r.dt, first.dt, rtol=1e-9, atol=0.0):
-            raise DataError(f"all records must share one sample time; got {first.dt:g} s and {r.dt:g} s.")
         if (r.input_names, r.output_names) != (first.input_names, first.output_names):
             raise DataError("all records must have the same input and output channels.")
     return recs
@@ -169,16 +171,11 @@ def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
 
 
 def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: float) -> float:
+    """The period of the record by the sample-time rule (``ts`` without a time column)."""
     if t is None:
         if ts is None:
             raise DataError(f"{name}: no time column 't'; give the sample time with --ts.")
-        return float(ts)
+        return check_period(ts, "ts", f"{name}: ")
     if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")
-    steps = np.diff(t)
-    dt = float((t[-1] - t[0]) / (n - 1))
-    if not dt > 0 or steps.max() > dt * (1 + rtol) or steps.min() < dt * (1 - rtol):
-        raise DataError(f"{name}: the time column 't' must increase uniformly (to {rtol:g} of its step).")
-    if ts is not None and abs(ts - dt) > rtol * dt:
-        raise DataError(f"{name}: --ts {ts:g} s disagrees with the time column's step {dt:g} s.")
-    return float(ts) if ts is not None else dt
+    return time_column_grid(np.asarray(t, dtype=float), f"{name}: ", ts, rtol).dt

@@ -15,6 +15,7 @@ import numpy as np
 
 from .._errors import DataError, IdentificationError, ModelError
 from ..data import Experiment
+from ..data.sampling import PERIOD_RTOL, check_period, same_period, seconds, shared_period
 from .pi import STATE_KINDS, ModifiedPIModel, PIModel
 from .weights import WeightProblem
 
@@ -99,26 +100,27 @@ def read_records(
 
 
 def sampling_period(data: Any, sample_time: float | None) -> float | None:
-    """The one sampling period of the records (Experiment.dt, else ``sample_time``).
+    """The one sampling period of the records (Experiment.dt, else ``sample_time``), by the
+    sample-time rule (:mod:`stageid.data.sampling`: periods that differ by rounding are one).
 
     None when (u, y) records come without ``sample_time`` (the caller says what is missing);
-    DataError when the records' periods differ, IdentificationError when ``sample_time``
-    contradicts them.
+    DataError when the records' periods differ or are out of range, IdentificationError when
+    ``sample_time`` contradicts them.
     """
     items = record_items(data)
-    dts = {float(e.dt) for e in items if isinstance(e, Experiment)}
-    if any(not isinstance(e, Experiment) for e in items):
+    named = [(float(e.dt), e.name or f"record {i}") for i, e in enumerate(items) if isinstance(e, Experiment)]
+    if len(named) < len(items):
         if sample_time is None:
             return None
-        dts.add(float(sample_time))
-    elif sample_time is not None and dts != {float(sample_time)}:
-        raise IdentificationError(f"`sample_time` {sample_time!r} differs from the records' dt {sorted(dts)}.")
-    if len(dts) != 1:
-        raise DataError(f"fitting creep needs one sampling period for all records; got {sorted(dts)}.")
-    dt = dts.pop()
-    if not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"the sampling period must be positive; got {dt!r}.")
-    return dt
+        named.append((check_period(sample_time, "sample_time"), "sample_time"))
+    elif sample_time is not None:
+        dt = shared_period([d for d, _ in named], [n for _, n in named])
+        if not same_period(check_period(sample_time, "sample_time"), dt):
+            raise IdentificationError(
+                f"`sample_time` {seconds(sample_time)} s differs from the records' dt {seconds(dt)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
+    return check_period(shared_period([d for d, _ in named], [n for _, n in named]), "the records' dt")
 
 
 def choose_initial_states(

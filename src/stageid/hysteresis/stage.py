@@ -33,6 +33,7 @@ import numpy as np
 
 from .._errors import ModelError, ModelFormatError
 from ..checks import shown
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from .common import as_input
 from .creep import CreepTerm
 from .dynamics import statespace_to_transfer, unit_gain_filter
@@ -204,8 +205,11 @@ class StageModel:
         """
         u_in = as_input(u, self.inputs[0])
         step = self.dt
-        if dt is not None and step is not None and self.dynamics is not None and not np.isclose(dt, step, rtol=1e-6):
-            raise ModelError(f"the input's sample time {dt:g} s differs from the stage dynamics' {step:g} s.")
+        if dt is not None and step is not None and self.dynamics is not None and not same_period(dt, step):
+            raise ModelError(
+                f"the input's sample time {seconds(dt)} s differs from the stage dynamics' {seconds(step)} s "
+                f"(tolerance {PERIOD_RTOL:g} relative)."
+            )
         v = self.hysteresis.simulate(u_in, dt if dt is not None else step)[:, 0]
         if self.creep is not None:
             v = v + self.creep.run(u_in, dt if dt is not None else step)[0]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import ModelError
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from .compensator import Compensator
 from .creep import CreepTerm
 from .preisach import PreisachModel
@@ -105,8 +106,11 @@ def stage_feedforward(
     ref = np.asarray(y_ref, dtype=float).reshape(-1)
     if not np.all(np.isfinite(ref)):
         raise ModelError("the reference must be finite; got NaN or inf.")
-    if model.dt is not None and model.dynamics is not None and not np.isclose(dt, model.dt, rtol=1e-6):
-        raise ModelError(f"the reference's sample time {dt:g} s differs from the stage dynamics' {model.dt:g} s.")
+    if model.dt is not None and model.dynamics is not None and not same_period(dt, model.dt):
+        raise ModelError(
+            f"the reference's sample time {seconds(dt)} s differs from the stage dynamics' {seconds(model.dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
+        )
     off = model.output_offset
     if regularisation != "auto":
         return hysteresis_feedforward(model, off + invert_dynamics(model, ref - off, float(regularisation)), dt, limits)

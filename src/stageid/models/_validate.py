@@ -238,9 +238,14 @@ def input_samples(u: object, n_inputs: int) -> np.ndarray:
 
 
 def check_same_dt(dt: object, model_dt: float) -> None:
-    """ModelError unless ``dt`` is None or equals the model's sample time."""
-    if dt is not None and not np.isclose(as_sample_time(dt, ModelError), model_dt, rtol=1e-6, atol=0):
-        raise ModelError(f"the input's sample time {dt:g} s differs from the model's {model_dt:g} s.")
+    """ModelError unless ``dt`` is None or equals the model's sample time (the sample-time rule)."""
+    from ..data.sampling import PERIOD_RTOL, same_period, seconds  # models do not need data loaded otherwise
+
+    if dt is not None and not same_period(as_sample_time(dt, ModelError), model_dt):
+        raise ModelError(
+            f"the input's sample time {seconds(dt)} s differs from the model's {seconds(model_dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
+        )
 
 
 def as_transfer_entries(num: Any, den: Any) -> tuple[tuple, tuple]:

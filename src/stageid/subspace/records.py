@@ -14,6 +14,7 @@ import numpy as np
 
 from .._errors import DataError
 from ..data.experiment import Experiment, as_experiments
+from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from ..models.statespace import StateSpaceModel
 from .hankel_toeplitz import WindowStatistics
 from .map_estimator import Posterior, regressor_scales
@@ -46,8 +47,11 @@ def check_continuation(model: StateSpaceModel, first: Experiment) -> None:
             f"new data must have inputs {list(model.inputs)} and outputs "
             f"{list(model.outputs)}; got {list(first.input_names)} and {list(first.output_names)}."
         )
-    if not np.isclose(first.dt, model.dt, rtol=1e-9, atol=0.0):
-        raise DataError(f"new data must have the sample time of the fitted model, {model.dt:g} s; got {first.dt:g} s.")
+    if not same_period(first.dt, model.dt):
+        raise DataError(
+            f"new data must have the sample time of the fitted model, {seconds(model.dt)} s; got {seconds(first.dt)} s "
+            f"(tolerance {PERIOD_RTOL:g} relative)."
+        )
 
 
 def _minus_column_means(x: np.ndarray) -> np.ndarray:
