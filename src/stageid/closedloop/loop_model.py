@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
+import scipy.signal as ss
 
 from .._errors import DataError
 from ..data import Experiment, as_experiments
@@ -112,16 +113,45 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
             res = [yk - m.simulate(rk - lk) for rk, yk, lk in zip(r, y, levels)]
             loss = sum(float(e @ e) for e in res)
             loss0 = loss if loss0 is None else loss0
-            step = [m.simulate(np.ones(rk.size)) for rk in r]
-            c = np.array([-(s @ e) / max(s @ s, 1e-300) for s, e in zip(step, res)])
-            after = sum(float((e + ck * s) @ (e + ck * s)) for e, s, ck in zip(res, step, c))
+            shift, after = level_shift(m, [rk - lk for rk, lk in zip(r, levels)], y)
             if not after < (1.0 - REST_STEP_GAIN) * loss:
                 break
-            levels, loss = levels + c, after
+            levels, loss = levels + shift, after
         if not loss < REST_KEEP * loss0:
             levels = first
         out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
+
+
+def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> tuple[np.ndarray, float]:
+    """Shift of each record's reference level under ``model``'s poles, and the loss after it.
+
+    With the denominator ``A F`` held, ``y = q^-nk B / (A F) (r - c)`` is linear in ``B`` and in
+    ``c B`` taken as a free polynomial ``D`` per record (the response to a step at the first
+    sample): one least-squares solve gives both, and ``c = -(D . B) / (B . B)``.
+    """
+    den = np.convolve(model.A, model.F)
+    lead = np.zeros(model.nk)
+    nb = model.B.size
+    step_cols, n_rec = [], len(r)
+    rows_r, rows_s = [], []
+    for k, (rk, yk) in enumerate(zip(r, y)):
+        xr = ss.lfilter(np.concatenate([lead, [1.0]]), den, rk)
+        xs = ss.lfilter(np.concatenate([lead, [1.0]]), den, np.ones(rk.size))
+        Phi = np.column_stack([np.concatenate([np.zeros(i), xr[: xr.size - i]]) for i in range(nb)])
+        Psi = np.zeros((rk.size, nb * n_rec))
+        for i in range(nb):
+            Psi[i:, k * nb + i] = xs[: xs.size - i]
+        rows_r.append(Phi)
+        rows_s.append(Psi)
+        step_cols.append(yk)
+    X = np.hstack([np.vstack(rows_r), np.vstack(rows_s)])
+    Y = np.concatenate(step_cols)
+    scale = np.maximum(np.linalg.norm(X, axis=0), 1e-300)  # 1/(A F) swells the step columns by its DC gain
+    theta = np.linalg.lstsq(X / scale, Y, rcond=None)[0] / scale
+    b, d = theta[:nb], theta[nb:].reshape(n_rec, nb)
+    shift = -(d @ b) / max(float(b @ b), 1e-300)
+    return shift, float(np.sum((Y - X @ theta) ** 2))
 
 
 def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
