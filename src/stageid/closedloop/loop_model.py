@@ -20,12 +20,12 @@ from .polynomial import PolynomialModel
 
 __all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "at_rest", "identify_pairs"]
 
-#: passes of the rest-level estimate; the least relative drop of the loss a pass must bring; and
-#: the share of the first fit's loss the final level must reach to be kept: a step the loop never
-#: saw dominates the residual, while a smaller gain is the model's own error, which an offset
-#: would only hide
+#: passes of the rest-level estimate; the shift, as a share of the reference's RMS, below which it
+#: has converged; and the share of the first fit's loss the level must reach to be kept: a step
+#: the loop never saw dominates the residual, while a smaller gain is the model's own error,
+#: which an offset would only hide
 REST_PASSES = 8
-REST_STEP_GAIN = 0.01
+REST_TOL = 1e-4
 REST_KEEP = 0.5
 
 #: fit of one pair: (reference records, output records, dt) -> model
@@ -97,9 +97,9 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
     non-zero value, and subtracting that value would add a step the loop never saw. The level
     of each record is estimated with the diagonal pair ``T_jj``: from the first sample, the
     step offset ``c`` that best explains the fit's residual (linear least squares on the
-    model's step response) is added and the pair refitted while a pass lowers the loss by more
-    than :data:`REST_STEP_GAIN`; the level is kept only when the loss falls below
-    :data:`REST_KEEP` times the first fit's, else the first sample stays the rest level.
+    pair's poles, :func:`level_shift`) is added and the pair refitted until the shift is below
+    :data:`REST_TOL` of the reference's RMS; the level is kept only when the last fit's loss is
+    below :data:`REST_KEEP` times the first fit's, else the first sample stays the rest level.
     """
     out = {}
     for j, group in groups.items():
@@ -110,21 +110,24 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
         loss0 = None
         for _ in range(REST_PASSES):
             m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
-            res = [yk - m.simulate(rk - lk) for rk, yk, lk in zip(r, y, levels)]
-            loss = sum(float(e @ e) for e in res)
+            loss = _loss(m, r, y, levels)
             loss0 = loss if loss0 is None else loss0
-            shift, after = level_shift(m, [rk - lk for rk, lk in zip(r, levels)], y)
-            if not after < (1.0 - REST_STEP_GAIN) * loss:
+            shift = level_shift(m, [rk - lk for rk, lk in zip(r, levels)], y)
+            if all(abs(c) <= REST_TOL * rk.std() for c, rk in zip(shift, r)):
                 break
-            levels, loss = levels + shift, after
+            levels = levels + shift
         if not loss < REST_KEEP * loss0:
             levels = first
         out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
 
 
-def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> tuple[np.ndarray, float]:
-    """Shift of each record's reference level under ``model``'s poles, and the loss after it.
+def _loss(model: PolynomialModel, r, y, levels) -> float:
+    return sum(float(np.sum((yk - model.simulate(rk - lk)) ** 2)) for rk, yk, lk in zip(r, y, levels))
+
+
+def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
+    """Shift of each record's reference level under ``model``'s poles.
 
     With the denominator ``A F`` held, ``y = q^-nk B / (A F) (r - c)`` is linear in ``B`` and in
     ``c B`` taken as a free polynomial ``D`` per record (the response to a step at the first
@@ -133,7 +136,7 @@ def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]
     den = np.convolve(model.A, model.F)
     lead = np.zeros(model.nk)
     nb = model.B.size
-    step_cols, n_rec = [], len(r)
+    ys, n_rec = [], len(r)
     rows_r, rows_s = [], []
     for k, (rk, yk) in enumerate(zip(r, y)):
         xr = ss.lfilter(np.concatenate([lead, [1.0]]), den, rk)
@@ -144,14 +147,13 @@ def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]
             Psi[i:, k * nb + i] = xs[: xs.size - i]
         rows_r.append(Phi)
         rows_s.append(Psi)
-        step_cols.append(yk)
+        ys.append(yk)
     X = np.hstack([np.vstack(rows_r), np.vstack(rows_s)])
-    Y = np.concatenate(step_cols)
+    Y = np.concatenate(ys)
     scale = np.maximum(np.linalg.norm(X, axis=0), 1e-300)  # 1/(A F) swells the step columns by its DC gain
     theta = np.linalg.lstsq(X / scale, Y, rcond=None)[0] / scale
     b, d = theta[:nb], theta[nb:].reshape(n_rec, nb)
-    shift = -(d @ b) / max(float(b @ b), 1e-300)
-    return shift, float(np.sum((Y - X @ theta) ** 2))
+    return -(d @ b) / max(float(b @ b), 1e-300)
 
 
 def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
