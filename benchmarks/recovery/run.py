@@ -61,6 +61,7 @@ __all__ = [
     "summarise",
     "missed_targets",
     "format_table",
+    "format_draws",
     "write_summary",
     "main",
 ]
@@ -313,6 +314,21 @@ def format_table(rows: list[Summary]) -> str:
     return "\n".join(lines)
 
 
+def format_draws(outcomes: list[Outcome]) -> str:
+    """Every draw of one estimator as a Markdown table (seed order)."""
+    lines = [
+        "| seed | noise % | recovered | error | reference error | cost ratio | seconds | detail or failure |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for o in sorted(outcomes, key=lambda o: o.seed):
+        state = "yes" if o.recovered else ("failed" if o.failed else "no")
+        lines.append(
+            f"| {o.seed} | {100 * o.noise:.2f} | {state} | {_g(o.error)} | {_g(o.reference_error)} "
+            f"| {_g(o.cost_ratio)} | {o.seconds:.1f} | {(o.failed or o.detail).replace('|', '/')} |"
+        )
+    return "\n".join(lines)
+
+
 def write_summary(path: pathlib.Path, text: str, heading: str = "## Summary") -> None:
     """Put ``text`` under ``heading`` in ``path``, replacing that section only."""
     old = path.read_text() if path.exists() else "# Randomised recovery benchmark\n"
@@ -337,6 +353,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--case-timeout", type=float, default=120.0, help="seconds one draw may take (0: none)")
     p.add_argument("--out", type=pathlib.Path, default=None, help="Markdown file whose 'Summary' section is rewritten")
     p.add_argument("--report-only", action="store_true", help="exit 0 even when a target is missed")
+    p.add_argument(
+        "--draw-tables",
+        action="store_true",
+        help="also write each estimator's draws under '## <label>: draws' in --out",
+    )
     a = p.parse_args(argv)
     names = [n.strip() for n in a.estimators.split(",") if n.strip()]
     try:
@@ -359,6 +380,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"target missed: {line}", file=sys.stderr)
     if a.out is not None:
         write_summary(a.out, text)
+        for label in dict.fromkeys(o.estimator for o in outcomes) if a.draw_tables else ():
+            mine = [o for o in outcomes if o.estimator == label]
+            write_summary(a.out, format_draws(mine), heading=f"## {label}: draws")
     return 1 if missed and not a.report_only else 0
 
 
