@@ -13,10 +13,11 @@ noise at ``noise`` times each output's RMS.
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
 import numpy as np
-from common import TIME_STYLES, write_record
+from common import TIME_STYLES, CliFailure, run_cli, write_record
 
 DT = 1.0 / 5000.0
 BAND = (20.0, 300.0)  # the CLI's default band of the reduction and errors
@@ -114,3 +115,35 @@ def loop_cost(plant, K, records) -> float:
     from stageid.closedloop.validation import simulate_closed_loop
 
     return sum(float(np.sum((y - simulate_closed_loop(plant, K, R, DT)[0]) ** 2)) for R, y in records)
+
+
+@dataclasses.dataclass
+class LoopDraw:
+    plant: object  # the true continuous plant
+    controller: object  # the known discrete controller
+    unstable: np.ndarray  # the plant's unstable poles, rad/s
+    records: list  # [(references, measured outputs)] per experiment
+    detail: str
+    failed: str  # the command's one-line message, "" when it ran
+
+
+def draw_and_fit(seed: int, salt: int, workdir: pathlib.Path, noise: float, extra: tuple = ()) -> LoopDraw:
+    """Draw a loop from ``(seed, salt)``, write its records and controller into ``workdir`` and run
+    ``stageid identify closed-loop`` on them (plant to ``G.json``, ``extra`` options appended)."""
+    from stageid.models import save_model
+
+    rng = np.random.default_rng([seed, salt])
+    plant, K, unstable = draw_loop(rng)
+    save_model(K, workdir / "K.json")
+    paths, records, style, kind = write_experiments(rng, plant, K, noise, workdir)
+    n = plant.n_outputs
+    failed = ""
+    try:
+        run_cli([
+            "identify", "closed-loop", *paths, "--references", ",".join(f"r{i + 1}" for i in range(n)),
+            "--outputs", ",".join(f"y{i + 1}" for i in range(n)), "--controller", workdir / "K.json",
+            "-o", workdir / "G.json", *extra,
+        ])  # fmt: skip
+    except CliFailure as exc:
+        failed = str(exc)
+    return LoopDraw(plant, K, unstable, records, f"{n}x{n}, {kind}, t {style}", failed)

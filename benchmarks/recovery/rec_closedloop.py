@@ -18,8 +18,8 @@ from __future__ import annotations
 import pathlib
 
 import numpy as np
-from common import CliFailure, Row, run_cli
-from loop_draws import BAND, draw_loop, write_experiments
+from common import Row
+from loop_draws import BAND, draw_and_fit
 
 ESTIMATOR = "Closed loop"
 
@@ -51,26 +51,15 @@ def band_error(fit, truth, f: np.ndarray) -> float:
 
 
 def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
-    from stageid.models import load_model, save_model
+    from stageid.models import load_model
 
-    rng = np.random.default_rng([seed, 202])
-    plant, K, unstable = draw_loop(rng)
-    save_model(K, workdir / "K.json")
-    paths, records, style, kind = write_experiments(rng, plant, K, noise, workdir)
-    n = plant.n_outputs
-    detail = f"{n}x{n}, {kind}, t {style}"
-    try:
-        run_cli([
-            "identify", "closed-loop", *paths, "--references", ",".join(f"r{i + 1}" for i in range(n)),
-            "--outputs", ",".join(f"y{i + 1}" for i in range(n)), "--controller", workdir / "K.json",
-            "-o", workdir / "G.json",
-        ])  # fmt: skip
-    except CliFailure as exc:
-        return Row(seed, False, float("nan"), noise=noise, detail=detail, failed=str(exc))
+    draw = draw_and_fit(seed, 202, workdir, noise)
+    if draw.failed:
+        return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     fit = load_model(workdir / "G.json")
     f = np.linspace(*BAND, 400)
-    error = band_error(fit, plant, f)
-    pole_error = unstable_pole_error(unstable, unstable_entry_poles(fit))
-    detail += f", unstable poles {pole_error:.3g} % off"
+    error = band_error(fit, draw.plant, f)
+    pole_error = unstable_pole_error(draw.unstable, unstable_entry_poles(fit))
+    detail = draw.detail + f", unstable poles {pole_error:.3g} % off"
     recovered = pole_error <= 2.0 and error <= 10.0
     return Row(seed, recovered, error, "% of entry peak", float("nan"), float("nan"), noise, detail)

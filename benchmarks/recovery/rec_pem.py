@@ -24,37 +24,26 @@ from __future__ import annotations
 import pathlib
 
 import numpy as np
-from common import CliFailure, Row, run_cli
-from loop_draws import closed_loop_response, draw_loop, loop_cost, write_experiments
+from common import Row
+from loop_draws import closed_loop_response, draw_and_fit, loop_cost
 
 ESTIMATOR = "PEM"
 
 
 def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
-    from stageid.models import load_model, save_model
+    from stageid.models import load_model
 
-    rng = np.random.default_rng([seed, 303])
-    plant, K, _ = draw_loop(rng)
-    save_model(K, workdir / "K.json")
-    paths, records, style, kind = write_experiments(rng, plant, K, noise, workdir)
-    n = plant.n_outputs
-    detail = f"{n}x{n}, {kind}, t {style}"
-    try:
-        run_cli([
-            "identify", "closed-loop", *paths, "--references", ",".join(f"r{i + 1}" for i in range(n)),
-            "--outputs", ",".join(f"y{i + 1}" for i in range(n)), "--controller", workdir / "K.json",
-            "--closed-loop-output", workdir / "T.json", "-o", workdir / "G.json",
-        ])  # fmt: skip
-    except CliFailure as exc:
-        return Row(seed, False, float("nan"), noise=noise, detail=detail, failed=str(exc))
+    draw = draw_and_fit(seed, 303, workdir, noise, ("--closed-loop-output", workdir / "T.json"))
+    if draw.failed:
+        return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     T_fit = load_model(workdir / "T.json")
     f = np.geomspace(5.0, 1000.0, 400)
-    T_true = closed_loop_response(plant, K, f)
+    T_true = closed_loop_response(draw.plant, draw.controller, f)
     error = float(100 * np.abs(T_fit.frequency_response(f) - T_true).max() / np.abs(T_true).max())
-    ref_cost = loop_cost(plant, K, records)
-    fit_cost = sum(float(np.sum((y - T_fit.simulate(R)) ** 2)) for R, y in records)
-    energy = sum(float(np.sum(y**2)) for _, y in records)
+    ref_cost = loop_cost(draw.plant, draw.controller, draw.records)
+    fit_cost = sum(float(np.sum((y - T_fit.simulate(R)) ** 2)) for R, y in draw.records)
+    energy = sum(float(np.sum(y**2)) for _, y in draw.records)
     # noise-free draws: the truth's cost is at rounding level, where a ratio says nothing
     ratio = fit_cost / ref_cost if ref_cost > 1e-12 * energy else float("nan")
     recovered = error <= 2.0 and ratio <= 1.1 if np.isfinite(ratio) else error <= 0.5
-    return Row(seed, bool(recovered), error, "% of peak", float("nan"), ratio, noise, detail)
+    return Row(seed, bool(recovered), error, "% of peak", float("nan"), ratio, noise, draw.detail)
