@@ -91,15 +91,13 @@ def group_by_reference(exps: Sequence[Experiment]) -> dict[int, list[Experiment]
 def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int, list[Experiment]]:
     """The records as deviations from the loop at rest before their first sample.
 
-    Outputs are taken relative to their rest level: the first sample (the loop is strictly
-    proper, so ``y[0]`` is the rest output plus one sample of noise) corrected by the offset
-    that best explains the whole record under the loop's poles. The excited reference is taken
-    relative to its rest level, which is its first sample only when the excitation starts from
-    rest: a multisine starts at a non-zero value, and subtracting that value would add a step
-    the loop never saw. The level
+    Outputs are taken relative to their first sample (the loop is strictly proper, so ``y[0]``
+    is the rest output). The excited reference is taken relative to its rest level, which is
+    its first sample only when the excitation starts from rest: a multisine starts at a
+    non-zero value, and subtracting that value would add a step the loop never saw. The level
     of each record is estimated with the diagonal pair ``T_jj``: from the first sample, the
     step offset ``c`` that best explains the fit's residual (linear least squares on the
-    pair's poles, :func:`rest_offsets`) is added and the pair refitted until the shift is below
+    pair's poles, :func:`level_shift`) is added and the pair refitted until the shift is below
     :data:`REST_TOL` of the reference's RMS; the level is kept only when the last fit's loss is
     below :data:`REST_KEEP` times the first fit's, else the first sample stays the rest level.
     """
@@ -114,74 +112,54 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
             m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
             loss = _loss(m, r, y, levels)
             loss0 = loss if loss0 is None else loss0
-            shift, _ = rest_offsets(m, [rk - lk for rk, lk in zip(r, levels)], y)
+            shift = level_shift(m, [rk - lk for rk, lk in zip(r, levels)], y)
             if all(abs(c) <= REST_TOL * rk.std() for c, rk in zip(shift, r)):
                 break
             levels = levels + shift
         if not loss < REST_KEEP * loss0:
             levels = first
-        out[j] = _output_offsets(group, j, m, [rk - lk for rk, lk in zip(r, levels)], levels)
+        out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
-
-
-def _output_offsets(group: list[Experiment], j: int, model: PolynomialModel, r, levels) -> list[Experiment]:
-    """The group's records as deviations: each output's rest level is its first sample plus the
-    offset :func:`rest_offsets` finds under the loop's poles (the first sample alone carries a
-    sample of the noise into every later one)."""
-    p = group[0].n_outputs
-    offsets = np.zeros((len(group), p))
-    for i in range(p):
-        _, offsets[:, i] = rest_offsets(model, r, [e.y[:, i] - e.y[0, i] for e in group], step=False)
-    return [_deviations(e, j, lk, ek) for e, lk, ek in zip(group, levels, offsets)]
 
 
 def _loss(model: PolynomialModel, r, y, levels) -> float:
     return sum(float(np.sum((yk - model.simulate(rk - lk)) ** 2)) for rk, yk, lk in zip(r, y, levels))
 
 
-def rest_offsets(
-    model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray], step: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    """Shift of each record's reference level (``step``) or offset of its output, under ``model``'s poles.
+def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
+    """Shift of each record's reference level under ``model``'s poles.
 
     With the denominator ``A F`` held, ``y = q^-nk B / (A F) (r - c)`` is linear in ``B`` and in
     ``c B`` taken as a free polynomial ``D`` per record (the response to a step at the first
-    sample), and ``y = q^-nk B / (A F) r + e`` in ``B`` and the output offset ``e`` per record:
-    one least-squares solve gives either, with ``c = -(D . B) / (B . B)``. The two are solved
-    apart: a step through the loop and an output offset differ only in the loop's transient, and
-    a joint solve trades one for the other. Returns ``(c, e)`` of shape (n_records,), the one not
-    asked for zero.
+    sample): one least-squares solve gives both, and ``c = -(D . B) / (B . B)``.
     """
     den = np.convolve(model.A, model.F)
-    lead = np.concatenate([np.zeros(model.nk), [1.0]])
-    nb, n_rec = model.B.size, len(r)
-    n_step, n_off = (nb * n_rec, 0) if step else (0, n_rec)
-    blocks = []
-    for k, rk in enumerate(r):
-        xr = ss.lfilter(lead, den, rk)
-        X = np.zeros((rk.size, nb + n_step + n_off))
+    lead = np.zeros(model.nk)
+    nb = model.B.size
+    ys, n_rec = [], len(r)
+    rows_r, rows_s = [], []
+    for k, (rk, yk) in enumerate(zip(r, y)):
+        xr = ss.lfilter(np.concatenate([lead, [1.0]]), den, rk)
+        xs = ss.lfilter(np.concatenate([lead, [1.0]]), den, np.ones(rk.size))
+        Phi = np.column_stack([np.concatenate([np.zeros(i), xr[: xr.size - i]]) for i in range(nb)])
+        Psi = np.zeros((rk.size, nb * n_rec))
         for i in range(nb):
-            X[i:, i] = xr[: xr.size - i]
-        if step:
-            xs = ss.lfilter(lead, den, np.ones(rk.size))
-            for i in range(nb):
-                X[i:, nb + k * nb + i] = xs[: xs.size - i]
-        else:
-            X[:, nb + k] = 1.0
-        blocks.append(X)
-    X = np.vstack(blocks)
+            Psi[i:, k * nb + i] = xs[: xs.size - i]
+        rows_r.append(Phi)
+        rows_s.append(Psi)
+        ys.append(yk)
+    X = np.hstack([np.vstack(rows_r), np.vstack(rows_s)])
+    Y = np.concatenate(ys)
     scale = np.maximum(np.linalg.norm(X, axis=0), 1e-300)  # 1/(A F) swells the step columns by its DC gain
-    theta = np.linalg.lstsq(X / scale, np.concatenate(y), rcond=None)[0] / scale
-    b = theta[:nb]
-    if step:
-        return -(theta[nb:].reshape(n_rec, nb) @ b) / max(float(b @ b), 1e-300), np.zeros(n_rec)
-    return np.zeros(n_rec), theta[nb:]
+    theta = np.linalg.lstsq(X / scale, Y, rcond=None)[0] / scale
+    b, d = theta[:nb], theta[nb:].reshape(n_rec, nb)
+    return -(d @ b) / max(float(b @ b), 1e-300)
 
 
-def _deviations(exp: Experiment, j: int, level: float, offsets: np.ndarray) -> Experiment:
+def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
     u = exp.u - exp.u[0]
     u[:, j] = exp.u[:, j] - level
-    return replace(exp, u=u, y=exp.y - exp.y[0] - offsets)
+    return replace(exp, u=u, y=exp.y - exp.y[0])
 
 
 def identify_pairs(
