@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv bench mutation clean
+.PHONY: demo test venv bench recovery mutation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,13 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run_all.py
+
+# Randomised recovery benchmark: every estimator on >= 20 random stages of its own class, fitted
+# through the command line; the summary goes to benchmarks/RESULTS-recovery.md (section "Summary").
+# RECOVERY_ARGS: more options of benchmarks/recovery/run.py (e.g. --estimators pem,frd --report-only).
+RECOVERY_ARGS ?=
+recovery: $(STAMP)
+	OMP_NUM_THREADS=1 $(PY) benchmarks/recovery/run.py --draws 20 --jobs 2 --out benchmarks/RESULTS-recovery.md $(RECOVERY_ARGS)
 
 # Mutation testing of the estimators' core and the newer tools (cosmic-ray; long, not part of `make test`).
 # MUTATION_GROUPS: groups of tests/mutation/run.py (default all); MUTATION_BUDGET: seconds per group.

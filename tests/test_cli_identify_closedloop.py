@@ -272,3 +272,21 @@ def test_band_above_nyquist_is_rejected_before_fitting(
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "Nyquist frequency 2500 Hz" in err and "got 20-3000 Hz" in err
+
+
+@pytest.mark.slow
+def test_closed_loop_output_is_the_identified_loop(tmp_path: Path) -> None:
+    """--closed-loop-output writes the prediction-error closed loop r -> y at the data's sample time."""
+    from stageid.models import feedback
+
+    exps = _experiments(tmp_path)
+    save_model(controller(), tmp_path / "K.json")
+    args = ["identify", "closed-loop", *exps, "--references", "r1,r2", "--outputs", "y1,y2"]
+    args += ["--controller", str(tmp_path / "K.json"), "-o", str(tmp_path / "G.json")]
+    assert main([*args, "--closed-loop-output", str(tmp_path / "T.json")]) == 0
+    T = load_model(tmp_path / "T.json")
+    assert T.dt == pytest.approx(DT) and T.inputs == ("r1", "r2") and T.outputs == ("y1", "y2")
+    truth = feedback(plant().to_statespace(minimal=False).c2d(DT, "zoh"), controller())
+    f = np.geomspace(5.0, 1000.0, 200)
+    t_true = truth.frequency_response(f)[:, :2, :2]  # references to the measured outputs
+    assert np.abs(T.frequency_response(f) - t_true).max() < 0.01 * np.abs(t_true).max()  # 70 dB records

@@ -61,6 +61,13 @@ Examples:
     "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1)."
 )
 @click.option(
+    "--closed-loop-output",
+    "loop_output",
+    default=None,
+    type=click.Path(dir_okay=False),
+    help="Also write the identified closed loop r -> y (the prediction-error pairs, discrete, stageid.lti/1).",
+)
+@click.option(
     "--report",
     "report_dir",
     default=None,
@@ -80,6 +87,7 @@ def closedloop_command(
     discrete: bool,
     method: str,
     output: str,
+    loop_output: str | None,
     report_dir: str | None,
     uncertainty_file: str | None,
     uncertainty_grid: str | None,
@@ -96,6 +104,8 @@ def closedloop_command(
 
     # a bad -o or --report is refused before the records are read or any loop is fitted
     check_output(output, "model")
+    if loop_output is not None:
+        check_output(loop_output, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
     uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
@@ -124,6 +134,8 @@ def closedloop_command(
     if structure == "paper":
         _check_paper_structure(result, band)
     write_model_output(output, result.plant)
+    if loop_output is not None:
+        write_model_output(loop_output, result.closed_loop)
     uncertainty_line = uncertainty.write(result, result.band, exps[0].dt)
     say(result.summary(), err=True)
     if uncertainty_line:

@@ -221,11 +221,11 @@ def closed_loop_covariance(
     method: str = "sandwich",
 ) -> ClosedLoopCovariance:
     """:func:`pem_covariance` of every pair, on the records :func:`~stageid.closedloop.loop_model.identify_pairs`
-    fitted it on (each taken relative to its first sample)."""
+    fitted it on (deviations from the loop at rest, :func:`~stageid.closedloop.loop_model.at_rest`)."""
     covs = {}
     for j, group in groups.items():
-        r = [e.u[:, j] - e.u[0, j] for e in group]
+        r = [e.u[:, j] for e in group]
         for i in range(group[0].n_outputs):
-            y = [e.y[:, i] - e.y[0, i] for e in group]
+            y = [e.y[:, i] for e in group]
             covs[(i, j)] = pem_covariance(models[(i, j)], r, y, method)
     return ClosedLoopCovariance(covs, np.asarray(band_freqs, dtype=float).copy(), reference_filter, method)

@@ -8,15 +8,25 @@ a SISO prediction-error fit of output ``i`` on reference ``j`` over the experime
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
+import scipy.signal as ss
 
 from .._errors import DataError
 from ..data import Experiment, as_experiments
 from ..models import TransferMatrix
 from .polynomial import PolynomialModel
 
-__all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "identify_pairs"]
+__all__ = ["excited_reference", "closed_loop_experiments", "group_by_reference", "at_rest", "identify_pairs"]
+
+#: passes of the rest-level estimate; the shift, as a share of the reference's RMS, below which it
+#: has converged; and the share of the first fit's loss the level must reach to be kept: a step
+#: the loop never saw dominates the residual, while a smaller gain is the model's own error,
+#: which an offset would only hide
+REST_PASSES = 8
+REST_TOL = 1e-4
+REST_KEEP = 0.5
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
@@ -78,12 +88,86 @@ def group_by_reference(exps: Sequence[Experiment]) -> dict[int, list[Experiment]
     return groups
 
 
+def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int, list[Experiment]]:
+    """The records as deviations from the loop at rest before their first sample.
+
+    Outputs are taken relative to their first sample (the loop is strictly proper, so ``y[0]``
+    is the rest output). The excited reference is taken relative to its rest level, which is
+    its first sample only when the excitation starts from rest: a multisine starts at a
+    non-zero value, and subtracting that value would add a step the loop never saw. The level
+    of each record is estimated with the diagonal pair ``T_jj``: from the first sample, the
+    step offset ``c`` that best explains the fit's residual (linear least squares on the
+    pair's poles, :func:`level_shift`) is added and the pair refitted until the shift is below
+    :data:`REST_TOL` of the reference's RMS; the level is kept only when the last fit's loss is
+    below :data:`REST_KEEP` times the first fit's, else the first sample stays the rest level.
+    """
+    out = {}
+    for j, group in groups.items():
+        r = [e.u[:, j].astype(float) for e in group]
+        y = [e.y[:, j] - e.y[0, j] for e in group]
+        first = levels = np.array([rk[0] for rk in r])
+        dt = group[0].dt
+        loss0 = None
+        for _ in range(REST_PASSES):
+            m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
+            loss = _loss(m, r, y, levels)
+            loss0 = loss if loss0 is None else loss0
+            shift = level_shift(m, [rk - lk for rk, lk in zip(r, levels)], y)
+            if all(abs(c) <= REST_TOL * rk.std() for c, rk in zip(shift, r)):
+                break
+            levels = levels + shift
+        if not loss < REST_KEEP * loss0:
+            levels = first
+        out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
+    return out
+
+
+def _loss(model: PolynomialModel, r, y, levels) -> float:
+    return sum(float(np.sum((yk - model.simulate(rk - lk)) ** 2)) for rk, yk, lk in zip(r, y, levels))
+
+
+def level_shift(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
+    """Shift of each record's reference level under ``model``'s poles.
+
+    With the denominator ``A F`` held, ``y = q^-nk B / (A F) (r - c)`` is linear in ``B`` and in
+    ``c B`` taken as a free polynomial ``D`` per record (the response to a step at the first
+    sample): one least-squares solve gives both, and ``c = -(D . B) / (B . B)``.
+    """
+    den = np.convolve(model.A, model.F)
+    lead = np.zeros(model.nk)
+    nb = model.B.size
+    ys, n_rec = [], len(r)
+    rows_r, rows_s = [], []
+    for k, (rk, yk) in enumerate(zip(r, y)):
+        xr = ss.lfilter(np.concatenate([lead, [1.0]]), den, rk)
+        xs = ss.lfilter(np.concatenate([lead, [1.0]]), den, np.ones(rk.size))
+        Phi = np.column_stack([np.concatenate([np.zeros(i), xr[: xr.size - i]]) for i in range(nb)])
+        Psi = np.zeros((rk.size, nb * n_rec))
+        for i in range(nb):
+            Psi[i:, k * nb + i] = xs[: xs.size - i]
+        rows_r.append(Phi)
+        rows_s.append(Psi)
+        ys.append(yk)
+    X = np.hstack([np.vstack(rows_r), np.vstack(rows_s)])
+    Y = np.concatenate(ys)
+    scale = np.maximum(np.linalg.norm(X, axis=0), 1e-300)  # 1/(A F) swells the step columns by its DC gain
+    theta = np.linalg.lstsq(X / scale, Y, rcond=None)[0] / scale
+    b, d = theta[:nb], theta[nb:].reshape(n_rec, nb)
+    return -(d @ b) / max(float(b @ b), 1e-300)
+
+
+def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
+    u = exp.u - exp.u[0]
+    u[:, j] = exp.u[:, j] - level
+    return replace(exp, u=u, y=exp.y - exp.y[0])
+
+
 def identify_pairs(
     groups: dict[int, list[Experiment]], fit_pair: PairFit
 ) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray]:
     """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14).
 
-    Records are taken relative to their first sample (the loop starts at rest around it).
+    The records are deviations from the loop at rest (:func:`at_rest`).
 
     Returns
     -------
@@ -98,9 +182,9 @@ def identify_pairs(
     num = [[None] * p for _ in range(p)]
     den = [[None] * p for _ in range(p)]
     for j, group in groups.items():
-        r = [e.u[:, j] - e.u[0, j] for e in group]
+        r = [e.u[:, j] for e in group]
         for i in range(p):
-            y = [e.y[:, i] - e.y[0, i] for e in group]
+            y = [e.y[:, i] for e in group]
             m = fit_pair(r, y, dt)
             models[(i, j)] = m
             sim = np.concatenate([m.simulate(rk) for rk in r])

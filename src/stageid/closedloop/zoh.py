@@ -40,8 +40,20 @@ def zoh_at(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) -> np.nda
     E = sla.expm(blk)
     Ad, Bd = E[:n, :n], E[:n, n:]
     M = z[:, None, None] * np.eye(n)[None] - Ad[None]
-    X = np.linalg.solve(M, np.broadcast_to(Bd, (z.size, n, 1)))
+    try:
+        X = np.linalg.solve(M, np.broadcast_to(Bd, (z.size, n, 1)))
+    except np.linalg.LinAlgError:
+        # a point that is a pole, or a pole so far right that its hold overflows: infinite there
+        # (a trial step of the reduced fits reaches this; their optimiser then shortens the step)
+        return np.array([_solve_or_inf(Mk, Bd, C, D[0, 0]) for Mk in M])
     return (C[None] @ X)[:, 0, 0] + D[0, 0]
+
+
+def _solve_or_inf(M: np.ndarray, Bd: np.ndarray, C: np.ndarray, d: float) -> complex:
+    try:
+        return complex((C @ np.linalg.solve(M, Bd))[0, 0] + d)
+    except np.linalg.LinAlgError:
+        return complex(np.inf, np.inf)
 
 
 def zoh_derivatives(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -1,0 +1,98 @@
+"""A small draw of the randomised recovery benchmark (benchmarks/recovery): every estimator's
+case module found there runs two seeded random stages of its own class at 0.5 % noise through
+the command line, and each must be recovered by its module's stated criterion; the runner's
+table and target check are tested on made-up outcomes."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import pathlib
+import sys
+
+import pytest
+
+RECOVERY = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "recovery"
+
+
+def _runner():
+    spec = importlib.util.spec_from_file_location("recovery_run", RECOVERY / "run.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["recovery_run"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+run = _runner()
+MODULES = sorted(p.stem for p in RECOVERY.glob("rec_*.py"))
+# Estimators that miss the benchmark's target (benchmarks/RESULTS-recovery.md gives the draws and
+# the causes). Strict: when one recovers its small draw, the mark fails and must go.
+SHORT_OF_TARGET = {
+    "rec_pem": "the plant step after the closed-loop fit refuses its own class (paper structure missed "
+    "by 5-85 %), and the outputs' first-sample rest level keeps the loop 1.2-4x above the noise floor",
+    "rec_closedloop": "the paper-structure check refuses random stages of its class (diagonal misses "
+    "[0, 2] by 5-250 %), and written plants miss their unstable poles or couplings",
+}
+CASES = [
+    pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=SHORT_OF_TARGET[m])) if m in SHORT_OF_TARGET else m
+    for m in MODULES
+]
+SEEDS = (0, 1)
+NOISE = 0.005  # inside the benchmark's target range (noise <= 1 %)
+
+
+def test_every_case_module_is_found():
+    found = run.discover()
+    assert set(found) == set(MODULES)
+    assert all(isinstance(label, str) and label for label in found.values())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("module", CASES)
+def test_small_draw_is_recovered(module):
+    outcomes, dropped = run.run_all([module], list(SEEDS), NOISE, jobs=1, stream=sys.stderr)
+    assert not dropped[module]
+    bad = [f"seed {o.seed}: {o.failed or o.detail} (error {o.error:.3g} {o.unit})" for o in outcomes if not o.recovered]
+    assert not bad, f"{outcomes[0].estimator} not recovered: " + "; ".join(bad)
+
+
+def _outcome(module, seed, noise, recovered, error, ref=math.nan, ratio=math.nan, failed=""):
+    return run.Outcome(module, module, seed, noise, recovered, error, "%", ref, ratio, failed, "", 1.0)
+
+
+def test_summary_counts_and_targets(monkeypatch):
+    monkeypatch.setattr(run, "_targets", lambda module: {})
+    # recovery counted over all draws and over the draws at noise <= 1 %; a failure is not recovered
+    outs = [
+        _outcome("rec_a", 0, 0.005, True, 1.0),
+        _outcome("rec_a", 1, 0.015, False, 9.0),
+        _outcome("rec_a", 2, 0.002, False, math.nan, failed="stageid: error: no"),
+    ]
+    (row,) = run.summarise(outs)
+    assert (row.draws, row.recovered, row.low_noise_draws, row.low_noise_recovered) == (3, 1, 2, 1)
+    assert row.median_error == 5.0 and row.worst_error == 9.0
+    assert row.failures == ["seed 2: stageid: error: no"]
+    missed = run.missed_targets([row])
+    assert len(missed) == 1 and "1/2" in missed[0]
+    table = run.format_table([row])
+    assert "| rec_a | 3 | 1/3 (33 %) | 1/2 (50 %) |" in table and "stageid: error: no" in table
+
+
+def test_frd_targets_are_checked(monkeypatch):
+    monkeypatch.setattr(run, "_targets", lambda module: dict(run.FRD_TARGETS))
+    good = [_outcome("rec_f", s, 0.005, True, 1.2, ref=1.0, ratio=1.0 + s * 1e-4) for s in range(20)]
+    assert run.missed_targets(run.summarise(good)) == []
+    # median error 1.4x the reference's and 2 of 20 draws above the cost-ratio bound: both missed
+    bad = [_outcome("rec_f", s, 0.005, True, 1.4, ref=1.0, ratio=1.05 if s < 2 else 1.0) for s in range(20)]
+    missed = run.missed_targets(run.summarise(bad))
+    assert len(missed) == 2 and "1.3x" in missed[0] and "90%" in missed[1]
+
+
+def test_summary_section_replaced_in_place(tmp_path):
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# R\n\n## Summary\n\nold\n\n## PEM\n\nkept\n")
+    run.write_summary(out, "new table")
+    assert out.read_text() == "# R\n\n## Summary\n\nnew table\n\n## PEM\n\nkept\n"
+    fresh = tmp_path / "fresh.md"
+    run.write_summary(fresh, "t")
+    assert "## Summary\n\nt\n" in fresh.read_text()
