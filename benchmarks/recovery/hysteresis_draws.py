@@ -19,7 +19,6 @@ import numpy as np
 from common import TIME_STYLES, CliFailure, Row, run_cli, write_record
 
 __all__ = [
-    "SAME_LENGTHS",
     "RECOVERED_PERCENT",
     "REFERENCE_FACTOR",
     "forc_input",
@@ -34,11 +33,6 @@ __all__ = [
     "run",
 ]
 
-#: All records of one case get one length.  Records of different lengths at one rate are what
-#: loggers give, but their time columns can differ by an ulp in period, which the sample-time
-#: rule of the command line refuses until it compares periods with a tolerance; set False to
-#: draw each record's length from the seed.
-SAME_LENGTHS = True
 #: A draw counts as recovered when its held-out error is within this % of range, or within
 #: ``REFERENCE_FACTOR`` times the reference fit's error (the best the noisy records allow).
 RECOVERED_PERCENT = 0.3
@@ -74,7 +68,7 @@ def draw_records(
     n_forc = int(rng.integers(2000, 5000))
     # legs of the staircase: 3 at full swing, 2 per peak at half the swing on average
     forc = forc_input(amplitude, 2 * n_cells, max(8, n_forc // (3 + 2 * n_cells)))
-    n_sine = forc.size if SAME_LENGTHS else int(rng.integers(2000, 5000))
+    n_sine = int(rng.integers(2000, 5000))  # records of one case differ in length, as logged
     sine = sine_input(amplitude, n_sine, float(rng.uniform(4, 9)), float(rng.uniform(0.1, 0.4)), 0.0)
     held = sine_input(0.95 * amplitude, 3000, float(rng.uniform(3, 7)), 0.3, float(rng.uniform(0, 6)))
     return [forc, sine], held, fs
