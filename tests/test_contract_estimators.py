@@ -98,6 +98,28 @@ def test_a_new_subclass_is_registered():
     assert any(cls is Probe for cls in estimators().values())
 
 
+def _package_classes():
+    import importlib
+    import pkgutil
+
+    import stageid
+
+    for info in pkgutil.walk_packages(stageid.__path__, "stageid."):
+        if info.name.endswith("__main__"):  # importing it runs the command line
+            continue
+        module = importlib.import_module(info.name)
+        for name, obj in vars(module).items():
+            if inspect.isclass(obj) and obj.__module__ == module.__name__:
+                yield f"{module.__name__}.{name}", obj
+
+
+def test_every_class_with_fit_is_an_estimator():
+    # a class the user can call .fit on follows the one contract; a step inside an
+    # estimator names its method otherwise (solve, refine, ...)
+    outside = [name for name, cls in _package_classes() if callable(getattr(cls, "fit", None)) and not issubclass(cls, Estimator)]
+    assert not outside, f"classes with fit() outside the Estimator base: {outside}"
+
+
 def _make(name):
     make, data = CASES[name]
     return make(ESTIMATORS[name]), data

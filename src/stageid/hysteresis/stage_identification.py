@@ -300,7 +300,7 @@ class StageIdentifier(Estimator):
     def _fit_chosen(self, problem, recs, kinds, dt, order, taus, names):
         """``(problem, model, offsets)`` of the chosen order and creep on all records (steps 2 and 4)."""
         everything = [np.ones(u.size, bool) for u, _ in recs]
-        w, c, offsets, ba = problem.fit(order, taus, everything)
+        w, c, offsets, ba = problem.solve(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
         if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
             return self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
@@ -328,7 +328,7 @@ class StageIdentifier(Estimator):
                 f"({with_modes:.3f} % against {without:.3f} % without): left out"
             )
         everything = [np.ones(u.size, bool) for u, _ in problem.recs]
-        w, c, offsets, ba = problem.fit(order_m, taus_m, everything)
+        w, c, offsets, ba = problem.solve(order_m, taus_m, everything)
         model = problem.build(w, c, offsets[0], taus_m, ba, *names)
         model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
         return True, order_m, taus_m, held_out, model, offsets
@@ -359,7 +359,7 @@ class StageIdentifier(Estimator):
         ).fit(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         second = StageProblem(base.model, recs, kinds, dt)
-        w, c, offsets2, ba = second.fit(order, taus, everything)
+        w, c, offsets2, ba = second.solve(order, taus, everything)
         model2 = second.build(w, c, offsets2[0], taus, ba, *names)
         old = problem.errors(model, problem.offsets_of(model, recs))[1]
         new = second.errors(model2, offsets2)[1]

@@ -1,10 +1,11 @@
 """Step 2 of the stage identification: weights, creep and dynamics for fixed hysteresis thresholds.
 
-``StageProblem`` holds every record's operator outputs and creep lags at full rate and fits
+``StageProblem`` holds every record's operator outputs and creep lags at full rate and solves
 ``y = o_j + G[Z_j w + L_j c]`` on masked rows (all rows, or the folds of the held-out choice):
 constrained least squares for the weights (the PI identification's invertibility constraint),
 output-error fits for ``G`` (:mod:`.dynamics`, and :func:`refine_output_error` by variable
-projection), alternated.  Used by :mod:`.stage_identification`.
+projection), alternated.  It is a step inside :class:`~.stage_identification.StageIdentifier` (which is the
+estimator), not an estimator itself, so its method is ``solve``, not ``fit``.
 """
 
 from __future__ import annotations
@@ -131,7 +132,7 @@ class StageProblem:
             total += float(e @ e)
         return total
 
-    def fit(self, order: int, taus: tuple[float, ...], masks: list[np.ndarray]):
+    def solve(self, order: int, taus: tuple[float, ...], masks: list[np.ndarray]):
         """Weights, creep weights, offsets and ``(b, a)`` (None for order 0) fitted on the masked rows.
 
         Alternation from two starts -- the over-parametrised fit (:func:`fit_hammerstein`) and
@@ -189,7 +190,7 @@ class StageProblem:
         score = 0.0
         for fit_masks, test_masks in folds:
             try:
-                w, c, _, ba = self.fit(order, taus, fit_masks)
+                w, c, _, ba = self.solve(order, taus, fit_masks)
             except (IdentificationError, np.linalg.LinAlgError):
                 return float("inf")
             for (_, y), cols_mask, col in zip(self.recs, test_masks, self.columns(taus)):
