@@ -116,7 +116,11 @@ def _package_classes():
 def test_every_class_with_fit_is_an_estimator():
     # a class the user can call .fit on follows the one contract; a step inside an
     # estimator names its method otherwise (solve, refine, ...)
-    outside = [name for name, cls in _package_classes() if callable(getattr(cls, "fit", None)) and not issubclass(cls, Estimator)]
+    outside = [
+        name
+        for name, cls in _package_classes()
+        if callable(getattr(cls, "fit", None)) and not issubclass(cls, Estimator)
+    ]
     assert not outside, f"classes with fit() outside the Estimator base: {outside}"
 
 
