@@ -113,7 +113,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     ),
     "disturbance-modes": (
         ["src/stageid/hysteresis/disturbance_modes.py"],
-        ["tests/test_stage_disturbance_modes.py"],
+        [
+            "tests/test_stage_disturbance_modes.py",
+            "tests/test_stage_evidence.py",
+            "tests/test_killed_disturbance_modes.py",
+        ],
     ),
     "creep": (
         ["src/stageid/hysteresis/creep.py"],

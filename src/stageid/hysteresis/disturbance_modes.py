@@ -40,7 +40,9 @@ tracking records are validation data and did not set it):
    convolved with the Hann window's kernel (the expected Welch estimate).  The candidate is a
    **mode** when the fitted peak over the floor is at least ``PEAK_RATIO``, the damping is at
    most ``MAX_DAMPING`` (lightly damped), and the half-power width ``2 zeta fn`` is at least one
-   bin (narrower is a periodic line, not a mode rung by broadband noise).
+   bin (narrower is a periodic line, not a mode rung by broadband noise; when the fit puts
+   such a line on the candidate's own bin, ``SEPARATION`` bins either side of it are its
+   window's leakage and give no mode).
 6. A candidate within ``SEPARATION`` half-power half-widths (``zeta fn``) of an accepted
    mode is not added (its shoulder); nor one within ``SEPARATION`` times the larger of its
    own damping and ``min(zeta_p, MAX_DAMPING)`` (relative) of a complex pole pair of the
@@ -296,7 +298,13 @@ def disturbance_modes(
             fn, zeta, peak = _fit_peak(f, s, measured, float(f[k]), float(floor[k]), dt, least)
         except (ValueError, np.linalg.LinAlgError):
             continue
-        if peak < PEAK_RATIO or zeta > MAX_DAMPING or 2 * zeta * fn < df:
+        if peak >= PEAK_RATIO and 2 * zeta * fn < df:
+            if abs(fn - f[k]) <= df:
+                # a line narrower than a bin, at its own measured peak: the window's leakage
+                # beside it is no mode either (off its peak, the fit saw only a shoulder)
+                bands.append((fn - SEPARATION * df, fn + SEPARATION * df))
+            continue
+        if peak < PEAK_RATIO or zeta > MAX_DAMPING:
             continue
         if any(lo <= fn <= hi for lo, hi in bands):
             continue
