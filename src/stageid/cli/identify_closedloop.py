@@ -15,11 +15,11 @@ from .uncertainty import UncertaintyRequest, uncertainty_options
 \b
 Examples:
   stageid plants maglev --controller -o K.json
-  stageid plants maglev --experiment chirp-x -o ex.csv   (and chirp-y, chirp-phi)
+  stageid plants maglev --experiment chirp-x -o ex.csv   # and chirp-y, chirp-phi
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
       --outputs x,y,phi --controller K.json --band 20:300 -o G.json
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
-      --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   (plant response and std)
+      --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   # plant response, std
 """,
 )
 @click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))

@@ -39,10 +39,10 @@ def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str 
 Examples:
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json
   stageid identify statespace cz.csv crx.csv cry.csv --inputs Z,Rx,Ry --outputs z,rx,ry \\
-      --per-channel --order 7,4,4 -o model.json      (one file per excited input, eq. 19-22)
+      --per-channel --order 7,4,4 -o model.json   # one file per excited input
   stageid identify statespace run.npz --inputs u1,u2 --outputs y1,y2 --ts 0.002 -o model.json
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json \\
-      --uncertainty bands.csv --uncertainty-grid 1:100:200   (model response with its std)
+      --uncertainty bands.csv --uncertainty-grid 1:100:200   # response, std
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path())

@@ -18,7 +18,7 @@ ALPHA = 0.01  # each test at the 1 % level
 Examples:
   stageid validate model.json val.csv
   stageid validate model.json a.csv b.csv --json validation.json --report val-report/
-  stageid validate model.json val.csv --inputs V --outputs z --ts 0.002
+  stageid validate hyst.json drive.csv --inputs V --outputs z --ts 0.002
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
