@@ -19,7 +19,8 @@ from .._errors import StageIdError
 
 EXAMPLES = """
 \b
-Examples (they chain: each reads the files the earlier ones wrote):
+Examples:
+  # in order: each reads the files the earlier ones wrote
   stageid plants p558 -o p558.json                       # a reference stage's model
   stageid plants p558 --experiment band-limited -o exp.csv   # a simulated experiment, all inputs
   stageid simulate p558.json exp.csv -o sim.csv          # model response to a record
