@@ -3,6 +3,8 @@ command, and what the commands print where."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -45,3 +47,80 @@ def test_simulate_zero_missing_holds_the_absent_inputs_at_zero_and_says_so(tmp_p
     assert "Rx" in err and "held at 0" in err
     expected = two_input_model.simulate(np.column_stack([u, np.zeros_like(u)]))
     np.testing.assert_allclose(read_table(tmp_path / "y.csv").values, expected, atol=1e-9)
+
+
+def _record(path, u, y, dt=0.01):
+    write_csv(path, {"Z": u[:, 0], "Rx": u[:, 1], "z": y[:, 0], "rx": y[:, 1]}, dt=dt)
+
+
+def test_validate_tests_the_moving_input_and_names_the_constant_one(tmp_path, two_input_model):
+    rng = np.random.default_rng(7)
+    u = np.column_stack([rng.standard_normal(2000), np.zeros(2000)])  # a one-axis record: Rx never moves
+    _record(tmp_path / "one-axis.csv", u, two_input_model.simulate(u) + 0.01 * rng.standard_normal((2000, 2)))
+    code, out, err = run_main("validate", "g.json", "one-axis.csv", "--json", "v.json", cwd=tmp_path)
+    assert code == 0, err
+    assert "[Rx: constant in the record, not tested]" in out and "[Z: chi2" in out
+
+    z = json.loads((tmp_path / "v.json").read_text())["outputs"]["z"]
+    assert z["untested_inputs"] == ["Rx"] and set(z["independence"]["inputs"]) == {"Z"}
+
+
+def test_validate_names_the_record_when_no_input_moves(tmp_path, two_input_model):
+    _record(tmp_path / "still.csv", np.zeros((500, 2)), np.random.default_rng(8).standard_normal((500, 2)))
+    code, out, err = run_main("validate", "g.json", "still.csv", cwd=tmp_path)
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "every input (Z, Rx) is constant in record 'still.csv'" in err
+
+
+def test_validate_prints_one_line_per_record_and_output_then_the_pooled_lines(tmp_path, two_input_model):
+    rng = np.random.default_rng(9)
+    for name in ("a.csv", "b.csv"):
+        u = rng.standard_normal((1500, 2))
+        _record(tmp_path / name, u, two_input_model.simulate(u) + 0.01 * rng.standard_normal((1500, 2)))
+    code, out, err = run_main("validate", "g.json", "a.csv", "b.csv", "--json", "v.json", cwd=tmp_path)
+    assert code == 0, err
+    starts = [line.split(": fit")[0] for line in out.splitlines()]
+    assert starts == ["a.csv  z", "a.csv  rx", "b.csv  z", "b.csv  rx", "all 2 records  z", "all 2 records  rx"]
+
+    records = json.loads((tmp_path / "v.json").read_text())["records"]
+    assert [r["record"] for r in records] == ["a.csv", "b.csv"] and "whiteness" in records[0]["outputs"]["z"]
+
+
+def test_validate_names_its_error_measure_rms_in_percent_of_range_not_nrmse(tmp_path, two_input_model):
+    rng = np.random.default_rng(10)
+    u = rng.standard_normal((1500, 2))
+    y = two_input_model.simulate(u)
+    noisy = y + 0.01 * rng.standard_normal(y.shape)
+    _record(tmp_path / "r.csv", u, noisy)
+    code, out, err = run_main("validate", "g.json", "r.csv", cwd=tmp_path)
+    rms_percent = 100 * np.sqrt(np.mean((noisy[:, 0] - y[:, 0]) ** 2)) / np.ptp(noisy[:, 0])
+    assert code == 0 and f"RMS error {rms_percent:.3g} % of range" in out and "NRMSE" not in out
+    code, help_text, _ = run_main("validate", "--help")
+    assert "NRMSE" not in help_text and "% of the measured range" in help_text
+
+
+def test_validate_initial_estimate_explains_a_record_started_away_from_rest(tmp_path, two_input_model):
+    g, rng = two_input_model, np.random.default_rng(11)
+    u = rng.standard_normal((1500, 2))
+    x0 = 20.0 * rng.standard_normal(g.n_states)  # the stage was moving when the record started
+    _record(tmp_path / "r.csv", u, g.simulate(u, x0=x0) + 0.01 * rng.standard_normal((1500, 2)))
+    fits = {}
+    for initial in ("model", "estimate"):
+        code, out, err = run_main("validate", "g.json", "r.csv", "--initial", initial, "--json", "v.json", cwd=tmp_path)
+        assert code == 0, err
+
+        summary = json.loads((tmp_path / "v.json").read_text())
+        assert summary["initial"]["method"] == initial
+        fits[initial] = min(o["fit_percent"] for o in summary["outputs"].values())
+    assert fits["estimate"] > 99.0 and fits["model"] < 90.0, fits
+    code, out, err = run_main("validate", "g.json", "r.csv", "--initial", "kinds", cwd=tmp_path)
+    assert code == 2 and "an LTI model takes model or estimate" in err
+
+
+def test_estimated_initial_state_reproduces_the_free_response_of_a_continuous_model():
+    from stageid.validation.initial_state import estimate_initial_state
+
+    g = StateSpaceModel([[0.0, 1.0], [-400.0, -4.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]], dt=None)
+    u = np.random.default_rng(12).standard_normal((800, 1))
+    y = g.simulate(u, x0=[1.0, -5.0], dt=0.001)
+    np.testing.assert_allclose(estimate_initial_state(g, u, y, dt=0.001), [1.0, -5.0], rtol=1e-6)
