@@ -124,3 +124,53 @@ def test_estimated_initial_state_reproduces_the_free_response_of_a_continuous_mo
     u = np.random.default_rng(12).standard_normal((800, 1))
     y = g.simulate(u, x0=[1.0, -5.0], dt=0.001)
     np.testing.assert_allclose(estimate_initial_state(g, u, y, dt=0.001), [1.0, -5.0], rtol=1e-6)
+
+
+def test_the_experiments_of_one_seed_have_different_noise():
+    from stageid.plants import piezo_stage
+
+    noise = []
+    for name in ("chirp-z", "chirp-rx"):
+        exp = piezo_stage.EXPERIMENTS[name](seed=0)
+        noise.append((exp.y - piezo_stage.model().simulate(exp.u))[:, 0])
+    # independent white noise: |correlation| about 1/sqrt(5000) = 0.014; the same noise gives 1
+    assert abs(np.corrcoef(noise[0], noise[1])[0, 1]) < 0.1
+
+
+def test_the_maglev_experiments_of_one_seed_have_different_noise():
+    from stageid.plants import maglev
+
+    noise = []
+    for axis in ("x", "y"):
+        measured = maglev.EXPERIMENTS[f"chirp-{axis}"](seed=0).column("phi")  # phi is not excited in either
+        noise.append(measured - maglev.simulate_chirp(axis, snr_db=None).column("phi"))
+    assert abs(np.corrcoef(noise[0], noise[1])[0, 1]) < 0.1
+
+
+def test_the_true_p558_model_passes_whiteness_on_pooled_generated_records_at_the_tests_level():
+    from stageid.plants import piezo_stage
+    from stageid.validation.residuals import whiteness_test
+
+    # 20 seeds x 3 outputs at the 1 % level: about 0.6 failures expected; 4 or more has probability 0.3 %
+    # (the same noise in the three records made every pooled test fail: Q about 3x its chi2(25) mean)
+    failures = 0
+    for seed in range(20):
+        exps = [piezo_stage.EXPERIMENTS[name](seed=seed) for name in ("chirp-z", "chirp-rx", "chirp-ry")]
+        residuals = [e.y - piezo_stage.model().simulate(e.u) for e in exps]
+        failures += sum(not whiteness_test([r[:, i] for r in residuals]).passed for i in range(3))
+    assert failures <= 3, failures
+
+
+def test_identify_hysteresis_takes_dynamics_0_the_order_auto_considers(tmp_path):
+    from stageid.hysteresis import PIModel
+    from stageid.signals import decaying_triangle
+
+    u = decaying_triangle(20.0, 2, 1e-3, amplitude=10.0)[:2000]
+    y = PIModel(r=[0.0, 2.5, 5.0, 7.5], weights=[1.0, 0.4, 0.2, 0.1]).simulate(u[:, None])[:, 0]
+    write_csv(tmp_path / "a.csv", {"V": u, "y": y}, dt=1e-3)
+    args = ("identify", "hysteresis", "a.csv", "--input", "V", "--output", "y", "--model", "pi", "--creep", "none")
+    code, out, err = run_main(*args, "--dynamics", "0", "-o", "s.json", cwd=tmp_path)
+    assert code == 0, err
+    saved = json.loads((tmp_path / "s.json").read_text())
+    assert saved["kind"] == "stage" and (saved["dynamics"] is None or saved["dynamics"]["A"] == [])
+    assert "dynamics order 0" in out  # the summary is a result: stdout

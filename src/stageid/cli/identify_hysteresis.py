@@ -31,9 +31,9 @@ def _order(ctx: click.Context, param: click.Parameter, value: str | None) -> int
     try:
         order = int(value)
     except ValueError:
-        order = 0
-    if order < 1:
-        raise click.BadParameter(f"expected a positive integer order, auto or none; got {value!r}.")
+        order = -1
+    if order < 0:
+        raise click.BadParameter(f"expected an integer order >= 0, auto or none; got {value!r}.")
     return order
 
 
@@ -113,7 +113,8 @@ Examples:
     callback=_order,
     metavar="N|auto|none",
     help="Fit a stage model: hysteresis -> creep -> discrete linear dynamics of order N with unit DC "
-    "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics; "
+    "gain, identified jointly (auto: order 0-4 by held-out error on the records; 0: a stage model without "
+    "dynamics, as auto's order 0; none: no dynamics; "
     "an order N that does not lower the held-out error is dropped, and the summary says so). "
     "Writes a model of kind `stage`; needs a time axis.",
 )
@@ -220,7 +221,7 @@ def identify(
         ]
         band = getattr(fit, "weight_uncertainty", None)
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
-        say(f"report written to {path}", err=True)
+        say(f"report written to {path}")
 
 
 def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):

@@ -154,9 +154,9 @@ def statespace_command(
     write_model_output(output, result.model)  # committed with the report, after both succeeded
     fit_band = identified_band(result)
     uncertainty_line = uncertainty.write(result, fit_band, result.model.dt)
-    say(result.summary(), err=True)
+    say(result.summary())
     if uncertainty_line:
-        say(uncertainty_line, err=True)
+        say(uncertainty_line)
     if report_dir is not None:
         _write_report(result, exps, report_dir, fit_band)
 
@@ -188,7 +188,7 @@ def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) 
 
     bands = result.response_uncertainty(np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300))
     path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra, uncertainty=bands)
-    say(f"report written to {path}", err=True)
+    say(f"report written to {path}")
 
 
 def identified_band(result) -> tuple[float, float]:
