@@ -174,3 +174,41 @@ def test_identify_hysteresis_takes_dynamics_0_the_order_auto_considers(tmp_path)
     saved = json.loads((tmp_path / "s.json").read_text())
     assert saved["kind"] == "stage" and (saved["dynamics"] is None or saved["dynamics"]["A"] == [])
     assert "dynamics order 0" in out  # the summary is a result: stdout
+
+
+def test_output_column_and_output_file_say_which_is_which(tmp_path):
+    write_csv(tmp_path / "a.csv", {"V": np.linspace(0, 1, 300), "y": np.linspace(0, 2, 300)}, dt=1e-3)
+    base = ("identify", "hysteresis", "a.csv", "--input", "V", "--output")
+    code, out, err = run_main(*base, "hyst.json", cwd=tmp_path)  # the file given to the column option
+    assert code == 2 and "--output names the output column" in err and "give it with -o" in err
+    code, out, err = run_main(*base, "hyst.json", "-o", "h.json", cwd=tmp_path)
+    assert code == 2 and "unknown column 'hyst.json'" in err and "the model file is -o/--output-file" in err
+    code, out, err = run_main("plants", "p558", "-o", "z", cwd=tmp_path)  # a column name given to -o
+    assert code == 2 and "-o names the file to write, not a data column" in err
+    code, help_text, _ = run_main("identify", "hysteresis", "--help")
+    assert "Output column of the records" in help_text and "--output names the output column" in help_text
+
+
+def _help_texts(command=None, path=("stageid",)):
+    import click
+
+    from stageid.cli.main import cli
+
+    command = command or cli
+    ctx = click.Context(command, info_name=" ".join(path))
+    yield " ".join(path), command.get_help(ctx)
+    if isinstance(command, click.Group):
+        for name in command.list_commands(ctx):
+            yield from _help_texts(command.get_command(ctx, name), (*path, name))
+
+
+def test_no_help_text_shows_docstring_markup():
+    import re
+
+    found = [
+        f"{name}: {line.strip()}"
+        for name, text in _help_texts()
+        for line in text.splitlines()
+        if "``" in line or re.search(r":[a-z]+:`", line)
+    ]
+    assert not found, "\n".join(found)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
+from .._errors import DataError
 from ._common import check_output, check_output_folder, say, write_model_output
 
 
@@ -51,8 +54,13 @@ Examples:
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
-@click.option("--input", "input_name", required=True, help="Input column (drive, e.g. V).")
-@click.option("--output", "output_name", required=True, help="Output column (displacement, e.g. y).")
+@click.option("--input", "input_name", required=True, help="Input column of the records (drive, e.g. V).")
+@click.option(
+    "--output",
+    "output_name",
+    required=True,
+    help="Output column of the records (displacement, e.g. y); the model file is -o/--output-file.",
+)
 @click.option(
     "--model",
     "kind",
@@ -135,9 +143,9 @@ Examples:
     "-o",
     "--output-file",
     "out",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False),
-    help="Model file (stageid.hysteresis/1 JSON).",
+    help="Model file to write (JSON; required); --output names the output column.",
 )
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
 @click.option(
@@ -178,10 +186,16 @@ def identify(
     from ._common import read_experiments
 
     # a bad -o or --report is refused before the records are read or any model is fitted
+    out = _model_file(out, output_name)
     check_output(out, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    exps = read_experiments(list(data), [input_name], [output_name], ts)
+    try:
+        exps = read_experiments(list(data), [input_name], [output_name], ts)
+    except DataError as exc:
+        if not _file_like(output_name) or output_name not in str(exc):
+            raise
+        raise DataError(f"{exc} (--output names the output column; the model file is -o/--output-file.)") from None
     rate_independent = creep in (None, "none") and dynamics in (None, "none")
     if kind == "preisach" and rate_independent:
         from ..hysteresis import PreisachIdentifier
@@ -222,6 +236,22 @@ def identify(
         band = getattr(fit, "weight_uncertainty", None)
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
         say(f"report written to {path}")
+
+
+def _file_like(name: str) -> bool:
+    return Path(name).suffix.lower() in (".json", ".csv", ".npz", ".mat")
+
+
+def _model_file(out: str | None, output_name: str) -> str:
+    """The -o file; its absence is explained when --output was given a file name instead."""
+    if out is not None:
+        return out
+    hint = (
+        f"; --output names the output column (e.g. y), and '{output_name}' looks like the model file: give it with -o"
+        if _file_like(output_name)
+        else ""
+    )
+    raise click.UsageError(f"Missing option '-o' / '--output-file' (the model file to write){hint}.")
 
 
 def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):
