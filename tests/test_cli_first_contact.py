@@ -212,3 +212,55 @@ def test_no_help_text_shows_docstring_markup():
         if "``" in line or re.search(r":[a-z]+:`", line)
     ]
     assert not found, "\n".join(found)
+
+
+def _flexure_frd():
+    """The 2x2 flexure stage of the FRF tests (modes at 80, 210 and 450 Hz), noise-free, 300 lines."""
+    from stageid.frf import FrequencyResponse
+    from test_frf_identify import flexure_stage
+
+    g = flexure_stage()
+    f = np.geomspace(5.0, 1000.0, 300)
+    return FrequencyResponse(f, g.frequency_response(f), inputs=g.inputs, outputs=g.outputs)
+
+
+def test_frd_fit_that_misses_the_flexure_warns_and_a_good_auto_fit_does_not():
+    import warnings
+
+    from stageid import FitWarning
+    from stageid.frf import FRDIdentification
+
+    frd = _flexure_frd()
+    with pytest.warns(FitWarning, match=r"order-2 model \(as given\) misses the response by up to") as caught:
+        low = FRDIdentification(order=2, dt=None).fit(frd)
+    assert low.max_error > 0.1 and caught[0].filename == __file__  # pointed at the caller's line
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FitWarning)
+        auto = FRDIdentification(order="auto", dt=None).fit(frd)
+    assert auto.max_error < 0.01 and auto.order >= 6
+
+
+@pytest.mark.realdata
+def test_identify_frd_auto_on_the_afm_frf_does_not_pass_a_large_error_silently(tmp_path):
+    import scipy.io
+
+    from stageid.data import datasets
+    from stageid.frf import FrequencyResponse, frd_columns
+
+    path = None if datasets.SHARED_DATA is None else datasets.SHARED_DATA / "afm_piezo_stage_frf"
+    if path is None or not (path / "FRF_data_current_stage2.mat").exists():
+        pytest.skip("shared data folder not found (../shared/data/afm_piezo_stage_frf)")
+    mat = scipy.io.loadmat(path / "FRF_data_current_stage2.mat", squeeze_me=True, struct_as_record=False)
+    frf = mat["modelFit"].frf
+    afm = FrequencyResponse(np.asarray(frf.freqs_Hz), np.asarray(frf.G_uz2stage), inputs=("uz",), outputs=("stage",))
+    write_csv(tmp_path / "afm.csv", frd_columns(afm))
+    code, out, err = run_main(
+        "identify", "frd", "afm.csv", "--order", "auto", "--dt", "4e-5", "-o", "m.json", cwd=tmp_path
+    )
+    assert code == 0, err
+    stated = float(out.split("(of its peak): uz ")[1].split(" %")[0])
+    if stated > 10.0:  # the auto order leaves a large error: a one-line warning says so and what to try
+        assert "stageid: warning: FRDIdentification: the order-" in err and "chosen by order='auto'" in err
+        assert f"misses the response by up to {stated:.3g} %" in err
+    else:
+        assert "warning" not in err
