@@ -15,19 +15,9 @@ from stageid.models import StateSpaceModel, save_model
 
 @pytest.fixture
 def two_input_model(tmp_path):
-    """A stable discrete 3-state model with inputs Z, Rx and outputs z, rx."""
-    rng = np.random.default_rng(5)
-    A = rng.standard_normal((3, 3))
-    A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)))
-    g = StateSpaceModel(
-        A,
-        rng.standard_normal((3, 2)),
-        rng.standard_normal((2, 3)),
-        np.zeros((2, 2)),
-        dt=0.01,
-        inputs=("Z", "Rx"),
-        outputs=("z", "rx"),
-    )
+    """A stable discrete 3-state model (poles 0.9, 0.5, -0.3) with inputs Z, Rx and outputs z, rx."""
+    A, B = np.diag([0.9, 0.5, -0.3]), np.array([[1.0, 0.2], [0.0, 1.0], [0.5, -0.5]])
+    g = StateSpaceModel(A, B, [[1.0, 0.5, 0.0], [0.0, 1.0, 1.0]], np.zeros((2, 2)), 0.01, ("Z", "Rx"), ("z", "rx"))
     save_model(g, tmp_path / "g.json")
     return g
 

@@ -183,19 +183,13 @@ def identify(
     several rates are the normal input.
     """
     from ..hysteresis import PIIdentifier
-    from ._common import read_experiments
 
     # a bad -o or --report is refused before the records are read or any model is fitted
     out = _model_file(out, output_name)
     check_output(out, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    try:
-        exps = read_experiments(list(data), [input_name], [output_name], ts)
-    except DataError as exc:
-        if not _file_like(output_name) or output_name not in str(exc):
-            raise
-        raise DataError(f"{exc} (--output names the output column; the model file is -o/--output-file.)") from None
+    exps = _read_records(data, input_name, output_name, ts)
     rate_independent = creep in (None, "none") and dynamics in (None, "none")
     if kind == "preisach" and rate_independent:
         from ..hysteresis import PreisachIdentifier
@@ -236,6 +230,18 @@ def identify(
         band = getattr(fit, "weight_uncertainty", None)
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
         say(f"report written to {path}")
+
+
+def _read_records(data, input_name: str, output_name: str, ts: float | None):
+    """The records' input and output columns; a file name given to --output is explained."""
+    from ._common import read_experiments
+
+    try:
+        return read_experiments(list(data), [input_name], [output_name], ts)
+    except DataError as exc:
+        if not _file_like(output_name) or output_name not in str(exc):
+            raise
+        raise DataError(f"{exc} (--output names the output column; the model file is -o/--output-file.)") from None
 
 
 def _file_like(name: str) -> bool:
