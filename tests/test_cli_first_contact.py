@@ -230,6 +230,23 @@ def test_frd_fit_that_misses_the_flexure_warns_and_a_good_auto_fit_does_not():
     assert auto.max_error < 0.01 and auto.order >= 6
 
 
+def test_frd_fit_within_the_datas_noise_does_not_warn():
+    import warnings
+
+    from stageid import FitWarning
+    from stageid.frf import FRDIdentification, FrequencyResponse
+    from test_frf_identify import noisy
+
+    frd = _flexure_frd()
+    G, std = noisy(frd.response, seed=3, level=0.2)  # misses of up to ~60 % of a peak, all noise
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FitWarning)
+        res = FRDIdentification(order=6, dt=None).fit(
+            FrequencyResponse(frd.freqs, G, std, None, frd.inputs, frd.outputs)
+        )
+    assert res.max_error > 0.1  # against the noisy lines; the warning looks past 3 std of them
+
+
 @pytest.mark.realdata
 def test_identify_frd_auto_on_the_afm_frf_does_not_pass_a_large_error_silently(tmp_path):
     import scipy.io
