@@ -271,3 +271,15 @@ def test_identify_frd_auto_on_the_afm_frf_does_not_pass_a_large_error_silently(t
         assert f"misses the response by up to {stated:.3g} %" in err
     else:
         assert "warning" not in err
+
+
+def test_validate_gives_a_record_too_short_for_the_tests_its_fit_and_the_reason(tmp_path, two_input_model):
+    rng = np.random.default_rng(13)
+    for name, n in (("long.csv", 1500), ("short.csv", 60)):
+        u = rng.standard_normal((n, 2))
+        _record(tmp_path / name, u, two_input_model.simulate(u) + 0.01 * rng.standard_normal((n, 2)))
+    code, out, err = run_main("validate", "g.json", "long.csv", "short.csv", cwd=tmp_path)
+    assert code == 0, err
+    short = [line for line in out.splitlines() if line.startswith("short.csv")]
+    assert len(short) == 2 and all("no residual tests: residual tests over 25 lags need" in s for s in short)
+    assert all("% of range" in s for s in short)
