@@ -167,7 +167,7 @@ def test_wrong_b_rows_is_one_line_error_and_no_output(tmp_path):
             ],
             "limits",
         ),
-        (["simulate", "{m}", "{u_wrong}", "-o", "{out}"], "unknown column 'Z'"),
+        (["simulate", "{m}", "{u_wrong}", "-o", "{out}"], "the model's input(s) Z"),
         (["nonsense"], "No such command"),
     ],
 )

@@ -282,7 +282,7 @@ def test_a_70000_character_column_name_is_read_and_cut_short_in_messages(work):
     name = "x" * 70000
     (work / "long.csv").write_text(f"t,{name},y\n" + "".join(f"{k * DT:.2f},1,2\n" for k in range(20)))
     rc, _, err = run_main("simulate", "g.json", "long.csv", "-o", "out.csv")
-    assert_one_line_error(rc, err, "unknown column 'u'; expected one of 'xxxx")
+    assert_one_line_error(rc, err, "the model's input(s) u", "its columns: 'xxxx")
     assert len(err) < 400
 
 

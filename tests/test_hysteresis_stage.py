@@ -231,7 +231,7 @@ def test_cli_without_new_flags_is_todays_pi_identification(tmp_path):
 @pytest.mark.parametrize(
     "extra, words",
     [
-        (["--dynamics", "0"], "--dynamics"),
+        (["--dynamics", "-1"], "--dynamics"),
         (["--dynamics", "two"], "--dynamics"),
         (["--dynamics", "400"], "order these records support"),
         (["--creep", "fast"], "--creep"),

@@ -109,8 +109,9 @@ def test_cli_validate_initial(tmp_path, capsys):
     capsys.readouterr()
     lti = StateSpaceModel([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=DT, inputs=("V",), outputs=("y",))
     save_model(lti, tmp_path / "lti.json")
-    assert main(["validate", str(tmp_path / "lti.json"), str(tmp_path / "r.csv"), "--initial", "estimate"]) == 2
-    assert "--initial estimate is for hysteresis" in capsys.readouterr().err
+    # an LTI model takes --initial estimate (its least-squares initial state), not the hysteresis memories
+    assert main(["validate", str(tmp_path / "lti.json"), str(tmp_path / "r.csv"), "--initial", "kinds"]) == 2
+    assert "--initial kinds is for hysteresis" in capsys.readouterr().err
 
 
 @pytest.mark.slow

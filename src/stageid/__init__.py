@@ -20,6 +20,7 @@ from ._errors import (
     ClusterError,
     DataError,
     ExcitationWarning,
+    FitWarning,
     IdentificationError,
     ModelError,
     ModelFormatError,
@@ -49,6 +50,7 @@ __all__ = [
     "NoSampleTimeError",
     "StageIdWarning",
     "ExcitationWarning",
+    "FitWarning",
     "StabilityWarning",
     "__version__",
 ]

@@ -84,3 +84,7 @@ class ExcitationWarning(StageIdWarning):
 
 class StabilityWarning(StageIdWarning):
     """An identified or requested model is unstable where stability was expected."""
+
+
+class FitWarning(StageIdWarning):
+    """An identified model leaves a large error on the data it was fitted to."""

@@ -40,6 +40,7 @@ __all__ = [
     "MODEL_SUFFIXES",
     "progress",
     "is_interactive",
+    "plain_help",
 ]
 
 #: Extensions of table outputs (signals, simulated records, frequency responses), by format.
@@ -52,6 +53,21 @@ _OUTPUT_KINDS = {
     "model": (MODEL_SUFFIXES, "a model"),
     "mat": ((".mat",), "a MATLAB file"),
 }
+
+
+def plain_help(text: str) -> str:
+    """Docstring text as help for a terminal: reST roles and double backquotes dropped.
+
+    Examples
+    --------
+    >>> from stageid.cli._common import plain_help
+    >>> plain_help("Swept sine ``a + b``; see :func:`~stageid.signals.chirp`.")
+    'Swept sine a + b; see chirp.'
+    """
+    import re
+
+    text = re.sub(r":[a-z]+:`~?([^`]+)`", lambda m: m.group(1).rsplit(".", 1)[-1], text)
+    return text.replace("``", "")
 
 
 def split_names(text: str | None, option: str) -> tuple[str, ...] | None:
@@ -222,7 +238,9 @@ def check_output(path: str | os.PathLike[str], kind: str) -> Path:
     suffix = target.suffix.lower()
     if suffix not in allowed:
         shown = f"extension '{suffix}'" if suffix else "no extension"
-        raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for {words}.")
+        # a bare name is most often a column given to -o/--output (a file) instead of --outputs
+        hint = "" if suffix else " -o names the file to write, not a data column."
+        raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for {words}.{hint}")
     check_parent(target)
     if target.is_dir():
         raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")

@@ -15,11 +15,11 @@ from .uncertainty import UncertaintyRequest, uncertainty_options
 \b
 Examples:
   stageid plants maglev --controller -o K.json
-  stageid plants maglev --experiment chirp-x -o ex.csv   (and chirp-y, chirp-phi)
+  stageid plants maglev --experiment chirp-x -o ex.csv   # and chirp-y, chirp-phi
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
       --outputs x,y,phi --controller K.json --band 20:300 -o G.json
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
-      --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   (plant response and std)
+      --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   # plant response, std
 """,
 )
 @click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))
@@ -137,9 +137,9 @@ def closedloop_command(
     if loop_output is not None:
         write_model_output(loop_output, result.closed_loop)
     uncertainty_line = uncertainty.write(result, result.band, exps[0].dt)
-    say(result.summary(), err=True)
+    say(result.summary())
     if uncertainty_line:
-        say(uncertainty_line, err=True)
+        say(uncertainty_line)
     if report_dir is not None:
         _write_report(result, exps, result.controller, report_dir)
 
@@ -278,4 +278,4 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
             f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
         )
     path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
-    say(f"report written to {path}", err=True)
+    say(f"report written to {path}")

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
+from .._errors import DataError
 from ._common import check_output, check_output_folder, say, write_model_output
 
 
@@ -31,9 +34,9 @@ def _order(ctx: click.Context, param: click.Parameter, value: str | None) -> int
     try:
         order = int(value)
     except ValueError:
-        order = 0
-    if order < 1:
-        raise click.BadParameter(f"expected a positive integer order, auto or none; got {value!r}.")
+        order = -1
+    if order < 0:
+        raise click.BadParameter(f"expected an integer order >= 0, auto or none; got {value!r}.")
     return order
 
 
@@ -51,8 +54,13 @@ Examples:
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
-@click.option("--input", "input_name", required=True, help="Input column (drive, e.g. V).")
-@click.option("--output", "output_name", required=True, help="Output column (displacement, e.g. y).")
+@click.option("--input", "input_name", required=True, help="Input column of the records (drive, e.g. V).")
+@click.option(
+    "--output",
+    "output_name",
+    required=True,
+    help="Output column of the records (displacement, e.g. y); the model file is -o/--output-file.",
+)
 @click.option(
     "--model",
     "kind",
@@ -113,7 +121,8 @@ Examples:
     callback=_order,
     metavar="N|auto|none",
     help="Fit a stage model: hysteresis -> creep -> discrete linear dynamics of order N with unit DC "
-    "gain, identified jointly (auto: order by held-out error on the records; none: no dynamics; "
+    "gain, identified jointly (auto: order 0-4 by held-out error on the records; 0: a stage model without "
+    "dynamics, as auto's order 0; none: no dynamics; "
     "an order N that does not lower the held-out error is dropped, and the summary says so). "
     "Writes a model of kind `stage`; needs a time axis.",
 )
@@ -134,9 +143,9 @@ Examples:
     "-o",
     "--output-file",
     "out",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False),
-    help="Model file (stageid.hysteresis/1 JSON).",
+    help="Model file to write (JSON; required); --output names the output column.",
 )
 @click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
 @click.option(
@@ -174,13 +183,13 @@ def identify(
     several rates are the normal input.
     """
     from ..hysteresis import PIIdentifier
-    from ._common import read_experiments
 
     # a bad -o or --report is refused before the records are read or any model is fitted
+    out = _model_file(out, output_name)
     check_output(out, "model")
     if report_dir is not None:
         check_output_folder(report_dir)
-    exps = read_experiments(list(data), [input_name], [output_name], ts)
+    exps = _read_records(data, input_name, output_name, ts)
     rate_independent = creep in (None, "none") and dynamics in (None, "none")
     if kind == "preisach" and rate_independent:
         from ..hysteresis import PreisachIdentifier
@@ -220,7 +229,35 @@ def identify(
         ]
         band = getattr(fit, "weight_uncertainty", None)
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
-        say(f"report written to {path}", err=True)
+        say(f"report written to {path}")
+
+
+def _read_records(data, input_name: str, output_name: str, ts: float | None):
+    """The records' input and output columns; a file name given to --output is explained."""
+    from ._common import read_experiments
+
+    try:
+        return read_experiments(list(data), [input_name], [output_name], ts)
+    except DataError as exc:
+        if not _file_like(output_name) or output_name not in str(exc):
+            raise
+        raise DataError(f"{exc} (--output names the output column; the model file is -o/--output-file.)") from None
+
+
+def _file_like(name: str) -> bool:
+    return Path(name).suffix.lower() in (".json", ".csv", ".npz", ".mat")
+
+
+def _model_file(out: str | None, output_name: str) -> str:
+    """The -o file; its absence is explained when --output was given a file name instead."""
+    if out is not None:
+        return out
+    hint = (
+        f"; --output names the output column (e.g. y), and '{output_name}' looks like the model file: give it with -o"
+        if _file_like(output_name)
+        else ""
+    )
+    raise click.UsageError(f"Missing option '-o' / '--output-file' (the model file to write){hint}.")
 
 
 def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):

@@ -39,10 +39,10 @@ def _int_or_auto(text: str, option: str, allow_list: bool = False) -> int | str 
 Examples:
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json
   stageid identify statespace cz.csv crx.csv cry.csv --inputs Z,Rx,Ry --outputs z,rx,ry \\
-      --per-channel --order 7,4,4 -o model.json      (one file per excited input, eq. 19-22)
+      --per-channel --order 7,4,4 -o model.json   # one file per excited input
   stageid identify statespace run.npz --inputs u1,u2 --outputs y1,y2 --ts 0.002 -o model.json
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry --order 15 -o model.json \\
-      --uncertainty bands.csv --uncertainty-grid 1:100:200   (model response with its std)
+      --uncertainty bands.csv --uncertainty-grid 1:100:200   # response, std
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path())
@@ -154,9 +154,9 @@ def statespace_command(
     write_model_output(output, result.model)  # committed with the report, after both succeeded
     fit_band = identified_band(result)
     uncertainty_line = uncertainty.write(result, fit_band, result.model.dt)
-    say(result.summary(), err=True)
+    say(result.summary())
     if uncertainty_line:
-        say(uncertainty_line, err=True)
+        say(uncertainty_line)
     if report_dir is not None:
         _write_report(result, exps, report_dir, fit_band)
 
@@ -188,7 +188,7 @@ def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) 
 
     bands = result.response_uncertainty(np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300))
     path = write_report(result.model, exps, report_dir, "Hankel-MAP identification", extra, uncertainty=bands)
-    say(f"report written to {path}", err=True)
+    say(f"report written to {path}")
 
 
 def identified_band(result) -> tuple[float, float]:

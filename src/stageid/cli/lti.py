@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from .._errors import DataError, ModelError
@@ -15,6 +17,7 @@ Examples:
   stageid simulate p558.json chirp.csv -o response.csv
   stageid simulate hyst.json drive.csv -o displacement.csv
   stageid simulate model.json record.npz --ts 0.002 -o out.csv
+  stageid simulate p558.json z.csv --zero-missing -o response.csv   # inputs z.csv lacks held at 0
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
@@ -33,14 +36,18 @@ Examples:
     default=None,
     help="Sample time [s] when the input file has no `t` column (default: the model's dt).",
 )
-def simulate_command(model_path: str, input_path: str, output: str, ts: float | None) -> None:
+@click.option(
+    "--zero-missing",
+    is_flag=True,
+    help="Drive the model inputs INPUT has no column for with zeros (named on stderr); "
+    "without it a missing input is an error.",
+)
+def simulate_command(model_path: str, input_path: str, output: str, ts: float | None, zero_missing: bool) -> None:
     """Simulate MODEL.json (LTI or hysteresis) driven by the columns of INPUT named like the model's inputs.
 
     Discrete models run the exact recursion x(k+1) = A x + B u, y = C x + D u from rest;
     continuous models are simulated exactly under a zero-order hold at the input's sample time.
     """
-    import numpy as np
-
     from ..data.sampling import PERIOD_RTOL, same_period, seconds
     from ..models import load_model
     from ._common import check_output, read_table_checked, write_table_output
@@ -51,7 +58,7 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     rate_independent = not hasattr(model, "frequency_response")  # hysteresis models need no sample time
     file_ts = ts if ts is not None else _default_ts(input_path, model_dt, rate_independent)
     table = read_table_checked(input_path, ts=file_ts)
-    u = np.column_stack([table.column(name) for name in model.inputs])
+    u = _model_inputs(table, model.inputs, input_path, zero_missing)
     if model_dt is not None and not same_period(table.dt, model_dt):
         raise DataError(
             f"the input's sample time {seconds(table.dt)} s differs from the model's {seconds(model_dt)} s "
@@ -63,6 +70,27 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
         write_table_output(output, columns)  # the input had no time axis: none is invented for the output
     else:
         write_table_output(output, columns, dt=table.dt, t0=table.t0)
+
+
+def _model_inputs(table, inputs, path: str, zero_missing: bool):
+    """The model's input columns of ``table``; those it lacks are an error, or zeros with ``zero_missing``."""
+    import numpy as np
+
+    from ..checks import shown
+    from ._common import say
+
+    missing = [name for name in inputs if name not in table.names]
+    if missing and not zero_missing:
+        columns = ", ".join(n if len(n) <= 40 else shown(n, 40) for n in table.names[:20])
+        more = f" and {len(table.names) - 20} more" if len(table.names) > 20 else ""
+        raise DataError(
+            f"'{Path(path).name}' has no column for the model's input(s) {', '.join(missing)} "
+            f"(its columns: {columns}{more}); add them, or pass --zero-missing to hold them at 0."
+        )
+    if missing:
+        say(f"stageid: note: inputs {', '.join(missing)} are not in '{Path(path).name}': held at 0.", err=True)
+    n = table.values.shape[0]
+    return np.column_stack([np.zeros(n) if name in missing else table.column(name) for name in inputs])
 
 
 def _default_ts(path: str, model_dt: float | None, rate_independent: bool) -> float | None:

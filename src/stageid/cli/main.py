@@ -20,15 +20,18 @@ from .._errors import StageIdError
 EXAMPLES = """
 \b
 Examples:
-  stageid plants p558 -o p558.json                  # a reference stage's model
-  stageid plants p558 --experiment chirp -o exp.csv # a simulated experiment
-  stageid simulate p558.json exp.csv -o sim.csv     # model response to a record
+  # in order: each reads the files the earlier ones wrote
+  stageid plants p558 -o p558.json                       # a reference stage's model
+  stageid plants p558 --experiment band-limited -o exp.csv   # a simulated experiment, all inputs
+  stageid simulate p558.json exp.csv -o sim.csv          # model response to a record
   stageid freqresp p558.json --fmin 1 --fmax 200 --n 300 -o fr.csv
   stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 -o u.csv
   stageid identify statespace exp.csv --inputs Z,Rx,Ry --outputs z,rx,ry -o model.json
-  stageid export c hyst.json --prefix comp --inverse -o build/   # C99 compensator: build/comp.h, .c
-  stageid frf noise.csv --inputs u --outputs y -o frf.csv   # measured FRF + coherence + std
-  stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
+  stageid validate model.json exp.csv                    # fit and residual tests per record
+  stageid export c model.json --prefix plant -o build/   # C99 model: build/plant.h, .c
+  stageid plants p558 --experiment random-z -o z.csv
+  stageid frf z.csv --inputs Z --outputs z -o frf.csv    # measured FRF + coherence + std
+  stageid identify frd frf.csv --order auto --dt 0.002 -o frd.json
 """
 
 # (module, attribute, parent group): each command lives in its own module.

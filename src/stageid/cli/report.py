@@ -33,7 +33,7 @@ def write_report(model, experiments, out_dir: str, title: str | None = None, ext
 Examples:
   stageid report model.json val.csv --inputs Z,Rx,Ry --outputs z,rx,ry --out report/
   stageid report hyst.json tri.csv --inputs V --outputs y --out hyst-report/
-  stageid report model.json --frf frf.csv --out report/   # the model beside a measured FRF
+  stageid report frd.json --frf frf.csv --out report/   # the model beside a measured FRF
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))

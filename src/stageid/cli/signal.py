@@ -13,6 +13,7 @@ from typing import Any
 import click
 
 from .._errors import DataError, SignalError
+from ._common import plain_help
 
 _EXAMPLES = {
     "chirp": "stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 --amplitude 20 --offset 20 --name Z -o z_chirp.csv",
@@ -63,7 +64,7 @@ def _param_help(func: Any) -> dict[str, str]:
             current = [n.strip() for n in line.split(" : ")[0].split(",")]
         elif line.strip() and current:
             for name in current:
-                helps.setdefault(name, line.strip())
+                helps.setdefault(name, plain_help(line.strip()))
             current = []
     return helps
 
@@ -152,7 +153,7 @@ def _make_command(kind: str) -> click.Command:
     def callback(**kwargs: Any) -> None:
         _write_signal(kind, kwargs)
 
-    summary = (inspect.getdoc(SIGNAL_KINDS[kind]) or kind).splitlines()[0]
+    summary = plain_help((inspect.getdoc(SIGNAL_KINDS[kind]) or kind).splitlines()[0])
     epilog = f"\b\nExample:\n  {_EXAMPLES[kind]}" if kind in _EXAMPLES else None
     return click.Command(
         kind, params=_options(kind), callback=callback, help=summary, short_help=summary, epilog=epilog

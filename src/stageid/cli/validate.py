@@ -1,4 +1,4 @@
-"""``stageid validate``: does a model explain the data?  Fit, NRMSE and residual tests (MATLAB ``resid``)."""
+"""``stageid validate``: does a model explain the data?  Fit, RMS error and residual tests (MATLAB ``resid``)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ ALPHA = 0.01  # each test at the 1 % level
 Examples:
   stageid validate model.json val.csv
   stageid validate model.json a.csv b.csv --json validation.json --report val-report/
-  stageid validate model.json val.csv --inputs V --outputs z --ts 0.002
+  stageid validate hyst.json drive.csv --inputs V --outputs z --ts 0.002
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
@@ -35,11 +35,11 @@ Examples:
     "--initial",
     type=click.Choice(["estimate", "memory", "kinds", "model"]),
     default=None,
-    help="Hysteresis and stage models: the record's initial condition.  estimate (default, as MATLAB's "
-    "compare): offset, hysteresis memory (the three kinds or one earlier minor loop) and the dynamics' and "
-    "creep states fitted on each record; memory: offset and memory only; kinds: offset and the best of the "
-    "three standard memories; model: "
-    "the model's own state and offset.",
+    help="The record's initial condition.  LTI models: model (default: from rest) or estimate (the "
+    "least-squares initial state of each record, as MATLAB's compare 'e').  Hysteresis and stage models: "
+    "estimate (default, as MATLAB's compare): offset, hysteresis memory (the three kinds or one earlier "
+    "minor loop) and the dynamics' and creep states fitted on each record; memory: offset and memory only; "
+    "kinds: offset and the best of the three standard memories; model: the model's own state and offset.",
 )
 @click.option("--json", "json_out", default=None, type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option(
@@ -55,10 +55,11 @@ def validate_command(
     json_out: str | None,
     report_dir: str | None,
 ) -> None:
-    """Simulate MODEL.json on each DATA record: per output fit %, NRMSE, whiteness of the residual
-    (Ljung-Box chi-square over lags 1..25) and its independence from each input (chi-square over
-    lags 0..25, input prewhitened), each at the 1 % level.  A correct model passes both about
-    99 % of the time."""
+    """Simulate MODEL.json on each DATA record: per output fit % (as MATLAB's compare), RMS error in
+    % of the measured range, whiteness of the residual (Ljung-Box chi-square over lags 1..25) and
+    its independence from each input (chi-square over lags 0..25, input prewhitened), each at the
+    1 % level.  A correct model passes both about 99 % of the time.  One line per record and
+    output, then one per output over all records pooled."""
     from ..atomic import atomic_write_text
     from ..models import load_model
     from ..report.html import metrics_json
@@ -70,13 +71,23 @@ def validate_command(
         check_output_folder(report_dir)
     model = load_model(model_path)
     hysteresis = not hasattr(model, "frequency_response")
-    if initial not in (None, "model") and not hysteresis:
-        raise click.UsageError(f"--initial {initial} is for hysteresis and stage models; this is an LTI model.")
+    if initial not in (None, "model", "estimate") and not hysteresis:
+        raise click.UsageError(
+            f"--initial {initial} is for hysteresis and stage models; an LTI model takes model or estimate."
+        )
     experiments = _experiments(model, data, inputs, outputs, ts)
     records = _initial_conditions(model, experiments, initial or "estimate") if hysteresis else None
     simulated = None if records is None else [r.simulated for r in records]
+    if not hysteresis and initial == "estimate":
+        from ..validation.initial_state import simulate_from_estimated_state
+
+        simulated = [simulate_from_estimated_state(model, e.u, e.y, e.dt) for e in experiments]
     result = validate_model(model, experiments, MAX_LAG, ALPHA, simulated=simulated)
     summary = validation_json(result)
+    if not hysteresis:
+        summary["initial"] = {"method": initial or "model"}
+    if len(experiments) > 1:
+        summary["records"] = _per_record(model, experiments, result["simulated"])
     if hysteresis:
         _hysteresis_metrics(summary, experiments, result)
         if records is not None:
@@ -92,7 +103,7 @@ def validate_command(
     if report_dir is not None:
         path = _write_report(report_dir, model, experiments, result, summary)
         say(f"report written to {path}")
-    say(_summary_text(summary))
+    say(_summary_text(summary, [e.name for e in experiments]))
 
 
 def _experiments(model, data, inputs, outputs, ts):
@@ -127,6 +138,28 @@ def _initial_conditions(model, experiments, initial: str):
     return [validate_record(model, e.u[:, 0], e.y[:, 0], e.dt, initial) for e in experiments]
 
 
+def _per_record(model, experiments, simulated) -> list[dict]:
+    """Each record's own fit and tests (JSON form), the record's name under ``record``; a record
+    too short for the tests gets its fit and the reason instead."""
+    from ..validation.metrics import fit_percent, nrmse
+    from ..validation.residuals import validate_model, validation_json
+
+    out = []
+    for exp, ys in zip(experiments, simulated):
+        try:
+            entry = validation_json(validate_model(model, [exp], MAX_LAG, ALPHA, simulated=[ys]))
+        except DataError as exc:
+            fits, errs = fit_percent(exp.y, ys), nrmse(exp.y, ys)
+            entry = {
+                "outputs": {
+                    n: {"fit_percent": float(f), "nrmse": float(e)} for n, f, e in zip(model.outputs, fits, errs)
+                },
+                "untested": str(exc),
+            }
+        out.append({"record": exp.name, **entry})
+    return out
+
+
 def _hysteresis_metrics(summary: dict, experiments, result: dict) -> None:
     """Add ``max_error_percent`` and ``rms_error_percent`` (of the measured range) per output."""
     import numpy as np
@@ -151,7 +184,7 @@ def _write_report(folder: str, model, experiments, result: dict, summary: dict):
         [name, o["fit_percent"], o["nrmse"], _verdict(o["whiteness"]), _verdict(o["independence"])]
         for name, o in summary["outputs"].items()
     ]
-    report.table(["output", "fit [%]", "NRMSE", "whiteness", "independence"], rows)
+    report.table(["output", "fit [%]", "RMS error / range", "whiteness", "independence"], rows)
     report.section("Residual correlations")
     for name, entry in result["outputs"].items():
         fig = residual_figure(name, entry["whiteness"], entry["independence"])
@@ -179,18 +212,35 @@ def _verdict(test: dict) -> str:
     return "pass" if test["pass"] else "FAIL"
 
 
-def _summary_text(summary: dict) -> str:
+def _summary_text(summary: dict, names: list[str]) -> str:
+    """One line per record and output, then (several records) one per output over all records."""
+    if "records" not in summary:
+        return _output_lines(summary, f"{names[0]}  ")
+    lines = [_output_lines(r, f"{r['record']}  ") for r in summary["records"]]
+    lines.append(_output_lines(summary, f"all {len(names)} records  "))
+    return "\n".join(lines)
+
+
+def _output_lines(summary: dict, prefix: str) -> str:
+    if "untested" in summary:
+        return "\n".join(
+            f"{prefix}{name}: fit {o['fit_percent']:.2f} %  RMS error {100 * o['nrmse']:.3g} % of range  "
+            f"(no residual tests: {summary['untested']})"
+            for name, o in summary["outputs"].items()
+        )
     lines = []
     for name, o in summary["outputs"].items():
         w, ind = o["whiteness"], o["independence"]
         line = (
-            f"{name}: fit {o['fit_percent']:.2f} %  NRMSE {o['nrmse']:.4g}  "
+            f"{prefix}{name}: fit {o['fit_percent']:.2f} %  RMS error {100 * o['nrmse']:.3g} % of range  "
             f"whiteness {_verdict(w)} (chi2 {w['statistic']:.1f}, limit {w['threshold']:.1f})  "
             f"independence {_verdict(ind)}"
         )
         for inp, t in ind["inputs"].items():
             line += f" [{inp}: chi2 {t['statistic']:.1f}, limit {t['threshold']:.1f}]"
+        if o.get("untested_inputs"):
+            line += f" [{', '.join(o['untested_inputs'])}: constant in the record, not tested]"
         if "max_error_percent" in o:
-            line += f"  max error {o['max_error_percent']:.2f} %  RMS {o['rms_error_percent']:.2f} % of range"
+            line += f"  max error {o['max_error_percent']:.2f} % of range"
         lines.append(line)
     return "\n".join(lines)

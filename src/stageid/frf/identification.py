@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError
+from .._errors import DataError, FitWarning, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..models import StateSpaceModel
 from .fit_search import fit_at_order
@@ -249,7 +249,9 @@ class FRDIdentification(Estimator):
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
         model = _assemble(A, B, C, D, T, self.dt, delay, frd)
-        errors = column_errors(model.frequency_response(frd.freqs[counted]), G[counted])
+        response = model.frequency_response(frd.freqs[counted])
+        errors = column_errors(response, G[counted])
+        warn_large_error(response, G[counted], None if frd.std is None else frd.std[counted], order, order_errors)
         return FRDResult(
             model,
             order,
@@ -279,6 +281,34 @@ class FRDIdentification(Estimator):
                 )
             return int(self.order), ()
         return select_order(Gd, fz, T, min(self.max_order, limit), w)
+
+
+#: A fit whose largest column error exceeds this fraction of the column's peak is warned about.
+LARGE_ERROR = 0.10
+
+
+def warn_large_error(
+    response: np.ndarray, G: np.ndarray, std: np.ndarray | None, order: int, order_errors: tuple
+) -> None:
+    """Warn (:class:`FitWarning`) when the fit misses the response by more than ``LARGE_ERROR``
+    of a column's peak beyond 3 std of the data (when it has one): a low order chosen on a
+    held-out plateau must not pass silently, a miss within the data's own noise is no miss."""
+    import warnings
+
+    gap = np.abs(response - G) if std is None else np.maximum(np.abs(response - G) - 3.0 * std, 0.0)
+    peak = np.max(np.abs(G), axis=(0, 1))
+    worst = float(np.max(np.max(gap, axis=(0, 1)) / np.where(peak > 0, peak, 1.0)))
+    if worst <= LARGE_ERROR:
+        return
+    how = f"chosen by order='auto' from orders 1-{order_errors[-1][0]}" if order_errors else "as given"
+    warnings.warn(
+        f"FRDIdentification: the order-{order} model ({how}) misses the response by up to {100 * worst:.3g} % "
+        f"of a column's peak{'' if std is None else ' beyond 3 std of the data'} (expected at most "
+        f"{100 * LARGE_ERROR:g} %); give a higher `order`, or a band "
+        "(`fmin`, `fmax`) the model can follow.",
+        FitWarning,
+        stacklevel=3,
+    )
 
 
 def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) -> tuple[str, np.ndarray]:

@@ -80,7 +80,7 @@ SAMPLES_PER_COEFFICIENT = 50
 
 
 def _dynamics_ok(value: Any) -> bool:
-    return value is None or value == "auto" or (isinstance(value, int) and not isinstance(value, bool) and value >= 1)
+    return value is None or value == "auto" or (isinstance(value, int) and not isinstance(value, bool) and value >= 0)
 
 
 def _creep_ok(value: Any) -> bool:
@@ -155,8 +155,9 @@ class StageIdentifier(Estimator):
     model : {"pi", "modified-pi", "preisach"}, default "modified-pi"
     n_operators : int, default 20
         As in :class:`~stageid.hysteresis.PIIdentifier` (PI kinds).
-    dynamics : int >= 1, "auto" or None, default "auto"
-        Order of the linear dynamics; ``None``: none; ``"auto"``: picked from ``AUTO_ORDERS``
+    dynamics : int >= 0, "auto" or None, default "auto"
+        Order of the linear dynamics (0: none, one of ``auto``'s candidates); ``None``: none and no
+        disturbance modes; ``"auto"``: picked from ``AUTO_ORDERS``
         (0-4) by held-out error.  An order ``N`` is kept only when it lowers the held-out
         error below that of no dynamics (step 3).
     creep : sequence of positive seconds, "auto" or None, default "auto"
@@ -195,7 +196,7 @@ class StageIdentifier(Estimator):
     parameter_constraints = {
         "model": [Options(*MODEL_KINDS, "preisach")],
         "n_operators": [Interval(int, 2, None, closed="left")],
-        "dynamics": [Satisfies(_dynamics_ok, 'a positive integer order, "auto" or None')],
+        "dynamics": [Satisfies(_dynamics_ok, 'an integer order >= 0, "auto" or None')],
         "creep": [Satisfies(_creep_ok, 'a non-empty sequence of positive seconds, "auto" or None')],
         "initial_state": [Options(*STATE_CHOICES)],
         "input_warp": [Boolean()],

@@ -44,4 +44,13 @@ def experiment_seed(seed: object, experiment: str) -> int:
     )
 
 
-__all__ = ["PLANTS", "plant_module", "experiment_seed"]
+def noise_entropy(seed: int, experiment: str) -> list[int]:
+    """The entropy of an experiment's measurement noise (for ``numpy.random.default_rng``): its
+    seed and its name, so that the experiments of one seed never share a noise sequence (pooled
+    records with one noise would make a true model fail the residual tests)."""
+    import zlib
+
+    return [seed, zlib.crc32(experiment.encode())]
+
+
+__all__ = ["PLANTS", "plant_module", "experiment_seed", "noise_entropy"]

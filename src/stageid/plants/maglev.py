@@ -39,7 +39,7 @@ import numpy as np
 
 from .._errors import SignalError
 from ..models import StateSpaceModel, TransferMatrix
-from . import experiment_seed
+from . import experiment_seed, noise_entropy
 
 __all__ = [
     "model",
@@ -180,8 +180,16 @@ def simulate_chirp(
     return Table(names, np.hstack([R, u, y]), dt=DT, units=units, source=f"maglev chirp-{axis} seed {seed}")
 
 
+def _experiment(axis: str, seed: int):
+    """``simulate_chirp`` with a noise seed drawn from ``seed`` and the experiment's name: the three
+    records of one seed, pooled by the closed-loop identification, never share their noise."""
+    name = f"chirp-{axis}"
+    entropy = noise_entropy(experiment_seed(seed, name), name)
+    return simulate_chirp(axis, int(np.random.SeedSequence(entropy).generate_state(1)[0]))
+
+
 EXPERIMENTS = {
-    "chirp-x": lambda seed=0: simulate_chirp("x", seed),
-    "chirp-y": lambda seed=0: simulate_chirp("y", seed),
-    "chirp-phi": lambda seed=0: simulate_chirp("phi", seed),
+    "chirp-x": lambda seed=0: _experiment("x", seed),
+    "chirp-y": lambda seed=0: _experiment("y", seed),
+    "chirp-phi": lambda seed=0: _experiment("phi", seed),
 }

@@ -47,7 +47,7 @@ from ..data.experiment import Experiment
 from ..hysteresis.dynamics import zoh_resonance
 from ..hysteresis.pi import ModifiedPIModel
 from ..hysteresis.serialization import register_kind
-from . import experiment_seed
+from . import experiment_seed, noise_entropy
 
 __all__ = ["PiezoActuator", "model", "EXPERIMENTS", "open_loop_gain"]
 
@@ -225,7 +225,7 @@ def _experiment(u: np.ndarray, dt: float, name: str, seed: int, actuator: PiezoA
     act = actuator or model()
     y = act.simulate(u, dt)[:, 0]
     if act.noise > 0:
-        y = y + np.random.default_rng(seed).normal(0.0, act.noise, size=y.size)
+        y = y + np.random.default_rng(noise_entropy(seed, name)).normal(0.0, act.noise, size=y.size)
     return Experiment(
         u=u[:, None],
         y=y[:, None],

@@ -18,7 +18,8 @@ Reading of the OCR text (the mathematically consistent choice, checked in
   near 1), and the poles are well damped (slowest 2.2 Hz real pole in channel 1).
 
 ``EXPERIMENTS`` (each ``f(seed=0) -> Experiment``; output noise is white Gaussian with
-std 1 nm on ``z`` and 0.1 urad on ``rx``/``ry``, twice the resolution of Table 1):
+std 1 nm on ``z`` and 0.1 urad on ``rx``/``ry``, twice the resolution of Table 1, drawn from the seed
+and the experiment's name, so that no two experiments share it):
 
 ==================  ===========================================================================
 ``chirp-z``         Z: 20 um linear chirp 1-100 Hz with 20 um offset, 10 s (section 3.2)
@@ -44,7 +45,7 @@ import numpy as np
 
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
-from . import experiment_seed
+from . import experiment_seed, noise_entropy
 
 __all__ = ["model", "channel_models", "EXPERIMENTS", "DT", "INPUTS", "OUTPUTS", "NOISE_STD"]
 
@@ -131,7 +132,7 @@ def model() -> StateSpaceModel:
 def _record(u: np.ndarray, name: str, seed: int, noise: bool = True) -> Experiment:
     y = model().simulate(u)
     if noise:
-        rng = np.random.default_rng([seed, 558])
+        rng = np.random.default_rng([*noise_entropy(seed, name), 558])
         y = y + NOISE_STD[None, :] * rng.standard_normal(y.shape)
     return Experiment(u, y, DT, INPUTS, OUTPUTS, INPUT_UNITS, OUTPUT_UNITS, name=name)
 

@@ -77,7 +77,12 @@ def _norm(x: np.ndarray) -> np.ndarray:
 
 
 def nrmse(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
-    """RMS error divided by the measured channel's range (peak-to-peak), per channel."""
+    """RMS error divided by the measured channel's range (peak-to-peak), per channel.
+
+    Not MATLAB's NRMSE (``goodnessOfFit``), which is ``1 - fit / 100``: the error over the
+    output's deviation from its mean.  ``stageid validate`` prints this one as "RMS error
+    ... % of range".
+    """
     y, yh = _pair(measured, predicted)
     return np.sqrt(np.mean((y - yh) ** 2, axis=0)) / np.ptp(y, axis=0)
 

@@ -324,13 +324,16 @@ def validate_model(model, experiments, max_lag: int = 25, alpha: float = 0.01, s
     -------
     dict
         ``{"outputs": {name: {"fit_percent", "nrmse", "whiteness": CorrelationTest,
-        "independence": {input: CorrelationTest}}}, "residuals": [ndarray (n_samples, n_outputs)
-        per record], "simulated": [ndarray per record]}``; fit % and NRMSE over the pooled records.
+        "independence": {input: CorrelationTest}, "untested_inputs": [input]}}, "residuals": [ndarray
+        (n_samples, n_outputs) per record], "simulated": [ndarray per record]}``; fit % and NRMSE
+        over the pooled records.  An input constant in every record has no independence test; it
+        is listed in ``untested_inputs``.
 
     Raises
     ------
     DataError
-        Channels that differ from the model's, too few samples for ``max_lag``.
+        Channels that differ from the model's, too few samples for ``max_lag``, every input
+        constant, or a residual that is constant (named with the records).
     """
     from .metrics import fit_percent, nrmse
 
@@ -349,11 +352,36 @@ def validate_model(model, experiments, max_lag: int = 25, alpha: float = 0.01, s
     residuals = [exp.y - ys for exp, ys in zip(exps, simulated)]
     y_all, ys_all = np.vstack([exp.y for exp in exps]), np.vstack(simulated)
     fits, errs = fit_percent(y_all, ys_all), nrmse(y_all, ys_all)
+    moving = _moving_inputs(model.inputs, exps)
     outputs = {}
     for i, name in enumerate(model.outputs):
-        tests = residual_tests([e[:, i] for e in residuals], [exp.u for exp in exps], model.inputs, max_lag, alpha)
-        outputs[name] = {"fit_percent": float(fits[i]), "nrmse": float(errs[i]), **tests}
+        if all(np.ptp(e[:, i]) == 0 for e in residuals):
+            raise DataError(
+                f"the residual of output '{name}' is constant in {_record_names(exps)} (the model reproduces "
+                "it exactly); the residual tests need a residual that varies."
+            )
+        u = [exp.u[:, moving] for exp in exps]
+        tests = residual_tests([e[:, i] for e in residuals], u, [model.inputs[j] for j in moving], max_lag, alpha)
+        untested = [n for j, n in enumerate(model.inputs) if j not in moving]
+        outputs[name] = {"fit_percent": float(fits[i]), "nrmse": float(errs[i]), **tests, "untested_inputs": untested}
     return {"outputs": outputs, "residuals": residuals, "simulated": simulated}
+
+
+def _record_names(exps) -> str:
+    names = [f"'{e.name}'" if e.name else "the record" for e in exps]
+    return "record " + names[0] if len(names) == 1 else "records " + ", ".join(names)
+
+
+def _moving_inputs(names: Sequence[str], exps) -> list[int]:
+    """Columns of the inputs that vary in some record: an input held constant everywhere (an axis
+    not excited) has no independence test, and is listed as untested instead of failing the rest."""
+    moving = [j for j in range(len(names)) if any(np.ptp(exp.u[:, j]) > 0 for exp in exps)]
+    if not moving:
+        raise DataError(
+            f"every input ({', '.join(names)}) is constant in {_record_names(exps)}; "
+            "the residual tests need an input that varies."
+        )
+    return moving
 
 
 def validation_json(result: dict) -> dict:
