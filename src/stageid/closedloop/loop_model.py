@@ -24,6 +24,8 @@ __all__ = [
     "group_by_reference",
     "at_rest",
     "start_levels",
+    "output_levels",
+    "level_and_numerator",
     "identify_pairs",
 ]
 
@@ -34,6 +36,8 @@ __all__ = [
 REST_PASSES = 8
 REST_TOL = 1e-4
 REST_KEEP = 0.5
+#: passes of the output levels and the pair refitted to them (:func:`output_levels`)
+LEVEL_PASSES = 2
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
@@ -147,6 +151,53 @@ def start_levels(r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: 
         m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
         losses.append(_loss(m, r, y, levels))
     return (first if losses[0] <= losses[1] else mean), losses[0]
+
+
+def output_levels(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int, list[Experiment]]:
+    """The records with each output's rest level estimated, not read off its first sample.
+
+    :func:`at_rest` takes every output relative to its first sample, which carries one sample of
+    the noise into the whole record; the pair fitted to it then bends its DC gain to follow that
+    offset wherever the reference has a mean (measured on chirps from DC: the identified loop
+    2.6-4.5x the noise floor on the records, all of it a constant). Each output of each record
+    gets the constant ``d`` of ``y = T r + d`` solved jointly with the pair's numerator under its
+    poles (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so
+    solving them one after the other would not move), in :data:`LEVEL_PASSES` passes of refitting
+    the pair to the shifted output.
+    """
+    out = {}
+    for j, group in groups.items():
+        r = [e.u[:, j] for e in group]
+        shifted = [e.y.copy() for e in group]
+        for i in range(group[0].n_outputs):
+            y = [e.y[:, i] for e in group]
+            d = np.zeros(len(group))
+            for _ in range(LEVEL_PASSES):
+                m = fit_pair(r, [yk - dk for yk, dk in zip(y, d)], group[0].dt)
+                d = level_and_numerator(m, r, y)
+            for yk, dk in zip(shifted, d):
+                yk[:, i] -= dk
+        out[j] = [replace(e, y=yk) for e, yk in zip(group, shifted)]
+    return out
+
+
+def level_and_numerator(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
+    """Each record's output level ``d`` in ``y = q^-nk B / (A F) r + d``, solved with ``B`` by
+    linear least squares with the denominator ``A F`` held."""
+    den = np.convolve(model.A, model.F)
+    num = np.concatenate([np.zeros(model.nk), [1.0]])
+    nb, n_rec = model.B.size, len(r)
+    rows = []
+    for k, rk in enumerate(r):
+        x = ss.lfilter(num, den, rk)
+        Phi = np.column_stack([np.concatenate([np.zeros(i), x[: x.size - i]]) for i in range(nb)])
+        ones = np.zeros((rk.size, n_rec))
+        ones[:, k] = 1.0
+        rows.append(np.hstack([Phi, ones]))
+    X = np.vstack(rows)
+    scale = np.maximum(np.linalg.norm(X, axis=0), 1e-300)
+    theta = np.linalg.lstsq(X / scale, np.concatenate(y), rcond=None)[0] / scale
+    return theta[nb:]
 
 
 def _loss(model: PolynomialModel, r, y, levels) -> float:
