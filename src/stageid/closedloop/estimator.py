@@ -281,6 +281,9 @@ class ClosedLoopIdentification(Estimator):
             closed_loop_fit=fits,
             dt=dt,
             structure=self.structure if isinstance(self.structure, str) else "custom",
+            band_error_median=np.array([[reduced[(i, j)].eps_median for j in range(p)] for i in range(p)])
+            if reduced
+            else None,
             covariance=None
             if self.covariance == "none"
             else closed_loop_covariance(groups, pem_models, f_band, Mr, self.covariance),

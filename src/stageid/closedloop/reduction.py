@@ -52,6 +52,9 @@ class ReducedEntry:
         ``max | |P_i| - |P_r| | / |P_i|`` over the band (the paper's eps).
     eps_complex : float
         ``max |P_i - P_r| / |P_i|`` over the band.
+    eps_median : float
+        The median over the band of ``|P_i - P_r| / |P_i|``: how well the structure follows the
+        band as a whole, apart from narrow stretches where the deduced response itself is off.
     """
 
     num: np.ndarray
@@ -59,6 +62,7 @@ class ReducedEntry:
     unstable_poles: np.ndarray
     eps_magnitude: float
     eps_complex: float
+    eps_median: float = float("nan")
 
     @property
     def poles(self) -> np.ndarray:
@@ -180,8 +184,8 @@ def finish_entry(
     num, den = fit.polynomials(theta)
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
-    eps_cplx = float(np.max(np.abs(fit.P - Pr) / np.abs(fit.P)))
-    return ReducedEntry(num, den, up, eps_mag, eps_cplx)
+    rel = np.abs(fit.P - Pr) / np.abs(fit.P)
+    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)))
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
