@@ -44,7 +44,7 @@ def test_multisine_about_the_rest_level_gives_the_closed_loop(tmp_path, seed, sa
         return select_order(r, y, "oe", range(2, 17), 1, dt)[0]
 
     plant, K, exps = _draw(tmp_path, seed, salt, 0.003)
-    T, _, fits = identify_pairs(at_rest(group_by_reference(exps), fit_pair), fit_pair)
+    T, _, fits, _ = identify_pairs(at_rest(group_by_reference(exps), fit_pair), fit_pair)
     f = np.geomspace(5.0, 1000.0, 200)
     truth = loop_draws.closed_loop_response(plant, K, f)
     error = np.abs(T.frequency_response(f) - truth).max() / np.abs(truth).max()

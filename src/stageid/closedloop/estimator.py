@@ -36,7 +36,7 @@ from .deduction import (
     unstable_plant_poles,
     wide_response,
 )
-from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs, output_levels
+from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
 from .order_selection import select_order
 from .pem import pem
 from .polynomial import FREE_ORDERS, STRUCTURES, PolynomialModel, structure_orders
@@ -241,10 +241,10 @@ class ClosedLoopIdentification(Estimator):
         dt, p = exps[0].dt, exps[0].n_outputs
         M, Mr = discrete_controllers(self.controller, self.reference_filter, dt, self.controller_discretization, p)
         check_controller(M if Mr is None else Mr, check_grid(lo, dt))
-        groups = output_levels(at_rest(group_by_reference(exps), self._fit_pair), self._fit_pair)
+        groups = at_rest(group_by_reference(exps), self._fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits = identify_pairs(groups, self._fit_pair)
+        T, pem_models, fits, groups = identify_pairs(groups, self._fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
         check_deduction(T, M, Mr, check_grid(lo, dt))

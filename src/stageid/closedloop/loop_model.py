@@ -24,7 +24,6 @@ __all__ = [
     "group_by_reference",
     "at_rest",
     "start_levels",
-    "output_levels",
     "level_and_numerator",
     "identify_pairs",
 ]
@@ -36,7 +35,8 @@ __all__ = [
 REST_PASSES = 8
 REST_TOL = 1e-4
 REST_KEEP = 0.5
-#: passes of the output levels and the pair refitted to them (:func:`output_levels`)
+#: fits of each pair, the first to the outputs from their first sample, the others to the outputs
+#: less the levels the previous fit gave (:func:`identify_pairs`)
 LEVEL_PASSES = 2
 
 #: fit of one pair: (reference records, output records, dt) -> model
@@ -153,34 +153,6 @@ def start_levels(r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: 
     return (first if losses[0] <= losses[1] else mean), losses[0]
 
 
-def output_levels(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int, list[Experiment]]:
-    """The records with each output's rest level estimated, not read off its first sample.
-
-    :func:`at_rest` takes every output relative to its first sample, which carries one sample of
-    the noise into the whole record; the pair fitted to it then bends its DC gain to follow that
-    offset wherever the reference has a mean (measured on chirps from DC: the identified loop
-    2.6-4.5x the noise floor on the records, all of it a constant). Each output of each record
-    gets the constant ``d`` of ``y = T r + d`` solved jointly with the pair's numerator under its
-    poles (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so
-    solving them one after the other would not move), in :data:`LEVEL_PASSES` passes of refitting
-    the pair to the shifted output.
-    """
-    out = {}
-    for j, group in groups.items():
-        r = [e.u[:, j] for e in group]
-        shifted = [e.y.copy() for e in group]
-        for i in range(group[0].n_outputs):
-            y = [e.y[:, i] for e in group]
-            d = np.zeros(len(group))
-            for _ in range(LEVEL_PASSES):
-                m = fit_pair(r, [yk - dk for yk, dk in zip(y, d)], group[0].dt)
-                d = level_and_numerator(m, r, y)
-            for yk, dk in zip(shifted, d):
-                yk[:, i] -= dk
-        out[j] = [replace(e, y=yk) for e, yk in zip(group, shifted)]
-    return out
-
-
 def level_and_numerator(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
     """Each record's output level ``d`` in ``y = q^-nk B / (A F) r + d``, solved with ``B`` by
     linear least squares with the denominator ``A F`` held."""
@@ -242,16 +214,26 @@ def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
 
 def identify_pairs(
     groups: dict[int, list[Experiment]], fit_pair: PairFit
-) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray]:
-    """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14).
+) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray, dict[int, list[Experiment]]]:
+    """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14),
+    each output's rest level estimated with it.
 
-    The records are deviations from the loop at rest (:func:`at_rest`).
+    The records are deviations from the loop at rest (:func:`at_rest`), every output taken
+    relative to its first sample, which carries one sample of the noise into the whole record;
+    a pair fitted to that bends its DC gain to follow the offset wherever the reference has a
+    mean (measured on chirps from DC: the identified loop 2.6-4.5x the noise floor on the
+    records, all of it a constant). So each output of each record gets the constant ``d`` of
+    ``y = T r + d``, solved jointly with the pair's numerator under its poles
+    (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
+    them one after the other would not move them), and the pair is refitted to ``y - d``
+    (:data:`LEVEL_PASSES` fits in all).
 
     Returns
     -------
-    (T, models, fits)
-        The discrete closed loop (references to outputs), ``{(i, j): PolynomialModel}`` and
-        the simulation fit in percent of each pair on its records, shape (p, p).
+    (T, models, fits, groups)
+        The discrete closed loop (references to outputs), ``{(i, j): PolynomialModel}``, the
+        simulation fit in percent of each pair on its records, shape (p, p), and the records
+        with the estimated output levels removed (those the pairs were fitted to).
     """
     first = next(iter(groups.values()))[0]
     p, dt = first.n_outputs, first.dt
@@ -259,14 +241,24 @@ def identify_pairs(
     fits = np.zeros((p, p))
     num = [[None] * p for _ in range(p)]
     den = [[None] * p for _ in range(p)]
+    shifted_groups = {}
     for j, group in groups.items():
         r = [e.u[:, j] for e in group]
+        shifted = [e.y.copy() for e in group]
         for i in range(p):
             y = [e.y[:, i] for e in group]
-            m = fit_pair(r, y, dt)
+            d = np.zeros(len(group))
+            for _ in range(LEVEL_PASSES):
+                m = fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt)
+                d_used, d = d, level_and_numerator(m, r, y)
+            y = [yk - dk for yk, dk in zip(y, d_used)]
+            for yk, dk in zip(shifted, d_used):
+                yk[:, i] -= dk
             models[(i, j)] = m
             sim = np.concatenate([m.simulate(rk) for rk in r])
             yy = np.concatenate(y)
             fits[i, j] = 100.0 * (1.0 - np.linalg.norm(yy - sim) / max(np.linalg.norm(yy - yy.mean()), 1e-300))
             num[i][j], den[i][j] = m.plant_polynomials()
-    return TransferMatrix(num, den, dt, first.input_names, first.output_names), models, fits
+        shifted_groups[j] = [replace(e, y=yk) for e, yk in zip(group, shifted)]
+    T = TransferMatrix(num, den, dt, first.input_names, first.output_names)
+    return T, models, fits, shifted_groups
