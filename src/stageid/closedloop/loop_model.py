@@ -16,7 +16,9 @@ import scipy.signal as ss
 from .._errors import DataError
 from ..data import Experiment, as_experiments
 from ..models import TransferMatrix
-from .polynomial import PolynomialModel
+from .covariance import model_orders
+from .pem import pem
+from .polynomial import FREE_ORDERS, PolynomialModel
 
 __all__ = [
     "excited_reference",
@@ -25,6 +27,7 @@ __all__ = [
     "at_rest",
     "start_levels",
     "level_and_numerator",
+    "refit",
     "identify_pairs",
 ]
 
@@ -212,6 +215,12 @@ def _deviations(exp: Experiment, j: int, level: float) -> Experiment:
     return replace(exp, u=u, y=exp.y - exp.y[0])
 
 
+def refit(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> PolynomialModel:
+    """``model``'s structure and orders fitted again by prediction error, started from it."""
+    orders = {k: v for k, v in model_orders(model).items() if k in FREE_ORDERS[model.structure]}
+    return pem(r, y, model.structure, orders, model.nk, model.dt, initial=model)
+
+
 def identify_pairs(
     groups: dict[int, list[Experiment]], fit_pair: PairFit
 ) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray, dict[int, list[Experiment]]]:
@@ -225,8 +234,8 @@ def identify_pairs(
     records, all of it a constant). So each output of each record gets the constant ``d`` of
     ``y = T r + d``, solved jointly with the pair's numerator under its poles
     (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
-    them one after the other would not move them), and the pair is refitted to ``y - d``
-    (:data:`LEVEL_PASSES` fits in all).
+    them one after the other would not move them), and the pair is refitted to ``y - d`` from
+    where it was (:func:`refit`; :data:`LEVEL_PASSES` fits in all).
 
     Returns
     -------
@@ -248,8 +257,10 @@ def identify_pairs(
         for i in range(p):
             y = [e.y[:, i] for e in group]
             d = np.zeros(len(group))
+            m = None
             for _ in range(LEVEL_PASSES):
-                m = fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt)
+                shifted_y = [yk - dk for yk, dk in zip(y, d)]
+                m = fit_pair(r, shifted_y, dt) if m is None else refit(m, r, shifted_y)
                 d_used, d = d, level_and_numerator(m, r, y)
             y = [yk - dk for yk, dk in zip(y, d_used)]
             for yk, dk in zip(shifted, d_used):
