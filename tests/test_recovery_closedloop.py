@@ -69,3 +69,14 @@ def test_pem_draw_is_recovered_through_the_command(tmp_path, seed, noise):
     row = rec_pem.case(seed, tmp_path, noise)
     assert row.failed == "" and row.recovered, row
     assert row.cost_ratio <= 1.1  # the case's criterion (measured 1.086 and 1.010)
+
+
+def test_lightly_damped_coupling_is_reduced_from_a_weighted_start(tmp_path):
+    # 2x2, multisine: a [1, 3] coupling reduced from Levy's start alone missed its entry by 99 % of
+    # the entry's peak; with the Sanathanan-Koerner passes 5.8 %. (Its unstable poles, 6.5 % off at
+    # 1.5 % noise, are not asserted: they are the open part of this case.)
+    import rec_closedloop
+
+    row = rec_closedloop.case(7, tmp_path, 0.0151)
+    assert row.failed == "", row
+    assert row.error <= 10.0  # the case's band criterion, % of each entry's peak
