@@ -202,21 +202,32 @@ def _check_loop_closed_by(K, u_names, tables, exps, paths) -> str:
     return "tustin" if best_kind == "discrete" else best_kind
 
 
+#: median relative misfit of a diagonal entry over the band above which its [0, 2] structure is
+#: refused: a controller other than the loop's bends the deduced plant across the whole band
+#: (measured: median 6.0-6.4 %, a lead-lag designed for 80 Hz instead of 110 Hz), while the pairs'
+#: own errors near lightly damped coupling modes miss it only in narrow stretches (random stages
+#: of the paper's class: medians 0.03-0.7 % where the maximum reached 5-23 %)
+STRUCTURE_MEDIAN = 0.02
+
+
 def _check_paper_structure(result, band: tuple[float, float]) -> None:
-    """Refuse a deduced plant whose diagonal the paper's [0, 2] structure cannot follow.
+    """Refuse a deduced plant whose diagonal the paper's [0, 2] structure cannot follow over most of the band.
 
     Without plant-input columns a wrong controller cannot be seen in u; it shows as a deduced
     plant that the [0, 2] diagonal cannot follow (G' = G M_true M^-1 carries controller dynamics).
+    The median misfit over the band is compared, not the largest: the largest also counts where
+    the deduced response itself is off (near coupling resonances the pairs under-model).
     """
     import numpy as np
 
-    diag = np.diag(result.band_error_complex)
-    if diag.max() > 0.05:
+    diag = np.diag(result.band_error_median)
+    if diag.max() > STRUCTURE_MEDIAN:
         k = int(np.argmax(diag))
         raise IdentificationError(
             f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
-            f"misses [0, 2] by {100 * diag[k]:.1f} % over {band[0]:g}-{band[1]:g} Hz (expected < 5 %); the loop was probably "
-            "not closed by this controller (or the plant is not of this structure: try --structure full)."
+            f"misses [0, 2] by {100 * diag[k]:.1f} % over half of {band[0]:g}-{band[1]:g} Hz (median; expected < "
+            f"{100 * STRUCTURE_MEDIAN:g} %); the loop was probably not closed by this controller (or the plant is not of "
+            "this structure: try --structure full)."
         )
 
 

@@ -244,7 +244,7 @@ class ClosedLoopIdentification(Estimator):
         groups = at_rest(group_by_reference(exps), self._fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits = identify_pairs(groups, self._fit_pair)
+        T, pem_models, fits, groups = identify_pairs(groups, self._fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
         check_deduction(T, M, Mr, check_grid(lo, dt))
@@ -281,6 +281,9 @@ class ClosedLoopIdentification(Estimator):
             closed_loop_fit=fits,
             dt=dt,
             structure=self.structure if isinstance(self.structure, str) else "custom",
+            band_error_median=np.array([[reduced[(i, j)].eps_median for j in range(p)] for i in range(p)])
+            if reduced
+            else None,
             covariance=None
             if self.covariance == "none"
             else closed_loop_covariance(groups, pem_models, f_band, Mr, self.covariance),

@@ -27,6 +27,9 @@ from ..models import TransferMatrix
 from .cancellation import EntryPoleZero, z_to_s
 from .zoh import zoh_at, zoh_derivatives
 
+#: Sanathanan-Koerner passes after Levy's estimate in the reduction's linear start
+SK_ITERATIONS = 6
+
 __all__ = [
     "ReducedEntry",
     "reduce_entry",
@@ -52,6 +55,9 @@ class ReducedEntry:
         ``max | |P_i| - |P_r| | / |P_i|`` over the band (the paper's eps).
     eps_complex : float
         ``max |P_i - P_r| / |P_i|`` over the band.
+    eps_median : float
+        The median over the band of ``|P_i - P_r| / |P_i|``: how well the structure follows the
+        band as a whole, apart from narrow stretches where the deduced response itself is off.
     """
 
     num: np.ndarray
@@ -59,6 +65,7 @@ class ReducedEntry:
     unstable_poles: np.ndarray
     eps_magnitude: float
     eps_complex: float
+    eps_median: float = float("nan")
 
     @property
     def poles(self) -> np.ndarray:
@@ -180,8 +187,8 @@ def finish_entry(
     num, den = fit.polynomials(theta)
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
-    eps_cplx = float(np.max(np.abs(fit.P - Pr) / np.abs(fit.P)))
-    return ReducedEntry(num, den, up, eps_mag, eps_cplx)
+    rel = np.abs(fit.P - Pr) / np.abs(fit.P)
+    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)))
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
@@ -222,7 +229,15 @@ def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> n
 def _levy_start(
     P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int
 ) -> np.ndarray:
-    """Linear (Levy) estimate of ``[b; a_1..a_nfree]`` on the continuous approximation ``P_c ~ P_d exp(+j w dt / 2)``."""
+    """Linear estimate of ``[b; a_1..a_nfree]`` on the continuous approximation ``P_c ~ P_d exp(+j w dt / 2)``:
+    Levy's equation error, then :data:`SK_ITERATIONS` Sanathanan-Koerner passes.
+
+    Levy's error ``P_c d(s) - b(s)`` is the relative error times ``P_c d(s)``, which swells far from
+    the poles and shrinks at a lightly damped mode: the mode is fitted last, and a coupling's
+    resonance can come out far off (measured: a [1, 3] coupling reduced to a pole at -2e9 rad/s from
+    a deduced response within 2.5 % of the truth). Each pass divides by ``|P_c d_prev(s)|``, the
+    previous pass's denominator, so the equation error tends to the relative error itself.
+    """
     s_n = 2j * np.pi * f / w0
     Pc = P * np.exp(1j * np.pi * f * dt)
     cols = [s_n**k for k in range(n_zeros, -1, -1)]  # numerator b
@@ -230,11 +245,20 @@ def _levy_start(
     cols += [-Pc * du * s_n**k for k in range(n_free - 1, -1, -1)]  # a_1..a_nfree
     rhs = Pc * du * s_n**n_free
     Phi = np.column_stack(cols) if cols else np.zeros((f.size, 0))
-    wgt = 1.0 / np.abs(rhs)
-    Phi_w = Phi * wgt[:, None]
-    theta, *_ = np.linalg.lstsq(
-        np.vstack([Phi_w.real, Phi_w.imag]), np.concatenate([(rhs * wgt).real, (rhs * wgt).imag]), rcond=None
-    )
+    scale = np.abs(rhs)
+    theta = None
+    for _ in range(1 + SK_ITERATIONS):
+        Phi_w, rhs_w = Phi / scale[:, None], rhs / scale
+        step, *_ = np.linalg.lstsq(
+            np.vstack([Phi_w.real, Phi_w.imag]), np.concatenate([rhs_w.real, rhs_w.imag]), rcond=None
+        )
+        if not np.all(np.isfinite(step)):
+            break
+        theta = step
+        den = np.abs(Pc * du * np.polyval(np.concatenate([[1.0], theta[n_zeros + 1 :]]), s_n))
+        if not np.all(np.isfinite(den) & (den > 0)):
+            break
+        scale = den
     return theta
 
 

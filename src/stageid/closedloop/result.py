@@ -48,6 +48,8 @@ class ClosedLoopResult:
         The paper's ``eps = max | |P_i| - |P_r| | / |P_i|`` over the band, per entry.
     band_error_complex : ndarray of shape (p, p)
         ``max |P_i - P_r| / |P_i|`` over the band.
+    band_error_median : ndarray of shape (p, p) or None
+        The median over the band of ``|P_i - P_r| / |P_i|`` (None for the "full" structure).
     pem_models : dict
         ``(i, j) -> PolynomialModel`` of each closed-loop pair.
     closed_loop_fit : ndarray of shape (p, p)
@@ -81,6 +83,7 @@ class ClosedLoopResult:
     structure: str = "paper"
     diagnostics: dict = field(default_factory=dict)
     covariance: ClosedLoopCovariance | None = None
+    band_error_median: np.ndarray | None = None
 
     def response_uncertainty(self, freqs_hz: Sequence[float] | np.ndarray) -> FrequencyResponse:
         """The returned plant's response with ``std = sqrt(E|G_est - G|^2)`` per entry.

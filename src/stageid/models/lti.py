@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sla
 
 from .._errors import ModelError
 from . import control_bridge as bridge
@@ -428,6 +429,13 @@ class TransferMatrix:
         """A state-space realisation: one controllable-canonical block per entry, then
         (by default) reduced to a minimal realisation."""
         A, B, C, D = cv.tf2ss(self.num, self.den)
+        if minimal and A.shape[0]:
+            # balanced first: a continuous entry's companion block carries coefficients up to w^n
+            # (~1e12 for a third-order coupling at 2000 rad/s), and the minimal realisation's
+            # threshold, relative to that norm, called every state of such a plant unobservable
+            A, scaling = sla.matrix_balance(A, permute=False)
+            d = np.diag(scaling)
+            B, C = B / d[:, None], C * d[None, :]
         model = StateSpaceModel(A, B, C, D, self.dt, self.inputs, self.outputs)
         return model.minimal() if minimal else model
 

@@ -1,0 +1,82 @@
+"""Seeded draws of the closed-loop recovery benchmark (``benchmarks/recovery/loop_draws.py``) that
+once failed: random open-loop-unstable stages of the paper's class in a loop with a lead-lag per
+axis, records written with a logger's time column and read back as the command reads them."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks" / "recovery"))
+
+import loop_draws  # noqa: E402
+
+
+def _draw(tmp_path, seed: int, salt: int, noise: float):
+    """(true plant, controller, experiments as read from the written files)."""
+    from stageid.data import as_experiments, read_table
+
+    rng = np.random.default_rng([seed, salt])
+    plant, K, _ = loop_draws.draw_loop(rng)
+    paths, *_ = loop_draws.write_experiments(rng, plant, K, noise, tmp_path)
+    n = plant.n_outputs
+    refs, outs = [f"r{i + 1}" for i in range(n)], [f"y{i + 1}" for i in range(n)]
+    exps = as_experiments([read_table(p).experiment(inputs=refs, outputs=outs, name=str(p)) for p in paths])
+    return plant, K, exps
+
+
+@pytest.mark.parametrize(
+    ("seed", "salt"),
+    [
+        (1, 202),  # 2x2, multisine: the level search stayed at the first sample, T off by 130 % of its peak
+        (4, 202),  # 2x2, multisine: 33 %
+    ],
+)
+def test_multisine_about_the_rest_level_gives_the_closed_loop(tmp_path, seed, salt):
+    # the loop rested at the multisine's mean before the record; its first sample is far from it
+    from stageid.closedloop import select_order
+    from stageid.closedloop.loop_model import at_rest, group_by_reference, identify_pairs
+
+    def fit_pair(r, y, dt):  # the estimator's default: output error, BIC over orders 2-16
+        return select_order(r, y, "oe", range(2, 17), 1, dt)[0]
+
+    plant, K, exps = _draw(tmp_path, seed, salt, 0.003)
+    T, _, fits, _ = identify_pairs(at_rest(group_by_reference(exps), fit_pair), fit_pair)
+    f = np.geomspace(5.0, 1000.0, 200)
+    truth = loop_draws.closed_loop_response(plant, K, f)
+    error = np.abs(T.frequency_response(f) - truth).max() / np.abs(truth).max()
+    assert error < 0.02  # the benchmark's criterion (measured 0.1-2.2 % after, 33-130 % before)
+    assert np.diag(fits).min() > 99.0
+
+
+@pytest.mark.parametrize(
+    ("seed", "noise"),
+    [
+        # 2x2, multisine: refused by the paper-structure check ("y2<-u2 misses [0, 2] by 9.0 %"),
+        # its largest misfit at a coupling resonance the free pairs under-model
+        (3, 0.0092),
+        # 2x2, chirp from DC: the loop 3.8x the noise floor on the records, a constant from the
+        # outputs' first samples
+        (2, 0.0065),
+    ],
+)
+def test_pem_draw_is_recovered_through_the_command(tmp_path, seed, noise):
+    import rec_pem
+
+    row = rec_pem.case(seed, tmp_path, noise)
+    assert row.failed == "" and row.recovered, row
+    assert row.cost_ratio <= 1.1  # the case's criterion (measured 1.086 and 1.010)
+
+
+def test_lightly_damped_coupling_is_reduced_from_a_weighted_start(tmp_path):
+    # 2x2, multisine: a [1, 3] coupling reduced from Levy's start alone missed its entry by 99 % of
+    # the entry's peak; with the Sanathanan-Koerner passes 5.8 %. (Its unstable poles, 6.5 % off at
+    # 1.5 % noise, are not asserted: they are the open part of this case.)
+    import rec_closedloop
+
+    row = rec_closedloop.case(7, tmp_path, 0.0151)
+    assert row.failed == "", row
+    assert row.error <= 10.0  # the case's band criterion, % of each entry's peak
