@@ -14,6 +14,7 @@ from stageid.data.io import write_csv
 from stageid.hysteresis import PIModel
 from stageid.hysteresis.disturbance_modes import disturbance_modes
 from stageid.hysteresis.dynamics import describe_pole, transfer_to_statespace
+from stageid.hysteresis.preisach import PreisachModel
 from stageid.hysteresis.stage import StageModel
 from stageid.hysteresis.stage_identification import StageFit, StageIdentifier
 
@@ -130,3 +131,52 @@ def test_stage_summary_says_poles_near_zero_and_on_the_negative_axis_as_such():
     fit = StageFit(model, (0.1,), (0.05,), (0.0,), ("zero",), 3, (), (), "fitted.")
     line = next(s for s in fit.summary().splitlines() if "dynamics poles" in s)
     assert line == "  dynamics poles at 167.7 Hz, z = -0.3 (negative real axis), z ~ 0"
+
+
+def _smooth_preisach(n_levels):
+    """A smooth hysteresis on a fine grid; the fit's coarse grid leaves a staircase error."""
+    i, j = np.tril_indices(n_levels)
+    w = np.exp(-(((i - j) / (0.4 * n_levels)) ** 2)) * (1.0 + 0.5 * i / n_levels) * 8.0 / n_levels**2
+    return PreisachModel((-10.0, 10.0), w, 0.3, input_limits=(-10.0, 10.0))
+
+
+def _rung_records(drives, seed, disturbance=2e-3, noise=2e-4):
+    """``y = G[v + d] + n``: ``G`` a 1.1 kHz lag and a 745 Hz mode (damping 0.02), ``d`` white
+    before it, ``n`` sensor noise."""
+    rng = np.random.default_rng(seed)
+    h = _smooth_preisach(32)
+    b, a = _resonance(745.0, 0.02)
+    p = np.exp(-2 * np.pi * 1100.0 * DT)
+    b, a = np.convolve(b, [1 - p]), np.convolve(a, [1.0, -p])
+    out = []
+    for u in drives:
+        v = h.with_state(h.consistent_state(u[0])).simulate(u)[:, 0]
+        x = v - v[0] + disturbance * rng.standard_normal(u.size)
+        out.append((u, v[0] + lfilter(b, a, x) + noise * rng.standard_normal(u.size)))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_mode_the_drives_hardly_excite_is_kept_on_held_out_prediction_evidence(seed):
+    """The dSPACE records' case in simulation: a mode rung by the disturbance, slow drives, and a
+    hysteresis the fit's 8-level grid holds only as a staircase.  Held out, the mode makes the
+    simulation error worse (it rings on the staircase steps), so a simulation-error rule leaves it
+    out (measured 1.59 -> 1.82 % summed over the folds); the one-step prediction error, which
+    whitens the slow model error, halves with it (0.164 -> 0.073 %), so the mode is kept.  On a
+    record whose drive excites the mode (random steps) the kept mode lowers the error."""
+    recs = _rung_records([_drive(20.0, 1.5), _drive(100.0, 0.6)], seed)
+    est = StageIdentifier("preisach", n_levels=8, dynamics=1, creep=None, sample_time=DT)
+    fit = est.fit(recs)
+    assert len(fit.modes) == 1 and abs(fit.modes[0].frequency_hz - 745.0) < 15.0, fit.summary()
+    assert "lowered the held-out one-step prediction error" in fit.message
+    plain = StageIdentifier("preisach", n_levels=8, dynamics=1, creep=None, sample_time=DT, disturbance_modes=None)
+    without = plain.fit(recs)
+    rng = np.random.default_rng(100 + seed)
+    steps = np.repeat(rng.uniform(-8.0, 8.0, 100), 50)  # a new level every 5 ms: rings the mode
+    ((u, y),) = _rung_records([steps], 200 + seed, disturbance=0.0)
+
+    def rms(model):
+        e = y - model.simulate(u)[:, 0]
+        return float(np.sqrt(np.mean((e - e.mean()) ** 2)))
+
+    assert rms(fit.model) < 0.8 * rms(without.model)
