@@ -40,10 +40,10 @@ Procedure (:meth:`StageIdentifier.fit`):
    (:func:`~.disturbance_modes.resonance_filter`); with ``auto`` order or creep, step 3 runs
    again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
    low-order ``G`` jointly, the modes fixed).  ``"auto"`` (the default) keeps the modes only
-   when the held-out error with them is below the held-out error without them, and otherwise
-   says in the summary that they were left out; ``"spectrum"`` keeps them on the spectral
-   evidence alone (a mode the identification drives do not excite, which held-out error on
-   those records cannot see).
+   when the held-out one-step prediction error with them (a noise model with the modes' poles,
+   :func:`~.stage_selection.prediction_score`) is below that of the choice without them, and
+   says in the summary which way it went; ``"spectrum"`` keeps them on the spectral evidence
+   alone.
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
