@@ -308,11 +308,13 @@ class StageIdentifier(Estimator):
         return problem, model, offsets
 
     def _with_modes(self, problem, modes, orders, creeps, order, taus, names):
-        """``(True, order, taus, held-out scores, model, offsets)`` with the modes in the dynamics
-        when they lower the held-out one-step prediction error of the choice without them
-        (``"spectrum"``: always); else ``(False, note)``."""
+        """``(True, order, taus, held-out scores, model, offsets, note)`` with the modes in the
+        dynamics when they lower the held-out one-step prediction error below that of the choice
+        without them and that of no dynamics (``"spectrum"``: always); else ``(False, note)``."""
         evidence = self.disturbance_modes == "auto"
-        without = prediction_score(problem.held_out_residuals(order, taus))[0] if evidence else np.nan
+        without = np.nan
+        if evidence:  # the choice without the modes, and no dynamics at all (never worse than either)
+            without = min(prediction_score(problem.held_out_residuals(n, taus))[0] for n in {order, 0})
         problem.prefilter = resonance_filter(modes, problem.dt)
         # with auto order or creep both are chosen again (by simulation error) with the modes in place
         order_m, taus_m, held_out = choose_candidate(problem, orders, creeps)
@@ -327,7 +329,7 @@ class StageIdentifier(Estimator):
             problem.prefilter = None
             return False, (
                 f"modes at {hz} from the disturbance spectrum did not lower the held-out one-step "
-                f"prediction error ({with_modes:.3f} % against {without:.3f} % without): left out"
+                f"prediction error ({with_modes:.3f} % against {without:.3f} % without them): left out"
             )
         everything = [np.ones(u.size, bool) for u, _ in problem.recs]
         w, c, offsets, ba = problem.solve(order_m, taus_m, everything)
@@ -338,7 +340,7 @@ class StageIdentifier(Estimator):
             if not evidence
             else (
                 f"modes at {hz} lowered the held-out one-step prediction error ({with_modes:.3f} % against "
-                f"{without:.3f} % without)"
+                f"{without:.3f} % without them)"
             )
         )
         return True, order_m, taus_m, held_out, model, offsets, note

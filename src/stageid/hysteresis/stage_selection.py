@@ -9,7 +9,8 @@ or the last 40 % of a single record):
 - a fixed order ``N``: kept only when its held-out error is below that of no dynamics with
   the same creep, so ``dynamics=N`` is never worse held out than none (:func:`fixed_order`);
 - disturbance modes: kept only when the held-out one-step prediction error with them is below
-  that of the choice without them (:func:`prediction_score`, :func:`modes_improve`).
+  that of the choice without them and that of no dynamics (:func:`prediction_score`,
+  :func:`modes_improve`).
 
 Why prediction, not simulation, for the modes: a mode that the identification drives hardly
 excite changes the simulated output by little, and that little is buried under the slow model
