@@ -41,9 +41,9 @@ Procedure (:meth:`StageIdentifier.fit`):
    again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
    low-order ``G`` jointly, the modes fixed).  ``"auto"`` (the default) keeps the modes only
    when the held-out one-step prediction error with them (a noise model with the modes' poles,
-   :func:`~.stage_selection.prediction_score`) is below that of the choice without them, and
-   says in the summary which way it went; ``"spectrum"`` keeps them on the spectral evidence
-   alone.
+   :func:`~.stage_selection.prediction_score`) is below that of the choice without them and
+   that of no dynamics, and says in the summary which way it went; ``"spectrum"`` keeps them
+   on the spectral evidence alone.
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
