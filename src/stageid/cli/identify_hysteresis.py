@@ -134,8 +134,9 @@ Examples:
     show_default=True,
     help="With --dynamics: the lightly damped modes that a broadband disturbance rings in every "
     "record's residual (drive harmonics left out) go into the dynamics, with unit DC gain, and the "
-    "model is refitted; auto keeps them when they lower the held-out error (each record left out "
-    "in turn), spectrum whenever they are found (a mode the drives do not excite); none: never. "
+    "model is refitted; auto keeps them when they lower the held-out one-step prediction error "
+    "(each record left out in turn; a noise model with the modes' poles), spectrum whenever they "
+    "are found; none: never. "
     "The summary and the JSON list the modes taken.",
 )
 @click.option("--ts", type=float, default=None, help="Sample time [s] for files without a `t` column.")

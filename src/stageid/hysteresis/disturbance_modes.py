@@ -49,6 +49,14 @@ tracking records are validation data and did not set it):
    current dynamics with damping ``zeta_p < POLE_DAMPING`` (a resonance the input-output
    fit already has, even a little more damped than a mode; added after the validation figures,
    changes none of them: the real records' fits have no complex poles).
+7. A mode's frequency and damping are then fitted to every record's own spectrum at once (its
+   own bins, harmonics left out): one resonance and one ring level common to all records (a
+   stationary disturbance), each record with its own power-law floor (model error differs
+   between records).  The bin-wise minimum of rule 3 suits detection but not the shape: where
+   the records' floors differ it takes each bin from whichever record is lowest there, so the
+   flanks and the peak can come from different records.  The detection's estimate stays when
+   the joint fit leaves the bounds of rule 5 or moves the frequency by more than
+   ``SEPARATION`` half-widths.
 """
 
 from __future__ import annotations
@@ -63,6 +71,7 @@ __all__ = [
     "DisturbanceMode",
     "disturbance_modes",
     "residual_spectra",
+    "record_spectrum",
     "resonance_filter",
     "SEGMENT_SECONDS",
     "MIN_SEGMENTS",
@@ -134,25 +143,36 @@ def _segment(dt: float) -> int:
     return int(2 ** round(np.log2(SEGMENT_SECONDS / dt)))
 
 
-def residual_spectra(residuals: list[np.ndarray], drives: list[np.ndarray], dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(f, P)``: the common frequency grid and the residuals' PSDs on it, one row per record
-    that takes part, NaN where a record has only harmonic bins (rules 2-3)."""
+def record_spectrum(e: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """``(f, P, nper)``: one residual's Welch PSD on its own bins, NaN on the bins of its drive's
+    harmonics, and its segment length (rule 2); None for a record too short to take part."""
     from scipy.signal import welch
 
     base = _segment(dt)
-    rows = []
-    f = np.fft.rfftfreq(base, dt)
+    f0 = _fundamental(np.asarray(u, float), dt)
+    # segments long enough that the harmonics are LINE_SPACING bins apart
+    nper = base if f0 <= 0 else max(base, int(2 ** np.ceil(np.log2(LINE_SPACING / (f0 * dt)))))
+    if e.size < nper * (MIN_SEGMENTS + 1) // 2:
+        return None
+    ff, p = welch(np.asarray(e, float) - np.mean(e), fs=1.0 / dt, window="hann", nperseg=nper)
+    if f0 > 0:
+        k = np.round(ff / f0)
+        p = np.where((k >= 1) & (np.abs(ff - k * f0) <= LINE_HALF_WIDTH * (ff[1] - ff[0])), np.nan, p)
+    return ff, p, nper
+
+
+def residual_spectra(residuals: list[np.ndarray], drives: list[np.ndarray], dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(f, P)``: the common frequency grid and the residuals' PSDs on it, one row per record
+    that takes part, NaN where a record has only harmonic bins (rules 2-3)."""
+    own = [record_spectrum(e, u, dt) for e, u in zip(residuals, drives)]
+    return _on_common_grid([sp for sp in own if sp is not None], dt)
+
+
+def _on_common_grid(spectra: list, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    f = np.fft.rfftfreq(_segment(dt), dt)
     df = f[1] - f[0]
-    for e, u in zip(residuals, drives):
-        f0 = _fundamental(np.asarray(u, float), dt)
-        # segments long enough that the harmonics are LINE_SPACING bins apart
-        nper = base if f0 <= 0 else max(base, int(2 ** np.ceil(np.log2(LINE_SPACING / (f0 * dt)))))
-        if e.size < nper * (MIN_SEGMENTS + 1) // 2:
-            continue
-        ff, p = welch(np.asarray(e, float) - np.mean(e), fs=1.0 / dt, window="hann", nperseg=nper)
-        if f0 > 0:
-            k = np.round(ff / f0)
-            p = np.where((k >= 1) & (np.abs(ff - k * f0) <= LINE_HALF_WIDTH * (ff[1] - ff[0])), np.nan, p)
+    rows = []
+    for ff, p, _ in spectra:
         # the mean of the kept fine bins within every common bin
         idx = np.clip(np.round(ff / df).astype(int), 0, f.size - 1)
         kept = ~np.isnan(p)
@@ -269,7 +289,8 @@ def disturbance_modes(
         The records' largest absolute output, which sets the numerical floor (rule 4); by
         default the largest absolute residual (a floor that only rules out pure rounding).
     """
-    f, P = residual_spectra(residuals, drives, dt)
+    own = [sp for sp in (record_spectrum(e, u, dt) for e, u in zip(residuals, drives)) if sp is not None]
+    f, P = _on_common_grid(own, dt)
     if P.shape[0] == 0:
         return ()
     s, measured = _detection_spectrum(P)
@@ -310,9 +331,55 @@ def disturbance_modes(
             continue
         if any(abs(fn - fp) <= SEPARATION * max(zeta, zp) * fp for fp, zp in resonant):
             continue
+        fn, zeta = _refine_jointly(own, fn, zeta, df)
         taken.append(DisturbanceMode(fn, zeta, peak))
         bands.append((fn * (1 - SEPARATION * zeta), fn * (1 + SEPARATION * zeta)))
     return tuple(sorted(taken, key=lambda m: m.frequency_hz))
+
+
+def _refine_jointly(spectra: list, fn0: float, zeta0: float, df: float) -> tuple[float, float]:
+    """``(fn, zeta)`` of a found mode fitted to every record's own spectrum at once (rule 7): one
+    resonance and one ring level common to all records, each record with its own power-law floor.
+    The detection's estimate when the joint fit leaves the mode's bounds (damping in
+    ``[df / (2 fn), MAX_DAMPING]``, frequency within ``SEPARATION`` half-widths)."""
+    from scipy.optimize import least_squares
+
+    over = 8
+    parts = []
+    for ff, p, nper in spectra:
+        m = (ff >= fn0 / SPAN) & (ff <= fn0 * SPAN) & (p > 0)  # NaN (harmonic) bins compare False
+        if m.sum() >= 5:  # a floor (2 numbers) and its share of the resonance need a few bins
+            parts.append((ff[m], np.log(p[m]), ff[1] - ff[0], _hann_kernel(nper, over)))
+    if not parts:
+        return fn0, zeta0
+
+    def residual(x):
+        fn, zeta = x[0] * fn0, np.exp(x[1])
+        out = []
+        for j, (fw, lw, dfj, kernel) in enumerate(parts):
+            ring = x[2] + np.log(_expected(fw, fn, zeta, dfj, kernel, over))
+            out.append(np.logaddexp(x[3 + 2 * j] + x[4 + 2 * j] * np.log(fw / fn0), ring) - lw)
+        return np.concatenate(out)
+
+    floors = np.ravel([[np.median(lw), 0.0] for _, lw, _, _ in parts])
+    peak = max(float(np.max(lw)) for _, lw, _, _ in parts)
+    lo = np.r_[1 / SPAN, np.log(1e-4), -np.inf, np.tile([-np.inf, -20.0], len(parts))]
+    hi = np.r_[SPAN, 0.0, np.inf, np.tile([np.inf, 20.0], len(parts))]
+    best = None
+    for z in (zeta0 / 2, zeta0, 2 * zeta0):  # the log-spectrum fit has local minima in the damping
+        x0 = np.r_[1.0, np.log(z), peak + 2 * np.log(2 * z), floors]
+        try:
+            res = least_squares(residual, x0, bounds=(lo, hi), loss="soft_l1", f_scale=0.5, max_nfev=MAX_NFEV)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        return fn0, zeta0
+    fn, zeta = float(best.x[0] * fn0), float(np.exp(best.x[1]))
+    if 2 * zeta * fn < df or zeta > MAX_DAMPING or abs(fn - fn0) > SEPARATION * zeta0 * fn0:
+        return fn0, zeta0
+    return fn, zeta
 
 
 def _resonant_poles(poles: np.ndarray | None, dt: float) -> list[tuple[float, float]]:

@@ -40,10 +40,10 @@ Procedure (:meth:`StageIdentifier.fit`):
    (:func:`~.disturbance_modes.resonance_filter`); with ``auto`` order or creep, step 3 runs
    again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
    low-order ``G`` jointly, the modes fixed).  ``"auto"`` (the default) keeps the modes only
-   when the held-out error with them is below the held-out error without them, and otherwise
-   says in the summary that they were left out; ``"spectrum"`` keeps them on the spectral
-   evidence alone (a mode the identification drives do not excite, which held-out error on
-   those records cannot see).
+   when the held-out one-step prediction error with them (a noise model with the modes' poles,
+   :func:`~.stage_selection.prediction_score`) is below that of the choice without them and
+   that of no dynamics, and says in the summary which way it went; ``"spectrum"`` keeps them
+   on the spectral evidence alone.
 
 The result's model is a :class:`~.stage.StageModel` that starts like the PI identification's
 model (zero state, first record's offset).
@@ -69,7 +69,7 @@ from .stage import StageModel
 from .stage_inverse import invert_dynamics
 from .stage_preisach import PreisachStageProblem, best_start_kinds
 from .stage_problem import N_ALTERNATIONS, StageProblem
-from .stage_selection import choose_candidate, fixed_order, modes_improve
+from .stage_selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
 
 __all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
 
@@ -277,8 +277,9 @@ class StageIdentifier(Estimator):
                 orders_m = orders if self.dynamics == "auto" else (order,)
                 outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names)
                 if outcome[0]:
-                    _, order, taus, held_out, model, offsets = outcome
+                    _, order, taus, held_out, model, offsets, note = outcome
                     modes = found
+                    notes += [note] if note else []
                 else:
                     notes.append(outcome[1])
         max_e, rms_e = problem.errors(model, offsets)
@@ -308,31 +309,42 @@ class StageIdentifier(Estimator):
         return problem, model, offsets
 
     def _with_modes(self, problem, modes, orders, creeps, order, taus, names):
-        """``(True, order, taus, held-out scores, model, offsets)`` with the modes in the dynamics
-        when they lower the held-out error of the choice without them (``"spectrum"``: always);
-        else ``(False, note)``."""
+        """``(True, order, taus, held-out scores, model, offsets, note)`` with the modes in the
+        dynamics when they lower the held-out one-step prediction error below that of the choice
+        without them and that of no dynamics (``"spectrum"``: always); else ``(False, note)``."""
         evidence = self.disturbance_modes == "auto"
-        without = problem.held_out_score(order, taus) if evidence else np.nan
+        without = np.nan
+        if evidence:  # the choice without the modes, and no dynamics at all (never worse than either)
+            without = min(prediction_score(problem.held_out_residuals(n, taus))[0] for n in {order, 0})
         problem.prefilter = resonance_filter(modes, problem.dt)
-        # with auto order or creep both are chosen again with the modes in place
+        # with auto order or creep both are chosen again (by simulation error) with the modes in place
         order_m, taus_m, held_out = choose_candidate(problem, orders, creeps)
-        if held_out:
-            with_modes = min(c[2] for c in held_out)
-        else:
-            with_modes = problem.held_out_score(order_m, taus_m) if evidence else np.nan
-            held_out = [(order_m, taus_m, with_modes)] if evidence else []
+        with_modes = np.nan
+        if evidence:
+            folds = problem.held_out_residuals(order_m, taus_m)
+            with_modes = prediction_score(folds, problem.prefilter[1])[0]
+            if not held_out:
+                held_out = [(order_m, taus_m, simulation_score(folds))]
         hz = ", ".join(f"{m.frequency_hz:.4g} Hz" for m in modes)
         if evidence and not modes_improve(without, with_modes):
             problem.prefilter = None
             return False, (
-                f"modes at {hz} from the disturbance spectrum did not lower the held-out error "
-                f"({with_modes:.3f} % against {without:.3f} % without): left out"
+                f"modes at {hz} from the disturbance spectrum did not lower the held-out one-step "
+                f"prediction error ({with_modes:.3f} % against {without:.3f} % without them): left out"
             )
         everything = [np.ones(u.size, bool) for u, _ in problem.recs]
         w, c, offsets, ba = problem.solve(order_m, taus_m, everything)
         model = problem.build(w, c, offsets[0], taus_m, ba, *names)
         model = replace(model, disturbance_modes=tuple((m.frequency_hz, m.damping) for m in modes))
-        return True, order_m, taus_m, held_out, model, offsets
+        note = (
+            ""
+            if not evidence
+            else (
+                f"modes at {hz} lowered the held-out one-step prediction error ({with_modes:.3f} % against "
+                f"{without:.3f} % without them)"
+            )
+        )
+        return True, order_m, taus_m, held_out, model, offsets, note
 
     def _first_step(self, data, inputs, outputs, recs, dt):
         """Step 1: the rate-independent hysteresis, the records' starting states and the step-2 problem."""

@@ -19,6 +19,7 @@ from .._errors import IdentificationError
 from .creep import CreepTerm
 from .dynamics import fit_hammerstein, fit_unit_gain_dynamics, transfer_to_statespace, unit_gain_filter
 from .stage import StageModel
+from .stage_selection import simulation_score
 from .weights import cumulative_map, split_map
 
 __all__ = ["StageProblem", "refine_output_error", "constraint_map", "N_ALTERNATIONS", "MAX_ROWS"]
@@ -176,6 +177,12 @@ class StageProblem:
 
     def held_out_score(self, order: int, taus: tuple[float, ...]) -> float:
         """Summed RMS error (% of range) on held-out records (or the last 40 % of a single record)."""
+        return simulation_score(self.held_out_residuals(order, taus))
+
+    def held_out_residuals(self, order: int, taus: tuple[float, ...]) -> list | None:
+        """Per fold ``(training residuals, [(held-out residual, record range), ...])`` of the fit of
+        ``order`` and ``taus`` on the fold's rows (each record left out in turn, or the first 60 %
+        of a single record), every residual with its own mean removed; None when a fold's fit fails."""
         J = len(self.recs)
         folds = []
         if J == 1:
@@ -187,21 +194,23 @@ class StageProblem:
                 fit = [np.full(u.size, j != k) for j, (u, _) in enumerate(self.recs)]
                 test = [np.full(u.size, j == k) for j, (u, _) in enumerate(self.recs)]
                 folds.append((fit, test))
-        score = 0.0
+        out = []
         for fit_masks, test_masks in folds:
             try:
                 w, c, _, ba = self.solve(order, taus, fit_masks)
             except (IdentificationError, np.linalg.LinAlgError):
-                return float("inf")
-            for (_, y), cols_mask, col in zip(self.recs, test_masks, self.columns(taus)):
-                if not cols_mask.any():
-                    continue
+                return None
+            train, tests = [], []
+            for (_, y), fit_mask, test_mask, col in zip(self.recs, fit_masks, test_masks, self.columns(taus)):
                 v = col @ np.r_[w, c]
-                yh = v if ba is None else unit_gain_filter(ba[0], ba[1], v[:, None])[:, 0]
-                e = (y - yh)[cols_mask]
-                e = e - e.mean()  # the held-out record's own offset
-                score += float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y))
-        return score
+                e = y - (v if ba is None else unit_gain_filter(ba[0], ba[1], v[:, None])[:, 0])
+                # every record with its own offset
+                if fit_mask.any():
+                    train.append(e[fit_mask] - e[fit_mask].mean())
+                if test_mask.any():
+                    tests.append((e[test_mask] - e[test_mask].mean(), float(np.ptp(y))))
+            out.append((train, tests))
+        return out
 
     def build(self, w, c, offset, taus, ba, in_name, out_name) -> StageModel:
         weights = np.zeros(self.h.n_operators)
