@@ -110,7 +110,7 @@ class DirectPredictionError(UnknownControllerEstimator):
         r, u, u_names = split_references(exps, self.references, False, type(self).__name__)
         y = [e.y for e in exps]
         fit = fit_innovation(u, y, self.order, self.order_range, self.horizon, self.feedthrough, self.max_nfev)
-        u_used = [x[fit.pem.burn :] for x in u]
+        u_used = [x[fit.burn :] for x in u]
         checks = [excitation_check(fit.rcond), *residual_checks(fit.residuals, u_used, self.feedthrough)]
         checks.append(noise_feedback_check(fit.residuals, u_used))
         if r is not None:

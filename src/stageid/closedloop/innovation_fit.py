@@ -31,8 +31,9 @@ class InnovationFit:
     order: int
     horizon: int
     rcond: float
-    pem: PemFit
+    pem: PemFit | None
     residuals: tuple[np.ndarray, ...]
+    burn: int
 
 
 def as_records(data: Experiment | Sequence[Experiment]) -> list[Experiment]:
@@ -74,8 +75,11 @@ def fit_innovation(
     horizon: int | str,
     feedthrough: bool,
     max_nfev: int,
+    refine_start: bool = True,
 ) -> InnovationFit:
     """Centre and scale the records, pick horizon and order, start by PBSID, refine by PEM.
+
+    ``refine_start=False`` keeps the (consistent) subspace estimate: no covariance, no bands.
 
     Raises
     ------
@@ -98,10 +102,15 @@ def fit_innovation(
 
     n = order_by_bic(records, p, order_range, feedthrough, pooled) if order == "auto" else int(order)
     start = pbsid(records, n, p, feedthrough)
+    if not refine_start:
+        burn = transient_length(start, p, shortest // 4)
+        mats, _ = _unscale(start, None, su, sy, feedthrough)
+        res = tuple(e[burn:] * sy for e in predictor_residuals(start, records))
+        return InnovationFit(mats, None, n, p, rcond, None, res, burn)
     fit = refine(records, start, feedthrough, p, max_nfev)
     mats, cov = _unscale(fit.matrices, fit.covariance, su, sy, feedthrough)
     residuals = tuple(e * sy for e in predictor_residuals(fit.matrices, records))
-    return InnovationFit(mats, cov, n, p, rcond, fit, tuple(e[fit.burn :] for e in residuals))
+    return InnovationFit(mats, cov, n, p, rcond, fit, tuple(e[fit.burn :] for e in residuals), fit.burn)
 
 
 def split_references(

@@ -63,15 +63,28 @@ def predictor_residuals(m: InnovationMatrices, records: Sequence[tuple[np.ndarra
         e = pred.simulate(np.hstack([u, np.ones((u.shape[0], 1)), y]))
         L = transient_length(m, 1, u.shape[0]) if n else 0
         if L:
-            O = np.empty((L, p, n))
-            CAk = m.C.copy()
-            for t in range(L):
-                O[t] = CAk
-                CAk = CAk @ At
-            O = O.reshape(L * p, n)
+            O = free_response(m.C, At, L).reshape(L * p, n)
             x0 = np.linalg.lstsq(O, e[:L].ravel(), rcond=None)[0]
             e[:L] -= (O @ x0).reshape(L, p)
         out.append(e)
+    return out
+
+
+def free_response(C: np.ndarray, A: np.ndarray, length: int) -> np.ndarray:
+    """``C A^t`` for ``t = 0 .. length - 1``, shape (length, p, n), by the eigenvalues of ``A``.
+
+    A defective ``A`` (no eigenvector basis) falls back to repeated products.
+    """
+    lam, V = np.linalg.eig(A)
+    if np.linalg.cond(V) < 1e8:
+        powers = lam[None, :] ** np.arange(length)[:, None]
+        out = np.einsum("pk,tk,kn->tpn", C @ V, powers, np.linalg.inv(V))
+        return out.real
+    out = np.empty((length, C.shape[0], A.shape[0]))
+    CAk = C.copy()
+    for t in range(length):
+        out[t] = CAk
+        CAk = CAk @ A
     return out
 
 
@@ -143,7 +156,7 @@ def refine(
             J[:, k] = (f1 - f0) / h
         return J
 
-    sol = least_squares(cost_vector, theta0, jac=jacobian, method="trf", x_scale="jac", max_nfev=max_nfev)
+    sol = least_squares(cost_vector, theta0, jac=jacobian, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-7)
     E = predictor_residuals(unpack(sol.x, n, m, p, feedthrough, start.noise_cov), records)
     cov, k_eff = _covariance(jacobian(sol.x), sol.fun)
     pooled = np.vstack([e[burn:] for e in E])

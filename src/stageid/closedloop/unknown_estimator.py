@@ -15,7 +15,7 @@ from .innovation_pem import pole_std
 from .unknown_checks import ASSUMPTIONS, Check
 from .unknown_result import UnknownControllerResult
 
-__all__ = ["UnknownControllerEstimator"]
+__all__ = ["UnknownControllerEstimator", "pem_account"]
 
 
 def _is_order_range(value: object) -> bool:
@@ -29,6 +29,18 @@ def _is_order_range(value: object) -> bool:
 
 def _is_names(value: object) -> bool:
     return isinstance(value, (list, tuple)) and len(value) > 0 and all(isinstance(n, str) for n in value)
+
+
+def pem_account(fit: InnovationFit) -> dict:
+    """The optimiser's account of a fit (empty for a subspace estimate without refinement)."""
+    if fit.pem is None:
+        return {}
+    return {
+        "nfev": fit.pem.nfev,
+        "converged": fit.pem.converged,
+        "cost_start": fit.pem.cost_start,
+        "cost": fit.pem.cost,
+    }
 
 
 class UnknownControllerEstimator(Estimator):

@@ -14,7 +14,7 @@ from .innovation_pem import response_std
 from .predictor_subspace import InnovationMatrices
 from .unknown_checks import Check
 
-__all__ = ["UnknownControllerResult"]
+__all__ = ["UnknownControllerResult", "unstable_pole_agreement"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,3 +113,22 @@ class UnknownControllerResult:
         lines.append("  checks:")
         lines += [f"    - {c.line()}" for c in self.checks]
         return "\n".join(lines)
+
+
+def unstable_pole_agreement(results: Sequence[UnknownControllerResult], rtol: float = 0.02) -> Check:
+    """Do the routes agree on the unstable poles?  The largest relative spread of matched poles.
+
+    Poles are matched by sorting each route's unstable poles by modulus; a route with a
+    different count fails the check (value ``inf``).
+    """
+    sets = [np.sort_complex(np.asarray(r.unstable_poles)[np.argsort(np.abs(r.unstable_poles))]) for r in results]
+    sets = [s[np.argsort(np.abs(s))] for s in sets]
+    names = ", ".join(r.method for r in results)
+    if len(results) < 2 or len({s.size for s in sets}) != 1 or sets[0].size == 0:
+        counts = ", ".join(f"{r.method} {s.size}" for r, s in zip(results, sets))
+        return Check("pole_agreement", False, float("inf"), rtol, f"unstable poles found per route: {counts}")
+    stacked = np.array(sets)
+    spread = float(np.max(np.abs(stacked - stacked.mean(axis=0)) / np.abs(stacked.mean(axis=0))))
+    return Check(
+        "pole_agreement", spread <= rtol, spread, rtol, f"largest relative spread of the unstable poles over {names}"
+    )
