@@ -52,6 +52,11 @@ def predictor_residuals(m: InnovationMatrices, records: Sequence[tuple[np.ndarra
     mode mirrors an unstable pole); the initial state enters ``e`` linearly, ``e = e_0 - O x0``
     with ``O(t) = C (A - K C)^t``, so it is removed by least squares over the transient.
     """
+    return stacked_residuals(m, [np.hstack([u, np.ones((u.shape[0], 1)), y]) for u, y in records])
+
+
+def stacked_residuals(m: InnovationMatrices, stacked: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """:func:`predictor_residuals` on records already stacked as ``[u, 1, y]`` (the optimiser's loop)."""
     p, n = m.C.shape[0], m.A.shape[0]
     At = m.A - m.K @ m.C
     b0 = np.zeros(n) if m.state_offset is None else m.state_offset
@@ -59,9 +64,9 @@ def predictor_residuals(m: InnovationMatrices, records: Sequence[tuple[np.ndarra
     Bp = np.hstack([m.B - m.K @ m.D, (b0 - m.K @ d0)[:, None], m.K])
     pred = StateSpaceModel(At, Bp, -m.C, np.hstack([-m.D, -d0[:, None], np.eye(p)]), dt=1.0)
     out = []
-    for u, y in records:
-        e = pred.simulate(np.hstack([u, np.ones((u.shape[0], 1)), y]))
-        L = transient_length(m, 1, u.shape[0]) if n else 0
+    for z in stacked:
+        e = pred.simulate(z)
+        L = transient_length(m, 1, z.shape[0]) if n else 0
         if L:
             O = free_response(m.C, At, L).reshape(L * p, n)
             x0 = np.linalg.lstsq(O, e[:L].ravel(), rcond=None)[0]
@@ -128,12 +133,13 @@ def refine(
         raise IdentificationError("the subspace start has an unstable predictor A - K C; try another order or horizon.")
     W = _whitener(start.noise_cov)
     burn = transient_length(start, burn, min(u.shape[0] for u, _ in records) // 4)
+    stacked = [np.hstack([u, np.ones((u.shape[0], 1)), y]) for u, y in records]
 
     def cost_vector(theta: np.ndarray) -> np.ndarray:
         mats = unpack(theta, n, m, p, feedthrough, start.noise_cov)
         if n and np.max(np.abs(mats.predictor_poles)) >= 0.9999:
             return fallback  # outside the stable predictors: a wall the trust region steps back from
-        E = predictor_residuals(mats, records)
+        E = stacked_residuals(mats, stacked)
         return np.concatenate([(e[burn:] @ W.T).ravel() for e in E])
 
     theta0 = pack(start, feedthrough)
@@ -156,7 +162,9 @@ def refine(
             J[:, k] = (f1 - f0) / h
         return J
 
-    sol = least_squares(cost_vector, theta0, jac=jacobian, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-7)
+    sol = least_squares(
+        cost_vector, theta0, jac=jacobian, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-7, tr_solver="lsmr"
+    )
     E = predictor_residuals(unpack(sol.x, n, m, p, feedthrough, start.noise_cov), records)
     cov, k_eff = _covariance(jacobian(sol.x), sol.fun)
     pooled = np.vstack([e[burn:] for e in E])
