@@ -6,7 +6,7 @@ import click
 
 from .._errors import DataError, IdentificationError
 from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
-from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, run_unknown
+from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -134,34 +134,12 @@ def closedloop_command(
         check_output_folder(report_dir)
     uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     if controller_path == "unknown":
-        if method in ("oe", "armax", "bj", "arx"):
-            raise click.UsageError(
-                f"--method {method} needs a known controller; with --controller unknown use "
-                f"{', '.join(UNKNOWN_METHODS)}."
-            )
-        if loop_output is not None:
-            raise click.UsageError("--closed-loop-output needs a known controller (no closed loop is identified).")
         request = UnknownRequest(
-            experiments,
-            references,
-            outputs,
-            plant_inputs,
-            ts,
-            parse_band(band_text),
-            method or "direct",
-            order_text,
-            discrete,
-            output,
-            report_dir,
-        )
+            experiments, references, outputs, plant_inputs, ts, parse_band(band_text), method,
+            order_text, discrete, output, report_dir, loop_output,
+        )  # fmt: skip
         return run_unknown(request, uncertainty)
-    if method in UNKNOWN_METHODS:
-        raise click.UsageError(
-            f"--method {method} is for --controller unknown; a known controller takes oe, armax, bj or arx."
-        )
-    method = method or "oe"
-    if references is None:
-        raise click.UsageError("a known controller needs --references R1,R2[,R3] (one excited per file).")
+    method = known_controller_method(method, references)
     refs = split_names(references, "--references")
     outs = split_names(outputs, "--outputs")
     assert refs is not None and outs is not None

@@ -14,9 +14,21 @@ import click
 from .._errors import IdentificationError, ModelError
 from ._common import say, split_names, write_model_output
 
-__all__ = ["UNKNOWN_METHODS", "UnknownRequest", "run_unknown"]
+__all__ = ["UNKNOWN_METHODS", "UnknownRequest", "run_unknown", "known_controller_method"]
 
 UNKNOWN_METHODS = ("direct", "two-stage", "joint")
+KNOWN_METHODS = ("oe", "armax", "bj", "arx")
+
+
+def known_controller_method(method: str | None, references: str | None) -> str:
+    """The known-controller route's ``--method`` (default oe), refusing the unknown-controller ones."""
+    if method in UNKNOWN_METHODS:
+        raise click.UsageError(
+            f"--method {method} is for --controller unknown; a known controller takes {', '.join(KNOWN_METHODS)}."
+        )
+    if references is None:
+        raise click.UsageError("a known controller needs --references R1,R2[,R3] (one excited per file).")
+    return method or "oe"
 
 
 @dataclass(frozen=True)
@@ -29,11 +41,12 @@ class UnknownRequest:
     plant_inputs: str | None
     ts: float | None
     band: tuple[float, float]
-    method: str
+    method: str | None
     order: str
     discrete: bool
     output: str
     report_dir: str | None
+    loop_output: str | None
 
 
 def _parse_order(text: str) -> int | str:
@@ -66,6 +79,14 @@ def run_unknown(req: UnknownRequest, uncertainty) -> None:
     from ..data import as_experiments
     from ._common import read_table_checked
 
+    if req.method in KNOWN_METHODS:
+        raise click.UsageError(
+            f"--method {req.method} needs a known controller; with --controller unknown use {', '.join(UNKNOWN_METHODS)}."
+        )
+    if req.loop_output is not None:
+        raise click.UsageError("--closed-loop-output needs a known controller (no closed loop is identified).")
+    method = req.method or "direct"
+
     refs = split_names(req.references, "--reference")
     outs = split_names(req.outputs, "--outputs")
     ins = split_names(req.plant_inputs, "--plant-inputs")
@@ -73,8 +94,8 @@ def run_unknown(req: UnknownRequest, uncertainty) -> None:
         raise click.UsageError("--controller unknown needs the plant-input columns: --plant-inputs U1[,U2].")
     assert outs is not None
     order = _parse_order(req.order)
-    est = _estimator(req.method, order, refs)
-    if uncertainty.wanted and req.method == "joint":
+    est = _estimator(method, order, refs)
+    if uncertainty.wanted and method == "joint":
         raise click.UsageError("the joint route gives no bands: --uncertainty needs --method direct or two-stage.")
     tables = [read_table_checked(path, req.ts) for path in req.experiments]
     inputs = list(refs or ()) + list(ins)
@@ -92,11 +113,7 @@ def run_unknown(req: UnknownRequest, uncertainty) -> None:
                 f"the plant has no continuous equivalent ({exc}); write it at the sample time with --discrete."
             ) from None
     write_model_output(req.output, plant)
-    line = uncertainty.write(result, req.band, exps[0].dt) if result.parameter_covariance is not None else None
-    if uncertainty.wanted and line is None:
-        raise IdentificationError(
-            f"the {req.method} route gives no bands: --uncertainty needs --method direct or two-stage."
-        )
+    line = uncertainty.write(result, req.band, exps[0].dt)
     say(result.summary(), err=True)
     if line:
         say(line, err=True)
