@@ -8,8 +8,10 @@ the records can show:
 * ``whiteness``: the one-step residual of each output is white (Ljung-Box); a coloured residual
   means the noise model is too rigid, which is exactly when the direct method is biased;
 * ``past_inputs``: the residual is uncorrelated with past inputs ``u(t-1), u(t-2), ...``;
-* ``feedback_delay``: the correlation of ``u(t)`` with the residual ``e(t)`` at the same sample,
-  nonzero when the controller acts within the sample (no delay in the feedback);
+* ``same_sample_feedback`` (informative, without a fitted feedthrough): the correlation of ``u(t)``
+  with the residual ``e(t)`` at the same sample, nonzero when the controller acts within the
+  sample (no delay in the feedback); a fitted ``D`` removes it by construction, so then the
+  records cannot tell;
 * ``noise_feedback``: the share of the input's power that past residuals explain, i.e. noise
   fed back by the controller; the direct method's bias from a wrong noise model scales with it
   (Ljung, System Identification, 2nd ed., eq. 13.38);
@@ -40,7 +42,8 @@ ASSUMPTIONS = {
     "direct": (
         "the noise model (the innovation form's K and Lambda, of the plant's order) can describe the disturbances; "
         "if not, the plant estimate is biased in proportion to the noise fed back by the controller",
-        "the loop holds at least one sample of delay (the plant is strictly proper unless feedthrough is fitted)",
+        "the loop holds at least one sample of delay (the plant is strictly proper unless feedthrough is fitted; "
+        "a fitted feedthrough needs a controller that surely acts a sample late, which the records cannot show)",
         "the controller may be unknown, nonlinear or saturating; only u and y are used",
         "the excitation (references, noise, controller switching) keeps the past of u and y persistently exciting",
     ),
@@ -104,7 +107,7 @@ def residual_checks(
         [abs(_corr0([e[:, i] for e in residuals], [u[:, j] for u in inputs])) for i in range(p) for j in range(m)]
     )
     bound = 2.58 / np.sqrt(sum(e.shape[0] for e in residuals))  # 1 % two-sided
-    return [
+    checks = [
         Check(
             "whiteness", worst_w <= 1.0, worst_w, 1.0, "largest Ljung-Box statistic / its 1 % threshold over outputs"
         ),
@@ -115,15 +118,19 @@ def residual_checks(
             1.0,
             "largest residual-vs-past-input chi-square / its 1 % threshold over output-input pairs",
         ),
-        Check(
-            "feedback_delay",
-            (not feedthrough) or bool(same.max() <= bound),
-            float(same.max()),
-            float(bound),
-            "largest |corr(u(t), e(t))|: above the limit the controller acts within the sample"
-            + (", which biases a fitted feedthrough" if feedthrough else " (fine for a strictly proper plant)"),
-        ),
     ]
+    if not feedthrough:  # a fitted D removes this correlation by construction: nothing left to measure
+        checks.append(
+            Check(
+                "same_sample_feedback",
+                True,
+                float(same.max()),
+                float(bound),
+                "largest |corr(u(t), e(t))|, informative: above the limit the controller acts within the sample "
+                "(fine for a strictly proper plant; do not fit feedthrough then)",
+            )
+        )
+    return checks
 
 
 def _corr0(es: Sequence[np.ndarray], us: Sequence[np.ndarray]) -> float:
