@@ -122,9 +122,12 @@ def refine(
 ) -> PemFit:
     """Minimise the weighted one-step prediction error from ``start`` (see the module notes).
 
-    The first ``burn`` samples of each record, or more until the start's slowest predictor mode
-    has decayed to 1e-3, are left out of the cost (the predictor's transient from rest).  Raises :class:`IdentificationError` when the start's predictor is
-    unstable.
+    The predictor's initial state is fitted in every evaluation (:func:`predictor_residuals`);
+    the first ``burn`` samples of each record, or more until the start's slowest predictor mode
+    has decayed to 1e-3, are still left out of the cost, where that fit leans on them.  The
+    trust region stops when the cost changes by less than 1e-7 relative, a small fraction of one
+    unit of chi-square at these record lengths.  Raises :class:`IdentificationError` when the
+    start's predictor is unstable.
     """
     from scipy.optimize import least_squares
 
