@@ -65,17 +65,21 @@ ASSUMPTIONS = {
 
 @dataclass(frozen=True)
 class Check:
-    """One check of an assumption: the value measured, its limit, the verdict and what it means."""
+    """One check of an assumption: the value measured, its limit, the verdict and what it means.
+
+    An ``informative`` entry is a measurement to read, not a test (it always "passes").
+    """
 
     name: str
     passed: bool
     value: float
     limit: float
     meaning: str
+    informative: bool = False
 
     def line(self) -> str:
         """One line for summaries."""
-        verdict = "ok" if self.passed else "FAILED"
+        verdict = "info" if self.informative else "ok" if self.passed else "FAILED"
         return f"{self.name}: {verdict} ({self.value:.3g}, limit {self.limit:.3g}) - {self.meaning}"
 
 
@@ -128,6 +132,7 @@ def residual_checks(
                 float(bound),
                 "largest |corr(u(t), e(t))|, informative: above the limit the controller acts within the sample "
                 "(fine for a strictly proper plant; do not fit feedthrough then)",
+                informative=True,
             )
         )
     return checks
@@ -165,6 +170,7 @@ def noise_feedback_check(residuals: Sequence[np.ndarray], inputs: Sequence[np.nd
         1.0,
         "share of the input power explained by past residuals; the direct method's bias from a wrong noise "
         "model grows with it",
+        informative=True,
     )
 
 
