@@ -65,23 +65,6 @@ class DirectPredictionError(UnknownControllerEstimator):
 
     method_name = "direct"
 
-    def __init__(
-        self,
-        *,
-        order: int | str = "auto",
-        order_range: Sequence[int] = tuple(range(1, 13)),
-        horizon: int | str = "auto",
-        feedthrough: bool = False,
-        max_nfev: int = 100,
-        references: Sequence[str] | None = None,
-    ) -> None:
-        self.order = order
-        self.order_range = order_range
-        self.horizon = horizon
-        self.feedthrough = feedthrough
-        self.max_nfev = max_nfev
-        self.references = references
-
     @single_blas_thread
     def fit(self, data: Experiment | Sequence[Experiment]) -> UnknownControllerResult:
         """Fit the innovation form to the records' plant inputs and outputs.

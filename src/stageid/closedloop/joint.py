@@ -98,7 +98,9 @@ class JointInputOutput(UnknownControllerEstimator):
     >>> from stageid.plants import levitated_pair as lp
     >>> r, u, y = lp.record(4000, seed=0)
     >>> exp = Experiment(np.hstack([r, u]), y, lp.DT, ("r1", "r2", "u1", "u2"))
-    >>> res = JointInputOutput(references=["r1", "r2"]).fit(exp)              # doctest: +SKIP
+    >>> res = JointInputOutput(order=8, references=["r1", "r2"]).fit(exp)
+    >>> [round(float(p.real)) for p in res.unstable_poles]              # true: 31.4, 50
+    [31, 50]
     """
 
     method_name = "joint"
@@ -115,12 +117,10 @@ class JointInputOutput(UnknownControllerEstimator):
         reference_delay: int = 0,
         refine: bool = False,
     ) -> None:
-        self.order = order
-        self.order_range = order_range
-        self.horizon = horizon
-        self.feedthrough = feedthrough
-        self.max_nfev = max_nfev
-        self.references = references
+        super().__init__(
+            order=order, order_range=order_range, horizon=horizon, feedthrough=feedthrough, max_nfev=max_nfev,
+            references=references,
+        )  # fmt: skip
         self.reference_delay = reference_delay
         self.refine = refine
 

@@ -69,7 +69,9 @@ class TwoStageProjection(UnknownControllerEstimator):
     >>> from stageid.plants import levitated_pair as lp
     >>> r, u, y = lp.record(4000, seed=0)
     >>> exp = Experiment(np.hstack([r, u]), y, lp.DT, ("r1", "r2", "u1", "u2"))
-    >>> res = TwoStageProjection(order=4, references=["r1", "r2"]).fit(exp)   # doctest: +SKIP
+    >>> res = TwoStageProjection(order=4, sensitivity_order=8, references=["r1", "r2"]).fit(exp)
+    >>> [round(float(p.real)) for p in res.unstable_poles]              # true: 31.4, 50
+    [32, 50]
     """
 
     method_name = "two-stage"
@@ -85,12 +87,10 @@ class TwoStageProjection(UnknownControllerEstimator):
         references: Sequence[str] | None = None,
         sensitivity_order: int | str = "auto",
     ) -> None:
-        self.order = order
-        self.order_range = order_range
-        self.horizon = horizon
-        self.feedthrough = feedthrough
-        self.max_nfev = max_nfev
-        self.references = references
+        super().__init__(
+            order=order, order_range=order_range, horizon=horizon, feedthrough=feedthrough, max_nfev=max_nfev,
+            references=references,
+        )  # fmt: skip
         self.sensitivity_order = sensitivity_order
 
     parameter_constraints = {

@@ -49,6 +49,23 @@ class UnknownControllerEstimator(Estimator):
     abstract: ClassVar[bool] = True
     method_name: ClassVar[str] = ""
 
+    def __init__(
+        self,
+        *,
+        order: int | str = "auto",
+        order_range: Sequence[int] = tuple(range(1, 13)),
+        horizon: int | str = "auto",
+        feedthrough: bool = False,
+        max_nfev: int = 100,
+        references: Sequence[str] | None = None,
+    ) -> None:
+        self.order = order
+        self.order_range = order_range
+        self.horizon = horizon
+        self.feedthrough = feedthrough
+        self.max_nfev = max_nfev
+        self.references = references
+
     parameter_constraints = {
         "order": [Options("auto"), Interval(int, 1, None)],
         "order_range": [Satisfies(_is_order_range, "a non-empty sequence of integers >= 1")],
