@@ -1,18 +1,18 @@
-"""The joint input-output method: one model ``r -> (u, y)``, then ``G = S_y S_u^-1``.
+"""The joint input-output method: ``r -> u`` and ``r -> y``, then ``G = S_y S_u^-1``.
 
 Ljung, System Identification, 2nd ed., sec. 13.5: with ``u = S_u r + ...`` and
 ``y = S_y r + ...`` both driven by the recorded references, ``S_y = G S_u`` whatever the
-(linear) controller, so ``G = S_y S_u^-1``.  The map ``r -> (u, y)`` is open loop: its impulse
-response follows by least squares on the lagged references (an FIR model, consistent because
-the references are independent of the noise), and one realisation ``(A, B, [C_u; C_y],
-[D_u; D_y])`` by ERA (:func:`stageid.subspace.era`).  A prediction-error fit of ``(u, y)`` with
-an innovation form is avoided on purpose: ``u`` is almost a function of ``r`` and ``y``, so
-their innovation covariance is nearly singular.  The quotient has
-the realisation ``(A - B D_u^-1 C_u, B D_u^-1, C_y - D_y D_u^-1 C_u, D_y D_u^-1)`` of the same
-order (the controller's zeros ride along as nearly cancelling pairs).  It needs ``D_u``
-invertible: a controller that acts a sample late gives ``D_u = 0``, which ``reference_delay``
-undoes by pairing ``r(t - d)`` with ``u(t)`` and ``y(t)``.  A cross-check of the other routes,
-without bands.
+(linear) controller, so ``G = S_y S_u^-1``.  Both maps are open loop (the references are
+independent of the noise), each fitted as its own innovation-form model by the predictor-based
+subspace method (:mod:`~stageid.closedloop.innovation_fit`, unrefined by default).  One model of
+``(u, y)`` together is avoided on purpose: ``u`` is almost a function of ``r`` and ``y``, so
+their joint innovation covariance is nearly singular.  The quotient is the series connection of
+``S_u^-1 = (A_u - B_u D_u^-1 C_u, B_u D_u^-1, -D_u^-1 C_u, D_u^-1)`` and ``S_y``; the
+controller's zeros and the loop's poles ride along as nearly cancelling pairs, and the poles
+reported are those of the modes that carry the response (:func:`strong_modes`).  It needs
+``D_u`` invertible: a controller that applies the reference a sample late gives ``D_u = 0``,
+which ``reference_delay`` undoes by pairing ``r(t - d)`` with ``u(t)`` and ``y(t)``.  A
+cross-check of the other routes, without bands.
 """
 
 from __future__ import annotations
@@ -79,10 +79,10 @@ class JointInputOutput(UnknownControllerEstimator):
     Parameters
     ----------
     order, order_range, horizon, max_nfev :
-        As for :class:`~stageid.closedloop.direct.DirectPredictionError`, for the model ``r -> (u, y)``
-        (its order is the loop's: plant plus controller states).
+        As for :class:`~stageid.closedloop.direct.DirectPredictionError`, for each of ``r -> u`` and
+        ``r -> y`` (their order is the loop's, plant plus controller states, plus the noise's).
     feedthrough : bool
-        Ignored in the fit (``r -> u`` always feeds through); kept for a common set of settings.
+        Whether ``r -> y`` feeds through (a plant with ``D``); ``r -> u`` always does.
     references : list of str
         Input columns of the records that are the references (required).
     reference_delay : int
