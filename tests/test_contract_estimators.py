@@ -54,6 +54,14 @@ def _closed_loop_data(seed):
     return Experiment(r, yu[:, :1] + 1e-5 * rng.standard_normal((4000, 1)), 0.001, ("r_y",), ("y",))
 
 
+def _unknown_controller_data(seed):
+    # an unstable 2x2 stage under a filtered PD the fits are not told; references recorded
+    from stageid.plants import levitated_pair
+
+    r, u, y = levitated_pair.record(3000, seed=seed)
+    return Experiment(np.hstack([r, u]), y, levitated_pair.DT, ("r1", "r2", "u1", "u2"), ("x1", "x2"))
+
+
 def _result_model(result):
     model = getattr(result, "model", None)
     return model if model is not None else result.plant
@@ -70,6 +78,12 @@ CASES = {
     ),
     "FRDIdentification": (lambda cls: cls(order=2, dt=0.01), _siso_data),
     "PreisachIdentifier": (lambda cls: cls(n_levels=8), _hysteresis_data),
+    "DirectPredictionError": (lambda cls: cls(order=4, horizon=10, references=["r1", "r2"]), _unknown_controller_data),
+    "TwoStageProjection": (
+        lambda cls: cls(order=4, horizon=10, sensitivity_order=6, references=["r1", "r2"]),
+        _unknown_controller_data,
+    ),
+    "JointInputOutput": (lambda cls: cls(order=6, horizon=10, references=["r1", "r2"]), _unknown_controller_data),
 }
 
 ESTIMATORS = {cls.__name__: cls for cls in estimators().values() if not cls.__module__.startswith("tests")}

@@ -6,6 +6,7 @@ import click
 
 from .._errors import DataError, IdentificationError
 from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
+from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -20,17 +21,28 @@ Examples:
       --outputs x,y,phi --controller K.json --band 20:300 -o G.json
   stageid identify closed-loop ex.csv ey.csv ephi.csv --references r_x,r_y,r_phi \\
       --outputs x,y,phi --controller K.json -o G.json --uncertainty G_std.csv   # plant response, std
+  stageid identify closedloop loop.csv --controller unknown --plant-inputs u1,u2 --outputs x1,x2 \\
+      --method direct -o G.json   # controller not known: prediction error on u and y
+  stageid identify closedloop loop.csv --controller unknown --reference r1,r2 --plant-inputs u1,u2 \\
+      --outputs x1,x2 --method two-stage -o G.json
 """,
 )
 @click.argument("experiments", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--references", required=True, help="Reference columns R1,R2[,R3] (one excited per file).")
+@click.option(
+    "--references",
+    "--reference",
+    "references",
+    default=None,
+    help="Reference columns R1,R2[,R3] (known controller: one excited per file; required except for "
+    "--controller unknown --method direct).",
+)
 @click.option("--outputs", required=True, help="Measured output columns Y1,Y2[,Y3], same order as the references.")
 @click.option(
     "--controller",
     "controller_path",
     required=True,
     type=click.Path(dir_okay=False),
-    help="Known controller u = M (r - y), stageid.lti/1 (discrete or continuous).",
+    help="Known controller u = M (r - y), stageid.lti/1 (discrete or continuous), or 'unknown'.",
 )
 @click.option(
     "--plant-inputs",
@@ -52,10 +64,17 @@ Examples:
 @click.option("--discrete", is_flag=True, help="Write the plant at the data's sample time instead of continuous.")
 @click.option(
     "--method",
-    type=click.Choice(["oe", "armax", "bj", "arx"]),
-    default="oe",
+    type=click.Choice(["oe", "armax", "bj", "arx", *UNKNOWN_METHODS]),
+    default=None,
+    help="Known controller: closed-loop model structure of eq. 12 (default oe). Controller unknown: "
+    "direct (default), two-stage or joint.",
+)
+@click.option(
+    "--order",
+    "order_text",
+    default="auto",
     show_default=True,
-    help="Closed-loop model structure of eq. 12.",
+    help="Controller unknown: states of the plant (and noise) model, or auto.",
 )
 @click.option(
     "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1)."
@@ -85,7 +104,8 @@ def closedloop_command(
     band_text: str,
     structure: str,
     discrete: bool,
-    method: str,
+    method: str | None,
+    order_text: str,
     output: str,
     loop_output: str | None,
     report_dir: str | None,
@@ -97,6 +117,10 @@ def closedloop_command(
     Each EXP file excites one reference; the closed loop r -> y is identified pair by pair,
     the plant deduced as G = T (M - M T)^-1, spurious pole-zero pairs cancelled and every
     entry reduced over the band keeping its unstable poles.
+
+    With --controller unknown the plant is identified from the records' plant inputs and
+    outputs alone (--method direct), or through the recorded references (two-stage, joint);
+    the summary states each route's assumptions and what the records say about them.
     """
     from ..closedloop import ClosedLoopIdentification
     from ..data import as_experiments
@@ -109,6 +133,13 @@ def closedloop_command(
     if report_dir is not None:
         check_output_folder(report_dir)
     uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
+    if controller_path == "unknown":
+        request = UnknownRequest(
+            experiments, references, outputs, plant_inputs, ts, parse_band(band_text), method,
+            order_text, discrete, output, report_dir, loop_output,
+        )  # fmt: skip
+        return run_unknown(request, uncertainty)
+    method = known_controller_method(method, references)
     refs = split_names(references, "--references")
     outs = split_names(outputs, "--outputs")
     assert refs is not None and outs is not None

@@ -99,6 +99,7 @@ def _register() -> None:
     for module, attr, group in _COMMANDS:
         command = getattr(importlib.import_module(module), attr)
         _GROUPS[group].add_command(command)
+    identify.add_command(identify.commands["closed-loop"], name="closedloop")  # the spelling works too
 
 
 _register()

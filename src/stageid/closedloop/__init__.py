@@ -21,6 +21,18 @@
 ``direct_identification``       the biased open-loop baseline from u to y
 ==============================  ============================================================
 
+Without a controller model (``direct``, ``two_stage``, ``joint``; shared steps in
+``predictor_subspace``, ``innovation_pem``, ``innovation_fit``, ``unknown_checks``):
+
+==============================  ============================================================
+``DirectPredictionError``       prediction error on measured u and y, innovation form
+``TwoStageProjection``          r -> u, then the plant from the simulated u
+``JointInputOutput``            r -> (u, y), then G = S_y S_u^-1 (a cross-check, no bands)
+``UnknownControllerResult``     their frozen result: plant, poles with bands, assumptions, checks
+``unstable_pole_agreement``     do the routes agree on the unstable poles?
+``simulate_feedback``           a sampled loop with saturation and a feedback delay
+==============================  ============================================================
+
 Modules, in the order of the method: ``loop_model`` (the pairs of T, eq. 11-17) built on
 ``polynomial`` (model structures), ``regression`` (lagged regressors, least squares),
 ``initial`` (ARX / Steiglitz-McBride / Hannan-Rissanen starts), ``pem`` (eq. 13-14) and
@@ -31,14 +43,19 @@ Modules, in the order of the method: ``loop_model`` (the pairs of T, eq. 11-17) 
 
 from .cancellation import CancelledPair, EntryPoleZero, cancel_entries, cancel_pairs
 from .deduction import deduce_plant, deduce_response, deduce_siso, unstable_plant_poles
+from .direct import DirectPredictionError
 from .estimator import ClosedLoopIdentification
+from .feedback_simulation import simulate_feedback
 from .initial import arx
+from .joint import JointInputOutput
 from .loop_model import excited_reference
 from .order_selection import select_order
 from .pem import pem
 from .polynomial import PolynomialModel
 from .reduction import ReducedEntry, paper_orders, reduce_entry
 from .result import ClosedLoopResult
+from .two_stage import TwoStageProjection
+from .unknown_result import UnknownControllerResult, unstable_pole_agreement
 from .validation import (
     controller_residual,
     direct_identification,
@@ -71,4 +88,10 @@ __all__ = [
     "reclose_loop",
     "direct_identification",
     "controller_residual",
+    "DirectPredictionError",
+    "TwoStageProjection",
+    "JointInputOutput",
+    "UnknownControllerResult",
+    "unstable_pole_agreement",
+    "simulate_feedback",
 ]

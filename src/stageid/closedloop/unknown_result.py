@@ -1,0 +1,134 @@
+"""The frozen result of the closed-loop routes that are not told the controller (direct, two-stage, joint)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._errors import DataError, IdentificationError
+from ..frf.frd import FrequencyResponse
+from ..models import StateSpaceModel
+from .innovation_pem import response_std
+from .predictor_subspace import InnovationMatrices
+from .unknown_checks import Check
+
+__all__ = ["UnknownControllerResult", "unstable_pole_agreement"]
+
+
+@dataclass(frozen=True, eq=False)
+class UnknownControllerResult:
+    """Plant, poles with bands, the assumptions made and what the records said about them.
+
+    Attributes
+    ----------
+    method : str
+        "direct", "two-stage" or "joint".
+    plant : StateSpaceModel
+        The identified plant ``u -> y`` at the data's sample time (offsets removed).
+    innovation : InnovationMatrices or None
+        The fitted innovation form (direct: the plant with its noise model; two-stage: the
+        second stage); None for the joint route, whose model maps the references.
+    poles : ndarray of complex
+        Continuous-time poles of :attr:`plant`, ``ln(z) / dt`` (rad/s), sorted by real part.
+    pole_std : ndarray or None
+        ``sqrt(E|s_est - s|^2)`` of each pole (delta method), None without a covariance.
+    order, horizon : int
+        States of the fitted model and past horizon of the subspace start.
+    dt : float
+        Sample time of the data.
+    assumptions : tuple of str
+        What the route assumes, in words.
+    checks : tuple of Check
+        What the records could check about those assumptions.
+    parameter_covariance : ndarray or None
+        Covariance of the innovation form's parameters (the bands' source).
+    feedthrough : bool
+        Whether ``D`` was fitted.
+    details : dict
+        Optimiser account and route-specific figures (stage-1 fit, ...).
+    """
+
+    method: str
+    plant: StateSpaceModel
+    innovation: InnovationMatrices | None
+    poles: np.ndarray
+    pole_std: np.ndarray | None
+    order: int
+    horizon: int
+    dt: float
+    assumptions: tuple[str, ...]
+    checks: tuple[Check, ...]
+    parameter_covariance: np.ndarray | None = None
+    feedthrough: bool = False
+    details: dict = field(default_factory=dict)
+
+    @property
+    def unstable_poles(self) -> np.ndarray:
+        """Poles with a positive real part (rad/s)."""
+        return self.poles[self.poles.real > 0]
+
+    @property
+    def unstable_pole_std(self) -> np.ndarray | None:
+        """The std of each of :attr:`unstable_poles` (None without a covariance)."""
+        return None if self.pole_std is None else self.pole_std[self.poles.real > 0]
+
+    @property
+    def passed(self) -> bool:
+        """True when every check passed."""
+        return all(c.passed for c in self.checks)
+
+    def response_uncertainty(self, freqs_hz: Sequence[float] | np.ndarray) -> FrequencyResponse:
+        """The plant's response at ``freqs_hz`` with its delta-method std per entry.
+
+        Raises
+        ------
+        DataError
+            Frequencies that are not finite, positive and below the Nyquist frequency.
+        IdentificationError
+            When the route gives no covariance (joint).
+        """
+        f = np.asarray(freqs_hz, dtype=float).reshape(-1)
+        if f.size == 0 or not np.all(np.isfinite(f)) or f.min() <= 0 or f.max() > 0.5 / self.dt:
+            raise DataError(f"frequencies must be finite, in (0, {0.5 / self.dt:g}] Hz; got {f.min():g}-{f.max():g}.")
+        if self.parameter_covariance is None or self.innovation is None:
+            raise IdentificationError(f"the {self.method} route gives no covariance for bands.")
+        H, std = response_std(self.innovation, self.parameter_covariance, f, self.dt, self.feedthrough)
+        return FrequencyResponse(f, H, std, inputs=self.plant.inputs, outputs=self.plant.outputs)
+
+    def summary(self) -> str:
+        """Plain text: route, order, unstable poles with bands, assumptions, checks."""
+        lines = [f"closed-loop identification, controller unknown ({self.method} route), dt = {self.dt:g} s"]
+        lines.append(f"  order {self.order}, past horizon {self.horizon}")
+        std = self.unstable_pole_std
+        poles = ", ".join(
+            f"{p.real:.4g}{'' if abs(p.imag) < 1e-9 else f'{p.imag:+.3g}j'}"
+            + ("" if std is None else f" +- {2 * s:.2g}")
+            for p, s in zip(self.unstable_poles, std if std is not None else [0] * len(self.unstable_poles))
+        )
+        lines.append("  unstable poles [rad/s]" + (" (+- 2 std)" if std is not None else "") + ": " + (poles or "none"))
+        lines.append("  assumptions:")
+        lines += [f"    - {a}" for a in self.assumptions]
+        lines.append("  checks:")
+        lines += [f"    - {c.line()}" for c in self.checks]
+        return "\n".join(lines)
+
+
+def unstable_pole_agreement(results: Sequence[UnknownControllerResult], rtol: float = 0.02) -> Check:
+    """Do the routes agree on the unstable poles?  The largest relative spread of matched poles.
+
+    Poles are matched by sorting each route's unstable poles by modulus; a route with a
+    different count fails the check (value ``inf``).
+    """
+    sets = [np.sort_complex(np.asarray(r.unstable_poles)[np.argsort(np.abs(r.unstable_poles))]) for r in results]
+    sets = [s[np.argsort(np.abs(s))] for s in sets]
+    names = ", ".join(r.method for r in results)
+    if len(results) < 2 or len({s.size for s in sets}) != 1 or sets[0].size == 0:
+        counts = ", ".join(f"{r.method} {s.size}" for r, s in zip(results, sets))
+        return Check("pole_agreement", False, float("inf"), rtol, f"unstable poles found per route: {counts}")
+    stacked = np.array(sets)
+    spread = float(np.max(np.abs(stacked - stacked.mean(axis=0)) / np.abs(stacked.mean(axis=0))))
+    return Check(
+        "pole_agreement", spread <= rtol, spread, rtol, f"largest relative spread of the unstable poles over {names}"
+    )
