@@ -1,0 +1,62 @@
+"""``stageid frf --method bla``: read the realisations one at a time and estimate the best linear approximation."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from .._errors import DataError
+
+__all__ = ["estimate_bla", "read_design"]
+
+
+def read_design(path: str | None) -> dict[str, Any]:
+    """The ``.multisine.json`` written by ``stageid signal multisine`` ({} without one)."""
+    if path is None:
+        return {}
+    try:
+        design = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise DataError(f"--design '{path}' is not a readable multisine design JSON: {exc}.") from None
+    needed = ("n_periods", "excited_lines", "experiments_per_realisation")
+    missing = [k for k in needed if k not in design] if isinstance(design, dict) else list(needed)
+    if missing:
+        raise DataError(f"--design '{path}' lacks {', '.join(missing)}; expected the JSON of stageid signal multisine.")
+    return design
+
+
+def estimate_bla(
+    paths: Sequence[str],
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    ts: float | None,
+    periods: int | None,
+    transient_periods: int | None,
+    design_path: str | None,
+):
+    """Group the files into realisations (in the given order), add each, return the BLAResult."""
+    from ..frf.bla import BLAAccumulator
+    from ._common import progress, read_experiments
+
+    design = read_design(design_path)
+    group = int(design.get("experiments_per_realisation", len(inputs)))
+    if len(paths) % group:
+        raise DataError(
+            f"{len(paths)} files do not form realisations of {group} experiment(s) each; "
+            "expected a whole number of realisations, files of one realisation next to each other."
+        )
+    lines = {}
+    if design:
+        lines = {
+            "excited": design["excited_lines"],
+            "detection_odd": design.get("detection_odd_lines", []),
+            "detection_even": design.get("detection_even_lines", []),
+        }
+    acc = BLAAccumulator(periods or design.get("n_periods"), transient_periods, **lines)
+    with progress(len(paths) // group, desc="realisations") as bar:
+        for start in range(0, len(paths), group):
+            acc.add(read_experiments(paths[start : start + group], inputs, outputs, ts))
+            bar.update(1)
+    return acc.result()

@@ -1,0 +1,422 @@
+"""Best linear approximation (BLA) of a nonlinear system, with its noise and nonlinear distortion levels.
+
+Pintelon & Schoukens, *System Identification: A Frequency Domain Approach*, 2nd ed., sec. 3.4
+and 4.3.1 (the robust method): ``M`` random-phase multisine realisations of ``P`` steady-state
+periods each (one record per input and realisation for MIMO, e.g. an orthogonal design).
+For realisation ``m`` the period means give ``G^[m] = Y^[m] U^[m]^-1`` and, from the
+period-to-period scatter, the noise variance ``var_n(G^[m])`` (as :func:`periodic_frf`).  Then
+
+* ``G_BLA = mean_m G^[m]``;
+* noise variance of ``G_BLA``: ``sum_m var_n(G^[m]) / M^2``;
+* total variance of ``G_BLA``: ``sum_m |G^[m] - G_BLA|^2 / (M (M - 1))`` - the
+  realisation-to-realisation scatter holds the noise *and* the stochastic nonlinear
+  contributions ``G_S``;
+* their difference is the nonlinear distortion level; ``M`` times it is ``var(G_S)`` of a
+  single realisation.
+
+At unexcited *detection lines* inside the band (odd and even lines of an odd or random-odd
+multisine) the output holds only noise and nonlinear distortion: odd nonlinearities put power
+on odd lines, even ones on even lines.  Their level above the noise flags each kind, and
+(interpolated to the excited lines and referred through ``U^-1``) estimates its share of the
+BLA's variance (sec. 4.3.2).
+
+Realisations are added one at a time (:class:`BLAAccumulator`), so memory stays that of one
+realisation whatever ``M``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError
+from ..data import Experiment, as_experiments
+from .frd import FrequencyResponse
+from .periodic import excited_lines, period_average
+
+__all__ = [
+    "BLAResult",
+    "BLAAccumulator",
+    "DetectionLevels",
+    "bla_frf",
+    "detect_periods",
+    "detect_transient_periods",
+    "DETECTION_DB",
+]
+
+#: A kind of nonlinearity is flagged when its detection lines stand this far above the noise.
+DETECTION_DB = 3.0
+
+
+@dataclasses.dataclass(frozen=True)
+class DetectionLevels:
+    """Output power at the unexcited lines of one kind (odd or even), averaged over realisations.
+
+    Attributes
+    ----------
+    kind : {"odd", "even"}
+    freqs : ndarray of shape (n_lines,)
+    power : ndarray of shape (n_lines, n_outputs)
+        Mean ``|Y|^2`` of the period-mean output spectrum (noise and nonlinear distortion).
+    noise : ndarray of shape (n_lines, n_outputs)
+        Mean noise variance of that period mean (from the period-to-period scatter).
+    outputs : tuple of str
+    floor : ndarray of shape (n_outputs,)
+        The least noise variance a line is compared with: 1e-12 of the mean output power
+        at the excited lines, so that noise-free records flag only real distortion.
+    """
+
+    kind: str
+    freqs: np.ndarray
+    power: np.ndarray
+    noise: np.ndarray
+    outputs: tuple[str, ...]
+    floor: np.ndarray
+
+    @property
+    def level_db(self) -> np.ndarray:
+        """Per output: total power over the lines relative to their noise, in dB."""
+        noise = np.maximum(np.sum(self.noise, axis=0), self.freqs.size * self.floor)
+        return 10.0 * np.log10(np.maximum(np.sum(self.power, axis=0), 1e-300) / np.maximum(noise, 1e-300))
+
+    @property
+    def detected(self) -> np.ndarray:
+        """Per output: True when the level exceeds :data:`DETECTION_DB`."""
+        return self.level_db > DETECTION_DB
+
+
+@dataclasses.dataclass(frozen=True)
+class BLAResult:
+    """The BLA with its noise and total std (a :class:`FrequencyResponse`) and the distortion levels.
+
+    Attributes
+    ----------
+    frd : FrequencyResponse
+        ``response`` the BLA at the excited lines; ``std`` its noise part; ``total_std`` noise
+        and stochastic nonlinear distortion together (None from a single realisation).
+    n_realisations : int
+    n_periods : int
+        Steady-state periods averaged (the fewest over the realisations).
+    transient_periods : int
+        Leading periods dropped (the most over the realisations).
+    odd, even : DetectionLevels or None
+        Levels at the odd / even detection lines (None when the excitation has none).
+    odd_std, even_std : ndarray of shape (n_freqs, n_outputs, n_inputs) or None
+        The BLA's std from odd / even distortions, interpolated from the detection lines.
+    """
+
+    frd: FrequencyResponse
+    n_realisations: int
+    n_periods: int
+    transient_periods: int
+    odd: DetectionLevels | None = None
+    even: DetectionLevels | None = None
+    odd_std: np.ndarray | None = None
+    even_std: np.ndarray | None = None
+
+    @property
+    def distortion_std(self) -> np.ndarray | None:
+        """``sqrt(max(total_std^2 - std^2, 0))``: the BLA's std from stochastic nonlinear distortions."""
+        if self.frd.total_std is None:
+            return None
+        return np.sqrt(np.maximum(self.frd.total_std**2 - self.frd.std**2, 0.0))
+
+    @property
+    def stochastic_variance(self) -> np.ndarray | None:
+        """``var(G_S)`` of one realisation: ``M`` times the distortion variance of the BLA."""
+        d = self.distortion_std
+        return None if d is None else self.n_realisations * d**2
+
+    def to_columns(self) -> dict[str, np.ndarray]:
+        """The FRD columns (:mod:`stageid.frf.frd`, with ``stdtot_``) plus ``stdnl_``, ``stdodd_``, ``stdeven_``."""
+        cols = self.frd.to_columns()
+        extra = (("stdnl_", self.distortion_std), ("stdodd_", self.odd_std), ("stdeven_", self.even_std))
+        for prefix, value in extra:
+            if value is None:
+                continue
+            for i, out in enumerate(self.frd.outputs):
+                for j, inp in enumerate(self.frd.inputs):
+                    cols[f"{prefix}{out}_{inp}"] = value[:, i, j]
+        return cols
+
+    def summary(self) -> list[str]:
+        """One line per finding: averaging, distortion above noise, odd/even detection per output."""
+        f = self.frd
+        lines = [
+            f"bla: {self.n_realisations} realisation(s) x {self.n_periods} periods "
+            f"({self.transient_periods} transient period(s) dropped), {f.n_freqs} excited lines "
+            f"{f.freqs[0]:g}-{f.freqs[-1]:g} Hz"
+        ]
+        if f.total_std is not None:
+            ratio = np.median(f.total_std**2 / np.maximum(f.std**2, 1e-300), axis=0)
+            for i, out in enumerate(f.outputs):
+                parts = ", ".join(f"{inp} {10 * np.log10(ratio[i, j]):+.1f} dB" for j, inp in enumerate(f.inputs))
+                lines.append(f"bla: {out}: total variance over noise variance (median over the band): {parts}")
+        else:
+            lines.append(
+                "bla: one realisation: no total variance, so noise and nonlinear distortion are not told apart"
+            )
+        for levels in (self.odd, self.even):
+            if levels is None:
+                continue
+            for i, out in enumerate(levels.outputs):
+                found = "detected" if levels.detected[i] else "not detected"
+                lines.append(
+                    f"bla: {out}: {levels.kind} nonlinearity {found} "
+                    f"({levels.level_db[i]:+.1f} dB over noise at {levels.freqs.size} {levels.kind} detection lines)"
+                )
+        return lines
+
+    def plot(self):
+        """The classic figure: |BLA|, its noise and total std (and odd/even shares) vs frequency."""
+        from .bla_figure import bla_figure
+
+        return bla_figure(self)
+
+
+def detect_periods(u: np.ndarray, rtol: float = 1e-3) -> int:
+    """The number of whole periods in a record: the largest ``P`` whose period repeats.
+
+    ``P`` divides the record length, each period has at least 4 samples, and
+    ``||u[L:] - u[:-L]|| <= rtol ||u||`` with ``L = N / P``; 1 when none does.
+    """
+    x = np.asarray(u, dtype=float).reshape(len(u), -1)
+    n = x.shape[0]
+    x = x - x.mean(axis=0)
+    scale = float(np.linalg.norm(x))
+    for p in range(n // 4, 1, -1):
+        if n % p == 0 and np.linalg.norm(x[n // p :] - x[: -(n // p)]) <= rtol * scale:
+            return p
+    return 1
+
+
+def detect_transient_periods(y: np.ndarray, periods: int) -> int:
+    """Leading periods of ``y`` that differ from the steady state by more than its noise.
+
+    The steady state is the mean of the last half of the periods; a leading period counts as
+    transient while its squared distance from it exceeds three times the median of the last
+    half's (the noise), or 1e-20 of the steady state's energy when the record is noise-free.
+    At most ``periods - 2`` are dropped.
+    """
+    x = np.asarray(y, dtype=float).reshape(periods, -1)
+    tail = x[periods // 2 :]
+    ref = tail.mean(axis=0)
+    dist = np.sum((x - ref) ** 2, axis=1)
+    threshold = max(3.0 * float(np.median(dist[periods // 2 :])), 1e-20 * float(np.sum(ref**2)))
+    dropped = 0
+    while dropped < periods - 2 and dist[dropped] > threshold:
+        dropped += 1
+    return dropped
+
+
+class BLAAccumulator:
+    """Realisation-by-realisation robust BLA estimate (memory of one realisation).
+
+    Parameters
+    ----------
+    periods : int, optional
+        Whole periods per record; detected from the first record's input when None.
+    transient_periods : int, optional
+        Leading periods dropped; detected per realisation from the outputs when None.
+    excited, detection_odd, detection_even : sequence of int, optional
+        Line indices on the grid of one period (``k / (L dt)``); taken from the first
+        realisation's input (excited) and the unexcited odd / even lines between the first
+        and last excited one (detection) when None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from stageid.data import Experiment
+    >>> from stageid.signals import multisine
+    >>> acc = BLAAccumulator()
+    >>> for r in range(4):
+    ...     u = multisine(2048, 1.0, 0.01, 0.2, seed=1, realisation=r, n_periods=4, lines="odd")
+    ...     acc.add(Experiment(u, np.convolve(u, [0.0, 1.0, 0.5])[:2048] + 0.1 * u**3, 1.0))
+    >>> res = acc.result()
+    >>> res.n_realisations, res.n_periods, bool(res.even.detected[0])
+    (4, 3, False)
+    """
+
+    def __init__(
+        self,
+        periods: int | None = None,
+        transient_periods: int | None = None,
+        excited: Sequence[int] | None = None,
+        detection_odd: Sequence[int] | None = None,
+        detection_even: Sequence[int] | None = None,
+    ) -> None:
+        self.periods = periods
+        self.transient_periods = transient_periods
+        self._lines = None if excited is None else _lines_of(excited, detection_odd, detection_even)
+        self._first: Experiment | None = None
+        self._count = 0
+        self._sums: dict[str, Any] = {}
+        self._kept: list[int] = []
+        self._dropped: list[int] = []
+
+    def add(self, realisation: Experiment | Sequence[Experiment]) -> None:
+        """Add one realisation: one record, or one per experiment of a MIMO design."""
+        exps = as_experiments(realisation)
+        Up, Yp = self._period_spectra(exps)
+        if self._lines is None:
+            self._lines = _infer_lines(Up.mean(axis=0))
+        exc, det_odd, det_even = self._lines
+        if exc.max() >= Up.shape[1]:
+            raise DataError(f"line {int(exc.max())} lies above Nyquist of a {2 * (Up.shape[1] - 1)}-sample period.")
+        G, var, _, Uinv = period_average(Up[:, exc], Yp[:, exc])
+        self._count += 1
+        s = self._sums
+        # Welford's update: the mean and the squared deviations without storing the G^[m]
+        delta = G - s.get("mean", 0.0)
+        s["mean"] = s.get("mean", 0.0) + delta / self._count
+        s["m2"] = s.get("m2", 0.0) + np.abs(delta * np.conj(G - s["mean"]))
+        s["var_n"] = s.get("var_n", 0.0) + var
+        s["uinv2"] = s.get("uinv2", 0.0) + np.sum(np.abs(Uinv) ** 2, axis=1)  # (lines, m)
+        s["y_power"] = s.get("y_power", 0.0) + np.mean(np.abs(Yp[:, exc].mean(axis=0)) ** 2, axis=(0, 2))
+        for kind, det in (("odd", det_odd), ("even", det_even)):
+            if det.size:
+                Yd = Yp[:, det]  # (P, lines, q, ne)
+                mean = Yd.mean(axis=0)
+                noise = np.sum(np.abs(Yd - mean) ** 2, axis=0) / (Yd.shape[0] - 1) / Yd.shape[0]
+                s[f"{kind}_power"] = s.get(f"{kind}_power", 0.0) + np.mean(np.abs(mean) ** 2, axis=2)
+                s[f"{kind}_noise"] = s.get(f"{kind}_noise", 0.0) + np.mean(noise, axis=2)
+
+    def result(self) -> BLAResult:
+        """The BLA and its levels from the realisations added so far.
+
+        Raises
+        ------
+        DataError
+            When no realisation was added.
+        """
+        if not self._count or self._first is None or self._lines is None:
+            raise DataError("a best linear approximation needs at least one realisation; got none.")
+        M, s, first = self._count, self._sums, self._first
+        exc, det_odd, det_even = self._lines
+        period = self._period_samples
+        freqs = exc / (period * first.dt)
+        total = np.sqrt(s["m2"] / (M - 1) / M) if M > 1 else None
+        frd = FrequencyResponse(
+            freqs, s["mean"], np.sqrt(s["var_n"]) / M, None, first.input_names, first.output_names, total
+        )
+        levels, shares = {}, {}
+        for kind, det in (("odd", det_odd), ("even", det_even)):
+            if not det.size:
+                continue
+            power, noise = s[f"{kind}_power"] / M, s[f"{kind}_noise"] / M
+            floor = 1e-12 * s["y_power"] / M
+            levels[kind] = DetectionLevels(kind, det / (period * first.dt), power, noise, first.output_names, floor)
+            excess = np.maximum(power - noise, 0.0)  # the nonlinear part of the detection lines' power
+            at_exc = np.stack([np.interp(exc, det, excess[:, i]) for i in range(excess.shape[1])], axis=1)
+            shares[kind] = np.sqrt(at_exc[:, :, None] * s["uinv2"][:, None, :]) / M
+        return BLAResult(
+            frd,
+            M,
+            min(self._kept),
+            max(self._dropped),
+            levels.get("odd"),
+            levels.get("even"),
+            shares.get("odd"),
+            shares.get("even"),
+        )
+
+    def _period_spectra(self, exps: Sequence[Experiment]) -> tuple[np.ndarray, np.ndarray]:
+        """Per-period DFTs of the steady-state periods: (P, lines, channels, records) for u and y."""
+        first = exps[0]
+        if self._first is None:
+            self._first = Experiment(first.u[:4], first.y[:4], first.dt, first.input_names, first.output_names)
+            self._period_samples = first.n_samples // (self.periods or detect_periods(first.u))
+            self._n_records = len(exps)
+        _check_like(exps, self._first, self._n_records, self._period_samples)
+        n = first.n_samples
+        periods = n // self._period_samples
+        dropped = self.transient_periods
+        if dropped is None:
+            dropped = max(detect_transient_periods(e.y, periods) for e in exps)
+        kept = periods - dropped
+        if kept < 2:
+            raise DataError(
+                f"{periods} periods minus {dropped} transient periods leaves {kept}; at least 2 are needed for the noise."
+            )
+        self._kept.append(kept)
+        self._dropped.append(dropped)
+        L, start = self._period_samples, dropped * self._period_samples
+
+        def spectra(x: np.ndarray) -> np.ndarray:
+            return np.fft.rfft(x[start:].reshape(kept, L, -1), axis=1)
+
+        return np.stack([spectra(e.u) for e in exps], -1), np.stack([spectra(e.y) for e in exps], -1)
+
+
+def bla_frf(
+    realisations: Experiment | Iterable[Experiment | Sequence[Experiment]],
+    periods: int | None = None,
+    transient_periods: int | None = None,
+    excited: Sequence[int] | None = None,
+    detection_odd: Sequence[int] | None = None,
+    detection_even: Sequence[int] | None = None,
+) -> BLAResult:
+    """The robust BLA from random-phase multisine realisations (see the module docstring).
+
+    Parameters
+    ----------
+    realisations : Experiment or iterable
+        One record per realisation (SISO, or MIMO with several inputs in one record only if
+        ``n_inputs == 1``), or per realisation a sequence of records, one per experiment;
+        an iterator is consumed one realisation at a time.
+    periods, transient_periods, excited, detection_odd, detection_even
+        As in :class:`BLAAccumulator`.
+
+    Returns
+    -------
+    BLAResult
+
+    Raises
+    ------
+    DataError
+        Records that differ in length, sample time or channels, fewer than 2 steady-state
+        periods, fewer records than inputs, or realisations exciting other lines.
+    """
+    acc = BLAAccumulator(periods, transient_periods, excited, detection_odd, detection_even)
+    for realisation in [realisations] if isinstance(realisations, Experiment) else realisations:
+        acc.add(realisation)
+    return acc.result()
+
+
+def _lines_of(excited, detection_odd, detection_even) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    exc = np.asarray(excited, dtype=int).reshape(-1)
+    if exc.size == 0 or np.any(exc <= 0) or np.any(np.diff(exc) <= 0):
+        raise DataError(f"`excited` must be increasing line indices >= 1; got {exc.tolist()[:8]}.")
+    odd, even = (np.asarray([] if d is None else d, dtype=int).reshape(-1) for d in (detection_odd, detection_even))
+    return exc, odd, even
+
+
+def _infer_lines(Um: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Excited lines from the input; the unexcited ones between the first and last, by parity."""
+    exc = excited_lines(Um)
+    rest = np.setdiff1d(np.arange(exc[0], exc[-1] + 1), exc)
+    return exc, rest[rest % 2 == 1], rest[rest % 2 == 0]
+
+
+def _check_like(exps: Sequence[Experiment], first: Experiment, n_records: int, period: int) -> None:
+    """Every realisation alike: records, length (whole periods), sample time and channels."""
+    n = exps[0].n_samples
+    if len(exps) != n_records:
+        raise DataError(f"every realisation needs {n_records} record(s) like the first; got {len(exps)}.")
+    if len(exps) < first.n_inputs:
+        raise DataError(
+            f"{first.n_inputs} inputs need at least {first.n_inputs} records per realisation; got {len(exps)}."
+        )
+    for e in exps:
+        if e.n_samples != n or n % period:
+            raise DataError(
+                f"records of whole {period}-sample periods and one length are needed; got {e.n_samples} samples."
+            )
+        if e.input_names != first.input_names or e.output_names != first.output_names or e.dt != first.dt:
+            raise DataError(
+                f"every record needs inputs {first.input_names}, outputs {first.output_names} and dt {first.dt:g}; "
+                f"got {e.input_names}, {e.output_names} and {e.dt:g}."
+            )
