@@ -174,7 +174,7 @@ class BLAResult:
         """The classic figure: |BLA|, its noise and total std (and odd/even shares) vs frequency."""
         from .bla_figure import bla_figure
 
-        return bla_figure(self)
+        return bla_figure(self.frd, self.odd_std, self.even_std)
 
 
 def detect_periods(u: np.ndarray, rtol: float = 1e-3) -> int:
@@ -196,16 +196,18 @@ def detect_periods(u: np.ndarray, rtol: float = 1e-3) -> int:
 def detect_transient_periods(y: np.ndarray, periods: int) -> int:
     """Leading periods of ``y`` that differ from the steady state by more than its noise.
 
-    The steady state is the mean of the last half of the periods; a leading period counts as
-    transient while its squared distance from it exceeds three times the median of the last
-    half's (the noise), or 1e-20 of the steady state's energy when the record is noise-free.
-    At most ``periods - 2`` are dropped.
+    The steady state is the mean ``r`` of the last ``n`` (half of the) periods; a leading period
+    counts as transient while its squared distance from ``r`` exceeds twice what noise alone
+    gives, ``(1 + 1/n) s^2`` with ``s^2 = sum_tail |x_p - r|^2 / (n - 1)`` (a sum over a whole
+    period, so tightly known), or 1e-20 of the steady state's energy when the record is
+    noise-free.  At most ``periods - 2`` are dropped.
     """
     x = np.asarray(y, dtype=float).reshape(periods, -1)
-    tail = x[periods // 2 :]
-    ref = tail.mean(axis=0)
+    n = periods - periods // 2
+    ref = x[periods // 2 :].mean(axis=0)
     dist = np.sum((x - ref) ** 2, axis=1)
-    threshold = max(3.0 * float(np.median(dist[periods // 2 :])), 1e-20 * float(np.sum(ref**2)))
+    noise = float(np.sum(dist[periods // 2 :])) / max(n - 1, 1)
+    threshold = max(2.0 * (1 + 1 / n) * noise, 1e-20 * float(np.sum(ref**2)))
     dropped = 0
     while dropped < periods - 2 and dist[dropped] > threshold:
         dropped += 1
@@ -329,8 +331,8 @@ class BLAAccumulator:
         if self._first is None:
             self._first = Experiment(first.u[:4], first.y[:4], first.dt, first.input_names, first.output_names)
             self._period_samples = first.n_samples // (self.periods or detect_periods(first.u))
-            self._n_records = len(exps)
-        _check_like(exps, self._first, self._n_records, self._period_samples)
+            self._n_records, self._n_samples = len(exps), first.n_samples
+        _check_like(exps, self._first, self._n_records, self._n_samples, self._period_samples)
         n = first.n_samples
         periods = n // self._period_samples
         dropped = self.transient_periods
@@ -401,9 +403,8 @@ def _infer_lines(Um: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return exc, rest[rest % 2 == 1], rest[rest % 2 == 0]
 
 
-def _check_like(exps: Sequence[Experiment], first: Experiment, n_records: int, period: int) -> None:
+def _check_like(exps: Sequence[Experiment], first: Experiment, n_records: int, n: int, period: int) -> None:
     """Every realisation alike: records, length (whole periods), sample time and channels."""
-    n = exps[0].n_samples
     if len(exps) != n_records:
         raise DataError(f"every realisation needs {n_records} record(s) like the first; got {len(exps)}.")
     if len(exps) < first.n_inputs:
