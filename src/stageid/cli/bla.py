@@ -38,7 +38,7 @@ def estimate_bla(
 ):
     """Group the files into realisations (in the given order), add each, return the BLAResult."""
     from ..frf.bla import BLAAccumulator
-    from ._common import progress, read_experiments
+    from ._common import is_interactive, progress
 
     design = read_design(design_path)
     group = int(design.get("experiments_per_realisation", len(inputs)))
@@ -55,8 +55,22 @@ def estimate_bla(
             "detection_even": design.get("detection_even_lines", []),
         }
     acc = BLAAccumulator(periods or design.get("n_periods"), transient_periods, **lines)
-    with progress(len(paths) // group, desc="realisations") as bar:
-        for start in range(0, len(paths), group):
-            acc.add(read_experiments(paths[start : start + group], inputs, outputs, ts))
+    # tqdm costs a tenth of a second to import: only for a terminal that shows it
+    bar = progress(len(paths) // group, desc="realisations") if is_interactive() else None
+    for start in range(0, len(paths), group):
+        acc.add([_read_record(p, inputs, outputs, ts) for p in paths[start : start + group]])
+        if bar is not None:
             bar.update(1)
+    if bar is not None:
+        bar.close()
     return acc.result()
+
+
+def _read_record(path: str, inputs: Sequence[str], outputs: Sequence[str], ts: float | None):
+    """An NPZ of 1-D float columns as memory-mapped channels (no table copy), else an Experiment."""
+    from ..data.sampling import UNIFORM_RTOL
+    from ..frf.records import read_npz_record
+    from ._common import read_experiments
+
+    record = read_npz_record(path, inputs, outputs, ts, UNIFORM_RTOL) if str(path).lower().endswith(".npz") else None
+    return record if record is not None else read_experiments([path], inputs, outputs, ts)[0]

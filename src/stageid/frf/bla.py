@@ -33,9 +33,10 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
-from ..data import Experiment, as_experiments
+from ..data import Experiment
 from .frd import FrequencyResponse
 from .periodic import excited_lines, period_average
+from .records import ChannelRecord, as_channel_records, check_finite_batch
 
 __all__ = [
     "BLAResult",
@@ -193,8 +194,9 @@ def detect_periods(u: np.ndarray, rtol: float = 1e-3) -> int:
     return 1
 
 
-def detect_transient_periods(y: np.ndarray, periods: int) -> int:
-    """Leading periods of ``y`` that differ from the steady state by more than its noise.
+def detect_transient_periods(y: np.ndarray | Sequence[np.ndarray], periods: int) -> int:
+    """Leading periods of ``y`` (an array, or a sequence of 1-D channels) that differ from the
+    steady state by more than its noise.
 
     The steady state is the mean ``r`` of the last ``n`` (half of the) periods; a leading period
     counts as transient while its squared distance from ``r`` exceeds twice what noise alone
@@ -202,12 +204,16 @@ def detect_transient_periods(y: np.ndarray, periods: int) -> int:
     period, so tightly known), or 1e-20 of the steady state's energy when the record is
     noise-free.  At most ``periods - 2`` are dropped.
     """
-    x = np.asarray(y, dtype=float).reshape(periods, -1)
+    channels = [y] if isinstance(y, np.ndarray) else list(y)
     n = periods - periods // 2
-    ref = x[periods // 2 :].mean(axis=0)
-    dist = np.sum((x - ref) ** 2, axis=1)
+    dist, energy = np.zeros(periods), 0.0
+    for c in channels:  # channel by channel: no (samples, channels) copy of a long record
+        x = np.asarray(c, dtype=float).reshape(periods, -1)
+        ref = x[periods // 2 :].mean(axis=0)
+        dist += np.sum((x - ref) ** 2, axis=1)
+        energy += float(np.sum(ref**2))
     noise = float(np.sum(dist[periods // 2 :])) / max(n - 1, 1)
-    threshold = max(2.0 * (1 + 1 / n) * noise, 1e-20 * float(np.sum(ref**2)))
+    threshold = max(2.0 * (1 + 1 / n) * noise, 1e-20 * energy)
     dropped = 0
     while dropped < periods - 2 and dist[dropped] > threshold:
         dropped += 1
@@ -253,22 +259,22 @@ class BLAAccumulator:
         self.periods = periods
         self.transient_periods = transient_periods
         self._lines = None if excited is None else _lines_of(excited, detection_odd, detection_even)
-        self._first: Experiment | None = None
+        self._first: ChannelRecord | None = None
         self._count = 0
         self._sums: dict[str, Any] = {}
         self._kept: list[int] = []
         self._dropped: list[int] = []
 
-    def add(self, realisation: Experiment | Sequence[Experiment]) -> None:
-        """Add one realisation: one record, or one per experiment of a MIMO design."""
-        exps = as_experiments(realisation)
-        Up, Yp = self._period_spectra(exps)
-        if self._lines is None:
-            self._lines = _infer_lines(Up.mean(axis=0))
+    def add(self, realisation: Experiment | ChannelRecord | Sequence[Experiment] | Sequence[ChannelRecord]) -> None:
+        """Add one realisation: one record, or one per experiment of a MIMO design.
+
+        Records may be :class:`~stageid.data.Experiment` or :class:`~stageid.frf.records.ChannelRecord`
+        (e.g. memory-mapped NPZ channels from :func:`~stageid.frf.records.read_npz_record`).
+        """
+        Up, Yp = self._period_spectra(as_channel_records(realisation))
         exc, det_odd, det_even = self._lines
-        if exc.max() >= Up.shape[1]:
-            raise DataError(f"line {int(exc.max())} lies above Nyquist of a {2 * (Up.shape[1] - 1)}-sample period.")
-        G, var, _, Uinv = period_average(Up[:, exc], Yp[:, exc])
+        k1, k2 = exc.size, exc.size + det_odd.size  # positions of the lines in Up and Yp
+        G, var, _, Uinv = period_average(Up[:, :k1], Yp[:, :k1])
         self._count += 1
         s = self._sums
         # Welford's update: the mean and the squared deviations without storing the G^[m]
@@ -277,10 +283,10 @@ class BLAAccumulator:
         s["m2"] = s.get("m2", 0.0) + np.abs(delta * np.conj(G - s["mean"]))
         s["var_n"] = s.get("var_n", 0.0) + var
         s["uinv2"] = s.get("uinv2", 0.0) + np.sum(np.abs(Uinv) ** 2, axis=1)  # (lines, m)
-        s["y_power"] = s.get("y_power", 0.0) + np.mean(np.abs(Yp[:, exc].mean(axis=0)) ** 2, axis=(0, 2))
-        for kind, det in (("odd", det_odd), ("even", det_even)):
+        s["y_power"] = s.get("y_power", 0.0) + np.mean(np.abs(Yp[:, :k1].mean(axis=0)) ** 2, axis=(0, 2))
+        for kind, det, where in (("odd", det_odd, slice(k1, k2)), ("even", det_even, slice(k2, None))):
             if det.size:
-                Yd = Yp[:, det]  # (P, lines, q, ne)
+                Yd = Yp[:, where]  # (P, lines, q, ne)
                 mean = Yd.mean(axis=0)
                 noise = np.sum(np.abs(Yd - mean) ** 2, axis=0) / (Yd.shape[0] - 1) / Yd.shape[0]
                 s[f"{kind}_power"] = s.get(f"{kind}_power", 0.0) + np.mean(np.abs(mean) ** 2, axis=2)
@@ -325,19 +331,25 @@ class BLAAccumulator:
             shares.get("even"),
         )
 
-    def _period_spectra(self, exps: Sequence[Experiment]) -> tuple[np.ndarray, np.ndarray]:
-        """Per-period DFTs of the steady-state periods: (P, lines, channels, records) for u and y."""
-        first = exps[0]
+    def _period_spectra(self, recs: Sequence[ChannelRecord]) -> tuple[np.ndarray, np.ndarray]:
+        """Per-period DFTs of the steady-state periods: (P, lines, channels, records) for u and y.
+
+        Channel by channel, each period reshaped in place (a view of the record) and
+        transformed; only the lines the estimate uses are kept once the design is known.
+        """
+        first = recs[0]
         if self._first is None:
-            self._first = Experiment(first.u[:4], first.y[:4], first.dt, first.input_names, first.output_names)
-            self._period_samples = first.n_samples // (self.periods or detect_periods(first.u))
-            self._n_records, self._n_samples = len(exps), first.n_samples
-        _check_like(exps, self._first, self._n_records, self._n_samples, self._period_samples)
-        n = first.n_samples
-        periods = n // self._period_samples
+            self._first = dataclasses.replace(first, channels=tuple(c[:0] for c in first.channels))
+            self._period_samples = first.n_samples // (
+                self.periods or detect_periods(np.column_stack(first.channels[: first.n_inputs]))
+            )
+            self._n_records, self._n_samples = len(recs), first.n_samples
+        _check_like(recs, self._first, self._n_records, self._n_samples, self._period_samples)
+        L = self._period_samples
+        periods = first.n_samples // L
         dropped = self.transient_periods
         if dropped is None:
-            dropped = max(detect_transient_periods(e.y, periods) for e in exps)
+            dropped = max(detect_transient_periods(r.channels[r.n_inputs :], periods) for r in recs)
         kept = periods - dropped
         if kept < 2:
             raise DataError(
@@ -345,12 +357,22 @@ class BLAAccumulator:
             )
         self._kept.append(kept)
         self._dropped.append(dropped)
-        L, start = self._period_samples, dropped * self._period_samples
-
-        def spectra(x: np.ndarray) -> np.ndarray:
-            return np.fft.rfft(x[start:].reshape(kept, L, -1), axis=1)
-
-        return np.stack([spectra(e.u) for e in exps], -1), np.stack([spectra(e.y) for e in exps], -1)
+        keep = None if self._lines is None else np.concatenate(self._lines)
+        if keep is not None and keep.max() > L // 2:
+            raise DataError(f"line {int(keep.max())} lies above Nyquist of a {L}-sample period.")
+        n_lines = L // 2 + 1 if keep is None else keep.size
+        X = np.empty((kept, n_lines, len(first.channels), len(recs)), complex)
+        for e, rec in enumerate(recs):
+            for c, x in enumerate(rec.channels):
+                periods_of = np.asarray(x[dropped * L :]).reshape(kept, L)
+                check_finite_batch(rec, periods_of, c, dropped * L, L)
+                spectrum = np.fft.rfft(periods_of, axis=1)
+                X[:, :, c, e] = spectrum if keep is None else spectrum[:, keep]
+        if keep is None:  # the design is inferred from this first realisation's full spectrum
+            self._lines = _infer_lines(X[:, :, : first.n_inputs].mean(axis=0))
+            X = X[:, np.concatenate(self._lines)]
+        # the lines in the order excited, odd detection, even detection
+        return X[:, :, : first.n_inputs], X[:, :, first.n_inputs :]
 
 
 def bla_frf(
@@ -383,7 +405,7 @@ def bla_frf(
         periods, fewer records than inputs, or realisations exciting other lines.
     """
     acc = BLAAccumulator(periods, transient_periods, excited, detection_odd, detection_even)
-    for realisation in [realisations] if isinstance(realisations, Experiment) else realisations:
+    for realisation in [realisations] if isinstance(realisations, (Experiment, ChannelRecord)) else realisations:
         acc.add(realisation)
     return acc.result()
 
@@ -403,15 +425,15 @@ def _infer_lines(Um: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return exc, rest[rest % 2 == 1], rest[rest % 2 == 0]
 
 
-def _check_like(exps: Sequence[Experiment], first: Experiment, n_records: int, n: int, period: int) -> None:
+def _check_like(recs: Sequence[ChannelRecord], first: ChannelRecord, n_records: int, n: int, period: int) -> None:
     """Every realisation alike: records, length (whole periods), sample time and channels."""
-    if len(exps) != n_records:
-        raise DataError(f"every realisation needs {n_records} record(s) like the first; got {len(exps)}.")
-    if len(exps) < first.n_inputs:
+    if len(recs) != n_records:
+        raise DataError(f"every realisation needs {n_records} record(s) like the first; got {len(recs)}.")
+    if len(recs) < first.n_inputs:
         raise DataError(
-            f"{first.n_inputs} inputs need at least {first.n_inputs} records per realisation; got {len(exps)}."
+            f"{first.n_inputs} inputs need at least {first.n_inputs} records per realisation; got {len(recs)}."
         )
-    for e in exps:
+    for e in recs:
         if e.n_samples != n or n % period:
             raise DataError(
                 f"records of whole {period}-sample periods and one length are needed; got {e.n_samples} samples."

@@ -144,7 +144,12 @@ def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
     import zipfile
 
     try:
-        with zipfile.ZipFile(path) as zf:
+        # np.load has parsed the zip directory already; reopening it per member cost more than the read
+        zf = getattr(archive, "zip", None)
+        if zf is None:
+            with zipfile.ZipFile(path) as own:
+                info = own.getinfo(key + ".npy")
+        else:
             info = zf.getinfo(key + ".npy")
         if info.compress_type != zipfile.ZIP_STORED:
             return archive[key]
