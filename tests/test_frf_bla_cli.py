@@ -1,25 +1,15 @@
 """`stageid signal multisine` -> measured records -> `stageid frf --method bla` -> `identify frd` / `report`."""
 
-import contextlib
-import io
-
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from stageid.cli.main import main
+from conftest import run_main as run
 from stageid.data import read_table, write_csv
 from stageid.frf import read_frd
 
 DT = 1e-3
 B, A = [0.02, 0.04, 0.02], [1.0, -1.6, 0.8]  # a resonance near 90 Hz at dt = 1 ms
-
-
-def run(*args):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main([str(a) for a in args])
-    return rc, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture

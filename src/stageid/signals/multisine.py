@@ -428,27 +428,34 @@ def multisine(
     e = check_int(experiment, "experiment", name, 0)
     if e >= plan.n_experiments:
         raise SignalError(f"`experiment` of {name} must be below the design's {plan.n_experiments}; got {e}.")
-    n_lines, period = plan.excited.size, plan.samples_per_period
-    if kind == "random-phase":
-        phases = realisation_rng(seed, r).uniform(0.0, 2.0 * np.pi, size=(n_lines, n_ch))
-    else:
-        j = np.arange(1, n_lines + 1)
-        phases = np.repeat((-np.pi * j * (j - 1) / n_lines)[:, None], n_ch, axis=1)
-    spectrum = plan.amplitudes[:, None] * np.exp(1j * phases)
-    spectrum = clip_crest_factor(
-        spectrum, plan.excited, period, check_int(crest_iterations, "crest_iterations", name, 0)
-    )
+    iterations = check_int(crest_iterations, "crest_iterations", name, 0)
+    one_period = _one_period(plan, kind, realisation_rng(seed, r) if kind == "random-phase" else None, n_ch, iterations)
     if mimo == "orthogonal":
-        spectrum = spectrum * orthogonal_matrix(n_ch)[:, e][None, :]
-    full = np.zeros((period // 2 + 1, n_ch), dtype=complex)
-    full[plan.excited] = spectrum
-    one_period = np.fft.irfft(full, n=period, axis=0)
-    if kind == "schroeder" and n_ch > 1 and mimo == "independent":
-        shift = period // n_ch
-        one_period = np.stack([np.roll(one_period[:, 0], j * shift) for j in range(n_ch)], axis=1)
+        full = np.fft.rfft(one_period, axis=0) * orthogonal_matrix(n_ch)[:, e][None, :]
+        one_period = np.fft.irfft(full, n=plan.samples_per_period, axis=0)
     x = np.tile(one_period, (plan.n_periods, 1))
     x = add_offset(scale_to(x, rms, amplitude, name), off, name)
     if channels is None:
         x = x[:, 0]
     check_limits(x, limits, name)
     return x
+
+
+def _one_period(
+    plan: MultisinePlan, kind: str, rng: np.random.Generator | None, n_ch: int, iterations: int
+) -> np.ndarray:
+    """One period (samples_per_period, n_ch): random or Schroeder phases, clipped to a lower crest factor."""
+    n_lines, period = plan.excited.size, plan.samples_per_period
+    if rng is not None:
+        phases = rng.uniform(0.0, 2.0 * np.pi, size=(n_lines, n_ch))
+    else:
+        j = np.arange(1, n_lines + 1)
+        phases = np.repeat((-np.pi * j * (j - 1) / n_lines)[:, None], n_ch, axis=1)
+    spectrum = clip_crest_factor(plan.amplitudes[:, None] * np.exp(1j * phases), plan.excited, period, iterations)
+    full = np.zeros((period // 2 + 1, n_ch), dtype=complex)
+    full[plan.excited] = spectrum
+    one_period = np.fft.irfft(full, n=period, axis=0)
+    if rng is None and n_ch > 1:  # Schroeder channels: the same period shifted
+        shift = period // n_ch
+        one_period = np.stack([np.roll(one_period[:, 0], j * shift) for j in range(n_ch)], axis=1)
+    return one_period
