@@ -155,3 +155,22 @@ def test_identification_weights_by_the_total_variance_when_the_frd_has_it(tmp_pa
     wide = total.response_uncertainty(f).std[:, 0, 0]
     narrow = noise.response_uncertainty(f).std[:, 0, 0]
     assert np.median(wide / narrow) > 10
+
+
+def test_a_nan_sample_is_named_by_column_and_row_and_npz_channels_read_alike(tmp_path):
+    from stageid.frf.records import read_npz_record
+
+    exps = list(realisations(lambda u: u, 2, 0.01, seed=1))
+    y = exps[1].y.copy()
+    y[L + 17, 0] = np.nan
+    with pytest.raises(DataError, match=f"column 'y' has NaN at row {L + 17}"):
+        bla_frf([exps[0], Experiment(exps[1].u, y, DT, ("u",), ("y",))], transient_periods=1)
+    # memory-mapped NPZ channels give the estimate the in-memory records give
+    paths = []
+    for k, e in enumerate(exps):
+        paths.append(tmp_path / f"r{k}.npz")
+        np.savez(paths[-1], t=np.arange(e.n_samples) * DT, u=e.u[:, 0], y=e.y[:, 0])
+    recs = [read_npz_record(p, ["u"], ["y"], None, 1e-6) for p in paths]
+    assert all(isinstance(c, np.memmap) for r in recs for c in r.channels)
+    a, b = bla_frf(recs, transient_periods=1), bla_frf(exps, transient_periods=1)
+    np.testing.assert_array_equal(a.frd.response, b.frd.response)
