@@ -32,7 +32,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import lfilter
 
 M, P, L, NU = 16, 8, 8192, 3
 DT = 1e-4
@@ -42,6 +41,8 @@ CHANNELS_OUT = ("y1", "y2", "y3")
 
 def write_records(folder: Path) -> list[Path]:
     """The design's records through the stage, one NPZ per realisation and experiment, and the design JSON."""
+    from scipy.signal import lfilter  # here only: the numpy side's own process must not pay for scipy
+
     from stageid.signals import multisine, multisine_plan
 
     kw = dict(n_samples=P * L, dt=DT, f_low=5.0, f_high=2000.0, n_periods=P, lines="random-odd", seed=11)
@@ -179,7 +180,8 @@ def main() -> None:
         load = f"files = [pathlib.Path(f) for f in {files_repr}]; d = json.loads(files[0].with_name('ms.multisine.json').read_text())"
         rss_np = child_rss(f"{setup}; {load}; b.numpy_bla(files, d)")
         rss_st = child_rss(f"{setup}; {load}; b.stageid_bla(files, d)")
-        rss_base = child_rss(f"{setup}; import stageid.frf.bla, stageid.cli.bla")
+        rss_base = child_rss(f"{setup}; import stageid.frf.bla, stageid.cli.bla, stageid.frf.records")
+        rss_np_base = child_rss(setup)
     one_realisation = 3 * P * L * 2 * NU * 8 / 2**20
     lines = [
         "# BLA estimation speed (benchmarks/bench_bla.py)",
@@ -206,9 +208,9 @@ def main() -> None:
         lines.append(f"| {name} | {w:.3f} | {c:.3f} | {all_w} | {bw / w:.2f} / {bc / c:.2f} |")
     lines += [
         "",
-        f"Peak memory (ru_maxrss of a fresh process): numpy {rss_np:.0f} MB, stageid {rss_st:.0f} MB, "
-        f"the imports alone {rss_base:.0f} MB; one realisation's records are {one_realisation:.0f} MB, all of them "
-        f"{M * one_realisation:.0f} MB.",
+        f"Peak memory (VmHWM of a fresh process): numpy {rss_np:.0f} MB ({rss_np - rss_np_base:.0f} MB over its "
+        f"imports), stageid {rss_st:.0f} MB ({rss_st - rss_base:.0f} MB over its imports); one realisation's "
+        f"records are {one_realisation:.0f} MB, all of them {M * one_realisation:.0f} MB.",
     ]
     text = "\n".join(lines) + "\n"
     print(text)

@@ -92,6 +92,18 @@ def frf_command(
         raise click.UsageError(f"--design applies to --method bla; got --method {method}.")
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
+    if method == "bla":  # reads realisation by realisation, memory-mapped: no chunked path needed
+        from .bla import estimate_bla
+
+        if scheduler is not None:
+            raise click.UsageError("--scheduler applies to --method welch on chunked records; got --method bla.")
+
+        result = estimate_bla(data, ins, outs, ts, periods, transient_periods, design_path)
+        for line in result.summary():
+            say(line)
+        write_table_output(output, result.to_columns())
+        say(f"best linear approximation written to {output}")
+        return
     # a record larger than memory: Welch's spectra chunk by chunk (lpm and periodic refuse it)
     record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}", scheduler)
     if method == "welch":
@@ -114,15 +126,6 @@ def frf_command(
             spectra = cross_spectra(exps, segment, 0.5 if overlap is None else overlap, window or "hann")
         frd = h1_from_spectra(spectra, ins, outs)
         say(f"welch: segment {segment} samples{chosen}, {spectra.n_segments} segments, resolution {frd.freqs[0]:g} Hz")
-    elif method == "bla":
-        from .bla import estimate_bla
-
-        result = estimate_bla(data, ins, outs, ts, periods, transient_periods, design_path)
-        for line in result.summary():
-            say(line)
-        write_table_output(output, result.to_columns())
-        say(f"best linear approximation written to {output}")
-        return
     elif method == "lpm":
         import numpy as np
 
