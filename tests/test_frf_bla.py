@@ -136,6 +136,12 @@ def test_realisations_must_match_and_give_two_steady_periods():
         bla_frf(exps, periods=5, transient_periods=4)
     with pytest.raises(DataError, match="needs at least one realisation"):
         BLAAccumulator().result()
+    with pytest.raises(DataError, match="`detection_even` must be increasing line indices >= 1; got \\[4, 2\\]"):
+        BLAAccumulator(excited=[1, 3], detection_even=[4, 2])
+    with pytest.raises(DataError, match="both excited and a detection line"):
+        BLAAccumulator(excited=[1, 3], detection_odd=[3, 5])
+    with pytest.raises(DataError, match="above Nyquist of a 1024-sample period"):
+        bla_frf(exps, periods=5, excited=[3, 600])
 
 
 def test_identification_weights_by_the_total_variance_when_the_frd_has_it(tmp_path):

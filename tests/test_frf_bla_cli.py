@@ -54,9 +54,22 @@ def test_frf_bla_writes_the_levels_and_says_what_it_found(measured):
     frd = read_frd(tmp_path / "bla.csv")
     assert frd.total_std is not None and np.median(frd.total_std / frd.std) > 10
     # the fit says which variance weighted it; the report draws the BLA figure
-    rc, out, err = run("identify", "frd", tmp_path / "bla.csv", "--order", 2, "--dt", DT, "-o", tmp_path / "m.json")
+    rc, out, err = run(
+        "identify",
+        "frd",
+        tmp_path / "bla.csv",
+        "--order",
+        2,
+        "--dt",
+        DT,
+        "-o",
+        tmp_path / "m.json",
+        "--report",
+        tmp_path / "fit",
+    )
     assert rc == 0, err
     assert "weight 1/total variance (noise + nonlinear distortion" in out
+    assert "Best linear approximation" in (tmp_path / "fit" / "index.html").read_text()
     rc, out, err = run("report", tmp_path / "m.json", "--frf", tmp_path / "bla.csv", "--out", tmp_path / "rep")
     assert rc == 0, err
     assert "Best linear approximation" in (tmp_path / "rep" / "index.html").read_text()

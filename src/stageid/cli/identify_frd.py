@@ -120,6 +120,13 @@ def _write_report(folder: str, frd, result) -> None:
     report = Report(title="identify frd")
     report.section("Measured frequency response and identified model")
     report.figure(frd.plot(model=result.model), "Measured FRF (+-2 std shaded), coherence, and the model (dashed).")
+    if frd.total_std is not None:
+        from ..frf.bla_figure import bla_figure
+
+        report.figure(
+            bla_figure(frd),
+            "Best linear approximation: |BLA|, total distortion level (red; the fit's weights) and noise level (green).",
+        )
     report.table(
         ["input", "max error / column peak"],
         [[name, float(e)] for name, e in zip(result.model.inputs, result.column_errors)],

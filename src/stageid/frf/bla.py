@@ -414,11 +414,16 @@ def bla_frf(
 
 
 def _lines_of(excited, detection_odd, detection_even) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    exc = np.asarray(excited, dtype=int).reshape(-1)
-    if exc.size == 0 or np.any(exc <= 0) or np.any(np.diff(exc) <= 0):
-        raise DataError(f"`excited` must be increasing line indices >= 1; got {exc.tolist()[:8]}.")
-    odd, even = (np.asarray([] if d is None else d, dtype=int).reshape(-1) for d in (detection_odd, detection_even))
-    return exc, odd, even
+    """The given lines checked: increasing indices >= 1, the three sets disjoint."""
+    sets = []
+    for name, lines in (("excited", excited), ("detection_odd", detection_odd), ("detection_even", detection_even)):
+        x = np.asarray([] if lines is None else lines, dtype=int).reshape(-1)
+        if np.any(x <= 0) or np.any(np.diff(x) <= 0) or (name == "excited" and x.size == 0):
+            raise DataError(f"`{name}` must be increasing line indices >= 1; got {x.tolist()[:8]}.")
+        sets.append(x)
+    if np.unique(np.concatenate(sets)).size != sum(x.size for x in sets):
+        raise DataError("a line cannot be both excited and a detection line; got one in two of the sets.")
+    return sets[0], sets[1], sets[2]
 
 
 def _infer_lines(Um: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
