@@ -106,6 +106,8 @@ def test_identify_frd_says_noise_variance_for_a_plain_frf(measured):
     [
         (["--method", "welch", "--design", "ms.multisine.json"], "--design applies to --method bla"),
         (["--method", "bla", "--periods", "4", "--transient-periods", "3"], "leaves 1; at least 2 are needed"),
+        (["--method", "welch", "--transient", "lpm"], "--transient applies to --method bla"),
+        (["--method", "bla", "--transient", "lpm", "--transient-periods", "1"], "applies to --transient drop"),
     ],
 )
 def test_frf_bla_errors_are_one_line_and_write_nothing(measured, extra, fragment):
@@ -114,3 +116,24 @@ def test_frf_bla_errors_are_one_line_and_write_nothing(measured, extra, fragment
     rc, out, err = run("frf", *files, "--inputs", "u", "--outputs", "y", *extra, "-o", tmp_path / "x.csv")
     assert rc == 2 and fragment in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_frf_bla_lpm_keeps_every_period(measured):
+    tmp_path, files = measured
+    rc, out, err = run(
+        "frf",
+        *files,
+        "--inputs",
+        "u",
+        "--outputs",
+        "y",
+        "--method",
+        "bla",
+        "--transient",
+        "lpm",
+        "-o",
+        tmp_path / "l.csv",
+    )
+    assert rc == 0, err
+    assert "x 4 periods (every period kept, the transient removed by the local polynomial method)" in out
+    assert "y: odd nonlinearity detected" in out

@@ -35,6 +35,7 @@ def estimate_bla(
     periods: int | None,
     transient_periods: int | None,
     design_path: str | None,
+    transient: str = "drop",
 ):
     """Group the files into realisations (in the given order), add each, return the BLAResult."""
     from ..frf.bla import BLAAccumulator
@@ -54,7 +55,7 @@ def estimate_bla(
             "detection_odd": design.get("detection_odd_lines", []),
             "detection_even": design.get("detection_even_lines", []),
         }
-    acc = BLAAccumulator(periods or design.get("n_periods"), transient_periods, **lines)
+    acc = BLAAccumulator(periods or design.get("n_periods"), transient_periods, transient=transient, **lines)
     # tqdm costs a tenth of a second to import: only for a terminal that shows it
     bar = progress(len(paths) // group, desc="realisations") if is_interactive() else None
     for start in range(0, len(paths), group):

@@ -48,6 +48,13 @@ Examples:
     help="periodic: leading periods dropped (default 1); bla: detected from the outputs if not given.",
 )
 @click.option(
+    "--transient",
+    type=click.Choice(["drop", "lpm"]),
+    default=None,
+    help="bla: drop the transient periods (default), or keep every period and remove the transient by the "
+    "local polynomial method (records that never settle, or of only 2 periods).",
+)
+@click.option(
     "--design",
     "design_path",
     type=click.Path(exists=True, dir_okay=False),
@@ -74,6 +81,7 @@ def frf_command(
     window: str | None,
     periods: int | None,
     transient_periods: int | None,
+    transient: str | None,
     design_path: str | None,
     output: str,
     scheduler: str | None,
@@ -88,8 +96,11 @@ def frf_command(
     """
     check_output(output, "table")
     _check_method_options(method, segment, overlap, window, periods, transient_periods)
-    if design_path is not None and method != "bla":
-        raise click.UsageError(f"--design applies to --method bla; got --method {method}.")
+    for name, value in (("--design", design_path), ("--transient", transient)):
+        if value is not None and method != "bla":
+            raise click.UsageError(f"{name} applies to --method bla; got --method {method}.")
+    if transient == "lpm" and transient_periods is not None:
+        raise click.UsageError("--transient-periods applies to --transient drop; got --transient lpm.")
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     if method == "bla":  # reads realisation by realisation, memory-mapped: no chunked path needed
@@ -98,7 +109,7 @@ def frf_command(
         if scheduler is not None:
             raise click.UsageError("--scheduler applies to --method welch on chunked records; got --method bla.")
 
-        result = estimate_bla(data, ins, outs, ts, periods, transient_periods, design_path)
+        result = estimate_bla(data, ins, outs, ts, periods, transient_periods, design_path, transient or "drop")
         for line in result.summary():
             say(line)
         write_table_output(output, result.to_columns())

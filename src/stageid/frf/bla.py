@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError
+from .._errors import DataError, ParameterError
 from ..data import Experiment
 from .frd import FrequencyResponse
 from .periodic import excited_lines, period_average
@@ -117,6 +117,7 @@ class BLAResult:
     even: DetectionLevels | None = None
     odd_std: np.ndarray | None = None
     even_std: np.ndarray | None = None
+    transient: str = "drop"
 
     @property
     def distortion_std(self) -> np.ndarray | None:
@@ -146,10 +147,14 @@ class BLAResult:
     def summary(self) -> list[str]:
         """One line per finding: averaging, distortion above noise, odd/even detection per output."""
         f = self.frd
+        how = (
+            "every period kept, the transient removed by the local polynomial method"
+            if self.transient == "lpm"
+            else f"{self.transient_periods} transient period(s) dropped"
+        )
         lines = [
-            f"bla: {self.n_realisations} realisation(s) x {self.n_periods} periods "
-            f"({self.transient_periods} transient period(s) dropped), {f.n_freqs} excited lines "
-            f"{f.freqs[0]:g}-{f.freqs[-1]:g} Hz"
+            f"bla: {self.n_realisations} realisation(s) x {self.n_periods} periods ({how}), "
+            f"{f.n_freqs} excited lines {f.freqs[0]:g}-{f.freqs[-1]:g} Hz"
         ]
         if f.total_std is not None:
             ratio = np.median(f.total_std**2 / np.maximum(f.std**2, 1e-300), axis=0)
@@ -228,7 +233,14 @@ class BLAAccumulator:
     periods : int, optional
         Whole periods per record; detected from the first record's input when None.
     transient_periods : int, optional
-        Leading periods dropped; detected per realisation from the outputs when None.
+        Leading periods dropped; detected per realisation from the outputs when None
+        (``transient="drop"`` only).
+    transient : {"drop", "lpm"}
+        ``"drop"``: the leading transient periods are dropped and the noise comes from the
+        period-to-period scatter.  ``"lpm"``: every period is kept; the transient at each line
+        is estimated from the in-between lines of the whole record's DFT and removed, and the
+        noise comes from that local fit (:mod:`.bla_lpm`) - for records that never settle or
+        are too short to lose a period (at least 2 periods).
     excited, detection_odd, detection_even : sequence of int, optional
         Line indices on the grid of one period (``k / (L dt)``); taken from the first
         realisation's input (excited) and the unexcited odd / even lines between the first
@@ -255,9 +267,17 @@ class BLAAccumulator:
         excited: Sequence[int] | None = None,
         detection_odd: Sequence[int] | None = None,
         detection_even: Sequence[int] | None = None,
+        transient: str = "drop",
     ) -> None:
+        if transient not in ("drop", "lpm"):
+            raise ParameterError(f"`transient` of BLAAccumulator must be 'drop' or 'lpm'; got {transient!r}.")
+        if transient == "lpm" and transient_periods not in (None, 0):
+            raise ParameterError(
+                f"`transient_periods` applies to transient='drop'; got {transient_periods!r} with 'lpm'."
+            )
         self.periods = periods
-        self.transient_periods = transient_periods
+        self.transient = transient
+        self.transient_periods = 0 if transient == "lpm" else transient_periods
         self._lines = None if excited is None else _lines_of(excited, detection_odd, detection_even)
         self._first: ChannelRecord | None = None
         self._count = 0
@@ -271,10 +291,11 @@ class BLAAccumulator:
         Records may be :class:`~stageid.data.Experiment` or :class:`~stageid.frf.records.ChannelRecord`
         (e.g. memory-mapped NPZ channels from :func:`~stageid.frf.records.read_npz_record`).
         """
-        Up, Yp = self._period_spectra(as_channel_records(realisation))
-        exc, det_odd, det_even = self._lines
-        k1, k2 = exc.size, exc.size + det_odd.size  # positions of the lines in Up and Yp
-        G, var, _, Uinv = period_average(Up[:, :k1], Yp[:, :k1])
+        recs = as_channel_records(realisation)
+        if self.transient == "lpm":
+            G, var, Uinv, Ym, detection = self._lpm_lines(recs)
+        else:
+            G, var, Uinv, Ym, detection = self._period_lines(recs)
         self._count += 1
         s = self._sums
         # Welford's update: the mean and the squared deviations without storing the G^[m]
@@ -283,14 +304,63 @@ class BLAAccumulator:
         s["m2"] = s.get("m2", 0.0) + np.abs(delta * np.conj(G - s["mean"]))
         s["var_n"] = s.get("var_n", 0.0) + var
         s["uinv2"] = s.get("uinv2", 0.0) + np.sum(np.abs(Uinv) ** 2, axis=1)  # (lines, m)
-        s["y_power"] = s.get("y_power", 0.0) + np.mean(np.abs(Yp[:, :k1].mean(axis=0)) ** 2, axis=(0, 2))
+        s["y_power"] = s.get("y_power", 0.0) + np.mean(np.abs(Ym) ** 2, axis=(0, 2))
+        for kind, (power, noise) in detection.items():
+            s[f"{kind}_power"] = s.get(f"{kind}_power", 0.0) + power
+            s[f"{kind}_noise"] = s.get(f"{kind}_noise", 0.0) + noise
+
+    def _period_lines(self, recs: Sequence[ChannelRecord]) -> tuple:
+        """``G^[m]``, its noise variance, ``U^-1``, the output at the excited lines and the detection
+        lines' (power, noise) per kind, from the steady-state periods' means and scatter."""
+        Up, Yp = self._period_spectra(recs)
+        exc, det_odd, det_even = self._lines
+        k1, k2 = exc.size, exc.size + det_odd.size  # positions of the lines in Up and Yp
+        G, var, _, Uinv = period_average(Up[:, :k1], Yp[:, :k1])
+        detection = {}
         for kind, det, where in (("odd", det_odd, slice(k1, k2)), ("even", det_even, slice(k2, None))):
             if det.size:
                 Yd = Yp[:, where]  # (P, lines, q, ne)
                 mean = Yd.mean(axis=0)
                 noise = np.sum(np.abs(Yd - mean) ** 2, axis=0) / (Yd.shape[0] - 1) / Yd.shape[0]
-                s[f"{kind}_power"] = s.get(f"{kind}_power", 0.0) + np.mean(np.abs(mean) ** 2, axis=2)
-                s[f"{kind}_noise"] = s.get(f"{kind}_noise", 0.0) + np.mean(noise, axis=2)
+                detection[kind] = (np.mean(np.abs(mean) ** 2, axis=2), np.mean(noise, axis=2))
+        return G, var, Uinv, Yp[:, :k1].mean(axis=0), detection
+
+    def _lpm_lines(self, recs: Sequence[ChannelRecord]) -> tuple:
+        """As :meth:`_period_lines`, from the whole records' DFT with the transient removed by the LPM."""
+        from .bla_lpm import transient_free_lines
+
+        first = recs[0]
+        if self._first is None:
+            self._first = dataclasses.replace(first, channels=tuple(c[:0] for c in first.channels))
+            inputs = np.column_stack(first.channels[: first.n_inputs])
+            self._period_samples = first.n_samples // (self.periods or detect_periods(inputs))
+            self._n_records, self._n_samples = len(recs), first.n_samples
+        _check_like(recs, self._first, self._n_records, self._n_samples, self._period_samples)
+        periods = first.n_samples // self._period_samples
+        X = np.stack([np.stack([np.fft.rfft(np.asarray(c)) for c in r.channels], -1) for r in recs], -1)
+        if not np.isfinite(X).all():
+            for r in recs:  # name the first bad sample
+                for c, x in enumerate(r.channels):
+                    check_finite_batch(r, np.asarray(x)[None, :], c, 0, r.n_samples)
+        if self._lines is None:
+            self._lines = _infer_lines(X[::periods][: self._period_samples // 2 + 1, : first.n_inputs])
+        self._kept.append(periods)
+        self._dropped.append(0)
+        exc, det_odd, det_even = self._lines
+        Xc, var = transient_free_lines(X, np.concatenate(self._lines), periods)
+        m, k1, k2 = first.n_inputs, exc.size, exc.size + det_odd.size
+        U, Y = Xc[:k1, :m], Xc[:k1, m:]
+        Uinv = np.linalg.pinv(U) if U.shape[1] != U.shape[2] else np.linalg.inv(U)
+        G = Y @ Uinv
+        # residual variance of Y - G U: the output's noise and the inputs' through G
+        resid = var[:k1, m:] + np.einsum("kqm,kme->kqe", np.abs(G) ** 2, var[:k1, :m])
+        var_G = np.einsum("kqe,kem->kqm", resid, np.abs(Uinv) ** 2)
+        detection = {}
+        for kind, where in (("odd", slice(k1, k2)), ("even", slice(k2, None))):
+            Yd = Xc[where, m:]
+            if Yd.shape[0]:
+                detection[kind] = (np.mean(np.abs(Yd) ** 2, axis=2), np.mean(var[where, m:], axis=2))
+        return G, var_G, Uinv, Y, detection
 
     def result(self) -> BLAResult:
         """The BLA and its levels from the realisations added so far.
@@ -329,6 +399,7 @@ class BLAAccumulator:
             levels.get("even"),
             shares.get("odd"),
             shares.get("even"),
+            self.transient,
         )
 
     def _period_spectra(self, recs: Sequence[ChannelRecord]) -> tuple[np.ndarray, np.ndarray]:
@@ -385,6 +456,7 @@ def bla_frf(
     excited: Sequence[int] | None = None,
     detection_odd: Sequence[int] | None = None,
     detection_even: Sequence[int] | None = None,
+    transient: str = "drop",
 ) -> BLAResult:
     """The robust BLA from random-phase multisine realisations (see the module docstring).
 
@@ -394,7 +466,7 @@ def bla_frf(
         One record per realisation (SISO, or MIMO with several inputs in one record only if
         ``n_inputs == 1``), or per realisation a sequence of records, one per experiment;
         an iterator is consumed one realisation at a time.
-    periods, transient_periods, excited, detection_odd, detection_even
+    periods, transient_periods, excited, detection_odd, detection_even, transient
         As in :class:`BLAAccumulator`.
 
     Returns
@@ -407,7 +479,7 @@ def bla_frf(
         Records that differ in length, sample time or channels, fewer than 2 steady-state
         periods, fewer records than inputs, or realisations exciting other lines.
     """
-    acc = BLAAccumulator(periods, transient_periods, excited, detection_odd, detection_even)
+    acc = BLAAccumulator(periods, transient_periods, excited, detection_odd, detection_even, transient)
     for realisation in [realisations] if isinstance(realisations, (Experiment, ChannelRecord)) else realisations:
         acc.add(realisation)
     return acc.result()
