@@ -9,7 +9,34 @@ from typing import Any
 
 from .._errors import DataError
 
-__all__ = ["estimate_bla", "read_design"]
+__all__ = ["bla_command", "estimate_bla", "read_design"]
+
+
+def bla_command(
+    paths: Sequence[str],
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    ts: float | None,
+    timing: tuple[int | None, int | None, str | None],
+    design_path: str | None,
+    scheduler: str | None,
+    output: str,
+) -> None:
+    """``stageid frf --method bla``: check the options, estimate, say the findings, write the table."""
+    import click
+
+    from ._common import say, write_table_output
+
+    periods, transient_periods, transient = timing
+    if scheduler is not None:
+        raise click.UsageError("--scheduler applies to --method welch on chunked records; got --method bla.")
+    if transient == "lpm" and transient_periods is not None:
+        raise click.UsageError("--transient-periods applies to --transient drop; got --transient lpm.")
+    result = estimate_bla(paths, inputs, outputs, ts, periods, transient_periods, design_path, transient or "drop")
+    for line in result.summary():
+        say(line)
+    write_table_output(output, result.to_columns())
+    say(f"best linear approximation written to {output}")
 
 
 def read_design(path: str | None) -> dict[str, Any]:

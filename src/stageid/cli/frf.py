@@ -99,21 +99,12 @@ def frf_command(
     for name, value in (("--design", design_path), ("--transient", transient)):
         if value is not None and method != "bla":
             raise click.UsageError(f"{name} applies to --method bla; got --method {method}.")
-    if transient == "lpm" and transient_periods is not None:
-        raise click.UsageError("--transient-periods applies to --transient drop; got --transient lpm.")
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
     if method == "bla":  # reads realisation by realisation, memory-mapped: no chunked path needed
-        from .bla import estimate_bla
+        from .bla import bla_command
 
-        if scheduler is not None:
-            raise click.UsageError("--scheduler applies to --method welch on chunked records; got --method bla.")
-
-        result = estimate_bla(data, ins, outs, ts, periods, transient_periods, design_path, transient or "drop")
-        for line in result.summary():
-            say(line)
-        write_table_output(output, result.to_columns())
-        say(f"best linear approximation written to {output}")
+        bla_command(data, ins, outs, ts, (periods, transient_periods, transient), design_path, scheduler, output)
         return
     # a record larger than memory: Welch's spectra chunk by chunk (lpm and periodic refuse it)
     record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}", scheduler)
