@@ -9,6 +9,7 @@ from stageid.data import read_table, write_csv
 from stageid.frf import read_frd
 
 DT = 1e-3
+BLA = ("--inputs", "u", "--outputs", "y", "--method", "bla")
 B, A = [0.02, 0.04, 0.02], [1.0, -1.6, 0.8]  # a resonance near 90 Hz at dt = 1 ms
 
 
@@ -35,12 +36,7 @@ def test_frf_bla_writes_the_levels_and_says_what_it_found(measured):
     rc, out, err = run(
         "frf",
         *files,
-        "--inputs",
-        "u",
-        "--outputs",
-        "y",
-        "--method",
-        "bla",
+        *BLA,
         "--design",
         design,
         "-o",
@@ -123,12 +119,7 @@ def test_frf_bla_lpm_keeps_every_period(measured):
     rc, out, err = run(
         "frf",
         *files,
-        "--inputs",
-        "u",
-        "--outputs",
-        "y",
-        "--method",
-        "bla",
+        *BLA,
         "--transient",
         "lpm",
         "-o",

@@ -11,6 +11,8 @@ module                    what it holds
 :mod:`.periodic`          averaging over periods of periodic excitation, noise from the scatter
 :mod:`.bla`               best linear approximation over random-phase realisations: noise and
                           total (noise + nonlinear) variance, odd/even detection-line levels
+:mod:`.bla_result`        :class:`BLAResult`, the detection-line levels
+:mod:`.bla_lpm`           transient removal of periodic records by a local polynomial (robust LPM)
 :mod:`.bla_figure`        the BLA's classic figure: |BLA|, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
@@ -38,7 +40,7 @@ _WHERE = {
     "periodic_frf": "periodic",
     "bla_frf": "bla",
     "BLAAccumulator": "bla",
-    "BLAResult": "bla",
+    "BLAResult": "bla_result",
     "FRDIdentification": "identification",
     "FRDResult": "identification",
 }
