@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from conftest import run_main
 from stageid import SignalError
 from stageid.cli.main import cli
 from stageid.signals import crest_factor, multisine, multisine_lines, multisine_plan
@@ -145,3 +146,11 @@ def test_cli_writes_one_file_per_realisation_and_experiment_and_the_design(tmp_p
     res = CliRunner().invoke(cli, ["signal", "multisine", *args.split(), "-o", str(plain)])
     assert res.exit_code == 0, res.output
     assert plain.exists() and not list(tmp_path.glob("plain_r*"))
+
+
+def test_cli_refuses_realisations_of_deterministic_phases(tmp_path):
+    args = "--n-samples 1024 --dt 1e-3 --f-low 1 --f-high 50 --kind schroeder --realisations 2"
+    rc, out, err = run_main("signal", "multisine", *args.split(), "-o", tmp_path / "s.csv")
+    assert rc == 2 and len(err.strip().splitlines()) == 1
+    assert "--realisations 2 needs --kind random-phase" in err
+    assert not list(tmp_path.iterdir())

@@ -37,6 +37,10 @@ def write_multisine_files(
     from ._common import check_output, say, write_table_output
 
     kwargs = dict(kwargs)
+    if realisations > 1 and kwargs.get("kind", "random-phase") != "random-phase":
+        from .._errors import SignalError
+
+        raise SignalError(f"--realisations {realisations} needs --kind random-phase (Schroeder phases do not vary).")
     if kwargs.get("seed") is None and kwargs.get("kind", "random-phase") == "random-phase":
         # recorded in the design, so every realisation can be made again
         kwargs["seed"] = int(np.random.SeedSequence().entropy % 2**31)
