@@ -17,6 +17,7 @@ Examples:
   stageid frf ex1.npz ex2.npz --inputs Z,Rx --outputs z,rx --segment 4096 -o frf.npz
   stageid frf run.csv --inputs u --outputs y --method lpm -o frf.npz
   stageid frf ms.csv --inputs u --outputs y --method periodic --periods 8 --transient-periods 2 -o frf.csv
+  stageid frf ms_r*.csv --inputs V --outputs z --method bla --design ms.multisine.json -o bla.csv
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path())
@@ -25,16 +26,41 @@ Examples:
 @click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
 @click.option(
     "--method",
-    type=click.Choice(["welch", "lpm", "periodic"]),
+    type=click.Choice(["welch", "lpm", "periodic", "bla"]),
     default="welch",
     show_default=True,
-    help="welch: H1 over segments; lpm: local polynomial method; periodic: average over periods.",
+    help="welch: H1 over segments; lpm: local polynomial method; periodic: average over periods; "
+    "bla: best linear approximation over random-phase realisations (one file each, or one per experiment).",
 )
 @click.option("--segment", type=int, default=None, help="welch: samples per segment (default: chosen and printed).")
 @click.option("--overlap", type=float, default=None, help="welch: overlap fraction of segments [0, 1) (default 0.5).")
 @click.option("--window", default=None, help="welch: scipy window name (default hann).")
-@click.option("--periods", type=int, default=None, help="periodic: whole periods in each record (required).")
-@click.option("--transient-periods", type=int, default=None, help="periodic: leading periods dropped (default 1).")
+@click.option(
+    "--periods",
+    type=int,
+    default=None,
+    help="periodic: whole periods in each record (required); bla: detected if not given.",
+)
+@click.option(
+    "--transient-periods",
+    type=int,
+    default=None,
+    help="periodic: leading periods dropped (default 1); bla: detected from the outputs if not given.",
+)
+@click.option(
+    "--transient",
+    type=click.Choice(["drop", "lpm"]),
+    default=None,
+    help="bla: drop the transient periods (default), or keep every period and remove the transient by the "
+    "local polynomial method (records that never settle, or of only 2 periods).",
+)
+@click.option(
+    "--design",
+    "design_path",
+    type=click.Path(exists=True, dir_okay=False),
+    default=None,
+    help="bla: the .multisine.json of `stageid signal multisine` (periods, lines, experiments per realisation).",
+)
 @click.option(
     "-o",
     "--output",
@@ -55,6 +81,8 @@ def frf_command(
     window: str | None,
     periods: int | None,
     transient_periods: int | None,
+    transient: str | None,
+    design_path: str | None,
     output: str,
     scheduler: str | None,
 ) -> None:
@@ -63,11 +91,21 @@ def frf_command(
     Columns written: `f_hz`, `re_<out>_<in>`, `im_<out>_<in>`, `std_<out>_<in>`
     (sqrt(E|H_est - H|^2)) for every pair, and `coh_<out>` (multiple coherence) per output.
     Welch's defaults equal scipy.signal.csd(window="hann", nperseg=N, noverlap=N//2).
+    bla adds `stdtot_` (noise and stochastic nonlinear distortion), `stdnl_` (distortion alone)
+    and, with detection lines, `stdodd_` / `stdeven_` per pair (see docs/guide/bla.md).
     """
     check_output(output, "table")
     _check_method_options(method, segment, overlap, window, periods, transient_periods)
+    for name, value in (("--design", design_path), ("--transient", transient)):
+        if value is not None and method != "bla":
+            raise click.UsageError(f"{name} applies to --method bla; got --method {method}.")
     ins = split_names(inputs, "--inputs")
     outs = split_names(outputs, "--outputs")
+    if method == "bla":  # reads realisation by realisation, memory-mapped: no chunked path needed
+        from .bla import bla_command
+
+        bla_command(data, ins, outs, ts, (periods, transient_periods, transient), design_path, scheduler, output)
+        return
     # a record larger than memory: Welch's spectra chunk by chunk (lpm and periodic refuse it)
     record = chunked_record(data, ins, outs, ts, "" if method == "welch" else f"--method {method}", scheduler)
     if method == "welch":
@@ -130,8 +168,9 @@ def _check_method_options(method, segment, overlap, window, periods, transient_p
     for name, value in {**welch_only, **periodic_only}.items():
         if value is None:
             continue
-        if (name in welch_only and method != "welch") or (name in periodic_only and method != "periodic"):
-            owner = "welch" if name in welch_only else "periodic"
+        periodic_like = ("periodic", "bla")
+        if (name in welch_only and method != "welch") or (name in periodic_only and method not in periodic_like):
+            owner = "welch" if name in welch_only else "periodic or bla"
             raise click.UsageError(f"{name} applies to --method {owner}; got --method {method}.")
     if method == "periodic" and periods is None:
         raise click.UsageError("--method periodic needs --periods P (whole periods in each record).")

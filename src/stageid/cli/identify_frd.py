@@ -41,7 +41,8 @@ Examples:
     type=click.Choice(["auto", "none", "std", "coherence"]),
     default="auto",
     show_default=True,
-    help="Weights of the output-error fit: 1/std^2, coherence, or none (auto: std when present).",
+    help="Weights of the output-error fit: 1/std^2 (the total std of a BLA when present, else the noise std), "
+    "coherence, or none (auto: std when present).",
 )
 @click.option("--delay", default="0", show_default=True, help="Input delay in samples, or 'auto' (discrete only).")
 @click.option(
@@ -95,12 +96,19 @@ def frd_command(
         _write_report(report_dir, frd.band(fmin, fmax), result)
     errors = ", ".join(f"{name} {100 * e:.3g} %" for name, e in zip(result.model.inputs, result.column_errors))
     say(
-        f"order {result.order}, delay {result.delay} samples, weight {result.weight}; "
+        f"order {result.order}, delay {result.delay} samples, weight {_WEIGHT_WORDS.get(result.weight, result.weight)}; "
         f"max error per input column (of its peak): {errors}"
     )
     say(f"model written to {output}")
     if uncertainty_line:
         say(uncertainty_line)
+
+
+#: How the summary names the weightings whose source matters to the user.
+_WEIGHT_WORDS = {
+    "total-std": "1/total variance (noise + nonlinear distortion, stdtot_ columns)",
+    "std": "1/noise variance (std_ columns)",
+}
 
 
 def _write_report(folder: str, frd, result) -> None:
@@ -112,6 +120,13 @@ def _write_report(folder: str, frd, result) -> None:
     report = Report(title="identify frd")
     report.section("Measured frequency response and identified model")
     report.figure(frd.plot(model=result.model), "Measured FRF (+-2 std shaded), coherence, and the model (dashed).")
+    if frd.total_std is not None:
+        from ..frf.bla_figure import bla_figure
+
+        report.figure(
+            bla_figure(frd),
+            "Best linear approximation: |BLA|, total distortion level (red; the fit's weights) and noise level (green).",
+        )
     report.table(
         ["input", "max error / column peak"],
         [[name, float(e)] for name, e in zip(result.model.inputs, result.column_errors)],

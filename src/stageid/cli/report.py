@@ -118,6 +118,7 @@ def _read_frf(path: str, model, ins: tuple[str, ...], outs: tuple[str, ...]):
         None if frd.coherence is None else frd.coherence[:, i],
         tuple(model.inputs),
         tuple(model.outputs),
+        None if frd.total_std is None else frd.total_std[:, i][:, :, j],
     )
 
 

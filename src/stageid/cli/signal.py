@@ -18,6 +18,7 @@ from ._common import plain_help
 _EXAMPLES = {
     "chirp": "stageid signal chirp --f0 1 --f1 100 --duration 10 --dt 0.002 --amplitude 20 --offset 20 --name Z -o z_chirp.csv",
     "prbs": "stageid signal prbs --n-samples 5000 --dt 0.002 --n-channels 3 --names Z,Rx,Ry -o prbs.csv",
+    "multisine": "stageid signal multisine --n-samples 8192 --dt 1e-4 --f-low 10 --f-high 2000 --n-periods 4 --lines random-odd --crest-iterations 100 --realisations 8 --seed 1 --name V -o ms.csv",
     "decaying-triangle": "stageid signal decaying-triangle --freq 1 --n-cycles 10 --dt 0.001 --amplitude 500 --name V -o drive.csv",
 }
 
@@ -92,9 +93,19 @@ def _options(kind: str) -> list[click.Parameter]:
     """The generator's parameters as options, then ``--dt`` (if the generator has none), names and ``-o``."""
     from ..signals import SIGNAL_KINDS, signal_parameters
 
-    params = signal_parameters(kind)
+    params = {n: p for n, p in signal_parameters(kind).items() if (kind, n) not in _PER_FILE}
     helps = _param_help(SIGNAL_KINDS[kind])
     options: list[click.Parameter] = [_generator_option(name, p, helps.get(name)) for name, p in params.items()]
+    if kind == "multisine":
+        options.append(
+            click.Option(
+                ["--realisations", "realisations"],
+                type=click.IntRange(min=1),
+                default=1,
+                show_default=True,
+                help="Random-phase realisations, one file each (FILE_r01, ...); lines and amplitudes shared.",
+            )
+        )
     if "dt" not in params:
         options.append(
             click.Option(
@@ -121,6 +132,10 @@ def _options(kind: str) -> list[click.Parameter]:
     return options
 
 
+#: Generator parameters the command sets per written file instead of taking as options.
+_PER_FILE = {("multisine", "realisation"), ("multisine", "experiment")}
+
+
 def _write_signal(kind: str, kwargs: dict[str, Any]) -> None:
     """Generate the signal from the parsed options and write it with one column per channel."""
     import numpy as np
@@ -137,14 +152,25 @@ def _write_signal(kind: str, kwargs: dict[str, Any]) -> None:
     dt_for_file = kwargs.get("dt") if "dt" in params else kwargs.pop("dt")
     if "limits" in kwargs:
         kwargs["limits"] = _limits(kwargs["limits"])
+    realisations = kwargs.pop("realisations", 1)
     kwargs = {k: v for k, v in kwargs.items() if not (v is None and params[k].default is None)}
+    if kind == "multisine":
+        from .multisine_files import write_multisine_files
+
+        write_multisine_files(output, kwargs, realisations, lambda x: signal_columns(x, names), dt_for_file)
+        return
     x = np.asarray(generate(kind, **kwargs))
+    write_table_output(output, signal_columns(x, names), dt=dt_for_file)
+
+
+def signal_columns(x: Any, names: list[str]) -> dict[str, Any]:
+    """One column per channel of ``x``; a single name gets numbered for several channels."""
     x2 = x[:, None] if x.ndim == 1 else x
     if len(names) == 1 and x2.shape[1] > 1:
         names = [f"{names[0]}{i + 1}" for i in range(x2.shape[1])]
     if len(names) != x2.shape[1]:
         raise SignalError(f"--names must give {x2.shape[1]} column names; got {len(names)}.")
-    write_table_output(output, {n: x2[:, i] for i, n in enumerate(names)}, dt=dt_for_file)
+    return {n: x2[:, i] for i, n in enumerate(names)}
 
 
 def _make_command(kind: str) -> click.Command:

@@ -9,6 +9,11 @@ module                    what it holds
 :mod:`.lpm_kernels`       compiled LPM line solves (moments, complex Cholesky), edge lines
 :mod:`.lpm_lanes`         the same for interior lines, 16 at a time with 4-wide vectors
 :mod:`.periodic`          averaging over periods of periodic excitation, noise from the scatter
+:mod:`.bla`               best linear approximation over random-phase realisations: noise and
+                          total (noise + nonlinear) variance, odd/even detection-line levels
+:mod:`.bla_result`        :class:`BLAResult`, the detection-line levels
+:mod:`.bla_lpm`           transient removal of periodic records by a local polynomial (robust LPM)
+:mod:`.bla_figure`        the BLA's classic figure: |BLA|, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
@@ -33,6 +38,9 @@ _WHERE = {
     "default_segment": "welch",
     "lpm_frf": "lpm",
     "periodic_frf": "periodic",
+    "bla_frf": "bla",
+    "BLAAccumulator": "bla",
+    "BLAResult": "bla_result",
     "FRDIdentification": "identification",
     "FRDResult": "identification",
 }

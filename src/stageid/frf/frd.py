@@ -3,8 +3,10 @@
 The table format is the one ``stageid freqresp`` writes, extended by ``stageid frf``: a column
 ``f_hz`` (strictly increasing), ``re_<out>_<in>`` and ``im_<out>_<in>`` for every
 (output, input) pair (outputs outer, inputs inner), optionally ``std_<out>_<in>``
-(``sqrt(E|H_est - H|^2)``) and ``coh_<out>`` (multiple coherence of each output).  CSV and
-NPZ hold the same columns.
+(``sqrt(E|H_est - H|^2)``) and ``coh_<out>`` (multiple coherence of each output).  A best
+linear approximation of a nonlinear system adds ``stdtot_<out>_<in>``: the std of the estimate
+from the noise *and* the stochastic nonlinear distortions (``std_`` is then its noise part
+alone).  CSV and NPZ hold the same columns; readers that know only the first ones ignore the rest.
 """
 
 from __future__ import annotations
@@ -36,6 +38,10 @@ class FrequencyResponse:
         Multiple coherence of each output (ordinary coherence for one input), in [0, 1].
     inputs, outputs : sequence of str
         Channel names; default ``u1, ...`` and ``y1, ...``.
+    total_std : ndarray of shape (n_freqs, n_outputs, n_inputs), optional
+        Std of each entry from the noise and the stochastic nonlinear distortions together (a
+        best linear approximation measured over several random-phase realisations); ``std``
+        is then the noise part alone.
     copy : bool
         Copy the arrays (default).  ``False`` takes them over as they are (made read-only, the
         coherence clipped in place): for estimators that built them and keep no reference,
@@ -60,6 +66,7 @@ class FrequencyResponse:
     coherence: np.ndarray | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+    total_std: np.ndarray | None = None
     copy: dataclasses.InitVar[bool] = True
 
     def __post_init__(self, copy: bool) -> None:
@@ -84,13 +91,9 @@ class FrequencyResponse:
         set_ = object.__setattr__
         set_(self, "freqs", _frozen(f))
         set_(self, "response", _frozen(G))
-        if self.std is not None:
-            s = np.array(self.std, dtype=float, copy=own)
-            if s.shape != G.shape:
-                raise DataError(f"`std` must have shape {G.shape}; got {s.shape}.")
-            if not np.all(np.isfinite(s)) or np.any(s < 0):
-                raise DataError("`std` must be finite and >= 0; got NaN, inf or a negative value.")
-            set_(self, "std", _frozen(s))
+        for name in ("std", "total_std"):
+            if getattr(self, name) is not None:
+                set_(self, name, _frozen(_checked_std(getattr(self, name), name, G.shape, own)))
         if self.coherence is not None:
             c = np.array(self.coherence, dtype=float, copy=own)
             if c.shape != (f.size, q) or not np.all(np.isfinite(c)):
@@ -115,7 +118,8 @@ class FrequencyResponse:
         return int(self.response.shape[1])
 
     def __repr__(self) -> str:
-        extras = [w for w, v in (("std", self.std), ("coherence", self.coherence)) if v is not None]
+        named = (("std", self.std), ("total std", self.total_std), ("coherence", self.coherence))
+        extras = [w for w, v in named if v is not None]
         return (
             f"FrequencyResponse({self.n_freqs} frequencies {self.freqs[0]:g}-{self.freqs[-1]:g} Hz, "
             f"{self.n_outputs}x{self.n_inputs}{', with ' + ' and '.join(extras) if extras else ''})"
@@ -143,6 +147,7 @@ class FrequencyResponse:
             None if self.coherence is None else self.coherence[keep],
             self.inputs,
             self.outputs,
+            None if self.total_std is None else self.total_std[keep],
         )
 
     def to_columns(self) -> dict[str, np.ndarray]:
@@ -191,6 +196,8 @@ def frd_columns(frd: FrequencyResponse) -> dict[str, np.ndarray]:
             cols[f"im_{out}_{inp}"] = frd.response[:, i, j].imag
             if frd.std is not None:
                 cols[f"std_{out}_{inp}"] = frd.std[:, i, j]
+            if frd.total_std is not None:
+                cols[f"stdtot_{out}_{inp}"] = frd.total_std[:, i, j]
     if frd.coherence is not None:
         for i, out in enumerate(frd.outputs):
             cols[f"coh_{out}"] = frd.coherence[:, i]
@@ -235,20 +242,28 @@ def frd_from_columns(columns: Mapping[str, np.ndarray], source: str = "") -> Fre
     outputs, inputs = _split_pairs(pairs, [n[4:] for n in columns if n.startswith("coh_")], where)
     f = np.asarray(columns["f_hz"], dtype=float)
     G = np.empty((f.size, len(outputs), len(inputs)), complex)
-    has_std = all(f"std_{o}_{i}" in columns for o in outputs for i in inputs)
-    S = np.empty(G.shape) if has_std else None
+    S, St = (_entry_columns(columns, prefix, outputs, inputs) for prefix in ("std_", "stdtot_"))
     for a, o in enumerate(outputs):
         for b, i in enumerate(inputs):
             G[:, a, b] = np.asarray(columns[f"re_{o}_{i}"]) + 1j * np.asarray(columns[f"im_{o}_{i}"])
-            if S is not None:
-                S[:, a, b] = columns[f"std_{o}_{i}"]
     coh = None
     if all(f"coh_{o}" in columns for o in outputs):
         coh = np.column_stack([np.asarray(columns[f"coh_{o}"], dtype=float) for o in outputs])
     try:
-        return FrequencyResponse(f, G, S, coh, tuple(inputs), tuple(outputs))
+        return FrequencyResponse(f, G, S, coh, tuple(inputs), tuple(outputs), St)
     except DataError as exc:
         raise DataError(f"{where}{exc}") from None
+
+
+def _entry_columns(
+    columns: Mapping[str, np.ndarray], prefix: str, outputs: Sequence[str], inputs: Sequence[str]
+) -> np.ndarray | None:
+    """The ``<prefix><out>_<in>`` columns as (n_freqs, n_outputs, n_inputs), or None unless all are there."""
+    if not all(f"{prefix}{o}_{i}" in columns for o in outputs for i in inputs):
+        return None
+    return np.stack(
+        [np.stack([np.asarray(columns[f"{prefix}{o}_{i}"], float) for i in inputs], -1) for o in outputs], 1
+    )
 
 
 def _split_pairs(pairs: Sequence[str], coh_names: Sequence[str], where: str) -> tuple[list[str], list[str]]:
@@ -277,6 +292,15 @@ def _names(names: Sequence[str], n: int, prefix: str, what: str) -> tuple[str, .
     if len(names) != n or not all(isinstance(s, str) and s for s in names):
         raise DataError(f"`{what}` must be {n} non-empty names; got {names!r}.")
     return names
+
+
+def _checked_std(value: Any, name: str, shape: tuple[int, ...], own: bool | None) -> np.ndarray:
+    s = np.array(value, dtype=float, copy=own)
+    if s.shape != shape:
+        raise DataError(f"`{name}` must have shape {shape}; got {s.shape}.")
+    if not np.all(np.isfinite(s)) or np.any(s < 0):
+        raise DataError(f"`{name}` must be finite and >= 0; got NaN, inf or a negative value.")
+    return s
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

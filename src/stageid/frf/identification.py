@@ -73,7 +73,9 @@ class FRDResult:
     delay_errors : tuple of (delay, held-out error) pairs
         Filled when the delay was chosen automatically.
     weight : str
-        The weighting used (``"std"``, ``"coherence"`` or ``"none"``).
+        The weighting used: ``"total-std"`` (``1 / total_std^2``: a best linear approximation's
+        noise and nonlinear distortion), ``"std"`` (``1 / std^2``, the noise), ``"coherence"``
+        or ``"none"``.
     band : tuple of float
         The frequencies fitted, Hz.
     covariance : FitCovariance or None
@@ -245,7 +247,9 @@ class FRDIdentification(Estimator):
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
         A, B, C, D, sv = fit_at_order(Gd, fz, T, order, w, self.max_iter, thorough=True)
-        std = None if frd.std is None else frd.std / scale[None, None, :]
+        # the fit's uncertainty covers what scatters the data: with a BLA also its nonlinear distortion
+        data_std = frd.total_std if frd.total_std is not None else frd.std
+        std = None if data_std is None else data_std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
         model = _assemble(A, B, C, D, T, self.dt, delay, frd)
@@ -314,15 +318,20 @@ def warn_large_error(
 def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) -> tuple[str, np.ndarray]:
     """Per-frequency weights of the output-error fit, normalised to mean 1, and their kind.
 
-    ``std``: ``1 / mean_ij (std_ij / scale_j)^2`` (the columns as scaled for the fit);
+    ``std``: ``1 / mean_ij (std_ij / scale_j)^2`` (the columns as scaled for the fit), from the
+    total std (noise and nonlinear distortion of a best linear approximation) when the
+    response has one - the kind is then ``"total-std"`` - else from the noise std;
     ``coherence``: ``mean_i gamma_i^2 / (1 - gamma_i^2)`` capped at 1e6; ``none``: ones.
     """
+    has_std = frd.std is not None or frd.total_std is not None
     if weight == "auto":
-        weight = "std" if frd.std is not None else ("coherence" if frd.coherence is not None else "none")
+        weight = "std" if has_std else ("coherence" if frd.coherence is not None else "none")
     if weight == "std":
-        if frd.std is None:
+        if not has_std:
             raise DataError("--weight std needs std_<out>_<in> columns in the frequency response; it has none.")
-        var = np.mean((frd.std / scale[None, None, :]) ** 2, axis=(1, 2))
+        std = frd.total_std if frd.total_std is not None else frd.std
+        weight = "total-std" if frd.total_std is not None else "std"
+        var = np.mean((std / scale[None, None, :]) ** 2, axis=(1, 2))
         if not var.max() > 0:  # an exact (computed) response: every line alike
             var = np.ones_like(var)
         floor = 1e-12 * float(var.max())  # a zero std would give one frequency all the weight

@@ -21,7 +21,7 @@ from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from .frd import FrequencyResponse
 
-__all__ = ["periodic_frf"]
+__all__ = ["periodic_frf", "excited_lines", "period_average"]
 
 #: Lines whose input power is below this fraction of the strongest line count as not excited.
 EXCITED_FRACTION = 1e-10
@@ -90,17 +90,34 @@ def periodic_frf(
 
     Up = np.stack([per_period(e.u) for e in exps], axis=-1)  # (P, lines, m, ne)
     Yp = np.stack([per_period(e.y) for e in exps], axis=-1)  # (P, lines, q, ne)
-    lines, G, std, coh = _average(Up, Yp, kept)
+    lines, G, std, coh = _average(Up, Yp)
     freqs = lines / (L * exps[0].dt)
     return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
 
 
-def _average(Up: np.ndarray, Yp: np.ndarray, kept: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _average(Up: np.ndarray, Yp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Excited lines, ``G``, its std and the coherence from per-period spectra (eq. 2-41 to 2-43).
 
     ``Up`` (P, lines, m, ne), ``Yp`` (P, lines, q, ne): the DFT of every period of every record.
     """
-    Um, Ym = Up.mean(axis=0), Yp.mean(axis=0)
+    lines = excited_lines(Up.mean(axis=0))
+    Up, Yp = Up[:, lines], Yp[:, lines]
+    G, var, sigma2, _ = period_average(Up, Yp)
+    ypow = np.mean(np.abs(Yp.mean(axis=0)) ** 2, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coh = np.where(ypow > 0, 1.0 - sigma2.mean(axis=2) / np.where(ypow > 0, ypow, 1.0), 0.0)
+    return lines, G, np.sqrt(var), np.clip(coh, 0.0, 1.0)
+
+
+def excited_lines(Um: np.ndarray) -> np.ndarray:
+    """Lines (not DC) whose input power exceeds :data:`EXCITED_FRACTION` of the strongest and whose
+    input matrix ``Um`` (lines, m, ne) is invertible.
+
+    Raises
+    ------
+    DataError
+        When there is none (a constant input or proportional inputs).
+    """
     power = np.sum(np.abs(Um) ** 2, axis=(1, 2))
     lines = np.flatnonzero(power > EXCITED_FRACTION * power.max(initial=0.0))
     lines = lines[lines > 0]  # the mean (DC) line carries offsets, not the response
@@ -109,13 +126,42 @@ def _average(Up: np.ndarray, Yp: np.ndarray, kept: int) -> tuple[np.ndarray, np.
         lines = lines[sv[:, -1] > 1e-8 * sv[:, 0]]
     if not lines.size:
         raise DataError("no excited line where the inputs are independent: a constant input or proportional inputs.")
-    Um, Ym, Up, Yp = Um[lines], Ym[lines], Up[:, lines], Yp[:, lines]
-    Uinv = np.linalg.pinv(Um)  # (lines, ne, m)
+    return lines
+
+
+def period_average(Up: np.ndarray, Yp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``G = Ym Um^-1`` from per-period spectra and the noise variance of its entries (eq. 2-41 to 2-43).
+
+    Parameters
+    ----------
+    Up : ndarray of shape (n_periods, n_lines, n_inputs, n_records), complex
+    Yp : ndarray of shape (n_periods, n_lines, n_outputs, n_records), complex
+
+    Returns
+    -------
+    G : ndarray of shape (n_lines, n_outputs, n_inputs)
+    var : ndarray of shape (n_lines, n_outputs, n_inputs)
+        ``E|G_est - G|^2`` from the period-to-period scatter of the residuals ``Yp - G Up``.
+    sigma2 : ndarray of shape (n_lines, n_outputs, n_records)
+        Variance of the period-mean residual of each output and record.
+    Uinv : ndarray of shape (n_lines, n_records, n_inputs)
+        The (pseudo-)inverse of the period-mean input matrix.
+    """
+    kept = Up.shape[0]
+    Um, Ym = Up.mean(axis=0), Yp.mean(axis=0)
+    Uinv = _inverse(Um)  # (lines, ne, m)
     G = Ym @ Uinv  # (lines, q, m)
     resid = Yp - G[None] @ Up  # (P, lines, q, ne)
     sigma2 = np.sum(np.abs(resid - resid.mean(axis=0)) ** 2, axis=0) / (kept - 1) / kept  # var of the mean
     var = np.einsum("kqe,kem->kqm", sigma2, np.abs(Uinv) ** 2)
-    ypow = np.mean(np.abs(Ym) ** 2, axis=2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        coh = np.where(ypow > 0, 1.0 - sigma2.mean(axis=2) / np.where(ypow > 0, ypow, 1.0), 0.0)
-    return lines, G, np.sqrt(var), np.clip(coh, 0.0, 1.0)
+    return G, var, sigma2, Uinv
+
+
+def _inverse(Um: np.ndarray) -> np.ndarray:
+    """``Um^-1`` line by line: the plain inverse when square (a tenth of the SVD's cost), else the pseudo-inverse."""
+    if Um.shape[-1] == Um.shape[-2]:
+        try:
+            return np.linalg.inv(Um)
+        except np.linalg.LinAlgError:
+            pass  # a singular line: the pseudo-inverse for all
+    return np.linalg.pinv(Um)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -144,7 +145,12 @@ def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
     import zipfile
 
     try:
-        with zipfile.ZipFile(path) as zf:
+        # np.load has parsed the zip directory already; reopening it per member cost more than the read
+        zf = getattr(archive, "zip", None)
+        if zf is None:
+            with zipfile.ZipFile(path) as own:
+                info = own.getinfo(key + ".npy")
+        else:
             info = zf.getinfo(key + ".npy")
         if info.compress_type != zipfile.ZIP_STORED:
             return archive[key]
@@ -160,14 +166,43 @@ def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
             version = np.lib.format.read_magic(fh)
             if version not in ((1, 0), (2, 0)):
                 return archive[key]
-            reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-            shape, fortran, dtype = reader(fh)
+            parsed = _plain_header(fh, version)
+            if parsed is None:
+                reader = (
+                    np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                )
+                shape, fortran, dtype = reader(fh)
+            else:
+                shape, fortran, dtype = parsed
             offset = fh.tell()
         if fortran or dtype.hasobject or len(shape) != 1:
             return archive[key]
         return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape)
     except (KeyError, ValueError, OSError, zipfile.BadZipFile):
         return archive[key]
+
+
+#: The header ``np.save`` writes for a 1-D array of a plain dtype (the common case, read without ``ast``).
+_PLAIN_HEADER = re.compile(
+    r"\{'descr': '([<>|=]?[fiuc]\d+)', 'fortran_order': (True|False), 'shape': \((\d+),\), \}\s*"
+)
+
+
+def _plain_header(fh, version: tuple[int, int]) -> tuple[tuple[int], bool, np.dtype] | None:
+    """Shape, order and dtype of a 1-D array's ``.npy`` header parsed directly; None (the file
+    position restored) for any other header, which numpy's own reader then parses.
+
+    numpy's reader evaluates the header with ``ast.literal_eval``: a fifth of the time of reading
+    a few hundred memory-mapped members.
+    """
+    start = fh.tell()
+    size_bytes = 2 if version == (1, 0) else 4
+    size = int.from_bytes(fh.read(size_bytes), "little")
+    match = _PLAIN_HEADER.fullmatch(fh.read(size).decode("latin1"))
+    if match is None:
+        fh.seek(start)
+        return None
+    return (int(match.group(3)),), match.group(2) == "True", np.dtype(match.group(1))
 
 
 def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: float) -> float:

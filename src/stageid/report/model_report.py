@@ -158,6 +158,15 @@ def frf_section(
         f"{source} frequency response ({frd.freqs[0]:.3g}-{frd.freqs[-1]:.3g} Hz; shaded: +-2 std) "
         "with the model dashed; bottom: coherence.",
     )
+    if frd.total_std is not None:
+        from ..frf.bla_figure import bla_figure
+
+        report.figure(
+            bla_figure(frd),
+            f"Best linear approximation ({source}): |BLA| (line), total distortion level from the "
+            "realisation-to-realisation scatter (red) and noise level from the period-to-period scatter "
+            "(green); where red stands above green the stage's nonlinearity, not noise, sets the scatter.",
+        )
     if not np.any(keep):
         report.paragraph(f"No line of the {source} response has coherence >= {COHERENT}: no error is computed.")
         return

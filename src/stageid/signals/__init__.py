@@ -17,12 +17,14 @@ Broadband random (``random``)
 ``band_limited_random``  Gaussian noise with no FFT energy outside ``[f_low, f_high]``
 ``prbs``                 maximum-length (LFSR) or random binary sequence, multi-channel
 
-Periodic (``periodic``)
-=======================
+Periodic (``periodic``, ``multisine``)
+======================================
 ``sine``                 sine wave
 ``triangle``             triangle wave in phase with ``sine``
-``multisine``            random-phase or Schroeder multisine on the FFT grid of its period
-``multisine_lines``      the FFT lines a multisine excites
+``multisine``            random-phase or Schroeder multisine: line sets with detection lines,
+                         realisations, crest-factor clipping, band shape, orthogonal MIMO
+``multisine_lines``      the FFT lines inside a multisine's band
+``multisine_plan``       excited and detection lines, amplitudes, experiments of a design
 
 Hysteresis identification (``hysteresis``)
 ==========================================
@@ -43,7 +45,8 @@ Helpers and registry
 
 from ._common import check_limits, crest_factor, time_vector
 from .hysteresis import decay_envelope, decaying_sine, decaying_triangle, forc_staircase
-from .periodic import multisine, multisine_lines, sine, triangle
+from .multisine import multisine, multisine_lines, multisine_plan
+from .periodic import sine, triangle
 from .random import band_limited_random, prbs
 from .registry import SIGNAL_KINDS, generate, signal_parameters
 from .sweeps import chirp, log_chirp
@@ -57,6 +60,7 @@ __all__ = [
     "triangle",
     "multisine",
     "multisine_lines",
+    "multisine_plan",
     "decaying_sine",
     "decaying_triangle",
     "decay_envelope",

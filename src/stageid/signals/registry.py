@@ -16,7 +16,8 @@ import numpy as np
 
 from .._errors import SignalError
 from .hysteresis import decaying_sine, decaying_triangle, forc_staircase
-from .periodic import multisine, sine, triangle
+from .multisine import multisine
+from .periodic import sine, triangle
 from .random import band_limited_random, prbs
 from .sweeps import chirp, log_chirp
 
