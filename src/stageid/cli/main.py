@@ -29,6 +29,7 @@ Examples:
   stageid export c hyst.json --prefix comp --inverse -o build/   # C99 compensator: build/comp.h, .c
   stageid frf noise.csv --inputs u --outputs y -o frf.csv   # measured FRF + coherence + std
   stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
+  stageid serve data/                               # the identification boards in the browser
 """
 
 # (module, attribute, parent group): each command lives in its own module.
@@ -48,6 +49,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.identify_frd", "frd_command", "identify"),
     ("stageid.cli.validate", "validate_command", "cli"),
     ("stageid.cli.batch", "batch_command", "cli"),
+    ("stageid.cli.serve", "serve_command", "cli"),
 ]
 
 
