@@ -112,9 +112,12 @@ def _zip_folder(session: Session, model: str) -> None:
 
 
 def export_file(session: Session, name: str) -> tuple[bytes, str]:
-    """The bytes and media type of an exported file of the session (only names exports make)."""
-    for pattern, media in EXPORT_FORMATS.values():
-        for model in session.models:
-            if name == pattern.format(m=model) and (session.workspace / name).is_file():
-                return (session.workspace / name).read_bytes(), media
+    """The bytes and media type of a file the session made: an export, or a data set's file."""
+    made = {pattern.format(m=model): media for pattern, media in EXPORT_FORMATS.values() for model in session.models}
+    made |= {
+        d["file"]: "text/csv" if d["file"].endswith(".csv") else "application/octet-stream"
+        for d in session.datasets.values()
+    }
+    if name in made and (session.workspace / name).is_file():
+        return (session.workspace / name).read_bytes(), made[name]
     raise DataError(f"no exported file {name!r} in this session.")

@@ -10,6 +10,7 @@ result.  The page polls a job for its state and elapsed time.
 
 from __future__ import annotations
 
+import os
 import shlex
 import subprocess
 import sys
@@ -88,10 +89,21 @@ def _finish_step(job: Job, then: Callable[[], dict[str, Any]]) -> None:
         job.finish("failed", error=f"stageid: error: {' '.join(str(exc).split())}")
 
 
+def _child_environment() -> dict[str, str]:
+    """The environment of a command: the child imports the same stageid as this server."""
+    import stageid
+
+    env = dict(os.environ)
+    here = str(Path(stageid.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (here, env.get("PYTHONPATH", "")) if p)
+    return env
+
+
 def _run_command(job: Job, args: list[str], cwd: Path, then: Callable[[], dict[str, Any]]) -> None:
     err_path = cwd / f"{job.key}.stderr"
+    command = [sys.executable, "-m", "stageid", *args]
     with open(err_path, "wb") as err, open(cwd / f"{job.key}.stdout", "wb") as out:
-        job._process = subprocess.Popen([sys.executable, "-m", "stageid", *args], cwd=cwd, stdout=out, stderr=err)
+        job._process = subprocess.Popen(command, cwd=cwd, stdout=out, stderr=err, env=_child_environment())
         while job._process.poll() is None:
             if job._cancel.wait(_POLL_S):
                 job._process.terminate()

@@ -88,6 +88,7 @@ async function prepare() {
   figures($("data-figures"), d.figures);
   $("data-python").textContent = d.python;
   $("record-info").textContent = `data set ${d.name} made`;
+  const a = $("data-download"); a.href = "/api/files/" + d.file; a.download = d.file; a.textContent = "download " + d.file; a.hidden = false;
   await refresh();
   $("estimate-data").value = d.name;
 }
