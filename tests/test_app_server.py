@@ -284,3 +284,19 @@ def test_serve_command_prints_its_address(folder, host):
     finally:
         process.terminate()
         process.wait(timeout=10)
+
+
+def test_records_without_time_column_and_frf_tables(client, folder):
+    write_csv(folder / "no_t.csv", _record(2, 200))
+    response = client.get("/api/inspect", params={"source": "folder", "name": "no_t.csv"})
+    assert response.status_code == 400 and "no time column" in response.json()["error"]
+    info = client.get("/api/inspect", params={"source": "folder", "name": "no_t.csv", "ts": "0.001"}).json()
+    assert info["kind"] == "time" and info["dt"] == 0.001
+
+    f = np.linspace(1.0, 100.0, 50)
+    g = 1.0 / (1.0 + 1j * f / 20.0)
+    write_csv(folder / "frf.csv", {"f_hz": f, "re_y_u": g.real, "im_y_u": g.imag})
+    info = client.get("/api/inspect", params={"source": "folder", "name": "frf.csv"}).json()
+    assert info["kind"] == "frd" and info["responses"]["response"]["n_freqs"] == 50
+    d = client.post("/api/prepare", json={"source": "folder", "name": "frf.csv", "settings": {"fmax": 50.0}}).json()
+    assert d["kind"] == "frd" and d["band"][1] <= 50.0 and d["inputs"] == ["u"] and "<svg" in d["figures"]["bode"]

@@ -81,15 +81,26 @@ def mat_struct_responses(path: Path) -> dict[str, Any]:
     return responses
 
 
-def _read(path: Path) -> tuple[str, Any]:
-    """``("time", Table)``, ``("frd", {name: FrequencyResponse})`` for a record file."""
+def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
+    """``("time", Table)`` or ``("frd", {name: FrequencyResponse})`` for a record file.
+
+    ``ts`` is the sample time of a time record without a ``t`` column.  A file that is not a
+    time record is tried as a frequency response (an FRF table, or MATLAB structs); when it is
+    neither, the table reader's message is the one raised.
+    """
     from ..data.io import read_table
-    from ..frf.frd import frd_from_columns
+    from ..frf.frd import frd_from_columns, read_frd
 
     try:
-        table = read_table(path)
+        table = read_table(path, ts)
     except DataError:
-        responses = mat_struct_responses(path) if path.suffix.lower() == ".mat" else {}
+        if path.suffix.lower() == ".mat":
+            responses = mat_struct_responses(path)
+        else:
+            try:
+                responses = {"response": read_frd(path)}
+            except DataError:
+                responses = {}
         if not responses:
             raise
         return "frd", responses
@@ -98,9 +109,9 @@ def _read(path: Path) -> tuple[str, Any]:
     return "time", table
 
 
-def inspect_record(path: Path) -> dict[str, Any]:
+def inspect_record(path: Path, ts: float | None = None) -> dict[str, Any]:
     """What the page shows of a record before preparing it: kind, channels, length, sampling."""
-    kind, content = _read(path)
+    kind, content = _read(path, ts)
     if kind == "frd":
         return {
             "kind": "frd",
@@ -143,7 +154,8 @@ def prepare_time(path: Path, target: Path, settings: dict[str, Any]) -> dict[str
     detrend = settings.get("detrend") or "none"
     if detrend not in ("none", "constant", "linear"):
         raise DataError(f"detrend must be none, constant or linear; got {detrend!r}.")
-    exp = read_table(path).experiment(settings.get("inputs") or [], settings.get("outputs") or [], name=target.stem)
+    ts = settings.get("ts")
+    exp = read_table(path, ts).experiment(settings.get("inputs") or [], settings.get("outputs") or [], name=target.stem)
     i0 = _seconds_to_index(settings.get("start"), exp, 0)
     i1 = _seconds_to_index(settings.get("stop"), exp, exp.n_samples)
     if i1 - i0 < 2:
@@ -154,7 +166,7 @@ def prepare_time(path: Path, target: Path, settings: dict[str, Any]) -> dict[str
     write_npz(target, exp)
     python = [
         "from stageid.data.io import read_table, write_npz",
-        f"exp = read_table({str(path)!r}).experiment({list(exp.input_names)!r}, {list(exp.output_names)!r})",
+        f"exp = read_table({str(path)!r}{'' if ts is None else f', ts={ts!r}'}).experiment({list(exp.input_names)!r}, {list(exp.output_names)!r})",
         f"exp = exp.slice({i0}, {i1})",
     ]
     if detrend != "none":

@@ -105,7 +105,7 @@ async def state(request: Request) -> Response:
         {
             "folder": str(request.app.state.folder),
             "records": list_records(request.app.state.folder),
-            "uploads": sorted(p.name for p in session.uploads.iterdir()),
+            "uploads": sorted(p.name for p in session.uploads.iterdir() if not p.name.startswith(".")),
             "max_upload_mb": request.app.state.max_upload_mb,
             "datasets": {k: {n: v for n, v in d.items() if n != "figures"} for k, d in session.datasets.items()},
             "models": session.models,
@@ -138,24 +138,36 @@ async def upload(request: Request) -> Response:
         partial.unlink()
         return JSONResponse({"error": f"stageid: error: {too_big}"}, status_code=413)
     try:
-        info = await run_in_threadpool(inspect_record, partial.rename(target))
+        ts = _sample_time(request.query_params.get("ts"))
+        info = await run_in_threadpool(inspect_record, partial.rename(target), ts)
     except StageIdError:
         target.unlink()  # a file the readers refuse is not kept
         raise
     return JSONResponse({"name": name, "source": "upload", **info})
 
 
+def _sample_time(text: Any) -> float | None:
+    """The sample time the page gives for records without a time column (empty: none)."""
+    if text in (None, ""):
+        return None
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise DataError(f"the sample time must be a number of seconds; got {text!r}.") from None
+
+
 async def inspect(request: Request) -> Response:
     path = _source_path(request, request.query_params.get("source", "folder"), request.query_params.get("name", ""))
-    return JSONResponse(await run_in_threadpool(inspect_record, path))
+    return JSONResponse(await run_in_threadpool(inspect_record, path, _sample_time(request.query_params.get("ts"))))
 
 
 async def prepare(request: Request) -> Response:
     session = request.state.session
     body = await _body(request)
     path = _source_path(request, str(body.get("source", "folder")), str(body.get("name", "")))
-    settings = body.get("settings") or {}
-    info = await run_in_threadpool(inspect_record, path)
+    settings = dict(body.get("settings") or {})
+    settings["ts"] = _sample_time(settings.get("ts"))
+    info = await run_in_threadpool(inspect_record, path, settings["ts"])
     out = session.next_name("d")
     if info["kind"] == "frd":
         entry = await run_in_threadpool(prepare_frd, path, session.workspace / f"{out}.csv", settings)

@@ -31,6 +31,8 @@ def serve_command(folder: str, port: int, host: str, max_upload_mb: float) -> No
     """Serve FOLDER's records (CSV, NPZ, MAT, HDF5, FRF tables) to a local web page: look at them,
     estimate models, compare them on held-out records and export them.  Every action shows the
     equivalent stageid command and Python call.  Stop with Ctrl-C."""
+    import contextvars
+    import signal
     import socket
     import tempfile
 
@@ -53,4 +55,18 @@ def serve_command(folder: str, port: int, host: str, max_upload_mb: float) -> No
         address = f"http://{shown}:{sock.getsockname()[1]}/" + (f"?token={token}" if token else "")
         click.echo(f"stageid serve: {address}  (records of {folder}; Ctrl-C stops)", err=False)
         server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
-        server.run(sockets=[sock])
+        # outside the command's output transaction (stageid.atomic): the boards' files must
+        # appear as they are written, not when the server stops
+        previous = signal.signal(signal.SIGTERM, _stop)  # so the scratch folder is removed on kill
+        try:
+            contextvars.Context().run(server.run, sockets=[sock])
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+            for session in app.state.sessions.all():  # no fit outlives the server
+                for job in list(session.jobs.values()):
+                    job.cancel()
+
+
+def _stop(signum, frame) -> None:
+    """SIGTERM ends the server like Ctrl-C does, through the cleanup of its scratch folder."""
+    raise SystemExit(0)

@@ -63,14 +63,15 @@ function showRecord(info) {
 
 async function openRecord() {
   current = splitRecord($("record").value);
-  current.info = await api(`/api/inspect?source=${current.source}&name=${encodeURIComponent(current.name)}`);
+  const ts = encodeURIComponent($("ts").value.trim());
+  current.info = await api(`/api/inspect?source=${current.source}&name=${encodeURIComponent(current.name)}&ts=${ts}`);
   showRecord(current.info);
 }
 
 async function uploadFile() {
   const file = $("upload").files[0];
   if (!file) return;
-  const info = await api(`/api/upload?name=${encodeURIComponent(file.name)}`, file, true);
+  const info = await api(`/api/upload?name=${encodeURIComponent(file.name)}&ts=${encodeURIComponent($("ts").value.trim())}`, file, true);
   await refresh();
   $("record").value = "upload:" + info.name;
   current = { source: "upload", name: info.name, info };
@@ -82,7 +83,8 @@ const number = (id) => ($(id).value.trim() === "" ? null : Number($(id).value));
 
 async function prepare() {
   const settings = current.info.kind === "time"
-    ? { inputs: chosen($("inputs")), outputs: chosen($("outputs")), start: number("start"), stop: number("stop"), detrend: $("detrend").value }
+    ? { inputs: chosen($("inputs")), outputs: chosen($("outputs")), start: number("start"), stop: number("stop"),
+        detrend: $("detrend").value, ts: $("ts").value.trim() }
     : { response: $("response").value, fmin: number("band-fmin"), fmax: number("band-fmax") };
   const d = await api("/api/prepare", { source: current.source, name: current.name, settings });
   figures($("data-figures"), d.figures);
