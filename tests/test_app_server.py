@@ -93,6 +93,9 @@ def test_data_board_trims_detrends_and_plots(client):
     assert "exp.slice(500, 2500)" in d["python"] and "remove_offset(exp, 'constant')" in d["python"]
     data = np.load(io.BytesIO(client.get(f"/api/files/{d['file']}").content))
     assert abs(float(np.mean(data["y"]))) < 1e-9  # the constant offset of 0.5 is gone
+    decimated = prepare(client, decimate=4)
+    assert decimated["n_samples"] == 750 and decimated["dt"] == pytest.approx(4 * DT)
+    assert "decimate(exp, 4)" in decimated["python"]
 
 
 def test_frf_estimate_is_the_cli_output_byte_for_byte(client, tmp_path):

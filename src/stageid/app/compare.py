@@ -13,7 +13,7 @@ import zipfile
 from typing import Any
 
 from .._errors import DataError
-from .estimate import Action, model_bode
+from .estimate import Action, channel_args, model_bode, reading
 from .records import svg
 from .sessions import Session
 
@@ -39,21 +39,10 @@ def compare(session: Session, model: str, data: str, out: str) -> Action:
     d = session.datasets.get(data)
     if d is None or d["kind"] != "time":
         raise DataError(f"compare needs a time record; {data!r} is {'not a data set' if d is None else d['kind']}.")
-    args = [
-        "validate",
-        f"{model}.json",
-        d["file"],
-        "--inputs",
-        ",".join(d["inputs"]),
-        "--outputs",
-        ",".join(d["outputs"]),
-        "--json",
-        f"{out}.json",
-    ]
+    args = ["validate", f"{model}.json", d["file"], *channel_args(d), "--json", f"{out}.json"]
     python = (
-        "from stageid.models import load_model\nfrom stageid.data.io import read_table\n"
-        "from stageid.validation.residuals import validate_model\n"
-        f"exp = read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r})\n"
+        "from stageid.models import load_model\nfrom stageid.validation.residuals import validate_model\n"
+        f"{reading(d)}\n"
         f"result = validate_model(load_model({model + '.json'!r}), [exp], 25, 0.01)"
     )
 

@@ -17,7 +17,7 @@ from .._errors import DataError
 from .records import frd_description, svg
 from .sessions import Session
 
-__all__ = ["ESTIMATES", "Action", "model_bode", "singular_values"]
+__all__ = ["ESTIMATES", "Action", "model_bode", "singular_values", "channel_args", "reading"]
 
 #: (command arguments, Python call, finishing step returning the page's result)
 Action = tuple[list[str], str, Callable[[], dict[str, Any]]]
@@ -46,6 +46,19 @@ def _optional(args: list[str], options: dict[str, Any], pairs: list[tuple[str, s
         if value is not None:
             args += [flag, value]
     return args
+
+
+def channel_args(d: dict[str, Any]) -> list[str]:
+    """``--inputs A,B --outputs Y`` of a time data set, as the commands take them."""
+    return ["--inputs", ",".join(d["inputs"]), "--outputs", ",".join(d["outputs"])]
+
+
+def reading(d: dict[str, Any]) -> str:
+    """The Python lines that read a time data set as an experiment ``exp``."""
+    return (
+        "from stageid.data.io import read_table\n"
+        f"exp = read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r})"
+    )
 
 
 def model_bode(model: Any, frd: Any = None) -> str:
@@ -80,16 +93,7 @@ def _register_model(session: Session, name: str, kind: str, source: str, summary
 def frf(session: Session, data: str, options: dict[str, Any], out: str) -> Action:
     d = _dataset(session, data, "time")
     method = _text(options, "method", "welch")
-    args = [
-        "frf",
-        d["file"],
-        "--inputs",
-        ",".join(d["inputs"]),
-        "--outputs",
-        ",".join(d["outputs"]),
-        "--method",
-        method,
-    ]
+    args = ["frf", d["file"], *channel_args(d), "--method", method]
     _optional(args, options, [("segment", "--segment"), ("periods", "--periods")])
     args += ["-o", f"{out}.csv"]
     call = {
@@ -113,24 +117,10 @@ def frf(session: Session, data: str, options: dict[str, Any], out: str) -> Actio
 def statespace(session: Session, data: str, options: dict[str, Any], out: str) -> Action:
     d = _dataset(session, data, "time")
     order, horizon = _text(options, "order", "auto"), _text(options, "horizon", "auto")
-    args = [
-        "identify",
-        "statespace",
-        d["file"],
-        "--inputs",
-        ",".join(d["inputs"]),
-        "--outputs",
-        ",".join(d["outputs"]),
-        "--order",
-        order,
-        "--horizon",
-        horizon,
-        "-o",
-        f"{out}.json",
-    ]
+    args = ["identify", "statespace", d["file"], *channel_args(d), "--order", order, "--horizon", horizon]
+    args += ["-o", f"{out}.json"]
     python = (
-        "from stageid.data.io import read_table\nfrom stageid.subspace import HankelMAP\n"
-        f"exp = read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r})\n"
+        f"from stageid.subspace import HankelMAP\n{reading(d)}\n"
         f"result = HankelMAP(horizon={_literal(horizon)}, order={_literal(order)}).fit(exp)\n"
         f"save_model(result.model, {out + '.json'!r})  # from stageid.models"
     )

@@ -145,10 +145,11 @@ def prepare_time(path: Path, target: Path, settings: dict[str, Any]) -> dict[str
     """Channels picked, trimmed to ``[start, stop)`` seconds, detrended; written to ``target`` (NPZ).
 
     ``settings``: ``inputs``, ``outputs`` (lists of column names), ``start``/``stop`` (s, or
-    None for the record's ends), ``detrend`` (``none``, ``constant`` or ``linear``).
+    None for the record's ends), ``detrend`` (``none``, ``constant`` or ``linear``), ``decimate``
+    (keep every k-th sample after an anti-aliasing low-pass; 1 or None: keep all), ``ts``.
     """
     from ..data.io import read_table, write_npz
-    from ..data.preprocess import remove_offset
+    from ..data.preprocess import decimate, remove_offset
     from ..plots.records import record_figure, spectrum_figure
 
     detrend = settings.get("detrend") or "none"
@@ -161,6 +162,12 @@ def prepare_time(path: Path, target: Path, settings: dict[str, Any]) -> dict[str
     if i1 - i0 < 2:
         raise DataError(f"the trim range keeps {max(i1 - i0, 0)} samples; expected at least 2.")
     exp = exp.slice(i0, i1)
+    factor = settings.get("decimate") or 1
+    if isinstance(factor, bool) or not isinstance(factor, (int, float)) or factor != int(factor) or factor < 1:
+        raise DataError(f"decimate must be a whole number >= 1; got {factor!r}.")
+    factor = int(factor)
+    if factor > 1:
+        exp = decimate(exp, factor)
     if detrend != "none":
         exp, _ = remove_offset(exp, detrend)
     write_npz(target, exp)
@@ -169,6 +176,8 @@ def prepare_time(path: Path, target: Path, settings: dict[str, Any]) -> dict[str
         f"exp = read_table({str(path)!r}{'' if ts is None else f', ts={ts!r}'}).experiment({list(exp.input_names)!r}, {list(exp.output_names)!r})",
         f"exp = exp.slice({i0}, {i1})",
     ]
+    if factor > 1:
+        python += ["from stageid.data.preprocess import decimate", f"exp = decimate(exp, {factor})"]
     if detrend != "none":
         python += [
             "from stageid.data.preprocess import remove_offset",

@@ -84,7 +84,7 @@ const number = (id) => ($(id).value.trim() === "" ? null : Number($(id).value));
 async function prepare() {
   const settings = current.info.kind === "time"
     ? { inputs: chosen($("inputs")), outputs: chosen($("outputs")), start: number("start"), stop: number("stop"),
-        detrend: $("detrend").value, ts: $("ts").value.trim() }
+        detrend: $("detrend").value, ts: $("ts").value.trim(), decimate: number("decimate") }
     : { response: $("response").value, fmin: number("band-fmin"), fmax: number("band-fmax") };
   const d = await api("/api/prepare", { source: current.source, name: current.name, settings });
   figures($("data-figures"), d.figures);
@@ -104,16 +104,18 @@ function estimateOptions(method) {
 }
 
 function follow(state, done) {
-  job = state;
+  job = state; // the one the Cancel button stops
   $("job").hidden = false;
   $("job-title").textContent = state.title;
   const tick = async () => {
-    const s = await api(`/api/jobs/${job.id}`).catch(() => null);
+    const s = await api(`/api/jobs/${state.id}`).catch(() => null);
     if (!s) return;
-    $("job-elapsed").textContent = `${s.elapsed.toFixed(1)} s`;
-    $("job-status").textContent = s.status;
-    $("job-progress").hidden = s.status !== "running";
-    $("job-cancel").disabled = s.status !== "running";
+    if (job.id === state.id) {
+      $("job-elapsed").textContent = `${s.elapsed.toFixed(1)} s`;
+      $("job-status").textContent = s.status;
+      $("job-progress").hidden = s.status !== "running";
+      $("job-cancel").disabled = s.status !== "running";
+    }
     if (s.status === "running") { setTimeout(tick, 250); return; }
     if (s.status === "done") { await done(s); await refresh(); } else { showError(s.error); }
   };
@@ -134,7 +136,7 @@ async function runEstimate() {
 async function runOrder() {
   const s = await api("/api/order", { data: $("estimate-data").value, options: { horizon: $("opt-horizon").value } });
   $("estimate-cli").textContent = ""; $("estimate-python").textContent = s.python;
-  follow(s, (done) => figures($("estimate-figures"), done.result.figures));
+  follow(s, (done) => figures($("order-figures"), done.result.figures));
 }
 
 function validationTable(summary) {
