@@ -78,7 +78,8 @@ def test_fit_bode_and_export_in_the_browser(server, record, tmp_path):
     folder, name, response, settings = record
     with playwright.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1200, "height": 900}, accept_downloads=True)
+        context = browser.new_context(viewport={"width": 1200, "height": 900})
+        page = context.new_page()
         page.goto(server)
         page.select_option("#record", f"folder:{name}")
         page.click("#inspect")
@@ -107,6 +108,12 @@ def test_fit_bode_and_export_in_the_browser(server, record, tmp_path):
         page.wait_for_selector("#download:not([hidden])")
         exported = _fetch(page, "#download")
         _shoot(page, "serve-export", tmp_path)
+
+        other_tab = context.new_page()  # same browser, same cookies: a session of its own
+        other_tab.goto(server)
+        other_tab.wait_for_function("document.querySelector('#record').options.length > 0")
+        assert other_tab.eval_on_selector("#export-model", "s => s.options.length") == 0
+        assert page.eval_on_selector("#export-model", "s => s.options.length") == 1
         browser.close()
 
     args = shlex.split(command)

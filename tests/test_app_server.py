@@ -247,6 +247,23 @@ def test_two_sessions_do_not_share_state(folder, tmp_path):
         assert first.cookies["stageid_session"] != second.cookies["stageid_session"]
 
 
+def test_two_tabs_of_one_browser_are_two_sessions(client):
+    """Tabs share cookies; the page sends its tab's key in a header instead."""
+    keys = [client.get("/api/state", headers={"X-Stageid-Session": ""}).headers["x-stageid-session"] for _ in range(2)]
+    assert keys[0] != keys[1]
+    settings = {"inputs": ["u"], "outputs": ["y"]}
+    made = client.post(
+        "/api/prepare",
+        json={"source": "folder", "name": "run.csv", "settings": settings},
+        headers={"X-Stageid-Session": keys[0]},
+    ).json()
+    assert list(client.get("/api/state", headers={"X-Stageid-Session": keys[0]}).json()["datasets"]) == [made["name"]]
+    assert client.get("/api/state", headers={"X-Stageid-Session": keys[1]}).json()["datasets"] == {}
+    assert client.get("/api/state").json()["datasets"] == {}  # the cookie's session is a third one
+    assert client.get(f"/api/files/{made['file']}", params={"session": keys[0]}).status_code == 200
+    assert client.get(f"/api/files/{made['file']}", params={"session": keys[1]}).status_code == 400
+
+
 def test_token_is_required_when_asked(folder, tmp_path):
     with TestClient(create_app(folder, tmp_path / "scratch", token="s3cret")) as c:
         assert c.get("/").status_code == 403

@@ -28,9 +28,10 @@ from .jobs import Job, start_command, start_function
 from .records import inspect_record, prepare_frd, prepare_time
 from .sessions import SessionStore, list_records, record_path, upload_name
 
-__all__ = ["create_app", "new_token", "SESSION_COOKIE", "TOKEN_COOKIE", "DEFAULT_MAX_UPLOAD_MB"]
+__all__ = ["create_app", "new_token", "SESSION_COOKIE", "SESSION_HEADER", "TOKEN_COOKIE", "DEFAULT_MAX_UPLOAD_MB"]
 
 SESSION_COOKIE = "stageid_session"
+SESSION_HEADER = "x-stageid-session"
 TOKEN_COOKIE = "stageid_token"
 DEFAULT_MAX_UPLOAD_MB = 200.0
 STATIC = Path(__file__).with_name("static")
@@ -49,8 +50,20 @@ async def _bug(request: Request, exc: Exception) -> Response:
     return JSONResponse({"error": f"stageid: internal error: {type(exc).__name__}: {_one_line(exc)}"}, status_code=500)
 
 
+def _session_key(request: Request) -> str | None:
+    """The session a request belongs to: the page's per-tab header, a ``?session=`` link, or the cookie.
+
+    The page keeps its key in the tab's own storage and sends it as a header, so two tabs of one
+    browser (which share cookies) are two sessions; a request that sends the header never falls
+    back to the cookie.  Plain HTTP clients use the cookie.
+    """
+    if SESSION_HEADER in request.headers:
+        return request.headers[SESSION_HEADER]
+    return request.query_params.get("session") or request.cookies.get(SESSION_COOKIE)
+
+
 class _Guard(BaseHTTPMiddleware):
-    """The token check (when the server listens beyond this machine) and the session cookie."""
+    """The token check (when the server listens beyond this machine) and the session of API calls."""
 
     async def dispatch(self, request: Request, call_next):
         config = request.app.state
@@ -63,14 +76,18 @@ class _Guard(BaseHTTPMiddleware):
                     "printed (with ?token=...).",
                     status_code=403,
                 )
-        session = config.sessions.get(request.cookies.get(SESSION_COOKIE))
-        fresh = session is None
-        if fresh:
-            session = config.sessions.new()
-        request.state.session = session
-        response = await call_next(request)
-        if fresh:
-            response.set_cookie(SESSION_COOKIE, session.key, httponly=True, samesite="strict")
+        if not request.url.path.startswith("/api/"):  # the page and its files need no session
+            response = await call_next(request)
+        else:
+            session = config.sessions.get(_session_key(request))
+            fresh = session is None
+            if fresh:
+                session = config.sessions.new()
+            request.state.session = session
+            response = await call_next(request)
+            response.headers[SESSION_HEADER] = session.key
+            if fresh and SESSION_HEADER not in request.headers:
+                response.set_cookie(SESSION_COOKIE, session.key, httponly=True, samesite="strict")
         if config.token is not None and given_token:
             response.set_cookie(TOKEN_COOKIE, config.token, httponly=True, samesite="strict")
         return response

@@ -6,10 +6,17 @@ let job = null;     // the job being polled
 
 function showError(text) { const e = $("error"); e.textContent = text || ""; e.hidden = !text; }
 
+// this tab's session: kept in the tab's own storage, so two tabs never share their work
+const sessionKey = () => sessionStorage.getItem("stageid-session") || "";
+const fileLink = (name) => `/api/files/${encodeURIComponent(name)}?session=${encodeURIComponent(sessionKey())}`;
+
 async function api(path, body, raw) {
-  const opts = body === undefined ? {} : { method: "POST", body: raw ? body : JSON.stringify(body),
-    headers: raw ? {} : { "Content-Type": "application/json" } };
+  const headers = { "X-Stageid-Session": sessionKey() };
+  if (body !== undefined && !raw) headers["Content-Type"] = "application/json";
+  const opts = body === undefined ? { headers } : { method: "POST", body: raw ? body : JSON.stringify(body), headers };
   const response = await fetch(path, opts);
+  const key = response.headers.get("X-Stageid-Session");
+  if (key) sessionStorage.setItem("stageid-session", key);
   const data = await response.json().catch(() => ({ error: `stageid: error: server answered ${response.status}` }));
   if (!response.ok || data.error) { showError(data.error); throw new Error(data.error); }
   showError("");
@@ -90,7 +97,7 @@ async function prepare() {
   figures($("data-figures"), d.figures);
   $("data-python").textContent = d.python;
   $("record-info").textContent = `data set ${d.name} made`;
-  const a = $("data-download"); a.href = "/api/files/" + d.file; a.download = d.file; a.textContent = "download " + d.file; a.hidden = false;
+  const a = $("data-download"); a.href = fileLink(d.file); a.download = d.file; a.textContent = "download " + d.file; a.hidden = false;
   await refresh();
   $("estimate-data").value = d.name;
 }
@@ -159,7 +166,7 @@ async function runExport() {
   const s = await api("/api/export", { model: $("export-model").value, format: $("export-format").value, options: { prefix: $("export-prefix").value } });
   $("export-cli").textContent = s.cli || "(the model file the estimate's command wrote)"; $("export-python").textContent = s.python;
   $("download").hidden = true;
-  follow(s, (done) => { const a = $("download"); a.href = done.result.download; a.download = done.result.file; a.textContent = "download " + done.result.file; a.hidden = false; });
+  follow(s, (done) => { const a = $("download"); a.href = fileLink(done.result.file); a.download = done.result.file; a.textContent = "download " + done.result.file; a.hidden = false; });
 }
 
 function showBoard(name) {
