@@ -1,6 +1,7 @@
 """stageid serve, server side: every board action through an HTTP client, and the robustness
 rules (one-line errors, path traversal, upload size, cancel, separate sessions, token)."""
 
+import contextlib
 import io
 import shlex
 import subprocess
@@ -66,15 +67,15 @@ def prepare(client, name="run.csv", **settings):
 
 
 def reproduce(client, tmp_path, job_state, files):
-    """Run the command the page showed, on downloaded copies of its inputs, in a fresh folder."""
+    """Run the command the page showed (in process), on downloaded copies of its inputs, in a fresh folder."""
     work = tmp_path / f"cli-{job_state['id']}"
     work.mkdir()
     for name in files:
         (work / name).write_bytes(client.get(f"/api/files/{name}").content)
     args = shlex.split(job_state["cli"])
     assert args[0] == "stageid"
-    result = subprocess.run([sys.executable, "-m", "stageid", *args[1:]], cwd=work, capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    with contextlib.chdir(work):
+        assert cli_main(args[1:]) == 0
     return work
 
 
@@ -320,3 +321,21 @@ def test_records_without_time_column_and_frf_tables(client, folder):
     assert info["kind"] == "frd" and info["responses"]["response"]["n_freqs"] == 50
     d = client.post("/api/prepare", json={"source": "folder", "name": "frf.csv", "settings": {"fmax": 50.0}}).json()
     assert d["kind"] == "frd" and d["band"][1] <= 50.0 and d["inputs"] == ["u"] and "<svg" in d["figures"]["bode"]
+
+
+def test_hysteresis_estimate_draws_its_loops(client, folder):
+    subprocess.run(
+        [sys.executable, "-m", "stageid", "plants", "piezo-actuator", "--experiment", "triangle-1hz", "-o", "tri.csv"],
+        cwd=folder,
+        check=True,
+        capture_output=True,
+    )
+    d = prepare(client, "tri.csv", inputs=["V"], outputs=["y"], detrend="none", stop=1.0)
+    job = client.post("/api/estimate", json={"method": "hysteresis", "data": d["name"], "options": {"model": "pi"}})
+    state = wait(client, job.json())
+    assert state["status"] == "done", state["error"]
+    assert state["cli"].endswith("--input V --output y --model pi -o " + state["result"]["model"]["name"] + ".json")
+    assert "pi model" in state["result"]["model"]["summary"] and "<svg" in state["result"]["figures"]["loops"]
+    two = prepare(client, "run.csv", inputs=["u"], outputs=["y"])
+    refused = client.post("/api/estimate", json={"method": "frd", "data": two["name"], "options": {}})
+    assert refused.status_code == 400 and "needs a frequency response" in refused.json()["error"]

@@ -183,8 +183,14 @@ def hysteresis(session: Session, data: str, options: dict[str, Any], out: str) -
     )
 
     def then() -> dict[str, Any]:
+        from ..data.io import read_table
+        from ..plots.hysteresis import loop_figure
+
         made = _register_model(session, out, f"hysteresis ({kind})", data, lambda: _log(session, out))
-        return {"model": made["model"], "figures": {}}
+        exp = read_table(session.workspace / d["file"]).experiment(d["inputs"], d["outputs"])
+        curves = {"measured": exp.y[:, 0], out: made["object"].simulate(exp.u[:, 0], exp.dt)}
+        loops = loop_figure(exp.u[:, 0], curves, xlabel=d["inputs"][0], ylabel=d["outputs"][0])
+        return {"model": made["model"], "figures": {"loops": svg(loops)}}
 
     return args, python, then
 
