@@ -192,6 +192,31 @@ def test_malformed_upload_is_refused_in_one_line_and_not_kept(client):
     assert client.get("/api/state").json()["uploads"] == []
 
 
+@pytest.mark.parametrize(
+    "name, content",
+    [
+        ("garbage.npz", b"PK\x03\x04 not really a zip archive"),
+        ("garbage.mat", b"MATLAB 5.0 MAT-file" + bytes(200)),
+        ("garbage.h5", b"\x89HDF\r\n\x1a\n" + bytes(64)),
+        ("empty.csv", b""),
+        ("binary.csv", bytes(range(256)) * 4),
+    ],
+)
+def test_malformed_files_of_every_format_are_refused(client, name, content):
+    response = client.post("/api/upload", params={"name": name}, content=content)
+    assert response.status_code == 400, response.text
+    assert response.json()["error"].startswith("stageid: error: ")
+    assert client.get("/api/state").json()["uploads"] == []
+
+
+def test_cancelled_singular_values_are_dropped(client):
+    d = prepare(client)
+    job = client.post("/api/order", json={"data": d["name"], "options": {"horizon": "12"}}).json()
+    assert client.post(f"/api/jobs/{job['id']}/cancel").json()["status"] == "cancelled"
+    time.sleep(0.5)
+    assert client.get(f"/api/jobs/{job['id']}").json()["result"] == {}
+
+
 def test_good_upload_can_be_opened(client, folder):
     response = client.post("/api/upload", params={"name": "mine.csv"}, content=(folder / "run.csv").read_bytes())
     assert response.status_code == 200 and response.json()["columns"] == ["u", "y"]

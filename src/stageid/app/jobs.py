@@ -56,6 +56,8 @@ class Job:
         process = self._process
         if process is not None and process.poll() is None:
             process.terminate()
+        elif process is None and self.status == "running":
+            self.finish("cancelled")  # a thread cannot be stopped: its result will be dropped
 
     def state(self) -> dict[str, Any]:
         end = self.ended if self.ended is not None else time.monotonic()
@@ -71,6 +73,8 @@ class Job:
         }
 
     def finish(self, status: str, error: str = "", result: dict[str, Any] | None = None) -> None:
+        if self.status == "cancelled":
+            return
         if self._cancel.is_set():
             status, error, result = "cancelled", "cancelled", None
         self.error = error

@@ -95,7 +95,10 @@ def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
         table = read_table(path, ts)
     except DataError:
         if path.suffix.lower() == ".mat":
-            responses = mat_struct_responses(path)
+            try:
+                responses = mat_struct_responses(path)
+            except (ValueError, TypeError, OSError, NotImplementedError):
+                responses = {}  # not MATLAB structs either: the table reader's message stands
         else:
             try:
                 responses = {"response": read_frd(path)}

@@ -157,7 +157,7 @@ async def upload(request: Request) -> Response:
     try:
         ts = _sample_time(request.query_params.get("ts"))
         info = await run_in_threadpool(inspect_record, partial.rename(target), ts)
-    except StageIdError:
+    except BaseException:
         target.unlink()  # a file the readers refuse is not kept
         raise
     return JSONResponse({"name": name, "source": "upload", **info})

@@ -36,9 +36,12 @@ def serve_command(folder: str, port: int, host: str, max_upload_mb: float) -> No
     import socket
     import tempfile
 
-    import uvicorn
+    try:
+        import uvicorn
 
-    from ..app.server import create_app, new_token
+        from ..app.server import create_app, new_token
+    except ImportError as exc:
+        raise DataError(f"stageid serve needs the app extra (pip install 'stageid[app]'); {exc}.") from None
 
     token = None if host in _LOOPBACK else new_token()
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
