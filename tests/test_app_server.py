@@ -364,3 +364,26 @@ def test_hysteresis_estimate_draws_its_loops(client, folder):
     two = prepare(client, "run.csv", inputs=["u"], outputs=["y"])
     refused = client.post("/api/estimate", json={"method": "frd", "data": two["name"], "options": {}})
     assert refused.status_code == 400 and "needs a frequency response" in refused.json()["error"]
+
+
+@pytest.mark.slow  # four reference-stage records and a 3x3 closed-loop fit: about 5 s of CPU
+def test_closed_loop_plant_from_one_data_set_per_reference(client, folder):
+    for args in (
+        ["--controller", "-o", "K.json"],
+        *(["--experiment", f"chirp-{a}", "-o", f"cl_{a}.csv"] for a in ("x", "y", "phi")),
+    ):
+        with contextlib.chdir(folder):
+            assert cli_main(["plants", "maglev", *args]) == 0
+    assert client.get("/api/state").json()["model_files"] == ["K.json"]
+    channels = {"inputs": ["r_x", "r_y", "r_phi"], "outputs": ["x", "y", "phi"], "detrend": "none", "stop": 4.0}
+    names = [prepare(client, f"cl_{a}.csv", **channels)["name"] for a in ("x", "y", "phi")]
+    options = {"controller": "K.json"}
+    job = client.post("/api/estimate", json={"method": "closedloop", "data": ",".join(names), "options": options})
+    state = wait(client, job.json())
+    assert state["status"] == "done", state["error"]
+    assert "--references r_x,r_y,r_phi --outputs x,y,phi --controller K_K.json" in state["cli"]
+    assert state["result"]["model"]["inputs"] == ["Fx", "Fy", "Tphi"] and "<svg" in state["result"]["figures"]["bode"]
+    refused = client.post(
+        "/api/estimate", json={"method": "closedloop", "data": names[0], "options": {"controller": "../K.json"}}
+    )
+    assert refused.status_code == 400 and "outside the served folder" in refused.json()["error"]

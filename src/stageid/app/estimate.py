@@ -195,6 +195,33 @@ def hysteresis(session: Session, data: str, options: dict[str, Any], out: str) -
     return args, python, then
 
 
+def closedloop(session: Session, data: str, options: dict[str, Any], out: str) -> Action:
+    """Closed-loop identification from one data set per excited reference and the controller's model file.
+
+    The data sets' inputs are the references, their outputs the measured outputs (same order).
+    """
+    names = [n.strip() for n in data.split(",") if n.strip()]
+    sets = [_dataset(session, n, "time") for n in names]
+    controller = _text(options, "controller")
+    if controller is None:
+        raise DataError("closed-loop identification needs the controller's model file; got none.")
+    args = ["identify", "closed-loop", *(d["file"] for d in sets)]
+    args += ["--references", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]
+    args += ["--controller", controller]
+    _optional(args, options, [("band", "--band")])
+    args += ["-o", f"{out}.json"]
+    python = (
+        "# the command runs stageid.closedloop's ClosedLoopIdentification on the records\n"
+        f"from stageid.models import load_model\nplant = load_model({out + '.json'!r})"
+    )
+
+    def then() -> dict[str, Any]:
+        made = _register_model(session, out, "plant (closed loop)", data, lambda: _log(session, out))
+        return {"model": made["model"], "figures": {"bode": model_bode(made["object"])}}
+
+    return args, python, then
+
+
 def _literal(text: Any) -> str:
     """A setting as a Python literal: numbers stay numbers, anything else is quoted."""
     try:
@@ -243,4 +270,5 @@ ESTIMATES: dict[str, Callable[..., Action]] = {
     "statespace": statespace,
     "frd": frd_fit,
     "hysteresis": hysteresis,
+    "closedloop": closedloop,
 }

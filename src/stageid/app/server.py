@@ -122,6 +122,7 @@ async def state(request: Request) -> Response:
         {
             "folder": str(request.app.state.folder),
             "records": list_records(request.app.state.folder),
+            "model_files": list_records(request.app.state.folder, (".json",)),
             "uploads": sorted(p.name for p in session.uploads.iterdir() if not p.name.startswith(".")),
             "max_upload_mb": request.app.state.max_upload_mb,
             "datasets": {k: {n: v for n, v in d.items() if n != "figures"} for k, d in session.datasets.items()},
@@ -213,8 +214,21 @@ async def estimate(request: Request) -> Response:
     method = str(body.get("method", ""))
     if method not in ESTIMATES:
         raise DataError(f"estimate method must be one of {', '.join(ESTIMATES)}; got {method!r}.")
-    action = ESTIMATES[method](session, str(body.get("data", "")), body.get("options") or {}, session.next_name("m"))
+    options = dict(body.get("options") or {})
+    if method == "closedloop" and options.get("controller"):
+        options["controller"] = _controller_copy(request, str(options["controller"]))
+    action = ESTIMATES[method](session, str(body.get("data", "")), options, session.next_name("m"))
     return _start(request, f"estimate {method}", action)
+
+
+def _controller_copy(request: Request, name: str) -> str:
+    """A controller model file of the served folder, copied into the session's folder; its new name."""
+    path = record_path(request.app.state.folder, name)
+    if path.suffix.lower() != ".json":
+        raise DataError(f"the controller must be a model file (.json); got {name!r}.")
+    local = f"K_{path.name}"
+    (request.state.session.workspace / local).write_bytes(path.read_bytes())
+    return local
 
 
 async def order(request: Request) -> Response:

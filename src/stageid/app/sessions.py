@@ -119,12 +119,12 @@ def record_path(folder: Path, name: str) -> Path:
     return candidate
 
 
-def list_records(folder: Path) -> list[str]:
-    """Record files under ``folder`` (relative ``/`` names, sorted), at most a few hundred."""
+def list_records(folder: Path, suffixes: tuple[str, ...] = RECORD_SUFFIXES) -> list[str]:
+    """Files under ``folder`` with one of ``suffixes`` (relative ``/`` names, sorted), at most a few hundred."""
     root = folder.resolve()
     found = []
     for path in sorted(root.rglob("*")):
-        if path.suffix.lower() in RECORD_SUFFIXES and path.is_file() and path.resolve().is_relative_to(root):
+        if path.suffix.lower() in suffixes and path.is_file() and path.resolve().is_relative_to(root):
             found.append(path.relative_to(root).as_posix())
             if len(found) >= _MAX_LISTED:
                 break

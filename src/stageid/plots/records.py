@@ -10,7 +10,7 @@ from ._style import loglog, subplots
 
 __all__ = ["record_figure", "spectrum_figure"]
 
-_MAX_POINTS = 4000  # a time plot of more points than pixels only slows the page
+_MAX_POINTS = 2000  # about two points per pixel of the figure; more only slows the page
 
 
 def _channels(exp: Any) -> list[tuple[str, str, np.ndarray]]:
@@ -23,7 +23,7 @@ def _channels(exp: Any) -> list[tuple[str, str, np.ndarray]]:
 def record_figure(exp: Any, title: str = "") -> Any:
     """Every input and output of an :class:`~stageid.data.Experiment` against time, one row each.
 
-    Long records are drawn every k-th sample (at most a few thousand points per trace).
+    Long records are drawn every k-th sample (at most two thousand points per trace).
     """
     channels = _channels(exp)
     fig, axes = subplots(len(channels), 1, figsize=(7.5, 1.4 + 1.3 * len(channels)), squeeze=False, sharex=True)

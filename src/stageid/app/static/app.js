@@ -49,6 +49,7 @@ async function refresh() {
   fill($("compare-data"), times, true);
   const models = Object.keys(s.models);
   fill($("compare-model"), models, true);
+  fill($("opt-controller"), s.model_files, true);
   fill($("export-model"), models, true);
   return s;
 }
@@ -107,6 +108,7 @@ function estimateOptions(method) {
   if (method === "statespace") return { order: $("opt-ss-order").value, horizon: $("opt-horizon").value };
   if (method === "frd") return { order: $("opt-order").value, dt: $("opt-dt").value, continuous: $("opt-continuous").checked,
     fmin: $("opt-fmin").value, fmax: $("opt-fmax").value, delay: $("opt-delay").value };
+  if (method === "closedloop") return { controller: $("opt-controller").value, band: $("opt-band").value };
   return { model: $("opt-hyst").value };
 }
 
@@ -131,7 +133,8 @@ function follow(state, done) {
 
 async function runEstimate() {
   const method = $("estimate-method").value;
-  const s = await api("/api/estimate", { method, data: $("estimate-data").value, options: estimateOptions(method) });
+  const data = method === "closedloop" ? chosen($("estimate-data")).join(",") : $("estimate-data").value;
+  const s = await api("/api/estimate", { method, data, options: estimateOptions(method) });
   $("estimate-cli").textContent = s.cli; $("estimate-python").textContent = s.python;
   follow(s, (done) => {
     figures($("estimate-figures"), done.result.figures);
@@ -175,6 +178,7 @@ function showBoard(name) {
 }
 
 function showOptions() {
+  $("estimate-data").multiple = $("estimate-method").value === "closedloop"; // one data set per reference
   for (const o of document.querySelectorAll(".options")) o.hidden = o.dataset.for !== $("estimate-method").value;
 }
 
