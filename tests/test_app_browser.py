@@ -5,6 +5,7 @@ The record is the AFM stage's measured FRF from the shared data folder; without 
 the z axis of the P-558 reference stage (``stageid plants``) stands in for it.
 """
 
+import contextlib
 import os
 import shlex
 import shutil
@@ -99,6 +100,7 @@ def test_fit_bode_and_export_in_the_browser(server, record, tmp_path):
         page.wait_for_selector("#estimate-figures svg", timeout=180_000)
         assert page.inner_text("#error") == ""
         command = page.inner_text("#estimate-cli")
+        python = page.inner_text("#estimate-python")
         assert command.startswith(f"stageid identify frd {data_file} --order {settings['opt-order']}")
         _shoot(page, "serve-estimate", tmp_path)
 
@@ -118,4 +120,8 @@ def test_fit_bode_and_export_in_the_browser(server, record, tmp_path):
 
     args = shlex.split(command)
     subprocess.run([sys.executable, "-m", "stageid", *args[1:]], cwd=tmp_path, check=True, capture_output=True)
+    assert exported == (tmp_path / args[-1]).read_bytes()
+    (tmp_path / args[-1]).unlink()  # the Python call shown beside the command writes the same file
+    with contextlib.chdir(tmp_path):
+        exec(python, {})
     assert exported == (tmp_path / args[-1]).read_bytes()

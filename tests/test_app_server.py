@@ -133,6 +133,11 @@ def test_estimate_compare_and_export_equal_the_cli(client, tmp_path):
     work = reproduce(client, tmp_path, state, [d["file"]])
     exported = wait(client, client.post("/api/export", json={"model": model, "format": "json"}).json())
     assert (work / f"{model}.json").read_bytes() == client.get(exported["result"]["download"]).content
+    # the Python shown beside the command writes the same model file
+    (work / f"{model}.json").unlink()
+    with contextlib.chdir(work):
+        exec(state["python"], {})
+    assert (work / f"{model}.json").read_bytes() == client.get(exported["result"]["download"]).content
 
     held = prepare(client, "held_out.csv")
     state = wait(client, client.post("/api/compare", json={"model": model, "data": held["name"]}).json())

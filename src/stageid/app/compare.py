@@ -72,15 +72,21 @@ def export(session: Session, model: str, fmt: str, options: dict[str, Any]) -> A
     _model(session, model)
     if fmt not in EXPORT_FORMATS:
         raise DataError(f"export format {fmt!r} is not one of {', '.join(EXPORT_FORMATS)}.")
+    loading = f"from stageid.models import load_model\nmodel = load_model({model + '.json'!r})"
     if fmt == "mat":
         args = ["export", "mat", f"{model}.json", "-o", f"{model}.mat"]
-        python = "from stageid.export.matlab import export_mat  # export_mat(model, file, dt, method)"
+        python = (
+            f"{loading}\nfrom stageid.export.matlab import export_mat\n"
+            f"with open({model + '.mat'!r}, 'wb') as fh:\n    export_mat(model, fh, None, None)  # dt, method"
+        )
     elif fmt == "c":
         prefix = str(options.get("prefix") or model)
         args = ["export", "c", f"{model}.json", "--prefix", prefix, "-o", f"{model}_c"]
-        python = f"from stageid.export import export_c\ncode = export_c(model, {prefix!r})  # code.files(): .h and .c"
+        python = (
+            f"{loading}\nfrom stageid.export import export_c\nfiles = export_c(model, {prefix!r}).files()  # .h and .c"
+        )
     else:
-        args, python = [], f"from stageid.models import load_model\nmodel = load_model({model + '.json'!r})"
+        args, python = [], loading
 
     def then() -> dict[str, Any]:
         if fmt == "c":

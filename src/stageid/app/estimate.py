@@ -120,9 +120,9 @@ def statespace(session: Session, data: str, options: dict[str, Any], out: str) -
     args = ["identify", "statespace", d["file"], *channel_args(d), "--order", order, "--horizon", horizon]
     args += ["-o", f"{out}.json"]
     python = (
-        f"from stageid.subspace import HankelMAP\n{reading(d)}\n"
+        f"from stageid.models import save_model\nfrom stageid.subspace import HankelMAP\n{reading(d)}\n"
         f"result = HankelMAP(horizon={_literal(horizon)}, order={_literal(order)}).fit(exp)\n"
-        f"save_model(result.model, {out + '.json'!r})  # from stageid.models"
+        f"save_model(result.model, {out + '.json'!r})"
     )
 
     def then() -> dict[str, Any]:
@@ -141,9 +141,9 @@ def frd_fit(session: Session, data: str, options: dict[str, Any], out: str) -> A
     args += ["-o", f"{out}.json"]
     settings = {k: _literal(v) for k, v in options.items() if k in ("order", "dt", "fmin", "fmax", "delay") and v}
     python = (
-        "from stageid.frf import FRDIdentification, read_frd\n"
+        "from stageid.frf import FRDIdentification, read_frd\nfrom stageid.models import save_model\n"
         f"result = FRDIdentification({', '.join(f'{k}={v}' for k, v in settings.items())})"
-        f".fit(read_frd({d['file']!r}))\nsave_model(result.model, {out + '.json'!r})  # from stageid.models"
+        f".fit(read_frd({d['file']!r}))\nsave_model(result.model, {out + '.json'!r})"
     )
 
     def then() -> dict[str, Any]:
