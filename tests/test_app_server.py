@@ -109,6 +109,10 @@ def test_frf_estimate_is_the_cli_output_byte_for_byte(client, tmp_path):
     assert frd["kind"] == "frd" and "<svg" in state["result"]["figures"]["bode"]
     work = reproduce(client, tmp_path, state, [d["file"]])
     assert (work / frd["file"]).read_bytes() == client.get(f"/api/files/{frd['file']}").content
+    (work / frd["file"]).unlink()
+    with contextlib.chdir(work):
+        exec(state["python"], {})  # the Python shown beside the command
+    assert (work / frd["file"]).read_bytes() == client.get(f"/api/files/{frd['file']}").content
 
 
 def test_statespace_singular_values_show_the_order(client):

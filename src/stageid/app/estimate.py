@@ -96,12 +96,8 @@ def frf(session: Session, data: str, options: dict[str, Any], out: str) -> Actio
     args = ["frf", d["file"], *channel_args(d), "--method", method]
     _optional(args, options, [("segment", "--segment"), ("periods", "--periods")])
     args += ["-o", f"{out}.csv"]
-    call = {
-        "welch": "cross_spectra + h1_from_spectra (stageid.frf.welch)",
-        "lpm": "stageid.frf.lpm.lpm_frf(exps)",
-        "periodic": "stageid.frf.periodic.periodic_frf(exps, periods)",
-    }.get(method, method)
-    python = f"from stageid.frf import read_frd\n# the command runs {call}\nfrd = read_frd({out + '.csv'!r})"
+    python = f"{reading(d)}\n{_frf_call(method, options, tuple(d['inputs']), tuple(d['outputs']))}\n"
+    python += f"from stageid.data.io import write_csv\nwrite_csv({out + '.csv'!r}, frd.to_columns())"
 
     def then() -> dict[str, Any]:
         from ..frf import read_frd
@@ -112,6 +108,21 @@ def frf(session: Session, data: str, options: dict[str, Any], out: str) -> Actio
         return {"dataset": {k: v for k, v in entry.items() if k != "figures"}, "figures": entry["figures"]}
 
     return args, python, then
+
+
+def _frf_call(method: str | None, options: dict[str, Any], inputs: tuple, outputs: tuple) -> str:
+    """The library call of ``stageid frf --method`` (its defaults written out)."""
+    if method == "lpm":
+        return "from stageid.frf.lpm import lpm_frf\nfrd = lpm_frf([exp])"
+    if method == "periodic":
+        periods = _literal(_text(options, "periods", "None"))
+        return f"from stageid.frf.periodic import periodic_frf\nfrd = periodic_frf([exp], {periods}, 1)"
+    segment = _text(options, "segment")
+    return (
+        "from stageid.frf.welch import cross_spectra, default_segment, h1_from_spectra\n"
+        f"segment = {segment if segment is not None else 'default_segment(exp.n_samples)'}\n"
+        f"frd = h1_from_spectra(cross_spectra([exp], segment, 0.5, 'hann'), {inputs!r}, {outputs!r})"
+    )
 
 
 def statespace(session: Session, data: str, options: dict[str, Any], out: str) -> Action:
