@@ -31,8 +31,12 @@ def make_data_set(page, record):
     page.wait_for_function("document.querySelector('#record-info').textContent.includes('made')")
 
 
-def wait_for(page, selector):
-    page.wait_for_selector(selector, timeout=300_000)
+def run(page, button, shown, shot=None):
+    """Click ``button``, wait until ``shown`` appears, and save the page as ``shot`` when given."""
+    page.click(button)
+    page.wait_for_selector(shown, timeout=300_000)
+    if shot:
+        page.screenshot(path=str(IMG / f"{shot}.png"), full_page=True)
 
 
 def main():
@@ -54,25 +58,18 @@ def main():
             page.click("#tab-estimate")
             page.select_option("#estimate-method", "statespace")
             page.fill("#opt-horizon", "30")
-            page.click("#run-order")
-            wait_for(page, "#order-figures svg")
+            run(page, "#run-order", "#order-figures svg")
             page.fill("#opt-ss-order", "7")
-            page.click("#run-estimate")
-            wait_for(page, "#estimate-figures svg")
-            page.screenshot(path=str(IMG / "serve-estimate.png"), full_page=True)
+            run(page, "#run-estimate", "#estimate-figures svg", "serve-estimate")
             make_data_set(page, "random_z.csv")
             page.click("#tab-compare")
             held_out = page.eval_on_selector("#compare-data", "s => s.options[s.options.length - 1].value")
             page.select_option("#compare-data", held_out)
-            page.click("#run-compare")
-            wait_for(page, "#compare-figures svg")
-            page.screenshot(path=str(IMG / "serve-compare.png"), full_page=True)
+            run(page, "#run-compare", "#compare-figures svg", "serve-compare")
             page.click("#tab-export")
             page.select_option("#export-format", "c")
             page.fill("#export-prefix", "stage")
-            page.click("#run-export")
-            wait_for(page, "#download:not([hidden])")
-            page.screenshot(path=str(IMG / "serve-export.png"), full_page=True)
+            run(page, "#run-export", "#download:not([hidden])", "serve-export")
             browser.close()
     finally:
         server.terminate()
