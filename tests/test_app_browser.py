@@ -120,8 +120,9 @@ def test_fit_bode_and_export_in_the_browser(server, record, tmp_path):
 
     args = shlex.split(command)
     subprocess.run([sys.executable, "-m", "stageid", *args[1:]], cwd=tmp_path, check=True, capture_output=True)
-    assert exported == (tmp_path / args[-1]).read_bytes()
-    (tmp_path / args[-1]).unlink()  # the Python call shown beside the command writes the same file
+    model_file = tmp_path / args[args.index("-o") + 1]
+    assert exported == model_file.read_bytes()
+    model_file.unlink()  # the Python call shown beside the command writes the same file
     with contextlib.chdir(tmp_path):
         exec(python, {})
-    assert exported == (tmp_path / args[-1]).read_bytes()
+    assert exported == model_file.read_bytes()

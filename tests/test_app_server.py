@@ -134,6 +134,7 @@ def test_estimate_compare_and_export_equal_the_cli(client, tmp_path):
     assert state["status"] == "done", state["error"]
     model = state["result"]["model"]["name"]
     assert "HankelMAP(horizon=10, order=2)" in state["python"]
+    assert "<svg" in state["result"]["figures"]["bands"]  # the response with its +-2 std band
     work = reproduce(client, tmp_path, state, [d["file"]])
     exported = wait(client, client.post("/api/export", json={"model": model, "format": "json"}).json())
     assert (work / f"{model}.json").read_bytes() == client.get(exported["result"]["download"]).content
@@ -147,7 +148,7 @@ def test_estimate_compare_and_export_equal_the_cli(client, tmp_path):
     state = wait(client, client.post("/api/compare", json={"model": model, "data": held["name"]}).json())
     assert state["status"] == "done", state["error"]
     assert state["result"]["validation"]["outputs"]["y"]["fit_percent"] > 90
-    assert {"overlay", "bode"} <= set(state["result"]["figures"])
+    assert {"overlay", "bands"} <= set(state["result"]["figures"])
 
     mat = wait(client, client.post("/api/export", json={"model": model, "format": "mat"}).json())
     cli_mat = reproduce(client, tmp_path, mat, [f"{model}.json"]) / f"{model}.mat"

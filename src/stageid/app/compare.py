@@ -13,7 +13,7 @@ import zipfile
 from typing import Any
 
 from .._errors import DataError
-from .estimate import Action, channel_args, model_bode, reading
+from .estimate import Action, band_figure, channel_args, model_bode, reading
 from .records import svg
 from .sessions import Session
 
@@ -64,7 +64,7 @@ def _overlay(session: Session, entry: dict[str, Any], d: dict[str, Any]) -> dict
     exp = read_table(session.workspace / d["file"]).experiment(d["inputs"], d["outputs"])
     simulated = model.simulate(exp.u)
     overlay = time_overlay_figure(exp.time, exp.y, {entry["name"]: simulated}, list(exp.output_names))
-    return {"overlay": svg(overlay), "bode": model_bode(model)}
+    return {"overlay": svg(overlay), **(band_figure(session, entry["name"]) or {"bode": model_bode(model)})}
 
 
 def export(session: Session, model: str, fmt: str, options: dict[str, Any]) -> Action:

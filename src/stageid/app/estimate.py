@@ -17,7 +17,7 @@ from .._errors import DataError
 from .records import frd_description, svg
 from .sessions import Session
 
-__all__ = ["ESTIMATES", "Action", "model_bode", "singular_values", "channel_args", "reading"]
+__all__ = ["ESTIMATES", "Action", "model_bode", "band_figure", "singular_values", "channel_args", "reading"]
 
 #: (command arguments, Python call, finishing step returning the page's result)
 Action = tuple[list[str], str, Callable[[], dict[str, Any]]]
@@ -70,6 +70,15 @@ def model_bode(model: Any, frd: Any = None) -> str:
     top = 0.5 / model.dt if model.dt else 1e3
     f = np.geomspace(top * 1e-3, top * 0.999, 400)
     return svg(bode_figure(f, {"model": model.frequency_response(f)}, model.inputs, model.outputs))
+
+
+def band_figure(session: Session, name: str) -> dict[str, str]:
+    """``{"bands": svg}``: the model's response with +-2 std bands from its ``--uncertainty`` table
+    (``{}`` when the command wrote none)."""
+    from ..frf import read_frd
+
+    path = session.workspace / f"{name}_bands.csv"
+    return {"bands": svg(read_frd(path).plot())} if path.is_file() else {}
 
 
 def _register_model(session: Session, name: str, kind: str, source: str, summary_of: Callable[[], str]) -> dict:
@@ -129,16 +138,17 @@ def statespace(session: Session, data: str, options: dict[str, Any], out: str) -
     d = _dataset(session, data, "time")
     order, horizon = _text(options, "order", "auto"), _text(options, "horizon", "auto")
     args = ["identify", "statespace", d["file"], *channel_args(d), "--order", order, "--horizon", horizon]
-    args += ["-o", f"{out}.json"]
+    args += ["-o", f"{out}.json", "--uncertainty", f"{out}_bands.csv"]
     python = (
         f"from stageid.models import save_model\nfrom stageid.subspace import HankelMAP\n{reading(d)}\n"
         f"result = HankelMAP(horizon={_literal(horizon)}, order={_literal(order)}).fit(exp)\n"
-        f"save_model(result.model, {out + '.json'!r})"
+        f"save_model(result.model, {out + '.json'!r})\n"
+        "# the --uncertainty table: result.response_uncertainty(freqs_hz), the response and its std"
     )
 
     def then() -> dict[str, Any]:
         made = _register_model(session, out, "state space (Hankel-MAP)", data, lambda: _log(session, out))
-        return {"model": made["model"], "figures": {"bode": model_bode(made["object"])}}
+        return {"model": made["model"], "figures": {"bode": model_bode(made["object"]), **band_figure(session, out)}}
 
     return args, python, then
 
@@ -149,7 +159,7 @@ def frd_fit(session: Session, data: str, options: dict[str, Any], out: str) -> A
     if options.get("continuous"):
         args.append("--continuous")
     _optional(args, options, [("dt", "--dt"), ("fmin", "--fmin"), ("fmax", "--fmax"), ("delay", "--delay")])
-    args += ["-o", f"{out}.json"]
+    args += ["-o", f"{out}.json", "--uncertainty", f"{out}_bands.csv"]
     settings = {k: _literal(v) for k, v in options.items() if k in ("order", "dt", "fmin", "fmax", "delay") and v}
     python = (
         "from stageid.frf import FRDIdentification, read_frd\nfrom stageid.models import save_model\n"
@@ -162,7 +172,8 @@ def frd_fit(session: Session, data: str, options: dict[str, Any], out: str) -> A
 
         made = _register_model(session, out, "state space (FRD fit)", data, lambda: _log(session, out))
         frd = read_frd(session.workspace / d["file"])
-        return {"model": made["model"], "figures": {"bode": model_bode(made["object"], frd)}}
+        figures = {"bode": model_bode(made["object"], frd), **band_figure(session, out)}
+        return {"model": made["model"], "figures": figures}
 
     return args, python, then
 
