@@ -148,7 +148,7 @@ def test_estimate_compare_and_export_equal_the_cli(client, tmp_path):
     state = wait(client, client.post("/api/compare", json={"model": model, "data": held["name"]}).json())
     assert state["status"] == "done", state["error"]
     assert state["result"]["validation"]["outputs"]["y"]["fit_percent"] > 90
-    assert {"overlay", "bands"} <= set(state["result"]["figures"])
+    assert {"overlay", "bands", "residuals y"} <= set(state["result"]["figures"])
 
     mat = wait(client, client.post("/api/export", json={"model": model, "format": "mat"}).json())
     cli_mat = reproduce(client, tmp_path, mat, [f"{model}.json"]) / f"{model}.mat"

@@ -55,16 +55,25 @@ def compare(session: Session, model: str, data: str, out: str) -> Action:
 
 
 def _overlay(session: Session, entry: dict[str, Any], d: dict[str, Any]) -> dict[str, str]:
-    """The record's outputs with the model's simulation (zero initial state) and its Bode plot."""
+    """The record's outputs with the model's simulation (its own initial state), the residual
+    correlations of each output (MATLAB's ``resid``) and the model's Bode plot."""
+    from ..cli.validate import ALPHA, MAX_LAG
     from ..data.io import read_table
     from ..models import load_model
     from ..plots import time_overlay_figure
+    from ..plots.residuals import residual_figure
+    from ..validation.residuals import validate_model
 
     model = load_model(session.workspace / f"{entry['name']}.json")
     exp = read_table(session.workspace / d["file"]).experiment(d["inputs"], d["outputs"])
+    exp = exp.with_(input_names=tuple(model.inputs), output_names=tuple(model.outputs))
     simulated = model.simulate(exp.u)
     overlay = time_overlay_figure(exp.time, exp.y, {entry["name"]: simulated}, list(exp.output_names))
-    return {"overlay": svg(overlay), **(band_figure(session, entry["name"]) or {"bode": model_bode(model)})}
+    figures = {"overlay": svg(overlay)}
+    tests = validate_model(model, [exp], MAX_LAG, ALPHA)["outputs"]
+    for name, test in tests.items():
+        figures[f"residuals {name}"] = svg(residual_figure(name, test["whiteness"], test["independence"]))
+    return figures | (band_figure(session, entry["name"]) or {"bode": model_bode(model)})
 
 
 def export(session: Session, model: str, fmt: str, options: dict[str, Any]) -> Action:
