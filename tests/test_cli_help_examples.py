@@ -18,7 +18,10 @@ from conftest import run_main
 from stageid.cli.main import cli
 
 #: Commands whose examples are only parsed, not run: each takes longer than a unit test should.
-PARSE_ONLY = {("demo",): "runs the three workflows with their reports (tens of seconds)"}
+PARSE_ONLY = {
+    ("demo",): "runs the three workflows with their reports (tens of seconds)",
+    ("serve",): "serves until stopped (the app tests start it)",
+}
 
 
 def example_lines(epilog: str) -> list[list[str]]:

@@ -32,6 +32,7 @@ Examples:
   stageid plants p558 --experiment random-z -o z.csv
   stageid frf z.csv --inputs Z --outputs z -o frf.csv    # measured FRF + coherence + std
   stageid identify frd frf.csv --order auto --dt 0.002 -o frd.json
+  stageid serve .                                        # the same steps in the browser
 """
 
 # (module, attribute, parent group): each command lives in its own module.
@@ -51,6 +52,7 @@ _COMMANDS: list[tuple[str, str, str]] = [
     ("stageid.cli.identify_frd", "frd_command", "identify"),
     ("stageid.cli.validate", "validate_command", "cli"),
     ("stageid.cli.batch", "batch_command", "cli"),
+    ("stageid.cli.serve", "serve_command", "cli"),
 ]
 
 

@@ -1,0 +1,60 @@
+"""Figures of measured records before any model: the signals over time and their spectra."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ._style import loglog, subplots
+
+__all__ = ["record_figure", "spectrum_figure"]
+
+_MAX_POINTS = 2000  # about two points per pixel of the figure; more only slows the page
+
+
+def _channels(exp: Any) -> list[tuple[str, str, np.ndarray]]:
+    names = list(exp.input_names) + list(exp.output_names)
+    kinds = ["input"] * exp.n_inputs + ["output"] * exp.n_outputs
+    values = np.hstack([exp.u, exp.y])
+    return [(kinds[k], names[k], values[:, k]) for k in range(len(names))]
+
+
+def record_figure(exp: Any, title: str = "") -> Any:
+    """Every input and output of an :class:`~stageid.data.Experiment` against time, one row each.
+
+    Long records are drawn every k-th sample (at most two thousand points per trace).
+    """
+    channels = _channels(exp)
+    fig, axes = subplots(len(channels), 1, figsize=(7.5, 1.4 + 1.3 * len(channels)), squeeze=False, sharex=True)
+    step = max(1, exp.n_samples // _MAX_POINTS)
+    t = exp.time[::step]
+    for ax, (kind, name, values) in zip(axes[:, 0], channels):
+        ax.plot(t, values[::step], lw=0.8, color="C0" if kind == "input" else "C1")
+        ax.set_ylabel(f"{name}\n({kind})")
+    axes[-1, 0].set_xlabel("time [s]")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def spectrum_figure(exp: Any, segment: int | None = None, title: str = "") -> Any:
+    """Power spectral densities (Welch, Hann window, half overlap) of every channel.
+
+    ``segment`` defaults to a quarter of the record, at most 4096 samples, so the lowest lines
+    are resolved and the estimate still averages a few segments.
+    """
+    from scipy.signal import welch
+
+    n = exp.n_samples
+    nper = segment or max(8, min(4096, n // 4))
+    fig, ax = subplots(1, 1, figsize=(7.5, 3.6))
+    for kind, name, values in _channels(exp):
+        f, p = welch(values, fs=1.0 / exp.dt, nperseg=min(nper, n))
+        loglog(ax, f[1:], p[1:], lw=0.9, ls="-" if kind == "output" else "--", label=f"{name} ({kind})")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("PSD [unit^2/Hz]")
+    ax.legend(loc="best")
+    if title:
+        ax.set_title(title)
+    return fig
