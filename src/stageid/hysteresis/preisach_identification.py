@@ -128,10 +128,10 @@ class PreisachIdentifier(Estimator):
     input_range : (float, float), optional
         Range of the grid; default the records' input range.
 
-    Raises (from fit)
-    -----------------
+    Raises
+    ------
     DataError
-        Records whose input never moves (they determine no cell; one line).
+        From ``fit``: records whose input never moves (they determine no cell; one line).
 
     Notes
     -----
