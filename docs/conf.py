@@ -105,6 +105,7 @@ html_show_sourcelink = False
 html_copy_source = False
 
 # --- doctest --------------------------------------------------------------------------------------
+doctest_test_doctest_blocks = ""  # docstring examples run in tests/test_docstring_examples.py, in their module
 doctest_global_setup = """
 import numpy as np
 """
