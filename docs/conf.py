@@ -92,6 +92,7 @@ if FAST:
 html_theme = "pydata_sphinx_theme"
 html_title = f"stageid {release}"
 html_static_path = ["_static"]
+html_css_files = ["stageid.css"]
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
@@ -100,7 +101,7 @@ html_theme_options = {
     "footer_end": [],
     "secondary_sidebar_items": ["page-toc"],
 }
-html_sidebars = {"**": ["sidebar-nav-bs"]}
+html_sidebars = {"index": [], "matlab": [], "getting-started": [], "cli": [], "**": ["sidebar-nav-bs"]}
 html_show_sourcelink = False
 html_copy_source = False
 
