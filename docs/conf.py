@@ -77,7 +77,7 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "remove_config_comments": True,
     "within_subsection_order": "FileNameSortKey",
-    "image_scrapers": ("matplotlib",),
+    "image_scrapers": ("figure_scraper",),
     "matplotlib_animations": False,
     "show_memory": False,
     "abort_on_example_error": True,

@@ -11,7 +11,6 @@ The record lives in ``shared/data/afm_piezo_stage_frf``; without it this example
 P-558 reference stage's ``Z -> z`` response instead.
 """
 
-import matplotlib.pyplot as plt
 import numpy as np
 import scipy.io
 
@@ -39,4 +38,4 @@ print(f"order {result.order}, largest error {result.max_error:.3g} (relative to 
 fig = data.plot(model=result.model)
 fig.axes[0].set_ylabel(f"|G| [{unit}]")
 fig.suptitle("measured FRF and fitted model")
-plt.show()
+# stageid draws on plain matplotlib Figure objects (no pyplot): fig.savefig("figure.png") saves one

@@ -10,7 +10,6 @@ white sensor noise: the true model leaves only the noise and passes both tests; 
 first mode only fails them by orders of magnitude, and the figure shows at which lags.
 """
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from stageid.data import Experiment
@@ -54,4 +53,4 @@ for label, model in (("true model", true), ("first mode only", first_mode_only))
 out = validate_model(first_mode_only, [record])["outputs"]["y"]
 fig = residual_figure("y [um], first mode only", out["whiteness"], out["independence"])
 fig.axes[-1].set_xlabel("lag [samples of 0.1 ms]")
-plt.show()
+# stageid draws on plain matplotlib Figure objects (no pyplot): fig.savefig("figure.png") saves one

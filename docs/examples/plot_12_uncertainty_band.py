@@ -12,7 +12,6 @@ short of the nominal 95 % that falls here (``studies/uncertainty/RESULTS.md`` me
 calibration on many stages).
 """
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from stageid.data import Experiment
@@ -37,4 +36,4 @@ ax.loglog(freqs, np.abs(true[:, 0, 0]), "k--", lw=1, label="true")
 ax.set_ylabel("|G| Z -> z [um/um]")
 ax.legend(fontsize=8)
 fig.suptitle("Hankel-MAP model of a noisy record, +-2 std band")
-plt.show()
+# stageid draws on plain matplotlib Figure objects (no pyplot): fig.savefig("figure.png") saves one
