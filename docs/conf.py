@@ -83,6 +83,7 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "only_warn_on_example_error": False,
     "min_reported_time": 1,
+    "capture_repr": (),  # printed output only, not the value of a last expression
 }
 if FAST:
     # CI: the quick examples only; the others are listed but not executed

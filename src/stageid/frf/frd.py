@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
+from ..display import html_repr
 
 __all__ = ["FrequencyResponse", "read_frd", "frd_columns"]
 
@@ -61,6 +62,9 @@ class FrequencyResponse:
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
     copy: dataclasses.InitVar[bool] = True
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self, copy: bool) -> None:
         own = True if copy else None  # None: no copy unless the dtype differs

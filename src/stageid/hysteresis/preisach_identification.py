@@ -26,6 +26,7 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Satisfies
 from ..checks import is_real
+from ..display import html_repr, short_repr
 from .preisach import PreisachModel
 from .records import read_records
 
@@ -105,6 +106,12 @@ class PreisachFit:
     rms_error_percent: tuple[float, ...]
     output_offsets: tuple[float, ...]
     filled_cells: int = 0
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def summary(self) -> str:
         errs = ", ".join(

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
+from ..display import html_repr
 from . import control_bridge as bridge
 from . import conversions as cv
 from ._kernels import simulate_discrete
@@ -75,6 +76,9 @@ class StateSpaceModel:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         A = as_matrix("A", self.A, (None, None))
@@ -321,6 +325,9 @@ class TransferMatrix:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         nums, dens = as_transfer_entries(self.num, self.den)
