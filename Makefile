@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv bench recovery mutation docs docs-fast clean
+.PHONY: demo test venv bench recovery mutation docs docs-fast docs-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -43,6 +43,11 @@ docs: $(DOCS_STAMP)
 docs-fast: $(DOCS_STAMP)
 	STAGEID_DOCS_FAST=1 $(SPHINX) -b html docs docs/_build/html
 	STAGEID_DOCS_FAST=1 $(SPHINX) -b doctest -d docs/_build/doctrees-doctest docs docs/_build/doctest
+
+# CI: the fast site, then the site opened in headless Chromium (no console errors, search finds
+# the HankelMAP API page, every gallery image loads).
+docs-check: docs-fast
+	$(PY) docs/check_site.py docs/_build/html
 
 # Randomised recovery benchmark: every estimator on >= 20 random stages of its own class, fitted
 # through the command line; the summary goes to benchmarks/RESULTS-recovery.md (section "Summary").

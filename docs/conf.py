@@ -103,6 +103,7 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_sidebars = {"index": [], "matlab": [], "getting-started": [], "cli": [], "**": ["sidebar-nav-bs"]}
+html_context = {"default_mode": "auto"}  # without it a first visit logs "invalid theme mode" as an error
 html_show_sourcelink = False
 html_copy_source = False
 
