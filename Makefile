@@ -27,7 +27,8 @@ bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 
 # The documentation site, built to docs/_build/html with warnings as errors and every reference
-# checked (-n); the page and docstring examples then run as doctests.  `docs` executes the whole
+# checked (-n); the pages' examples then run as doctests (docstring examples run in the test suite,
+# tests/test_docstring_examples.py).  `docs` executes the whole
 # gallery; `docs-fast` (CI) a quick subset of it.
 DOCS_STAMP := $(VENV)/.installed-docs
 SPHINX     := OMP_NUM_THREADS=1 $(PY) -m sphinx -n -W --keep-going
@@ -38,11 +39,11 @@ $(DOCS_STAMP): $(STAMP)
 
 docs: $(DOCS_STAMP)
 	$(SPHINX) -b html docs docs/_build/html
-	$(SPHINX) -b doctest -d docs/_build/doctrees-doctest docs docs/_build/doctest
+	$(SPHINX) -b doctest -D plot_gallery=0 -d docs/_build/doctrees-doctest docs docs/_build/doctest
 
 docs-fast: $(DOCS_STAMP)
 	STAGEID_DOCS_FAST=1 $(SPHINX) -b html docs docs/_build/html
-	STAGEID_DOCS_FAST=1 $(SPHINX) -b doctest -d docs/_build/doctrees-doctest docs docs/_build/doctest
+	STAGEID_DOCS_FAST=1 $(SPHINX) -b doctest -D plot_gallery=0 -d docs/_build/doctrees-doctest docs docs/_build/doctest
 
 # CI: the fast site, then the site opened in headless Chromium (no console errors, search finds
 # the HankelMAP API page, every gallery image loads).
