@@ -86,16 +86,29 @@ def test_validation_and_batch_outcomes_are_tables_without_figures():
     assert "&#x27;unit4.csv&#x27;" in failed._repr_html_()  # escaped, never raw markup
 
 
+def test_a_report_shows_its_content_inline():
+    from stageid.report import model_report
+
+    report, _ = model_report(G, [record(3, n=1000)])
+    text = repr(report)
+    assert text.startswith("Report(title=") and "figures=" in text and len(text) < 200
+    html = report._repr_html_()
+    assert "<img src='data:image/png;base64," in html and "<table>" in html
+    assert "<style>" not in html and "<body>" not in html  # a fragment: the notebook keeps its own style
+
+
 def test_every_described_class_uses_the_display_module():
     import stageid.batch
     import stageid.closedloop
     import stageid.frf
     import stageid.hysteresis
     import stageid.models
+    import stageid.report
     import stageid.subspace
     import stageid.validation.residuals
 
     packages = [stageid.batch, stageid.closedloop, stageid.frf, stageid.hysteresis, stageid.models, stageid.subspace]
+    packages.append(stageid.report)
     packages.append(stageid.validation.residuals)
     found = {}
     for package in packages:

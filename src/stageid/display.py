@@ -138,6 +138,16 @@ def _outcome_facts(outcome: Any) -> list[tuple[str, str]]:
     return rows
 
 
+def _report_facts(report: Any) -> list[tuple[str, str]]:
+    kinds = [block.kind for block in report.blocks]
+    return [
+        ("title", report.title),
+        ("sections", str(kinds.count("h"))),
+        ("tables", str(kinds.count("table"))),
+        ("figures", str(report.n_figures)),
+    ]
+
+
 FACTS: dict[str, Callable[[Any], list[tuple[str, str]]]] = {
     "StateSpaceModel": _lti_facts,
     "TransferMatrix": _lti_facts,
@@ -154,6 +164,7 @@ FACTS: dict[str, Callable[[Any], list[tuple[str, str]]]] = {
     "StageModel": _hysteresis_facts,
     "CorrelationTest": _test_facts,
     "Outcome": _outcome_facts,
+    "Report": _report_facts,
 }
 
 
@@ -188,7 +199,14 @@ def figure_svg(fig: Any) -> str:
 
 
 def html_repr(obj: Any) -> str:
-    """A compact table of :func:`facts` and, where there is one, an inline SVG figure."""
+    """A compact table of :func:`facts` and, where there is one, an inline SVG figure.
+
+    A :class:`~stageid.report.Report` shows its own content instead: the body of its HTML
+    document (sections, tables, embedded figures), without the page style.
+    """
+    if type(obj).__name__ == "Report":
+        document = obj.to_html()
+        return f"<div>{document[document.index('<body>') + 6 : document.rindex('</body>')]}</div>"
     rows = "".join(
         f"<tr><th style='text-align:left;padding-right:1em'>{html.escape(label)}</th>"
         f"<td style='text-align:left'>{html.escape(text)}</td></tr>"
