@@ -126,6 +126,7 @@ API_PACKAGES = [
     ("stageid.validation", "fit metrics and residual tests"),
     ("stageid.plots", "figures"),
     ("stageid.report", "HTML reports"),
+    ("stageid.display", "notebook display: a short repr and an HTML table with an inline figure"),
     ("stageid.export", "C99 and MATLAB export"),
     ("stageid.batch", "many commands on a Dask cluster"),
     ("stageid.plants", "the reference stages of the papers"),
