@@ -42,7 +42,7 @@ def test_result_html_has_a_table_and_a_bode_figure_with_its_band(hankel_result):
     html = hankel_result._repr_html_()
     assert html.count("<table") == 1 and html.count("<svg") == 1
     assert ">horizon<" in html and "frequency [Hz]" in html
-    assert "fill-opacity" in html or "opacity: 0.25" in html  # the +-2 std band is drawn
+    assert "fill-opacity: 0.25" in html  # the +-2 std band is drawn
     assert len(html) < 150_000  # a notebook cell, not a report
 
 
@@ -117,7 +117,6 @@ def test_every_described_class_uses_the_display_module():
                 found[name] = getattr(package, name)
     assert set(found) == set(display.FACTS)
     for name, cls in found.items():
-        assert cls._repr_html_ is not object.__dict__.get("_repr_html_"), name
         assert "_repr_html_" in vars(cls), name
 
 
