@@ -120,6 +120,7 @@ def test_every_described_class_uses_the_display_module():
         assert "_repr_html_" in vars(cls), name
 
 
+@pytest.mark.slow  # starts a Jupyter kernel: about 15 s
 def test_a_notebook_shows_the_rich_display():
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
