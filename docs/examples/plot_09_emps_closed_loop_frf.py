@@ -46,7 +46,10 @@ for k, ax in enumerate(axes):
     ax.loglog(f, np.abs(frf.response[1:, k, 0]), "C0", lw=1)
     band = 2 * frf.std[1:, k, 0]
     magnitude = np.abs(frf.response[1:, k, 0])
-    ax.fill_between(f, np.maximum(magnitude - band, 1e-12), magnitude + band, color="C0", alpha=0.25, label="+-2 std")
+    # the band's lower edge is clipped at a tenth of the magnitude: a log axis has no zero
+    ax.fill_between(
+        f, np.maximum(magnitude - band, magnitude / 10), magnitude + band, color="C0", alpha=0.25, label="+-2 std"
+    )
     ax.set_ylabel(f"|{frf.outputs[k]} / {frf.inputs[0]}| [{units[k]}]")
     ax.grid(True, which="both", alpha=0.3)
 axes[0].legend(fontsize=8)
