@@ -193,7 +193,7 @@ def figure_svg(fig: Any) -> str:
 
     buffer = io.StringIO()
     with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text: a tenth of the size of glyph paths
-        fig.savefig(buffer, format="svg", bbox_inches="tight")
+        fig.savefig(buffer, format="svg")  # the figure is laid out already (tight_layout)
     text = buffer.getvalue()
     return text[text.find("<svg") :]
 
