@@ -6,7 +6,7 @@ Test files import them (``from conftest import run_main``): pytest puts this fol
 - :func:`run_main` runs ``stageid`` in this process (fast; sees the CLI's own stderr);
 - :func:`run_cli` runs the real ``stageid`` process, optionally under an address-space
   limit, for hostile inputs whose missing guard must fail the test instead of the machine;
-- :func:`assert_one_line_error` is the README's failure contract for one command;
+- :func:`assert_one_line_error` is the failure contract (docs/guide/bad-input.md) for one command;
 - :func:`snapshot` captures a folder's files so "unchanged" is a plain equality.
 """
 

@@ -56,7 +56,7 @@ class IdentificationError(StageIdError, RuntimeError):
 class ParameterError(StageIdError, ValueError):
     """A setting is invalid: an estimator's hyper-parameter or a function's option.
 
-    Every estimator raises it for a bad setting, from :meth:`fit` (where the settings are
+    Every estimator raises it for a bad setting, from its ``fit`` (where the settings are
     checked, see :class:`stageid.base.Estimator`); the message names the setting, what was
     expected and what came.
     """

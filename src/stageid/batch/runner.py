@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..display import html_repr, short_repr
 from .commands import Job
 from .state import fingerprint, load_state, save_state, write_now
 
@@ -44,6 +45,12 @@ class Outcome:
     seconds: float | None = None
     worker: str = ""
     error: str = ""
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
 
 def up_to_date(job: Job, recorded: dict | None, current: dict, folder: Path) -> bool:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..display import html_repr, short_repr
 from ..frf.frd import FrequencyResponse
 from ..models import StateSpaceModel, TransferMatrix
 from .cancellation import CancelledPair, EntryPoleZero, z_to_s
@@ -84,6 +85,12 @@ class ClosedLoopResult:
     diagnostics: dict = field(default_factory=dict)
     covariance: ClosedLoopCovariance | None = None
     band_error_median: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def response_uncertainty(self, freqs_hz: Sequence[float] | np.ndarray) -> FrequencyResponse:
         """The returned plant's response with ``std = sqrt(E|G_est - G|^2)`` per entry.

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
+from ..display import html_repr
 
 __all__ = ["FrequencyResponse", "read_frd", "frd_columns"]
 
@@ -68,6 +69,9 @@ class FrequencyResponse:
     outputs: tuple[str, ...] = ()
     total_std: np.ndarray | None = None
     copy: dataclasses.InitVar[bool] = True
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self, copy: bool) -> None:
         own = True if copy else None  # None: no copy unless the dtype differs

@@ -30,6 +30,7 @@ import numpy as np
 
 from .._errors import DataError, FitWarning, IdentificationError
 from ..base import Estimator, Interval, Options
+from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
 from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
@@ -93,6 +94,12 @@ class FRDResult:
     weight: str = "none"
     band: tuple = ()
     covariance: FitCovariance | None = None
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     @property
     def max_error(self) -> float:

@@ -4,61 +4,61 @@ Implements the modified Prandtl-Ishlinskii letter (``shared/papers``): eq. 1-2 (
 eq. 3 (coupled play, consistent reading documented in :mod:`.operators`), eq. 4 (modified PI),
 eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 
-=========================  ==================================================================
-``OperatorState``          last input and operator outputs (resume a model where it stopped)
-``play``                   bank of play operators (eq. 1-2)
-``coupled_play``           bank of coupled-play operators (eq. 3)
-``PIModel``                classical PI: weighted plays plus a linear term
-``ModifiedPIModel``        modified PI of eq. 4
-``CreepTerm``              optional linear creep of either model (first-order lags of the input)
-``PIIdentifier``           thresholds equally spaced, constrained LS weights, CP thresholds by
-                           nonlinear optimisation; ``fit`` returns ``HysteresisFit``
-``pi_inverse``             closed-form inverse of a classical PI model (a PI model)
-``invert``                 per-sample monotone inversion of any (modified) PI model
-``Compensator``            streaming feedforward compensator with state and drive limits
-``compensate``             batch feedforward
-``StageModel``             rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
-``StageIdentifier``        joint identification of a stage; ``fit`` returns ``StageFit``
-``stage_feedforward``      offline inverse of a stage (stable inversion of the dynamics)
-``PreisachModel``          discrete Preisach model: uniform-density cells on a triangular grid
-``PreisachIdentifier``     NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachFit``
-``PreisachCompensator``    exact Preisach inverse, streaming, with memory and drive limits
-``preisach_feedforward``   exact Preisach inverse, batch
-``everett``                Everett function of a Preisach model (``everett_output``: the output
-                           as Everett differences over the memory)
-``max_error_percent``      metrics as the letter uses them (see :mod:`.metrics`)
+==========================  ==================================================================
+``OperatorState``           last input and operator outputs (resume a model where it stopped)
+``play``                    bank of play operators (eq. 1-2)
+``coupled_play``            bank of coupled-play operators (eq. 3)
+``PIModel``                 classical PI: weighted plays plus a linear term
+``ModifiedPIModel``         modified PI of eq. 4
+``CreepTerm``               optional linear creep of either model (first-order lags of the input)
+``PIIdentifier``            thresholds equally spaced, constrained LS weights, CP thresholds by
+                            nonlinear optimisation; ``fit`` returns ``HysteresisFit``
+``pi_inverse``              closed-form inverse of a classical PI model (a PI model)
+``invert``                  per-sample monotone inversion of any (modified) PI model
+``Compensator``             streaming feedforward compensator with state and drive limits
+``compensate``              batch feedforward
+``StageModel``              rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
+``StageIdentifier``         joint identification of a stage; ``fit`` returns ``StageFit``
+``stage_feedforward``       offline inverse of a stage (stable inversion of the dynamics)
+``PreisachModel``           discrete Preisach model: uniform-density cells on a triangular grid
+``PreisachIdentifier``      NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachFit``
+``PreisachCompensator``     exact Preisach inverse, streaming, with memory and drive limits
+``preisach_feedforward``    exact Preisach inverse, batch
+``everett``                 Everett function of a Preisach model (``everett_output``: the output
+                            as Everett differences over the memory)
+``max_error_percent``       metrics as the letter uses them (see :mod:`.metrics`)
 ``rms_error_percent``
 ``tracking_error_percent``
 ``hysteresis_percent``
-=========================  ==================================================================
+==========================  ==================================================================
 
 Modules, from the letter's sections down (each imports only the ones below it):
 
-=========================  ==================================================================
-:mod:`.stage_identification` ``StageIdentifier``: hysteresis, then weights / creep / dynamics
-                           alternated (:mod:`.stage_problem`), auto order and creep
-:mod:`.stage_inverse`      offline stage feedforward (stable inversion, then the inverse)
-:mod:`.preisach_inverse`   ``PreisachCompensator``, ``preisach_feedforward`` (exact inverse)
-:mod:`.preisach_identification` ``PreisachIdentifier`` (NNLS, second-difference smoothing)
-:mod:`.preisach`           ``PreisachModel`` (kind ``preisach``), ``everett``, ``everett_output``
-:mod:`.stage`              ``StageModel`` (kind ``stage`` of the JSON format)
-:mod:`.dynamics`           unit-DC-gain discrete dynamics: fits and filtering
-:mod:`.identification`     ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
-                           thresholds, starting states, creep)
-:mod:`.weights`            step 2: constrained least-squares weights (invertibility bounds)
-:mod:`.threshold_search`   step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
-:mod:`.records`            records, starting states (step 4), per-record errors, ``align_record``
-:mod:`.compensator`        Fig. 9 feedforward: ``Compensator``, ``compensate``, ``CreepInverse``
-:mod:`.inverse`            eq. 5: ``invert`` (per-sample), re-exports the closed form
-:mod:`.closed_form`        the classical PI's inverse PI model (``pi_inverse``)
-:mod:`.serialization`      the ``stageid.hysteresis/1`` JSON format, ``register_kind``
-:mod:`.pi`                 eq. 4: ``PIModel``, ``ModifiedPIModel``
-:mod:`.creep`              ``CreepTerm`` (our extension)
-:mod:`.operators`          eq. 1-3: play and coupled-play operators, plain-Python references
-:mod:`.common`             helpers shared by models, inverse and compensator
-:mod:`.kernels`            the compiled loops (numba), imported on first use
-:mod:`.metrics`            the letter's error and hysteresis measures
-=========================  ==================================================================
+===============================  ==================================================================
+:mod:`.stage_identification`     ``StageIdentifier``: hysteresis, then weights / creep / dynamics
+                                 alternated (:mod:`.stage_problem`), auto order and creep
+:mod:`.stage_inverse`            offline stage feedforward (stable inversion, then the inverse)
+:mod:`.preisach_inverse`         ``PreisachCompensator``, ``preisach_feedforward`` (exact inverse)
+:mod:`.preisach_identification`  ``PreisachIdentifier`` (NNLS, second-difference smoothing)
+:mod:`.preisach`                 ``PreisachModel`` (kind ``preisach``), ``everett``, ``everett_output``
+:mod:`.stage`                    ``StageModel`` (kind ``stage`` of the JSON format)
+:mod:`.dynamics`                 unit-DC-gain discrete dynamics: fits and filtering
+:mod:`.identification`           ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
+                                 thresholds, starting states, creep)
+:mod:`.weights`                  step 2: constrained least-squares weights (invertibility bounds)
+:mod:`.threshold_search`         step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
+:mod:`.records`                  records, starting states (step 4), per-record errors, ``align_record``
+:mod:`.compensator`              Fig. 9 feedforward: ``Compensator``, ``compensate``, ``CreepInverse``
+:mod:`.inverse`                  eq. 5: ``invert`` (per-sample), re-exports the closed form
+:mod:`.closed_form`              the classical PI's inverse PI model (``pi_inverse``)
+:mod:`.serialization`            the ``stageid.hysteresis/1`` JSON format, ``register_kind``
+:mod:`.pi`                       eq. 4: ``PIModel``, ``ModifiedPIModel``
+:mod:`.creep`                    ``CreepTerm`` (our extension)
+:mod:`.operators`                eq. 1-3: play and coupled-play operators, plain-Python references
+:mod:`.common`                   helpers shared by models, inverse and compensator
+:mod:`.kernels`                  the compiled loops (numba), imported on first use
+:mod:`.metrics`                  the letter's error and hysteresis measures
+===============================  ==================================================================
 """
 
 from .compensator import Compensator, compensate

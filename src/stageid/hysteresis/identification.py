@@ -66,6 +66,7 @@ from .._errors import DataError
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence, is_real
+from ..display import html_repr, short_repr
 from ..resources import require_memory, require_work
 from .creep import CreepTerm
 from .records import (
@@ -136,6 +137,12 @@ class HysteresisFit:
     success: bool
     message: str
     weight_uncertainty: WeightUncertainty | None = None
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def summary(self) -> str:
         """A short text report."""

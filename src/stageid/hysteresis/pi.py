@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
+from ..display import html_repr, short_repr
 from .common import as_input
 from .creep import CreepTerm
 from .operators import OperatorState, check_cp_thresholds, gamma_down, gamma_up
@@ -308,6 +309,12 @@ class PIModel(_PIBase):
 
     kind = "pi"
 
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
+
     def __post_init__(self) -> None:
         self._init_common()
         if np.any(np.diff(self.r) <= 0):
@@ -388,6 +395,12 @@ class ModifiedPIModel(_PIBase):
     creep: Any = None
 
     kind = "modified-pi"
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def to_operator_input(self, u):
         """``x = d + q R phi(d / R)`` with ``d = u - input_offset``, ``q = input_warp``,

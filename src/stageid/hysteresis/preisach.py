@@ -35,6 +35,7 @@ import numpy as np
 
 from .._errors import ModelError, ModelFormatError
 from ..checks import shown
+from ..display import html_repr, short_repr
 from .common import as_input
 from .pi import HYSTERESIS_FORMAT
 
@@ -110,6 +111,12 @@ class PreisachModel:
     input_limits: tuple[float, float] | None = None
 
     kind = PREISACH_KIND
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         lo, hi = (float(v) for v in self.input_range)

@@ -26,6 +26,7 @@ import numpy as np
 from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Satisfies
 from ..checks import is_real
+from ..display import html_repr, short_repr
 from .preisach import PreisachModel
 from .records import read_records
 
@@ -106,6 +107,12 @@ class PreisachFit:
     output_offsets: tuple[float, ...]
     filled_cells: int = 0
 
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
+
     def summary(self) -> str:
         errs = ", ".join(
             f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
@@ -128,10 +135,10 @@ class PreisachIdentifier(Estimator):
     input_range : (float, float), optional
         Range of the grid; default the records' input range.
 
-    Raises (from fit)
-    -----------------
+    Raises
+    ------
     DataError
-        Records whose input never moves (they determine no cell; one line).
+        From ``fit``: records whose input never moves (they determine no cell; one line).
 
     Notes
     -----

@@ -34,6 +34,7 @@ import numpy as np
 from .._errors import ModelError, ModelFormatError
 from ..checks import shown
 from ..data.sampling import PERIOD_RTOL, same_period, seconds
+from ..display import html_repr, short_repr
 from .common import as_input
 from .creep import CreepTerm
 from .dynamics import statespace_to_transfer, unit_gain_filter
@@ -86,6 +87,12 @@ class StageModel:
     disturbance_modes: tuple[tuple[float, float], ...] = ()
 
     kind = STAGE_KIND
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         if not isinstance(self.hysteresis, (PIModel, ModifiedPIModel, PreisachModel)):

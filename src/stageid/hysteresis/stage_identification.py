@@ -60,6 +60,7 @@ import numpy as np
 from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
+from ..display import html_repr, short_repr
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .dynamics import describe_pole
 from .identification import MODEL_KINDS, PIIdentifier
@@ -120,6 +121,12 @@ class StageFit:
     held_out: tuple[tuple[int, tuple[float, ...], float], ...]
     message: str
     modes: tuple[DisturbanceMode, ...] = ()
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def summary(self) -> str:
         """A short text report."""

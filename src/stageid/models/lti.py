@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .._errors import ModelError
+from ..display import html_repr
 from . import control_bridge as bridge
 from . import conversions as cv
 from ._kernels import simulate_discrete
@@ -76,6 +77,9 @@ class StateSpaceModel:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         A = as_matrix("A", self.A, (None, None))
@@ -322,6 +326,9 @@ class TransferMatrix:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def __post_init__(self) -> None:
         nums, dens = as_transfer_entries(self.num, self.den)

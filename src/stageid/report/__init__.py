@@ -1,12 +1,12 @@
 """Identification reports: self-contained HTML with embedded figures, and metrics JSON.
 
-==================  ================================================================
-``Report``          build an HTML report from sections, tables and figures
-``write_metrics``   write the figures of a report's tables as ``metrics.json``
+=======================  ================================================================
+``Report``               build an HTML report from sections, tables and figures
+``write_metrics``        write the figures of a report's tables as ``metrics.json``
 ``write_report_folder``  write ``index.html`` and ``metrics.json`` atomically (all or nothing)
-``model_report``    Bode, pole-zero and simulation report of any model on data
+``model_report``         Bode, pole-zero and simulation report of any model on data
 ``uncertainty_section``  the model's response with +-2 std bands and its relative std
-==================  ================================================================
+=======================  ================================================================
 """
 
 from .html import Report, write_metrics, write_report_folder

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..atomic import atomic_write_text, check_parent, staged_folder
+from ..display import html_repr, short_repr
 
 __all__ = ["Report", "write_metrics", "write_report_folder"]
 
@@ -62,6 +63,12 @@ class Report:
     title: str
     blocks: list[_Block] = field(default_factory=list)
     n_figures: int = 0
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def section(self, title: str, level: int = 2) -> None:
         """Start a section (``level`` 2) or sub-section (3)."""

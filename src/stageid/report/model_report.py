@@ -203,7 +203,7 @@ def hysteresis_model_report(
     When a record's output does not move its range is zero: the error in % of range is
     undefined (NaN in the metrics, ``null`` in ``metrics.json``) and the error is plotted in
     the output's own unit.  ``uncertainty`` (the fit's
-    :class:`~stageid.hysteresis.WeightUncertainty`) draws the band the weights' uncertainty puts
+    :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty`) draws the band the weights' uncertainty puts
     on each simulated loop (:func:`~stageid.report.uncertainty.loop_band_figure`) and reports its
     half-width and how much of the record it holds.
     """
@@ -281,7 +281,7 @@ def model_report(
 ) -> tuple[Report, dict[str, Any]]:
     """A report for any stageid model: LTI models get Bode/pole-zero/simulation (with ``uncertainty``
     bands when given, a FrequencyResponse, see :func:`lti_model_report`), hysteresis models loops
-    (with the band of a :class:`~stageid.hysteresis.WeightUncertainty` ``uncertainty``)."""
+    (with the band of a :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty` ``uncertainty``)."""
     if hasattr(model, "frequency_response"):
         return lti_model_report(model, experiments, title or "Identified LTI model", uncertainty=uncertainty)
     return hysteresis_model_report(model, experiments, title or "Identified hysteresis model", uncertainty)

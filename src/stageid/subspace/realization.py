@@ -57,7 +57,7 @@ def hankel_hi(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, i:
 
 
 def markov_from_theta(theta: np.ndarray, horizon: int, n_inputs: int, n_outputs: int, n_parameters: int) -> np.ndarray:
-    """Markov parameters ``Y_0 .. Y_(n-1)`` of the identified Hankel-Toeplitz model.
+    """Markov parameters ``Y_0`` to ``Y_(n-1)`` of the identified Hankel-Toeplitz model.
 
     Returns
     -------

@@ -19,6 +19,7 @@ from .._threads import single_blas_thread
 from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
+from ..display import html_repr, short_repr
 from ..frf.frd import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .map_estimator import Posterior
@@ -92,6 +93,12 @@ class HankelMAPResult:
     diagnostics: dict = field(default_factory=dict)
     input_scale: np.ndarray | None = None
     output_scale: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     @property
     def posterior(self) -> Posterior:

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import DataError
+from ..display import html_repr, short_repr
 
 __all__ = [
     "CorrelationTest",
@@ -83,6 +84,12 @@ class CorrelationTest:
     bound: float
     max_abs: float
     n_samples: int
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: ``pass``, ``max_abs``, ``bound``, ``lags``, ``correlations``, ``statistic``..."""
