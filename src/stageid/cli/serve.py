@@ -49,6 +49,7 @@ def serve_command(folder: str, port: int, host: str, max_upload_mb: float) -> No
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
         sock.bind((host, port))
+        sock.listen(128)  # so a page opened from the printed address waits instead of being refused
     except OSError as exc:
         sock.close()
         raise DataError(f"cannot listen on {host}:{port}: {exc.strerror or exc}; expected a free port.") from None

@@ -31,7 +31,7 @@ class UnknownControllerResult:
         The fitted innovation form (direct: the plant with its noise model; two-stage: the
         second stage); None for the joint route, whose model maps the references.
     poles : ndarray of complex
-        Continuous-time poles of :attr:`plant`, ``ln(z) / dt`` (rad/s), sorted by real part.
+        Continuous-time poles of ``plant``, ``ln(z) / dt`` (rad/s), sorted by real part.
     pole_std : ndarray or None
         ``sqrt(E|s_est - s|^2)`` of each pole (delta method), None without a covariance.
     order, horizon : int

@@ -13,7 +13,7 @@ module                    what it holds
                           total (noise + nonlinear) variance, odd/even detection-line levels
 :mod:`.bla_result`        :class:`BLAResult`, the detection-line levels
 :mod:`.bla_lpm`           transient removal of periodic records by a local polynomial (robust LPM)
-:mod:`.bla_figure`        the BLA's classic figure: |BLA|, noise and total distortion level
+:mod:`.bla_figure`        the BLA's classic figure: BLA magnitude, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start

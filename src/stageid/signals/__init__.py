@@ -21,8 +21,7 @@ Periodic (``periodic``, ``multisine``)
 ======================================
 ``sine``                 sine wave
 ``triangle``             triangle wave in phase with ``sine``
-``multisine``            random-phase or Schroeder multisine: line sets with detection lines,
-                         realisations, crest-factor clipping, band shape, orthogonal MIMO
+``multisine``            random-phase or Schroeder multisine: detection lines, realisations, MIMO
 ``multisine_lines``      the FFT lines inside a multisine's band
 ``multisine_plan``       excited and detection lines, amplitudes, experiments of a design
 

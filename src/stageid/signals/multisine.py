@@ -344,7 +344,7 @@ def multisine(
     * ``"schroeder"``: ``phi_k = -pi j (j - 1) / F`` for the ``j``-th of ``F`` lines
       (Schroeder 1970), deterministic, with a low crest factor for a flat spectrum.
 
-    ``c`` is chosen so the peak ``max |x - offset|`` equals ``amplitude`` (default 1)
+    ``c`` is chosen so the peak ``max(abs(x - offset))`` equals ``amplitude`` (default 1)
     or the RMS equals ``rms``.
 
     Parameters

@@ -67,7 +67,7 @@ def band_limited_random(
     rms : float, optional
         RMS value of the noise (without ``offset``); exclusive with ``amplitude``.
     amplitude : float, optional
-        Peak value ``max |x - offset|``; the default when neither is given is
+        Peak value ``max(abs(x - offset))``; the default when neither is given is
         ``amplitude=1``.
     seed : int or numpy.random.Generator, optional
         Seed of ``np.random.default_rng``; ``None`` draws fresh entropy.
