@@ -254,7 +254,9 @@ class Table:
         except ValueError:
             listed = ", ".join(n if len(n) <= 40 else shown(n, 40) for n in self.names[:50])
             more = f" and {len(self.names) - 50} more" if len(self.names) > 50 else ""
-            raise DataError(f"unknown column {shown(name)}; expected one of {listed}{more}") from None
+            raise DataError(
+                f"{file_prefix(self.source)}unknown column {shown(name)}; expected one of {listed}{more}"
+            ) from None
 
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:
