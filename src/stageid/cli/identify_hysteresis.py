@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, say, write_model_output
+from ._common import check_output, check_output_folder, say, trim_options, write_model_output
 
 
 def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | str | None:
@@ -156,6 +156,7 @@ Examples:
     type=click.Path(file_okay=False),
     help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.",
 )
+@trim_options
 def identify(
     data: tuple[str, ...],
     input_name: str,

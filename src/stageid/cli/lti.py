@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from .._errors import DataError, ModelError
+from ._common import trim_options
 
 
 @click.command(
@@ -42,6 +43,7 @@ Examples:
     help="Drive the model inputs INPUT has no column for with zeros (named on stderr); "
     "without it a missing input is an error.",
 )
+@trim_options
 def simulate_command(model_path: str, input_path: str, output: str, ts: float | None, zero_missing: bool) -> None:
     """Simulate MODEL.json (LTI or hysteresis) driven by the columns of INPUT named like the model's inputs.
 

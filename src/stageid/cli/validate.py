@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, read_experiments, say, split_names
+from ._common import check_output, check_output_folder, read_experiments, say, split_names, trim_options
 
 MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence)
 ALPHA = 0.01  # each test at the 1 % level
@@ -45,6 +45,7 @@ Examples:
 @click.option(
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
 )
+@trim_options
 def validate_command(
     model_path: str,
     data: tuple[str, ...],
