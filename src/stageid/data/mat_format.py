@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import DataError, StageIdError
+from .._errors import DataError, NoSampleTimeError, StageIdError
 from ..resources import require_memory
 from .files import HDF5_SIGNATURE, PathLike, array_columns, is_dunder, looks_like, open_checked, resolve_ts
 from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
 
-__all__ = ["read_mat"]
+__all__ = ["read_mat", "mat_leaves", "struct_leaves"]
 
 
 def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFAULT_TIME_RTOL) -> Table:
@@ -55,13 +55,10 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     >>> table.names, table.dt
     (('signals.values_1', 'signals.values_2'), 0.5)
     """
-    p, head = open_checked(path)
+    p, _ = open_checked(path)
     where = file_prefix(p.name)
     ts = resolve_ts(ts, time_rtol, where)
-    if head[512:520] == HDF5_SIGNATURE or head.startswith(HDF5_SIGNATURE):
-        variables, skipped = _mat73_variables(p, where)
-    else:
-        variables, skipped = _mat5_variables(p, head, where)
+    variables, skipped = _real_columns(*mat_leaves(p))
     variables, time_source = _with_time_axis(variables, where)
     names: list[str] = []
     columns: list[np.ndarray] = []
@@ -77,11 +74,39 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     units = ["s" if n == TIME_COLUMN else "" for n in names]
     try:
         return assemble_table(p.name, names, values, units, ts, time_rtol)
+    except NoSampleTimeError as exc:
+        responses = [s[: -len(" (complex)")] for s in skipped if s.endswith(" (complex)")]
+        if not responses:
+            raise
+        # complex vectors and no time: most likely a measured FRF, which is not a time record
+        raise NoSampleTimeError(
+            f"{str(exc).rstrip('.')}; the complex vectors ({_listed(responses, 4)}) look like frequency "
+            "responses: fit them with `stageid identify frd FILE --response NAME`."
+        ) from None
     except DataError as exc:
         if time_source is None:
             raise
         # the checks name the column 't'; the user knows it by its field name
         raise DataError(str(exc).replace(f"column '{TIME_COLUMN}'", f"vector '{time_source}'")) from None
+
+
+def mat_leaves(path: PathLike) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
+    """The numeric arrays of a ``.mat`` file (v5 or v7.3) by flattened name, and what was skipped.
+
+    Names as :func:`read_mat` gives them (``s.a``, ``s(2).b``, a lone struct's name dropped);
+    arrays real or complex, in MATLAB's shape (a v7.3 array transposed back).  Skipped values
+    are listed as ``"name (kind)"`` for messages.
+
+    Raises
+    ------
+    DataError
+        A missing, empty or unreadable file.
+    """
+    p, head = open_checked(path)
+    where = file_prefix(p.name)
+    if head[512:520] == HDF5_SIGNATURE or head.startswith(HDF5_SIGNATURE):
+        return _mat73_variables(p, where)
+    return _mat5_variables(p, head, where)
 
 
 def _listed(items: list[str], limit: int = 12) -> str:
@@ -214,7 +239,7 @@ def _mat5_variables(p: Path, head: bytes, where: str) -> tuple[list[tuple[str, n
         found, passed = struct_leaves("" if single else key, value)
         leaves += found
         skipped += passed
-    return _real_columns(leaves, skipped)
+    return leaves, skipped
 
 
 def _is_struct(value: object) -> bool:
@@ -256,7 +281,7 @@ def _mat73_variables(p: Path, where: str) -> tuple[list[tuple[str, np.ndarray]],
                 skipped += passed
     except (OSError, ValueError, TypeError, KeyError) as exc:
         raise DataError(f"file '{p.name}' is not a readable MATLAB v7.3 (HDF5) file: {exc}.") from None
-    return _real_columns(leaves, skipped)
+    return leaves, skipped
 
 
 def _h5_leaves(fh, name: str, obj, depth: int) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
