@@ -43,6 +43,8 @@ def read_design(path: str | None) -> dict[str, Any]:
     """The ``.multisine.json`` written by ``stageid signal multisine`` ({} without one)."""
     if path is None:
         return {}
+    if not Path(path).is_file():
+        raise DataError(f"--design '{path}' does not exist (the .multisine.json of stageid signal multisine).")
     try:
         design = json.loads(Path(path).read_text())
     except (OSError, ValueError) as exc:

@@ -57,7 +57,7 @@ Examples:
 @click.option(
     "--design",
     "design_path",
-    type=click.Path(exists=True, dir_okay=False),
+    type=click.Path(dir_okay=False),
     default=None,
     help="bla: the .multisine.json of `stageid signal multisine` (periods, lines, experiments per realisation).",
 )
