@@ -51,6 +51,7 @@ Examples:
   stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
   stageid identify hysteresis f20.csv f100.csv --input V --output y --dynamics auto --creep auto -o stage.json
   stageid identify hysteresis f20.csv f100.csv --input V --output y --model preisach --dynamics auto --creep auto -o stage.json
+  stageid identify hysteresis 20_hz_no_lp.mat --input "Y(3).Data" --output "Y(1).Data" --start 0.053 -o hyst.json
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))

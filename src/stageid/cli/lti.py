@@ -19,6 +19,8 @@ Examples:
   stageid simulate hyst.json drive.csv -o displacement.csv
   stageid simulate model.json record.npz --ts 0.002 -o out.csv
   stageid simulate p558.json z.csv --zero-missing -o response.csv   # inputs z.csv lacks held at 0
+  stageid simulate p558.json z.csv --zero-missing --start 1 --stop 2 -o part.csv   # 1 s to 2 s only
+  stageid simulate gain.json 20_hz_no_lp.mat -o v.csv   # a dSPACE struct: time X.Data, columns "Y(1).Data" ...
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))

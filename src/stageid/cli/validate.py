@@ -19,6 +19,7 @@ Examples:
   stageid validate model.json val.csv
   stageid validate model.json a.csv b.csv --json validation.json --report val-report/
   stageid validate hyst.json drive.csv --inputs V --outputs z --ts 0.002
+  stageid validate model.json val.csv --start 0.5 --stop 1.5     # only 0.5 s to 1.5 s of the record
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
