@@ -214,6 +214,11 @@ def test_hysteresis_summary_points_at_a_start_transient_and_start_removes_it(tmp
     assert max_error < 1.0  # the exact model class: what is left after the window is fit error only
     code, out, err = run_main("identify", "hysteresis", tmp_path / "clean.mat", *args, "-o", tmp_path / "h3.json")
     assert code == 0 and "transient" not in out + err
+    # validate says the same of a record the model was not fitted on
+    code, out, err = run_main(
+        "validate", tmp_path / "h3.json", tmp_path / "rec.mat", "--inputs", "Y(3).Data", "--outputs", "Y(1).Data"
+    )
+    assert code == 0 and "rec.mat  Y(1).Data: max error in the first" in out and "try --start" in out, out + err
 
 
 # ------------------------------------------------------------------ the shared records
@@ -281,3 +286,11 @@ def test_dspace_forc_record_transient_hint_and_window():
     # misses), RMS down too; no edge is blamed any more
     assert trimmed.max_error_percent[0] < fit.max_error_percent[0] / 4 and not trimmed.edge_errors
     assert trimmed.rms_error_percent[0] < fit.rms_error_percent[0]
+    # the feedforward records end on a sample where the drive was reset: one bad sample, not 5 %
+    from stageid.hysteresis.records import align_record
+
+    tri = ds.load_dspace_piezo(ds.SHARED_DATA / "piezo_dspace_preisach" / "tri50_1.mat")
+    _, simulated = align_record(trimmed.model, tri.u[:, 0], tri.y[:, 0])
+    residual = tri.y[:, 0] - np.ravel(simulated)
+    (end,) = edge_errors(residual, float(np.ptp(tri.y[:, 0])), tri.dt, tri.t0)
+    assert end.edge == "stop" and end.n_samples <= 5 and end.edge_percent > 30

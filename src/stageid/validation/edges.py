@@ -10,9 +10,12 @@ that reports it:
 * an edge holds a transient when its largest absolute error is more than ``EDGE_RATIO`` (3)
   times the largest of the middle *and* at least ``EDGE_FLOOR_PERCENT`` (1 %) of the output
   range (smaller errors are not worth trimming data for);
-* the suggested trim keeps the samples whose error the middle's largest error bounds: from the
-  sample after the last one above it in the first edge (``--start``), up to the sample before
-  the first one above it in the last edge (``--stop``).
+* the transient runs from the record's edge inward up to the last sample whose error exceeds the
+  middle's largest, and ends once the error has stayed within it for ``SETTLE_FRACTION``
+  (0.5 %, at least 10) samples: the trim (``--start`` / ``--stop``) drops exactly that run.  A
+  ringing transient crosses zero, so one sample within the bound is not its end; ordinary fit
+  error deeper in the edge, beyond such a settled stretch, is not part of it (on the dSPACE
+  feedforward records a one-sample end glitch would otherwise stretch to 1000 samples).
 
 A hint, never a change: the fit itself uses every sample it was given.
 """
@@ -23,11 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["EDGE_FRACTION", "EDGE_RATIO", "EDGE_FLOOR_PERCENT", "EdgeError", "edge_errors"]
+__all__ = ["EDGE_FRACTION", "EDGE_RATIO", "EDGE_FLOOR_PERCENT", "SETTLE_FRACTION", "EdgeError", "edge_errors"]
 
 EDGE_FRACTION = 0.05
 EDGE_RATIO = 3.0
 EDGE_FLOOR_PERCENT = 1.0
+SETTLE_FRACTION = 0.005
 MIN_SAMPLES = 40  # below this, 5 % edges are one or two samples: no basis for a rule
 
 
@@ -64,9 +68,10 @@ class EdgeError:
         'max error in the first 336 samples (35.3 % of range there, at most 3.3 % in the middle 90 %): a start-up transient; try --start 0.0336'
         """
         where, what = ("first", "a start-up transient") if self.edge == "start" else ("last", "an end transient")
+        samples = "sample" if self.n_samples == 1 else f"{self.n_samples} samples"
         trim = f"--{self.edge} {self.trim_at:.6g}" if self.trim_at is not None else "dropping those samples"
         return (
-            f"max error in the {where} {self.n_samples} samples ({self.edge_percent:.1f} % of range there, "
+            f"max error in the {where} {samples} ({self.edge_percent:.1f} % of range there, "
             f"at most {self.rest_percent:.1f} % in the middle {100 - 200 * EDGE_FRACTION:g} %): {what}; try {trim}"
         )
 
@@ -110,9 +115,22 @@ def edge_errors(
         peak = float(np.max(part))
         if not (peak > EDGE_RATIO * rest and 100.0 * peak / output_range >= EDGE_FLOOR_PERCENT):
             continue
-        above = np.flatnonzero(part > rest)
-        count = int(above[-1] + 1) if edge == "start" else int(h - above[0])
+        settle = max(int(np.ceil(SETTLE_FRACTION * n)), 10)
+        count = _transient_length(part if edge == "start" else part[::-1], rest, settle)
         kept = count if edge == "start" else n - count - 1  # index of the first / last sample kept
         trim_at = None if dt is None else float(t0 + kept * dt)
         found.append(EdgeError(edge, count, 100.0 * peak / output_range, 100.0 * rest / output_range, trim_at))
     return tuple(found)
+
+
+def _transient_length(inward: np.ndarray, bound: float, settle: int) -> int:
+    """Samples from the edge (``inward[0]``) to the last above ``bound`` before ``settle`` in a row within it."""
+    count = run = 0
+    for k, above in enumerate(inward > bound):
+        if above:
+            count, run = k + 1, 0
+        else:
+            run += 1
+            if run >= settle:
+                break
+    return count
