@@ -124,7 +124,15 @@ def test_bad_struct_files_one_line_naming_file_and_columns(tmp_path):
     t = DT * np.arange(100)
     _dspace(tmp_path / "rec.mat", t, t, t)
     code, out, err = run_main(
-        "identify", "hysteresis", tmp_path / "rec.mat", "--input", "Y(4).Data", "--output", "Y(1).Data", "-o", "h.json"
+        "identify",
+        "hysteresis",
+        tmp_path / "rec.mat",
+        "--input",
+        "Y(4).Data",
+        "--output",
+        "Y(1).Data",
+        "-o",
+        tmp_path / "h.json",
     )
     line = _one_line_error(code, out, err, "file 'rec.mat': unknown column 'Y(4).Data'")
     assert "expected one of Y(1).Data, Y(2).Data, Y(3).Data" in line
@@ -214,6 +222,20 @@ def test_hysteresis_summary_points_at_a_start_transient_and_start_removes_it(tmp
     assert max_error < 1.0  # the exact model class: what is left after the window is fit error only
     code, out, err = run_main("identify", "hysteresis", tmp_path / "clean.mat", *args, "-o", tmp_path / "h3.json")
     assert code == 0 and "transient" not in out + err
+    # the stage identifier's summary too
+    code, out, err = run_main(
+        "identify",
+        "hysteresis",
+        tmp_path / "rec.mat",
+        *args,
+        "--dynamics",
+        "0",
+        "--creep",
+        "none",
+        "-o",
+        tmp_path / "st.json",
+    )
+    assert code == 0 and "stage model" in out + err and "a start-up transient; try --start" in out + err
     # validate says the same of a record the model was not fitted on
     code, out, err = run_main(
         "validate", tmp_path / "h3.json", tmp_path / "rec.mat", "--inputs", "Y(3).Data", "--outputs", "Y(1).Data"
