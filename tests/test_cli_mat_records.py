@@ -316,3 +316,38 @@ def test_dspace_forc_record_transient_hint_and_window():
     residual = tri.y[:, 0] - np.ravel(simulated)
     (end,) = edge_errors(residual, float(np.ptp(tri.y[:, 0])), tri.dt, tri.t0)
     assert end.edge == "stop" and end.n_samples <= 5 and end.edge_percent > 30
+
+
+def test_window_on_the_npz_fast_path_and_refused_for_chunked_records(tmp_path):
+    import h5py
+
+    from stageid.data import write_npz
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(4096)
+    write_npz(tmp_path / "w.npz", {"u": u, "y": np.convolve(u, [0.5, 0.3, 0.1])[:4096]}, dt=DT)
+    segments = []
+    for window in ((), ("--start", "2.048"), ("--start", "1", "--stop", "3")):
+        args = ("frf", tmp_path / "w.npz", "--inputs", "u", "--outputs", "y", "--method", "welch", "--segment", "256")
+        code, out, err = run_main(*args, *window, "-o", tmp_path / "fw.csv")
+        assert code == 0, err
+        segments.append(int(out.split(" segments")[0].rsplit(" ", 1)[1]))
+    # half-overlapping 256-sample segments of 4096, 2048 and 2001 samples
+    assert segments == [31, 15, 14]
+    with h5py.File(tmp_path / "big.h5", "w") as fh:
+        fh.attrs["dt"] = DT
+        fh["u"], fh["y"] = u, u
+    code, out, err = run_main(
+        "identify",
+        "statespace",
+        tmp_path / "big.h5",
+        "--inputs",
+        "u",
+        "--outputs",
+        "y",
+        "--start",
+        "1",
+        "-o",
+        tmp_path / "m.json",
+    )
+    _one_line_error(code, out, err, "--start/--stop needs the records in memory")
