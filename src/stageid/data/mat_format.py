@@ -308,7 +308,7 @@ def _h5_leaves(fh, name: str, obj, depth: int) -> tuple[list[tuple[str, np.ndarr
             skipped += passed
         return leaves, skipped
     cls = _matlab_class(obj)
-    if cls in ("char", "cell", "struct", "logical") or obj.attrs.get("MATLAB_empty", 0):
+    if cls in ("char", "cell", "struct") or obj.attrs.get("MATLAB_empty", 0):
         return [], [f"{name} ({'text' if cls == 'char' else cls})"]
     arr = np.asarray(obj[()])
     if arr.dtype.names is not None:  # complex data are stored as (real, imag) records
