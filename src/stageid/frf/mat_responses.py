@@ -100,7 +100,8 @@ def mat_responses(path: PathLike, response: str | None = None) -> tuple[np.ndarr
             )
         key = next(iter(responses))
     else:
-        keys = [k for k in responses if response in (k, k.rsplit(".", 1)[-1])]
+        # the full name, its last part, or with the variable name a lone struct's columns drop
+        keys = [k for k in responses if response in (k, k.rsplit(".", 1)[-1]) or response.endswith("." + k)]
         if len(keys) != 1:
             found = "matches several" if keys else "is not one"
             raise DataError(
