@@ -222,6 +222,11 @@ def test_hysteresis_summary_points_at_a_start_transient_and_start_removes_it(tmp
     assert max_error < 1.0  # the exact model class: what is left after the window is fit error only
     code, out, err = run_main("identify", "hysteresis", tmp_path / "clean.mat", *args, "-o", tmp_path / "h3.json")
     assert code == 0 and "transient" not in out + err
+    # the Preisach identifier's summary too
+    code, out, err = run_main(
+        "identify", "hysteresis", tmp_path / "rec.mat", *args[:4], "--model", "preisach", "-o", tmp_path / "p.json"
+    )
+    assert code == 0 and "Preisach model" in out + err and "a start-up transient; try --start" in out + err
     # the stage identifier's summary too
     code, out, err = run_main(
         "identify",
