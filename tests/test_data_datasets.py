@@ -213,5 +213,11 @@ def test_real_files_through_the_generic_reader():
         read_table(path, time_rtol=1e-6)
     table = read_table(path)
     assert set(table.names) == {"qm", "qg", "vir"}  # the scalar gains are not columns
-    with pytest.raises(DataError, match=r"found only struct 'tri50_1'.*dedicated loader"):
-        read_table(ds.SHARED_DATA / "piezo_dspace_preisach" / "tri50_1.mat", ts=1e-4)
+    # the dSPACE struct: fields flattened (the variable name dropped), X.Data the time axis;
+    # the same samples and grid as the dedicated loader
+    path = ds.SHARED_DATA / "piezo_dspace_preisach" / "tri50_1.mat"
+    table, exp = read_table(path), ds.load_dspace_piezo(path)
+    assert table.names == ("Y(1).Data", "Y(2).Data", "Y(3).Data")
+    assert (table.dt, table.t0, table.n_samples) == (exp.dt, exp.t0, exp.n_samples)
+    assert np.array_equal(table.column("Y(1).Data"), exp.y[:, 0])
+    assert np.array_equal(table.column("Y(3).Data"), exp.u[:, 0])

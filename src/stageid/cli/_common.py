@@ -30,6 +30,8 @@ __all__ = [
     "parse_band",
     "read_experiments",
     "read_table_checked",
+    "trim_options",
+    "current_trim",
     "say",
     "flush_messages",
     "check_output",
@@ -134,11 +136,55 @@ def flush_messages(print_them: bool = True) -> None:
             click.echo(text, err=err)
 
 
+_TRIM_KEY = "stageid.trim"
+_TRIM_HELP = {
+    "start": "Drop every record's samples before this time [s] on its time axis (a start-up transient).",
+    "stop": "Drop every record's samples after this time [s] on its time axis (an end glitch).",
+}
+
+
+def _remember_trim(ctx: click.Context, param: click.Parameter, value: float | None) -> None:
+    import math
+
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"expected a finite time in seconds; got {value!r}.")
+    ctx.meta.setdefault(_TRIM_KEY, {})[param.name] = value
+
+
+def trim_options(command):
+    """``--start``/``--stop SECONDS``: every record the command reads keeps only that window.
+
+    One decorator for every command that reads time records; the window is applied by
+    :func:`read_table_checked` (:meth:`stageid.data.Table.between`), so a command needs no
+    parameter of its own for it.
+    """
+    for name in ("stop", "start"):
+        command = click.option(
+            f"--{name}",
+            name,
+            type=float,
+            default=None,
+            metavar="SECONDS",
+            expose_value=False,
+            callback=_remember_trim,
+            help=_TRIM_HELP[name],
+        )(command)
+    return command
+
+
+def current_trim() -> tuple[float | None, float | None]:
+    """The ``(start, stop)`` window of the running command (``(None, None)``: whole records)."""
+    ctx = click.get_current_context(silent=True)
+    window = {} if ctx is None else ctx.find_root().meta.get(_TRIM_KEY, {})
+    return window.get("start"), window.get("stop")
+
+
 def read_table_checked(path: str | os.PathLike[str], ts: float | None):
     """Read a CSV/NPZ/MAT file into a :class:`~stageid.data.io.Table` (``ts`` when no ``t`` column).
 
     The time axis follows the sample-time rule (:mod:`stageid.data.sampling`); clock jitter
-    beyond the stamps' rounding is accepted up to its tolerance and noted in one line.
+    beyond the stamps' rounding is accepted up to its tolerance and noted in one line.  The
+    ``--start``/``--stop`` window of the command (:func:`trim_options`) is applied.
     """
     from ..data.io import read_table
     from ..data.sampling import jitter_note
@@ -147,7 +193,8 @@ def read_table_checked(path: str | os.PathLike[str], ts: float | None):
     note = jitter_note(table.jitter, table.dt, f"file '{Path(path).name}': ") if table.dt is not None else ""
     if note:
         say(note, err=True)
-    return table
+    start, stop = current_trim()
+    return table if start is None and stop is None else table.between(start, stop)
 
 
 def read_experiments(

@@ -100,7 +100,9 @@ def _read_record(path: str, inputs: Sequence[str], outputs: Sequence[str], ts: f
     """An NPZ of 1-D float columns as memory-mapped channels (no table copy), else an Experiment."""
     from ..data.sampling import UNIFORM_RTOL
     from ..frf.records import read_npz_record
-    from ._common import read_experiments
+    from ._common import current_trim, read_experiments
 
-    record = read_npz_record(path, inputs, outputs, ts, UNIFORM_RTOL) if str(path).lower().endswith(".npz") else None
+    # the memory-mapped path reads whole columns; a --start/--stop window goes through the table reader
+    direct = str(path).lower().endswith(".npz") and current_trim() == (None, None)
+    record = read_npz_record(path, inputs, outputs, ts, UNIFORM_RTOL) if direct else None
     return record if record is not None else read_experiments([path], inputs, outputs, ts)[0]

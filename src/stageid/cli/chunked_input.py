@@ -49,6 +49,10 @@ def chunked_record(
         raise click.UsageError(
             f"a chunked record ({chunked[0]}) is identified on its own; got {len(paths)} DATA arguments, expected one."
         )
+    from ._common import current_trim
+
+    if current_trim() != (None, None):
+        what = what or "--start/--stop"
     if what:
         raise click.UsageError(f"{what} needs the records in memory; chunked inputs (.h5, .hdf5, .npy, Zarr) do not.")
     return open_chunked(paths[0], inputs, outputs, ts, UNIFORM_RTOL)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, read_experiments, say, split_names, write_table_output
+from ._common import check_output, read_experiments, say, split_names, trim_options, write_table_output
 from .chunked_input import chunked_record, scheduler_option, statistics_client
 
 
@@ -70,6 +70,7 @@ Examples:
     help="Output .csv or .npz (by extension).",
 )
 @scheduler_option
+@trim_options
 def frf_command(
     data: tuple[str, ...],
     inputs: str,
@@ -151,10 +152,14 @@ def _read_records(paths, inputs, outputs, ts) -> list:
     copy; samples checked segment batch by segment batch), everything else as experiments."""
     from ..data.sampling import UNIFORM_RTOL
     from ..frf.records import read_npz_record
+    from ._common import current_trim
 
+    whole = current_trim() == (None, None)  # a --start/--stop window goes through the table reader
     records = []
     for p in paths:
-        rec = read_npz_record(p, inputs, outputs, ts, UNIFORM_RTOL) if str(p).lower().endswith(".npz") else None
+        rec = (
+            read_npz_record(p, inputs, outputs, ts, UNIFORM_RTOL) if whole and str(p).lower().endswith(".npz") else None
+        )
         records.append(rec if rec is not None else read_experiments([p], inputs, outputs, ts)[0])
     from ..frf.records import as_channel_records
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, parse_band, say, split_names, write_model_output
+from ._common import check_output, check_output_folder, parse_band, say, split_names, trim_options, write_model_output
 from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
@@ -94,6 +94,7 @@ Examples:
     help="Also write an HTML report (plant Bode and pole-zero maps, closed loop vs FFT estimate, re-closed loop).",
 )
 @uncertainty_options
+@trim_options
 def closedloop_command(
     experiments: tuple[str, ...],
     references: str,

@@ -26,9 +26,16 @@ Examples:
   stageid identify frd frf.npz --order auto --continuous --fmax 2000 -o model.json
   stageid identify frd afm.csv --order 16 --dt 4e-5 --fmin 1 --fmax 2000 --delay auto --report rep/ -o afm.json
   stageid identify frd frf.csv --order 6 --dt 0.0002 -o model.json --uncertainty bands.csv
+  stageid identify frd FRF_data_current_stage2.mat --response G_uz2stage --order 8 --dt 4e-5 --fmax 2000 -o afm.json
 """,
 )
-@click.argument("frf_path", metavar="FRF.(csv|npz)", type=click.Path(dir_okay=False))
+@click.argument("frf_path", metavar="FRF.(csv|npz|mat)", type=click.Path(dir_okay=False))
+@click.option(
+    "--response",
+    default=None,
+    help="The complex response vector of a .mat FRF to fit (e.g. G_uz2stage or frf.G_uz2stage), "
+    "when the file holds several.",
+)
 @click.option(
     "--order", default="auto", show_default=True, help="States of the model, or 'auto' (held-out frequencies)."
 )
@@ -52,6 +59,7 @@ Examples:
 @uncertainty_options
 def frd_command(
     frf_path: str,
+    response: str | None,
     order: str,
     dt: float | None,
     continuous: bool,
@@ -67,7 +75,9 @@ def frd_command(
     """Fit a MIMO state-space model to FRF (columns f_hz, re_/im_<out>_<in>, optional std_, coh_).
 
     Frequency-domain subspace realisation, then a weighted output-error refinement on the
-    complex response, stability enforced.  Channel names come from the columns.
+    complex response, stability enforced.  Channel names come from the columns.  A MATLAB
+    .mat FRF (complex vectors beside a frequency vector, structs included) gives one SISO
+    response, chosen with --response when the file holds several.
     """
     check_output(output, "model")
     if report_dir is not None:
@@ -88,7 +98,7 @@ def frd_command(
         weight=weight,
         delay=_order_or_auto(delay, "--delay"),
     )
-    frd = read_frd(frf_path)
+    frd = read_frd(frf_path, response)
     result = estimator.fit(frd)
     write_model_output(output, result.model)
     uncertainty_line = uncertainty.write(result, result.band, result.model.dt)

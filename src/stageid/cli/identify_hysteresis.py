@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, say, write_model_output
+from ._common import check_output, check_output_folder, say, trim_options, write_model_output
 
 
 def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | str | None:
@@ -51,6 +51,7 @@ Examples:
   stageid identify hysteresis forc.csv --input V --output y --creep 0.05,0.2,1,5,20 -o hyst.json
   stageid identify hysteresis f20.csv f100.csv --input V --output y --dynamics auto --creep auto -o stage.json
   stageid identify hysteresis f20.csv f100.csv --input V --output y --model preisach --dynamics auto --creep auto -o stage.json
+  stageid identify hysteresis 20_hz_no_lp.mat --input "Y(3).Data" --output "Y(1).Data" --start 0.053 -o hyst.json
 """,
 )
 @click.argument("data", nargs=-1, required=True, metavar="DATA...", type=click.Path(dir_okay=False))
@@ -156,6 +157,7 @@ Examples:
     type=click.Path(file_okay=False),
     help="Also write an HTML report (measured vs modelled loops, error traces) into this folder.",
 )
+@trim_options
 def identify(
     data: tuple[str, ...],
     input_name: str,

@@ -11,6 +11,7 @@ from ._common import (
     read_experiments,
     say,
     split_names,
+    trim_options,
     write_model_output,
 )
 from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
@@ -98,6 +99,7 @@ Examples:
 )
 @uncertainty_options
 @scheduler_option
+@trim_options
 def statespace_command(
     data: tuple[str, ...],
     inputs: str,

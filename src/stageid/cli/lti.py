@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from .._errors import DataError, ModelError
+from ._common import trim_options
 
 
 @click.command(
@@ -18,6 +19,8 @@ Examples:
   stageid simulate hyst.json drive.csv -o displacement.csv
   stageid simulate model.json record.npz --ts 0.002 -o out.csv
   stageid simulate p558.json z.csv --zero-missing -o response.csv   # inputs z.csv lacks held at 0
+  stageid simulate p558.json z.csv --zero-missing --start 1 --stop 2 -o part.csv   # 1 s to 2 s only
+  stageid simulate gain.json 20_hz_no_lp.mat -o v.csv   # a dSPACE struct: time X.Data, columns "Y(1).Data" ...
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
@@ -42,6 +45,7 @@ Examples:
     help="Drive the model inputs INPUT has no column for with zeros (named on stderr); "
     "without it a missing input is an error.",
 )
+@trim_options
 def simulate_command(model_path: str, input_path: str, output: str, ts: float | None, zero_missing: bool) -> None:
     """Simulate MODEL.json (LTI or hysteresis) driven by the columns of INPUT named like the model's inputs.
 

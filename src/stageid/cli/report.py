@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ._common import check_output_folder, read_experiments, say, split_names
+from ._common import check_output_folder, read_experiments, say, split_names, trim_options
 
 
 def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None, uncertainty=None) -> Path:
@@ -53,6 +53,7 @@ Examples:
 @click.option(
     "--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for index.html and metrics.json."
 )
+@trim_options
 def report_command(
     model_path: str,
     data: tuple[str, ...],

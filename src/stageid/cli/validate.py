@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, read_experiments, say, split_names
+from ._common import check_output, check_output_folder, read_experiments, say, split_names, trim_options
 
 MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence)
 ALPHA = 0.01  # each test at the 1 % level
@@ -19,6 +19,7 @@ Examples:
   stageid validate model.json val.csv
   stageid validate model.json a.csv b.csv --json validation.json --report val-report/
   stageid validate hyst.json drive.csv --inputs V --outputs z --ts 0.002
+  stageid validate model.json val.csv --start 0.5 --stop 1.5     # only 0.5 s to 1.5 s of the record
 """,
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
@@ -45,6 +46,7 @@ Examples:
 @click.option(
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
 )
+@trim_options
 def validate_command(
     model_path: str,
     data: tuple[str, ...],
@@ -104,6 +106,22 @@ def validate_command(
         path = _write_report(report_dir, model, experiments, result, summary)
         say(f"report written to {path}")
     say(_summary_text(summary, [e.name for e in experiments]))
+    for line in _edge_lines(model, experiments, result["residuals"]):
+        say(line)
+
+
+def _edge_lines(model, experiments, residuals) -> list[str]:
+    """A line per record and output whose error concentrates at an edge (:mod:`stageid.validation.edges`)."""
+    import numpy as np
+
+    from ..validation.edges import edge_errors
+
+    lines = []
+    for exp, e in zip(experiments, residuals):
+        for i, name in enumerate(model.outputs):
+            for edge in edge_errors(e[:, i], float(np.ptp(exp.y[:, i])), exp.dt, exp.t0):
+                lines.append(f"{exp.name}  {name}: {edge.describe()}")
+    return lines
 
 
 def _experiments(model, data, inputs, outputs, ts):

@@ -9,24 +9,37 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import DataError, StageIdError
+from .._errors import DataError, NoSampleTimeError, StageIdError
 from ..resources import require_memory
 from .files import HDF5_SIGNATURE, PathLike, array_columns, is_dunder, looks_like, open_checked, resolve_ts
 from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
 
-__all__ = ["read_mat"]
+__all__ = ["read_mat", "mat_leaves", "struct_leaves"]
 
 
 def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFAULT_TIME_RTOL) -> Table:
-    """Read the numeric column variables of a MATLAB ``.mat`` file (v4/v5/v7 or v7.3).
+    """Read the numeric signals of a MATLAB ``.mat`` file (v4/v5/v7 or v7.3), structs included.
 
     v5-style files are read with :func:`scipy.io.loadmat`, v7.3 files (HDF5 signature) with
     h5py.  Real numeric vectors — shape (n, 1), (1, n) or 1-D — become columns of their
-    name; an (n, k) matrix ``v`` with n > 1 becomes columns ``v_1 .. v_k``.  Scalars
-    (parameters such as gains), structs, cells, strings, complex, sparse and 3-D arrays are
-    not columns and are skipped, as are ``__dunder__`` keys.  An optional ``t`` variable is
-    the time axis.  Parameters, returns and errors as :func:`read_table`; a file holding
-    only structs raises a :class:`DataError` naming them.
+    name; an (n, k) matrix ``v`` with n > 1 becomes columns ``v_1 .. v_k``.  Struct fields
+    are flattened to MATLAB-style paths: ``s.a.b``, and ``s(2).b`` for element 2 of a struct
+    array; a file holding a single 1x1 struct drops its variable name (a dSPACE ControlDesk
+    export gives ``X.Data``, ``Y(1).Data``, ``Y(2).Data`` ... whatever the variable is called).
+    Scalars (parameters such as gains), strings, cells, complex, sparse and 3-D arrays are
+    not columns and are skipped, as are ``__dunder__`` keys.
+
+    The time axis is the variable ``t``; else the one vector whose last name part is ``t`` or
+    ``time`` (a Simulink "structure with time"); else ``X.Data`` (dSPACE: the time of the ``Y``
+    signals).  Every column must have the length of the others.  Parameters, returns and
+    errors as :func:`read_table`.
+
+    Raises
+    ------
+    DataError
+        As :func:`read_table`; also a file with no numeric vectors (naming what it holds),
+        vectors of unequal lengths (grouped by length, with their names) and several
+        different time vectors.
 
     Examples
     --------
@@ -36,14 +49,17 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     >>> scipy.io.savemat(path, {"t": np.arange(4.0)[:, None], "u": np.zeros((4, 1)), "gain": 2.0})
     >>> read_mat(path).names
     ('u',)
+    >>> rec = {"time": 0.5 * np.arange(4.0), "signals": {"values": np.ones((4, 2))}}
+    >>> scipy.io.savemat(path, {"run": rec})
+    >>> table = read_mat(path)
+    >>> table.names, table.dt
+    (('signals.values_1', 'signals.values_2'), 0.5)
     """
-    p, head = open_checked(path)
+    p, _ = open_checked(path)
     where = file_prefix(p.name)
     ts = resolve_ts(ts, time_rtol, where)
-    if head[512:520] == HDF5_SIGNATURE or head.startswith(HDF5_SIGNATURE):
-        variables, skipped = _mat73_variables(p, where)
-    else:
-        variables, skipped = _mat5_variables(p, head, where)
+    variables, skipped = _real_columns(*mat_leaves(p))
+    variables, time_source = _with_time_axis(variables, where)
     names: list[str] = []
     columns: list[np.ndarray] = []
     for key, arr in variables:
@@ -51,15 +67,93 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
             names.append(name)
             columns.append(col)
     if not columns:
-        found = (
-            f"; found only {', '.join(skipped)} (use a dedicated loader from stageid.data.datasets for structs)"
-            if skipped
-            else ""
-        )
-        raise DataError(f"file '{p.name}' holds no numeric column variables{found}.")
+        found = f"; found only {_listed(skipped)}" if skipped else ""
+        raise DataError(f"file '{p.name}' holds no numeric signals (vectors of samples){found}.")
+    _check_one_length(names, columns, where)
     values = stack_columns(names, columns, where)
     units = ["s" if n == TIME_COLUMN else "" for n in names]
-    return assemble_table(p.name, names, values, units, ts, time_rtol)
+    try:
+        return assemble_table(p.name, names, values, units, ts, time_rtol)
+    except NoSampleTimeError as exc:
+        responses = [s[: -len(" (complex)")] for s in skipped if s.endswith(" (complex)")]
+        if not responses:
+            raise
+        # complex vectors and no time: most likely a measured FRF, which is not a time record
+        raise NoSampleTimeError(
+            f"{str(exc).rstrip('.')}; the complex vectors ({_listed(responses, 4)}) look like frequency "
+            "responses: fit them with `stageid identify frd FILE --response NAME`."
+        ) from None
+    except DataError as exc:
+        if time_source is None:
+            raise
+        # the checks name the column 't'; the user knows it by its field name
+        raise DataError(str(exc).replace(f"column '{TIME_COLUMN}'", f"vector '{time_source}'")) from None
+
+
+def mat_leaves(path: PathLike) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
+    """The numeric arrays of a ``.mat`` file (v5 or v7.3) by flattened name, and what was skipped.
+
+    Names as :func:`read_mat` gives them (``s.a``, ``s(2).b``, a lone struct's name dropped);
+    arrays real or complex, in MATLAB's shape (a v7.3 array transposed back).  Skipped values
+    are listed as ``"name (kind)"`` for messages.
+
+    Raises
+    ------
+    DataError
+        A missing, empty or unreadable file.
+    """
+    p, head = open_checked(path)
+    where = file_prefix(p.name)
+    if head[512:520] == HDF5_SIGNATURE or head.startswith(HDF5_SIGNATURE):
+        return _mat73_variables(p, where)
+    return _mat5_variables(p, head, where)
+
+
+def _listed(items: list[str], limit: int = 12) -> str:
+    more = f" and {len(items) - limit} more" if len(items) > limit else ""
+    return ", ".join(items[:limit]) + more
+
+
+def _with_time_axis(
+    variables: list[tuple[str, np.ndarray]], where: str
+) -> tuple[list[tuple[str, np.ndarray]], str | None]:
+    """Rename the time vector of a struct file to ``t``; returns the variables and its field name.
+
+    Candidates, by rule: ``t``; vectors whose last name part is ``t`` or ``time``; ``X.Data``
+    (dSPACE).  Several equal candidates are one axis; several different ones are an error.
+    """
+    names = [k for k, _ in variables]
+    if TIME_COLUMN in names:
+        return variables, None
+    vectors = {k: a for k, a in variables if a.ndim == 1 or (a.ndim == 2 and a.shape[1] == 1)}
+    rules = (
+        lambda k: k.rsplit(".", 1)[-1].lower() in ("t", "time"),
+        lambda k: k == "X.Data",
+    )
+    for rule in rules:
+        found = [k for k in vectors if rule(k)]
+        if not found:
+            continue
+        first = vectors[found[0]].ravel()
+        if any(vectors[k].ravel().shape != first.shape or not np.array_equal(vectors[k].ravel(), first) for k in found):
+            raise DataError(f"{where}several different time vectors ({', '.join(found)}); expected one time axis.")
+        kept = [(TIME_COLUMN if k == found[0] else k, a) for k, a in variables if k == found[0] or k not in found]
+        return kept, found[0]
+    return variables, None
+
+
+def _check_one_length(names: list[str], columns: list[np.ndarray], where: str) -> None:
+    """Columns of unequal lengths: one error listing the names of each length."""
+    by_length: dict[int, list[str]] = {}
+    for name, col in zip(names, columns):
+        by_length.setdefault(int(col.shape[0]), []).append(name)
+    if len(by_length) < 2:
+        return
+    groups = "; ".join(
+        f"{n} samples: {_listed(['time' if k == TIME_COLUMN else k for k in ks], 6)}"
+        for n, ks in sorted(by_length.items(), key=lambda item: -len(item[1]))
+    )
+    raise DataError(f"{where}signals have unequal lengths ({groups}); expected one length for every column.")
 
 
 def _mat_column_array(arr: np.ndarray) -> np.ndarray | None:
@@ -73,6 +167,48 @@ def _mat_column_array(arr: np.ndarray) -> np.ndarray | None:
     if arr.ndim == 2 and arr.shape[0] > 1:
         return arr
     return None  # scalars and N-D arrays
+
+
+def _kind(value: object) -> str:
+    """What a skipped MATLAB value is, for messages."""
+    if not isinstance(value, np.ndarray):
+        return "sparse"
+    if value.dtype.kind in "US":
+        return "text"
+    if value.dtype.kind == "c":
+        return "complex"
+    if value.dtype.kind == "O":
+        return "cell"
+    if value.dtype.kind in "biuf" and value.size <= 1:
+        return "scalar"
+    return f"{value.ndim}-D array" if value.ndim > 2 else f"{value.dtype.kind}-type"
+
+
+def struct_leaves(name: str, value: object, depth: int = 0) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
+    """Flatten a value of :func:`scipy.io.loadmat` into ``(path, array)`` numeric leaves and skipped names.
+
+    A 1x1 struct ``s`` gives ``s.field``; element i (1-based, MATLAB order) of a struct array
+    gives ``s(i).field``.  Numeric (real or complex) leaves are returned as stored; strings,
+    cells and sparse matrices are listed as skipped, ``"name (kind)"``.
+    """
+    if type(value).__name__ == "MatlabOpaque":  # a MATLAB object (tf, ss, ...): scipy cannot read its data
+        return [], [f"{name} (MATLAB object)"]
+    if isinstance(value, np.ndarray) and value.dtype.names is not None:
+        if depth > 16:  # MATLAB structs are shallow; a deeper one is a reference loop
+            return [], [f"{name} (struct nested too deeply)"]
+        elements = value.ravel(order="F")
+        leaves, skipped = [], []
+        for i, element in enumerate(elements):
+            base = name if elements.size == 1 else f"{name}({i + 1})"
+            for field in value.dtype.names:
+                child = f"{base}.{field}" if base else field
+                sub_leaves, sub_skipped = struct_leaves(child, element[field], depth + 1)
+                leaves += sub_leaves
+                skipped += sub_skipped
+        return leaves, skipped
+    if isinstance(value, np.ndarray) and value.dtype.kind in "biufc":
+        return [(name, value)], []
+    return [], [f"{name} ({_kind(value)})"]
 
 
 def _mat5_variables(p: Path, head: bytes, where: str) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
@@ -91,52 +227,95 @@ def _mat5_variables(p: Path, head: bytes, where: str) -> tuple[list[tuple[str, n
         raise
     except Exception as exc:  # scipy raises ValueError/TypeError/OSError for foreign files
         raise DataError(f"file '{p.name}' is not a readable MATLAB .mat file{looks_like(head)}: {exc}.") from None
-    out, skipped = [], []
-    for key, value in content.items():
-        if is_dunder(key):
+    keys = [k for k in content if not is_dunder(k)]
+    single = len(keys) == 1 and _is_struct(content[keys[0]]) and content[keys[0]].size == 1
+    leaves, skipped = [], []
+    for key in keys:
+        value = content[key]
+        if issparse(value):
+            skipped.append(f"{key} (sparse)")
             continue
-        if issparse(value) or not isinstance(value, np.ndarray):
-            skipped.append(f"'{key}' (sparse)")
-            continue
-        col = _mat_column_array(value)
+        # a lone struct is the whole record (dSPACE names it after the run): its fields are the names
+        found, passed = struct_leaves("" if single else key, value)
+        leaves += found
+        skipped += passed
+    return leaves, skipped
+
+
+def _is_struct(value: object) -> bool:
+    return isinstance(value, np.ndarray) and value.dtype.names is not None
+
+
+def _real_columns(
+    leaves: list[tuple[str, np.ndarray]], skipped: list[str]
+) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
+    """The leaves that are columns (real vectors and matrices); the others join ``skipped``."""
+    out = []
+    for name, arr in leaves:
+        col = _mat_column_array(arr)
         if col is None:
-            if value.dtype.names is not None:
-                skipped.append(f"struct '{key}'")
-            elif value.dtype.kind not in "biuf":
-                skipped.append(f"'{key}' ({value.dtype.kind}-type)")
-            continue
-        out.append((key, col))
+            skipped.append(f"{name} ({_kind(arr)})")
+        else:
+            out.append((name, col))
     return out, skipped
 
 
 def _mat73_variables(p: Path, where: str) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
     import h5py
 
-    out, skipped = [], []
     try:
         with h5py.File(p, "r") as fh:
-            datasets = [fh[k] for k in fh.keys() if isinstance(fh[k], h5py.Dataset)]
-            need = sum(float(d.size) * (d.dtype.itemsize + 16.0) for d in datasets)
-            require_memory(need, f"reading the datasets of '{p.name}'")
-            for key in fh.keys():
-                if key.startswith("#") or is_dunder(key):
-                    continue
-                obj = fh[key]
-                if not isinstance(obj, h5py.Dataset):
-                    skipped.append(f"struct '{key}'")
-                    continue
-                cls = obj.attrs.get("MATLAB_class", b"double")
-                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
-                if cls in ("char", "cell", "struct") or obj.attrs.get("MATLAB_empty", 0):
-                    skipped.append(f"{cls} '{key}'")
-                    continue
-                arr = np.asarray(obj[()])
-                if arr.dtype.names is not None:  # complex data are stored as (real, imag) records
-                    skipped.append(f"complex '{key}'")
-                    continue
-                col = _mat_column_array(arr.T)  # HDF5 stores MATLAB arrays transposed
-                if col is not None:
-                    out.append((key, col))
-    except (OSError, ValueError, TypeError) as exc:
+            sizes: list[float] = []
+            fh.visititems(
+                lambda _, o: (
+                    sizes.append(float(o.size) * (o.dtype.itemsize + 16.0)) if isinstance(o, h5py.Dataset) else None
+                )
+            )
+            require_memory(sum(sizes), f"reading the datasets of '{p.name}'")
+            keys = [k for k in fh.keys() if not k.startswith("#") and not is_dunder(k)]
+            single = len(keys) == 1 and isinstance(fh[keys[0]], h5py.Group)
+            leaves, skipped = [], []
+            for key in keys:
+                found, passed = _h5_leaves(fh, "" if single else key, fh[key], 0)
+                leaves += found
+                skipped += passed
+    except (OSError, ValueError, TypeError, KeyError) as exc:
         raise DataError(f"file '{p.name}' is not a readable MATLAB v7.3 (HDF5) file: {exc}.") from None
-    return out, skipped
+    return leaves, skipped
+
+
+def _h5_leaves(fh, name: str, obj, depth: int) -> tuple[list[tuple[str, np.ndarray]], list[str]]:
+    """Flatten a v7.3 object as :func:`struct_leaves` does a v5 one (structs are HDF5 groups)."""
+    import h5py
+
+    if depth > 16:  # MATLAB structs are shallow; a deeper one is a reference loop
+        return [], [f"{name} (struct nested too deeply)"]
+    leaves, skipped = [], []
+    if isinstance(obj, h5py.Group):
+        for key in obj.keys():
+            member = obj[key]
+            refs = isinstance(member, h5py.Dataset) and h5py.check_dtype(ref=member.dtype) is not None
+            if refs and _matlab_class(member) != "cell":  # a field of a struct array: one reference per element
+                targets = np.asarray(member[()]).T.ravel(order="F")
+                for i, ref in enumerate(targets):
+                    child = f"{name}({i + 1}).{key}" if targets.size > 1 else f"{name}.{key}"
+                    found, passed = _h5_leaves(fh, child.lstrip("."), fh[ref], depth + 1)
+                    leaves += found
+                    skipped += passed
+                continue
+            found, passed = _h5_leaves(fh, f"{name}.{key}" if name else key, member, depth + 1)
+            leaves += found
+            skipped += passed
+        return leaves, skipped
+    cls = _matlab_class(obj)
+    if cls in ("char", "cell", "struct") or obj.attrs.get("MATLAB_empty", 0):
+        return [], [f"{name} ({'text' if cls == 'char' else cls})"]
+    arr = np.asarray(obj[()])
+    if arr.dtype.names is not None:  # complex data are stored as (real, imag) records
+        arr = arr["real"] + 1j * arr["imag"]
+    return [(name, arr.T)], []  # HDF5 stores MATLAB arrays transposed
+
+
+def _matlab_class(obj) -> str:
+    cls = obj.attrs.get("MATLAB_class", b"double")
+    return cls.decode() if isinstance(cls, bytes) else str(cls)

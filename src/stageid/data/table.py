@@ -230,6 +230,42 @@ class Table:
             name=self.source if name is None else name,
         )
 
+    def between(self, start: float | None = None, stop: float | None = None) -> Table:
+        """The samples with ``start <= t <= stop`` (seconds on the table's time axis), t0 moved.
+
+        A stamp within 1e-6 of a period of a bound counts as on it.  ``None`` leaves that
+        side open.  The table itself is unchanged.
+
+        Raises
+        ------
+        DataError
+            ``start >= stop``, an unknown sample time, or a window that keeps fewer than 2
+            samples (naming the record's time span).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from stageid.data import Table
+        >>> part = Table(["u"], np.arange(10.0), dt=0.5, t0=1.0).between(2.0, 3.0)
+        >>> part.t0, part.column("u").tolist()
+        (2.0, [2.0, 3.0, 4.0])
+        """
+        where = file_prefix(self.source)
+        if start is not None and stop is not None and not start < stop:
+            raise DataError(f"{where}--start {start:g} s must be before --stop {stop:g} s.")
+        dt = self._require_dt("--start/--stop")
+        n = self.n_samples
+        first = 0 if start is None else max(0, math.ceil((start - self.t0) / dt - 1e-6))
+        last = n - 1 if stop is None else min(n - 1, math.floor((stop - self.t0) / dt + 1e-6))
+        if last - first + 1 < 2:
+            span = f"{self.t0:g} s to {self.t0 + (n - 1) * dt:g} s"
+            window = f"[{'start' if start is None else f'{start:g} s'}, {'end' if stop is None else f'{stop:g} s'}]"
+            raise DataError(
+                f"{where}--start/--stop window {window} keeps {max(last - first + 1, 0)} samples of the record "
+                f"({span}); expected at least 2."
+            )
+        return dataclasses.replace(self, values=self.values[first : last + 1], t0=self.t0 + first * dt)
+
     @classmethod
     def from_experiment(cls, exp: Experiment) -> Table:
         """The table of an experiment's columns: inputs first, then outputs.
@@ -254,7 +290,9 @@ class Table:
         except ValueError:
             listed = ", ".join(n if len(n) <= 40 else shown(n, 40) for n in self.names[:50])
             more = f" and {len(self.names) - 50} more" if len(self.names) > 50 else ""
-            raise DataError(f"unknown column {shown(name)}; expected one of {listed}{more}") from None
+            raise DataError(
+                f"{file_prefix(self.source)}unknown column {shown(name)}; expected one of {listed}{more}"
+            ) from None
 
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:

@@ -20,6 +20,7 @@ import numpy as np
 
 from .._errors import DataError
 from ..display import html_repr
+from .mat_responses import mat_responses
 
 __all__ = ["FrequencyResponse", "read_frd", "frd_columns"]
 
@@ -208,12 +209,14 @@ def frd_columns(frd: FrequencyResponse) -> dict[str, np.ndarray]:
     return cols
 
 
-def read_frd(path: str | os.PathLike[str]) -> FrequencyResponse:
-    """Read a frequency response written by ``stageid frf`` or ``stageid freqresp`` (CSV or NPZ).
+def read_frd(path: str | os.PathLike[str], response: str | None = None) -> FrequencyResponse:
+    """Read a frequency response: CSV or NPZ as ``stageid frf`` writes it, or a MATLAB ``.mat`` file.
 
     Channel names come from the ``re_<out>_<in>`` columns: the outputs in order of first
     appearance, the inputs likewise; names that contain ``_`` are matched against the
     ``re_`` columns so ``re_z_stage_u`` with outputs ``z_stage`` works when unambiguous.
+    A ``.mat`` file gives one SISO response, ``response`` naming it when the file holds several
+    (rules: :mod:`stageid.frf.mat_responses`).
 
     Raises
     ------
@@ -224,6 +227,14 @@ def read_frd(path: str | os.PathLike[str]) -> FrequencyResponse:
     """
     from ..data.io import read_table
 
+    if os.fspath(path).lower().endswith(".mat"):
+        freqs, values, inp, out = mat_responses(path, response)
+        try:
+            return FrequencyResponse(freqs, values[:, None, None], inputs=(inp,), outputs=(out,))
+        except DataError as exc:
+            raise DataError(f"file '{os.path.basename(os.fspath(path))}': {exc}") from None
+    if response is not None:
+        raise DataError(f"--response '{response}' selects a response of a .mat file; got '{os.fspath(path)}'.")
     # f_hz is the axis; the reader wants a time step, which a frequency table does not have
     table = read_table(path, ts=1.0)
     return frd_from_columns({n: table.column(n) for n in table.names}, os.path.basename(os.fspath(path)))

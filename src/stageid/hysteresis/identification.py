@@ -68,13 +68,16 @@ from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence, is_real
 from ..display import html_repr, short_repr
 from ..resources import require_memory, require_work
+from ..validation.edges import EdgeError
 from .creep import CreepTerm
 from .records import (
     STATE_CHOICES,
     align_record,
     choose_initial_states,
+    error_percents,
     read_records,
-    record_errors,
+    record_edges,
+    record_residuals,
     sampling_period,
 )
 from .threshold_search import search_thresholds
@@ -126,6 +129,9 @@ class HysteresisFit:
     weight_uncertainty : WeightUncertainty or None
         Covariance of the weights (when asked for; :mod:`.weight_uncertainty`), with the band
         of a simulated output by ``weight_uncertainty.output_band(model, u)``.
+    edge_errors : tuple of (int, EdgeError)
+        Records whose error concentrates at their start or end, with the trim that removes it
+        (:mod:`stageid.validation.edges`); the summary prints them.
     """
 
     model: Any
@@ -137,6 +143,7 @@ class HysteresisFit:
     success: bool
     message: str
     weight_uncertainty: WeightUncertainty | None = None
+    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -150,6 +157,7 @@ class HysteresisFit:
         lines = [f"{kind} model, {self.model.n_operators} operators; fit on {len(self.max_error_percent)} record(s)"]
         for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
+        lines += [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors]
         if kind == "modified-pi":
             lines.append(
                 f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
@@ -346,7 +354,8 @@ class PIIdentifier(Estimator):
             model = replace(
                 model, creep=CreepTerm(time_constants=creep[0], weights=np.maximum(c, 0.0), sample_time=creep[1])
             )
-        max_e, rms_e = record_errors(model, recs, kinds, offsets)
+        residuals = record_residuals(model, recs, kinds, offsets)
+        max_e, rms_e = error_percents(recs, residuals)
         return HysteresisFit(
             model=model,
             max_error_percent=tuple(max_e),
@@ -357,6 +366,7 @@ class PIIdentifier(Estimator):
             success=success,
             message=message,
             weight_uncertainty=self._weight_uncertainty(problem, theta, kinds, classical, model, w, offsets),
+            edge_errors=record_edges(data, recs, residuals),
         )
 
     def _weight_uncertainty(self, problem, theta, kinds, classical, model, w, offsets):

@@ -27,8 +27,9 @@ from .._errors import DataError, IdentificationError
 from ..base import Estimator, Interval, Satisfies
 from ..checks import is_real
 from ..display import html_repr, short_repr
+from ..validation.edges import EdgeError
 from .preisach import PreisachModel
-from .records import read_records
+from .records import error_percents, read_records, record_edges
 
 __all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences", "filled_cells"]
 
@@ -99,6 +100,9 @@ class PreisachFit:
         Fitted output offset of each record.
     filled_cells : int
         Cells the records leave (nearly) undetermined, whose weights the smoothness prior set.
+    edge_errors : tuple of (int, EdgeError)
+        Records whose error concentrates at their start or end, with the trim that removes it
+        (:mod:`stageid.validation.edges`); the summary prints them.
     """
 
     model: PreisachModel
@@ -106,6 +110,7 @@ class PreisachFit:
     rms_error_percent: tuple[float, ...]
     output_offsets: tuple[float, ...]
     filled_cells: int = 0
+    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -118,9 +123,9 @@ class PreisachFit:
             f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
         )
         head = f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} cells): {errs}"
-        if not self.filled_cells:
-            return head
-        return f"{head}; the smoothness prior filled {self.filled_cells} cells the records leave undetermined"
+        if self.filled_cells:
+            head += f"; the smoothness prior filled {self.filled_cells} cells the records leave undetermined"
+        return "\n".join([head] + [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors])
 
 
 class PreisachIdentifier(Estimator):
@@ -177,18 +182,15 @@ class PreisachIdentifier(Estimator):
         w = self._solve(A, b, lam, D)
         offsets = tuple(float(my - mp @ w) for mp, my in means)
         model = PreisachModel((lo, hi), w, offsets[0], inputs=(in_name,), outputs=(out_name,), input_limits=(lo, hi))
-        maxe, rmse = [], []
-        for (u, y), y0 in zip(recs, offsets):
-            e = cell_regressors(u, (lo, hi), n) @ w + y0 - y
-            span = float(np.ptp(y))
-            maxe.append(100 * float(np.max(np.abs(e))) / span)
-            rmse.append(100 * float(np.sqrt(np.mean(e**2))) / span)
+        residuals = [y - (cell_regressors(u, (lo, hi), n) @ w + y0) for (u, y), y0 in zip(recs, offsets)]
+        maxe, rmse = error_percents(recs, residuals)
         return PreisachFit(
             model.with_state(model.consistent_state(recs[0][0][0])),
             tuple(maxe),
             tuple(rmse),
             offsets,
             filled_cells(A, lam, D),
+            record_edges(data, recs, residuals),
         )
 
     def _centred_problem(self, recs: list, input_range: tuple, n: int) -> tuple[np.ndarray, np.ndarray, list]:

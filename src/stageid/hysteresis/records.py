@@ -16,6 +16,7 @@ import numpy as np
 from .._errors import DataError, IdentificationError, ModelError
 from ..data import Experiment
 from ..data.sampling import PERIOD_RTOL, check_period, same_period, seconds, shared_period
+from ..validation.edges import EdgeError, edge_errors
 from .pi import STATE_KINDS, ModifiedPIModel, PIModel
 from .weights import WeightProblem
 
@@ -26,6 +27,9 @@ __all__ = [
     "sampling_period",
     "choose_initial_states",
     "record_errors",
+    "record_residuals",
+    "error_percents",
+    "record_edges",
     "replace_offset",
     "align_record",
 ]
@@ -148,14 +152,38 @@ def choose_initial_states(
 
 def record_errors(model: Any, recs: list, kinds: list[str], offsets: np.ndarray) -> tuple[list[float], list[float]]:
     """Max and RMS error of the model on every record (own state and offset), in % of its range."""
-    max_e, rms_e = [], []
+    return error_percents(recs, record_residuals(model, recs, kinds, offsets))
+
+
+def record_residuals(model: Any, recs: list, kinds: list[str], offsets: np.ndarray) -> list[np.ndarray]:
+    """Measured minus simulated output of every record (own starting state and offset)."""
+    out = []
     for j, (u, y) in enumerate(recs):
         m_j = model.with_state(model.consistent_state(u[0], kinds[j]))
         m_j = replace_offset(m_j, offsets[j])
-        e = y - m_j.simulate(u)[:, 0]
-        max_e.append(float(100 * np.max(np.abs(e)) / np.ptp(y)))
-        rms_e.append(float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)))
+        out.append(y - m_j.simulate(u)[:, 0])
+    return out
+
+
+def error_percents(recs: list, residuals: list[np.ndarray]) -> tuple[list[float], list[float]]:
+    """Max and RMS of each residual in % of its record's output range."""
+    max_e = [float(100 * np.max(np.abs(e)) / np.ptp(y)) for (_, y), e in zip(recs, residuals)]
+    rms_e = [float(100 * np.sqrt(np.mean(e**2)) / np.ptp(y)) for (_, y), e in zip(recs, residuals)]
     return max_e, rms_e
+
+
+def record_edges(data: Any, recs: list, residuals: list[np.ndarray]) -> tuple[tuple[int, EdgeError], ...]:
+    """``(record index, edge)`` for each record whose error concentrates at an edge (:mod:`stageid.validation.edges`).
+
+    Times are on each Experiment's axis; (u, y) records get sample counts only.
+    """
+    items = record_items(data)
+    found = []
+    for j, ((_, y), e) in enumerate(zip(recs, residuals)):
+        item = items[j] if j < len(items) else None
+        clock = (item.dt, item.t0) if isinstance(item, Experiment) else (None, 0.0)
+        found += [(j, edge) for edge in edge_errors(e, float(np.ptp(y)), *clock)]
+    return tuple(found)
 
 
 def replace_offset(model: Any, offset: float) -> Any:

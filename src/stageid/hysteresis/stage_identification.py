@@ -61,11 +61,12 @@ from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
 from ..display import html_repr, short_repr
+from ..validation.edges import EdgeError
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .dynamics import describe_pole
 from .identification import MODEL_KINDS, PIIdentifier
 from .preisach_identification import PreisachIdentifier
-from .records import STATE_CHOICES, read_records, sampling_period
+from .records import STATE_CHOICES, error_percents, read_records, record_edges, sampling_period
 from .stage import StageModel
 from .stage_inverse import invert_dynamics
 from .stage_preisach import PreisachStageProblem, best_start_kinds
@@ -109,6 +110,9 @@ class StageFit:
     message : str
     modes : tuple of DisturbanceMode
         The modes of the dynamics taken from the records' disturbance spectrum (step 4).
+    edge_errors : tuple of (int, EdgeError)
+        Records whose error concentrates at their start or end, with the trim that removes it
+        (:mod:`stageid.validation.edges`); the summary prints them.
     """
 
     model: StageModel
@@ -121,6 +125,7 @@ class StageFit:
     held_out: tuple[tuple[int, tuple[float, ...], float], ...]
     message: str
     modes: tuple[DisturbanceMode, ...] = ()
+    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -139,6 +144,7 @@ class StageFit:
         ]
         for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
             lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
+        lines += [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors]
         if self.model.dynamics is not None:
             # by frequency as the continuous equivalent has it; a pole at z = 0 has none and comes last
             poles = sorted(self.model.dynamics.poles(), key=lambda z: abs(np.log(complex(z))) if z != 0 else np.inf)
@@ -289,7 +295,8 @@ class StageIdentifier(Estimator):
                     notes += [note] if note else []
                 else:
                     notes.append(outcome[1])
-        max_e, rms_e = problem.errors(model, offsets)
+        residuals = problem.residuals(model, offsets)
+        max_e, rms_e = error_percents(problem.recs, residuals)
         fitted = "alternated " + (f"{N_ALTERNATIONS} times" if problem.settle == 0 else "until settled")
         if model.dynamics_order != order + 2 * len(modes):
             notes.append(f"order-{order} dynamics did not lower the residual: none")
@@ -303,6 +310,7 @@ class StageIdentifier(Estimator):
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
             modes=modes,
+            edge_errors=record_edges(data, problem.recs, residuals),
             message=f"{base_message}; weights, creep and dynamics {fitted}" + "".join(f"; {n}" for n in notes) + ".",
         )
 

@@ -9,9 +9,11 @@
 ``independence_test``           residual-input independence: chi-square over lags 0..25
 ``residual_tests``              both tests on every output (:mod:`.residuals`)
 ``validate_model``              simulate a model on records and test it (``stageid validate``)
+``edge_errors``                 an error concentrated at a record's start or end (:mod:`.edges`)
 ==============================  ===========================================================
 """
 
+from .edges import EdgeError, edge_errors
 from .metrics import fit_percent, nrmse, relative_response_error, rms_error
 from .residuals import independence_test, residual_tests, validate_model, whiteness_test
 
@@ -24,4 +26,6 @@ __all__ = [
     "independence_test",
     "residual_tests",
     "validate_model",
+    "EdgeError",
+    "edge_errors",
 ]
