@@ -43,6 +43,7 @@ def uncertainty_section(report: Report, metrics: dict[str, Any], fr: Any, source
             fr.outputs,
             bands={"model": magnitude_band(fr)},
             title="Model with +-2 std bands",
+            band_label=f"+-{N_STD:g} std",
         ),
         f"Frequency response of the {source} with +-{N_STD:g} std bands "
         f"(std = sqrt(E|G_est - G|^2); |G_est - G| <= 1.73 std holds 95 % of the time for a circular Gaussian error).",
