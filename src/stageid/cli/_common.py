@@ -192,6 +192,19 @@ def command_line() -> str | None:
     return shlex.join(["stageid", *argv])
 
 
+def command_settings() -> dict[str, object]:
+    """The running command's options as they were used (``{"--order": 4, ...}``), defaults
+    included, for a report to record; empty outside a command."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return {}
+    out: dict[str, object] = {}
+    for param in ctx.command.params:
+        if isinstance(param, click.Option) and param.name in ctx.params and not param.hidden:
+            out[max(param.opts, key=len)] = ctx.params[param.name]
+    return out
+
+
 def _command_inputs() -> list[str]:
     """The files the running command reads: its path arguments and its ``*_path`` options."""
     ctx = click.get_current_context(silent=True)

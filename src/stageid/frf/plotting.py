@@ -51,9 +51,10 @@ def bode_figure(
         if fit_band is not None:
             _grey_outside(axes[:, j], frd.freqs, fit_band)
         axes[-1, j].set_xlabel("frequency [Hz]")
-        for ax in axes[:, j]:
-            if ax.get_legend_handles_labels()[0]:
-                ax.legend(fontsize=7, loc="best")
+    # every column has the same entries: one legend per row, on the first column, out of the way
+    for ax in axes[:, 0]:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best", ncol=2 if frd.n_outputs > 1 else 1, framealpha=0.7)
     return fig
 
 

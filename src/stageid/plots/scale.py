@@ -21,6 +21,7 @@ __all__ = [
     "log_limits",
     "set_log_magnitude",
     "zoom_window",
+    "envelope",
 ]
 
 #: Decades a log magnitude axis shows below the peak of its lines (peak / 1e6 at the bottom).
@@ -30,10 +31,13 @@ DYNAMIC_RANGE = 1e6
 def magnitude_unit(output_unit: str = "", input_unit: str = "") -> str:
     """The unit of a response's magnitude, ``"um/V"``; a missing side is named ``output``/``input``.
 
-    >>> magnitude_unit("um", "V"), magnitude_unit("", "")
-    ('um/V', 'output/input')
+    >>> magnitude_unit("um", "V"), magnitude_unit("", ""), magnitude_unit("rad", "N m")
+    ('um/V', 'output/input', 'rad/(N m)')
     """
-    return f"{output_unit or 'output'}/{input_unit or 'input'}"
+    below = input_unit or "input"
+    if any(c in below for c in " /*"):  # "m/N m" would read as (m/N) m
+        below = f"({below})"
+    return f"{output_unit or 'output'}/{below}"
 
 
 def magnitude_label(output_unit: str = "", input_unit: str = "") -> str:
@@ -114,3 +118,20 @@ def zoom_window(time: Any, period: float, n_periods: float = 3.0) -> tuple[float
     if t.size < 2 or period <= 0 or t[-1] - t[0] <= 4 * n_periods * period:
         return None
     return float(t[-1] - n_periods * period), float(t[-1])
+
+
+def envelope(time: Any, values: Any, n_bins: int = 600) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(t, low, high)``: the minimum and maximum of ``values`` in ``n_bins`` consecutive bins, so a
+    long oscillating trace drawn as a band keeps its extremes (every-k-th-sample decimation would
+    alias them away).  A record of at most ``n_bins`` samples comes back as it is.
+
+    >>> t, lo, hi = envelope(np.arange(10.0), np.arange(10.0) % 2, n_bins=2)
+    >>> t.tolist(), lo.tolist(), hi.tolist()
+    ([0.0, 5.0], [0.0, 0.0], [1.0, 1.0])
+    """
+    t, x = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
+    if x.size <= n_bins:
+        return t, x, x
+    edges = np.linspace(0, x.size, n_bins + 1).astype(int)
+    starts = edges[:-1]
+    return t[starts], np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from .html import Report
+from .provenance import settings_section
 from .uncertainty import uncertainty_section
 
 __all__ = ["lti_model_report", "hysteresis_model_report", "model_report", "frf_section"]
@@ -26,12 +27,17 @@ def lti_model_report(
     title: str = "Identified model",
     notes: Sequence[str] = (),
     uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
 
     ``uncertainty`` (a :class:`~stageid.frf.FrequencyResponse` with ``std``, from a result's
     ``response_uncertainty``) draws the Bode plot on its frequencies with +-2 std bands and
     adds the relative std per entry (:func:`~stageid.report.uncertainty.uncertainty_section`).
+
+    ``settings`` and ``command`` (what made the model) open the report
+    (:func:`~stageid.report.provenance.settings_section`).
 
     Returns the report and a metrics dictionary (fit % per experiment and output).  The fit
     of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
@@ -41,6 +47,8 @@ def lti_model_report(
 
     report = Report(title)
     metrics: dict[str, Any] = {}
+    if settings is not None or command:
+        settings_section(report, metrics, settings or {}, command)
     report.section("Model")
     kind = "continuous" if model.dt is None else f"discrete, Ts = {model.dt:g} s"
     n_states = getattr(model, "n_states", None)
@@ -73,6 +81,9 @@ def lti_model_report(
         ],
         caption="Poles (first 40)",
     )
+    from .modes import modal_section
+
+    modal_section(report, metrics, model)
     _validation_section(report, metrics, model, experiments)
     return report, metrics
 
@@ -144,19 +155,21 @@ def frf_section(
     source: str = "measured",
     prefix: str = "",
     level: int = 2,
+    input_units: Sequence[str] = (),
+    output_units: Sequence[str] = (),
 ) -> None:
     """The measured frequency response (``frd``, a :class:`~stageid.frf.FrequencyResponse` with
     the model's channels) beside the model: Bode figure with its +-2 std band and coherence,
     and per input column the largest ``|G_model - G_measured|`` over the column's peak, on the
     lines where every output's coherence is at least ``COHERENT`` (all lines without coherence)."""
     from ..frf.identification import column_errors
+    from .frd_report import frf_caption
 
     keep = np.ones(frd.freqs.size, bool) if frd.coherence is None else np.all(frd.coherence >= COHERENT, axis=1)
     report.section("Measured frequency response", level)
     report.figure(
-        frd.plot(model=model),
-        f"{source} frequency response ({frd.freqs[0]:.3g}-{frd.freqs[-1]:.3g} Hz; shaded: +-2 std) "
-        "with the model dashed; bottom: coherence.",
+        frd.plot(model=model, input_units=input_units, output_units=output_units),
+        frf_caption(frd, source[:1].upper() + source[1:]) + " Dashed: the model.",
     )
     if frd.total_std is not None:
         from ..frf.bla_figure import bla_figure
@@ -196,7 +209,12 @@ def _damping(p: complex, dt: float | None) -> float:
 
 
 def hysteresis_model_report(
-    model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model", uncertainty: Any = None
+    model: Any,
+    records: Sequence[Any] = (),
+    title: str = "Hysteresis model",
+    uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """Measured versus modelled input-output loops and the modelling error in % of range.
 
@@ -205,13 +223,17 @@ def hysteresis_model_report(
     the output's own unit.  ``uncertainty`` (the fit's
     :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty`) draws the band the weights' uncertainty puts
     on each simulated loop (:func:`~stageid.report.uncertainty.loop_band_figure`) and reports its
-    half-width and how much of the record it holds.
+    half-width and how much of the record it holds.  A stage model's dynamics (Bode, modes) and
+    a creep term (step response) get their own figures; ``settings`` and ``command`` open the
+    report as in :func:`lti_model_report`.
     """
     from ..plots._style import subplots
     from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
+    if settings is not None or command:
+        settings_section(report, metrics, settings or {}, command)
     report.section("Model")
     report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
     band_rows = []
@@ -233,13 +255,13 @@ def hysteresis_model_report(
             )
         else:
             err = float("nan")
-            unit = exp.output_units[0] or "-"
+            unit = exp.output_units[0] or "output unit"
             err_trace, err_label = y - y_hat, f"error [{unit}]"
             err_text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
         metrics[f"max_error_percent_range/{name}"] = err
         labels = (
-            f"{model.inputs[0]} [{exp.input_units[0] or '-'}]",
-            f"{model.outputs[0]} [{exp.output_units[0] or '-'}]",
+            f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]",
+            f"{model.outputs[0]} [{exp.output_units[0] or 'output unit'}]",
         )
         if std is not None:
             half = LOOP_N_STD * std * (100.0 / y_range if y_range > 0 else float("nan"))
@@ -265,6 +287,10 @@ def hysteresis_model_report(
         b.set_xlabel("time [s]")
         b.set_ylabel(err_label)
         report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).")
+    from .stage_report import stage_parts_section
+
+    units = (records[0].input_units[0], records[0].output_units[0]) if records else ("", "")
+    stage_parts_section(report, metrics, model, *units)
     if band_rows:
         report.section("Uncertainty of the weights")
         report.table(
@@ -277,11 +303,25 @@ def hysteresis_model_report(
 
 
 def model_report(
-    model: Any, experiments: Sequence[Any] = (), title: str | None = None, uncertainty: Any = None
+    model: Any,
+    experiments: Sequence[Any] = (),
+    title: str | None = None,
+    uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """A report for any stageid model: LTI models get Bode/pole-zero/simulation (with ``uncertainty``
     bands when given, a FrequencyResponse, see :func:`lti_model_report`), hysteresis models loops
     (with the band of a :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty` ``uncertainty``)."""
     if hasattr(model, "frequency_response"):
-        return lti_model_report(model, experiments, title or "Identified LTI model", uncertainty=uncertainty)
-    return hysteresis_model_report(model, experiments, title or "Identified hysteresis model", uncertainty)
+        return lti_model_report(
+            model,
+            experiments,
+            title or "Identified LTI model",
+            uncertainty=uncertainty,
+            settings=settings,
+            command=command,
+        )
+    return hysteresis_model_report(
+        model, experiments, title or "Identified hysteresis model", uncertainty, settings, command
+    )
