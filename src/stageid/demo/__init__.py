@@ -59,7 +59,7 @@ def run_demo(
         "hysteresis identification with inverse feedforward compensation. Every number below was computed in this run."
     )
     metrics: dict[str, Any] = {}
-    settings_section(report, metrics, {"workflows": workflows}, command)
+    settings_section(report, {"workflows": workflows}, command)
     rows: list[list[Any]] = []
     t0 = time.perf_counter()
     with staged_folder(out_dir) as tmp:

@@ -49,7 +49,7 @@ def frd_fit_report(
     """
     report = Report(title="identify frd: state-space model fitted to a measured frequency response")
     metrics: dict[str, Any] = {}
-    settings_section(report, metrics, settings, command)
+    settings_section(report, settings, command)
     report.section("Measured frequency response and identified model")
     report.figure(frd.plot(model=result.model, fit_band=result.band), frf_caption(frd, fit_band=result.band))
     if frd.total_std is not None:

@@ -48,7 +48,7 @@ def lti_model_report(
     report = Report(title)
     metrics: dict[str, Any] = {}
     if settings is not None or command:
-        settings_section(report, metrics, settings or {}, command)
+        settings_section(report, settings or {}, command)
     report.section("Model")
     kind = "continuous" if model.dt is None else f"discrete, Ts = {model.dt:g} s"
     n_states = getattr(model, "n_states", None)
@@ -227,13 +227,12 @@ def hysteresis_model_report(
     a creep term (step response) get their own figures; ``settings`` and ``command`` open the
     report as in :func:`lti_model_report`.
     """
-    from ..plots._style import subplots
     from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
     if settings is not None or command:
-        settings_section(report, metrics, settings or {}, command)
+        settings_section(report, settings or {}, command)
     report.section("Model")
     report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
     band_rows = []
@@ -246,18 +245,7 @@ def hysteresis_model_report(
         else:
             y_hat, std = model.simulate(exp.u)[:, 0], None
         y_range = float(np.ptp(y))
-        if y_range > 0:
-            err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
-            err_trace, err_label, err_text = (
-                100 * (y - y_hat) / y_range,
-                "error [% of range]",
-                f"max {err:.2f} % of range",
-            )
-        else:
-            err = float("nan")
-            unit = exp.output_units[0] or "output unit"
-            err_trace, err_label = y - y_hat, f"error [{unit}]"
-            err_text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
+        err, err_trace, err_label, err_text = _record_error(y, y_hat, exp.output_units[0] or "output unit")
         metrics[f"max_error_percent_range/{name}"] = err
         labels = (
             f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]",
@@ -277,29 +265,55 @@ def hysteresis_model_report(
                 f"inside it ({err_text}).",
             )
             continue
-        fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
-        a.plot(u, y, color="0.2", lw=1.2, label="measured")
-        a.plot(u, y_hat, "--", lw=1.0, label="model")
-        a.set_xlabel(labels[0])
-        a.set_ylabel(labels[1])
-        a.legend()
-        b.plot(exp.time, err_trace, color="C3", lw=0.9)
-        b.set_xlabel("time [s]")
-        b.set_ylabel(err_label)
-        report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).")
+        report.figure(
+            _loop_figure(u, y, y_hat, exp.time, labels, err_trace, err_label),
+            f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).",
+        )
     from .stage_report import stage_parts_section
 
     units = (records[0].input_units[0], records[0].output_units[0]) if records else ("", "")
     stage_parts_section(report, metrics, model, *units)
+    _weights_band_table(report, band_rows, LOOP_N_STD)
+    return report, metrics
+
+
+def _weights_band_table(report: Report, band_rows: list, n_std: float) -> None:
     if band_rows:
         report.section("Uncertainty of the weights")
         report.table(
             ["record", "median half-width [% of range]", "max half-width [% of range]", "error inside [% of samples]"],
             band_rows,
-            caption=f"+-{LOOP_N_STD:g} std band of the simulated output from the weights' covariance; it says how "
+            caption=f"+-{n_std:g} std band of the simulated output from the weights' covariance; it says how "
             "well the data fix the weights, not how wrong the model's structure is",
         )
-    return report, metrics
+
+
+def _record_error(y: np.ndarray, y_hat: np.ndarray, unit: str) -> tuple[float, np.ndarray, str, str]:
+    """Max error in % of the output's range, the error trace, its axis label and its caption text;
+    in the output's ``unit`` when the output does not move (the % is then undefined: NaN)."""
+    y_range = float(np.ptp(y))
+    if y_range > 0:
+        err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
+        # three decimals, as the fit summary prints it
+        return err, 100 * (y - y_hat) / y_range, "error [% of range]", f"max {err:.3f} % of range"
+    text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
+    return float("nan"), y - y_hat, f"error [{unit}]", text
+
+
+def _loop_figure(u, y, y_hat, time, labels: tuple[str, str], err_trace, err_label: str) -> Any:
+    """Measured and modelled loop (left) and the modelling error over time (right)."""
+    from ..plots._style import subplots
+
+    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
+    a.plot(u, y, color="0.2", lw=1.2, label="measured")
+    a.plot(u, y_hat, "--", lw=1.0, label="model")
+    a.set_xlabel(labels[0])
+    a.set_ylabel(labels[1])
+    a.legend()
+    b.plot(time, err_trace, color="C3", lw=0.9)
+    b.set_xlabel("time [s]")
+    b.set_ylabel(err_label)
+    return fig
 
 
 def model_report(

@@ -1,7 +1,7 @@
 """What made a report: the command line, the settings and the stageid version, as its first section.
 
-A report read a week later must say how to make it again; the same record goes into
-``metrics.json`` under ``run/`` so a script comparing runs sees the settings beside the numbers.
+A report read a week later must say how to make it again.  The record stays in the HTML:
+``metrics.json`` keeps numbers only.
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ def setting_text(value: Any) -> str:
 
 def settings_section(
     report: Report,
-    metrics: dict[str, Any],
     settings: Mapping[str, Any],
     command: str | None = None,
     level: int = 2,
@@ -48,14 +47,12 @@ def settings_section(
     """A "Command and settings" section: the command line (when run from one), the stageid
     version and one row per setting (the values the fit used, e.g. the order ``auto`` chose).
 
-    Also records them in ``metrics`` as ``run/command``, ``run/version`` and ``run/<setting>``.
-
     Examples
     --------
-    >>> r, m = Report("fit"), {}
-    >>> settings_section(r, m, {"order": 16, "band [Hz]": (1.0, 2000.0)}, "stageid identify frd a.csv")
-    >>> m["run/order"], m["run/command"]
-    ('16', 'stageid identify frd a.csv')
+    >>> r = Report("fit")
+    >>> settings_section(r, {"order": 16, "band [Hz]": (1.0, 2000.0)}, "stageid identify frd a.csv")
+    >>> "<td>1, 2000</td>" in r.to_html()
+    True
     """
     from .. import __version__
 
@@ -63,11 +60,6 @@ def settings_section(
     rows = []
     if command:
         rows.append(["command", command])
-        metrics["run/command"] = command
     rows.append(["stageid version", __version__])
-    metrics["run/version"] = __version__
-    for name, value in settings.items():
-        text = setting_text(value)
-        rows.append([name, text])
-        metrics[f"run/{name}"] = text
+    rows += [[name, setting_text(value)] for name, value in settings.items()]
     report.table(["setting", "value"], rows, caption="How this report was made")
