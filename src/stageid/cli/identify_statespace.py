@@ -175,7 +175,7 @@ def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) 
         report.section("Hankel-MAP diagnostics")
         report.paragraph(result.summary())
         report.figure(
-            bode_with_bands(result, f),
+            bode_with_bands(result, f, input_units=exps[0].input_units, output_units=exps[0].output_units),
             "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
         )
         for ch in result.channels:

@@ -108,7 +108,12 @@ def _at(units: Sequence[str], k: int) -> str:
 def selection_plot(table: Any, title: str = "") -> Any:
     """Held-out error versus horizon or order (a :class:`~stageid.subspace.selection.SelectionTable`)."""
     return error_curve(
-        table.values, {"held-out error": table.errors}, xlabel=table.kind, chosen=table.chosen, title=title
+        table.values,
+        {"held-out error": table.errors},
+        xlabel=table.kind,
+        ylabel="held-out error [error energy / output energy]",
+        chosen=table.chosen,
+        title=title,
     )
 
 

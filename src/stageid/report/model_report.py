@@ -58,16 +58,22 @@ def lti_model_report(
     )
     for note in notes:
         report.paragraph(note)
+    units = _channel_units(model, experiments)
     if uncertainty is None:
         f = _band(model, experiments)
         report.figure(
             bode_figure(
-                f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"
+                f,
+                {"model": model.frequency_response(f)},
+                model.inputs,
+                model.outputs,
+                title="Frequency response",
+                **units,
             ),
             "Bode magnitude and phase of the identified model.",
         )
     else:
-        uncertainty_section(report, metrics, uncertainty, "identified model", level=3)
+        uncertainty_section(report, metrics, uncertainty, "identified model", level=3, **units)
     poles, zeros = model.poles(), model.zeros()
     report.figure(
         pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
@@ -86,6 +92,19 @@ def lti_model_report(
     modal_section(report, metrics, model)
     _validation_section(report, metrics, model, experiments)
     return report, metrics
+
+
+def _channel_units(model: Any, experiments: Sequence[Any]) -> dict[str, tuple[str, ...]]:
+    """The units of the model's channels as the first experiment's columns give them ("" unknown)."""
+    if not experiments:
+        return {"input_units": (), "output_units": ()}
+    exp = experiments[0]
+    ins = dict(zip(exp.input_names, exp.input_units))
+    outs = dict(zip(exp.output_names, exp.output_units))
+    return {
+        "input_units": tuple(ins.get(n, "") for n in model.inputs),
+        "output_units": tuple(outs.get(n, "") for n in model.outputs),
+    }
 
 
 def _validation_section(report: Report, metrics: dict[str, Any], model: Any, experiments: Sequence[Any]) -> None:
