@@ -58,7 +58,9 @@ def test_a_numerically_zero_entry_says_so_instead_of_plotting_1e_300():
 
 
 def test_every_bode_axis_has_a_y_label_with_a_unit():
-    fig = bode_figure(F, {"m": np.ones((F.size, 2, 2), complex)}, ["Fx", "Tphi"], ["x", "phi"], output_units=("m", "rad"))
+    fig = bode_figure(
+        F, {"m": np.ones((F.size, 2, 2), complex)}, ["Fx", "Tphi"], ["x", "phi"], output_units=("m", "rad")
+    )
     for ax in fig.axes:
         label = ax.get_ylabel()
         assert label.endswith("]") and "[" in label, label

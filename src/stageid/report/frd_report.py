@@ -33,7 +33,7 @@ def frf_caption(frd: Any, source: str = "Measured", fit_band: tuple[float, float
     )
     if fit_band is not None:
         lo, hi = fit_band
-        parts.append(f"grey: outside the fitted band {lo:.3g}-{hi:.3g} Hz (drawn, not fitted)")
+        parts.append(f"grey: outside the fitted band {lo:.4g}-{hi:.4g} Hz (drawn, not fitted)")
     return "; ".join(parts) + "."
 
 
@@ -64,7 +64,7 @@ def frd_fit_report(
     report.table(
         ["input", "max |model - measured| [% of column peak]"],
         [[name, percent_text(e)] for name, e in zip(result.model.inputs, result.column_errors)],
-        caption=f"Model against the measured response over the fitted band {lo:.3g}-{hi:.3g} Hz",
+        caption=f"Model against the measured response over the fitted band {lo:.4g}-{hi:.4g} Hz",
     )
     for name, e in zip(result.model.inputs, result.column_errors):
         metrics[f"column_error_percent/{name}"] = float(100 * e)
