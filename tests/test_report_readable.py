@@ -139,3 +139,27 @@ def test_stage_dynamics_and_creep_figures_have_units_and_mark_the_modes():
     assert ax.get_ylabel() == "creep after a unit input step [um/V]" and ax.get_xlabel() == "time after the step [s]"
     total = ax.get_lines()[0].get_ydata()
     assert total[-1] == pytest.approx(0.03, rel=1e-2)  # sum of the weights after 5 of the longest time constant
+
+
+def test_a_long_validation_record_is_shown_in_a_window_of_a_few_periods(monkeypatch):
+    from stageid.data import Experiment
+    from stageid.report import html as report_html
+    from stageid.report.model_report import lti_model_report
+
+    drawn = []
+    real = report_html.Report.figure
+    monkeypatch.setattr(
+        report_html.Report, "figure", lambda self, fig, caption, dpi=110: (drawn.append(fig), real(self, fig, caption))
+    )
+    g = _resonance(f_n=400.0, zeta=0.1).c2d(1e-4)
+    t = np.arange(0, 5.0, 1e-4)
+    u = np.sign(np.sin(2 * np.pi * 100 * t))[:, None]  # a 100 Hz square drive for 5 s
+    exp = Experiment(u, g.simulate(u), 1e-4, g.inputs, g.outputs, output_units=("um",), name="scan")
+    report, _ = lti_model_report(g, [exp])
+    overlay = drawn[-1]
+    top, bottom = overlay.axes[0], overlay.axes[1]
+    x = top.get_lines()[0].get_xdata()
+    assert x[-1] - x[0] == pytest.approx(0.03, abs=2e-4)  # three 100 Hz periods, not 500
+    assert bottom.get_xlim()[1] >= 4.9  # the error over the whole record
+    assert top.get_ylabel() == f"{g.outputs[0]} [um]" and bottom.get_ylabel() == "error [um]"
+    assert "the last three periods (4.97-5 s) above" in report.to_html()

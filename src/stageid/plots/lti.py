@@ -8,7 +8,7 @@ import numpy as np
 
 from . import scale
 from ._style import loglog, positive, subplots
-from .scale import peak, set_log_magnitude
+from .scale import envelope, peak, set_log_magnitude
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 
@@ -155,6 +155,7 @@ def time_overlay_figure(
     units: Sequence[str] | None = None,
     title: str = "",
     error_of: str | None = None,
+    window: tuple[float, float] | None = None,
 ):
     """Measured outputs with predictions overlaid, and the prediction error underneath.
 
@@ -164,28 +165,49 @@ def time_overlay_figure(
     measured : ndarray of shape (n_samples, n_outputs)
     predicted : mapping label -> ndarray of shape (n_samples, n_outputs)
     error_of : label whose error trace is drawn (default: the first)
+    window : (t0, t1), optional
+        Draw the overlay over this window only (a few periods of a long record, see
+        :func:`~stageid.plots.scale.zoom_window`) and the error over the whole record as its
+        min-max envelope, the window shaded: a long record of a fast signal drawn whole is a block.
     """
     measured = np.asarray(measured).reshape(len(t), -1)
     n = measured.shape[1]
-    units = list(units) if units else [""] * n
+    units = [u or "output unit" for u in units] if units else ["output unit"] * n
     fig, axes = subplots(
-        2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True, gridspec_kw={"height_ratios": [2.2, 1.0]}
+        2,
+        n,
+        figsize=(4.2 * n + 0.8, 5.2),
+        squeeze=False,
+        sharex=window is None,
+        gridspec_kw={"height_ratios": [2.2, 1.0]},
     )
     key = error_of or next(iter(predicted), None)
+    shown = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
     for j in range(n):
         ax = axes[0, j]
-        ax.plot(t, measured[:, j], color="0.2", lw=1.4, label="measured")
+        ax.plot(t[shown], measured[shown, j], color="0.2", lw=1.4, label="measured")
         for label, yh in predicted.items():
-            ax.plot(t, np.asarray(yh).reshape(len(t), -1)[:, j], lw=1.0, ls="--", label=label)
-        unit = f" [{units[j]}]" if units[j] else ""
-        ax.set_ylabel(f"{names[j]}{unit}")
-        ax.set_title(names[j])
+            ax.plot(t[shown], np.asarray(yh).reshape(len(t), -1)[shown, j], lw=1.0, ls="--", label=label)
+        ax.set_ylabel(f"{names[j]} [{units[j]}]")
+        ax.set_title(names[j] if window is None else f"{names[j]}, {window[0]:.4g}-{window[1]:.4g} s")
         if key is not None:
             err = measured[:, j] - np.asarray(predicted[key]).reshape(len(t), -1)[:, j]
-            axes[1, j].plot(t, err, color="C3", lw=0.9)
-            axes[1, j].set_ylabel(f"error{unit}")
+            _error_trace(axes[1, j], t, err, window)
+            axes[1, j].set_ylabel(f"error [{units[j]}]")
+        axes[0, j].set_xlabel("time [s]")
         axes[1, j].set_xlabel("time [s]")
     axes[0, 0].legend(loc="best")
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _error_trace(ax, t: np.ndarray, err: np.ndarray, window: tuple[float, float] | None) -> None:
+    """The error over the whole record: a line, or with a window its envelope and the window shaded."""
+    if window is None:
+        ax.plot(t, err, color="C3", lw=0.9)
+        return
+    te, lo, hi = envelope(t, err)
+    ax.fill_between(te, lo, hi, color="C3", lw=0.5, label="error (min-max per bin)")
+    ax.axvspan(*window, color="0.8", zorder=0, label="window above")
+    ax.legend(loc="best", fontsize=7)

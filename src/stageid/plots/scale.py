@@ -21,6 +21,7 @@ __all__ = [
     "log_limits",
     "set_log_magnitude",
     "zoom_window",
+    "dominant_period",
     "envelope",
 ]
 
@@ -118,6 +119,21 @@ def zoom_window(time: Any, period: float, n_periods: float = 3.0) -> tuple[float
     if t.size < 2 or period <= 0 or t[-1] - t[0] <= 4 * n_periods * period:
         return None
     return float(t[-1] - n_periods * period), float(t[-1])
+
+
+def dominant_period(values: Any, dt: float) -> float | None:
+    """The period [s] of the strongest spectral line of ``values`` (mean removed; DC left out), or
+    None for a record too short or flat to have one.
+
+    >>> round(dominant_period(np.sin(2 * np.pi * 100 * np.arange(0, 1, 1e-4)), 1e-4), 6)
+    0.01
+    """
+    x = np.asarray(values, dtype=float).reshape(len(values), -1)[:, 0]
+    if x.size < 8 or not np.ptp(x) > 0:
+        return None
+    spectrum = np.abs(np.fft.rfft(x - x.mean()))
+    k = int(np.argmax(spectrum[1:])) + 1
+    return float(x.size * dt / k)
 
 
 def envelope(time: Any, values: Any, n_bins: int = 600) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -113,6 +113,7 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
     A simulation that diverges (an unstable model) gets no fit and no figure, and says so.
     """
     from ..plots import time_overlay_figure
+    from ..plots.scale import dominant_period, zoom_window
     from ..validation import fit_percent
 
     rows = []
@@ -133,6 +134,9 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
             rows.append([exp.name or f"experiment {k}", name, float(value)])
             if np.isnan(value):
                 constant.append(f"{name} in {exp.name or f'experiment {k}'}")
+        # past about four thousand samples (two per pixel) a fast signal drawn whole is a solid block
+        period = dominant_period(exp.y, exp.dt) if exp.n_samples > 4000 else None
+        window = None if period is None else zoom_window(exp.time, period)
         report.figure(
             time_overlay_figure(
                 exp.time,
@@ -141,8 +145,15 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
                 exp.output_names,
                 exp.output_units,
                 title=f"Simulation on {exp.name or f'experiment {k}'}",
+                window=window,
             ),
-            f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.",
+            f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error"
+            + (
+                "."
+                if window is None
+                else f": the last three periods ({window[0]:.4g}-{window[1]:.4g} s) above, the error over the "
+                "whole record (its min-max envelope) below."
+            ),
         )
     if rows:
         report.section("Validation")
