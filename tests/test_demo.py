@@ -18,6 +18,7 @@ def test_demo_writes_report_metrics_and_models(tmp_path, capsys):
     assert html.count("<img src='data:image/png;base64,") >= 8
     for title in ("P-558 3-DOF piezo stage", "Maglev stage", "Piezo actuator"):
         assert title in html
+    assert f"<td>command</td><td>stageid demo --out {out}</td>" in html  # the report says what made it
     metrics = json.loads((out / "metrics.json").read_text())
     # the workflows' key results, with the issues' own acceptance levels
     assert metrics["p558/freq_error_diag_max_percent"] < 2.0

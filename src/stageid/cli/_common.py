@@ -224,6 +224,34 @@ def read_experiments(
     return as_experiments(exps)
 
 
+def command_line() -> str | None:
+    """The running command as the user typed it (``stageid identify frd a.csv --order 16 ...``),
+    for a report to record; None outside a command."""
+    import shlex
+
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return None
+    obj = ctx.find_root().obj
+    argv = obj.get("argv") if isinstance(obj, dict) else None
+    if argv is None:  # called without main() (a test's CliRunner): the command path at least
+        return ctx.command_path
+    return shlex.join(["stageid", *argv])
+
+
+def command_settings() -> dict[str, object]:
+    """The running command's options as they were used (``{"--order": 4, ...}``), defaults
+    included, for a report to record; empty outside a command."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return {}
+    out: dict[str, object] = {}
+    for param in ctx.command.params:
+        if isinstance(param, click.Option) and param.name in ctx.params and not param.hidden:
+            out[max(param.opts, key=len)] = ctx.params[param.name]
+    return out
+
+
 def _command_inputs() -> list[str]:
     """The files the running command reads: its path arguments and its ``*_path`` options."""
     ctx = click.get_current_context(silent=True)

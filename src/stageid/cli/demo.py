@@ -37,7 +37,7 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
     from tqdm.auto import tqdm
 
     from ..demo import WORKFLOWS, run_demo
-    from ._common import check_output_folder, is_interactive, say
+    from ._common import check_output_folder, command_line, is_interactive, say
 
     check_output_folder(out_dir)  # one rule for every verb: the parent folder must exist
     workflows = only or WORKFLOWS
@@ -62,7 +62,7 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
         bar.set_postfix_str(text)
 
     try:
-        result = run_demo(out_dir, step, tuple(workflows))
+        result = run_demo(out_dir, step, tuple(workflows), command_line())
         bar.update(1)
     finally:
         bar.close()

@@ -275,6 +275,10 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
 
     dt = result.dt
     report = Report("Closed-loop identification")
+    from ..report.provenance import settings_section
+    from ._common import command_line, command_settings
+
+    settings_section(report, command_settings(), command_line())
     metrics = {
         "band_error_percent": (100 * np.asarray(result.band_error)).tolist(),
         "unstable_poles_rad_s": [float(p.real) for p in np.asarray(result.plant_unstable_poles)],

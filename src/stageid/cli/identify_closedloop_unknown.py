@@ -128,6 +128,10 @@ def _write_report(result, band: tuple[float, float], report_dir: str) -> None:
     from ..report import Report, uncertainty_section, write_report_folder
 
     report = Report("Closed-loop identification without the controller")
+    from ..report.provenance import settings_section
+    from ._common import command_line, command_settings
+
+    settings_section(report, command_settings(), command_line())
     metrics = {
         "method": result.method,
         "unstable_poles_rad_s": [float(p.real) for p in result.unstable_poles],

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, say, write_model_output
+from ._common import check_output, check_output_folder, command_line, say, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -103,8 +103,19 @@ def frd_command(
     write_model_output(output, result.model)
     uncertainty_line = uncertainty.write(result, result.band, result.model.dt)
     if report_dir is not None:
-        _write_report(report_dir, frd.band(fmin, fmax), result)
-    errors = ", ".join(f"{name} {100 * e:.3g} %" for name, e in zip(result.model.inputs, result.column_errors))
+        from ..report import write_report_folder
+        from ..report.frd_report import frd_fit_report
+
+        settings = {"FRF file": frf_path, "order": _asked(result.order, order)}
+        settings |= {"delay [samples]": _asked(result.delay, delay), "weight": _asked(result.weight, weight)}
+        settings |= {
+            "band fitted [Hz]": result.band,
+            "model": "continuous" if dt is None else f"discrete, Ts = {dt:g} s",
+        }
+        write_report_folder(report_dir, *frd_fit_report(frd, result, settings, command_line()))
+    from ..report.provenance import percent_text
+
+    errors = ", ".join(f"{name} {percent_text(e)} %" for name, e in zip(result.model.inputs, result.column_errors))
     say(
         f"order {result.order}, delay {result.delay} samples, weight {_WEIGHT_WORDS.get(result.weight, result.weight)}; "
         f"max error per input column (of its peak): {errors}"
@@ -121,44 +132,6 @@ _WEIGHT_WORDS = {
 }
 
 
-def _write_report(folder: str, frd, result) -> None:
-    """``index.html`` (measured FRF with coherence and std band beside the model) and metrics.json."""
-    import numpy as np
-
-    from ..report import Report, write_report_folder
-
-    report = Report(title="identify frd")
-    report.section("Measured frequency response and identified model")
-    report.figure(frd.plot(model=result.model), "Measured FRF (+-2 std shaded), coherence, and the model (dashed).")
-    if frd.total_std is not None:
-        from ..frf.bla_figure import bla_figure
-
-        report.figure(
-            bla_figure(frd),
-            "Best linear approximation: |BLA|, total distortion level (red; the fit's weights) and noise level (green).",
-        )
-    report.table(
-        ["input", "max error / column peak"],
-        [[name, float(e)] for name, e in zip(result.model.inputs, result.column_errors)],
-    )
-    from ..report import uncertainty_section
-
-    lo, hi = result.band
-    hi = hi if result.model.dt is None else min(hi, 0.5 / result.model.dt)
-    f = np.geomspace(lo if lo > 0 else 1e-3 * hi, hi, 300)
-    metrics: dict = {}
-    uncertainty_section(
-        report, metrics, result.response_uncertainty(f), f"model fitted to the FRF ({result.covariance.noise_source})"
-    )
-    if result.order_errors:
-        report.section("Order selection (held-out frequencies)", level=3)
-        report.table(["order", "held-out RMS error"], [[n, e] for n, e in result.order_errors])
-    metrics |= {
-        "order": result.order,
-        "delay": result.delay,
-        "weight": result.weight,
-        "band_hz": list(result.band),
-        "column_errors": [float(e) for e in result.column_errors],
-        "stable": bool(result.model.is_stable()),
-    }
-    write_report_folder(folder, report, metrics)
+def _asked(used: object, given: str) -> str:
+    """A setting as used, saying when ``auto`` chose it (``16 (auto)``)."""
+    return f"{used} (auto)" if given == "auto" else str(used)

@@ -217,8 +217,9 @@ def identify(
         from .report import write_report
 
         def extra(report, metrics):
-            report.section("Identification")
-            report.paragraph(fit.summary())
+            from ..report.stage_report import fit_summary_section
+
+            fit_summary_section(report, fit, [e.name or f"record {k}" for k, e in enumerate(exps)])
 
         # the model starts from the zero state at 0 input with the first record's offset; other
         # records' sensor zeros differ, so each is shown against the model shifted to its fitted offset

@@ -173,11 +173,14 @@ def _write_report(result, exps, report_dir: str, fit_band: tuple[float, float]) 
     lo, hi = fit_band
     f = np.geomspace(max(lo, 1e-3), hi, 300)
 
+    # a chunked record comes without experiments: its units are then not known here
+    units = {"input_units": exps[0].input_units, "output_units": exps[0].output_units} if exps else {}
+
     def extra(report, metrics):
         report.section("Hankel-MAP diagnostics")
         report.paragraph(result.summary())
         report.figure(
-            bode_with_bands(result, f),
+            bode_with_bands(result, f, **units),
             "Response of the Hankel-Toeplitz model (eq. 9) with +-2 std posterior bands, and the realised model.",
         )
         for ch in result.channels:

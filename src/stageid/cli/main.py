@@ -124,7 +124,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _warning_as_message
             warnings.simplefilter("default")
             warnings.filterwarnings("ignore", category=RuntimeWarning)  # numpy's floating-point notes
-            code = cli.main(args=args, prog_name="stageid", standalone_mode=False)
+            # the arguments ride along so a report can record the command that made it
+            code = cli.main(args=args, prog_name="stageid", standalone_mode=False, obj={"argv": list(args)})
     except click.exceptions.Exit as exc:
         flush_messages()
         return int(exc.exit_code or 0)

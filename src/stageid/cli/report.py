@@ -6,7 +6,15 @@ from pathlib import Path
 
 import click
 
-from ._common import check_output_folder, read_experiments, say, split_names, trim_options
+from ._common import (
+    check_output_folder,
+    command_line,
+    command_settings,
+    read_experiments,
+    say,
+    split_names,
+    trim_options,
+)
 
 
 def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None, uncertainty=None) -> Path:
@@ -16,11 +24,14 @@ def write_report(model, experiments, out_dir: str, title: str | None = None, ext
     verbs' ``--report`` uses it for uncertainty bands, selection plots, ...).  Nothing is
     written unless the whole report could be built: both files go to a temporary folder that
     is then moved into place (:func:`stageid.report.write_report_folder`).  ``uncertainty``
-    (a FrequencyResponse with ``std``) puts +-2 std bands on the model's Bode plot.
+    (a FrequencyResponse with ``std``) puts +-2 std bands on the model's Bode plot.  The report
+    opens with the command line and the running command's options.
     """
     from ..report import model_report, write_report_folder
 
-    report, metrics = model_report(model, experiments, title, uncertainty=uncertainty)
+    report, metrics = model_report(
+        model, experiments, title, uncertainty=uncertainty, settings=command_settings(), command=command_line()
+    )
     if extra is not None:
         extra(report, metrics)
     return write_report_folder(out_dir, report, metrics)

@@ -197,6 +197,10 @@ def _write_report(folder: str, model, experiments, result: dict, summary: dict):
     from ..report import Report, write_report_folder
 
     report = Report("Model validation")
+    from ..report.provenance import settings_section
+    from ._common import command_line, command_settings
+
+    settings_section(report, command_settings(), command_line())
     report.section("Summary")
     rows = [
         [name, o["fit_percent"], o["nrmse"], _verdict(o["whiteness"]), _verdict(o["independence"])]

@@ -30,9 +30,15 @@ class DemoResult:
 
 
 def run_demo(
-    out_dir: str | Path, step: Callable[[str], None] | None = None, workflows: tuple[str, ...] = WORKFLOWS
+    out_dir: str | Path,
+    step: Callable[[str], None] | None = None,
+    workflows: tuple[str, ...] = WORKFLOWS,
+    command: str | None = None,
 ) -> DemoResult:
     """Run the workflows and write the report; ``step`` is called with a description before each stage.
+
+    The report opens with ``command`` (the command line that ran the demo, when given), the
+    workflows run and the stageid version.
 
     Everything is written into a temporary folder next to ``out_dir`` and moved into place at
     the end (:func:`stageid.atomic.staged_folder`), so an error or an interrupt leaves no
@@ -42,6 +48,7 @@ def run_demo(
 
     from ..atomic import staged_folder
     from ..report import Report, write_metrics
+    from ..report.provenance import settings_section
 
     step = step or (lambda text: None)
     report = Report("stageid demo: identification of precision positioning stages")
@@ -52,6 +59,7 @@ def run_demo(
         "hysteresis identification with inverse feedforward compensation. Every number below was computed in this run."
     )
     metrics: dict[str, Any] = {}
+    settings_section(report, {"workflows": workflows}, command)
     rows: list[list[Any]] = []
     t0 = time.perf_counter()
     with staged_folder(out_dir) as tmp:

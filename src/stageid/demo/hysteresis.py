@@ -225,12 +225,16 @@ def _stage(report: Report, step: Callable[[str], None]) -> dict[str, float]:
         "rate-independent inverse (hysteresis only) and the stage inverse (stable inversion of the dynamics "
         "over the whole scan, then the hysteresis inverse). Errors after the first cycle, % of the scan range."
     )
-    report.paragraph(fit.summary())
+    from ..report.stage_report import fit_summary_section, stage_parts_section
+
+    fit_summary_section(report, fit, ["decaying triangle, 20 Hz", "decaying triangle, 100 Hz"], level=3)
+    stage_parts_section(report, {}, fit.model, "V", "um", level=3)
     report.table(["drive", "max tracking error [% FSR]"], [[k, v] for k, v in scan.items()])
     t = np.arange(ref.size) * STAGE_DT
     for name, y in outputs.items():
         report.figure(
-            tracking_figure(t, ref, y, title=f"100 Hz scan, {name}"),
-            f"Desired and actual stage output at a 100 Hz scan with the {name}; tracking error and loop.",
+            tracking_figure(t, ref, y, title=f"100 Hz scan, {name}", period=0.01),
+            f"Desired and actual stage output at a 100 Hz scan with the {name}: (a) the last three periods, "
+            f"(b) the tracking error over the whole {t[-1]:.3g} s record (its min-max envelope), (c) the loop.",
         )
     return scan

@@ -16,6 +16,7 @@ import numpy as np
 from ..report import Report
 
 PAPER_RHP_POLES = (54.62, 82.21, 86.73)  # rad/s, eq. 22a-24a
+INPUT_UNITS, OUTPUT_UNITS = ("N", "N", "N m"), ("m", "m", "rad")  # the plant of eq. 22-24 in SI units
 
 
 def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[str], None]) -> list[list[Any]]:
@@ -107,7 +108,7 @@ def _report_figures(report, metrics, result, true, exps, controller, outs) -> No
     from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero, plot_reclosed_loop
 
     report.figure(
-        plot_plant_bode(result, np.geomspace(1.0, 2000.0, 300), true),
+        plot_plant_bode(result, np.geomspace(1.0, 2000.0, 300), true, INPUT_UNITS, OUTPUT_UNITS),
         "Identified plant (reduced and full-order deduction) against the truth of eq. 22-24, all nine entries.",
     )
     report.figure(
@@ -122,6 +123,7 @@ def _report_figures(report, metrics, result, true, exps, controller, outs) -> No
             result.closed_loop.frequency_response(ff)[:, 0, 0],
             (fe, etfe[:, 0]),
             title="Closed loop r_x -> x (Fig. 4b)",
+            unit="m/m",
         ),
         "Identified closed-loop response r_x -> x beside the empirical transfer function from the data's FFTs.",
     )
@@ -131,7 +133,7 @@ def _report_figures(report, metrics, result, true, exps, controller, outs) -> No
     )
     metrics["maglev/reclosed_fit_percent_chirp_x"] = [float(v) for v in fit]
     report.figure(
-        plot_reclosed_loop(exps[0].time, exps[0].y, ysim, outs),
+        plot_reclosed_loop(exps[0].time, exps[0].y, ysim, outs, OUTPUT_UNITS),
         f"Time-domain check (Fig. 8): the identified plant re-closed with the known controller, driven by the "
         f"recorded chirp on x; fit {', '.join(f'{o} {v:.1f} %' for o, v in zip(outs, fit))}.",
     )

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..report import Report
 
+UNITS = ("um", "urad", "urad")  # Z, Rx, Ry and z, rx, ry (eq. 23-25)
 PAPER_ORDERS = (7, 4, 4)  # the sub-model orders Cao & Chen chose (Tables 4-6)
 HORIZON = (
     40  # p; on these 10 s chirps the held-out split (the chirps' last, fastest quarter) favours too short a horizon
@@ -83,7 +84,8 @@ def _add_measured_frf(report, metrics, model, true, records, step: Callable[[str
 
     step("P-558: measured frequency response (Welch H1) of the first chirps")
     frd = welch_frf(records).band(1.0, 100.0)  # the chirps' band; outside it the lines are noise
-    frf_section(report, metrics, model, frd, "measured (Welch H1 of the first chirps)", prefix="p558/", level=3)
+    units = {"input_units": records[0].input_units, "output_units": records[0].output_units}
+    frf_section(report, metrics, model, frd, "measured (Welch H1 of the first chirps)", "p558/", 3, **units)
     keep = np.all(frd.coherence >= COHERENT, axis=1)
     truth = column_errors(true.frequency_response(frd.freqs[keep]), frd.response[keep])
     report.paragraph(
@@ -183,13 +185,24 @@ def _add_model_figures(report, metrics, f, true, sweep, updated) -> None:
             true.outputs,
             title="P-558: identified vs true",
             styles={"true (eq. 23-25)": "k--"},
+            input_units=UNITS,
+            output_units=UNITS,
         ),
         "Bode magnitude and phase of the identified 3x3 model (after the online update) against the reference; "
         "inputs Z [um], Rx, Ry [urad]; outputs z [um], rx, ry [urad].",
     )
     report.figure(
-        bode_with_bands(updated, f, true, title="Hankel-Toeplitz response with +-2 std posterior bands"),
-        "Magnitude of the eq. 9 response with its posterior uncertainty band (MAP covariance), the realised model and the truth.",
+        bode_with_bands(
+            updated,
+            f,
+            true,
+            title="Hankel-Toeplitz response with +-2 std posterior bands",
+            input_units=UNITS,
+            output_units=UNITS,
+        ),
+        "Magnitude of the eq. 9 response with its posterior uncertainty band (MAP covariance), the realised model and "
+        "the truth; each axis shows its entry's peak down to a millionth of it, so where 2 std exceeds |G| the band "
+        "runs to the bottom of the axis.",
     )
     table = sweep.channels[0].order_table
     metrics["p558/z_channel_selected_order"] = int(sweep.channels[0].order)

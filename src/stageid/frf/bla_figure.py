@@ -40,7 +40,7 @@ def bla_figure(frd: Any, odd_std: np.ndarray | None = None, even_std: np.ndarray
                 if share is not None:
                     ax.semilogx(f, db(share[:, i, j]), marker, ms=3, mfc="none", label=name)
             ax.set_title(f"{out} from {inp}", fontsize=9)
-            ax.set_ylabel("dB")
+            ax.set_ylabel("magnitude [dB re 1 output/input]")
         axes[-1, 0].set_xlabel("frequency [Hz]")
     axes[0, 0].legend(fontsize=7)
     return fig

@@ -181,15 +181,24 @@ class FrequencyResponse:
             outputs=tuple(sys.output_labels),
         )
 
-    def plot(self, ax=None, model: Any = None):
+    def plot(
+        self,
+        ax=None,
+        model: Any = None,
+        fit_band: tuple[float, float] | None = None,
+        input_units: Sequence[str] = (),
+        output_units: Sequence[str] = (),
+    ):
         """Bode figure: magnitude with a +-2 std band, phase, and a coherence panel when known.
 
-        ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data.
-        Returns the matplotlib figure (imported lazily; use the Agg backend off-screen).
+        ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data;
+        ``fit_band`` greys the frequencies a fit left out; the units label the magnitude axes
+        (see :func:`stageid.frf.plotting.bode_figure`).  Returns the matplotlib figure
+        (imported lazily; use the Agg backend off-screen).
         """
         from .plotting import bode_figure
 
-        return bode_figure(self, model)
+        return bode_figure(self, model, fit_band, input_units, output_units)
 
 
 def frd_columns(frd: FrequencyResponse) -> dict[str, np.ndarray]:

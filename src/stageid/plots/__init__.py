@@ -7,7 +7,8 @@
 =========================  ==============================================================
 
 Method-specific figures live beside these: ``plots.subspace``, ``plots.closedloop``,
-``plots.hysteresis``.
+``plots.hysteresis``; ``plots.scale`` gives every figure its magnitude units, log limits
+(a millionth of the peak at the bottom) and zoom windows for long records.
 """
 
 from .lti import bode_figure, pzmap_figure, time_overlay_figure

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ._style import loglog, subplots
+from .scale import magnitude_label, set_log_magnitude
 
 __all__ = ["plot_plant_bode", "plot_closed_loop_bode", "plot_pole_zero", "plot_reclosed_loop"]
 
@@ -20,7 +21,13 @@ def _figure(nrows: int, ncols: int, size: tuple[float, float]):
     return subplots(nrows, ncols, figsize=size, squeeze=False)
 
 
-def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant: Any = None) -> Any:
+def plot_plant_bode(
+    result: Any,
+    freqs_hz: np.ndarray | None = None,
+    true_plant: Any = None,
+    input_units: Sequence[str] = (),
+    output_units: Sequence[str] = (),
+) -> Any:
     """Magnitude of every plant entry: reduced fit, full-order deduction, truth (Fig. 7).
 
     Parameters
@@ -30,6 +37,8 @@ def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant:
         Default 300 log-spaced lines from 1 Hz to 0.4 / dt.
     true_plant : model with ``frequency_response``, optional
         The true (continuous) plant, drawn thin.
+    input_units, output_units : sequence of str, optional
+        The channels' units, for the magnitude labels (``output/input`` when not given).
 
     Returns
     -------
@@ -48,12 +57,19 @@ def plot_plant_bode(result: Any, freqs_hz: np.ndarray | None = None, true_plant:
                 loglog(ax, f, np.abs(tru[:, i, j]), "k-", lw=0.8, label="true")
             loglog(ax, f, np.abs(full[:, i, j]), "--", lw=1.6, label="deduced (full order)")
             loglog(ax, f, np.abs(red[:, i, j]), "-", lw=1.6, label="reduced")
-            ax.axvspan(*result.band, color="0.9", zorder=0)
+            ax.axvspan(*result.band, color="0.9", zorder=0, label="identification band" if i + j == 0 else None)
             ax.set_title(f"{result.plant.inputs[j]} -> {result.plant.outputs[i]}", fontsize=9)
+            ax.set_ylabel(magnitude_label(_at(output_units, i), _at(input_units, j)), fontsize=8)
+            lines = [np.abs(full[:, i, j]), np.abs(red[:, i, j])] + ([] if tru is None else [np.abs(tru[:, i, j])])
+            set_log_magnitude(ax, lines)
             if i == p - 1:
-                ax.set_xlabel("f [Hz]")
+                ax.set_xlabel("frequency [Hz]")
     axes[0, 0].legend(fontsize=7)
     return fig
+
+
+def _at(units: Sequence[str], k: int) -> str:
+    return units[k] if k < len(units) else ""
 
 
 def plot_closed_loop_bode(
@@ -62,8 +78,10 @@ def plot_closed_loop_bode(
     empirical: tuple[np.ndarray, np.ndarray] | None = None,
     true: np.ndarray | None = None,
     title: str = "",
+    unit: str = "output/input",
 ) -> Any:
-    """One closed-loop entry: identified ``T`` vs the FFT ratio of the data and the truth (Fig. 4b)."""
+    """One closed-loop entry: identified ``T`` vs the FFT ratio of the data and the truth (Fig. 4b);
+    ``unit`` is the magnitude's (e.g. ``m/m`` from a reference to its output)."""
     fig, axes = _figure(1, 1, (5.0, 3.4))
     ax = axes[0, 0]
     if empirical is not None:
@@ -71,8 +89,9 @@ def plot_closed_loop_bode(
     if true is not None:
         loglog(ax, freqs_hz, np.abs(true), "k--", lw=1.0, label="true")
     loglog(ax, freqs_hz, np.abs(identified), "-", lw=1.8, label="identified")
-    ax.set_xlabel("f [Hz]")
-    ax.set_ylabel("|T|")
+    set_log_magnitude(ax, [np.abs(identified)] + ([] if true is None else [np.abs(true)]))
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"|T| [{unit}]")
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7)
     return fig
@@ -103,7 +122,9 @@ def plot_pole_zero(result: Any, entry: tuple[int, int] = (0, 0), limit: float = 
     return fig
 
 
-def plot_reclosed_loop(time: np.ndarray, measured: np.ndarray, simulated: np.ndarray, names: Sequence[str]) -> Any:
+def plot_reclosed_loop(
+    time: np.ndarray, measured: np.ndarray, simulated: np.ndarray, names: Sequence[str], units: Sequence[str] = ()
+) -> Any:
     """Measured outputs beside the identified plant re-closed with the known controller (Fig. 8)."""
     y = np.atleast_2d(np.asarray(measured, float).T).T
     ys = np.atleast_2d(np.asarray(simulated, float).T).T
@@ -112,7 +133,7 @@ def plot_reclosed_loop(time: np.ndarray, measured: np.ndarray, simulated: np.nda
         ax = axes[k, 0]
         ax.plot(time, y[:, k], "-", lw=1.2, label="measured")
         ax.plot(time, ys[:, k], "--", lw=1.0, label="identified plant, re-closed loop")
-        ax.set_ylabel(names[k])
-    axes[-1, 0].set_xlabel("t [s]")
+        ax.set_ylabel(f"{names[k]} [{_at(units, k) or 'output unit'}]")
+    axes[-1, 0].set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7)
     return fig

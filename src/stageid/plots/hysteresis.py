@@ -13,7 +13,7 @@ import numpy as np
 
 from ._style import subplots
 
-__all__ = ["loop_figure", "model_errors_figure", "tracking_figure"]
+__all__ = ["loop_figure", "model_errors_figure", "tracking_figure", "creep_figure", "stage_dynamics_figure"]
 
 
 def _figure(nrows: int, ncols: int, size: tuple[float, float]):
@@ -78,34 +78,112 @@ def model_errors_figure(
     return fig
 
 
-def tracking_figure(time: Any, reference: Any, output: Any, title: str = "", unit: str = "um") -> Any:
+def tracking_figure(
+    time: Any, reference: Any, output: Any, title: str = "", unit: str = "um", period: float | None = None
+) -> Any:
     """Desired and real outputs with the error (a) and the hysteresis curve (b), as Figs. 10-12.
+
+    A record of many periods of a fast scan drawn whole is a solid block: with ``period`` (of
+    the reference, seconds) and a record longer than twelve periods, (a) shows the last three
+    periods, (b) the error over the whole record as its min-max envelope, and (c) the curve.
 
     Parameters
     ----------
     time, reference, output : array_like of shape (n_samples,)
     title : str
     unit : str
+    period : float, optional
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    fig, axes = _figure(1, 2, (10.0, 3.8))
+    from .scale import envelope, zoom_window
+
     t, r, y = _flat(time), _flat(reference), _flat(output)
+    window = None if period is None else zoom_window(t, period)
+    fig, axes = _figure(1, 3 if window else 2, (14.0 if window else 10.0, 3.8))
     ax = axes[0, 0]
-    ax.plot(t, r, lw=0.9, label="desired")
-    ax.plot(t, y, lw=0.9, label="real")
-    ax.plot(t, y - r, lw=0.8, label="error")
+    shown = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
+    ax.plot(t[shown], r[shown], lw=0.9, label="desired")
+    ax.plot(t[shown], y[shown], lw=0.9, label="real")
+    ax.plot(t[shown], (y - r)[shown], lw=0.8, label="error")
     ax.set_xlabel("time [s]")
     ax.set_ylabel(f"displacement [{unit}]")
-    ax.set_title("(a) " + title if title else "(a)")
+    zoom = "" if window is None else f" last {window[1] - window[0]:.3g} s"
+    ax.set_title(("(a) " + title if title else "(a)") + zoom)
     ax.legend()
-    ax = axes[0, 1]
+    if window is not None:
+        ax = axes[0, 1]
+        te, lo, hi = envelope(t, y - r)
+        ax.fill_between(te, lo, hi, color="C2", lw=0.6, label="error (min-max per bin)")
+        ax.axvspan(*window, color="0.85", zorder=0, label="window of (a)")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(f"error [{unit}]")
+        ax.set_title("(b) error over the whole record")
+        ax.legend()
+    ax = axes[0, -1]
     ax.plot(r, y, lw=0.9)
     lo, hi = float(min(r.min(), y.min())), float(max(r.max(), y.max()))
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.6)
     ax.set_xlabel(f"desired [{unit}]")
     ax.set_ylabel(f"real [{unit}]")
-    ax.set_title("(b) hysteresis curve")
+    ax.set_title(f"({'c' if window else 'b'}) hysteresis curve")
+    return fig
+
+
+def creep_figure(creep: Any, input_unit: str = "", output_unit: str = "") -> Any:
+    """The creep term's response to a unit step of the input: ``sum_j c_j (1 - exp(-t / tau_j))``.
+
+    Drawn on a log time axis from one sample to five times the longest time constant, each lag's
+    share dashed, the time constants marked.  The y axis is in output units per input unit.
+
+    Examples
+    --------
+    >>> from stageid.hysteresis.creep import CreepTerm
+    >>> fig = creep_figure(CreepTerm([0.1, 1.0], [0.02, 0.01], 1e-3), "V", "um")
+    >>> fig.axes[0].get_ylabel()
+    'creep after a unit input step [um/V]'
+    """
+    from .scale import magnitude_unit
+
+    taus, weights = np.asarray(creep.time_constants, float), np.asarray(creep.weights, float)
+    t = np.geomspace(creep.sample_time, 5.0 * taus.max(), 400)
+    shares = weights[None, :] * (1.0 - np.exp(-t[:, None] / taus[None, :]))
+    fig, axes = _figure(1, 1, (6.4, 3.4))
+    ax = axes[0, 0]
+    ax.semilogx(t, shares.sum(axis=1), color="k", lw=1.4, label=f"creep (total {weights.sum():.3g})")
+    for tau, share in zip(taus, shares.T):
+        ax.semilogx(t, share, "--", lw=0.9, label=f"lag tau = {tau:g} s")
+    ax.set_xlabel("time after the step [s]")
+    ax.set_ylabel(f"creep after a unit input step [{magnitude_unit(output_unit, input_unit)}]")
+    ax.set_title("Creep: slow response to an input step")
+    ax.legend(loc="best")
+    return fig
+
+
+def stage_dynamics_figure(model: Any, output_unit: str = "") -> Any:
+    """Bode magnitude and phase of a stage model's linear dynamics (unit DC gain, from the hysteresis
+    output to the stage output, so the magnitude is dimensionless), from a ten-thousandth of the
+    Nyquist frequency to Nyquist, with the modes taken from the disturbance spectrum marked."""
+    from .lti import bode_figure
+
+    g = model.dynamics
+    nyquist = 0.5 / g.dt
+    f = np.geomspace(nyquist * 1e-4, nyquist, 600)
+    unit = f"{output_unit}/{output_unit}" if output_unit else "-"
+    fig = bode_figure(
+        f,
+        {"dynamics": g.frequency_response(f)},
+        ["hysteresis output"],
+        list(model.outputs),
+        title=f"Linear dynamics of the stage (order {g.n_states}, DC gain 1)",
+        magnitude_unit=unit,
+    )
+    for ax in fig.axes:
+        for freq, damping in model.disturbance_modes:
+            label = f"mode {freq:.4g} Hz (damping {damping:.3g})" if ax is fig.axes[0] else None
+            ax.axvline(freq, color="C3", ls=":", lw=1.1, label=label)
+    if model.disturbance_modes:
+        fig.axes[0].legend(loc="best")
     return fig

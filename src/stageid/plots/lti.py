@@ -6,7 +6,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from . import scale
 from ._style import loglog, positive, subplots
+from .scale import envelope, peak, set_log_magnitude
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 
@@ -21,6 +23,9 @@ def bode_figure(
     magnitude_unit: str = "",
     phase: bool = True,
     styles: Mapping[str, str] | None = None,
+    input_units: Sequence[str] = (),
+    output_units: Sequence[str] = (),
+    band_label: str = "band",
 ):
     """Bode magnitude (and phase) of several MIMO responses on one grid of subplots.
 
@@ -33,6 +38,17 @@ def bode_figure(
         drawn as shaded uncertainty bands under the response with the same label.
     phase : bool
         Add a phase row under every magnitude row.
+    magnitude_unit : str
+        The unit of every entry's magnitude (e.g. ``"um/V"``); by default each entry's unit is
+        ``output_units[i]/input_units[j]``, ``output/input`` where a unit is not known.
+    input_units, output_units : sequence of str, optional
+        The channels' units.
+    band_label : str
+        The legend names a band ``"<label> <band_label>"`` (e.g. ``"model +-2 std"``).
+
+    Every magnitude axis is limited to its lines' peak down to ``peak / 1e6``
+    (:func:`~stageid.plots.scale.set_log_magnitude`); an entry below a millionth of the
+    largest entry's peak says it is numerically zero.
 
     Returns
     -------
@@ -44,45 +60,54 @@ def bode_figure(
         rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True
     )
     styles = dict(styles or {})
-    for label, H in responses.items():
-        style = styles.get(label, "-")
-        color = style[0] if style[:1].isalpha() else None
-        ls = style[1:] if color else style
-        for i in range(p):
-            for j in range(m):
-                ax = axes[2 * i if phase else i, j]
-                line = loglog(ax, freqs_hz, np.abs(H[:, i, j]), ls, color=color, label=label, lw=1.3)
-                if bands and label in bands:
-                    lo, hi = bands[label]
-                    upper = positive(hi[:, i, j])
-                    ax.fill_between(
-                        positive(freqs_hz),
-                        np.fmin(np.maximum(lo[:, i, j], 1e-300), upper),
-                        upper,
-                        color=line.get_color(),
-                        alpha=0.25,
-                        lw=0,
-                    )
-                ax.set_title(f"{input_names[j]} → {output_names[i]}")
-                if j == 0:
-                    ax.set_ylabel(f"|G| {magnitude_unit}".strip())
-                if phase:
-                    axp = axes[2 * i + 1, j]
-                    axp.semilogx(
-                        positive(freqs_hz),
-                        np.degrees(np.unwrap(np.angle(H[:, i, j]))),
-                        ls,
-                        color=line.get_color(),
-                        lw=1.1,
-                    )
-                    if j == 0:
-                        axp.set_ylabel("phase [deg]")
+    for i in range(p):
+        for j in range(m):
+            ax = axes[2 * i if phase else i, j]
+            axp = axes[2 * i + 1, j] if phase else None
+            for label, H in responses.items():
+                band = None if not bands or label not in bands else (bands[label][0][:, i, j], bands[label][1][:, i, j])
+                style = styles.get(label, "-")
+                _draw_entry(ax, axp, freqs_hz, H[:, i, j], band, style, label, f"{label} {band_label}")
+            ax.set_title(f"{input_names[j]} → {output_names[i]}")
+            unit = magnitude_unit or scale.magnitude_unit(_unit(output_units, i), _unit(input_units, j))
+            ax.set_ylabel(f"|G| [{unit}]")
+    # limits from the lines, not the bands: a band edge at |G| - 2 std <= 0 would reach 1e-300
+    top = peak(np.abs(H) for H in responses.values())
+    for i in range(p):
+        for j in range(m):
+            mags = [np.abs(H[:, i, j]) for H in responses.values()]
+            set_log_magnitude(axes[2 * i if phase else i, j], mags, reference_peak=top if top > 0 else None)
     for ax in axes[-1]:
         ax.set_xlabel("frequency [Hz]")
     axes[0, 0].legend(loc="best")
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _draw_entry(ax, axp, freqs_hz, h, band, style: str, label: str, band_label: str) -> None:
+    """One entry of one response: magnitude (with its band, labelled for the legend) and phase."""
+    color = style[0] if style[:1].isalpha() else None
+    ls = style[1:] if color else style
+    line = loglog(ax, freqs_hz, np.abs(h), ls, color=color, label=label, lw=1.3)
+    if band is not None:
+        upper = positive(band[1])
+        ax.fill_between(
+            positive(freqs_hz),
+            np.fmin(np.maximum(band[0], 1e-300), upper),
+            upper,
+            color=line.get_color(),
+            alpha=0.25,
+            lw=0,
+            label=band_label,
+        )
+    if axp is not None:
+        axp.semilogx(positive(freqs_hz), np.degrees(np.unwrap(np.angle(h))), ls, color=line.get_color(), lw=1.1)
+        axp.set_ylabel("phase [deg]")
+
+
+def _unit(units: Sequence[str], k: int) -> str:
+    return units[k] if k < len(units) else ""
 
 
 def pzmap_figure(
@@ -130,6 +155,7 @@ def time_overlay_figure(
     units: Sequence[str] | None = None,
     title: str = "",
     error_of: str | None = None,
+    window: tuple[float, float] | None = None,
 ):
     """Measured outputs with predictions overlaid, and the prediction error underneath.
 
@@ -139,28 +165,49 @@ def time_overlay_figure(
     measured : ndarray of shape (n_samples, n_outputs)
     predicted : mapping label -> ndarray of shape (n_samples, n_outputs)
     error_of : label whose error trace is drawn (default: the first)
+    window : (t0, t1), optional
+        Draw the overlay over this window only (a few periods of a long record, see
+        :func:`~stageid.plots.scale.zoom_window`) and the error over the whole record as its
+        min-max envelope, the window shaded: a long record of a fast signal drawn whole is a block.
     """
     measured = np.asarray(measured).reshape(len(t), -1)
     n = measured.shape[1]
-    units = list(units) if units else [""] * n
+    units = [u or "output unit" for u in units] if units else ["output unit"] * n
     fig, axes = subplots(
-        2, n, figsize=(4.2 * n + 0.8, 5.2), squeeze=False, sharex=True, gridspec_kw={"height_ratios": [2.2, 1.0]}
+        2,
+        n,
+        figsize=(4.2 * n + 0.8, 5.2),
+        squeeze=False,
+        sharex=window is None,
+        gridspec_kw={"height_ratios": [2.2, 1.0]},
     )
     key = error_of or next(iter(predicted), None)
+    shown = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
     for j in range(n):
         ax = axes[0, j]
-        ax.plot(t, measured[:, j], color="0.2", lw=1.4, label="measured")
+        ax.plot(t[shown], measured[shown, j], color="0.2", lw=1.4, label="measured")
         for label, yh in predicted.items():
-            ax.plot(t, np.asarray(yh).reshape(len(t), -1)[:, j], lw=1.0, ls="--", label=label)
-        unit = f" [{units[j]}]" if units[j] else ""
-        ax.set_ylabel(f"{names[j]}{unit}")
-        ax.set_title(names[j])
+            ax.plot(t[shown], np.asarray(yh).reshape(len(t), -1)[shown, j], lw=1.0, ls="--", label=label)
+        ax.set_ylabel(f"{names[j]} [{units[j]}]")
+        ax.set_title(names[j] if window is None else f"{names[j]}, {window[0]:.4g}-{window[1]:.4g} s")
         if key is not None:
             err = measured[:, j] - np.asarray(predicted[key]).reshape(len(t), -1)[:, j]
-            axes[1, j].plot(t, err, color="C3", lw=0.9)
-            axes[1, j].set_ylabel(f"error{unit}")
+            _error_trace(axes[1, j], t, err, window)
+            axes[1, j].set_ylabel(f"error [{units[j]}]")
+        axes[0, j].set_xlabel("time [s]")
         axes[1, j].set_xlabel("time [s]")
     axes[0, 0].legend(loc="best")
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _error_trace(ax, t: np.ndarray, err: np.ndarray, window: tuple[float, float] | None) -> None:
+    """The error over the whole record: a line, or with a window its envelope and the window shaded."""
+    if window is None:
+        ax.plot(t, err, color="C3", lw=0.9)
+        return
+    te, lo, hi = envelope(t, err)
+    ax.fill_between(te, lo, hi, color="C3", lw=0.5, label="error (min-max per bin)")
+    ax.axvspan(*window, color="0.8", zorder=0, label="window above")
+    ax.legend(loc="best", fontsize=7)

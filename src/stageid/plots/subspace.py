@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ._style import figure, loglog, positive
+from .scale import magnitude_label, peak, set_log_magnitude
 
 __all__ = ["bode_with_bands", "selection_plot", "error_curve"]
 
@@ -21,7 +22,13 @@ def _figure(width: float, height: float):
 
 
 def bode_with_bands(
-    result: Any, freqs_hz: Sequence[float] | np.ndarray, true_model: Any = None, n_std: float = 2.0, title: str = ""
+    result: Any,
+    freqs_hz: Sequence[float] | np.ndarray,
+    true_model: Any = None,
+    n_std: float = 2.0,
+    title: str = "",
+    input_units: Sequence[str] = (),
+    output_units: Sequence[str] = (),
 ) -> Any:
     """Magnitude of every entry: identified model, the Hankel-Toeplitz response with +-``n_std``
     posterior bands, and optionally the true model.
@@ -33,6 +40,12 @@ def bode_with_bands(
     true_model : StateSpaceModel, optional
     n_std : float
         Width of the band in standard deviations.
+    input_units, output_units : sequence of str, optional
+        The channels' units, for the magnitude labels (``output/input`` when not given).
+
+    Each magnitude axis shows its lines' peak down to a millionth of it
+    (:func:`~stageid.plots.scale.set_log_magnitude`): a band whose lower edge
+    ``|G| - n_std std`` is below zero runs to the bottom of the axis.
 
     Returns
     -------
@@ -55,6 +68,7 @@ def bode_with_bands(
     model = result.model
     G = model.frequency_response(f)
     Gh, std = result.response_bands(f)
+    G_true = None if true_model is None else true_model.frequency_response(f)
     q, m = G.shape[1:]
     fig = _figure(3.2 * m, 2.4 * q)
     axes = fig.subplots(q, m, squeeze=False, sharex=True)
@@ -68,12 +82,18 @@ def bode_with_bands(
                 positive(f), lo, upper, color="C0", alpha=0.25, lw=0, label=f"eq. 9 response +-{n_std:g} std"
             )
             loglog(ax, f, np.abs(G[:, i, j]), "C0", lw=1.2, label="identified model")
-            if true_model is not None:
-                loglog(ax, f, np.abs(true_model.frequency_response(f)[:, i, j]), "k--", lw=1, label="true")
+            if G_true is not None:
+                loglog(ax, f, np.abs(G_true[:, i, j]), "k--", lw=1, label="true")
             ax.set_title(f"{model.inputs[j]} -> {model.outputs[i]}", fontsize=8)
             ax.tick_params(labelsize=7)
+            ax.set_ylabel(magnitude_label(_at(output_units, i), _at(input_units, j)), fontsize=8)
             if i == q - 1:
                 ax.set_xlabel("frequency [Hz]", fontsize=8)
+    lines = [np.abs(G)] + ([] if G_true is None else [np.abs(G_true)])
+    top = peak(lines)
+    for i in range(q):
+        for j in range(m):
+            set_log_magnitude(axes[i, j], [v[:, i, j] for v in lines], reference_peak=top or None)
     axes[0, 0].legend(fontsize=6)
     if title:
         fig.suptitle(title, fontsize=9)
@@ -81,10 +101,19 @@ def bode_with_bands(
     return fig
 
 
+def _at(units: Sequence[str], k: int) -> str:
+    return units[k] if k < len(units) else ""
+
+
 def selection_plot(table: Any, title: str = "") -> Any:
     """Held-out error versus horizon or order (a :class:`~stageid.subspace.selection.SelectionTable`)."""
     return error_curve(
-        table.values, {"held-out error": table.errors}, xlabel=table.kind, chosen=table.chosen, title=title
+        table.values,
+        {"held-out error": table.errors},
+        xlabel=table.kind,
+        ylabel="held-out error [error energy / output energy]",
+        chosen=table.chosen,
+        title=title,
     )
 
 

@@ -78,6 +78,10 @@ class Report:
         """A paragraph of plain text (escaped)."""
         self.blocks.append(_Block("p", text))
 
+    def bullets(self, items: Sequence[str]) -> None:
+        """A list of short plain-text items (escaped), one line each."""
+        self.blocks.append(_Block("ul", [str(i) for i in items]))
+
     def table(self, header: Sequence[str], rows: Sequence[Sequence[Any]], caption: str = "") -> None:
         """A table; floats are printed with 4 significant digits, NaN (an undefined value) as "n/a"."""
         self.blocks.append(_Block("table", (list(header), [list(r) for r in rows], caption)))
@@ -114,6 +118,8 @@ class Report:
                 out.append(f"<h{level}{anchor}>{html.escape(title)}</h{level}>")
             elif b.kind == "p":
                 out.append(f"<p>{html.escape(b.payload)}</p>")
+            elif b.kind == "ul":
+                out.append("<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in b.payload) + "</ul>")
             elif b.kind == "table":
                 header, rows, caption = b.payload
                 cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""

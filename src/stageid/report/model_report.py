@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from .html import Report
+from .provenance import settings_section
 from .uncertainty import uncertainty_section
 
 __all__ = ["lti_model_report", "hysteresis_model_report", "model_report", "frf_section"]
@@ -26,12 +27,17 @@ def lti_model_report(
     title: str = "Identified model",
     notes: Sequence[str] = (),
     uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """Bode plot, pole-zero map and, for each experiment, a simulation overlay with fit %.
 
     ``uncertainty`` (a :class:`~stageid.frf.FrequencyResponse` with ``std``, from a result's
     ``response_uncertainty``) draws the Bode plot on its frequencies with +-2 std bands and
     adds the relative std per entry (:func:`~stageid.report.uncertainty.uncertainty_section`).
+
+    ``settings`` and ``command`` (what made the model) open the report
+    (:func:`~stageid.report.provenance.settings_section`).
 
     Returns the report and a metrics dictionary (fit % per experiment and output).  The fit
     of an output that is constant in an experiment is undefined: NaN in the metrics (``null``
@@ -41,6 +47,8 @@ def lti_model_report(
 
     report = Report(title)
     metrics: dict[str, Any] = {}
+    if settings is not None or command:
+        settings_section(report, settings or {}, command)
     report.section("Model")
     kind = "continuous" if model.dt is None else f"discrete, Ts = {model.dt:g} s"
     n_states = getattr(model, "n_states", None)
@@ -50,16 +58,22 @@ def lti_model_report(
     )
     for note in notes:
         report.paragraph(note)
+    units = _channel_units(model, experiments)
     if uncertainty is None:
         f = _band(model, experiments)
         report.figure(
             bode_figure(
-                f, {"model": model.frequency_response(f)}, model.inputs, model.outputs, title="Frequency response"
+                f,
+                {"model": model.frequency_response(f)},
+                model.inputs,
+                model.outputs,
+                title="Frequency response",
+                **units,
             ),
             "Bode magnitude and phase of the identified model.",
         )
     else:
-        uncertainty_section(report, metrics, uncertainty, "identified model", level=3)
+        uncertainty_section(report, metrics, uncertainty, "identified model", level=3, **units)
     poles, zeros = model.poles(), model.zeros()
     report.figure(
         pzmap_figure({"model": (poles, zeros)}, continuous=model.dt is None, title="Poles and zeros"),
@@ -73,8 +87,24 @@ def lti_model_report(
         ],
         caption="Poles (first 40)",
     )
+    from .modes import modal_section
+
+    modal_section(report, metrics, model)
     _validation_section(report, metrics, model, experiments)
     return report, metrics
+
+
+def _channel_units(model: Any, experiments: Sequence[Any]) -> dict[str, tuple[str, ...]]:
+    """The units of the model's channels as the first experiment's columns give them ("" unknown)."""
+    if not experiments:
+        return {"input_units": (), "output_units": ()}
+    exp = experiments[0]
+    ins = dict(zip(exp.input_names, exp.input_units))
+    outs = dict(zip(exp.output_names, exp.output_units))
+    return {
+        "input_units": tuple(ins.get(n, "") for n in model.inputs),
+        "output_units": tuple(outs.get(n, "") for n in model.outputs),
+    }
 
 
 def _validation_section(report: Report, metrics: dict[str, Any], model: Any, experiments: Sequence[Any]) -> None:
@@ -83,6 +113,7 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
     A simulation that diverges (an unstable model) gets no fit and no figure, and says so.
     """
     from ..plots import time_overlay_figure
+    from ..plots.scale import dominant_period, zoom_window
     from ..validation import fit_percent
 
     rows = []
@@ -103,6 +134,9 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
             rows.append([exp.name or f"experiment {k}", name, float(value)])
             if np.isnan(value):
                 constant.append(f"{name} in {exp.name or f'experiment {k}'}")
+        # past about four thousand samples (two per pixel) a fast signal drawn whole is a solid block
+        period = dominant_period(exp.y, exp.dt) if exp.n_samples > 4000 else None
+        window = None if period is None else zoom_window(exp.time, period)
         report.figure(
             time_overlay_figure(
                 exp.time,
@@ -111,8 +145,15 @@ def _validation_section(report: Report, metrics: dict[str, Any], model: Any, exp
                 exp.output_names,
                 exp.output_units,
                 title=f"Simulation on {exp.name or f'experiment {k}'}",
+                window=window,
             ),
-            f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error.",
+            f"Measured outputs of {exp.name or f'experiment {k}'} with the model's simulation (from rest) and the error"
+            + (
+                "."
+                if window is None
+                else f": the last three periods ({window[0]:.4g}-{window[1]:.4g} s) above, the error over the "
+                "whole record (its min-max envelope) below."
+            ),
         )
     if rows:
         report.section("Validation")
@@ -144,19 +185,21 @@ def frf_section(
     source: str = "measured",
     prefix: str = "",
     level: int = 2,
+    input_units: Sequence[str] = (),
+    output_units: Sequence[str] = (),
 ) -> None:
     """The measured frequency response (``frd``, a :class:`~stageid.frf.FrequencyResponse` with
     the model's channels) beside the model: Bode figure with its +-2 std band and coherence,
     and per input column the largest ``|G_model - G_measured|`` over the column's peak, on the
     lines where every output's coherence is at least ``COHERENT`` (all lines without coherence)."""
     from ..frf.identification import column_errors
+    from .frd_report import frf_caption
 
     keep = np.ones(frd.freqs.size, bool) if frd.coherence is None else np.all(frd.coherence >= COHERENT, axis=1)
     report.section("Measured frequency response", level)
     report.figure(
-        frd.plot(model=model),
-        f"{source} frequency response ({frd.freqs[0]:.3g}-{frd.freqs[-1]:.3g} Hz; shaded: +-2 std) "
-        "with the model dashed; bottom: coherence.",
+        frd.plot(model=model, input_units=input_units, output_units=output_units),
+        frf_caption(frd, source[:1].upper() + source[1:]) + " Dashed: the model.",
     )
     if frd.total_std is not None:
         from ..frf.bla_figure import bla_figure
@@ -196,7 +239,12 @@ def _damping(p: complex, dt: float | None) -> float:
 
 
 def hysteresis_model_report(
-    model: Any, records: Sequence[Any] = (), title: str = "Hysteresis model", uncertainty: Any = None
+    model: Any,
+    records: Sequence[Any] = (),
+    title: str = "Hysteresis model",
+    uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """Measured versus modelled input-output loops and the modelling error in % of range.
 
@@ -205,13 +253,16 @@ def hysteresis_model_report(
     the output's own unit.  ``uncertainty`` (the fit's
     :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty`) draws the band the weights' uncertainty puts
     on each simulated loop (:func:`~stageid.report.uncertainty.loop_band_figure`) and reports its
-    half-width and how much of the record it holds.
+    half-width and how much of the record it holds.  A stage model's dynamics (Bode, modes) and
+    a creep term (step response) get their own figures; ``settings`` and ``command`` open the
+    report as in :func:`lti_model_report`.
     """
-    from ..plots._style import subplots
     from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)
     metrics: dict[str, Any] = {}
+    if settings is not None or command:
+        settings_section(report, settings or {}, command)
     report.section("Model")
     report.paragraph(f"{type(model).__name__}; input {model.inputs[0]}, output {model.outputs[0]}.")
     band_rows = []
@@ -224,22 +275,11 @@ def hysteresis_model_report(
         else:
             y_hat, std = model.simulate(exp.u)[:, 0], None
         y_range = float(np.ptp(y))
-        if y_range > 0:
-            err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
-            err_trace, err_label, err_text = (
-                100 * (y - y_hat) / y_range,
-                "error [% of range]",
-                f"max {err:.2f} % of range",
-            )
-        else:
-            err = float("nan")
-            unit = exp.output_units[0] or "-"
-            err_trace, err_label = y - y_hat, f"error [{unit}]"
-            err_text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
+        err, err_trace, err_label, err_text = _record_error(y, y_hat, exp.output_units[0] or "output unit")
         metrics[f"max_error_percent_range/{name}"] = err
         labels = (
-            f"{model.inputs[0]} [{exp.input_units[0] or '-'}]",
-            f"{model.outputs[0]} [{exp.output_units[0] or '-'}]",
+            f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]",
+            f"{model.outputs[0]} [{exp.output_units[0] or 'output unit'}]",
         )
         if std is not None:
             half = LOOP_N_STD * std * (100.0 / y_range if y_range > 0 else float("nan"))
@@ -255,33 +295,77 @@ def hysteresis_model_report(
                 f"inside it ({err_text}).",
             )
             continue
-        fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
-        a.plot(u, y, color="0.2", lw=1.2, label="measured")
-        a.plot(u, y_hat, "--", lw=1.0, label="model")
-        a.set_xlabel(labels[0])
-        a.set_ylabel(labels[1])
-        a.legend()
-        b.plot(exp.time, err_trace, color="C3", lw=0.9)
-        b.set_xlabel("time [s]")
-        b.set_ylabel(err_label)
-        report.figure(fig, f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).")
+        report.figure(
+            _loop_figure(u, y, y_hat, exp.time, labels, err_trace, err_label),
+            f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).",
+        )
+    from .stage_report import stage_parts_section
+
+    units = (records[0].input_units[0], records[0].output_units[0]) if records else ("", "")
+    stage_parts_section(report, metrics, model, *units)
+    _weights_band_table(report, band_rows, LOOP_N_STD)
+    return report, metrics
+
+
+def _weights_band_table(report: Report, band_rows: list, n_std: float) -> None:
     if band_rows:
         report.section("Uncertainty of the weights")
         report.table(
             ["record", "median half-width [% of range]", "max half-width [% of range]", "error inside [% of samples]"],
             band_rows,
-            caption=f"+-{LOOP_N_STD:g} std band of the simulated output from the weights' covariance; it says how "
+            caption=f"+-{n_std:g} std band of the simulated output from the weights' covariance; it says how "
             "well the data fix the weights, not how wrong the model's structure is",
         )
-    return report, metrics
+
+
+def _record_error(y: np.ndarray, y_hat: np.ndarray, unit: str) -> tuple[float, np.ndarray, str, str]:
+    """Max error in % of the output's range, the error trace, its axis label and its caption text;
+    in the output's ``unit`` when the output does not move (the % is then undefined: NaN)."""
+    y_range = float(np.ptp(y))
+    if y_range > 0:
+        err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
+        # three decimals, as the fit summary prints it
+        return err, 100 * (y - y_hat) / y_range, "error [% of range]", f"max {err:.3f} % of range"
+    text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
+    return float("nan"), y - y_hat, f"error [{unit}]", text
+
+
+def _loop_figure(u, y, y_hat, time, labels: tuple[str, str], err_trace, err_label: str) -> Any:
+    """Measured and modelled loop (left) and the modelling error over time (right)."""
+    from ..plots._style import subplots
+
+    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
+    a.plot(u, y, color="0.2", lw=1.2, label="measured")
+    a.plot(u, y_hat, "--", lw=1.0, label="model")
+    a.set_xlabel(labels[0])
+    a.set_ylabel(labels[1])
+    a.legend()
+    b.plot(time, err_trace, color="C3", lw=0.9)
+    b.set_xlabel("time [s]")
+    b.set_ylabel(err_label)
+    return fig
 
 
 def model_report(
-    model: Any, experiments: Sequence[Any] = (), title: str | None = None, uncertainty: Any = None
+    model: Any,
+    experiments: Sequence[Any] = (),
+    title: str | None = None,
+    uncertainty: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    command: str | None = None,
 ) -> tuple[Report, dict[str, Any]]:
     """A report for any stageid model: LTI models get Bode/pole-zero/simulation (with ``uncertainty``
     bands when given, a FrequencyResponse, see :func:`lti_model_report`), hysteresis models loops
     (with the band of a :class:`~stageid.hysteresis.weight_uncertainty.WeightUncertainty` ``uncertainty``)."""
     if hasattr(model, "frequency_response"):
-        return lti_model_report(model, experiments, title or "Identified LTI model", uncertainty=uncertainty)
-    return hysteresis_model_report(model, experiments, title or "Identified hysteresis model", uncertainty)
+        return lti_model_report(
+            model,
+            experiments,
+            title or "Identified LTI model",
+            uncertainty=uncertainty,
+            settings=settings,
+            command=command,
+        )
+    return hysteresis_model_report(
+        model, experiments, title or "Identified hysteresis model", uncertainty, settings, command
+    )

@@ -29,9 +29,18 @@ def magnitude_band(fr: Any, n_std: float = N_STD) -> tuple[np.ndarray, np.ndarra
     return np.maximum(mag - spread, 1e-3 * mag), mag + spread
 
 
-def uncertainty_section(report: Report, metrics: dict[str, Any], fr: Any, source: str, level: int = 2) -> None:
-    """A Bode figure of ``fr`` (a FrequencyResponse with ``std``) with its +-2 std bands, and the
-    relative std per entry (median and largest over the frequencies) as a table and metrics."""
+def uncertainty_section(
+    report: Report,
+    metrics: dict[str, Any],
+    fr: Any,
+    source: str,
+    level: int = 2,
+    input_units: tuple[str, ...] = (),
+    output_units: tuple[str, ...] = (),
+) -> None:
+    """A Bode figure of ``fr`` (a FrequencyResponse with ``std``) with its +-2 std bands (magnitudes
+    in the channels' units when given), and the relative std per entry (median and largest over
+    the frequencies) as a table and metrics."""
     from ..plots import bode_figure
 
     report.section("Uncertainty of the identified model", level)
@@ -43,6 +52,9 @@ def uncertainty_section(report: Report, metrics: dict[str, Any], fr: Any, source
             fr.outputs,
             bands={"model": magnitude_band(fr)},
             title="Model with +-2 std bands",
+            band_label=f"+-{N_STD:g} std",
+            input_units=input_units,
+            output_units=output_units,
         ),
         f"Frequency response of the {source} with +-{N_STD:g} std bands "
         f"(std = sqrt(E|G_est - G|^2); |G_est - G| <= 1.73 std holds 95 % of the time for a circular Gaussian error).",
