@@ -25,6 +25,7 @@ from .band_codegen import (
     reduce4,
 )
 from .loops import FASTMATH, jit, jit_exact
+from .ordering import stable_argsort
 
 __all__ = ["cp_sum_banded", "play_sum_banded", "banded_drive", "BAND_BLOCK"]
 
@@ -239,7 +240,7 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
             nz[j] = i
             width[j] = min(r[i] + rb[i], rc[i] + ra[i])
             j += 1
-    srt = nz[np.argsort(width, kind="mergesort")]
+    srt = nz[stable_argsort(width)]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, CP_ROWS, LANES))
     for b in range(nb):
@@ -298,7 +299,7 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
             nz[j] = i
             width[j] = r[i]
             j += 1
-    srt = nz[np.argsort(width, kind="mergesort")]
+    srt = nz[stable_argsort(width)]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, PLAY_ROWS, LANES))
     for b in range(nb):
