@@ -152,7 +152,8 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     state = np.empty(5)
     counts = np.zeros(4, np.int64)
     xs = x[0]
-    refresh(xs, 0, P, Cb, lob, hib, state, play)
+    # int64 counters, not literals: numba compiles a callee once more for every literal type it sees
+    refresh(xs, np.int64(0), P, Cb, lob, hib, state, play)
     y[0] = state[0] + W0 * xs
     state[3] = xs
     state[4] = y[0]
@@ -165,7 +166,7 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     c_update = 4.2 if play else 5.2
     est = np.zeros(nb + 1)  # estimated ns per sample for each number of hot blocks (0: not tried)
     n_blocks = 0
-    k = 1
+    k = np.int64(1)
     while k < n:
         k1 = min(n, k + BAND_BLOCK)
         run_band(x, y, k, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play)
