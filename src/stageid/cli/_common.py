@@ -307,10 +307,12 @@ class StepProgress:
     :meth:`stageid.hysteresis.stage_identification.StageIdentifier.fit`.
 
     On a terminal: a tqdm bar per counted step, with the time left that tqdm estimates from the
-    rate so far, and the step's name for steps without a count.  Otherwise (a log, a pipe): a
-    line ``[elapsed] step done/total, about N s left`` when a step starts, after its first
-    candidate, at its end and otherwise at most every ``interval`` seconds, so a log shows that
-    the fit moves without one line per candidate.
+    rate so far, and the step's name for steps without a count (bars are removed when done).
+    Otherwise (a log, a pipe): a line ``[elapsed] step done/total, about N s left`` when a
+    counted step starts, after its first candidate, at its end and otherwise at most every
+    ``interval`` seconds, so a log shows that the fit moves without one line per candidate;
+    steps without a count get a line only once counting has begun (the input checks come
+    before it, and a command refused there prints only its one-line error).
     """
 
     def __init__(self, interval: float = 30.0) -> None:
@@ -323,6 +325,7 @@ class StepProgress:
         self._step_start = self._start
         self._last_line = -float("inf")
         self._bar = None
+        self._counted = False
 
     def __call__(self, step: str, done: int, total: int) -> None:
         now = self._clock()
@@ -339,8 +342,11 @@ class StepProgress:
             self._bar.update(done - self._bar.n)
             return
         if not total:
-            self._line(now, step)
-        elif done <= 1 or done == total or now - self._last_line >= self._interval:
+            if self._counted:  # before the count starts a failing command must print only its error
+                self._line(now, step)
+            return
+        self._counted = True
+        if done <= 1 or done == total or now - self._last_line >= self._interval:
             text = f"{step} {done}/{total}"
             if 0 < done < total:
                 text += f", about {(now - self._step_start) / done * (total - done):.0f} s left"
