@@ -1,4 +1,4 @@
-"""Cold start: nothing is compiled before a command needs it, and the kernels' own sort.
+"""Cold start: nothing is compiled before a command needs it, and the kernels' own sorts.
 
 Timings are in ``benchmarks/bench_cold_start.py`` (``benchmarks/RESULTS-cold-start.md``); these
 are structural checks: an empty kernel cache stays empty through imports and ``--help``, and no
@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from stageid.hysteresis.kernels.ordering import RUN, stable_argsort
+from stageid.hysteresis.kernels.ordering import RUN, SMALL, quick_argsort, stable_argsort
 
 KERNEL_MODULES = (
     "stageid.hysteresis.kernels",
@@ -72,3 +72,23 @@ def test_stable_argsort_is_numpys_stable_order(n):
     rng = np.random.default_rng(n)
     for keys in (rng.standard_normal(n), rng.integers(0, 4, n).astype(float), np.zeros(n), -np.arange(n, dtype=float)):
         np.testing.assert_array_equal(stable_argsort(keys), np.argsort(keys, kind="stable"))
+
+
+def _key_sets(n, rng):
+    return (
+        rng.standard_normal(n),
+        rng.integers(0, 4, n).astype(float),
+        np.zeros(n),
+        np.sort(rng.integers(0, 9, n)).astype(float),
+        -np.arange(n, dtype=float),
+    )
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, SMALL - 1, SMALL, SMALL + 1, 2 * SMALL + 1, 60, 61, 300, 1001])
+def test_quick_argsort_is_numbas_argsort_ties_included(n):
+    import numba
+
+    numbas = numba.njit(lambda keys: np.argsort(keys))  # the order the event sums had before
+    rng = np.random.default_rng(n)
+    for keys in _key_sets(n, rng):
+        np.testing.assert_array_equal(quick_argsort(keys), numbas(keys))
