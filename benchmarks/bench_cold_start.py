@@ -126,7 +126,8 @@ def measure(case: str, repeat: int) -> dict:
                 cache = warm_cache if kind == "warm" else folder / f"cold-cache-{i}"
                 runs[kind].append(run_stageid(args, cache, folder))
     med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v)) for k, v in runs.items()}
-    return {"case": case, "what": what, "cold": med["cold"], "warm": med["warm"]}
+    every = " / ".join(" ".join(f"{c:.1f}" for _, c in runs[k]) for k in ("cold", "warm"))
+    return {"case": case, "what": what, "cold": med["cold"], "warm": med["warm"], "runs": every}
 
 
 def main() -> None:
@@ -139,13 +140,17 @@ def main() -> None:
         f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load {load:.1f}, "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, median of {opts.repeat}"
     )
-    print("| case | input | cold wall s | warm wall s | ratio wall | cold CPU s | warm CPU s | ratio CPU |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(
+        "| case | input | cold wall s | warm wall s | ratio wall | cold CPU s | warm CPU s | ratio CPU "
+        "| CPU s of every run, cold / warm |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     for case in opts.cases.split(","):
         r = measure(case, opts.repeat)
         (cw, cc), (ww, wc) = r["cold"], r["warm"]
         print(
-            f"| {case} | {r['what']} | {cw:.1f} | {ww:.1f} | {cw / ww:.2f} | {cc:.1f} | {wc:.1f} | {cc / wc:.2f} |",
+            f"| {case} | {r['what']} | {cw:.1f} | {ww:.1f} | {cw / ww:.2f} | {cc:.1f} | {wc:.1f} | {cc / wc:.2f} "
+            f"| {r['runs']} |",
             flush=True,
         )
 
