@@ -149,7 +149,7 @@ Examples:
     type=click.Path(dir_okay=False),
     help="Model file to write (JSON; required); --output names the output column.",
 )
-@click.option("--quiet", is_flag=True, help="Do not print the fit summary.")
+@click.option("--quiet", is_flag=True, help="Do not print the fit summary, nor a stage fit's progress on stderr.")
 @click.option(
     "--report",
     "report_dir",
@@ -209,7 +209,8 @@ def identify(
             weight_uncertainty="auto" if report_dir is not None else "none",
         ).fit(list(exps))
     else:
-        fit = _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes)
+        settings = (kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes)
+        fit = _identify_stage(exps, *settings, quiet=quiet)
     write_model_output(out, fit.model)
     if not quiet:
         say(fit.summary())
@@ -220,6 +221,8 @@ def identify(
             from ..report.stage_report import fit_summary_section
 
             fit_summary_section(report, fit, [e.name or f"record {k}" for k, e in enumerate(exps)])
+            if getattr(fit, "held_out", ()):  # the summary shows the best few; the report all of them
+                _candidate_table(report, fit)
 
         # the model starts from the zero state at 0 input with the first record's offset; other
         # records' sensor zeros differ, so each is shown against the model shifted to its fitted offset
@@ -234,6 +237,17 @@ def identify(
         band = getattr(fit, "weight_uncertainty", None)
         path = write_report(fit.model, records, report_dir, "Hysteresis identification", extra, uncertainty=band)
         say(f"report written to {path}")
+
+
+def _candidate_table(report, fit) -> None:
+    """Every held-out candidate of a stage fit, best first, as a table of the report."""
+    rows = [
+        (n, ", ".join(f"{t:g}" for t in taus) or "none", score, "chosen" if (n, tuple(taus)) == fit.chosen else "")
+        for n, taus, score in sorted(fit.held_out, key=lambda c: c[2])
+    ]
+    header = ("dynamics order", "creep time constants [s]", "held-out RMS [% of range]", "")
+    report.section("Held-out candidates")
+    report.table(header, rows, "Every candidate, best first (RMS summed over the records left out)")
 
 
 def _read_records(data, input_name: str, output_name: str, ts: float | None):
@@ -264,18 +278,27 @@ def _model_file(out: str | None, output_name: str) -> str:
     raise click.UsageError(f"Missing option '-o' / '--output-file' (the model file to write){hint}.")
 
 
-def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):
+def _identify_stage(
+    exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto", quiet=False
+):
     """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt.
-    A Preisach model holds no creep term of its own, so any --creep makes it a stage."""
+    A Preisach model holds no creep term of its own, so any --creep makes it a stage.
+    Its progress goes to stderr (a search over candidates takes minutes) unless ``quiet``."""
     from ..hysteresis.stage_identification import StageIdentifier
+    from ._common import StepProgress
 
-    return StageIdentifier(
-        kind,
-        n_operators=n_operators,
-        dynamics=None if dynamics == "none" else dynamics,
-        creep=None if creep == "none" else creep,
-        initial_state=initial_state,
-        input_warp=input_warp,
-        n_levels=n_levels,
-        disturbance_modes=None if modes == "none" else modes,
-    ).fit(list(exps))
+    progress = None if quiet else StepProgress()
+    try:
+        return StageIdentifier(
+            kind,
+            n_operators=n_operators,
+            dynamics=None if dynamics == "none" else dynamics,
+            creep=None if creep == "none" else creep,
+            initial_state=initial_state,
+            input_warp=input_warp,
+            n_levels=n_levels,
+            disturbance_modes=None if modes == "none" else modes,
+        ).fit(list(exps), progress=progress)
+    finally:
+        if progress is not None:
+            progress.close()

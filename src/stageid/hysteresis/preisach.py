@@ -202,7 +202,8 @@ class PreisachModel:
         """Outputs, shape (n_samples,), and the final memory (the next run's ``state``)."""
         from .kernels.preisach import preisach_run
 
-        x = np.ascontiguousarray(as_input(u, "u"))
+        # writeable too: numba types a read-only array apart, and would compile the kernel again for it
+        x = np.require(as_input(u, "u"), np.float64, ["C", "W"])
         P, cum, top, cur = self.memory_arrays(x.size)
         En, wd = self.everett_table
         y, top, cur = preisach_run(x, En, wd, self.input_range[0], self.step, P, cum, top, cur)

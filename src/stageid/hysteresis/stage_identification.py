@@ -51,8 +51,9 @@ model (zero state, first record's offset).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -79,6 +80,14 @@ AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
 #: At least this many samples per dynamics coefficient (2n + 1 of them) in every record.
 SAMPLES_PER_COEFFICIENT = 50
+#: Held-out candidates that :meth:`StageFit.summary` lists (the best ones; the chosen one too).
+SUMMARY_CANDIDATES = 3
+#: ``progress(step, done, total)`` of :meth:`StageIdentifier.fit`.
+Progress = Callable[[str, int, int], None]
+
+
+def _silent(step: str, done: int, total: int) -> None:
+    """The progress callback of a fit nobody watches."""
 
 
 def _dynamics_ok(value: Any) -> bool:
@@ -113,6 +122,9 @@ class StageFit:
     edge_errors : tuple of (int, EdgeError)
         Records whose error concentrates at their start or end, with the trim that removes it
         (:mod:`stageid.validation.edges`); the summary prints them.
+    chosen : (int, tuple of float) or None
+        The ``(order, creep time constants)`` that step 3 chose among ``held_out`` (the
+        dynamics' order before any modes; the fitted model may have dropped the dynamics).
     """
 
     model: StageModel
@@ -126,6 +138,7 @@ class StageFit:
     message: str
     modes: tuple[DisturbanceMode, ...] = ()
     edge_errors: tuple[tuple[int, EdgeError], ...] = ()
+    chosen: tuple[int, tuple[float, ...]] | None = None
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -154,10 +167,29 @@ class StageFit:
                 f"  mode from the disturbance spectrum: {m.frequency_hz:.4g} Hz, damping {m.damping:.3g} "
                 f"(peak {m.peak_ratio:.3g} x the floor)"
             )
-        for order, taus, score in self.held_out:
-            lines.append(f"  candidate order {order}, creep {list(taus)}: held-out RMS {score:.3f} %")
+        lines += self.candidate_table(SUMMARY_CANDIDATES)
         lines.append(f"  {self.message}")
         return "\n".join(lines)
+
+    def candidate_table(self, best: int | None = None) -> list[str]:
+        """Lines of a table of the held-out candidates, best first: all of them, or the ``best``
+        few and the chosen one (a line then says how many were left out).  Empty without any."""
+        if not self.held_out:
+            return []
+        ranked = sorted(self.held_out, key=lambda c: c[2])
+        chosen = self.chosen
+        shown = [c for i, c in enumerate(ranked) if best is None or i < best or (c[0], tuple(c[1])) == chosen]
+        lines = ["  held-out RMS error (% of range, summed over the records left out) of the candidates:"]
+        lines.append(f"    {'order':>5}  {'creep time constants [s]':<26}  {'held-out RMS %':>14}")
+        for order, taus, score in shown:
+            creep = ", ".join(f"{t:g}" for t in taus) or "none"
+            mark = "  <- chosen" if (order, tuple(taus)) == chosen else ""
+            lines.append(f"    {order:>5}  {creep:<26}  {score:>14.3f}{mark}")
+        if len(shown) < len(ranked):
+            lines.append(
+                f"    ({len(ranked) - len(shown)} more of {len(ranked)} candidates not shown; the HTML report lists all)"
+            )
+        return lines
 
 
 class StageIdentifier(Estimator):
@@ -244,8 +276,14 @@ class StageIdentifier(Estimator):
         self.disturbance_modes = disturbance_modes
 
     @single_blas_thread
-    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> StageFit:
+    def fit(
+        self, data: Any, inputs: str | None = None, outputs: str | None = None, *, progress: Progress | None = None
+    ) -> StageFit:
         """Identify the stage from one or several records (several rates are the normal input).
+
+        ``progress(step, done, total)``, when given, is told what the fit is doing: the step's
+        name, and for the held-out candidates of ``auto`` how many of ``total`` are scored
+        (``total`` 0: a step without a count).  The search over candidates is most of the time.
 
         Raises
         ------
@@ -261,25 +299,20 @@ class StageIdentifier(Estimator):
         dt = sampling_period(data, self.sample_time)
         if dt is None:
             raise self.invalid("sample_time", "the sampling period in seconds for dynamics and creep on (u, y) records")
-        orders = AUTO_ORDERS if self.dynamics == "auto" else (0 if self.dynamics is None else int(self.dynamics),)
-        creeps = AUTO_CREEP if self.creep == "auto" else (() if self.creep is None else tuple(map(float, self.creep)),)
-        shortest = min(u.size for u, _ in recs)
-        need = SAMPLES_PER_COEFFICIENT * (2 * max(orders) + 1)
-        if self.dynamics not in (None, "auto") and shortest < need:
-            raise self.invalid(
-                "dynamics",
-                f"an order these records support: order {max(orders)} needs {need} samples per record, "
-                f"the shortest has {shortest}",
-            )
-        orders = tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest)
+        orders, creeps = self._candidates(min(u.size for u, _ in recs))
+        tell = progress if progress is not None else _silent
+        tell("hysteresis thresholds", 0, 0)
         problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
         notes: list[str] = []
+        counted = partial(tell, "held-out candidates")
         if self.dynamics in (None, "auto"):
-            order, taus, held_out = choose_candidate(problem, orders, creeps)
+            order, taus, held_out = choose_candidate(problem, orders, creeps, counted)
         else:  # a fixed order is kept only with held-out evidence (never worse than none)
-            _, taus, scores = choose_candidate(problem, orders, creeps)
+            _, taus, scores = choose_candidate(problem, orders, creeps, counted)
             order, held_out, note = fixed_order(problem, orders[0], taus, scores)
             notes += [note] if note else []
+        chosen = (order, tuple(taus))
+        tell("fit of the chosen candidate on all records", 0, 0)
         problem, model, offsets = self._fit_chosen(problem, recs, kinds, dt, order, taus, names)
         modes: tuple[DisturbanceMode, ...] = ()
         if self.disturbance_modes is not None and self.dynamics is not None:  # step 5
@@ -288,9 +321,10 @@ class StageIdentifier(Estimator):
             found = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles, scale)
             if found:
                 orders_m = orders if self.dynamics == "auto" else (order,)
-                outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names)
+                outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names, tell)
                 if outcome[0]:
                     _, order, taus, held_out, model, offsets, note = outcome
+                    chosen = (order, tuple(taus))
                     modes = found
                     notes += [note] if note else []
                 else:
@@ -311,8 +345,23 @@ class StageIdentifier(Estimator):
             held_out=tuple(held_out),
             modes=modes,
             edge_errors=record_edges(data, problem.recs, residuals),
+            chosen=chosen,
             message=f"{base_message}; weights, creep and dynamics {fitted}" + "".join(f"; {n}" for n in notes) + ".",
         )
+
+    def _candidates(self, shortest: int) -> tuple[tuple[int, ...], tuple]:
+        """The orders and creep sets to try; a fixed order the records cannot support is refused,
+        ``auto``'s orders are only those they can."""
+        orders = AUTO_ORDERS if self.dynamics == "auto" else (0 if self.dynamics is None else int(self.dynamics),)
+        creeps = AUTO_CREEP if self.creep == "auto" else (() if self.creep is None else tuple(map(float, self.creep)),)
+        need = SAMPLES_PER_COEFFICIENT * (2 * max(orders) + 1)
+        if self.dynamics not in (None, "auto") and shortest < need:
+            raise self.invalid(
+                "dynamics",
+                f"an order these records support: order {max(orders)} needs {need} samples per record, "
+                f"the shortest has {shortest}",
+            )
+        return tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest), creeps
 
     def _fit_chosen(self, problem, recs, kinds, dt, order, taus, names):
         """``(problem, model, offsets)`` of the chosen order and creep on all records (steps 2 and 4)."""
@@ -323,7 +372,7 @@ class StageIdentifier(Estimator):
             return self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
         return problem, model, offsets
 
-    def _with_modes(self, problem, modes, orders, creeps, order, taus, names):
+    def _with_modes(self, problem, modes, orders, creeps, order, taus, names, tell=None):
         """``(True, order, taus, held-out scores, model, offsets, note)`` with the modes in the
         dynamics when they lower the held-out one-step prediction error below that of the choice
         without them and that of no dynamics (``"spectrum"``: always); else ``(False, note)``."""
@@ -333,7 +382,9 @@ class StageIdentifier(Estimator):
             without = min(prediction_score(problem.held_out_residuals(n, taus))[0] for n in {order, 0})
         problem.prefilter = resonance_filter(modes, problem.dt)
         # with auto order or creep both are chosen again (by simulation error) with the modes in place
-        order_m, taus_m, held_out = choose_candidate(problem, orders, creeps)
+        tell = tell if tell is not None else _silent
+        counted = partial(tell, "held-out candidates with the disturbance modes")
+        order_m, taus_m, held_out = choose_candidate(problem, orders, creeps, counted)
         with_modes = np.nan
         if evidence:
             folds = problem.held_out_residuals(order_m, taus_m)

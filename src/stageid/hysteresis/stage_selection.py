@@ -27,6 +27,7 @@ autoregressive order of ``NOISE_ORDERS`` on its held-out records.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -52,12 +53,24 @@ SCORE_RESOLUTION = 1e-6
 NOISE_ORDERS = (2, 4, 8, 16, 32)
 
 
-def choose_candidate(problem: Any, orders: tuple[int, ...], creeps: tuple) -> tuple[int, tuple, list]:
+def choose_candidate(
+    problem: Any, orders: tuple[int, ...], creeps: tuple, progress: Callable[[int, int], None] | None = None
+) -> tuple[int, tuple, list]:
     """``(order, creep time constants, held-out scores)``: the simplest candidate within
-    ``AUTO_TOLERANCE`` of the best held-out error, or the only candidate (no scores)."""
+    ``AUTO_TOLERANCE`` of the best held-out error, or the only candidate (no scores).
+
+    ``progress(done, total)`` is called before the first candidate and after each one (each
+    costs a fit per record left out, so a long search can tell how far it is)."""
     if len(orders) * len(creeps) == 1:
         return orders[0], creeps[0], []
-    held_out = [(n, taus, problem.held_out_score(n, taus)) for taus in creeps for n in orders]
+    candidates = [(n, taus) for taus in creeps for n in orders]
+    held_out = []
+    for n, taus in candidates:
+        if progress is not None:
+            progress(len(held_out), len(candidates))
+        held_out.append((n, taus, problem.held_out_score(n, taus)))
+    if progress is not None:
+        progress(len(held_out), len(candidates))
     best = min(c[2] for c in held_out)
     simple = sorted(held_out, key=lambda c: (c[0] + len(c[1]), c[0]))
     order, taus, _ = next(c for c in simple if c[2] <= best * (1 + AUTO_TOLERANCE) + 1e-3)

@@ -16,6 +16,7 @@ checked by the round trip ``model(inverse(y)) = y``.  Speeds: ``benchmarks/RESUL
                         ``play_sum_banded``, ``cp_sum_banded``
 :mod:`.band_codegen`    the banded sums' LLVM vector code (intrinsics, one emitter per concept)
 :mod:`.choice`          ``play_sum_auto``, ``cp_sum_auto``: which sum kernel a record gets
+:mod:`.ordering`        ``stable_argsort``, ``quick_argsort``: operators by band width, events by position
 :mod:`.inversion`       per-sample inversion (eq. 5): ``cp_invert_step``, ``cp_invert``,
                         ``cp_invert_creep``; the inverse-PI stream ``play_step``, ``play_stream``
 :mod:`.filters`         ``unit_gain_columns``: many columns through the stage dynamics at once

@@ -25,6 +25,7 @@ from .band_codegen import (
     reduce4,
 )
 from .loops import FASTMATH, jit, jit_exact
+from .ordering import stable_argsort
 
 __all__ = ["cp_sum_banded", "play_sum_banded", "banded_drive", "BAND_BLOCK"]
 
@@ -151,7 +152,8 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     state = np.empty(5)
     counts = np.zeros(4, np.int64)
     xs = x[0]
-    refresh(xs, 0, P, Cb, lob, hib, state, play)
+    # int64 counters, not literals: numba compiles a callee once more for every literal type it sees
+    refresh(xs, np.int64(0), P, Cb, lob, hib, state, play)
     y[0] = state[0] + W0 * xs
     state[3] = xs
     state[4] = y[0]
@@ -164,7 +166,7 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
     c_update = 4.2 if play else 5.2
     est = np.zeros(nb + 1)  # estimated ns per sample for each number of hot blocks (0: not tried)
     n_blocks = 0
-    k = 1
+    k = np.int64(1)
     while k < n:
         k1 = min(n, k + BAND_BLOCK)
         run_band(x, y, k, k1, n_hot, P, Cb, lob, hib, W0, state, counts, play)
@@ -239,7 +241,7 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
             nz[j] = i
             width[j] = min(r[i] + rb[i], rc[i] + ra[i])
             j += 1
-    srt = nz[np.argsort(width, kind="mergesort")]
+    srt = nz[stable_argsort(width)]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, CP_ROWS, LANES))
     for b in range(nb):
@@ -298,7 +300,7 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
             nz[j] = i
             width[j] = r[i]
             j += 1
-    srt = nz[np.argsort(width, kind="mergesort")]
+    srt = nz[stable_argsort(width)]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, PLAY_ROWS, LANES))
     for b in range(nb):

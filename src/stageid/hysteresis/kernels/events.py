@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .loops import jit_exact
+from .ordering import quick_argsort
 
 
 @jit_exact
@@ -186,7 +187,7 @@ def cp_sum_events(x, r, rc, ra, rb, w, z0, x0):  # pragma: no cover - compiled
             n_ev = cp_events(r, rc, ra, rb, w, z, d, pos, dsl)
             for e in range(n_ev):
                 pos[e] *= d
-            order = np.argsort(pos[:n_ev])
+            order = quick_argsort(pos[:n_ev])
             for e in range(n_ev):
                 sp[e] = pos[order[e]]
                 sd[e] = dsl[order[e]]
