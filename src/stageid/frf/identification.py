@@ -430,7 +430,8 @@ def select_order(G: np.ndarray, fz: np.ndarray, T: float, max_order: int, w: np.
     limit = max(1, min(max_order, _max_order(int((~(np.arange(fz.size) % 4 == 2)).sum()), G.shape[1], G.shape[2])))
     errors = scan_orders(range(1, limit + 1), lambda n: _held_out_error(G, fz, T, n, w, vector_fit=True))
     try:
-        order = chosen_order([n for n, _ in errors], [e for _, e in errors])
+        scored = int(np.count_nonzero(np.arange(fz.size) % 4 == 2)) * G.shape[1] * G.shape[2]
+        order = chosen_order([n for n, _ in errors], [e for _, e in errors], scored)
     except ValueError:
         raise IdentificationError(
             f"no order from 1 to {limit} could be realised from this frequency response."

@@ -5,23 +5,28 @@ ratio (:class:`~stageid.subspace.HankelMAP`: the square root of the held-out sim
 error's energy ratio; :class:`~stageid.frf.FRDIdentification`: the weighted RMS error at
 held-out frequency lines).  Then, for both:
 
-1. the scan ends once ``PATIENCE`` orders in a row have not lowered the best error so far by
-   more than ``ORDER_TOLERANCE`` (past the system's order the error only scatters about the
-   noise level; an estimator whose candidates are costly stops scoring there, one that
-   scores all at once gets the same table cut at the same place);
-2. the order is the smallest one whose error is within ``ORDER_TOLERANCE`` of the least
-   error of the scan: a larger model must predict held-out data that much better to be kept
-   (errors below ``ROUNDING``, noise-free data, all tie).
+1. the scan ends once ``PATIENCE`` orders in a row have not lowered the least error so far
+   (past the system's order the error only scatters about the noise level; an estimator
+   whose candidates are costly stops scoring there, one that scores all at once gets the
+   same table cut at the same place);
+2. the order is the smallest one whose error is within a tolerance of the least error of the
+   scan: a larger model must predict the held-out data that much better to be kept.  The
+   tolerance is one standard error of an RMS taken over ``n_scored`` values,
+   ``1 / sqrt(2 n_scored)``, and at least ``ORDER_TOLERANCE`` (long records, whose errors
+   are precise, still do not grow the model for a gain within rounding of the fit).  Errors
+   below ``ROUNDING`` (noise-free data) all tie.
 
 When even the chosen model is poor by the estimator's own measure, :func:`poor_order_message`
 gives the warning, in one shape for every estimator.
 
 Examples
 --------
->>> chosen_order(range(1, 9), [0.9, 0.5, 0.1, 0.0995, 0.0999, 0.0997, 0.1002, 0.0501])  # 4-7: no gain
+>>> chosen_order(range(1, 10), [0.9, 0.5, 0.1, 0.0995, 0.1, 0.0999, 0.1, 0.1002, 0.0501])  # 5-8: no gain
 3
 >>> chosen_order(range(1, 8), [0.9, 0.5, 0.1, 0.0995, 0.0999, 0.0997, 0.0501])  # 7 halves it
 7
+>>> chosen_order(range(1, 8), [0.9, 0.5, 0.1, 0.0995, 0.0999, 0.0997, 0.094], n_scored=50)  # 10 % is noise
+3
 >>> scan_orders(range(1, 21), lambda n: max(1.0 / n, 0.2))
 [(1, 1.0), (2, 0.5), (3, 0.3333333333333333), (4, 0.25), (5, 0.2), (6, 0.2), (7, 0.2), (8, 0.2), (9, 0.2)]
 """
@@ -42,9 +47,10 @@ __all__ = [
     "poor_order_message",
 ]
 
-#: A larger order must lower the validation error (an RMS ratio) by more than this fraction.
+#: The least tolerance of rule 2: a larger order must lower the validation error (an RMS
+#: ratio) by more than this fraction.
 ORDER_TOLERANCE = 0.01
-#: Orders in a row without such a gain that end the scan.
+#: Orders in a row without a lower error that end the scan.
 PATIENCE = 4
 #: Errors below this RMS ratio are rounding (noise-free data): they all tie.
 ROUNDING = 1e-8
@@ -54,7 +60,7 @@ def _stop(errors: Sequence[float]) -> int | None:
     """Index of the entry that ends the scan (rule 1), or None when it has not ended."""
     best, since = float("inf"), 0
     for k, e in enumerate(errors):
-        if float(e) < best / (1.0 + ORDER_TOLERANCE) and best > ROUNDING:
+        if float(e) < best and best > ROUNDING:
             best, since = float(e), 0
         else:
             best, since = min(best, float(e)), since + 1
@@ -81,16 +87,24 @@ def scan_orders(orders: Iterable[int], score: Callable[[int], float]) -> list[tu
     return table
 
 
-def chosen_order(orders: Sequence[int], errors: Sequence[float]) -> int:
-    """The order of rule 2 among the scanned part of ``(orders, errors)`` (rule 1); infinite
-    errors (candidates that failed) never win.  Raises ValueError when every error is infinite."""
+def order_tolerance(n_scored: int | None = None) -> float:
+    """The tolerance of rule 2: ``max(ORDER_TOLERANCE, 1 / sqrt(2 n_scored))``."""
+    if not n_scored:
+        return ORDER_TOLERANCE
+    return max(ORDER_TOLERANCE, 1.0 / np.sqrt(2.0 * n_scored))
+
+
+def chosen_order(orders: Sequence[int], errors: Sequence[float], n_scored: int | None = None) -> int:
+    """The order of rule 2 among the scanned part of ``(orders, errors)`` (rule 1); ``n_scored``:
+    how many values each error is the RMS of (None: many).  Infinite errors (candidates that
+    failed) never win.  Raises ValueError when every error is infinite."""
     k = scanned_length(errors)
-    err = np.asarray(errors[:k], dtype=float)
+    err = np.asarray(list(errors)[:k], dtype=float)
     if not np.any(np.isfinite(err)):
         raise ValueError("no candidate order has a finite validation error.")
     best = float(np.min(err[np.isfinite(err)]))
-    bound = max(best * (1.0 + ORDER_TOLERANCE), ROUNDING)
-    return int(next(n for n, e in zip(orders[:k], err) if e <= bound))
+    bound = max(best * (1.0 + order_tolerance(n_scored)), ROUNDING)
+    return int(next(n for n, e in zip(list(orders)[:k], err) if e <= bound))
 
 
 def poor_order_message(who: str, order: int, tried: Sequence[int], measure: str, expected: str, advice: str) -> str:
