@@ -149,7 +149,8 @@ class FRDIdentification(Estimator):
     ----------
     order : int or "auto"
         States of the model (without delay states); ``"auto"`` chooses 1..``max_order`` by
-        the error on held-out frequencies.
+        the error on held-out frequencies, with the rule every ``order="auto"`` shares
+        (:mod:`stageid.validation.order_choice`).
     dt : float or None
         Sample time of a discrete model; None fits a continuous model (``dt: null``).
     fmin, fmax : float or None

@@ -14,7 +14,8 @@ on data not used for the fit.  Here:
   factor serves all (:mod:`.nested_horizons`);
 * the order is chosen by the simulation error on the held-out segments of each candidate
   model realised from the training segments, by the rule every ``order="auto"`` shares
-  (:mod:`stageid.validation.order_choice`: the smallest order within 1 % of the best RMS);
+  (:mod:`stageid.validation.order_choice`: the smallest order within 1 % of the best RMS
+  on these long records);
 * both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
   std of each output), so that small noise-dominated coupling outputs do not decide.
 """

@@ -10,6 +10,9 @@
 ``residual_tests``              both tests on every output (:mod:`.residuals`)
 ``validate_model``              simulate a model on records and test it (``stageid validate``)
 ==============================  ===========================================================
+
+:mod:`.order_choice` holds the rule by which every ``order="auto"`` picks an order from its
+validation errors, and the one text of the warning for a poor model.
 """
 
 from .metrics import fit_percent, nrmse, relative_response_error, rms_error
