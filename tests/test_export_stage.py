@@ -197,8 +197,10 @@ def test_cli_inverse_of_stage_says_what_it_omits(tmp_path):
     assert rc == 0 and err == "" and "note:" in out and "dynamics are not inverted" in out
 
 
-@pytest.mark.parametrize("damage", ["no-hysteresis", "no-dynamics", "bad-matrix", "truncated", "preisach-c"])
-@pytest.mark.parametrize("command", ["c", "mat"])
+BAD_FILES = [(d, c) for d in ("no-hysteresis", "no-dynamics", "bad-matrix", "truncated") for c in ("c", "mat")]
+
+
+@pytest.mark.parametrize("damage, command", [*BAD_FILES, ("preisach-c", "c")])  # a Preisach stage has a MAT form
 def test_cli_bad_stage_files_one_line_exit_2(tmp_path, stage_file, damage, command):
     d = json.loads(stage_file.read_text())
     bad = tmp_path / "bad.json"
@@ -209,8 +211,6 @@ def test_cli_bad_stage_files_one_line_exit_2(tmp_path, stage_file, damage, comma
     elif damage == "bad-matrix":
         d["dynamics"]["A"] = [[1.0]]
     elif damage == "preisach-c":
-        if command == "mat":  # a Preisach stage has a MAT form
-            return
         save_model(StageModel(PreisachModel((-1.0, 1.0), np.full(3, 0.5))), bad)
     if damage == "truncated":
         bad.write_text(stage_file.read_text()[:300])
@@ -221,3 +221,15 @@ def test_cli_bad_stage_files_one_line_exit_2(tmp_path, stage_file, damage, comma
     rc, out, err = run("export", command, bad, *extra, "-o", target)
     assert rc == 2 and out == "" and err.count("\n") == 1 and err.startswith("stageid: error:")
     assert not target.exists()
+
+
+def test_mat_of_a_preisach_stage_with_creep_and_disturbance_modes(tmp_path):
+    g = transfer_to_statespace([0.5, 0.0], [1.0, -0.5], DT)
+    creep = CreepTerm([0.1], [0.1], DT)
+    model = StageModel(PreisachModel((-1.0, 1.0), np.full(3, 0.5)), g, creep=creep, disturbance_modes=((50.0, 0.02),))
+    export_mat(model, tmp_path / "p.mat")
+    m = scipy.io.loadmat(tmp_path / "p.mat")
+    assert str(m["hysteresis"][0, 0]["kind"][0]) == "preisach"
+    assert m["creep"][0, 0]["weights"][0, 0] == 0.1  # the stage's own creep term, beside the hysteresis
+    assert np.array_equal(m["disturbance_modes"], [[50.0, 0.02]])
+    assert np.array_equal(m["den"][0], model.transfer()[1])
