@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -233,3 +234,15 @@ def test_mat_of_a_preisach_stage_with_creep_and_disturbance_modes(tmp_path):
     assert m["creep"][0, 0]["weights"][0, 0] == 0.1  # the stage's own creep term, beside the hysteresis
     assert np.array_equal(m["disturbance_modes"], [[50.0, 0.02]])
     assert np.array_equal(m["den"][0], model.transfer()[1])
+
+
+@needs_cc
+def test_creep_runs_at_the_dynamics_sample_time(run_c):
+    # a creep term identified at a sample time that differs within tolerance: the stage runs
+    # its lags at the dynamics' dt, and so must the C
+    model = random_stage(5)
+    creep = model.hysteresis.creep
+    off = CreepTerm(creep.time_constants, creep.weights, DT * (1 + 5e-7))  # within PERIOD_RTOL (1e-6)
+    model = StageModel(replace(model.hysteresis, creep=off), model.dynamics)
+    u = drive(5, 3000)
+    assert_double(run_c(model, u), model.simulate(u)[:, 0])
