@@ -247,6 +247,7 @@ def test_frd_fit_within_the_datas_noise_does_not_warn():
     assert res.max_error > 0.1  # against the noisy lines; the warning looks past 3 std of them
 
 
+@pytest.mark.slow  # the order scan fits orders up to 20 to the measured response (~30 s)
 @pytest.mark.realdata
 def test_identify_frd_auto_on_the_afm_frf_does_not_pass_a_large_error_silently(tmp_path):
     import scipy.io

@@ -238,7 +238,7 @@ def test_c_export_of_a_preisach_stage_is_refused_in_one_line(tmp_path, capsys):
     code = main(["export", "c", str(path), "--prefix", "st", "-o", str(tmp_path / "out")])
     assert code == 2
     err = capsys.readouterr().err.strip()
-    assert "StageModel" in err and "\n" not in err
+    assert "Preisach hysteresis has no C export" in err and "\n" not in err
     assert not (tmp_path / "out").exists()
 
 

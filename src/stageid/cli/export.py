@@ -53,7 +53,10 @@ Examples:
 @click.option("--prefix", required=True, help="C identifier starting every exported name: P.h, P.c, P_step ...")
 @click.option("-o", "--output", "out_dir", required=True, help="Folder for P.h and P.c (created if missing).")
 @click.option(
-    "--inverse", is_flag=True, help="The streaming compensator (desired output -> drive) of a hysteresis model."
+    "--inverse",
+    is_flag=True,
+    help="The streaming compensator (desired output -> drive) of a hysteresis model; of a stage model, of its "
+    "hysteresis (the dynamics are not inverted: their stable inversion is offline, `stageid compensate`).",
 )
 @click.option("--float", "single", is_flag=True, help="Single-precision arithmetic (default double).")
 @click.option(
@@ -72,7 +75,8 @@ def c_command(
 ) -> None:
     """Write self-contained C99 code of MODEL.json: P.h (P_N_INPUTS, P_N_OUTPUTS, P_state, P_init,
     P_step) and P.c. No heap, no I/O, no mutable globals; reproduces `stageid simulate` (or, with
-    --inverse, `stageid compensate`) to rounding in double precision."""
+    --inverse, `stageid compensate` of a hysteresis model) to rounding in double precision. A
+    stage model runs its hysteresis, creep and dynamics sample by sample."""
     from ..export import check_prefix, export_c
     from ..models import load_model
 
@@ -93,6 +97,10 @@ def c_command(
     )
     _write_files(folder, code.files())
     click.echo(f"wrote {folder / (prefix + '.h')} and {folder / (prefix + '.c')}")
+    if inverse and getattr(model, "kind", None) == "stage" and model.dynamics is not None:
+        from ..export.c_stage import STAGE_INVERSE_NOTE
+
+        click.echo(f"note: {STAGE_INVERSE_NOTE}.")
 
 
 @export_group.command(
@@ -109,7 +117,8 @@ Examples:
 @_dt_option
 def mat_command(model_path: str, out: str, dt: float | None, method: str | None) -> None:
     """Write MODEL.json as a MATLAB v5 MAT file: A, B, C, D, Ts, InputName, OutputName as `ss()`
-    takes them, or a struct `hysteresis` of a hysteresis model's parameters."""
+    takes them, or a struct `hysteresis` of a hysteresis model's parameters; a stage model as
+    both (its dynamics' ss() arguments and num/den in z^-1 beside the struct `hysteresis`)."""
     from ..atomic import atomic_write
     from ..export.matlab import export_mat, mat_variables
     from ..models import load_model

@@ -8,6 +8,8 @@ continuous LTI model + ``dt`` [+ ``method``]       discretised first (``zoh`` as
                                                    simulate`` does, or ``tustin``)
 ``PIModel`` / ``ModifiedPIModel``                  the forward model (:mod:`.c_hysteresis`)
 the same with ``inverse=True``                     the streaming compensator (:mod:`.c_inverse`)
+``StageModel`` (PI / modified-PI hysteresis)       hysteresis, creep and dynamics (:mod:`.c_stage`)
+the same with ``inverse=True``                     its hysteresis compensator, dynamics omitted
 ===========================================  ==============================================
 """
 
@@ -80,6 +82,34 @@ def discretised(model: Any, dt: float | None, method: str | None) -> Any:
     return c2d(model, dt, method or "zoh")
 
 
+def _is_stage(model: Any) -> bool:
+    from ..hysteresis.stage import StageModel
+
+    return isinstance(model, StageModel)
+
+
+def _stage_fields(
+    model: Any,
+    prefix: str,
+    ctype: CType,
+    inverse: bool,
+    dt: float | None,
+    method: str | None,
+    limits: tuple[float, float] | None,
+) -> dict[str, str]:
+    from .c_stage import stage_fields, stage_inverse_fields
+
+    if method is not None:
+        raise ModelError("--method discretises a continuous LTI model; a stage model is discrete already.")
+    if inverse:
+        if dt is not None:
+            raise ModelError("--dt applies to the forward model; the compensator of a stage takes no --dt.")
+        return stage_inverse_fields(model, ctype, prefix, limits)
+    if limits is not None:
+        raise ModelError("drive limits apply to the compensator (--inverse); got the forward model.")
+    return stage_fields(model, ctype, prefix, dt)
+
+
 def _model_fields(
     model: Any,
     prefix: str,
@@ -114,10 +144,12 @@ def _model_fields(
             if dt is not None and model.creep is None:
                 raise ModelError("--dt sets the creep lags' sample time; this hysteresis model has no creep term.")
             fields = forward_fields(model, ctype, prefix, dt)
+    elif _is_stage(model):
+        fields = _stage_fields(model, prefix, ctype, inverse, dt, method, limits)
     else:
         raise ModelError(
-            f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model or a PI / modified-PI "
-            "hysteresis model."
+            f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model, a PI / modified-PI "
+            "hysteresis model or a stage model."
         )
     return fields
 
@@ -138,17 +170,18 @@ def export_c(
 
     Parameters
     ----------
-    model : StateSpaceModel, TransferMatrix, PIModel or ModifiedPIModel
+    model : StateSpaceModel, TransferMatrix, PIModel, ModifiedPIModel or StageModel
     prefix : str
         C identifier (not a keyword) that starts every exported name.
     inverse : bool, default False
         Export the streaming compensator (desired output -> drive) of a rate-independent
-        hysteresis model instead of the model.
+        hysteresis model instead of the model; of a stage model, the compensator of its
+        hysteresis (the dynamics are not inverted, :mod:`.c_stage`).
     single : bool, default False
         ``float`` arithmetic instead of ``double``.
     dt : float, optional
         Sample time [s]: discretises a continuous LTI model; the creep lags of a hysteresis
-        model run at it (default their ``sample_time``).
+        model run at it (default their ``sample_time``); a stage with dynamics runs at its own.
     method : {"zoh", "tustin"}, optional
         Discretisation of a continuous LTI model (default ``"zoh"``).
     limits : (float, float), optional

@@ -104,9 +104,12 @@ def _init_lines(name: str, values: object, ctype: CType) -> list[str]:
     return [f"    s->{name}[{i}] = {literal(v, ctype)};" for i, v in enumerate(np.asarray(values).reshape(-1))]
 
 
-def forward_fields(model: Any, ctype: CType, prefix: str, dt: float | None = None) -> dict[str, str]:
+def forward_fields(
+    model: Any, ctype: CType, prefix: str, dt: float | None = None, output: str = "out[0]"
+) -> dict[str, str]:
     """Template fields of the forward model (``stageid simulate``); ``dt`` [s] for a creep term
-    (default its ``sample_time``)."""
+    (default its ``sample_time``); ``output`` receives the model's output at the step's end
+    (a stage model declares a local there and filters it, :mod:`.c_stage`)."""
     from ..hysteresis import PIModel
 
     p, m = prefix, model.n_operators
@@ -148,7 +151,7 @@ def forward_fields(model: Any, ctype: CType, prefix: str, dt: float | None = Non
     body.append(_sub(_PLAY_LOOP if classical else _CP_LOOP, ctype, p).rstrip("\n"))
     if creep is not None:
         body.append(_sub(_CREEP, ctype, p).rstrip("\n"))
-    body.append(f"    out[0] = y + {p}_OUTPUT_OFFSET;")
+    body.append(f"    {output} = y + {p}_OUTPUT_OFFSET;")
     rate = "" if creep is None else f", creep lags at dt = {float(dt or creep.sample_time)!r} s"
     return {
         **_names(model),

@@ -43,7 +43,7 @@ import numpy as np
 from .._errors import ModelError
 from .c_writer import CType, literal
 
-__all__ = ["lti_fields", "weighted_sum"]
+__all__ = ["lti_fields", "weighted_sum", "balanced_realisation", "balanced_blocks"]
 
 
 def weighted_sum(coefficients: object, names: list[str], ctype: CType) -> str:
@@ -129,7 +129,7 @@ def _transfer(model: Any, ctype: CType) -> dict[str, str]:
     }
 
 
-def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, ...] | None:
+def balanced_realisation(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, ...] | None:
     """Balanced realisation (equal, diagonal Gramians) of a stable minimal (A, B, C), else None."""
     from scipy.linalg import solve_discrete_lyapunov
 
@@ -162,7 +162,7 @@ def balanced_blocks(model: Any) -> Any | None:
             D[i, j] = g.D[0, 0]
             if g.n_states == 0:
                 continue
-            bal = _balanced(g.A, g.B, g.C)
+            bal = balanced_realisation(g.A, g.B, g.C)
             if bal is None:
                 return None
             blocks.append((i, j, *bal))
@@ -184,7 +184,7 @@ def lti_fields(model: Any, ctype: CType) -> dict[str, str]:
     if model.dt is None:
         raise ModelError("a continuous model cannot be exported as it is; discretise it first (c2d).")
     if isinstance(model, StateSpaceModel):
-        balanced = _balanced(model.A, model.B, model.C) if ctype.is_float else None
+        balanced = balanced_realisation(model.A, model.B, model.C) if ctype.is_float else None
         if balanced is not None:
             model = StateSpaceModel(*balanced, model.D, dt=model.dt, inputs=model.inputs, outputs=model.outputs)
         fields = _statespace(model, ctype)

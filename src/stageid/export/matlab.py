@@ -13,6 +13,13 @@ also carries ``num`` and ``den``, cell arrays of row vectors as MATLAB's ``tf`` 
 A PI or modified-PI model is stored as one struct ``hysteresis`` holding every field of its
 ``stageid.hysteresis/1`` JSON form (vectors as columns, ``null`` as ``[]``, the operator state
 and a creep term as nested structs), plus ``InputName``/``OutputName``.
+
+A stage model (:class:`~stageid.hysteresis.stage.StageModel`) keeps its parts apart: the
+struct ``hysteresis`` as above, its dynamics as ``A, B, C, D, Ts`` (``ss()``'s arguments) and
+as ``num``, ``den``, the row vectors in powers of ``z^-1`` its simulation filters with (MATLAB:
+``tf(m.num, m.den, m.Ts, 'Variable', 'z^-1')``), a struct ``creep`` when the stage holds the
+creep term (Preisach hysteresis), ``disturbance_modes`` (rows of frequency [Hz], damping) when
+recorded, and ``kind = 'stage'``.  A stage without dynamics has no ``A ... den``.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ import numpy as np
 
 from .._errors import ModelError
 
-__all__ = ["export_mat", "mat_variables"]
+__all__ = ["export_mat", "mat_variables", "stage_variables"]
 
 
 def _names(names: Any) -> np.ndarray:
@@ -74,6 +81,7 @@ def mat_variables(model: Any, dt: float | None = None, method: str | None = None
     (['A', 'B', 'C', 'D', 'InputName', 'OutputName', 'Ts'], 0.01)
     """
     from ..hysteresis import ModifiedPIModel, PIModel
+    from ..hysteresis.stage import StageModel
     from ..models import StateSpaceModel, TransferMatrix
     from .c_code import discretised
 
@@ -91,16 +99,38 @@ def mat_variables(model: Any, dt: float | None = None, method: str | None = None
         out["Ts"] = 0.0 if model.dt is None else float(model.dt)
         if isinstance(model, TransferMatrix):
             out["num"], out["den"] = _polynomials(model, "num"), _polynomials(model, "den")
+    elif isinstance(model, StageModel):
+        if method is not None or dt is not None:
+            raise ModelError("--dt/--method discretise a continuous LTI model; a stage model is discrete already.")
+        out = stage_variables(model)
     elif isinstance(model, (PIModel, ModifiedPIModel)):
         if method is not None or dt is not None:
             raise ModelError("--dt/--method discretise a continuous LTI model; got a hysteresis model.")
         out = {"hysteresis": _matlab_value(model.to_dict())}
     else:
         raise ModelError(
-            f"cannot export a {type(model).__name__} to MATLAB; expected a stageid.lti/1 model or a PI / "
-            "modified-PI hysteresis model."
+            f"cannot export a {type(model).__name__} to MATLAB; expected a stageid.lti/1 model, a PI / "
+            "modified-PI hysteresis model or a stage model."
         )
     out["InputName"], out["OutputName"] = _names(model.inputs), _names(model.outputs)
+    return out
+
+
+def stage_variables(model: Any) -> dict[str, Any]:
+    """The MAT variables of a stage model's parts (module notes), channel names aside."""
+    out: dict[str, Any] = {"kind": "stage", "hysteresis": _matlab_value(model.hysteresis.to_dict())}
+    g = model.dynamics
+    if g is not None:
+        n = g.n_states
+        out["A"], out["B"] = np.asarray(g.A, dtype=float).reshape(n, n), np.asarray(g.B, dtype=float).reshape(n, 1)
+        out["C"], out["D"] = np.asarray(g.C, dtype=float).reshape(1, n), np.asarray(g.D, dtype=float).reshape(1, 1)
+        out["Ts"] = float(g.dt)
+        b, a = model.transfer()
+        out["num"], out["den"] = np.asarray(b, dtype=float).reshape(1, -1), np.asarray(a, dtype=float).reshape(1, -1)
+    if model.creep is not None:
+        out["creep"] = _matlab_value(model.creep.to_dict())
+    if model.disturbance_modes:
+        out["disturbance_modes"] = np.asarray(model.disturbance_modes, dtype=float).reshape(-1, 2)
     return out
 
 

@@ -44,7 +44,9 @@ def stable_start(A, C, G, zs, w) -> tuple[np.ndarray, ...] | None:
     return (A, B, C, D) if np.all(np.isfinite(B)) and np.all(np.isfinite(D)) else None
 
 
-def fit_starts(G, fz, T, order, w, thorough: bool = True) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
+def fit_starts(
+    G, fz, T, order, w, thorough: bool = True, vector_fit: bool | None = None
+) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
     """The starting models of the output-error fit and the singular values of the realisation.
 
     Five fits, which fail in different ways: the McKelvey realisation on the well-weighted
@@ -53,9 +55,12 @@ def fit_starts(G, fz, T, order, w, thorough: bool = True) -> tuple[list[tuple[np
     truncation of a realisation of twice the order, likewise both ways, and vector fitting
     (:mod:`.vector_fitting`, weighted).  Each has its unstable poles reflected and ``B``,
     ``D`` fitted with the weights; the singular values are the first realisation's.
-    Not ``thorough`` (the short fits that choose the order): the first realisation and the
-    weighted balanced truncation only.
+    Not ``thorough`` (the short fits that choose the delay and the order): the first
+    realisation and the weighted balanced truncation only, plus vector fitting when
+    ``vector_fit`` (default: ``thorough``).
     """
+    if vector_fit is None:
+        vector_fit = thorough
     zs = np.exp(2j * np.pi * fz * T)
     keep = w >= REALIZATION_WEIGHT * w.max()
     A, _, C, _, sv = frequency_realization(G[keep], fz[keep], T, order)
@@ -71,7 +76,7 @@ def fit_starts(G, fz, T, order, w, thorough: bool = True) -> tuple[list[tuple[np
         if alt is not None:
             candidates.append((alt[0], alt[2]))
     try:
-        vf = vector_fit_start(G, zs, order, w) if thorough else None
+        vf = vector_fit_start(G, zs, order, w) if vector_fit else None
     except np.linalg.LinAlgError:
         vf = None
     if vf is not None:
@@ -87,12 +92,12 @@ def fit_starts(G, fz, T, order, w, thorough: bool = True) -> tuple[list[tuple[np
     return starts, sv
 
 
-def fit_at_order(G, fz, T, order, w, max_iter, thorough=False):
+def fit_at_order(G, fz, T, order, w, max_iter, thorough=False, vector_fit=None):
     """Every start of :func:`fit_starts` refined (weighted output error); the lowest cost kept,
     then (``thorough``) improved by :func:`improve_by_exchange`.  Not ``thorough``: two starts
-    and no exchange (the short fits that choose the order and the delay)."""
+    (three with ``vector_fit``) and no exchange (the short fits that choose the delay and the order)."""
     zs = np.exp(2j * np.pi * fz * T)
-    starts, sv = fit_starts(G, fz, T, order, w, thorough)
+    starts, sv = fit_starts(G, fz, T, order, w, thorough, vector_fit)
     if not starts:
         raise IdentificationError(f"no realisation of order {order} could be formed from this frequency response.")
     best, seen = None, []

@@ -12,7 +12,8 @@ refinement on the complex response:
    ``exp(j 2 atan(omega T / 2))`` on the unit circle; the discrete fit there is mapped back
    exactly by the inverse Tustin transform (stability preserved both ways);
 4. the order, given or chosen on held-out frequencies (every fourth line left out of the
-   fit; :func:`select_order`);
+   fit) by the rule every ``order="auto"`` shares (:func:`select_order`,
+   :mod:`stageid.validation.order_choice`);
 5. the weighted output-error fit at its optimum (:mod:`stageid.frf.fit_search`): four
    subspace starts and a vector fit, each refined by Levenberg-Marquardt on
    ``sum_k w_k ||G_model(z_k) - G_k||^2`` (steps that leave the unit disc rejected) until a
@@ -32,6 +33,7 @@ from .._errors import DataError, FitWarning, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
+from ..validation.order_choice import chosen_order, poor_order_message, scan_orders
 from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
 from .frd import FrequencyResponse
@@ -147,7 +149,8 @@ class FRDIdentification(Estimator):
     ----------
     order : int or "auto"
         States of the model (without delay states); ``"auto"`` chooses 1..``max_order`` by
-        the error on held-out frequencies.
+        the error on held-out frequencies, with the rule every ``order="auto"`` shares
+        (:mod:`stageid.validation.order_choice`).
     dt : float or None
         Sample time of a discrete model; None fits a continuous model (``dt: null``).
     fmin, fmax : float or None
@@ -311,15 +314,16 @@ def warn_large_error(
     worst = float(np.max(np.max(gap, axis=(0, 1)) / np.where(peak > 0, peak, 1.0)))
     if worst <= LARGE_ERROR:
         return
-    how = f"chosen by order='auto' from orders 1-{order_errors[-1][0]}" if order_errors else "as given"
-    warnings.warn(
-        f"FRDIdentification: the order-{order} model ({how}) misses the response by up to {100 * worst:.3g} % "
-        f"of a column's peak{'' if std is None else ' beyond 3 std of the data'} (expected at most "
-        f"{100 * LARGE_ERROR:g} %); give a higher `order`, or a band "
-        "(`fmin`, `fmax`) the model can follow.",
-        FitWarning,
-        stacklevel=3,
+    beyond = "" if std is None else " beyond 3 std of the data"
+    message = poor_order_message(
+        "FRDIdentification",
+        order,
+        [n for n, _ in order_errors],
+        f"misses the response by up to {100 * worst:.3g} % of a column's peak{beyond}",
+        f"at most {100 * LARGE_ERROR:g} %",
+        "give a higher `order`, or a band (`fmin`, `fmax`) the model can follow.",
     )
+    warnings.warn(message, FitWarning, stacklevel=3)
 
 
 def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) -> tuple[str, np.ndarray]:
@@ -401,16 +405,14 @@ def _max_order(n_freqs: int, q: int, m: int) -> int:
 
 #: Refinement iterations of each candidate of the order selection.
 SELECTION_ITER = 15
-#: Orders tried past the last one that improved the held-out error by 10 %.
-PATIENCE = 4
 
 
-def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER) -> float:
+def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER, vector_fit: bool = False) -> float:
     """RMS error at every fourth frequency of a model fitted (shortly refined) to the others."""
     test = np.zeros(fz.size, bool)
     test[2::4] = True
     try:
-        A, B, C, D, _ = fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter)
+        A, B, C, D, _ = fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter, vector_fit=vector_fit)
         Gm = StateSpaceModel(A, B, C, D, dt=T).frequency_response(fz[test])
     except (IdentificationError, np.linalg.LinAlgError, ValueError):
         return float("inf")
@@ -419,26 +421,22 @@ def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER) -> float
 
 
 def select_order(G: np.ndarray, fz: np.ndarray, T: float, max_order: int, w: np.ndarray) -> tuple[int, tuple]:
-    """The smallest order whose held-out error is within 10 % of the best of 1..``max_order``.
+    """The order of 1..``max_order`` by the rule every ``order="auto"`` shares
+    (:mod:`stageid.validation.order_choice`) on the held-out error of :func:`_held_out_error`.
 
-    The scan stops once ``PATIENCE`` orders in a row have not improved on the best by 10 %:
-    past the system's order the held-out error only scatters around the noise level.
+    Each candidate starts from vector fitting besides the two realisations: on a measured
+    response whose modes the realisations alone miss (the AFM stage), the short fits of every
+    order otherwise stall at the same error, and the scan would stop at a low order.
     """
     limit = max(1, min(max_order, _max_order(int((~(np.arange(fz.size) % 4 == 2)).sum()), G.shape[1], G.shape[2])))
-    errors: list[tuple[int, float]] = []
-    best, since = float("inf"), 0
-    for n in range(1, limit + 1):
-        e = _held_out_error(G, fz, T, n, w)
-        errors.append((n, e))
-        if e < best / 1.1:
-            best, since = e, 0
-        else:
-            best, since = min(best, e), since + 1
-        if since >= PATIENCE:
-            break
-    if not np.isfinite(best):
-        raise IdentificationError(f"no order from 1 to {limit} could be realised from this frequency response.")
-    order = next(n for n, e in errors if e <= 1.1 * best)
+    errors = scan_orders(range(1, limit + 1), lambda n: _held_out_error(G, fz, T, n, w, vector_fit=True))
+    try:
+        scored = int(np.count_nonzero(np.arange(fz.size) % 4 == 2)) * G.shape[1] * G.shape[2]
+        order = chosen_order([n for n, _ in errors], [e for _, e in errors], scored)
+    except ValueError:
+        raise IdentificationError(
+            f"no order from 1 to {limit} could be realised from this frequency response."
+        ) from None
     return order, tuple(errors)
 
 

@@ -30,6 +30,7 @@ from .._errors import IdentificationError, ModelError
 __all__ = [
     "fit_unit_gain_dynamics",
     "unit_gain_filter",
+    "unit_gain_coefficients",
     "zoh_resonance",
     "transfer_to_statespace",
     "statespace_to_transfer",
@@ -63,16 +64,20 @@ def unit_gain_filter(b: np.ndarray, a: np.ndarray, columns: np.ndarray) -> np.nd
     from .kernels.filters import unit_gain_columns
 
     c = np.ascontiguousarray(columns, dtype=float)
-    bb = np.atleast_1d(np.asarray(b, dtype=float))
-    aa = np.atleast_1d(np.asarray(a, dtype=float))
     if c.shape[0] == 0:
         return c.copy()
+    return unit_gain_columns(*unit_gain_coefficients(b, a), c)
+
+
+def unit_gain_coefficients(b: object, a: object) -> tuple[np.ndarray, np.ndarray]:
+    """``(b, a)`` padded to one length and divided by ``a[0]``: the coefficients the filter of
+    :func:`unit_gain_filter` runs (and exported code must run to agree with it)."""
+    bb = np.atleast_1d(np.asarray(b, dtype=float))
+    aa = np.atleast_1d(np.asarray(a, dtype=float))
     if aa[0] == 0:
         raise ModelError("the dynamics' leading denominator coefficient must not be zero.")
     m = max(bb.size, aa.size)  # lfilter's padding of the shorter polynomial and a[0] = 1
-    bb = np.r_[bb, np.zeros(m - bb.size)] / aa[0]
-    aa = np.r_[aa, np.zeros(m - aa.size)] / aa[0]
-    return unit_gain_columns(bb, aa, c)
+    return np.r_[bb, np.zeros(m - bb.size)] / aa[0], np.r_[aa, np.zeros(m - aa.size)] / aa[0]
 
 
 def _stabilise(a: np.ndarray) -> np.ndarray:

@@ -247,7 +247,7 @@ class StageModel:
         from .serialization import model_from_dict
 
         keys = {"format", "kind", "hysteresis", "dynamics", "creep", "disturbance_modes"}
-        if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d:
+        if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d or "dynamics" not in d:
             raise ModelFormatError(
                 f"a stage model needs `hysteresis`, `dynamics` and optionally `creep`; got {shown(d)}."
             )

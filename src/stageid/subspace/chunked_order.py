@@ -19,7 +19,7 @@ from ..models.statespace import StateSpaceModel
 from .chunked_statistics import ColumnMoments
 from .map_estimator import Posterior
 from .realization import realize
-from .selection import SelectionTable, held_out_segments
+from .selection import SelectionTable, held_out_segments, order_by_rule
 from .weighting import output_weights
 
 __all__ = ["select_order_chunked"]
@@ -95,11 +95,8 @@ def select_order_chunked(
         float("inf") if sim is None else float(np.sum(w2 * num[k]) / np.sum(w2 * den)) for k, sim in enumerate(sims)
     ]
     errors = [e if np.isfinite(e) else float("inf") for e in errors]
-    if not np.isfinite(np.min(errors)):
-        raise IdentificationError("no candidate order gave a stable model; give `order` explicitly.")
-    best = float(np.min(errors))
     cands = list(range(1, max_order + 1))
-    chosen = next(n for n, e in zip(cands, errors) if e <= best * 1.001 + 1e-15)  # as select_order
+    chosen = order_by_rule(cands, errors)  # as select_order
     return chosen, SelectionTable("order", tuple(cands), tuple(errors), chosen)
 
 

@@ -42,6 +42,7 @@ from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
 from ..resources import require_memory
+from ..validation.order_choice import poor_order_message
 from .channels import channel_groups, stack_channel_models
 from .hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
 from .map_estimator import (
@@ -404,13 +405,18 @@ def _warn_held_out(horizon_table: SelectionTable | None, order_table: SelectionT
     for table in (horizon_table, order_table):
         if table is not None:
             err = table.errors[table.values.index(table.chosen)]
-            if err >= 1.0:
-                msg = (
-                    f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1): the model "
-                    f"predicts the held-out data worse than zero (inputs {list(in_names)}); the records are too short "
-                    f"or too little excited for this model."
-                )
-                _excitation_warning(msg, notes, stacklevel=7)
+            if err < 1.0:
+                continue
+            advice = (
+                f"it predicts the held-out data worse than zero (inputs {list(in_names)}): the records are too short "
+                f"or too little excited for this model."
+            )
+            if table.kind == "order":  # one shape with every estimator's order warning
+                measure = f"has held-out error {err:.3g}"
+                msg = poor_order_message("HankelMAP", table.chosen, table.values, measure, "< 1", advice)
+            else:
+                msg = f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1); {advice}"
+            _excitation_warning(msg, notes, stacklevel=7)
 
 
 def _diagnostics(fits: list[ChannelFit], stable: bool, notes: list[str]) -> dict:

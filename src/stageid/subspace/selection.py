@@ -13,7 +13,9 @@ on data not used for the fit.  Here:
   candidate); every candidate predicts the same samples from the same point, so one Cholesky
   factor serves all (:mod:`.nested_horizons`);
 * the order is chosen by the simulation error on the held-out segments of each candidate
-  model realised from the training segments (the smallest order within 0.1 % of the best);
+  model realised from the training segments, by the rule every ``order="auto"`` shares
+  (:mod:`stageid.validation.order_choice`: the smallest order within 1 % of the best RMS
+  on these long records);
 * both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
   std of each output), so that small noise-dominated coupling outputs do not decide.
 """
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError, IdentificationError
+from ..validation.order_choice import chosen_order
 from .correlations import RecordRows, input_periodogram, lag_correlations, range_ends, straddling_lags
 from .hankel_toeplitz import (
     WindowStatistics,
@@ -52,6 +55,7 @@ __all__ = [
     "pooled_split",
     "select_horizon",
     "select_order",
+    "order_by_rule",
 ]
 
 #: Shortest held-out segment, in samples: records are cut into at most ``n / (8 MIN_SEGMENT)`` segments.
@@ -449,9 +453,9 @@ def select_order(
     validation_fraction: float,
     **realize_settings,
 ) -> tuple[int, SelectionTable]:
-    """The smallest order within 0.1 % of the least held-out simulation error (noise makes
-    larger ties unreliable), over orders ``1 .. max_order`` realised from the training
-    posterior ``post`` with ``realize_settings`` (at most 8 refinement steps each).
+    """The order by held-out simulation error (:func:`order_by_rule`), over orders
+    ``1 .. max_order`` realised from the training posterior ``post`` with
+    ``realize_settings`` (at most 8 refinement steps each).
 
     Raises
     ------
@@ -469,8 +473,17 @@ def select_order(
             errors.append(float("inf"))
             continue
         errors.append(simulation_error(mdl, records, scored, weights))
-    if not np.isfinite(np.min(errors)):
-        raise IdentificationError("no candidate order gave a stable model; give `order` explicitly.")
-    best_err = float(np.min(errors))
-    chosen = next(n for n, e in zip(cands, errors) if e <= best_err * 1.001 + 1e-15)
+    chosen = order_by_rule(cands, errors)
     return chosen, SelectionTable("order", tuple(cands), tuple(errors), chosen)
+
+
+def order_by_rule(cands: Sequence[int], errors: Sequence[float]) -> int:
+    """The order the rule every ``order="auto"`` shares (:mod:`stageid.validation.order_choice`)
+    picks from held-out simulation errors, which are energy ratios: compared as RMS ratios.
+
+    Raises :class:`IdentificationError` when no candidate gave a stable model.
+    """
+    try:
+        return chosen_order(list(cands), np.sqrt(np.asarray(errors, dtype=float)).tolist())
+    except ValueError:
+        raise IdentificationError("no candidate order gave a stable model; give `order` explicitly.") from None

@@ -11,6 +11,9 @@
 ``validate_model``              simulate a model on records and test it (``stageid validate``)
 ``edge_errors``                 an error concentrated at a record's start or end (:mod:`.edges`)
 ==============================  ===========================================================
+
+:mod:`.order_choice` holds the rule by which every ``order="auto"`` picks an order from its
+validation errors, and the one text of the warning for a poor model.
 """
 
 from .edges import EdgeError, edge_errors
