@@ -26,6 +26,7 @@ __all__ = [
     "SCREEN_ITERATIONS",
     "SCREEN_OWN_ITERATIONS",
     "START_ITERATIONS",
+    "loop_order_bound",
 ]
 
 #: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
@@ -77,6 +78,7 @@ def select_order(
     criterion: str = "bic",
     max_nfev: int = 200,
     screen: bool = True,
+    n_refined: int = 1,
 ) -> tuple[PolynomialModel, dict[int, float]]:
     """Fit ``structure`` for each order ``n`` (all free polynomials of order ``n``) and keep the best.
 
@@ -93,7 +95,12 @@ def select_order(
     screen : bool
         For OE and BJ with more than three candidates: rank the orders by the criterion of
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
-        the winner; otherwise every order is optimised.
+        the ``n_refined`` best of them; otherwise every order is optimised.
+    n_refined : int
+        How many of the screen's best orders the prediction-error optimisation runs for; the
+        criterion after the optimisation decides between them.  More than one pays at high
+        orders, where the polynomial coefficients are badly conditioned and an optimisation
+        can settle above the loss a neighbouring order reaches.
 
     Returns
     -------
@@ -129,7 +136,7 @@ def select_order(
     if screen and structure in ("oe", "bj") and len(orders) > 3:
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
-            orders = [min(screen_scores, key=screen_scores.get)]
+            orders = sorted(screen_scores, key=screen_scores.get)[: max(int(n_refined), 1)]
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
@@ -147,3 +154,14 @@ def select_order(
     if best is None:
         raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}: {last_error}")
     return best, scores
+
+
+def loop_order_bound(entry_orders: dict[tuple[int, int], tuple[int, int]], controller_states: int) -> int:
+    """Upper bound on the order of a closed-loop pair ``T_ij`` (eq. 15-17 for a transfer matrix).
+
+    Every pair shares the loop's poles, whose count is the plant's McMillan degree plus the
+    controller's states; the plant's degree is at most the sum of its entries' pole counts
+    ``entry_orders[(i, j)] = (n_zeros, n_poles)`` (each entry realised on its own).  For the
+    paper's 3x3 structure and three [2, 2] lead-lags that is 24 + 6 = 30, twice the 2x2 loop's.
+    """
+    return int(sum(n_poles for _, n_poles in entry_orders.values())) + int(controller_states)
