@@ -79,6 +79,7 @@ def select_order(
     max_nfev: int = 200,
     screen: bool = True,
     n_refined: int = 1,
+    refine_largest: bool = False,
 ) -> tuple[PolynomialModel, dict[int, float]]:
     """Fit ``structure`` for each order ``n`` (all free polynomials of order ``n``) and keep the best.
 
@@ -101,6 +102,10 @@ def select_order(
         criterion after the optimisation decides between them.  More than one pays at high
         orders, where the polynomial coefficients are badly conditioned and an optimisation
         can settle above the loss a neighbouring order reaches.
+    refine_largest : bool
+        Optimise the largest candidate order too, whatever its screen rank: the screen's
+        Steiglitz-McBride estimates degrade at high orders, where the weak, lightly damped
+        modes of a coupled loop sit, and can rank the order that fits them last.
 
     Returns
     -------
@@ -136,7 +141,8 @@ def select_order(
     if screen and structure in ("oe", "bj") and len(orders) > 3:
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
-            orders = sorted(screen_scores, key=screen_scores.get)[: max(int(n_refined), 1)]
+            ranked = sorted(screen_scores, key=screen_scores.get)[: max(int(n_refined), 1)]
+            orders = ranked + ([max(orders)] if refine_largest and max(orders) not in ranked else [])
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
