@@ -51,8 +51,6 @@ _MODEL = (StateSpaceModel, TransferMatrix)
 ORDER_MARGIN = 2
 #: the automatic range never stops below this order (SISO and 2x2 loops of the paper's class)
 MIN_ORDER_TOP = 16
-#: screened orders each pair's prediction-error optimisation runs for, besides the largest
-N_REFINED = 2
 
 
 def _is_order_range(value: object) -> bool:
@@ -222,17 +220,8 @@ class ClosedLoopIdentification(Estimator):
 
         def fit_pair(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
             if self.orders == "auto":
-                return select_order(
-                    r,
-                    y,
-                    self.method,
-                    orders,
-                    self.nk,
-                    dt,
-                    max_nfev=self.max_nfev,
-                    n_refined=N_REFINED,
-                    refine_largest=True,
-                )[0]
+                kw = {"max_nfev": self.max_nfev, "refine_largest": True}
+                return select_order(r, y, self.method, orders, self.nk, dt, **kw)[0]
             o = self.orders
             o = dict(o) if isinstance(o, Mapping) else structure_orders(self.method, int(o))
             return pem(r, y, self.method, o, self.nk, dt, max_nfev=self.max_nfev)

@@ -78,7 +78,6 @@ def select_order(
     criterion: str = "bic",
     max_nfev: int = 200,
     screen: bool = True,
-    n_refined: int = 1,
     refine_largest: bool = False,
 ) -> tuple[PolynomialModel, dict[int, float]]:
     """Fit ``structure`` for each order ``n`` (all free polynomials of order ``n``) and keep the best.
@@ -96,16 +95,12 @@ def select_order(
     screen : bool
         For OE and BJ with more than three candidates: rank the orders by the criterion of
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
-        the ``n_refined`` best of them; otherwise every order is optimised.
-    n_refined : int
-        How many of the screen's best orders the prediction-error optimisation runs for; the
-        criterion after the optimisation decides between them.  More than one pays at high
-        orders, where the polynomial coefficients are badly conditioned and an optimisation
-        can settle above the loss a neighbouring order reaches.
+        winner; otherwise every order is optimised.
     refine_largest : bool
-        Optimise the largest candidate order too, whatever its screen rank: the screen's
-        Steiglitz-McBride estimates degrade at high orders, where the weak, lightly damped
-        modes of a coupled loop sit, and can rank the order that fits them last.
+        With the screen, optimise the largest candidate order too and let the criterion after
+        the optimisation decide between the two: the screen's Steiglitz-McBride estimates
+        degrade at high orders, where the weak, lightly damped modes of a coupled loop sit, and
+        can rank the order that fits them below one that does not.
 
     Returns
     -------
@@ -141,8 +136,8 @@ def select_order(
     if screen and structure in ("oe", "bj") and len(orders) > 3:
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
-            ranked = sorted(screen_scores, key=screen_scores.get)[: max(int(n_refined), 1)]
-            orders = ranked + ([max(orders)] if refine_largest and max(orders) not in ranked else [])
+            best = min(screen_scores, key=screen_scores.get)
+            orders = [best] + ([max(orders)] if refine_largest and max(orders) != best else [])
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
