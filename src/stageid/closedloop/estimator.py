@@ -91,7 +91,7 @@ class ClosedLoopIdentification(Estimator):
     order_range : "auto" or sequence of int
         Candidates for "auto".  "auto": 2 up to the largest order a pair of this loop can have,
         :func:`~stageid.closedloop.order_selection.loop_order_bound` of the ``structure``'s entry
-        orders (the paper's for "full") and the controller's states, plus :data:`ORDER_MARGIN`,
+        orders (the paper's for "full") and the controller's states, plus two,
         and at least up to 16.
     nk : int
         Delay of the closed loop in samples (1: sampled strictly proper plant).

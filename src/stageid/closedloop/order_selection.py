@@ -95,12 +95,10 @@ def select_order(
     screen : bool
         For OE and BJ with more than three candidates: rank the orders by the criterion of
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
-        winner; otherwise every order is optimised.
+        the winner; otherwise every order is optimised.
     refine_largest : bool
-        With the screen, optimise the largest candidate order too and let the criterion after
-        the optimisation decide between the two: the screen's Steiglitz-McBride estimates
-        degrade at high orders, where the weak, lightly damped modes of a coupled loop sit, and
-        can rank the order that fits them below one that does not.
+        With the screen, optimise the largest order too, the criterion deciding after: the
+        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.
 
     Returns
     -------
@@ -136,8 +134,13 @@ def select_order(
     if screen and structure in ("oe", "bj") and len(orders) > 3:
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
-            best = min(screen_scores, key=screen_scores.get)
-            orders = [best] + ([max(orders)] if refine_largest and max(orders) != best else [])
+            winner = min(screen_scores, key=screen_scores.get)
+            orders = [winner] + ([max(orders)] if refine_largest and max(orders) != winner else [])
+    return _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states)
+
+
+def _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states):
+    """The prediction-error fit of each order in ``orders`` (screen states as starts); the best by the criterion."""
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
