@@ -166,6 +166,6 @@ def loop_order_bound(entry_orders: dict[tuple[int, int], tuple[int, int]], contr
     Every pair shares the loop's poles, whose count is the plant's McMillan degree plus the
     controller's states; the plant's degree is at most the sum of its entries' pole counts
     ``entry_orders[(i, j)] = (n_zeros, n_poles)`` (each entry realised on its own).  For the
-    paper's 3x3 structure and three [2, 2] lead-lags that is 24 + 6 = 30, twice the 2x2 loop's.
+    paper's 3x3 structure and three [2, 2] lead-lags that is 24 + 6 = 30 (a 2x2 loop: 10 + 4 = 14).
     """
     return int(sum(n_poles for _, n_poles in entry_orders.values())) + int(controller_states)
