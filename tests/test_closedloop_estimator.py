@@ -208,3 +208,17 @@ def test_reference_starting_away_from_rest_is_not_a_step(seed: int) -> None:
     assert err.max() < 0.01  # the paper's 1 % over 20-300 Hz, as from a chirp starting at rest
     assert np.isclose(res.unstable_poles.real.max(), 50.0, rtol=0.02)
     assert res.closed_loop_fit[0, 0] > 99.0
+
+
+def test_automatic_order_range_reaches_the_loop_order() -> None:
+    # a 3x3 plant of the paper's structure (24 poles) under three [2, 2] lead-lags (6 states):
+    # every closed-loop pair may need order 30, far above the fixed range's 16
+    from stageid.closedloop.order_selection import loop_order_bound
+    from stageid.closedloop.reduction import paper_orders
+
+    assert loop_order_bound(paper_orders(3), 6) == 30
+    assert loop_order_bound(paper_orders(2), 4) == 14
+    assert loop_order_bound({(0, 0): (1, 3)}, 2) == 5
+    est = ClosedLoopIdentification(_siso_controller())
+    assert est._candidate_orders(3, 6) == range(2, 33)  # the bound plus its margin of 2
+    assert est._candidate_orders(1, 2) == range(2, 17)  # never below the former range

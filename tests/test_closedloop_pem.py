@@ -91,6 +91,14 @@ def test_select_order_finds_the_true_order() -> None:
     assert m.F.size - 1 == 2 and scores
 
 
+def test_select_order_optimises_the_screens_winner_and_the_largest() -> None:
+    rng = np.random.default_rng(13)
+    u, y = _data(3000, 13, 1e-3 * rng.standard_normal(3000))
+    m, scores = select_order(u, y, "oe", orders=range(1, 9), refine_largest=True)
+    assert len(scores) == 2 and 8 in scores  # the screen's winner and the largest, each optimised
+    assert m.F.size - 1 == 2  # the criterion after the optimisation still picks the true order
+
+
 def test_transfer_and_frequency_response_agree() -> None:
     u, y = _data(500, 14)
     m = pem(u, y, "oe", {"nb": 2, "nf": 2})

@@ -37,7 +37,7 @@ from .deduction import (
     wide_response,
 )
 from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
-from .order_selection import select_order
+from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .polynomial import FREE_ORDERS, STRUCTURES, PolynomialModel, structure_orders
 from .reduction import keep_full_order, paper_orders, reduce_plant
@@ -46,6 +46,11 @@ from .result import ClosedLoopResult
 __all__ = ["ClosedLoopIdentification"]
 
 _MODEL = (StateSpaceModel, TransferMatrix)
+#: orders above the loop's bound tried too: at 30 the polynomial coefficients are rounded enough
+#: that a pair fits its records better with a few spare poles (RESULTS-recovery.md, PEM)
+ORDER_MARGIN = 2
+#: the automatic range never stops below this order (SISO and 2x2 loops of the paper's class)
+MIN_ORDER_TOP = 16
 
 
 def _is_order_range(value: object) -> bool:
@@ -83,8 +88,11 @@ class ClosedLoopIdentification(Estimator):
     orders : "auto", int or dict
         "auto": BIC over ``order_range``; an int ``n``: ``nb = nf = n`` (OE) or
         ``na = nb = n`` (ARX/ARMAX); a dict: the orders for :func:`~stageid.closedloop.pem.pem`.
-    order_range : sequence of int
-        Candidates for "auto".
+    order_range : "auto" or sequence of int
+        Candidates for "auto".  "auto": 2 up to the largest order a pair of this loop can have,
+        :func:`~stageid.closedloop.order_selection.loop_order_bound` of the ``structure``'s entry
+        orders (the paper's for "full") and the controller's states, plus two,
+        and at least up to 16.
     nk : int
         Delay of the closed loop in samples (1: sampled strictly proper plant).
     structure : "paper", "full" or dict
@@ -123,7 +131,7 @@ class ClosedLoopIdentification(Estimator):
         reference_filter: StateSpaceModel | TransferMatrix | None = None,
         method: str = "oe",
         orders: str | int | Mapping[str, int] = "auto",
-        order_range: Sequence[int] = tuple(range(2, 17)),
+        order_range: str | Sequence[int] = "auto",
         nk: int = 1,
         structure: str | Mapping[tuple[int, int], tuple[int, int]] = "paper",
         band: tuple[float, float] = (20.0, 300.0),
@@ -152,7 +160,7 @@ class ClosedLoopIdentification(Estimator):
         "reference_filter": [InstanceOf(_MODEL, "a StateSpaceModel or TransferMatrix"), None],
         "method": [Options(*STRUCTURES)],
         "orders": [Options("auto"), Interval(int, 1, None), InstanceOf(Mapping, "a dict of orders")],
-        "order_range": [Satisfies(_is_order_range, "a non-empty sequence of integers >= 1")],
+        "order_range": [Options("auto"), Satisfies(_is_order_range, "a non-empty sequence of integers >= 1")],
         "nk": [Interval(int, 0, None)],
         "structure": [
             Options("paper", "full"),
@@ -200,12 +208,25 @@ class ClosedLoopIdentification(Estimator):
             )
         return lo, hi
 
-    def _fit_pair(self, r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
-        """One closed-loop pair (eq. 12-14): BIC over ``order_range`` or the given orders."""
-        if self.orders == "auto":
-            return select_order(r, y, self.method, self.order_range, self.nk, dt, max_nfev=self.max_nfev)[0]
-        o = dict(self.orders) if isinstance(self.orders, Mapping) else structure_orders(self.method, int(self.orders))
-        return pem(r, y, self.method, o, self.nk, dt, max_nfev=self.max_nfev)
+    def _candidate_orders(self, p: int, controller_states: int) -> Sequence[int]:
+        """``order_range``, or for "auto" 2 up to the loop's order bound (at least 16)."""
+        if not isinstance(self.order_range, str):
+            return self.order_range
+        entries = dict(self.structure) if isinstance(self.structure, Mapping) else paper_orders(p)
+        return range(2, max(MIN_ORDER_TOP, loop_order_bound(entries, controller_states) + ORDER_MARGIN) + 1)
+
+    def _pair_fitter(self, orders: Sequence[int]):
+        """One closed-loop pair (eq. 12-14): BIC over ``orders`` or the given orders."""
+
+        def fit_pair(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
+            if self.orders == "auto":
+                kw = {"max_nfev": self.max_nfev, "refine_largest": True}
+                return select_order(r, y, self.method, orders, self.nk, dt, **kw)[0]
+            o = self.orders
+            o = dict(o) if isinstance(o, Mapping) else structure_orders(self.method, int(o))
+            return pem(r, y, self.method, o, self.nk, dt, max_nfev=self.max_nfev)
+
+        return fit_pair
 
     # ---------------------------------------------------------------- fit
     @single_blas_thread
@@ -241,10 +262,11 @@ class ClosedLoopIdentification(Estimator):
         dt, p = exps[0].dt, exps[0].n_outputs
         M, Mr = discrete_controllers(self.controller, self.reference_filter, dt, self.controller_discretization, p)
         check_controller(M if Mr is None else Mr, check_grid(lo, dt))
-        groups = at_rest(group_by_reference(exps), self._fit_pair)
+        fit_pair = self._pair_fitter(self._candidate_orders(p, M.n_states))
+        groups = at_rest(group_by_reference(exps), fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits, groups = identify_pairs(groups, self._fit_pair)
+        T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
         check_deduction(T, M, Mr, check_grid(lo, dt))

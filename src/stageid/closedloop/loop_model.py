@@ -39,7 +39,8 @@ REST_PASSES = 8
 REST_TOL = 1e-4
 REST_KEEP = 0.5
 #: fits of each pair, the first to the outputs from their first sample, the others to the outputs
-#: less the levels the previous fit gave (:func:`identify_pairs`)
+#: less the levels the previous fit gave (:func:`identify_pairs`; the diagonal pairs' order is
+#: selected again on the corrected outputs)
 LEVEL_PASSES = 2
 
 #: fit of one pair: (reference records, output records, dt) -> model
@@ -232,10 +233,13 @@ def identify_pairs(
     a pair fitted to that bends its DC gain to follow the offset wherever the reference has a
     mean (measured on chirps from DC: the identified loop 2.6-4.5x the noise floor on the
     records, all of it a constant). So each output of each record gets the constant ``d`` of
-    ``y = T r + d``, solved jointly with the pair's numerator under its poles
+    ``y = T r + d``, solved jointly with a numerator under the loop's poles
     (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
     them one after the other would not move them), and the pair is refitted to ``y - d`` from
-    where it was (:func:`refit`; :data:`LEVEL_PASSES` fits in all).
+    where it was (:func:`refit`; :data:`LEVEL_PASSES` fits in all).  A diagonal pair whose order
+    was selected on outputs still carrying the offset stays in a higher minimum than one selected
+    on the corrected outputs, so its order is selected again on them first; the couplings, whose
+    loss hardly weighs in the loop's, gain nothing from it (``benchmarks/RESULTS-recovery.md``, PEM).
 
     Returns
     -------
@@ -257,13 +261,14 @@ def identify_pairs(
         for i in range(p):
             y = [e.y[:, i] for e in group]
             d = np.zeros(len(group))
-            m = None
-            for _ in range(LEVEL_PASSES):
-                shifted_y = [yk - dk for yk, dk in zip(y, d)]
-                m = fit_pair(r, shifted_y, dt) if m is None else refit(m, r, shifted_y)
-                d_used, d = d, level_and_numerator(m, r, y)
-            y = [yk - dk for yk, dk in zip(y, d_used)]
-            for yk, dk in zip(shifted, d_used):
+            if i == j:  # the order selected again on the corrected outputs
+                d = level_and_numerator(fit_pair(r, y, dt), r, y)
+            m = fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt)
+            for _ in range(LEVEL_PASSES - 1):
+                d = level_and_numerator(m, r, y)
+                m = refit(m, r, [yk - dk for yk, dk in zip(y, d)])
+            y = [yk - dk for yk, dk in zip(y, d)]
+            for yk, dk in zip(shifted, d):
                 yk[:, i] -= dk
             models[(i, j)] = m
             sim = np.concatenate([m.simulate(rk) for rk in r])

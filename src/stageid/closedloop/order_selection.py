@@ -26,6 +26,7 @@ __all__ = [
     "SCREEN_ITERATIONS",
     "SCREEN_OWN_ITERATIONS",
     "START_ITERATIONS",
+    "loop_order_bound",
 ]
 
 #: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
@@ -77,6 +78,7 @@ def select_order(
     criterion: str = "bic",
     max_nfev: int = 200,
     screen: bool = True,
+    refine_largest: bool = False,
 ) -> tuple[PolynomialModel, dict[int, float]]:
     """Fit ``structure`` for each order ``n`` (all free polynomials of order ``n``) and keep the best.
 
@@ -94,6 +96,9 @@ def select_order(
         For OE and BJ with more than three candidates: rank the orders by the criterion of
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
         the winner; otherwise every order is optimised.
+    refine_largest : bool
+        With the screen, optimise the largest order too, the criterion deciding after: the
+        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.
 
     Returns
     -------
@@ -129,7 +134,13 @@ def select_order(
     if screen and structure in ("oe", "bj") and len(orders) > 3:
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
-            orders = [min(screen_scores, key=screen_scores.get)]
+            winner = min(screen_scores, key=screen_scores.get)
+            orders = [winner] + ([max(orders)] if refine_largest and max(orders) != winner else [])
+    return _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states)
+
+
+def _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states):
+    """The prediction-error fit of each order in ``orders`` (screen states as starts); the best by the criterion."""
     scores: dict[int, float] = {}
     best: PolynomialModel | None = None
     best_score = np.inf
@@ -147,3 +158,14 @@ def select_order(
     if best is None:
         raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}: {last_error}")
     return best, scores
+
+
+def loop_order_bound(entry_orders: dict[tuple[int, int], tuple[int, int]], controller_states: int) -> int:
+    """Upper bound on the order of a closed-loop pair ``T_ij`` (eq. 15-17 for a transfer matrix).
+
+    Every pair shares the loop's poles, whose count is the plant's McMillan degree plus the
+    controller's states; the plant's degree is at most the sum of its entries' pole counts
+    ``entry_orders[(i, j)] = (n_zeros, n_poles)`` (each entry realised on its own).  For the
+    paper's 3x3 structure and three [2, 2] lead-lags that is 24 + 6 = 30 (a 2x2 loop: 10 + 4 = 14).
+    """
+    return int(sum(n_poles for _, n_poles in entry_orders.values())) + int(controller_states)
