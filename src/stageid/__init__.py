@@ -15,7 +15,7 @@ Sub-packages, one capability each:
 ==============  =====================================================================
 """
 
-from . import numba_cache
+from . import _moved, numba_cache
 from ._errors import (
     ClusterError,
     DataError,
@@ -33,6 +33,7 @@ from ._errors import (
     StageIdWarning,
 )
 
+_moved.install()  # old module paths of moved modules still import (see _moved.MOVED)
 numba_cache.configure()  # before any kernel is defined: a read-only install must still run
 
 __version__ = "0.1.0"
