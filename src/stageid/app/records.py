@@ -89,7 +89,7 @@ def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
     neither, the table reader's message is the one raised.
     """
     from ..data.io import read_table
-    from ..frf.frd import frd_from_columns, read_frd
+    from ..models.frequency_response import frd_from_columns, read_frd
 
     try:
         table = read_table(path, ts)

@@ -47,7 +47,7 @@ import numpy as np
 
 from .._errors import DataError, IdentificationError
 from .._threads import single_blas_thread
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from .covariance import transfer_gradient, transfer_gradient_at
 from .reduction import ReducedEntry
 from .zoh import zoh_response

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from ..models import StateSpaceModel
 from .innovation_pem import response_std
 from .predictor_subspace import InnovationMatrices

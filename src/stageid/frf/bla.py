@@ -35,7 +35,7 @@ import numpy as np
 from .._errors import DataError, ParameterError
 from ..data import Experiment
 from .bla_result import DETECTION_DB, BLAResult, DetectionLevels
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from .periodic import excited_lines, period_average
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 
 __all__ = ["BLAResult", "DetectionLevels", "DETECTION_DB"]
 

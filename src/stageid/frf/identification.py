@@ -34,7 +34,7 @@ from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
 from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from .welch import welch_frf
 
 __all__ = [

@@ -16,7 +16,7 @@ import numpy as np
 from .._errors import DataError
 from ..checks import check_integer, check_real
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from .records import ChannelRecord
 from .welch import CrossSpectra, default_segment, get_window, h1_from_spectra, segment_sums, spectra_from_sums
 

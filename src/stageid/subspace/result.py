@@ -20,7 +20,7 @@ from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
 from ..display import html_repr, short_repr
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .map_estimator import Posterior
 from .records import as_records, check_freqs, unscaled_posterior

@@ -41,7 +41,7 @@ import numpy as np
 
 from .._errors import DataError
 from .._threads import single_blas_thread
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from .map_estimator import Posterior
