@@ -19,7 +19,9 @@ from types import ModuleType
 __all__ = ["MOVED", "install"]
 
 # old dotted path -> new dotted path
-MOVED: dict[str, str] = {}
+MOVED: dict[str, str] = {
+    "stageid.frf.frd": "stageid.models.frequency_response",
+}
 
 
 class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
