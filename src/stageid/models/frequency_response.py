@@ -186,7 +186,7 @@ class FrequencyResponse:
         ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data.
         Returns the matplotlib figure (imported lazily; use the Agg backend off-screen).
         """
-        from ..frf.plotting import bode_figure
+        from ..plots.frf import bode_figure
 
         return bode_figure(self, model)
 
