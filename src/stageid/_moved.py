@@ -21,6 +21,7 @@ __all__ = ["MOVED", "install"]
 # old dotted path -> new dotted path
 MOVED: dict[str, str] = {
     "stageid.frf.frd": "stageid.models.frequency_response",
+    "stageid.frf.plotting": "stageid.plots.frf",
 }
 
 

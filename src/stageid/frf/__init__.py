@@ -18,12 +18,12 @@ module                    what it holds
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
 :mod:`.mode_exchange`     weakest pole pair moved to a residual peak, out of local minima
 :mod:`.fit_uncertainty`   covariance of that fit from the data's std, ``FRDResult.response_uncertainty``
-:mod:`.plotting`          Bode figure with a +-2 std band and a coherence panel
 ========================  =================================================================
 
 :class:`FrequencyResponse`, ``read_frd`` and ``frd_columns`` live in
 :mod:`stageid.models.frequency_response` (a model object that every package's results return);
-they are re-exported here, and ``stageid.frf.frd`` still imports as that module.
+they are re-exported here, and ``stageid.frf.frd`` still imports as that module.  The FRF's
+Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`.
 """
 
 import importlib

@@ -6,8 +6,10 @@
 ``time_overlay_figure``    measured vs predicted outputs with error traces
 =========================  ==============================================================
 
-Method-specific figures live beside these: ``plots.subspace``, ``plots.closedloop``,
-``plots.hysteresis``.
+Method-specific figures live beside these: ``plots.frf`` (a measured FRF with its std band
+and coherence, ``FrequencyResponse.plot``), ``plots.subspace``, ``plots.closedloop``,
+``plots.hysteresis``, ``plots.records``, ``plots.residuals``; ``plots._style`` holds the
+shared axes helpers.
 """
 
 from .lti import bode_figure, pzmap_figure, time_overlay_figure
