@@ -21,8 +21,8 @@ from stageid.closedloop.uncertainty import (
     plant_uncertainty,
     unstable_pole_sensitivity,
 )
-from stageid.frf.frd import FrequencyResponse
 from stageid.models import TransferMatrix
+from stageid.models.frequency_response import FrequencyResponse
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_closedloop_estimator import G_SISO, _siso_controller, _siso_experiment  # noqa: E402

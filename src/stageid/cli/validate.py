@@ -5,10 +5,8 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError
+from ..validation.residuals import ALPHA, MAX_LAG
 from ._common import check_output, check_output_folder, read_experiments, say, split_names
-
-MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence)
-ALPHA = 0.01  # each test at the 1 % level
 
 
 @click.command(

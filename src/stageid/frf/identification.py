@@ -32,9 +32,9 @@ from .._errors import DataError, FitWarning, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
+from ..models.frequency_response import FrequencyResponse
 from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
-from ..models.frequency_response import FrequencyResponse
 from .welch import welch_frf
 
 __all__ = [
