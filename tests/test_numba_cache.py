@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 import stageid
-from stageid import numba_cache
+from stageid.runtime import numba_cache
 
 CODE = (
     "import numpy as np, os, stageid\n"

@@ -162,7 +162,7 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
 def test_vector_intrinsics_match_numpy():
     # the 4-wide operations the delayed-update kernel is written in (stageid.simd)
     numba = pytest.importorskip("numba")
-    from stageid.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
+    from stageid.runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
 
     @numba.njit
     def kernel(a, b, c, out):
@@ -196,7 +196,7 @@ DELAY_FOR_TEST = 3
 
 
 def test_written_out_loops_compute_what_the_rolled_source_does():
-    from stageid.subspace.unroll import written_out
+    from stageid.runtime.unroll import written_out
 
     a = np.arange(12.0).reshape(3, 4)
     rolled, unrolled = np.zeros(3), np.zeros(3)

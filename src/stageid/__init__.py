@@ -15,7 +15,7 @@ Sub-packages, one capability each:
 ==============  =====================================================================
 """
 
-from . import _moved, numba_cache
+from . import _moved
 from ._errors import (
     ClusterError,
     DataError,
@@ -32,6 +32,7 @@ from ._errors import (
     StageIdError,
     StageIdWarning,
 )
+from .runtime import numba_cache
 
 _moved.install()  # old module paths of moved modules still import (see _moved.MOVED)
 numba_cache.configure()  # before any kernel is defined: a read-only install must still run

@@ -29,7 +29,7 @@ from .._errors import DataError
 from ..checks import check_integer
 from ..data import Experiment, as_experiments
 from ..models.frequency_response import FrequencyResponse
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .lpm_kernels import lpm_lines_kernel
 
 __all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]

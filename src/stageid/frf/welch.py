@@ -27,7 +27,7 @@ from .._errors import DataError, ParameterError
 from ..checks import check_integer, check_real
 from ..data import Experiment
 from ..models.frequency_response import FrequencyResponse
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 
 __all__ = [

@@ -63,11 +63,11 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence, is_real
 from ..display import html_repr, short_repr
-from ..resources import require_memory, require_work
+from ..runtime.resources import require_memory, require_work
+from ..runtime.threads import single_blas_thread
 from .creep import CreepTerm
 from .records import (
     STATE_CHOICES,

@@ -57,10 +57,10 @@ from typing import Any
 
 import numpy as np
 
-from .._threads import single_blas_thread
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_positive_sequence
 from ..display import html_repr, short_repr
+from ..runtime.threads import single_blas_thread
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .dynamics import describe_pole
 from .identification import MODEL_KINDS, PIIdentifier

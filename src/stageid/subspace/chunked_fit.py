@@ -25,11 +25,11 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..models.statespace import StateSpaceModel
-from ..resources import require_memory
+from ..runtime.resources import require_memory
+from ..runtime.threads import single_blas_thread
 from .chunked_order import select_order_chunked
 from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .hankel_toeplitz import WindowStatistics, statistics_bytes

@@ -36,12 +36,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError, ExcitationWarning, StabilityWarning
-from .._threads import single_blas_thread
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
-from ..resources import require_memory
+from ..runtime.resources import require_memory
+from ..runtime.threads import single_blas_thread
 from .channels import channel_groups, stack_channel_models
 from .hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
 from .map_estimator import (

@@ -15,13 +15,13 @@ from functools import cached_property
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
 from ..display import html_repr, short_repr
 from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
+from ..runtime.threads import single_blas_thread
 from .map_estimator import Posterior
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable

@@ -40,9 +40,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
+from ..runtime.threads import single_blas_thread
 from .covariance_grid import GRID_PLACEMENTS, placed_grid
 from .map_estimator import Posterior
 from .realisation_bias import local_misfit_bias, misfit_noise

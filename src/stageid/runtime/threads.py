@@ -18,7 +18,7 @@ import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from ._heap import prime_heap
+from .heap import prime_heap
 
 F = TypeVar("F", bound=Callable[..., Any])
 

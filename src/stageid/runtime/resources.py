@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import resource
 
-from ._errors import ResourceError
+from .._errors import ResourceError
 
 __all__ = ["available_memory", "require_memory", "format_bytes", "require_work"]
 

@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from typing import Any
 from urllib.parse import urlsplit
 
-from ._errors import ClusterError, ParameterError
+from .._errors import ClusterError, ParameterError
 
 __all__ = ["dask_client", "check_scheduler_address", "DEFAULT_TIMEOUT", "LOCAL_WORKER_CONFIG"]
 
