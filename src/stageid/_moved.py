@@ -22,6 +22,13 @@ __all__ = ["MOVED", "install"]
 MOVED: dict[str, str] = {
     "stageid.frf.frd": "stageid.models.frequency_response",
     "stageid.frf.plotting": "stageid.plots.frf",
+    "stageid.simd": "stageid.runtime.simd",
+    "stageid.numba_cache": "stageid.runtime.numba_cache",
+    "stageid._threads": "stageid.runtime.threads",
+    "stageid._heap": "stageid.runtime.heap",
+    "stageid.resources": "stageid.runtime.resources",
+    "stageid.cluster": "stageid.runtime.cluster",
+    "stageid.subspace.unroll": "stageid.runtime.unroll",
 }
 
 

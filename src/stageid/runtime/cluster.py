@@ -8,7 +8,7 @@ it, so the connection rules live in one place: an unreachable scheduler is a one
 
 Examples
 --------
->>> from stageid.cluster import dask_client
+>>> from stageid.runtime.cluster import dask_client
 >>> with dask_client(n_workers=1) as client:  # doctest: +SKIP
 ...     client.submit(sum, [1, 2]).result()
 3

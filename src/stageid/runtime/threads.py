@@ -56,7 +56,7 @@ def single_blas_thread(fn: F) -> F:
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        prime_heap()  # the other half of a fit's environment: see stageid._heap
+        prime_heap()  # the other half of a fit's environment: see stageid.runtime.heap
         n = _limit()
         if n is None:
             return fn(*args, **kwargs)
