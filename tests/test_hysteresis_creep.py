@@ -7,7 +7,7 @@ import pytest
 
 from stageid._errors import ModelError, ModelFormatError, ParameterError
 from stageid.hysteresis import Compensator, ModifiedPIModel, PIIdentifier, PIModel, invert, pi_inverse
-from stageid.hysteresis.creep import CreepTerm
+from stageid.hysteresis.models.creep import CreepTerm
 from stageid.hysteresis.serialization import model_from_dict
 from stageid.models.serialization import dumps
 from stageid.signals import decaying_triangle
@@ -183,7 +183,7 @@ def test_compensator_with_creep_respects_limits():
 
 
 def test_compiled_creep_inversion_equals_stepping_and_continues_its_state(monkeypatch):
-    from stageid.hysteresis.compensator import CreepInverse
+    from stageid.hysteresis.inverse.compensator import CreepInverse
 
     creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
     m = ModifiedPIModel(

@@ -264,7 +264,7 @@ def _model_file(out: str | None, output_name: str) -> str:
 def _identify_stage(exps, kind, n_operators, initial_state, input_warp, creep, dynamics, n_levels, modes="auto"):
     """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt.
     A Preisach model holds no creep term of its own, so any --creep makes it a stage."""
-    from ..hysteresis.stage_identification import StageIdentifier
+    from ..hysteresis.stage.identification import StageIdentifier
 
     return StageIdentifier(
         kind,

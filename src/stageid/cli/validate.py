@@ -131,7 +131,7 @@ def _initial_conditions(model, experiments, initial: str):
     """Per record, :func:`~stageid.hysteresis.stage_validation.validate_record` (None for ``model``)."""
     if initial == "model":
         return None
-    from ..hysteresis.stage_validation import validate_record
+    from ..hysteresis.stage.validation import validate_record
 
     return [validate_record(model, e.u[:, 0], e.y[:, 0], e.dt, initial) for e in experiments]
 

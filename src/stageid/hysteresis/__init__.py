@@ -61,19 +61,19 @@ Modules, from the letter's sections down (each imports only the ones below it):
 ===============================  ==================================================================
 """
 
-from .compensator import Compensator, compensate
-from .creep import CreepTerm
-from .identification import HysteresisFit, PIIdentifier, align_record
+from .identify.pi import HysteresisFit, PIIdentifier, align_record
+from .identify.preisach import PreisachFit, PreisachIdentifier
 from .inverse import invert, pi_inverse
+from .inverse.compensator import Compensator, compensate
+from .inverse.preisach import PreisachCompensator, preisach_feedforward
 from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
-from .operators import OperatorState, coupled_play, play
-from .pi import ModifiedPIModel, PIModel
-from .preisach import PreisachModel, everett, everett_output
-from .preisach_identification import PreisachFit, PreisachIdentifier
-from .preisach_inverse import PreisachCompensator, preisach_feedforward
+from .models.creep import CreepTerm
+from .models.operators import OperatorState, coupled_play, play
+from .models.pi import ModifiedPIModel, PIModel
+from .models.preisach import PreisachModel, everett, everett_output
 from .stage import StageModel
-from .stage_identification import StageFit, StageIdentifier
-from .stage_inverse import stage_feedforward
+from .stage.identification import StageFit, StageIdentifier
+from .stage.inverse import stage_feedforward
 
 __all__ = [
     "OperatorState",

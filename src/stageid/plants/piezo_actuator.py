@@ -44,9 +44,9 @@ import numpy as np
 from .._errors import ModelError, ModelFormatError
 from ..checks import is_real, shown
 from ..data.experiment import Experiment
-from ..hysteresis.dynamics import zoh_resonance
-from ..hysteresis.pi import ModifiedPIModel
+from ..hysteresis.models.pi import ModifiedPIModel
 from ..hysteresis.serialization import register_kind
+from ..hysteresis.stage.dynamics import zoh_resonance
 from . import experiment_seed, noise_entropy
 
 __all__ = ["PiezoActuator", "model", "EXPERIMENTS", "open_loop_gain"]

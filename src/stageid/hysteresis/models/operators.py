@@ -69,7 +69,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import ModelError
+from ..._errors import ModelError
 
 __all__ = [
     "OperatorState",
@@ -235,7 +235,7 @@ def play(x: object, r: object, state: OperatorState | None = None) -> tuple[np.n
     >>> z[:, 0].tolist()
     [0.0, 1.0, 1.0, -1.0]
     """
-    from . import kernels
+    from .. import kernels
 
     xx = _input(x)
     rr = _thresholds("r", r)
@@ -278,7 +278,7 @@ def coupled_play(
     >>> z[:, 0].tolist()
     [0.0, 2.0, 1.0, -1.0, -0.5]
     """
-    from . import kernels
+    from .. import kernels
 
     xx = _input(x)
     r_, rc_, ra_, rb_ = check_cp_thresholds(r, rc, ra, rb)

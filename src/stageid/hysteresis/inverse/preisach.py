@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError
-from .common import as_input, check_limits
-from .preisach import PreisachModel
+from ..._errors import ModelError
+from ..models.common import as_input, check_limits
+from ..models.preisach import PreisachModel
 
 __all__ = ["PreisachCompensator", "preisach_feedforward"]
 
@@ -81,7 +81,7 @@ class PreisachCompensator:
 
     def run(self, y_ref: object) -> np.ndarray:
         """Drives for a block of desired outputs, shape (n_samples, 1); continues the memory."""
-        from .kernels.preisach import preisach_invert
+        from ..kernels.preisach import preisach_invert
 
         target = np.ascontiguousarray(as_input(y_ref, "y_ref") - self.model.output_offset)
         need = self._top + target.size + 3

@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError
-from ..display import html_repr, short_repr
+from ..._errors import ModelError
+from ...display import html_repr, short_repr
 from .common import as_input
 from .creep import CreepTerm
 from .operators import OperatorState, check_cp_thresholds, gamma_down, gamma_up
@@ -165,7 +165,7 @@ class _PIBase:
 
     def operator_outputs(self, u: object) -> tuple[np.ndarray, OperatorState]:
         """Outputs of every operator, shape (n_samples, n_operators), and the final state."""
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         x = np.ascontiguousarray(self.to_operator_input(as_input(u, self.inputs[0])))
         r, rc, ra, rb = self.coupled_play_thresholds()
@@ -181,7 +181,7 @@ class _PIBase:
         ``dt`` [s] is used only by a creep term (default its ``sample_time``); the final state
         is the operator state (a creep term's final lags: ``model.creep.run(u, dt)[1]``).
         """
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         u_in = as_input(u, self.inputs[0])
         x = np.ascontiguousarray(self.to_operator_input(u_in))

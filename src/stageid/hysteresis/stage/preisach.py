@@ -20,13 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import IdentificationError
-from .creep import CreepTerm
+from ..._errors import IdentificationError
+from ..identify.preisach import second_differences
+from ..models.creep import CreepTerm
+from ..models.preisach import PreisachModel
+from . import StageModel
 from .dynamics import transfer_to_statespace
-from .preisach import PreisachModel
-from .preisach_identification import second_differences
-from .stage import StageModel
-from .stage_problem import StageProblem
+from .problem import StageProblem
 
 __all__ = ["PreisachStageProblem", "preisach_cell_states", "best_start_kinds", "SEARCH_RANK", "MAX_ROWS", "GRID_POLES"]
 
@@ -40,7 +40,7 @@ MAX_ROWS = 16000
 
 def preisach_cell_states(u: np.ndarray, model: PreisachModel, kind: str) -> np.ndarray:
     """``Phi``, shape (n_samples, n_cells): up part of every cell from the ``kind`` start at ``u[0]``."""
-    from .kernels.preisach import preisach_regressors
+    from ..kernels.preisach import preisach_regressors
 
     P, _, top, cur = model.with_state(model.consistent_state(u[0], kind)).memory_arrays(0)
     lo = model.input_range[0]

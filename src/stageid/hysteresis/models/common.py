@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError
+from ..._errors import ModelError
 
 __all__ = ["as_input", "check_limits", "packed"]
 

@@ -33,9 +33,9 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError, ModelFormatError
-from ..checks import shown
-from ..display import html_repr, short_repr
+from ..._errors import ModelError, ModelFormatError
+from ...checks import shown
+from ...display import html_repr, short_repr
 from .common import as_input
 from .pi import HYSTERESIS_FORMAT
 
@@ -169,7 +169,7 @@ class PreisachModel:
 
     def memory_arrays(self, extra: int) -> tuple[np.ndarray, np.ndarray, int, float]:
         """``(P, cum, top, cur)`` of the kernels for the stored state, room for ``extra`` samples."""
-        from .kernels.preisach import memory_cum
+        from ..kernels.preisach import memory_cum
 
         mem = np.empty(0) if self.state is None else self.state
         top = max(mem.size - 1, 0)
@@ -200,7 +200,7 @@ class PreisachModel:
 
     def run(self, u: object, dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Outputs, shape (n_samples,), and the final memory (the next run's ``state``)."""
-        from .kernels.preisach import preisach_run
+        from ..kernels.preisach import preisach_run
 
         x = np.ascontiguousarray(as_input(u, "u"))
         P, cum, top, cur = self.memory_arrays(x.size)
@@ -233,7 +233,7 @@ class PreisachModel:
     @classmethod
     def from_dict(cls, d: dict) -> PreisachModel:
         """Build from the ``stageid.hysteresis/1`` dict of kind ``"preisach"`` (entry point)."""
-        from .serialization import number, numbers
+        from ..serialization import number, numbers
 
         keys = {"format", "kind", "density", "inputs", "outputs", "input_range", "n_levels", "weights"}
         keys |= {"output_offset", "state", "input_limits"}
@@ -301,7 +301,7 @@ def checked_memory(state: Any, lo: float, hi: float) -> np.ndarray:
 def everett(model: PreisachModel, alpha: float, beta: float) -> float:
     """Everett function ``E(alpha, beta)``: weight of the triangle ``beta <= b <= a <= alpha``
     (both clamped to the grid; zero when ``alpha <= beta``)."""
-    from .kernels.preisach import everett_at
+    from ..kernels.preisach import everett_at
 
     lo, hi = model.input_range
     En, wd = model.everett_table

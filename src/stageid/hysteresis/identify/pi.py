@@ -62,13 +62,13 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError
-from ..base import Boolean, Estimator, Interval, Options, Satisfies
-from ..checks import is_positive_sequence, is_real
-from ..display import html_repr, short_repr
-from ..runtime.resources import require_memory, require_work
-from ..runtime.threads import single_blas_thread
-from .creep import CreepTerm
+from ..._errors import DataError
+from ...base import Boolean, Estimator, Interval, Options, Satisfies
+from ...checks import is_positive_sequence, is_real
+from ...display import html_repr, short_repr
+from ...runtime.resources import require_memory, require_work
+from ...runtime.threads import single_blas_thread
+from ..models.creep import CreepTerm
 from .records import (
     STATE_CHOICES,
     align_record,

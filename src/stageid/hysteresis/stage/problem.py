@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import IdentificationError
-from .creep import CreepTerm
+from ..._errors import IdentificationError
+from ..identify.weights import cumulative_map, split_map
+from ..models.creep import CreepTerm
+from . import StageModel
 from .dynamics import fit_hammerstein, fit_unit_gain_dynamics, transfer_to_statespace, unit_gain_filter
-from .stage import StageModel
-from .stage_selection import simulation_score
-from .weights import cumulative_map, split_map
+from .selection import simulation_score
 
 __all__ = ["StageProblem", "refine_output_error", "constraint_map", "N_ALTERNATIONS", "MAX_ROWS"]
 

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import ModelError
-from .operators import OperatorState
-from .pi import PIModel
+from ..._errors import ModelError
+from ..models.operators import OperatorState
+from ..models.pi import PIModel
 
 __all__ = ["pi_inverse", "inverse_state", "forward_state"]
 

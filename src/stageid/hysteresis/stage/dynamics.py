@@ -25,7 +25,7 @@ import warnings
 
 import numpy as np
 
-from .._errors import IdentificationError, ModelError
+from ..._errors import IdentificationError, ModelError
 
 __all__ = [
     "fit_unit_gain_dynamics",
@@ -60,7 +60,7 @@ def unit_gain_filter(b: np.ndarray, a: np.ndarray, columns: np.ndarray) -> np.nd
     Equal to ``c[0] + scipy.signal.lfilter(b, a, c - c[0], axis=0)`` to the bit; a compiled
     loop over the samples with all columns at once (:mod:`.kernels.filters`).
     """
-    from .kernels.filters import unit_gain_columns
+    from ..kernels.filters import unit_gain_columns
 
     c = np.ascontiguousarray(columns, dtype=float)
     bb = np.atleast_1d(np.asarray(b, dtype=float))
@@ -152,7 +152,7 @@ def transfer_to_statespace(b: np.ndarray, a: np.ndarray, dt: float, inputs=("v",
     """A discrete :class:`~stageid.models.StateSpaceModel` of ``B(z)/A(z)`` (coefficients in ``z^-1``)."""
     from scipy.signal import tf2ss
 
-    from ..models import StateSpaceModel
+    from ...models import StateSpaceModel
 
     b = np.asarray(b, dtype=float)
     a = np.asarray(a, dtype=float)

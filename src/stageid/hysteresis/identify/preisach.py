@@ -23,11 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError
-from ..base import Estimator, Interval, Satisfies
-from ..checks import is_real
-from ..display import html_repr, short_repr
-from .preisach import PreisachModel
+from ..._errors import DataError, IdentificationError
+from ...base import Estimator, Interval, Satisfies
+from ...checks import is_real
+from ...display import html_repr, short_repr
+from ..models.preisach import PreisachModel
 from .records import read_records
 
 __all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences", "filled_cells"]
@@ -53,7 +53,7 @@ def _is_range(value: Any) -> bool:
 def cell_regressors(u: np.ndarray, input_range: tuple[float, float], n_levels: int) -> np.ndarray:
     """Up parts of the cells ``Phi``, shape (n_samples, n_levels (n_levels + 1) / 2), from the
     state demagnetised about ``u[0]`` (the memory does not depend on the weights)."""
-    from .kernels.preisach import preisach_regressors
+    from ..kernels.preisach import preisach_regressors
 
     grid = PreisachModel(input_range, np.zeros(n_levels * (n_levels + 1) // 2))
     P, _, top, cur = grid.with_state(grid.consistent_state(u[0])).memory_arrays(0)

@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, ModelError
+from ..._errors import DataError, ModelError
+from . import StageModel
 from .dynamics import unit_gain_filter
-from .stage import StageModel
 
 __all__ = ["validate_record", "RecordValidation", "INITIAL_CHOICES", "MEMORY_NODES"]
 

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import scipy.fft as sfft
 
-from .._errors import ModelError
+from ..._errors import ModelError
 
 __all__ = [
     "UNCERTAINTY_METHODS",
@@ -257,7 +257,7 @@ def plot_loop_band(
     right: the band's half-width along the record beside the model's error when ``y`` is given.
     Returns a matplotlib figure (Agg-safe).
     """
-    from ..plots._style import subplots
+    from ...plots._style import subplots
 
     uu = np.asarray(u, dtype=float).reshape(-1)
     yh, s = uncertainty.output_band(model, uu, dt)

@@ -39,8 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError, ModelFormatError
-from ..checks import is_real, shown
+from ..._errors import ModelError, ModelFormatError
+from ...checks import is_real, shown
 
 __all__ = ["CreepTerm"]
 

@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import ModelError
-from ..data.sampling import PERIOD_RTOL, same_period, seconds
-from .compensator import Compensator
-from .creep import CreepTerm
-from .preisach import PreisachModel
-from .preisach_inverse import PreisachCompensator, preisach_feedforward
-from .stage import StageModel
+from ..._errors import ModelError
+from ...data.sampling import PERIOD_RTOL, same_period, seconds
+from ..inverse.compensator import Compensator
+from ..inverse.preisach import PreisachCompensator, preisach_feedforward
+from ..models.creep import CreepTerm
+from ..models.preisach import PreisachModel
+from . import StageModel
 
 __all__ = ["invert_dynamics", "stage_feedforward", "preisach_creep_feedforward", "REGULARISATION", "AUTO_DECADES"]
 

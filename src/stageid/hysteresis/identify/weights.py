@@ -20,9 +20,9 @@ import functools
 
 import numpy as np
 
-from .._errors import IdentificationError
-from .creep import CreepTerm
-from .pi import ModifiedPIModel, PIModel
+from ..._errors import IdentificationError
+from ..models.creep import CreepTerm
+from ..models.pi import ModifiedPIModel, PIModel
 
 __all__ = ["WeightProblem", "gram_solve", "bounded_gram_lsq", "bounded_gram_lsq_bvls", "cumulative_map", "split_map"]
 
@@ -90,7 +90,7 @@ class WeightProblem:
             yield np.ascontiguousarray(x), self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
 
     def matrix(self, theta, kinds, classical):
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         r, rc, ra, rb, _ = self.thresholds(theta, classical)
         blocks = []
@@ -105,7 +105,7 @@ class WeightProblem:
         operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, input warp included,
         only the rows kept) and ``Z'Z`` is one BLAS product (one thread inside a fit): the
         cost of every step of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
@@ -134,7 +134,7 @@ class WeightProblem:
         (not the linear term, creep weights or offsets: a CP operator whose thresholds leave it
         almost still over the data would otherwise get a huge weight that explodes outside the
         identified range), ``G_fit`` is without it."""
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         y = self.y
         stats = []

@@ -31,15 +31,15 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError, ModelFormatError
-from ..checks import shown
-from ..data.sampling import PERIOD_RTOL, same_period, seconds
-from ..display import html_repr, short_repr
-from .common import as_input
-from .creep import CreepTerm
+from ..._errors import ModelError, ModelFormatError
+from ...checks import shown
+from ...data.sampling import PERIOD_RTOL, same_period, seconds
+from ...display import html_repr, short_repr
+from ..models.common import as_input
+from ..models.creep import CreepTerm
+from ..models.pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
+from ..models.preisach import PreisachModel
 from .dynamics import statespace_to_transfer, unit_gain_filter
-from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
-from .preisach import PreisachModel
 
 __all__ = ["StageModel", "STAGE_KIND"]
 
@@ -113,7 +113,7 @@ class StageModel:
         g = self.dynamics
         if g is None:
             return
-        from ..models import StateSpaceModel
+        from ...models import StateSpaceModel
 
         if not isinstance(g, StateSpaceModel):
             raise ModelError(f"`dynamics` must be a StateSpaceModel or None; got {type(g).__name__}.")
@@ -243,8 +243,8 @@ class StageModel:
     @classmethod
     def from_dict(cls, d: Any) -> StageModel:
         """Inverse of :meth:`to_dict`; :class:`ModelFormatError` names the malformed field."""
-        from ..models.serialization import lti_from_dict
-        from .serialization import model_from_dict
+        from ...models.serialization import lti_from_dict
+        from ..serialization import model_from_dict
 
         keys = {"format", "kind", "hysteresis", "dynamics", "creep", "disturbance_modes"}
         if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d:

@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ModelError
+from ..._errors import ModelError
+from ..models.common import as_input, check_limits, packed
+from ..models.operators import OperatorState
+from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .common import as_input, check_limits, packed
-from .operators import OperatorState
-from .pi import ModifiedPIModel, PIModel
 
 __all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound"]
 
@@ -74,7 +74,7 @@ class Compensator:
     def __init__(
         self, model: PIModel | ModifiedPIModel, limits: tuple[float, float] | None = None, dt: float | None = None
     ) -> None:
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         self._k = kernels
         self.model = model
@@ -399,7 +399,7 @@ class CreepInverse:
 
     def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
         """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
-        from . import kernels  # numba: imported on first use
+        from .. import kernels  # numba: imported on first use
 
         if not yr.size:
             return yr.copy()

@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError, ModelError
-from ..data import Experiment
-from ..data.sampling import PERIOD_RTOL, check_period, same_period, seconds, shared_period
-from .pi import STATE_KINDS, ModifiedPIModel, PIModel
+from ..._errors import DataError, IdentificationError, ModelError
+from ...data import Experiment
+from ...data.sampling import PERIOD_RTOL, check_period, same_period, seconds, shared_period
+from ..models.pi import STATE_KINDS, ModifiedPIModel, PIModel
 from .weights import WeightProblem
 
 __all__ = [

@@ -33,12 +33,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import ModelError
+from ..._errors import ModelError
+from ..models.common import as_input, check_limits, packed
+from ..models.operators import OperatorState
+from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .common import as_input, check_limits, packed
 from .compensator import CreepInverse, residual_bound
-from .operators import OperatorState
-from .pi import ModifiedPIModel, PIModel
 
 __all__ = ["pi_inverse", "inverse_state", "forward_state", "invert"]
 
@@ -85,7 +85,7 @@ def invert(
     >>> bool(np.allclose(m.simulate(u)[:, 0], yd))
     True
     """
-    from . import kernels  # numba: imported on first use
+    from .. import kernels  # numba: imported on first use
 
     if getattr(model, "creep", None) is not None:  # rate dependent: per-sample inverse with creep state
         inv = CreepInverse(model, limits)

@@ -57,20 +57,20 @@ from typing import Any
 
 import numpy as np
 
-from ..base import Boolean, Estimator, Interval, Options, Satisfies
-from ..checks import is_positive_sequence
-from ..display import html_repr, short_repr
-from ..runtime.threads import single_blas_thread
+from ...base import Boolean, Estimator, Interval, Options, Satisfies
+from ...checks import is_positive_sequence
+from ...display import html_repr, short_repr
+from ...runtime.threads import single_blas_thread
+from ..identify.pi import MODEL_KINDS, PIIdentifier
+from ..identify.preisach import PreisachIdentifier
+from ..identify.records import STATE_CHOICES, read_records, sampling_period
+from . import StageModel
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .dynamics import describe_pole
-from .identification import MODEL_KINDS, PIIdentifier
-from .preisach_identification import PreisachIdentifier
-from .records import STATE_CHOICES, read_records, sampling_period
-from .stage import StageModel
-from .stage_inverse import invert_dynamics
-from .stage_preisach import PreisachStageProblem, best_start_kinds
-from .stage_problem import N_ALTERNATIONS, StageProblem
-from .stage_selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
+from .inverse import invert_dynamics
+from .preisach import PreisachStageProblem, best_start_kinds
+from .problem import N_ALTERNATIONS, StageProblem
+from .selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
 
 __all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
 
