@@ -16,8 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import IdentificationError
-from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
-from ..subspace.refinement import model_response, refine_frequency_fit
+from ..subspace.realisation.frequency_domain import (
+    balanced_start,
+    fit_input_matrices,
+    frequency_realization,
+    reflect_unstable,
+)
+from ..subspace.realisation.refinement import model_response, refine_frequency_fit
 from .mode_exchange import exchanged_modes, residual_peaks
 from .vector_fitting import vector_fit_start
 

@@ -38,10 +38,10 @@ Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one n
 """
 
 from .estimator import HankelMAP
-from .frequency_domain import frequency_realization
-from .map_estimator import Posterior, Prior, batch_posterior
-from .realization import era, markov_from_theta
-from .recursion import recursive_map
+from .map.posterior import Posterior, Prior, batch_posterior
+from .map.recursion import recursive_map
+from .realisation.era import era, markov_from_theta
+from .realisation.frequency_domain import frequency_realization
 from .result import ChannelFit, HankelMAPResult
 
 __all__ = [

@@ -30,16 +30,16 @@ from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..models.statespace import StateSpaceModel
 from ..runtime.resources import require_memory
 from ..runtime.threads import single_blas_thread
-from .chunked_order import select_order_chunked
-from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
-from .hankel_toeplitz import WindowStatistics, statistics_bytes
-from .map_estimator import METHODS, map_posterior
-from .realization import realize
+from .map.posterior import METHODS, map_posterior
+from .realisation.era import realize
+from .realisation.refinement import refinement_bytes
+from .realisation.theta_response import response_bytes
 from .records import excited_band
-from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
 from .selection import held_out_segments, horizon_candidates, select_horizon
-from .theta_response import response_bytes
+from .selection.chunked_order import select_order_chunked
+from .statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
+from .statistics.hankel_toeplitz import WindowStatistics, statistics_bytes
 
 __all__ = ["fit_chunked", "chunked_split_statistics"]
 

@@ -43,8 +43,7 @@ from ..models.statespace import StateSpaceModel
 from ..runtime.resources import require_memory
 from ..runtime.threads import single_blas_thread
 from .channels import channel_groups, stack_channel_models
-from .hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
-from .map_estimator import (
+from .map.posterior import (
     LS_RIDGE_STRENGTH,
     LS_SINGULAR_PIVOT,
     METHODS,
@@ -52,7 +51,9 @@ from .map_estimator import (
     map_posterior,
     singular_pivot,
 )
-from .realization import REALIZATIONS, realize
+from .realisation.era import REALIZATIONS, realize
+from .realisation.refinement import refinement_bytes
+from .realisation.theta_response import response_bytes
 from .records import (
     as_records,
     check_continuation,
@@ -62,7 +63,6 @@ from .records import (
     still_inputs,
     to_unit_rms,
 )
-from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
 from .selection import (
     SelectionTable,
@@ -72,8 +72,8 @@ from .selection import (
     select_order,
     split_statistics,
 )
-from .theta_response import response_bytes
-from .window_covariance import WindowLags, window_lags
+from .statistics.hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
+from .statistics.window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 

@@ -16,8 +16,8 @@ from .._errors import DataError
 from ..data.experiment import Experiment, as_experiments
 from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import WindowStatistics
-from .map_estimator import Posterior, regressor_scales
+from .map.posterior import Posterior, regressor_scales
+from .statistics.hankel_toeplitz import WindowStatistics
 
 __all__ = [
     "as_records",

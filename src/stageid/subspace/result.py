@@ -22,12 +22,12 @@ from ..display import html_repr, short_repr
 from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from ..runtime.threads import single_blas_thread
-from .map_estimator import Posterior
+from .map.posterior import Posterior
+from .realisation.theta_response import theta_response_std
+from .realisation.weighting import output_weights, weight_scales, weighted_theta
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
-from .theta_response import theta_response_std
-from .weighting import output_weights, weight_scales, weighted_theta
-from .window_covariance import WindowLags
+from .statistics.window_covariance import WindowLags
 
 __all__ = ["ChannelFit", "HankelMAPResult"]
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import IdentificationError
+from ..._errors import IdentificationError
 from .refinement import MULTI_START_MISFIT, REFINE_TOL, fit_cost, model_response, refine_frequency_fit
 from .theta_response import theta_frequency_response
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hankel_toeplitz import WindowStatistics, regressor_indices
-from .map_estimator import Prior, prior_identity_diagonal
+from ..map.posterior import Prior, prior_identity_diagonal
+from ..statistics.hankel_toeplitz import WindowStatistics, regressor_indices
 
 __all__ = [
     "distance_order",

@@ -39,17 +39,17 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .._errors import DataError
-from ..models.frequency_response import FrequencyResponse
-from ..models.statespace import StateSpaceModel
-from ..runtime.threads import single_blas_thread
+from ..._errors import DataError
+from ...models.frequency_response import FrequencyResponse
+from ...models.statespace import StateSpaceModel
+from ...runtime.threads import single_blas_thread
+from ..map.posterior import Posterior
+from ..realisation.era import realize
+from ..realisation.weighting import output_weights, weight_scales, weighted_theta
+from ..records import check_freqs
+from ..statistics.window_covariance import overlap_response_covariance, response_directions
 from .covariance_grid import GRID_PLACEMENTS, placed_grid
-from .map_estimator import Posterior
 from .realisation_bias import local_misfit_bias, misfit_noise
-from .realization import realize
-from .records import check_freqs
-from .weighting import output_weights, weight_scales, weighted_theta
-from .window_covariance import overlap_response_covariance, response_directions
 
 __all__ = [
     "UNCERTAINTY_METHODS",

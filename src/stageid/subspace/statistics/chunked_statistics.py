@@ -33,8 +33,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._errors import DataError
-from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
+from ..._errors import DataError
+from ...data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
 from .correlations import gram_from_lags, lag_correlations
 from .hankel_toeplitz import WindowStatistics
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hankel_toeplitz import WindowStatistics, row_residuals
-from .map_estimator import Posterior
+from ..map.posterior import Posterior
+from ..statistics.hankel_toeplitz import WindowStatistics, row_residuals
 
 __all__ = ["NOISE_STD_FLOOR", "output_weights", "noise_weights", "training_weights", "weight_scales", "weighted_theta"]
 

@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import IdentificationError
-from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
-from ..models.statespace import StateSpaceModel
-from .chunked_statistics import ColumnMoments
-from .map_estimator import Posterior
-from .realization import realize
-from .selection import SelectionTable, held_out_segments
-from .weighting import output_weights
+from ..._errors import IdentificationError
+from ...data.chunked import DEFAULT_CHUNK, ChunkedRecord
+from ...models.statespace import StateSpaceModel
+from ..map.posterior import Posterior
+from ..realisation.era import realize
+from ..realisation.weighting import output_weights
+from ..statistics.chunked_statistics import ColumnMoments
+from . import SelectionTable, held_out_segments
 
 __all__ = ["select_order_chunked"]
 

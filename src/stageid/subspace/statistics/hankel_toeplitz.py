@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .._errors import DataError
+from ..._errors import DataError
 from .correlations import RecordRows, gram_from_lags, input_periodogram, lag_correlations, range_ends, window_gram
 
 __all__ = [

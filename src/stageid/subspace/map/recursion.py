@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import DataError
+from ..._errors import DataError
 
 __all__ = ["recursive_map", "recursive_map_python", "run_recursion"]
 
@@ -61,7 +61,7 @@ def run_recursion(
     so the first ``d`` windows always run one at a time (as in :func:`_blocked`).
     """
     # numba loads with the kernels, only when a recursion runs (`stageid --help` stays fast)
-    from .map_kernels import DELAY, aligned_zeros, delayed_kernel, one_window_kernel
+    from .kernels import DELAY, aligned_zeros, delayed_kernel, one_window_kernel
 
     d = P.shape[0]
     rows = theta.shape[0]

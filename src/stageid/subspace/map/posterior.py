@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError
-from .hankel_toeplitz import WindowStatistics, regressor_indices
+from ..._errors import DataError, IdentificationError
+from ..statistics.hankel_toeplitz import WindowStatistics, regressor_indices
 
 __all__ = [
     "Prior",

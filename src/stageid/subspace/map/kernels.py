@@ -14,8 +14,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
-from ..runtime.unroll import written_out
+from ...runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
+from ...runtime.unroll import written_out
 
 __all__ = ["DELAY", "one_window_kernel", "delayed_kernel", "aligned_zeros"]
 

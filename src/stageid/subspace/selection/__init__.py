@@ -25,20 +25,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import DataError, IdentificationError
-from .correlations import RecordRows, input_periodogram, lag_correlations, range_ends, straddling_lags
-from .hankel_toeplitz import (
+from ..._errors import DataError, IdentificationError
+from ..map.posterior import Posterior, Prior, map_estimate
+from ..realisation.era import realize
+from ..realisation.weighting import noise_weights, output_weights
+from ..statistics.correlations import RecordRows, input_periodogram, lag_correlations, range_ends, straddling_lags
+from ..statistics.hankel_toeplitz import (
     WindowStatistics,
     lag_statistics,
     record_statistics,
     row_residuals,
     segments_statistics,
 )
-from .map_estimator import Posterior, Prior, map_estimate
+from ..statistics.window_covariance import WindowLags
 from .nested_horizons import lead_parts, nested_lead_parts
-from .realization import realize
-from .weighting import noise_weights, output_weights
-from .window_covariance import WindowLags
 
 __all__ = [
     "SelectionTable",

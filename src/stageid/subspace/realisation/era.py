@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import IdentificationError
-from ..models.statespace import StateSpaceModel
+from ..._errors import IdentificationError
+from ...models.statespace import StateSpaceModel
+from ..map.posterior import Posterior
+from ..statistics.hankel_toeplitz import split_theta
 from .frequency_domain import response_realization
-from .hankel_toeplitz import split_theta
-from .map_estimator import Posterior
 from .weighting import output_weights, weighted_theta
 
 __all__ = [

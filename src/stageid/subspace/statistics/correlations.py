@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from .._errors import DataError
+from ..._errors import DataError
 
 __all__ = [
     "lag_correlations",

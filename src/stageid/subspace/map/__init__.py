@@ -1,0 +1,1 @@
+"""Placeholder: the table of modules follows in the next commit."""
