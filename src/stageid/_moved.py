@@ -16,7 +16,7 @@ import importlib.machinery
 import sys
 from types import ModuleType
 
-__all__ = ["MOVED", "install"]
+__all__ = ["MOVED", "install_moved_paths"]
 
 # old dotted path -> new dotted path
 MOVED: dict[str, str] = {
@@ -29,6 +29,44 @@ MOVED: dict[str, str] = {
     "stageid.resources": "stageid.runtime.resources",
     "stageid.cluster": "stageid.runtime.cluster",
     "stageid.subspace.unroll": "stageid.runtime.unroll",
+    "stageid.hysteresis.operators": "stageid.hysteresis.models.operators",
+    "stageid.hysteresis.common": "stageid.hysteresis.models.common",
+    "stageid.hysteresis.pi": "stageid.hysteresis.models.pi",
+    "stageid.hysteresis.creep": "stageid.hysteresis.models.creep",
+    "stageid.hysteresis.preisach": "stageid.hysteresis.models.preisach",
+    "stageid.hysteresis.identification": "stageid.hysteresis.identify.pi",
+    "stageid.hysteresis.weights": "stageid.hysteresis.identify.weights",
+    "stageid.hysteresis.threshold_search": "stageid.hysteresis.identify.threshold_search",
+    "stageid.hysteresis.records": "stageid.hysteresis.identify.records",
+    "stageid.hysteresis.preisach_identification": "stageid.hysteresis.identify.preisach",
+    "stageid.hysteresis.weight_uncertainty": "stageid.hysteresis.identify.weight_uncertainty",
+    "stageid.hysteresis.closed_form": "stageid.hysteresis.inverse.closed_form",
+    "stageid.hysteresis.compensator": "stageid.hysteresis.inverse.compensator",
+    "stageid.hysteresis.preisach_inverse": "stageid.hysteresis.inverse.preisach",
+    "stageid.hysteresis.stage_identification": "stageid.hysteresis.stage.identification",
+    "stageid.hysteresis.stage_inverse": "stageid.hysteresis.stage.inverse",
+    "stageid.hysteresis.stage_problem": "stageid.hysteresis.stage.problem",
+    "stageid.hysteresis.stage_preisach": "stageid.hysteresis.stage.preisach",
+    "stageid.hysteresis.stage_selection": "stageid.hysteresis.stage.selection",
+    "stageid.hysteresis.stage_validation": "stageid.hysteresis.stage.validation",
+    "stageid.hysteresis.dynamics": "stageid.hysteresis.stage.dynamics",
+    "stageid.hysteresis.disturbance_modes": "stageid.hysteresis.stage.disturbance_modes",
+    "stageid.subspace.hankel_toeplitz": "stageid.subspace.statistics.hankel_toeplitz",
+    "stageid.subspace.correlations": "stageid.subspace.statistics.correlations",
+    "stageid.subspace.window_covariance": "stageid.subspace.statistics.window_covariance",
+    "stageid.subspace.chunked_statistics": "stageid.subspace.statistics.chunked_statistics",
+    "stageid.subspace.map_estimator": "stageid.subspace.map.posterior",
+    "stageid.subspace.recursion": "stageid.subspace.map.recursion",
+    "stageid.subspace.map_kernels": "stageid.subspace.map.kernels",
+    "stageid.subspace.realization": "stageid.subspace.realisation.era",
+    "stageid.subspace.frequency_domain": "stageid.subspace.realisation.frequency_domain",
+    "stageid.subspace.refinement": "stageid.subspace.realisation.refinement",
+    "stageid.subspace.weighting": "stageid.subspace.realisation.weighting",
+    "stageid.subspace.theta_response": "stageid.subspace.realisation.theta_response",
+    "stageid.subspace.chunked_order": "stageid.subspace.selection.chunked_order",
+    "stageid.subspace.nested_horizons": "stageid.subspace.selection.nested_horizons",
+    "stageid.subspace.covariance_grid": "stageid.subspace.uncertainty.covariance_grid",
+    "stageid.subspace.realisation_bias": "stageid.subspace.uncertainty.realisation_bias",
 }
 
 
@@ -51,7 +89,7 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         module.__spec__ = module.__spec__.loader_state
 
 
-def install() -> None:
+def install_moved_paths() -> None:
     """Put the finder first on ``sys.meta_path`` (once)."""
     if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
         sys.meta_path.insert(0, _MovedModules())

@@ -22,11 +22,25 @@ Modified PI: per-sample monotone inversion (eq. 5)
     on the bracket ``[x_prev, x_prev + (y_ref - F(x_prev)) / s]``.  On a piecewise-linear
     function a Newton step from the piece that holds the root lands on the root itself, so the
     iteration does not stop at a tolerance: it goes on until ``|F(x) - y_ref|`` is within the
-    rounding error of the computed F (:func:`~stageid.hysteresis.compensator.residual_bound`,
+    rounding error of the computed F (:func:`~stageid.hysteresis.inverse.compensator.residual_bound`,
     about ``4 (m + 2) 2**-53 sum|w| (|x| + max r)``), one step after it first reaches the
     right piece.  The drive is the exact root to rounding (it does not depend on how the
     iteration got there: any exact solver, e.g. the exported C, agrees with it to rounding).
     Drive limits clip ``x``, and the state follows the clipped input.
+
+This package, the inverse side of the letter (eq. 5, Fig. 9):
+
+=========================  ================================================================
+module                     what it holds
+=========================  ================================================================
+``__init__`` (here)        ``invert``: per-sample monotone inversion (eq. 5), re-exports
+                           the closed form
+:mod:`.closed_form`        the classical PI's inverse PI model (``pi_inverse``)
+:mod:`.compensator`        Fig. 9 feedforward: ``Compensator`` (streaming), ``compensate``
+                           (batch), ``CreepInverse``, ``residual_bound``
+:mod:`.preisach`           exact Preisach inverse: ``PreisachCompensator``,
+                           ``preisach_feedforward``
+=========================  ================================================================
 """
 
 from __future__ import annotations

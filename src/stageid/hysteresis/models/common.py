@@ -1,8 +1,9 @@
 """Helpers shared by the hysteresis models, their inverse and the compensator.
 
 The lowest module of :mod:`stageid.hysteresis` besides :mod:`.operators`: it imports no other
-module of the package, so models (:mod:`.pi`), inversion (:mod:`.inverse`) and compensation
-(:mod:`.compensator`) can all use it without importing each other.
+module of the package, so models (:mod:`.pi`), inversion (:mod:`stageid.hysteresis.inverse`)
+and compensation (:mod:`stageid.hysteresis.inverse.compensator`) can all use it without
+importing each other.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Rate-dependent stage model: drive -> hysteresis -> creep -> unit-DC-gain linear dynamics.
 
 ``y = y0 + G[h(u) + creep(u) - y0]`` where ``h`` is a PI or modified-PI model (its optional
-:class:`~stageid.hysteresis.creep.CreepTerm` is the creep stage) or a Preisach model (which
+:class:`~stageid.hysteresis.models.creep.CreepTerm` is the creep stage) or a Preisach model (which
 is rate independent: the stage holds its creep term), ``y0`` its output offset and
 ``G`` a discrete SISO :class:`~stageid.models.StateSpaceModel` with ``G(1) = 1`` (amplifier and
 mechanics), at rest at the first sample.  The unit DC gain keeps the hysteresis in the output's
@@ -12,7 +12,7 @@ JSON (``stageid.hysteresis/1``)::
     {"format": "stageid.hysteresis/1", "kind": "stage",
      "hysteresis": {... a pi / modified-pi model, creep included, or a preisach model ...},
      "dynamics": {... a stageid.lti/1 statespace model, discrete ...} | null,
-     "creep": {... see stageid.hysteresis.creep ...},   # optional; preisach hysteresis only
+     "creep": {... see stageid.hysteresis.models.creep ...},   # optional; preisach hysteresis only
      "disturbance_modes": [{"frequency_hz": f, "damping": z}, ...]}   # optional, see below
 
 ``disturbance_modes`` records which modes of ``dynamics`` the identification took from the
@@ -22,6 +22,24 @@ already, the list is a record of where they came from.
 The object composes with :mod:`stageid.models`: :attr:`StageModel.dynamics` is a plain
 ``StateSpaceModel`` (poles, frequency response, python-control conversion), and
 :meth:`StageModel.linear_response` runs it on any hysteresis output.
+
+This package, the rate-dependent stage (our extension of the letter):
+
+=============================  ==============================================================
+module                         what it holds
+=============================  ==============================================================
+``__init__`` (here)            ``StageModel`` (kind ``stage`` of the JSON format)
+:mod:`.dynamics`               unit-DC-gain discrete dynamics: fits and filtering
+:mod:`.disturbance_modes`      lightly damped modes from the records' disturbance spectrum
+:mod:`.identification`         ``StageIdentifier``, ``StageFit``: hysteresis first, then
+                               weights / creep / dynamics alternated; auto order and creep
+:mod:`.problem`                ``StageProblem``: that alternation for fixed thresholds (step 2)
+:mod:`.preisach`               step 2 with a Preisach hysteresis (``PreisachStageProblem``)
+:mod:`.selection`              held-out evidence for the order, the creep and the modes
+:mod:`.validation`             a stage model on a record that starts mid-history
+:mod:`.inverse`                offline stage feedforward (stable inversion, then the
+                               hysteresis inverse): ``stage_feedforward``
+=============================  ==============================================================
 """
 
 from __future__ import annotations

@@ -16,6 +16,18 @@ on data not used for the fit.  Here:
   model realised from the training segments (the smallest order within 0.1 % of the best);
 * both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
   std of each output), so that small noise-dominated coupling outputs do not decide.
+
+This package (section 3.2 of the paper):
+
+===========================  ================================================================
+module                       what it holds
+===========================  ================================================================
+``__init__`` (here)          ``select_horizon``, order selection, ``SelectionTable``,
+                             ``held_out_segments``
+:mod:`.nested_horizons`      held-out scores of every candidate horizon from one Cholesky
+                             factor
+:mod:`.chunked_order`        ``order="auto"`` on a record larger than memory
+===========================  ================================================================
 """
 
 from __future__ import annotations

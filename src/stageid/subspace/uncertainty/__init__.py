@@ -3,23 +3,24 @@
 :meth:`HankelMAPResult.response_bands` gives the posterior spread of the eq. 9 response; the
 model a user takes away is the ``order``-state realisation of that response (the frequency
 route: an output-error fit of ``C (zI - A)^-1 B + D`` to the eq. 9 response on the band's
-grid, :mod:`.frequency_domain`, :mod:`.refinement`).  Two ways carry the posterior there:
+grid, :mod:`~stageid.subspace.realisation.frequency_domain`,
+:mod:`~stageid.subspace.realisation.refinement`).  Two ways carry the posterior there:
 
 * ``"delta"`` (first order, the default for the frequency route with refinement): the
   realisation is the weighted least-squares fit ``min sum_k ||(G_model(z_k) - G_9(z_k)) / s_j||^2``
-  (``s_j`` the column scale of :func:`~.frequency_domain.response_realization`), so to first
+  (``s_j`` the column scale of :func:`~stageid.subspace.realisation.frequency_domain.response_realization`), so to first
   order a perturbation ``dG_9`` of the eq. 9 response moves the model's parameters by
   ``dx = J^+ dG_9`` (``J`` the Jacobian of the model's response in ``A, B, C, D``; the
   pseudo-inverse drops the ``n^2`` similarity directions, which do not change the response)
   and its response anywhere by ``J(f) dx``.  ``dG_9 = L^+ dtheta V(z)`` (first order in the
   block-row equations of eq. 9, as in ``theta_response_std``); the covariance of ``dG_9``
   across the whole grid, and so ``Cov(dx)``, is the one the least-squares coefficients have
-  under overlapping windows (:mod:`.window_covariance`, from lag statistics the fit keeps), or,
+  under overlapping windows (:mod:`~stageid.subspace.statistics.window_covariance`, from lag statistics the fit keeps), or,
   when the fit kept none (``update``, forgetting, records shorter than ``8 p``), the
   matrix-normal ``p P (x) Sigma`` (``P`` times ``p`` for the overlap, as in ``response_bands``:
   a rough allowance, ~1.4x too wide in std on some stages);
 * ``"sampling"``: draws of ``theta`` from that posterior, each realised by the very route
-  and order of the fit (:func:`~.realization.realize`), the spread of their responses
+  and order of the fit (:func:`~stageid.subspace.realisation.era.realize`), the spread of their responses
   around the identified one.  Slower; for ``realization="markov"`` (Lemma 1, not a
   least-squares fit on a grid) and ``refine=False`` it is the default.
 
@@ -30,6 +31,18 @@ column ``j`` is the ``j``-th sub-model's, with its own posterior.  The realisati
 response beyond its noise expectation, where it is significant (:mod:`.realisation_bias`).
 The bias of the eq. 9 estimate itself (noisy past outputs as regressors, a finite horizon) is
 not counted (measured in ``studies/uncertainty/RESULTS.md``).
+
+This package:
+
+===========================  ================================================================
+module                       what it holds
+===========================  ================================================================
+``__init__`` (here)          ``realised_response_uncertainty`` (delta method or draws),
+                             ``model_jacobian``, ``response_std``
+:mod:`.covariance_grid`      where the realised model's covariance is formed: a few of the
+                             realisation's frequencies
+:mod:`.realisation_bias`     the realisation's misfit beyond its noise (``bias="local"``)
+===========================  ================================================================
 """
 
 from __future__ import annotations
@@ -316,7 +329,7 @@ def channel_delta_std(
     """``"delta"``: std of the realised response of one channel fit at ``freqs`` (data units).
 
     ``overlap``: ``"exact"`` takes the eq. 9 covariance under overlapping windows
-    (:mod:`.window_covariance`, from the lag statistics the fit kept); ``"inflate"`` the
+    (:mod:`~stageid.subspace.statistics.window_covariance`, from the lag statistics the fit kept); ``"inflate"`` the
     matrix-normal ``p P (x) Sigma`` (windows counted as independent, ``P`` times ``p`` for their
     overlap: a rough allowance); ``"auto"`` the first when the fit kept its lag statistics (not
     after ``update``, with forgetting, or on records shorter than ``8 p``).  ``bias``: ``"local"``
