@@ -10,7 +10,7 @@ from _subspace_systems import band_limited, random_stage, record
 from stageid._errors import DataError
 from stageid.models import StateSpaceModel
 from stageid.subspace import HankelMAP
-from stageid.subspace.uncertainty.covariance_grid import even_indices, placed_grid, quadrature_weights, resonances
+from stageid.subspace.uncertainty.grid_placement import even_indices, placed_grid, quadrature_weights, resonances
 from stageid.subspace.uncertainty.realisation_bias import local_misfit_bias
 
 

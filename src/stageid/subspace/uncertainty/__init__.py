@@ -61,7 +61,7 @@ from ..realisation.era import realize
 from ..realisation.weighting import output_weights, weight_scales, weighted_theta
 from ..records import check_freqs
 from ..statistics.window_covariance import overlap_response_covariance, response_directions
-from .covariance_grid import GRID_PLACEMENTS, placed_grid
+from .grid_placement import GRID_PLACEMENTS, placed_grid
 from .realisation_bias import local_misfit_bias, misfit_noise
 
 __all__ = [
