@@ -65,7 +65,7 @@ MOVED: dict[str, str] = {
     "stageid.subspace.theta_response": "stageid.subspace.realisation.theta_response",
     "stageid.subspace.chunked_order": "stageid.subspace.selection.chunked_order",
     "stageid.subspace.nested_horizons": "stageid.subspace.selection.nested_horizons",
-    "stageid.subspace.covariance_grid": "stageid.subspace.uncertainty.covariance_grid",
+    "stageid.subspace.covariance_grid": "stageid.subspace.uncertainty.grid_placement",
     "stageid.subspace.realisation_bias": "stageid.subspace.uncertainty.realisation_bias",
 }
 

@@ -39,7 +39,7 @@ module                       what it holds
 ===========================  ================================================================
 ``__init__`` (here)          ``realised_response_uncertainty`` (delta method or draws),
                              ``model_jacobian``, ``response_std``
-:mod:`.covariance_grid`      where the realised model's covariance is formed: a few of the
+:mod:`.grid_placement`       where the realised model's covariance is formed: a few of the
                              realisation's frequencies
 :mod:`.realisation_bias`     the realisation's misfit beyond its noise (``bias="local"``)
 ===========================  ================================================================
@@ -84,7 +84,7 @@ DEFAULT_SAMPLES = 40
 MAX_COVARIANCE_ENTRIES = 300
 #: For the covariance under overlapping windows (``overlap="exact"``): at most this many
 #: frequencies times ``max(q, m)``; the cost grows with its square.  Where they go is
-#: :mod:`.covariance_grid` (``grid``): placed at the lightly damped modes they reproduce the
+#: :mod:`.grid_placement` (``grid``): placed at the lightly damped modes they reproduce the
 #: fit's full grid far better than evenly (``studies/uncertainty/RESULTS.md``).
 MAX_OVERLAP_COLUMNS = 72
 #: Frequencies per block where a Jacobian over many frequencies is formed.
@@ -335,7 +335,7 @@ def channel_delta_std(
     after ``update``, with forgetting, or on records shorter than ``8 p``).  ``bias``: ``"local"``
     adds the realisation's misfit beyond its noise (:mod:`.realisation_bias`), ``"none"`` not.
     ``grid`` (``"exact"`` only): where the covariance is formed, ``"modes"`` (more points at the
-    realised model's lightly damped modes) or ``"even"`` (:mod:`.covariance_grid`).
+    realised model's lightly damped modes) or ``"even"`` (:mod:`.grid_placement`).
     """
     post = ch.scaled_posterior
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
@@ -437,7 +437,7 @@ def realised_response_uncertainty(
         significant (:mod:`.realisation_bias`); ``none`` the propagated scatter alone.
     grid : {"modes", "even"}
         ``delta`` with the exact covariance: its frequencies placed at the realised model's
-        lightly damped modes and evenly between, or evenly (:mod:`.covariance_grid`).
+        lightly damped modes and evenly between, or evenly (:mod:`.grid_placement`).
 
     Raises
     ------
