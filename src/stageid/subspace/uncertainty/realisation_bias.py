@@ -51,7 +51,7 @@ def local_misfit_bias(
     averaged over ``LOCAL_WINDOW`` of the grid on either side, clipped at zero and interpolated
     to ``freqs``; outside the grid the larger of the nearest edge's value and the grid's mean.
     Shape (n_freqs, q, m).  ``weights`` (the quadrature weights of an uneven grid,
-    :mod:`.covariance_grid`): the window is then ``LOCAL_WINDOW`` of the band on either side in
+    :mod:`.grid_placement`): the window is then ``LOCAL_WINDOW`` of the band on either side in
     frequency, the average weighted, and the significance test is on the weighted sums with
     Satterthwaite's degrees of freedom ``2 (sum w n)^2 / sum (w n)^2``; None: ``LOCAL_WINDOW`` of
     the points, unweighted, two degrees of freedom per point (the former rule)."""
