@@ -8,7 +8,7 @@ import pytest
 from stageid._errors import ModelError, ModelFormatError, ParameterError
 from stageid.hysteresis import Compensator, ModifiedPIModel, PIIdentifier, PIModel, invert, pi_inverse
 from stageid.hysteresis.models.creep import CreepTerm
-from stageid.hysteresis.serialization import model_from_dict
+from stageid.hysteresis.models.serialization import model_from_dict
 from stageid.models.serialization import dumps
 from stageid.signals import decaying_triangle
 

@@ -9,7 +9,7 @@ from stageid import DataError, ModelFormatError
 from stageid.hysteresis.identify.preisach import PreisachIdentifier, cell_regressors
 from stageid.hysteresis.kernels.preisach import cells_reference
 from stageid.hysteresis.models.preisach import PreisachModel, demagnetizing_input, everett, everett_output
-from stageid.hysteresis.serialization import model_from_dict
+from stageid.hysteresis.models.serialization import model_from_dict
 
 
 def _random_model(seed, n=7):

@@ -6,7 +6,6 @@ import pytest
 from _subspace_systems import random_stage, record
 from stageid._errors import DataError
 from stageid.subspace.map.posterior import batch_posterior
-from stageid.subspace.realisation.theta_response import response_systems, theta_frequency_response
 from stageid.subspace.statistics.correlations import lag_correlations
 from stageid.subspace.statistics.hankel_toeplitz import (
     dense_regression,
@@ -14,6 +13,7 @@ from stageid.subspace.statistics.hankel_toeplitz import (
     regressor_indices,
     window_statistics,
 )
+from stageid.subspace.statistics.theta_response import response_systems, theta_frequency_response
 
 
 @pytest.mark.parametrize(

@@ -45,7 +45,7 @@ from .._errors import ModelError, ModelFormatError
 from ..checks import is_real, shown
 from ..data.experiment import Experiment
 from ..hysteresis.models.pi import ModifiedPIModel
-from ..hysteresis.serialization import register_kind
+from ..hysteresis.models.serialization import register_kind
 from ..hysteresis.stage.dynamics import zoh_resonance
 from . import experiment_seed, noise_entropy
 

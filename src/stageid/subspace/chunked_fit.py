@@ -33,13 +33,13 @@ from ..runtime.threads import single_blas_thread
 from .map.posterior import METHODS, map_posterior
 from .realisation.era import realize
 from .realisation.refinement import refinement_bytes
-from .realisation.theta_response import response_bytes
 from .records import excited_band
 from .result import ChannelFit, HankelMAPResult
 from .selection import held_out_segments, horizon_candidates, select_horizon
 from .selection.chunked_order import select_order_chunked
 from .statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .statistics.hankel_toeplitz import WindowStatistics, statistics_bytes
+from .statistics.theta_response import response_bytes
 
 __all__ = ["fit_chunked", "chunked_split_statistics"]
 

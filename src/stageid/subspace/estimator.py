@@ -53,7 +53,6 @@ from .map.posterior import (
 )
 from .realisation.era import REALIZATIONS, realize
 from .realisation.refinement import refinement_bytes
-from .realisation.theta_response import response_bytes
 from .records import (
     as_records,
     check_continuation,
@@ -73,6 +72,7 @@ from .selection import (
     split_statistics,
 )
 from .statistics.hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
+from .statistics.theta_response import response_bytes
 from .statistics.window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]

@@ -23,10 +23,10 @@ from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from ..runtime.threads import single_blas_thread
 from .map.posterior import Posterior
-from .realisation.theta_response import theta_response_std
 from .realisation.weighting import output_weights, weight_scales, weighted_theta
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
+from .statistics.theta_response import theta_response_std
 from .statistics.window_covariance import WindowLags
 
 __all__ = ["ChannelFit", "HankelMAPResult"]

@@ -233,7 +233,7 @@ class PreisachModel:
     @classmethod
     def from_dict(cls, d: dict) -> PreisachModel:
         """Build from the ``stageid.hysteresis/1`` dict of kind ``"preisach"`` (entry point)."""
-        from ..serialization import number, numbers
+        from .serialization import number, numbers
 
         keys = {"format", "kind", "density", "inputs", "outputs", "input_range", "n_levels", "weights"}
         keys |= {"output_offset", "state", "input_limits"}

@@ -262,7 +262,7 @@ class StageModel:
     def from_dict(cls, d: Any) -> StageModel:
         """Inverse of :meth:`to_dict`; :class:`ModelFormatError` names the malformed field."""
         from ...models.serialization import lti_from_dict
-        from ..serialization import model_from_dict
+        from ..models.serialization import model_from_dict
 
         keys = {"format", "kind", "hysteresis", "dynamics", "creep", "disturbance_modes"}
         if not isinstance(d, dict) or set(d) - keys or "hysteresis" not in d:

@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import IdentificationError
+from ..statistics.theta_response import theta_frequency_response
 from .refinement import MULTI_START_MISFIT, REFINE_TOL, fit_cost, model_response, refine_frequency_fit
-from .theta_response import theta_frequency_response
 
 __all__ = [
     "frequency_realization",

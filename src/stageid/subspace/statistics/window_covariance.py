@@ -41,9 +41,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..realisation.theta_response import response_systems
 from .correlations import RecordRows, lag_correlations, range_ends
 from .hankel_toeplitz import WindowStatistics, lag_statistics, regressor_indices
+from .theta_response import response_systems
 
 __all__ = [
     "WindowLags",

@@ -32,12 +32,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from .._errors import ModelError, ModelFormatError
-from ..checks import is_real, shown
-from ..plugins import HYSTERESIS_KINDS, declared, load_object
-from .models.creep import CreepTerm
-from .models.operators import OperatorState
-from .models.pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
+from ..._errors import ModelError, ModelFormatError
+from ...checks import is_real, shown
+from ...plugins import HYSTERESIS_KINDS, declared, load_object
+from .creep import CreepTerm
+from .operators import OperatorState
+from .pi import HYSTERESIS_FORMAT, ModifiedPIModel, PIModel
 
 __all__ = ["model_from_dict", "register_kind", "numbers", "number"]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..statistics.hankel_toeplitz import split_theta
+from .hankel_toeplitz import split_theta
 
 __all__ = ["response_bytes", "response_systems", "theta_frequency_response", "theta_response_std"]
 
