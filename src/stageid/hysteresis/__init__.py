@@ -44,9 +44,9 @@ Sub-packages and modules, from the letter's sections down (each imports only the
                                  weight covariance, ``PreisachIdentifier``
 :mod:`.inverse`                  eq. 5 and Fig. 9: ``invert`` (per sample), the classical PI's
                                  closed form, the compensators, the exact Preisach inverse
-:mod:`.serialization`            the ``stageid.hysteresis/1`` JSON format, ``register_kind``
 :mod:`.models`                   eq. 1-4: play and coupled-play operators, ``PIModel``,
-                                 ``ModifiedPIModel``, ``CreepTerm``, ``PreisachModel``
+                                 ``ModifiedPIModel``, ``CreepTerm``, ``PreisachModel``, and the
+                                 ``stageid.hysteresis/1`` JSON format (``serialization``)
 :mod:`.kernels`                  the compiled loops (numba), imported on first use
 :mod:`.metrics`                  the letter's error and hysteresis measures
 ===============================  ==================================================================

@@ -9,12 +9,13 @@ named function:
 ``statistics``           2.1 eq. 9: ``hankel_toeplitz`` (the model, its normal equations,
                          ``theta`` split of eq. 16), ``correlations`` (window Gram matrix from
                          lag correlations), ``window_covariance`` (the lags a fit keeps),
+                         ``theta_response`` (the eq. 9 model's frequency response),
                          ``chunked_statistics`` (records larger than memory)
 ``map``                  2.3 MAP online estimation, eq. 16-18: ``posterior`` (prior,
                          posterior, ``METHODS``), ``recursion`` (sample by sample),
                          ``kernels`` (compiled)
 ``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
-                         routes), ``theta_response``, ``frequency_domain`` (the frequency
+                         routes), ``frequency_domain`` (the frequency
                          route), ``refinement``, ``weighting``
 ``selection``            3.2 choice of p and of the order by held-out prediction error;
                          ``nested_horizons``, ``chunked_order``

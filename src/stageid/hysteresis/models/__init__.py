@@ -7,9 +7,12 @@ module                what it holds
 :mod:`.pi`            eq. 4: ``PIModel`` (classical) and ``ModifiedPIModel``
 :mod:`.creep`         ``CreepTerm``: linear creep as first-order lags of the input (our extension)
 :mod:`.preisach`      ``PreisachModel`` (uniform cells on a triangular grid), ``everett``
+:mod:`.serialization`  the ``stageid.hysteresis/1`` JSON format, ``model_from_dict``,
+                      ``register_kind`` (kinds of higher packages load by name)
 :mod:`.common`        input and state checks shared by the models, inverses and compensator
 ====================  ==================================================================
 
-Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi``, ``preisach``.  The compiled loops
-are :mod:`stageid.hysteresis.kernels`; the JSON format is :mod:`stageid.hysteresis.serialization`.
+Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi`` -> ``serialization`` (``preisach``
+calls its number helpers when it writes itself).  The compiled loops are
+:mod:`stageid.hysteresis.kernels`.
 """

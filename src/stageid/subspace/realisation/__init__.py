@@ -5,7 +5,6 @@ module                       what it holds
 ===========================  ================================================================
 :mod:`.era`                  H0 (eq. 10), H_i (eq. 12), H(0)/H(1) (eq. 14), Lemma 1 (eq. 15,
                              ``era``); ``realize`` picks the route by name (``REALIZATIONS``)
-:mod:`.theta_response`       the eq. 9 model's frequency response (and its posterior spread)
 :mod:`.frequency_domain`     the frequency route: that response over the excited band,
                              realised (frequency counterpart of Lemma 1), two starts
 :mod:`.refinement`           output-error refinement of a realisation on that response

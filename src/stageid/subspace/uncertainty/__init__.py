@@ -53,13 +53,13 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..._errors import DataError
+from ...checks import check_freqs
 from ...models.frequency_response import FrequencyResponse
 from ...models.statespace import StateSpaceModel
 from ...runtime.threads import single_blas_thread
 from ..map.posterior import Posterior
 from ..realisation.era import realize
 from ..realisation.weighting import output_weights, weight_scales, weighted_theta
-from ..records import check_freqs
 from ..statistics.window_covariance import overlap_response_covariance, response_directions
 from .grid_placement import GRID_PLACEMENTS, placed_grid
 from .realisation_bias import local_misfit_bias, misfit_noise
