@@ -1,4 +1,4 @@
-"""Closed-loop uncertainty (issue 20): PEM parameter covariance and its propagation to the plant."""
+"""Closed-loop uncertainty: PEM parameter covariance and its propagation to the plant."""
 
 from __future__ import annotations
 
@@ -109,7 +109,7 @@ def test_response_uncertainty_refuses_bad_grids_and_missing_covariance() -> None
 
 @pytest.mark.slow
 def test_siso_bands_are_calibrated_over_seeds() -> None:
-    """20 noise seeds of an unstable SISO loop: the 1.73-std band covers 85-99 % (issue 20, point 3)."""
+    """20 noise seeds of an unstable SISO loop: the 1.73-std band covers 85-99 %."""
     f = np.geomspace(20.0, 300.0, 60)
     Gt = G_SISO.frequency_response(f)[:, 0, 0]
     hits, z2 = [], []

@@ -292,7 +292,7 @@ def test_cli_creep_flag(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_piezo_forc_records_with_creep():
-    """Issue 5, point 7: identified on the 20 Hz FORC record only, <= 2 % max error there and a
+    """Identified on the 20 Hz FORC record only, <= 2 % max error there and a
     better 40 Hz prediction than without creep (studies/hysteresis/RESULTS.md section 2)."""
     from _dspace_records import dspace_record
     from stageid.hysteresis import align_record, max_error_percent

@@ -1,4 +1,4 @@
-"""Weight uncertainty of the PI models (issue 20, point 4): calibration on data with known weights."""
+"""Weight uncertainty of the PI models calibration on data with known weights."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Lightly damped modes taken from the disturbance of the identification records (issue 16).
+"""Lightly damped modes taken from the disturbance of the identification records.
 
 The simulated stage: a Preisach actuator, then a resonance; a white disturbance enters before
 the resonance (amplifier noise), white sensor noise after it.  The drives are slow decaying

@@ -1,4 +1,4 @@
-"""Where the realised Hankel-MAP model's covariance is formed (stageid.subspace.covariance_grid), issue 20."""
+"""Where the realised Hankel-MAP model's covariance is formed (stageid.subspace.uncertainty.grid_placement)."""
 
 from __future__ import annotations
 

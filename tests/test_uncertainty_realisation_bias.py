@@ -1,5 +1,5 @@
-"""The realised Hankel-MAP bands: the realisation-misfit bias term (stageid.subspace.realisation_bias) and
-the propagation to the model's response (stageid.subspace.uncertainty.response_std), issue 20."""
+"""The realised Hankel-MAP bands: the realisation-misfit bias term (stageid.subspace.uncertainty.realisation_bias) and
+the propagation to the model's response (stageid.subspace.uncertainty.response_std)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The eq. 9 covariance under overlapping windows (stageid.subspace.window_covariance, issue 20)."""
+"""The eq. 9 covariance under overlapping windows (stageid.subspace.statistics.window_covariance)."""
 
 from __future__ import annotations
 

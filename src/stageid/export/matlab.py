@@ -93,7 +93,7 @@ def mat_variables(model: Any, dt: float | None = None, method: str | None = None
             out["num"], out["den"] = _polynomials(model, "num"), _polynomials(model, "den")
     elif isinstance(model, (PIModel, ModifiedPIModel)):
         if method is not None or dt is not None:
-            raise ModelError("--dt/--method discretise a continuous LTI model; got a hysteresis model.")
+            raise ModelError("`dt=`/`method=` discretise a continuous LTI model; got a hysteresis model.")
         out = {"hysteresis": _matlab_value(model.to_dict())}
     else:
         raise ModelError(

@@ -58,7 +58,7 @@ def chunked_cross_spectra(
     if n < segment:
         raise DataError(
             f"record '{record.name or 'data'}' has {n} samples, fewer than one segment of {segment}; "
-            "give a shorter --segment."
+            "give a shorter `segment=`."
         )
     n_seg = (n - segment) // step + 1
     per_task = max(1, chunk // step)

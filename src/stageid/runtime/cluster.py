@@ -53,7 +53,7 @@ _ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?$")
 def check_scheduler_address(address: str) -> str:
     """The scheduler address, or a :class:`ParameterError` naming the expected form."""
     if not isinstance(address, str) or not _ADDRESS.match(address.strip()):
-        raise ParameterError(f"--scheduler must look like tcp://HOST:PORT; got {address!r}.")
+        raise ParameterError(f"a scheduler address must look like tcp://HOST:PORT; got {address!r}.")
     return address.strip()
 
 

@@ -51,7 +51,7 @@ def _check_settings(est, record: ChunkedRecord) -> None:
     if est.per_channel:
         raise DataError(
             "per-channel identification needs one record per excited input; a chunked record is one "
-            "record: drop --per-channel."
+            "record: drop `per_channel=True`."
         )
     if est.forgetting != 1.0:
         raise DataError(f"forgetting is not available for chunked records; got {est.forgetting}, expected 1.")
