@@ -204,4 +204,4 @@ def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CH
         "stable": bool(stable),
         "warnings": notes,
     }
-    return HankelMAPResult(model, (fit,), est, diagnostics, su.copy(), sy.copy())
+    return HankelMAPResult(model, (fit,), est.clone(), diagnostics, su.copy(), sy.copy())

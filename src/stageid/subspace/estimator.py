@@ -265,7 +265,9 @@ class HankelMAP(Estimator):
                 StabilityWarning,
                 stacklevel=4,  # the caller of fit / update (past the BLAS-thread wrapper)
             )
-        return HankelMAPResult(model, tuple(fits), self, _diagnostics(fits, stable, notes), su.copy(), sy.copy())
+        return HankelMAPResult(
+            model, tuple(fits), self.clone(), _diagnostics(fits, stable, notes), su.copy(), sy.copy()
+        )
 
     def _fit_channel(
         self,

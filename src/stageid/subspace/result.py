@@ -79,7 +79,8 @@ class HankelMAPResult:
         ``scaled_posterior`` is the one the fit worked with (every channel divided by
         ``input_scale`` / ``output_scale``), which :meth:`update` continues.
     estimator : HankelMAP
-        The configuration that produced this result (used by :meth:`update`).
+        A copy of the configuration that produced this result, taken at the fit (used by
+        :meth:`update`): settings changed on the original estimator afterwards do not leak in.
     diagnostics : dict
         ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings`` (texts).
     input_scale, output_scale : ndarray of shape (n_inputs,) and (n_outputs,)
