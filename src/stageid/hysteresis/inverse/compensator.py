@@ -183,6 +183,45 @@ class Compensator:
     def _clip(self, u: float) -> float:
         return u if self.limits is None else min(max(u, self.limits[0]), self.limits[1])
 
+    @property
+    def solves_per_sample(self) -> bool:
+        """True for a modified-PI model without creep: each drive is a per-sample root solve
+        (a classical PI uses its closed-form inverse model, a creep model delegates)."""
+        return self._creep is None and self._inverse is None
+
+    def run_under_creep(
+        self, yr: np.ndarray, creep: tuple[np.ndarray, np.ndarray, np.ndarray], u_prev: float, g: float, tol: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled loop of :class:`CreepInverse` with this (per-sample) compensator inside.
+
+        ``creep`` is the creep lags' ``(a, ca, state)``; ``u_prev`` the last drive, ``g`` the
+        gain and ``tol`` the tolerance of the fixed point on the creep excess.  Continues and
+        updates this compensator's operator state; returns the drives and the lags' new state.
+        Only for :attr:`solves_per_sample` compensators.
+        """
+        a, ca, s = creep
+        u, z, x, s = self._k.cp_invert_creep(
+            yr,
+            self._P,
+            self._z,
+            self._x,
+            self._lo,
+            self._hi,
+            self._smin,
+            self._err_w,
+            self._err_r,
+            float(self.model.output_offset),
+            float(self.model.input_offset),
+            a,
+            ca,
+            s,
+            float(u_prev),
+            float(g),
+            float(tol),
+        )
+        self._z, self._x = z, float(x)
+        return u, s
+
 
 def compensate(
     model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None
@@ -389,40 +428,12 @@ class CreepInverse:
 
     @property
     def _compiled(self) -> bool:
-        inner = self._inner
-        return (
-            self._folded
-            and inner._creep is None
-            and inner._inverse is None
-            and getattr(self.model, "input_warp", 0.0) == 0.0
-        )
+        return self._folded and self._inner.solves_per_sample and getattr(self.model, "input_warp", 0.0) == 0.0
 
     def _run_compiled(self, yr: np.ndarray) -> np.ndarray:
         """:meth:`step` for every sample of ``yr`` in one compiled loop (state not fresh)."""
-        from .. import kernels  # numba: imported on first use
-
         if not yr.size:
             return yr.copy()
-        inner = self._inner
-        u, z, x, s = kernels.cp_invert_creep(
-            yr,
-            inner._P,
-            inner._z,
-            inner._x,
-            inner._lo,
-            inner._hi,
-            inner._smin,
-            inner._err_w,
-            inner._err_r,
-            float(self.model.output_offset),
-            float(self.model.input_offset),
-            self._a,
-            self._ca,
-            self._s,
-            float(self._u_prev),
-            float(self._g),
-            float(self._tol),
-        )
-        inner._z, inner._x, self._s = z, float(x), s
+        u, self._s = self._inner.run_under_creep(yr, (self._a, self._ca, self._s), self._u_prev, self._g, self._tol)
         self._u_prev = float(u[-1])
         return u
