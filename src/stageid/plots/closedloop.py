@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import loglog, subplots
+from .style import loglog, subplots
 
 __all__ = ["plot_plant_bode", "plot_closed_loop_bode", "plot_pole_zero", "plot_reclosed_loop"]
 

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ._style import loglog, positive, subplots
+from .style import loglog, positive, subplots
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 

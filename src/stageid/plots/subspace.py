@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import figure, loglog, positive
+from .style import figure, loglog, positive
 
 __all__ = ["bode_with_bands", "selection_plot", "error_curve"]
 

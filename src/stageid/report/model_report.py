@@ -207,7 +207,7 @@ def hysteresis_model_report(
     on each simulated loop (:func:`~stageid.report.uncertainty.loop_band_figure`) and reports its
     half-width and how much of the record it holds.
     """
-    from ..plots._style import subplots
+    from ..plots.style import subplots
     from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)

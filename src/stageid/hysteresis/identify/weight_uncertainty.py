@@ -257,7 +257,7 @@ def plot_loop_band(
     right: the band's half-width along the record beside the model's error when ``y`` is given.
     Returns a matplotlib figure (Agg-safe).
     """
-    from ...plots._style import subplots
+    from ...plots.style import subplots
 
     uu = np.asarray(u, dtype=float).reshape(-1)
     yh, s = uncertainty.output_band(model, uu, dt)
