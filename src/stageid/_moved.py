@@ -22,6 +22,7 @@ __all__ = ["MOVED", "install_moved_paths"]
 MOVED: dict[str, str] = {
     "stageid.frf.frd": "stageid.models.frequency_response",
     "stageid.frf.plotting": "stageid.plots.frf",
+    "stageid.plots._style": "stageid.plots.style",
     "stageid.simd": "stageid.runtime.simd",
     "stageid.numba_cache": "stageid.runtime.numba_cache",
     "stageid._threads": "stageid.runtime.threads",

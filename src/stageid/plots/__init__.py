@@ -8,7 +8,7 @@
 
 Method-specific figures live beside these: ``plots.frf`` (a measured FRF with its std band
 and coherence, ``FrequencyResponse.plot``), ``plots.subspace``, ``plots.closedloop``,
-``plots.hysteresis``, ``plots.records``, ``plots.residuals``; ``plots._style`` holds the
+``plots.hysteresis``, ``plots.records``, ``plots.residuals``; ``plots.style`` holds the
 shared axes helpers.
 """
 
