@@ -128,7 +128,7 @@ def _experiments(model, data, inputs, outputs, ts):
 
 
 def _initial_conditions(model, experiments, initial: str):
-    """Per record, :func:`~stageid.hysteresis.stage_validation.validate_record` (None for ``model``)."""
+    """Per record, :func:`~stageid.hysteresis.stage.validation.validate_record` (None for ``model``)."""
     if initial == "model":
         return None
     from ..hysteresis.stage.validation import validate_record

@@ -7,7 +7,7 @@ mode goes unfitted; a start far from the data's poles), so :func:`fit_at_order` 
 several fits that fail in different ways (:func:`fit_starts`: McKelvey, Akcay & Ljung 1996
 subspace realisations, their balanced truncations, vector fitting), refines each by
 Levenberg-Marquardt until a step lowers the cost by less than ``REFINE_TOL`` of it
-(:func:`stageid.subspace.refinement.refine_frequency_fit`), keeps the lowest, and then tries
+(:func:`stageid.subspace.realisation.refinement.refine_frequency_fit`), keeps the lowest, and then tries
 mode exchanges (:mod:`.mode_exchange`) while they lower it further.
 """
 

@@ -157,7 +157,7 @@ class PiezoActuator:
     def from_dict(cls, d: dict) -> PiezoActuator:
         """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field.
 
-        Registered with :func:`stageid.hysteresis.serialization.register_kind` for the kind
+        Registered with :func:`stageid.hysteresis.models.serialization.register_kind` for the kind
         ``"piezo-actuator"``; every parameter is a JSON number, a list of two, or null.
         """
         params = d.get("parameters")

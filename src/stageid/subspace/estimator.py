@@ -133,7 +133,7 @@ class HankelMAP(Estimator):
     The fit works on channels scaled to unit RMS (each input and output divided by its RMS
     over the records, after the mean removal) and scales the model back: the identified
     poles and frequency response do not depend on the units of the data.  The realisation and
-    the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.weighting`): each
+    the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.realisation.weighting`): each
     output multiplied by the inverse of its noise standard deviation, estimated from the
     eq. 9 residual, the weight undone on ``C`` and ``D``; for the horizon, the noise of the
     largest candidate's training residual on the scored block rows.  A small coupling output that is mostly sensor

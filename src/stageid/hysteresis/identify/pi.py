@@ -37,7 +37,7 @@ Procedure (the letter's, made explicit):
    otherwise the kind with the smallest residual.
 
 5. **Creep** (optional, ``creep_time_constants``; our extension): the lags
-   ``lowpass_{tau_j}(u)`` of :mod:`.creep` (at rest at each record's first input) are extra
+   ``lowpass_{tau_j}(u)`` of :mod:`~stageid.hysteresis.models.creep` (at rest at each record's first input) are extra
    columns of the same least-squares problem, with ``c_j >= 0``, so the weights, offsets and
    creep weights are fitted jointly and the threshold search of step 3 sees the creep.  The
    ``"auto"`` starting states are still chosen by the fit *without* creep: a lag at rest at
@@ -201,7 +201,7 @@ class PIIdentifier(Estimator):
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
     creep_time_constants : sequence of float, optional
-        Time constants [s] of a linear creep term (:class:`~stageid.hysteresis.creep.CreepTerm`)
+        Time constants [s] of a linear creep term (:class:`~stageid.hysteresis.models.creep.CreepTerm`)
         fitted jointly with the weights (``c_j >= 0``); default none (rate independent).
     sample_time : float, optional
         Sampling period [s] for ``(u, y)`` records when creep is fitted (Experiments carry
@@ -212,7 +212,7 @@ class PIIdentifier(Estimator):
         outside the identified input range; changes the fit by < 0.1 % of range on the data we
         tried).
     weight_uncertainty : {"none", "auto", "sandwich", "bootstrap"}, default "none"
-        Covariance of the weights on the result (:mod:`~stageid.hysteresis.weight_uncertainty`):
+        Covariance of the weights on the result (:mod:`~stageid.hysteresis.identify.weight_uncertainty`):
         "auto" is the block-robust sandwich unless a bound is active, then 200 bootstrap refits.
 
     Notes

@@ -150,7 +150,7 @@ def weight_uncertainty(
     n_draws: int = 200,
     seed: int = 0,
 ) -> WeightUncertainty:
-    """Covariance of the linear parameters of a :class:`~stageid.hysteresis.weights.WeightProblem` (module notes).
+    """Covariance of the linear parameters of a :class:`~stageid.hysteresis.identify.weights.WeightProblem` (module notes).
 
     ``theta`` and ``kinds`` are the fit's final thresholds and starting states; ``solution`` =
     ``(weights, offsets, creep weights or None)`` of the fit when known (else solved again).

@@ -3,7 +3,7 @@
 With the thresholds fixed the model is linear in the weights: the operator outputs of every
 record (eq. 1, 3 from the record's starting state) are the columns, with one output offset per
 record (sensor zeros differ between records) and, optionally, the creep lags of
-:mod:`.creep`.  The constraint keeps the model invertible (eq. 5):
+:mod:`~stageid.hysteresis.models.creep`.  The constraint keeps the model invertible (eq. 5):
 
 * classical PI: every initial-loading slope ``W_j = sum_{i<=j} w_i >= eps`` (bounds on ``W``);
 * modified PI: ``w_0 + sum_{i>=1} min(w_i, 0) >= eps``, solved as bounds after writing

@@ -72,7 +72,7 @@ def invert(
         Drive limits; default ``model.input_limits`` (unlimited if None).
 
     A model with a ``creep`` term is inverted sample by sample with its creep state
-    (:class:`~stageid.hysteresis.compensator.CreepInverse`, creep at rest at the state's input
+    (:class:`~stageid.hysteresis.inverse.compensator.CreepInverse`, creep at rest at the state's input
     unless the term carries a state).
 
     Returns

@@ -10,7 +10,7 @@ model says produces it, so the cascade compensator -> actuator is close to the i
   :func:`residual_bound`);
 * either with a ``creep`` term: per-sample inversion with the creep state
   (:class:`CreepInverse`, here because it drives rate-independent compensators and the
-  compensator delegates to it; the creep term itself is :mod:`.creep`).
+  compensator delegates to it; the creep term itself is :mod:`~stageid.hysteresis.models.creep`).
 
 The compensator is the one mutable object of the package: it holds the operator state between
 calls, as a real-time loop needs (``step`` per sample; ``run`` for a block, continuing the
@@ -304,8 +304,8 @@ class CreepInverse:
     --------
     >>> import numpy as np
     >>> from stageid.hysteresis import PIModel
-    >>> from stageid.hysteresis.compensator import CreepInverse
-    >>> from stageid.hysteresis.creep import CreepTerm
+    >>> from stageid.hysteresis.inverse.compensator import CreepInverse
+    >>> from stageid.hysteresis.models.creep import CreepTerm
     >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
     >>> yd = np.array([0.0, 1.0, 2.0, 1.5])
     >>> u = CreepInverse(m).run(yd)

@@ -14,7 +14,7 @@ gain that builds up with the time constants.
 
 Why ``c_j >= 0``: the output of the current sample depends on the current input through
 ``g = sum_j c_j (1 - a_j) >= 0`` (the rest is memory), so the model stays a nondecreasing
-function of the current input and the per-sample inverse of :mod:`.inverse` still has exactly
+function of the current input and the per-sample inverse of :mod:`stageid.hysteresis.inverse` still has exactly
 one solution.
 
 State: the lag outputs ``s`` (input units).  ``state=None`` means *at rest at the first input
@@ -23,7 +23,7 @@ sample* of every simulation (records start after an idle stretch): the policy un
 :func:`~stageid.hysteresis.align_record` applies to other records.  The compensator follows it:
 its first drive is solved with the creep at rest at that drive (output ``(sum_j c_j) u``).
 
-Inversion with creep (:class:`stageid.hysteresis.compensator.CreepInverse`): per sample after the first, the memory part
+Inversion with creep (:class:`stageid.hysteresis.inverse.compensator.CreepInverse`): per sample after the first, the memory part
 ``h = sum_j c_j a_j s_j(k-1)`` is known, and the instantaneous gain ``g`` is folded into the
 linear operator's weight (``r_0 = 0``) of the rate-independent model, which is then inverted
 by the existing :class:`~stageid.hysteresis.Compensator`.  Without an input warp this is
@@ -81,7 +81,7 @@ class CreepTerm:
     Examples
     --------
     >>> import numpy as np
-    >>> from stageid.hysteresis.creep import CreepTerm
+    >>> from stageid.hysteresis.models.creep import CreepTerm
     >>> c = CreepTerm(time_constants=[1.0], weights=[0.5], sample_time=0.1)
     >>> y, s = c.run(np.r_[0.0, np.ones(3)])
     >>> np.round(y, 4).tolist()

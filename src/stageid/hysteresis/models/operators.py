@@ -95,7 +95,7 @@ class OperatorState:
 
     Examples
     --------
-    >>> from stageid.hysteresis.operators import OperatorState
+    >>> from stageid.hysteresis.models.operators import OperatorState
     >>> s = OperatorState(0.0, [0.0, 0.0])
     >>> s.z.shape
     (2,)
@@ -230,7 +230,7 @@ def play(x: object, r: object, state: OperatorState | None = None) -> tuple[np.n
 
     Examples
     --------
-    >>> from stageid.hysteresis.operators import play
+    >>> from stageid.hysteresis.models.operators import play
     >>> z, s = play([0.0, 2.0, 1.0, -2.0], [1.0])
     >>> z[:, 0].tolist()
     [0.0, 1.0, 1.0, -1.0]
@@ -273,7 +273,7 @@ def coupled_play(
 
     Examples
     --------
-    >>> from stageid.hysteresis.operators import coupled_play
+    >>> from stageid.hysteresis.models.operators import coupled_play
     >>> z, _ = coupled_play([0.0, 3.0, 0.0, -3.0, 0.0], [1.0], [0.5], [2.0], [1.0])
     >>> z[:, 0].tolist()
     [0.0, 2.0, 1.0, -1.0, -0.5]

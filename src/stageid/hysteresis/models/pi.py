@@ -7,7 +7,7 @@ Classical PI model
 
 Modified PI model (eq. 4)
     ``y(k) = y0 + sum_i w_i H_i[x - xc; r_i, rc_i, ra_i, rb_i](k)``, the same sum over
-    coupled-play operators (eq. 3, read as in :mod:`stageid.hysteresis.operators`).  With
+    coupled-play operators (eq. 3, read as in :mod:`stageid.hysteresis.models.operators`).  With
     ``rc = ra = rb = r`` it is the classical PI model.
 
 Both models are immutable and carry their operator state (last input, operator outputs),
@@ -15,7 +15,7 @@ so :meth:`run` returns the final state and :meth:`with_state` resumes from it.  
 ``x`` is in operator coordinates (input minus ``input_offset``, warped for a modified PI model
 with ``input_warp``: :meth:`to_operator_input`).
 
-Optional creep (our extension, :mod:`stageid.hysteresis.creep`): ``creep=CreepTerm(...)``
+Optional creep (our extension, :mod:`stageid.hysteresis.models.creep`): ``creep=CreepTerm(...)``
 adds ``sum_j c_j lowpass_{tau_j}(u)`` (first-order lags of the input, ``c_j >= 0``) to the
 output; the model is then rate dependent and ``simulate(u, dt)`` uses ``dt``.  Without it
 (the default) nothing changes.
@@ -288,7 +288,7 @@ class PIModel(_PIBase):
         Drive range, used as the default limits of the compensator (which clips to it);
         :class:`~stageid.hysteresis.PIIdentifier` stores the identified input range here.
     creep : CreepTerm, optional
-        Linear creep added to the output (:mod:`stageid.hysteresis.creep`); default none
+        Linear creep added to the output (:mod:`stageid.hysteresis.models.creep`); default none
         (rate independent).
 
     Raises
@@ -359,7 +359,7 @@ class ModifiedPIModel(_PIBase):
     Parameters
     ----------
     r, rc, ra, rb : array_like of shape (n_operators,)
-        CP thresholds (see :mod:`stageid.hysteresis.operators`), ``0 <= rc <= r``,
+        CP thresholds (see :mod:`stageid.hysteresis.models.operators`), ``0 <= rc <= r``,
         ``0 <= rb <= ra``.
     weights : array_like of shape (n_operators,)
     input_offset, output_offset, state, inputs, outputs, input_limits, creep

@@ -12,7 +12,7 @@ part).  Weights are stored row by row (``alpha`` ascending, ``beta`` ascending w
 With this density the Everett function ``E(alpha, beta)`` (weight of the triangle ``beta <= b
 <= a <= alpha``) is the bilinear interpolation of its values at the grid nodes, the output is
 continuous and piecewise linear in the input between nodes and memory points, and a sample
-costs O(1) (:mod:`.kernels.preisach`).  A point relay per cell (the earlier form of this model)
+costs O(1) (:mod:`stageid.hysteresis.kernels.preisach`).  A point relay per cell (the earlier form of this model)
 made a staircase whose steps of about ``range / (2 n_levels)`` bounded the modelling error.
 
 The state is the memory: the dominant reversal points the wiping-out property keeps, then the

@@ -13,7 +13,7 @@
      "input_limits": [lo, hi] | null,         # drive range (compensator default, clipped to);
                                               # identified models: the identified input range
      "creep": {"time_constants": [...], "weights": [...],   # optional (absent: no creep),
-               "sample_time": dt, "state": null | [...]}}   # see stageid.hysteresis.creep
+               "sample_time": dt, "state": null | [...]}}   # see stageid.hysteresis.models.creep
 
 Other kinds in the same format (the reference actuator of :mod:`stageid.plants.piezo_actuator`,
 ``{"format": "stageid.hysteresis/1", "kind": "piezo-actuator", "inputs", "outputs",
@@ -169,7 +169,7 @@ def model_from_dict(d: dict[str, Any]) -> Any:
     Examples
     --------
     >>> from stageid.hysteresis import PIModel
-    >>> from stageid.hysteresis.serialization import model_from_dict
+    >>> from stageid.hysteresis.models.serialization import model_from_dict
     >>> m = PIModel(r=[0.0, 1.0], weights=[1.0, 0.5])
     >>> model_from_dict(m.to_dict()).weights.tolist()
     [1.0, 0.5]

@@ -25,7 +25,7 @@ After all windows the recursion equals the batch formula (the information form)
 which :func:`batch_posterior` evaluates from :class:`WindowStatistics` (lag correlations),
 so fitting long records never runs the per-sample loop; :func:`map_posterior` is the step
 ``HankelMAP`` takes (a first fit, or an update continuing a posterior).  The sample-by-sample
-recursion for streaming use is :func:`~stageid.subspace.recursion.recursive_map`.
+recursion for streaming use is :func:`~stageid.subspace.map.recursion.recursive_map`.
 
 ``method`` of ``HankelMAP`` picks the prior by name from :data:`METHODS`: the weak default
 (or a given :class:`Prior`) for ``"map"``, the flat prior of batch least squares for ``"ls"``.
@@ -312,7 +312,7 @@ def batch_posterior(stats: WindowStatistics, prior: Prior | None) -> Posterior:
     Parameters
     ----------
     stats : WindowStatistics
-        From :func:`~stageid.subspace.hankel_toeplitz.window_statistics` (summed over records).
+        From :func:`~stageid.subspace.statistics.hankel_toeplitz.window_statistics` (summed over records).
     prior : Prior or None
         None is the flat prior: batch least squares, the identified-Hankel-matrix method of
         Lim, Phan & Longman that the paper compares against (minimum-norm solution when the
@@ -330,7 +330,7 @@ def batch_posterior(stats: WindowStatistics, prior: Prior | None) -> Posterior:
     Examples
     --------
     >>> import numpy as np
-    >>> from stageid.subspace.hankel_toeplitz import window_statistics
+    >>> from stageid.subspace.statistics.hankel_toeplitz import window_statistics
     >>> rng = np.random.default_rng(0)
     >>> u = rng.standard_normal((400, 1)); y = np.convolve(u[:, 0], [0, 0.5, 0.25])[:400, None]
     >>> post = batch_posterior(window_statistics(u, y, 2), None)

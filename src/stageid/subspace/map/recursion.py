@@ -1,9 +1,9 @@
 """The recursion of eq. 17-18 sample by sample (Cao & Chen 2013, section 2.3), for streaming use.
 
 :func:`recursive_map` runs eq. 17-18 window by window in compiled kernels
-(:mod:`.map_kernels`); :func:`recursive_map_python` is its plain-numpy twin, which the tests
+(:mod:`.kernels`); :func:`recursive_map_python` is its plain-numpy twin, which the tests
 hold it to.  A fit never needs this loop: after all windows the recursion equals the batch
-posterior of :func:`~stageid.subspace.map_estimator.batch_posterior`.  Per-window costs are
+posterior of :func:`~stageid.subspace.map.posterior.batch_posterior`.  Per-window costs are
 in ``benchmarks/RESULTS-subspace.md``.
 """
 

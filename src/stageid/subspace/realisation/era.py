@@ -13,7 +13,7 @@ From the identified ``theta = [Gamma Phi D_p]`` (eq. 9):
 :func:`realize` is the realisation step of ``HankelMAP``: on the noise-whitened outputs (see
 :mod:`.weighting`) it runs the route picked by name from :data:`REALIZATIONS`:
 :func:`markov_realization` (the paper's eq. 10-15, exact for broadband inputs) or
-:func:`~stageid.subspace.frequency_domain.response_realization` (the response of eq. 9 over
+:func:`~stageid.subspace.realisation.frequency_domain.response_realization` (the response of eq. 9 over
 the excited band, realised and refined: band-limited records determine ``theta`` only up to
 directions without input energy, and those enter the Markov parameters).
 """

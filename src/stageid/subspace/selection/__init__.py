@@ -343,7 +343,7 @@ def pooled_split(
 
 
 def _periodogram(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """The records' input periodograms, summed (:func:`~.correlations.input_periodogram`)."""
+    """The records' input periodograms, summed (:func:`~stageid.subspace.statistics.correlations.input_periodogram`)."""
     power, freqs = input_periodogram(records[0][0])
     for u, _ in records[1:]:
         power = power + input_periodogram(u)[0]
@@ -386,7 +386,7 @@ def select_horizon(
     split, :func:`split_statistics`), the candidates use the central blocks of its windows
     (:func:`central_statistics`); otherwise their own statistics.  The errors weigh the
     outputs by the noise of the largest candidate's training residual on those rows (see
-    :mod:`.weighting`).  Unlike the multi-step error over all ``p`` block rows, which scores
+    :mod:`~stageid.subspace.realisation.weighting`).  Unlike the multi-step error over all ``p`` block rows, which scores
     each horizon on its own rows, this compares the candidates on the same samples, and it
     keeps preferring larger horizons while they remove truncation bias
     (``benchmarks/RESULTS-subspace.md``).  The normal equations of the candidates

@@ -1,10 +1,10 @@
 """``order="auto"`` on a chunked record: the held-out simulation error of every candidate order
-in one pass over the record (:func:`~.selection.select_order` needs the record in memory).
+in one pass over the record (:func:`~stageid.subspace.selection.select_order` needs the record in memory).
 
 Each candidate model is realised from the training posterior as in the in-memory selection
 and simulated from rest over the whole (mean-removed, scaled) record, chunk after chunk with
 its state carried across chunk borders; only the held-out ranges of
-:func:`~.selection.held_out_segments` count, with each range's own mean removed from the
+:func:`~stageid.subspace.selection.held_out_segments` count, with each range's own mean removed from the
 output energy.  All candidates share one read of every chunk.  The pass is sequential (the
 state of chunk ``k`` needs chunk ``k - 1``), so it runs here, not on the cluster.
 """
@@ -57,7 +57,7 @@ def select_order_chunked(
     chunk: int = DEFAULT_CHUNK,
     **realize_settings,
 ) -> tuple[int, SelectionTable]:
-    """:func:`~.selection.select_order` on a chunked record (channels ``(x - shift) / scale``).
+    """:func:`~stageid.subspace.selection.select_order` on a chunked record (channels ``(x - shift) / scale``).
 
     Raises
     ------

@@ -41,8 +41,8 @@ def distance_order(horizon: int, n_inputs: int, n_outputs: int) -> tuple[np.ndar
     """Regressors of eq. 9 ordered by distance from the prediction point (see the module notes).
 
     Returns ``(window_index, standard_position)``: their positions in the window vector of
-    :class:`~stageid.subspace.hankel_toeplitz.WindowStatistics` and in the standard regressor
-    order ``[u_p(k-p); y_p(k-p); u_p(k)]`` of :func:`~stageid.subspace.hankel_toeplitz.regressor_indices`.
+    :class:`~stageid.subspace.statistics.hankel_toeplitz.WindowStatistics` and in the standard regressor
+    order ``[u_p(k-p); y_p(k-p); u_p(k)]`` of :func:`~stageid.subspace.statistics.hankel_toeplitz.regressor_indices`.
     """
     P, m, q = horizon, n_inputs, n_outputs
     r = m + q

@@ -5,7 +5,7 @@ sample ranges and reduces by addition:
 
 * :func:`column_moments`: count, mean, centred sum of squares (Chan's pairwise update), range
   of every channel: the mean removal, the unit-RMS scales and the "input does not move" check
-  of :mod:`.records`;
+  of :mod:`~stageid.subspace.records`;
 * :func:`range_lag_sums`: the lag correlations ``R[c] = sum_t z(t) z(t+c)^T`` of the
   mean-removed, scaled channels over one or several sample ranges.  A chunk ``[a, b)`` of a
   range ending at ``e`` reads ``L - 1`` samples of history past ``b`` (at most to ``e``) and

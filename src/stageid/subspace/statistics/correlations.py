@@ -4,7 +4,7 @@ Every regression sample of eq. 9 is one window of ``2 p`` consecutive samples of
 ``z(t) = [u(t); y(t)]``; the Gram matrix of the windows is the lag correlations of ``z``
 (computed in blocks with FFTs, cost independent of ``p``) minus exact corrections for the
 first and last samples of every record or segment.  :mod:`.hankel_toeplitz` builds its
-:class:`~stageid.subspace.hankel_toeplitz.WindowStatistics` from these.  The lag products
+:class:`~stageid.subspace.statistics.hankel_toeplitz.WindowStatistics` from these.  The lag products
 straddling the boundaries between segments (:func:`straddling_lags`) turn a record's lag
 correlations into those of its segments.
 """

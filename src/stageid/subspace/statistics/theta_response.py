@@ -2,7 +2,7 @@
 
 For a sinusoid ``u(k) = U z^k`` every block row of eq. 9 is an equation in ``G(z)``; the
 ``p q`` equations, solved by least squares, give the response of the Hankel-Toeplitz model
-without realising it.  The frequency route of the realisation (:mod:`.frequency_domain`)
+without realising it.  The frequency route of the realisation (:mod:`~stageid.subspace.realisation.frequency_domain`)
 starts from this response; :func:`theta_response_std` adds its posterior spread and
 :func:`response_systems` the equations themselves (used by :mod:`.window_covariance`).
 """

@@ -66,7 +66,7 @@ class WindowLags:
     ``(m + q)^2 p`` numbers, not the records).  Taken once per fit at its largest candidate
     horizon, they also give the records' eq. 9 statistics at any horizon up to it
     (:meth:`statistics`) and, less the held-out segments', the training segments' lag
-    correlations (:func:`~.selection.split_statistics`).
+    correlations (:func:`~stageid.subspace.selection.split_statistics`).
 
     Attributes
     ----------

@@ -1,8 +1,8 @@
 """Where the realised model's covariance is formed: a few of the realisation's frequencies.
 
-The realisation (:mod:`.uncertainty`) is a weighted least-squares fit on ``n_fit`` frequencies
+The realisation (:mod:`stageid.subspace.uncertainty`) is a weighted least-squares fit on ``n_fit`` frequencies
 evenly over the band; its tangent projection, and so the realised model's covariance, is a sum
-over those frequencies.  The exact eq. 9 covariance (:mod:`.window_covariance`) costs the square
+over those frequencies.  The exact eq. 9 covariance (:mod:`~stageid.subspace.statistics.window_covariance`) costs the square
 of the frequencies it is formed on, so it is formed on at most ``budget`` of them and the sum is
 approximated by a quadrature: every kept frequency stands for the fit's frequencies nearest to
 it (its weight is their number).  An even subset (``"even"``, every ``s``-th frequency, equal

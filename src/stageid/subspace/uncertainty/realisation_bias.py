@@ -1,7 +1,7 @@
 """The realisation's misfit beyond its noise: a bias term for the realised Hankel-MAP model's bands.
 
 The ``order``-state realisation is a weighted least-squares fit of ``C (zI - A)^-1 B + D`` to
-the eq. 9 response ``G_9`` on the band's grid (:mod:`.uncertainty`).  Where the order cannot
+the eq. 9 response ``G_9`` on the band's grid (:mod:`stageid.subspace.uncertainty`).  Where the order cannot
 follow ``G_9`` (or the fit settles on a compromise), the misfit ``r = G_model - G_9`` holds more
 than the eq. 9 noise leaves after the projection, ``r_noise = (J dx - I) dG_9`` with
 ``dx = J^+ dG_9``.  As the closed loop's ``bias="local"`` rule does for its reduction
@@ -30,7 +30,7 @@ def misfit_noise(K: np.ndarray, phi_cov: np.ndarray, phi_dG: np.ndarray, dG_var:
 
     ``K`` (N, r) complex: the model's response change per tangent coordinate (``J basis``);
     ``phi_cov`` (r, r) and ``phi_dG`` (r, N): ``Cov(phi)`` and ``E[phi conj(dG)^T]``
-    (:meth:`~.uncertainty.TangentProjection.moments`); ``dG_var`` (N,): ``E|dG|^2``.
+    (:meth:`~stageid.subspace.uncertainty.TangentProjection.moments`); ``dG_var`` (N,): ``E|dG|^2``.
     ``E|K phi|^2 - 2 Re E[(K phi) conj dG] + E|dG|^2``, shape (N,), real.
     """
     fitted = np.real(np.sum((K @ phi_cov) * np.conj(K), axis=1))
