@@ -121,10 +121,8 @@ def test_plot_draws_in_the_axes_it_is_given():
 
     frd = FrequencyResponse([1.0, 2.0, 4.0], np.ones((3, 1, 1), complex), std=np.full((3, 1, 1), 0.1))
     fig = Figure()
-    ax = fig.add_subplot()
-    assert frd.plot(ax=ax) is fig and len(ax.lines) == 1 and len(fig.axes) == 1  # magnitude alone
-    fig2 = Figure()
-    mag, phase = fig2.subplots(2, 1)
-    assert frd.plot(ax=[mag, phase]) is fig2 and mag.get_ylabel() == "magnitude" and len(phase.lines) == 1
+    mag, phase = fig.subplots(2, 1)
+    assert frd.plot(ax=[mag, phase]) is fig and len(fig.axes) == 2  # no new axes, no new figure
+    assert mag.get_ylabel() == "magnitude" and len(mag.lines) == 1 and len(phase.lines) == 1
     with pytest.raises(ParameterError, match="`ax` must hold 2 x 1 axes"):
-        frd.plot(ax=[mag, phase, mag])
+        frd.plot(ax=mag)  # magnitude and phase need two

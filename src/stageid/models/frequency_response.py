@@ -184,10 +184,9 @@ class FrequencyResponse:
         """Bode figure: magnitude with a +-2 std band, phase, and a coherence panel when known.
 
         ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data.
-        ``ax``: draw in these matplotlib axes instead of a new figure (magnitude, phase and
-        coherence rows by input columns; one ``Axes`` of a single-input response takes the
-        magnitude alone, see :func:`stageid.plots.frf.bode_figure`).  Returns the matplotlib
-        figure (imported lazily; use the Agg backend off-screen).
+        ``ax``: draw in these matplotlib axes instead of a new figure: magnitude, phase (and
+        coherence) rows by input columns, as a 2-D array or each input's panels in turn.
+        Returns the matplotlib figure (imported lazily; use the Agg backend off-screen).
         """
         from ..plots.frf import bode_figure
 

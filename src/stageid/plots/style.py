@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["figure", "subplots", "positive", "loglog"]
+__all__ = ["figure", "subplots", "positive", "loglog", "axes_grid"]
 
 _STYLE = {"font.size": 10, "axes.grid": True, "grid.alpha": 0.3, "axes.titlesize": 10, "legend.fontsize": 8}
 
@@ -73,3 +73,20 @@ def subplots(
     with matplotlib.rc_context(_STYLE):
         axes = fig.subplots(nrows, ncols, **kwargs)
     return fig, axes
+
+
+def axes_grid(ax: Any, rows: int, cols: int) -> Any:
+    """The caller's matplotlib axes as a ``(rows, cols)`` object array, for figures drawn into them.
+
+    ``ax`` is a 2-D array of that shape, or a flat sequence of ``rows * cols`` axes giving each
+    column's panels in turn (one ``Axes`` when the figure has one panel).  Any other count is a
+    :class:`~stageid.ParameterError`.
+    """
+    import numpy as np
+
+    from .._errors import ParameterError
+
+    grid = np.asarray(ax, dtype=object)
+    if grid.size != rows * cols:
+        raise ParameterError(f"`ax` must hold {rows} x {cols} axes (rows of panels by columns); got {grid.size}.")
+    return grid.reshape(rows, cols) if grid.ndim == 2 else grid.reshape(cols, rows).T
