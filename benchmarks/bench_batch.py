@@ -88,7 +88,7 @@ def scheduler_overhead(n_tasks: int = 2000) -> tuple[float, float]:
     """Seconds to start and stop a 2-worker local cluster; seconds per no-op task through it."""
     from distributed import as_completed
 
-    from stageid.cluster import dask_client
+    from stageid.runtime.cluster import dask_client
 
     start = time.perf_counter()
     with dask_client(n_workers=2) as client:
@@ -110,7 +110,7 @@ def worker_settings(manifest: Path, pairs: int = 5) -> tuple[float, float, float
     from distributed import Client, LocalCluster
 
     from stageid.cli.batch import run_command_line
-    from stageid.cluster import LOCAL_WORKER_CONFIG
+    from stageid.runtime.cluster import LOCAL_WORKER_CONFIG
 
     argv = tuple(COMMAND.format(i=0).replace("unit0.csv", str(manifest.parent / "unit0.csv")).split())
     kw = {"n_workers": 1, "threads_per_worker": 1, "dashboard_address": None, "silence_logs": 40}

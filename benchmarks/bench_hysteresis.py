@@ -156,7 +156,7 @@ def identification_times(repeat: int) -> int:
     """Whole-process identification times on the 20 Hz FORC record (issue 16, point 6), medians."""
     from stageid.data.datasets import load_dspace_piezo, shared_data_dir
     from stageid.hysteresis import PIIdentifier, PreisachIdentifier
-    from stageid.hysteresis.stage_identification import StageIdentifier
+    from stageid.hysteresis.stage.identification import StageIdentifier
 
     root = shared_data_dir()
     path = None if root is None else root / "piezo_dspace_preisach" / "20_hz_no_lp.mat"
@@ -357,7 +357,7 @@ def main(argv=None) -> int:
 
     from stageid.hysteresis import Compensator, ModifiedPIModel
     from stageid.hysteresis import kernels as K
-    from stageid.hysteresis.operators import coupled_play_reference, play_reference
+    from stageid.hysteresis.models.operators import coupled_play_reference, play_reference
 
     n = args.samples
     rng, inputs = _inputs(n)

@@ -314,7 +314,7 @@ def recursive_update_cost() -> dict:
     """Microseconds per window of eq. 17-18 at p = 38, m = 1, q = 3 (d = 190)."""
     import numpy as np
 
-    from stageid.subspace.recursion import recursive_map, recursive_map_python
+    from stageid.subspace.map.recursion import recursive_map, recursive_map_python
 
     p, m, q = 38, 1, 3
     d = 2 * p * m + p * q

@@ -99,7 +99,7 @@ def test_repr_and_params():
 
 def test_memory_guard_names_need_and_availability(monkeypatch):
     from stageid import ResourceError
-    from stageid.resources import available_memory, require_memory, require_work
+    from stageid.runtime.resources import available_memory, require_memory, require_work
 
     monkeypatch.setenv("STAGEID_MEMORY_LIMIT", "100M")
     assert available_memory() <= 100 * 2**20

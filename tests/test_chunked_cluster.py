@@ -13,11 +13,11 @@ import pytest
 
 from _chunked_data import columns, slowed, write
 from conftest import run_main
-from stageid.cluster import dask_client
 from stageid.data.chunked import open_chunked
 from stageid.frf.welch_chunked import chunked_cross_spectra
 from stageid.models import load_model
-from stageid.subspace.chunked_statistics import column_moments, range_lag_sums
+from stageid.runtime.cluster import dask_client
+from stageid.subspace.statistics.chunked_statistics import column_moments, range_lag_sums
 
 N = 12_011
 IO = ("--inputs", "u1,u2", "--outputs", "y1,y2")

@@ -11,11 +11,11 @@ from stageid.data.chunked import open_chunked
 from stageid.frf.welch import cross_spectra, welch_frf
 from stageid.frf.welch_chunked import chunked_cross_spectra, chunked_welch_frf
 from stageid.subspace.chunked_fit import chunked_split_statistics, fit_chunked
-from stageid.subspace.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from stageid.subspace.estimator import HankelMAP
-from stageid.subspace.hankel_toeplitz import segments_statistics, window_statistics
 from stageid.subspace.records import channel_scales, prepared_records, to_unit_rms
 from stageid.subspace.selection import held_out_segments, horizon_candidates, split_statistics
+from stageid.subspace.statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
+from stageid.subspace.statistics.hankel_toeplitz import segments_statistics, window_statistics
 
 N = 12_011  # prime: no chunk length below divides it
 #: 1e-10 relative is the issue's bar; sums of 10^4 products in another order differ by ~1e-15

@@ -314,7 +314,7 @@ def test_dspace_forc_record_transient_hint_and_window():
     assert trimmed.max_error_percent[0] < fit.max_error_percent[0] / 4 and not trimmed.edge_errors
     assert trimmed.rms_error_percent[0] < fit.rms_error_percent[0]
     # the feedforward records end on a sample where the drive was reset: one bad sample, not 5 %
-    from stageid.hysteresis.records import align_record
+    from stageid.hysteresis.identify.records import align_record
 
     tri = ds.load_dspace_piezo(ds.SHARED_DATA / "piezo_dspace_preisach" / "tri50_1.mat")
     _, simulated = align_record(trimmed.model, tri.u[:, 0], tri.y[:, 0])

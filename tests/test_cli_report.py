@@ -128,7 +128,7 @@ def test_identify_closed_loop_report(tmp_path):
     )
     assert rc == 0
     html = (tmp_path / "rep" / "index.html").read_text()
-    # plant Bode, its +-2 std bands (issue 20), pole-zero, closed loop vs ETFE, re-closed loop
+    # plant Bode, its +-2 std bands, pole-zero, closed loop vs ETFE, re-closed loop
     assert html.count("<img src='data:image/png;base64,") == 5
     metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
     assert metrics["uncertainty/relative_std_median_percent/y_u"] > 0

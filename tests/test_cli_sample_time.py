@@ -200,7 +200,7 @@ def test_real_dspace_forc_records_share_one_period(tmp_path):
     from _dspace_records import dspace_record
     from stageid.cli._common import read_experiments
     from stageid.data import write_csv
-    from stageid.hysteresis.records import sampling_period
+    from stageid.hysteresis.identify.records import sampling_period
 
     paths = []
     for name in ("20_hz_no_lp", "40_hz_no_lp", "100_hz_no_lp"):

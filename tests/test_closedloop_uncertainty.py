@@ -1,4 +1,4 @@
-"""Closed-loop uncertainty (issue 20): PEM parameter covariance and its propagation to the plant."""
+"""Closed-loop uncertainty: PEM parameter covariance and its propagation to the plant."""
 
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ from stageid.closedloop.uncertainty import (
     plant_uncertainty,
     unstable_pole_sensitivity,
 )
-from stageid.frf.frd import FrequencyResponse
 from stageid.models import TransferMatrix
+from stageid.models.frequency_response import FrequencyResponse
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_closedloop_estimator import G_SISO, _siso_controller, _siso_experiment  # noqa: E402
@@ -109,7 +109,7 @@ def test_response_uncertainty_refuses_bad_grids_and_missing_covariance() -> None
 
 @pytest.mark.slow
 def test_siso_bands_are_calibrated_over_seeds() -> None:
-    """20 noise seeds of an unstable SISO loop: the 1.73-std band covers 85-99 % (issue 20, point 3)."""
+    """20 noise seeds of an unstable SISO loop: the 1.73-std band covers 85-99 %."""
     f = np.geomspace(20.0, 300.0, 60)
     Gt = G_SISO.frequency_response(f)[:, 0, 0]
     hits, z2 = [], []

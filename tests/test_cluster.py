@@ -8,7 +8,7 @@ import time
 import pytest
 
 from stageid._errors import ClusterError, ParameterError
-from stageid.cluster import check_scheduler_address, dask_client
+from stageid.runtime.cluster import check_scheduler_address, dask_client
 
 
 def _free_port() -> int:

@@ -1,6 +1,6 @@
 """Generated C reproduces the Python models: `simulate` (LTI, PI, modified PI) and the compensator.
 
-Tolerances (issue 17): double precision within 1e-12 of the largest |reference| value of the
+Tolerances: double precision within 1e-12 of the largest |reference| value of the
 record (the LTI and forward C keeps the package's order of operations, so most cases agree bit
 for bit; the Python hysteresis kernels reassociate the weighted sum, ~1e-16; the compensators
 of modified PI models find the exact root of each sample by their own iteration, as the package

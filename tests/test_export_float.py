@@ -1,6 +1,6 @@
 """Single-precision (`--float`) compensators against `stageid compensate`, on random models.
 
-The measure (issue 17, point 3): the float drive lies within 1e-5 of the drive's range of the
+The measure: the float drive lies within 1e-5 of the drive's range of the
 package's double drive over the record -- but never closer than four float roundings of the
 drive's magnitude, ``2**-22 max |drive|``:
 

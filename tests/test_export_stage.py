@@ -25,8 +25,8 @@ from stageid.data import read_table, write_csv
 from stageid.export import export_c, export_mat
 from stageid.export.host import build, find_compiler
 from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, PIModel, PreisachModel
-from stageid.hysteresis.dynamics import transfer_to_statespace, zoh_resonance
 from stageid.hysteresis.stage import StageModel
+from stageid.hysteresis.stage.dynamics import transfer_to_statespace, zoh_resonance
 from stageid.models import StateSpaceModel, save_model
 
 needs_cc = pytest.mark.skipif(find_compiler() is None, reason="no C compiler (gcc, clang or cc) on PATH")
@@ -102,7 +102,7 @@ def test_random_stage_c_matches_simulate(run_c, seed, kind):
 
 @needs_cc
 def test_identified_stage_c_matches_simulate(run_c):
-    from stageid.hysteresis.stage_identification import StageIdentifier
+    from stageid.hysteresis.stage.identification import StageIdentifier
     from stageid.signals import decaying_triangle
 
     true = random_stage(7)

@@ -1,4 +1,4 @@
-"""The failure contract (docs/guide/bad-input.md), one test (or a few) per class of issue 14.
+"""The failure contract (docs/guide/bad-input.md), one test (or a few) per class of bad input.
 
 Any bad input ends with exit code 2, one line on stderr naming the problem, and no output
 file; an interrupt ends with exit code 130 and "stageid: interrupted"; inputs and existing

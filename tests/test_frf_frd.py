@@ -4,7 +4,7 @@ its figure, and bad tables refused with one line."""
 import numpy as np
 import pytest
 
-from stageid import DataError
+from stageid import DataError, ParameterError
 from stageid.data import write_csv, write_npz
 from stageid.frf import FrequencyResponse, frd_columns, read_frd
 
@@ -114,3 +114,15 @@ def test_copy_false_takes_the_arrays_over_and_the_default_copies():
     taken = FrequencyResponse(f, G, std, coh, copy=False)
     assert np.shares_memory(taken.response, G) and np.shares_memory(taken.std, std)
     assert not G.flags.writeable and coh[1, 0] == 1.0  # frozen, clipped in place
+
+
+def test_plot_draws_in_the_axes_it_is_given():
+    from matplotlib.figure import Figure
+
+    frd = FrequencyResponse([1.0, 2.0, 4.0], np.ones((3, 1, 1), complex), std=np.full((3, 1, 1), 0.1))
+    fig = Figure()
+    mag, phase = fig.subplots(2, 1)
+    assert frd.plot(ax=[mag, phase]) is fig and len(fig.axes) == 2  # no new axes, no new figure
+    assert mag.get_ylabel() == "magnitude" and len(mag.lines) == 1 and len(phase.lines) == 1
+    with pytest.raises(ParameterError, match="`ax` must hold 2 x 1 axes"):
+        frd.plot(ax=mag)  # magnitude and phase need two

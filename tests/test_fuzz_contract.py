@@ -1,4 +1,4 @@
-"""Property-based fuzzing of the failure contract (issue 14): readers, the model loader, CLI verbs.
+"""Property-based fuzzing of the failure contract: readers, the model loader, CLI verbs.
 
 For any input: a reader returns a Table or raises a :class:`~stageid.StageIdError`; the model
 loader returns a model or raises one; a verb exits 0 with a whole output that reads back, or

@@ -7,7 +7,8 @@ import sys
 
 import pytest
 
-from stageid import _heap, _threads
+from stageid.runtime import heap as _heap
+from stageid.runtime import threads as _threads
 
 # a fit-like pattern: six 1 MB temporaries alive at once, then freed; the page faults of the
 # last nine of ten rounds

@@ -7,8 +7,8 @@ import pytest
 
 from stageid._errors import ModelError, ModelFormatError, ParameterError
 from stageid.hysteresis import Compensator, ModifiedPIModel, PIIdentifier, PIModel, invert, pi_inverse
-from stageid.hysteresis.creep import CreepTerm
-from stageid.hysteresis.serialization import model_from_dict
+from stageid.hysteresis.models.creep import CreepTerm
+from stageid.hysteresis.models.serialization import model_from_dict
 from stageid.models.serialization import dumps
 from stageid.signals import decaying_triangle
 
@@ -183,7 +183,7 @@ def test_compensator_with_creep_respects_limits():
 
 
 def test_compiled_creep_inversion_equals_stepping_and_continues_its_state(monkeypatch):
-    from stageid.hysteresis.compensator import CreepInverse
+    from stageid.hysteresis.inverse.compensator import CreepInverse
 
     creep = CreepTerm([0.05, 0.5], [0.05, 0.1], DT)
     m = ModifiedPIModel(
@@ -292,7 +292,7 @@ def test_cli_creep_flag(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_piezo_forc_records_with_creep():
-    """Issue 5, point 7: identified on the 20 Hz FORC record only, <= 2 % max error there and a
+    """Identified on the 20 Hz FORC record only, <= 2 % max error there and a
     better 40 Hz prediction than without creep (studies/hysteresis/RESULTS.md section 2)."""
     from _dspace_records import dspace_record
     from stageid.hysteresis import align_record, max_error_percent

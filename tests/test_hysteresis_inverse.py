@@ -120,7 +120,7 @@ def test_input_warp_round_trip():
 
 
 def _creep_pi():
-    from stageid.hysteresis.creep import CreepTerm
+    from stageid.hysteresis.models.creep import CreepTerm
 
     return PIModel(r=[0.0, 1.0], weights=[1.0, 0.5], creep=CreepTerm([0.5], [0.2], 0.01))
 
@@ -165,9 +165,9 @@ def test_malformed_limits_one_line(limits):
 def _kernel_inversion(m, target):
     """The compiled batch inversion of ``m`` from zero state; its plain-Python twin's output."""
     from stageid.hysteresis import kernels
-    from stageid.hysteresis.common import packed
-    from stageid.hysteresis.compensator import residual_bound
-    from stageid.hysteresis.operators import coupled_play_reference
+    from stageid.hysteresis.inverse.compensator import residual_bound
+    from stageid.hysteresis.models.common import packed
+    from stageid.hysteresis.models.operators import coupled_play_reference
 
     args = (target, packed(m), np.zeros(m.n_operators), 0.0, -np.inf, np.inf, m.min_slope(), *residual_bound(m))
     x, z, xf = kernels.cp_invert(*args)
@@ -181,7 +181,7 @@ def test_inversion_kernel_against_its_plain_python_twins(seed):
     # compiled per-sample step), and the inputs it finds drive the plain-Python CP bank (eq. 3-4,
     # no compiled code) onto the targets to the rounding bound the iteration stops at
     from stageid.hysteresis import kernels
-    from stageid.hysteresis.compensator import residual_bound
+    from stageid.hysteresis.inverse.compensator import residual_bound
 
     rng = np.random.default_rng(seed)
     m = _mpi(rng)
@@ -205,7 +205,7 @@ def test_inversion_lands_on_the_exact_root(seed):
     # tolerance, 1e-12 of sum|w| (1 + max r), let single samples stop at ~1e-12).  The
     # references are random jumps over the whole range (many operators switch each sample), a
     # random walk, and targets off the model's own path.
-    from stageid.hysteresis.compensator import residual_bound
+    from stageid.hysteresis.inverse.compensator import residual_bound
 
     rng = np.random.default_rng(40 + seed)
     m = _mpi(rng, n=20)

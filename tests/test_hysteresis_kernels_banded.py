@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from stageid.hysteresis import PIModel, kernels
-from stageid.hysteresis.operators import coupled_play_reference, play_reference
+from stageid.hysteresis.models.operators import coupled_play_reference, play_reference
 
 N = 3000
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from stageid.hysteresis import ModifiedPIModel, OperatorState, kernels
-from stageid.hysteresis.operators import coupled_play_reference, play_reference
+from stageid.hysteresis.models.operators import coupled_play_reference, play_reference
 
 N = 5000  # > 2 adaptation blocks of the banded kernel; the reference takes ~0.1 s
 

@@ -165,7 +165,7 @@ def test_plant_kinds_are_registered_by_the_plants():
     import subprocess
     import sys
 
-    from stageid.hysteresis.serialization import register_kind
+    from stageid.hysteresis.models.serialization import register_kind
     from stageid.plants.piezo_actuator import PiezoActuator, model
 
     act = model()

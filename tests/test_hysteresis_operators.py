@@ -5,7 +5,7 @@ import pytest
 
 from stageid import ModelError
 from stageid.hysteresis import OperatorState, coupled_play, kernels, play
-from stageid.hysteresis.operators import coupled_play_reference, play_reference
+from stageid.hysteresis.models.operators import coupled_play_reference, play_reference
 
 
 def _cp_params(rng, n=6):

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from stageid import DataError, ModelFormatError
+from stageid.hysteresis.identify.preisach import PreisachIdentifier, cell_regressors
 from stageid.hysteresis.kernels.preisach import cells_reference
-from stageid.hysteresis.preisach import PreisachModel, demagnetizing_input, everett, everett_output
-from stageid.hysteresis.preisach_identification import PreisachIdentifier, cell_regressors
-from stageid.hysteresis.serialization import model_from_dict
+from stageid.hysteresis.models.preisach import PreisachModel, demagnetizing_input, everett, everett_output
+from stageid.hysteresis.models.serialization import model_from_dict
 
 
 def _random_model(seed, n=7):
@@ -204,7 +204,7 @@ def test_twenty_levels_on_a_decaying_sine_fit_and_report_the_filled_cells():
 def test_cells_the_data_determine_keep_the_fit_without_the_prior_floor():
     from scipy.optimize import nnls
 
-    from stageid.hysteresis.preisach_identification import second_differences
+    from stageid.hysteresis.identify.preisach import second_differences
 
     u, y = _experiment("decaying-triangle")  # every cell of a 20-level grid has a reversal pair
     lo, hi, n = float(u.min()), float(u.max()), 20

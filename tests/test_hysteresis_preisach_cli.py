@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 from stageid.cli.main import main
-from stageid.hysteresis.preisach import PreisachModel
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.models.serialization import dumps
 
 

@@ -52,7 +52,7 @@ def test_the_search_keeps_to_its_budget():
 def _coupled_play_plant(seed: int, n: int, amplitude: float):
     """A modified PI model of the class the search fits (ratios linear in the operator index, a
     centre off the middle, a warp), the weight problem on noise-free records, and its thresholds."""
-    from stageid.hysteresis.weights import WeightProblem
+    from stageid.hysteresis.identify.weights import WeightProblem
 
     rng = np.random.default_rng(seed)
     theta = np.array([0.4, 0.0, 1.2, 0.24, 0.86, -0.2, 0.02 * amplitude, -0.12])

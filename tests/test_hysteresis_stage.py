@@ -11,10 +11,10 @@ from stageid.cli.main import main
 from stageid.data import Experiment
 from stageid.data.io import read_table, write_csv
 from stageid.hysteresis import CreepTerm, ModifiedPIModel, PIIdentifier, PIModel
-from stageid.hysteresis.dynamics import fit_unit_gain_dynamics, transfer_to_statespace
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_identification import StageIdentifier
-from stageid.hysteresis.stage_inverse import stage_feedforward
+from stageid.hysteresis.stage.dynamics import fit_unit_gain_dynamics, transfer_to_statespace
+from stageid.hysteresis.stage.identification import StageIdentifier
+from stageid.hysteresis.stage.inverse import stage_feedforward
 from stageid.models import StateSpaceModel, load_model
 from stageid.models.serialization import dumps, loads
 from stageid.signals import decaying_triangle, triangle

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from stageid.hysteresis import kernels
-from stageid.hysteresis.weights import WeightProblem, bounded_gram_lsq, bounded_gram_lsq_bvls
+from stageid.hysteresis.identify.weights import WeightProblem, bounded_gram_lsq, bounded_gram_lsq_bvls
 
 
 def _record(seed, n=3000):

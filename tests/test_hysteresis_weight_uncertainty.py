@@ -1,4 +1,4 @@
-"""Weight uncertainty of the PI models (issue 20, point 4): calibration on data with known weights."""
+"""Weight uncertainty of the PI models calibration on data with known weights."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import scipy.signal as ss
 
 from stageid._errors import ModelError, ParameterError
 from stageid.hysteresis import PIIdentifier, PIModel
-from stageid.hysteresis.weight_uncertainty import block_labels, correlation_length, plot_loop_band
+from stageid.hysteresis.identify.weight_uncertainty import block_labels, correlation_length, plot_loop_band
 from stageid.signals import decaying_triangle
 
 U = decaying_triangle(1.0, 8, 1e-3, amplitude=10.0)  # symmetric: thresholds i R / n centred at 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from stageid.hysteresis.disturbance_modes import disturbance_modes
+from stageid.hysteresis.stage.disturbance_modes import disturbance_modes
 from test_stage_disturbance_modes import DT, _drive, _resonance
 
 DRIVES = [_drive(20.0, 1.5), _drive(100.0, 0.6)]

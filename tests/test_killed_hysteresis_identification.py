@@ -11,8 +11,8 @@ import pytest
 
 from stageid import ParameterError, ResourceError
 from stageid.hysteresis import ModifiedPIModel, PIIdentifier, PIModel
-from stageid.hysteresis import identification as ident
-from stageid.hysteresis.identification import HysteresisFit
+from stageid.hysteresis.identify import pi as ident
+from stageid.hysteresis.identify.pi import HysteresisFit
 
 
 class _Stop(Exception):

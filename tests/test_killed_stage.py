@@ -1,6 +1,6 @@
 """Tests written to kill survivors of the ``stage`` mutation group (tests/MUTATION.md)."""
 
-from stageid.hysteresis.stage_selection import AUTO_TOLERANCE, choose_candidate
+from stageid.hysteresis.stage.selection import AUTO_TOLERANCE, choose_candidate
 
 
 class _Scores:

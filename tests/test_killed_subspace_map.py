@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from stageid._errors import DataError
-from stageid.subspace.hankel_toeplitz import WindowStatistics, window_statistics
-from stageid.subspace.map_estimator import LS_SINGULAR_PIVOT, Prior, map_prior, regressor_scales, singular_pivot
+from stageid.subspace.map.posterior import LS_SINGULAR_PIVOT, Prior, map_prior, regressor_scales, singular_pivot
+from stageid.subspace.statistics.hankel_toeplitz import WindowStatistics, window_statistics
 
 
 def test_singular_pivot_tells_a_rich_regressor_from_a_collinear_one() -> None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stageid._errors import IdentificationError
-from stageid.subspace.realization import era, hankel_matrices, markov_realization
+from stageid.subspace.realisation.era import era, hankel_matrices, markov_realization
 
 
 def _markov(A, B, C, D, n: int) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Hostile model files and models at their limits: one line naming the problem, never an internal error.
 
-Issue 14, classes 3 and 8, fixed in the model loader and the model classes (one rule for numbers,
+Refused in the model loader and the model classes (one rule for numbers,
 :func:`stageid.checks.is_real`): before, a ragged or nested ``A``, 100 000 nested brackets or a
 long integer ended as "internal error" (exit 3), ``true`` and ``"0.5"`` were accepted as matrix
 entries while ``"dt": "0.002"`` was refused, a time step of 1e-320 made the frequency response

@@ -1,4 +1,4 @@
-"""A read-only install still runs its compiled kernels (issue 14, class 7).
+"""A read-only install still runs its compiled kernels.
 
 numba refuses to define a ``cache=True`` kernel when neither the package folder nor the
 user's cache folder is writable.  The test installs a copy of the package on a read-only
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 import stageid
-from stageid import numba_cache
+from stageid.runtime import numba_cache
 
 CODE = (
     "import numpy as np, os, stageid\n"

@@ -5,8 +5,8 @@ import pytest
 
 from conftest import assert_one_line_error, run_main
 from stageid import ModelError
-from stageid.hysteresis.preisach import PreisachModel
-from stageid.hysteresis.preisach_inverse import PreisachCompensator, preisach_feedforward
+from stageid.hysteresis.inverse.preisach import PreisachCompensator, preisach_feedforward
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.models.serialization import dumps
 
 

@@ -1,4 +1,4 @@
-"""`stageid report --frf`: a measured frequency response beside the model (issue 15, point 2)."""
+"""`stageid report --frf`: a measured frequency response beside the model."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""The hysteresis report draws the band the weights' uncertainty puts on the loop (issue 20, point 4)."""
+"""The hysteresis report draws the band the weights' uncertainty puts on the loop."""
 
 from __future__ import annotations
 

@@ -117,7 +117,7 @@ def test_hysteresis_report_has_the_summary_as_table_and_list_and_draws_the_creep
 def test_stage_model_report_draws_dynamics_modes_and_creep(monkeypatch):
     from stageid.data import Experiment
     from stageid.hysteresis import PIModel
-    from stageid.hysteresis.creep import CreepTerm
+    from stageid.hysteresis.models.creep import CreepTerm
     from stageid.hysteresis.stage import StageModel
     from stageid.report import html as report_html
     from stageid.report.model_report import hysteresis_model_report

@@ -126,7 +126,7 @@ def test_a_long_scan_is_drawn_as_a_window_and_an_envelope():
 
 def test_stage_dynamics_and_creep_figures_have_units_and_mark_the_modes():
     from stageid.hysteresis import PIModel
-    from stageid.hysteresis.creep import CreepTerm
+    from stageid.hysteresis.models.creep import CreepTerm
     from stageid.hysteresis.stage import StageModel
 
     dynamics = _resonance(f_n=700.0, zeta=0.02).c2d(1e-4)

@@ -85,7 +85,7 @@ def test_period_tolerance_is_stated_between_rounding_and_clock_differences():
 
 
 def test_hysteresis_creep_period_shared_by_ulp_apart_records():
-    from stageid.hysteresis.records import sampling_period
+    from stageid.hysteresis.identify.records import sampling_period
 
     u = np.sin(np.linspace(0, 6, 50))
     exps = [Experiment(u, u, 1e-4), Experiment(u, u, 9.999999999999999e-05)]

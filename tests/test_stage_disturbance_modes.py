@@ -1,4 +1,4 @@
-"""Lightly damped modes taken from the disturbance of the identification records (issue 16).
+"""Lightly damped modes taken from the disturbance of the identification records.
 
 The simulated stage: a Preisach actuator, then a resonance; a white disturbance enters before
 the resonance (amplifier noise), white sensor noise after it.  The drives are slow decaying
@@ -16,11 +16,11 @@ from scipy.signal import cont2discrete, lfilter
 from stageid import ModelError, ModelFormatError
 from stageid.cli.main import main
 from stageid.data.io import write_csv
-from stageid.hysteresis.disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
-from stageid.hysteresis.dynamics import transfer_to_statespace
-from stageid.hysteresis.preisach import PreisachModel
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_identification import StageIdentifier
+from stageid.hysteresis.stage.disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
+from stageid.hysteresis.stage.dynamics import transfer_to_statespace
+from stageid.hysteresis.stage.identification import StageIdentifier
 
 DT = 1e-4
 
@@ -181,7 +181,7 @@ def test_measured_tracking_records_meet_the_target_with_the_mode_from_the_distur
     stays within 1.5 % max and every tracking record within 1.0 % RMS; without the mode PRBN and
     the big sine miss (1.10 %, 2.48 %)."""
     from _dspace_records import dspace_record
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.validation import validate_record
 
     train = [dspace_record(n)[:2] for n in ("20_hz_no_lp", "100_hz_no_lp")]
     fit = StageIdentifier("preisach", dynamics=1, creep=(0.05,), sample_time=DT).fit(train)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from stageid.hysteresis.dynamics import unit_gain_filter
+from stageid.hysteresis.stage.dynamics import unit_gain_filter
 
 CASES = [
     ([1.0], [1.0]),

@@ -12,14 +12,14 @@ from scipy.signal import cont2discrete, lfilter
 from stageid.cli.main import main
 from stageid.data.io import write_csv
 from stageid.hysteresis import PIModel
-from stageid.hysteresis.disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
-from stageid.hysteresis.dynamics import describe_pole, transfer_to_statespace
-from stageid.hysteresis.preisach import PreisachModel
-from stageid.hysteresis.preisach_identification import PreisachIdentifier
+from stageid.hysteresis.identify.preisach import PreisachIdentifier
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_identification import StageFit, StageIdentifier
-from stageid.hysteresis.stage_preisach import PreisachStageProblem, best_start_kinds
-from stageid.hysteresis.stage_selection import prediction_score, simulation_score
+from stageid.hysteresis.stage.disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
+from stageid.hysteresis.stage.dynamics import describe_pole, transfer_to_statespace
+from stageid.hysteresis.stage.identification import StageFit, StageIdentifier
+from stageid.hysteresis.stage.preisach import PreisachStageProblem, best_start_kinds
+from stageid.hysteresis.stage.selection import prediction_score, simulation_score
 
 DT = 1e-4
 # a PI actuator the 20-operator fit cannot hold exactly (thresholds off its grid)

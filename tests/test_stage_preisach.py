@@ -11,11 +11,11 @@ from stageid.cli.main import main
 from stageid.data import Experiment
 from stageid.data.io import read_table, write_csv
 from stageid.hysteresis import CreepTerm, PIModel
-from stageid.hysteresis.dynamics import transfer_to_statespace
-from stageid.hysteresis.preisach import PreisachModel
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_identification import StageIdentifier
-from stageid.hysteresis.stage_inverse import clipped_count, preisach_creep_feedforward, stage_feedforward
+from stageid.hysteresis.stage.dynamics import transfer_to_statespace
+from stageid.hysteresis.stage.identification import StageIdentifier
+from stageid.hysteresis.stage.inverse import clipped_count, preisach_creep_feedforward, stage_feedforward
 from stageid.models import load_model
 from stageid.models.serialization import dumps, loads
 from stageid.signals import decaying_triangle, triangle

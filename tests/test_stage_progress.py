@@ -12,9 +12,9 @@ from scipy.signal import cont2discrete
 from conftest import run_main
 from stageid.data.io import write_csv
 from stageid.hysteresis import PIModel
-from stageid.hysteresis.dynamics import transfer_to_statespace
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_identification import AUTO_CREEP, AUTO_ORDERS, SUMMARY_CANDIDATES, StageIdentifier
+from stageid.hysteresis.stage.dynamics import transfer_to_statespace
+from stageid.hysteresis.stage.identification import AUTO_CREEP, AUTO_ORDERS, SUMMARY_CANDIDATES, StageIdentifier
 from stageid.signals import decaying_triangle
 
 DT = 1e-4

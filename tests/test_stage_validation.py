@@ -10,10 +10,10 @@ from stageid import ModelError
 from stageid.cli.main import main
 from stageid.data.io import write_csv
 from stageid.hysteresis import CreepTerm
-from stageid.hysteresis.dynamics import transfer_to_statespace
-from stageid.hysteresis.preisach import PreisachModel
+from stageid.hysteresis.models.preisach import PreisachModel
 from stageid.hysteresis.stage import StageModel
-from stageid.hysteresis.stage_validation import MEMORY_NODES, validate_record
+from stageid.hysteresis.stage.dynamics import transfer_to_statespace
+from stageid.hysteresis.stage.validation import MEMORY_NODES, validate_record
 from stageid.models import StateSpaceModel
 from stageid.models.serialization import save_model
 
@@ -121,7 +121,7 @@ def test_measured_tracking_records_start_after_an_earlier_minor_loop():
     triangle and sine records drop from 1.12-1.15 % to 0.51-0.52 % RMS; the 40 Hz FORC record,
     which starts at a known memory (idle at -90 V), keeps the standard start."""
     from _dspace_records import dspace_record
-    from stageid.hysteresis.stage_identification import StageIdentifier
+    from stageid.hysteresis.stage.identification import StageIdentifier
 
     def record(name):
         return dspace_record(name)[:2]

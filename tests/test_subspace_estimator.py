@@ -19,7 +19,7 @@ def _p558_band_limited(seed, n=20000):
 
 @pytest.mark.parametrize("seed", [11])
 def test_p558_band_limited_default_horizon_given_order(seed):
-    # the acceptance case of issue 3: inputs only in 1-100 Hz, 1 % output noise, order 15
+    # the acceptance case: inputs only in 1-100 Hz, 1 % output noise, order 15
     res = HankelMAP(order=15).fit(_p558_band_limited(seed))
     diag, coupling = column_errors(res.model, ps.model())
     assert diag < 0.02 and coupling < 0.01
@@ -112,7 +112,7 @@ def test_forgetting_tracks_a_drifting_stage():
     assert err_track < 0.02 < err_batch
 
 
-# Calibration from both sides, the standard of issue 20: for a circular complex Gaussian error
+# Calibration from both sides: for a circular complex Gaussian error
 # with E|dG|^2 = std^2, P(|dG| <= k std) = 1 - exp(-k^2), so k = 1.73 covers 95 %; over 20 noise
 # seeds the bands must cover the truth 90-98 % of the time.  Bands 10x too wide cover ~100 %,
 # 10x too narrow ~3 %; even 2x off either way leaves the window (~100 % and ~53 %).
@@ -340,7 +340,7 @@ def test_bad_arguments_are_one_line_data_errors():
 
 @pytest.mark.parametrize("alternative", ["worse", "better"])
 def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypatch, alternative):
-    import stageid.subspace.frequency_domain as est
+    import stageid.subspace.realisation.frequency_domain as est
 
     g = random_stage(3, m=2, q=2, modes=3)
     exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)
@@ -376,7 +376,7 @@ def test_the_refinement_starts_from_the_cheaper_of_the_two_realisations(monkeypa
 
 @pytest.mark.parametrize("order, runs", [(6, 1), (2, 2)])
 def test_a_misfit_refinement_also_runs_from_the_second_start_and_keeps_the_better_end(monkeypatch, order, runs):
-    import stageid.subspace.frequency_domain as est
+    import stageid.subspace.realisation.frequency_domain as est
 
     g = random_stage(3, m=2, q=2, modes=3)  # 6 states: order 6 fits, order 2 cannot
     exp = record(g, np.random.default_rng(0).standard_normal((6000, 2)), 0.01, 0)

@@ -5,15 +5,15 @@ import pytest
 
 from _subspace_systems import random_stage, record
 from stageid._errors import DataError
-from stageid.subspace.correlations import lag_correlations
-from stageid.subspace.hankel_toeplitz import (
+from stageid.subspace.map.posterior import batch_posterior
+from stageid.subspace.statistics.correlations import lag_correlations
+from stageid.subspace.statistics.hankel_toeplitz import (
     dense_regression,
     record_statistics,
     regressor_indices,
     window_statistics,
 )
-from stageid.subspace.map_estimator import batch_posterior
-from stageid.subspace.theta_response import response_systems, theta_frequency_response
+from stageid.subspace.statistics.theta_response import response_systems, theta_frequency_response
 
 
 @pytest.mark.parametrize(
@@ -117,7 +117,7 @@ def test_model_response_equals_the_least_squares_solution_of_the_block_rows(p, m
 
 
 def test_window_gram_from_lags_equals_reference():
-    from stageid.subspace.correlations import window_gram, window_gram_python
+    from stageid.subspace.statistics.correlations import window_gram, window_gram_python
 
     z = np.random.default_rng(2).standard_normal((90, 3))
     R = lag_correlations(z, 9)
@@ -131,7 +131,7 @@ def test_window_gram_from_lags_equals_reference():
 def test_gram_from_lags_equals_the_explicit_window_sum_over_segments(horizon, r, n_segments):
     # the diagonal-view recursion against sum_k w(k) w(k)^T formed window by window, both
     # triangles; segments from one window (L samples) upwards
-    from stageid.subspace.correlations import gram_from_lags
+    from stageid.subspace.statistics.correlations import gram_from_lags
 
     rng = np.random.default_rng([horizon, r, n_segments])
     L = 2 * horizon
@@ -148,7 +148,7 @@ def test_gram_from_lags_equals_the_explicit_window_sum_over_segments(horizon, r,
 
 @pytest.mark.parametrize("horizon", [1, 4, 9])
 def test_segments_statistics_equal_the_sum_over_ranges_and_the_dense_regression(horizon):
-    from stageid.subspace.hankel_toeplitz import dense_regression, segments_statistics, window_statistics
+    from stageid.subspace.statistics.hankel_toeplitz import dense_regression, segments_statistics, window_statistics
 
     rng = np.random.default_rng(horizon)
     u, y = rng.standard_normal((700, 2)), rng.standard_normal((700, 3))
@@ -169,7 +169,7 @@ def test_segments_statistics_equal_the_sum_over_ranges_and_the_dense_regression(
 
 
 def test_segments_statistics_reject_short_ranges():
-    from stageid.subspace.hankel_toeplitz import segments_statistics
+    from stageid.subspace.statistics.hankel_toeplitz import segments_statistics
 
     u, y = np.zeros((100, 1)), np.zeros((100, 1))
     with pytest.raises(DataError, match="more than 10 samples; got 10"):
@@ -181,7 +181,7 @@ def test_segments_statistics_reject_short_ranges():
 @pytest.mark.parametrize(("M", "r", "n_joints"), [(1, 1, 1), (5, 2, 3), (40, 3, 2), (119, 6, 4)])
 def test_straddling_lags_equal_the_products_across_each_joint(M, r, n_joints):
     # the pairs (t, t + c) with t before the joint and t + c after it, for c = 0 .. M, by hand
-    from stageid.subspace.correlations import straddling_lags
+    from stageid.subspace.statistics.correlations import straddling_lags
 
     rng = np.random.default_rng([M, r, n_joints])
     z = rng.standard_normal((n_joints, 2 * M, r))
@@ -197,7 +197,7 @@ def test_straddling_lags_equal_the_products_across_each_joint(M, r, n_joints):
 def test_gram_from_lags_takes_column_major_end_samples():
     # records read column by column (CSV) give Fortran-ordered samples; their spectra follow
     # that layout, which the real-and-imaginary view of the FFT products must not assume away
-    from stageid.subspace.correlations import gram_from_lags
+    from stageid.subspace.statistics.correlations import gram_from_lags
 
     rng = np.random.default_rng(7)
     z = np.asfortranarray(rng.standard_normal((90, 3)))
@@ -211,7 +211,7 @@ def test_gram_from_lags_takes_column_major_end_samples():
 def test_record_rows_fill_the_frames_with_the_joined_ranges(block):
     # ranges joined by zero gaps, written frame after frame into the data halves of FFT frames:
     # pieces starting and ending inside a frame, spanning several, gaps, and rows past the end
-    from stageid.subspace.correlations import RecordRows
+    from stageid.subspace.statistics.correlations import RecordRows
 
     rng = np.random.default_rng(block)
     u, y = rng.standard_normal((200, 2)), rng.standard_normal((200, 1))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from stageid._errors import DataError
-from stageid.subspace.hankel_toeplitz import dense_regression, window_statistics
-from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior
-from stageid.subspace.recursion import recursive_map, recursive_map_python
+from stageid.subspace.map.posterior import Prior, batch_posterior, default_prior
+from stageid.subspace.map.recursion import recursive_map, recursive_map_python
+from stageid.subspace.statistics.hankel_toeplitz import dense_regression, window_statistics
 
 
 def _data(seed, n=500, m=2, q=3):
@@ -135,7 +135,7 @@ def test_grouped_recursion_equals_reference_for_every_record_length(forgetting, 
 @pytest.mark.parametrize("forgetting", [1.0, 0.97])
 def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
     # the four-window delayed-update kernel on its own (no one-window warm-up), from a dense prior
-    from stageid.subspace import map_kernels as mk
+    from stageid.subspace.map import kernels as mk
 
     p, m, q = 2, 2, 3
     d = 2 * p * m + p * q
@@ -162,7 +162,7 @@ def test_delayed_update_kernel_from_the_prior_equals_reference(forgetting):
 def test_vector_intrinsics_match_numpy():
     # the 4-wide operations the delayed-update kernel is written in (stageid.simd)
     numba = pytest.importorskip("numba")
-    from stageid.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
+    from stageid.runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vsum, vzero
 
     @numba.njit
     def kernel(a, b, c, out):
@@ -196,7 +196,7 @@ DELAY_FOR_TEST = 3
 
 
 def test_written_out_loops_compute_what_the_rolled_source_does():
-    from stageid.subspace.unroll import written_out
+    from stageid.runtime.unroll import written_out
 
     a = np.arange(12.0).reshape(3, 4)
     rolled, unrolled = np.zeros(3), np.zeros(3)

@@ -1,4 +1,4 @@
-"""HankelMAP refuses a horizon, order or frequency count that would not fit in memory (issue 14).
+"""HankelMAP refuses a horizon, order or frequency count that would not fit in memory.
 
 `stageid identify statespace ... --horizon 2400` on a 3x3 record was killed by the kernel at
 23.7 GB.  Now the memory is estimated before anything is allocated and the request is refused

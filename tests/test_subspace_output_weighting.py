@@ -16,7 +16,7 @@ from stageid.data import Experiment
 from stageid.models import StateSpaceModel
 from stageid.plants import piezo_stage as ps
 from stageid.subspace import HankelMAP
-from stageid.subspace.weighting import NOISE_STD_FLOOR, noise_weights, output_weights
+from stageid.subspace.realisation.weighting import NOISE_STD_FLOOR, noise_weights, output_weights
 
 F = np.linspace(1.0, 100.0, 1000)
 
@@ -103,7 +103,7 @@ def test_output_weights_floor_uses_the_records_rms():
     # output_weights reads only the noise covariance, the data sums and the window count: a
     # posterior built by hand (p = 2 block rows, q = 2 outputs) with output 0 noise-free at RMS 2
     # and output 1 at noise std 0.1, RMS 1
-    from stageid.subspace.map_estimator import Posterior
+    from stageid.subspace.map.posterior import Posterior
 
     n, p, q = 500.0, 2, 2
     YY = np.diag(n * np.array([4.0, 1.0, 4.0, 1.0]))
@@ -130,8 +130,8 @@ def test_output_weights_floor_uses_the_records_rms():
 def test_training_weights_estimate_the_noise_and_floor_the_clean_output():
     # y0 = 3-tap FIR of u (noise-free, inside the horizon: its residual vanishes, the floor
     # applies), y1 = another FIR plus white noise of std 0.5; theta is the least-squares fit
-    from stageid.subspace.hankel_toeplitz import window_statistics
-    from stageid.subspace.weighting import training_weights
+    from stageid.subspace.realisation.weighting import training_weights
+    from stageid.subspace.statistics.hankel_toeplitz import window_statistics
 
     rng = np.random.default_rng(7)
     n, p = 4000, 5

@@ -6,17 +6,17 @@ import pytest
 from _subspace_systems import random_stage, record
 from stageid._errors import IdentificationError
 from stageid.models import StateSpaceModel
-from stageid.subspace.frequency_domain import balanced_start, balanced_truncation, frequency_realization
-from stageid.subspace.hankel_toeplitz import window_statistics
-from stageid.subspace.map_estimator import batch_posterior
-from stageid.subspace.realization import (
+from stageid.subspace.map.posterior import batch_posterior
+from stageid.subspace.realisation.era import (
     era,
     hankel_h0,
     hankel_hi,
     hankel_matrices,
     markov_from_theta,
 )
-from stageid.subspace.refinement import refine_frequency_fit
+from stageid.subspace.realisation.frequency_domain import balanced_start, balanced_truncation, frequency_realization
+from stageid.subspace.realisation.refinement import refine_frequency_fit
+from stageid.subspace.statistics.hankel_toeplitz import window_statistics
 
 
 def _exact_theta(g, p, n=2500, seed=0):
@@ -101,7 +101,7 @@ def test_refinement_never_increases_the_cost_and_recovers_a_perturbed_model():
     ],
 )
 def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough, n, q, m):
-    from stageid.subspace.refinement import _normal_equations
+    from stageid.subspace.realisation.refinement import _normal_equations
 
     nz = 40
     rng = np.random.default_rng(1)
@@ -122,7 +122,7 @@ def test_structured_normal_equations_equal_the_explicit_jacobian(feedthrough, n,
 
 
 def test_discrete_gramian_solves_the_stein_equation():
-    from stageid.subspace.frequency_domain import _discrete_gramian
+    from stageid.subspace.realisation.frequency_domain import _discrete_gramian
 
     rng = np.random.default_rng(3)
     A = rng.standard_normal((6, 6))
@@ -170,7 +170,7 @@ def test_balanced_start_recovers_an_exact_response():
 
 
 def test_observability_basis_spans_the_lq_subspace():
-    from stageid.subspace.frequency_domain import _observability_basis
+    from stageid.subspace.realisation.frequency_domain import _observability_basis
 
     rng = np.random.default_rng(7)
     nf, q, m, r = 40, 2, 3, 5
@@ -190,7 +190,7 @@ def test_observability_basis_spans_the_lq_subspace():
 
 
 def test_balanced_start_gives_none_when_the_truncation_fails(monkeypatch):
-    from stageid.subspace import frequency_domain
+    from stageid.subspace.realisation import frequency_domain
 
     g = random_stage(6, m=2, q=2, modes=3)
     f = np.linspace(0.0, 250.0, 200)
@@ -213,8 +213,8 @@ def _random_realisation(rng, n, m, q, nz):
 @pytest.mark.parametrize("n, m, q", [(1, 1, 1), (4, 2, 3), (15, 3, 3), (30, 3, 3), (6, 1, 2)])
 def test_model_response_and_resolvent_rows_equal_direct_solves(n, m, q):
     # reference: (zI - A)^-1 by a linear solve at every z (the product forms use A's eigenvectors)
-    from stageid.subspace.frequency_domain import _resolvent_rows
-    from stageid.subspace.refinement import fit_cost, model_response
+    from stageid.subspace.realisation.frequency_domain import _resolvent_rows
+    from stageid.subspace.realisation.refinement import fit_cost, model_response
 
     rng = np.random.default_rng(n + 10 * m + 100 * q)
     A, B, C, D, zs = _random_realisation(rng, n, m, q, 50)
@@ -229,7 +229,7 @@ def test_model_response_and_resolvent_rows_equal_direct_solves(n, m, q):
 
 
 def test_refinement_from_a_given_start_response_is_the_same_refinement():
-    from stageid.subspace.refinement import fit_cost, model_response
+    from stageid.subspace.realisation.refinement import fit_cost, model_response
 
     rng = np.random.default_rng(4)
     A, B, C, D, zs = _random_realisation(rng, 5, 2, 2, 60)
@@ -249,7 +249,7 @@ def test_refinement_from_a_given_start_response_is_the_same_refinement():
 @pytest.mark.parametrize("feedthrough, weighted", [(False, False), (True, False), (True, True)])
 def test_fit_input_matrices_equal_the_least_squares_solution(feedthrough, weighted):
     # reference: lstsq on the stacked real and imaginary parts of C (zI - A)^-1 [B] + [D] = G
-    from stageid.subspace.frequency_domain import fit_input_matrices
+    from stageid.subspace.realisation.frequency_domain import fit_input_matrices
 
     rng = np.random.default_rng(11)
     n, m, q, nz = 6, 2, 3, 40

@@ -5,9 +5,7 @@ import numpy as np
 import pytest
 
 from _subspace_systems import band_limited, random_stage, record
-from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics, row_residuals, window_statistics
-from stageid.subspace.map_estimator import Prior, batch_posterior, default_prior, map_estimate
-from stageid.subspace.nested_horizons import solve_lower, solve_lower_transposed
+from stageid.subspace.map.posterior import Prior, batch_posterior, default_prior, map_estimate
 from stageid.subspace.selection import (
     central_statistics,
     held_out_segments,
@@ -16,7 +14,9 @@ from stageid.subspace.selection import (
     select_horizon,
     split_statistics,
 )
-from stageid.subspace.window_covariance import window_lags
+from stageid.subspace.selection.nested_horizons import solve_lower, solve_lower_transposed
+from stageid.subspace.statistics.hankel_toeplitz import hankel_toeplitz_statistics, row_residuals, window_statistics
+from stageid.subspace.statistics.window_covariance import window_lags
 
 
 def _records(n, seed=3):

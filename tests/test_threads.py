@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from stageid._threads import single_blas_thread
+from stageid.runtime.threads import single_blas_thread
 
 
 def _blas_threads() -> list[int]:
@@ -71,7 +71,7 @@ def test_estimators_are_wrapped():
 def test_the_controller_is_rebuilt_when_scipy_arrives(monkeypatch):
     import sys
 
-    from stageid import _threads
+    from stageid.runtime import threads as _threads
 
     monkeypatch.setattr(_threads, "_controller", None)
     first = _threads._blas_controller()

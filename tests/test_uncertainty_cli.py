@@ -1,4 +1,4 @@
-"""``--uncertainty B.csv [--uncertainty-grid FMIN:FMAX:N]`` on the identify verbs (issue 20)."""
+"""``--uncertainty B.csv [--uncertainty-grid FMIN:FMAX:N]`` on the identify verbs."""
 
 from __future__ import annotations
 

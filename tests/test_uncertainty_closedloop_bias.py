@@ -1,4 +1,4 @@
-"""The closed-loop reduction's bias rule that follows the misfit along the band (issue 20, point 3)."""
+"""The closed-loop reduction's bias rule that follows the misfit along the band."""
 
 from __future__ import annotations
 

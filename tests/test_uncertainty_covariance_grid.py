@@ -1,4 +1,4 @@
-"""Where the realised Hankel-MAP model's covariance is formed (stageid.subspace.covariance_grid), issue 20."""
+"""Where the realised Hankel-MAP model's covariance is formed (stageid.subspace.uncertainty.grid_placement)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from _subspace_systems import band_limited, random_stage, record
 from stageid._errors import DataError
 from stageid.models import StateSpaceModel
 from stageid.subspace import HankelMAP
-from stageid.subspace.covariance_grid import even_indices, placed_grid, quadrature_weights, resonances
-from stageid.subspace.realisation_bias import local_misfit_bias
+from stageid.subspace.uncertainty.grid_placement import even_indices, placed_grid, quadrature_weights, resonances
+from stageid.subspace.uncertainty.realisation_bias import local_misfit_bias
 
 
 def modal_model(modes, dt=0.002):

@@ -1,4 +1,4 @@
-"""Uncertainty of models fitted to frequency-response data (issue 20): from the data's std."""
+"""Uncertainty of models fitted to frequency-response data: from the data's std."""
 
 import numpy as np
 import pytest

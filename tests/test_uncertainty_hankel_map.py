@@ -1,4 +1,4 @@
-"""Uncertainty of the realised Hankel-MAP model (issue 20): calibration, cross-method agreement, API."""
+"""Uncertainty of the realised Hankel-MAP model: calibration, cross-method agreement, API."""
 
 import numpy as np
 import pytest
@@ -11,7 +11,7 @@ from stageid.subspace import HankelMAP
 from stageid.subspace.uncertainty import realised_response_uncertainty
 
 # For a circular complex Gaussian error with E|dG|^2 = std^2, P(|dG| <= k std) = 1 - exp(-k^2):
-# k = 1.73 covers 95 %.  The window is issue 20's; a std 3x too small covers ~28 %, 3x too large
+# k = 1.73 covers 95 %.  The window is a factor 3 either way: a std 3x too small covers ~28 %, 3x too large
 # ~100 %, and each test also checks that its own data would reject those (the test can fail).
 K95 = 1.73
 WINDOW = (0.90, 0.98)

@@ -1,5 +1,5 @@
-"""The realised Hankel-MAP bands: the realisation-misfit bias term (stageid.subspace.realisation_bias) and
-the propagation to the model's response (stageid.subspace.uncertainty.response_std), issue 20."""
+"""The realised Hankel-MAP bands: the realisation-misfit bias term (stageid.subspace.uncertainty.realisation_bias) and
+the propagation to the model's response (stageid.subspace.uncertainty.response_std)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ import pytest
 
 from _subspace_systems import band_limited, random_stage, record
 from stageid.subspace import HankelMAP
-from stageid.subspace.realisation_bias import local_misfit_bias, misfit_noise
 from stageid.subspace.uncertainty import (
     TangentProjection,
     model_jacobian,
     realised_response_uncertainty,
     response_std,
 )
+from stageid.subspace.uncertainty.realisation_bias import local_misfit_bias, misfit_noise
 
 
 def test_misfit_noise_is_the_mean_squared_residual_of_the_projection():

@@ -1,4 +1,4 @@
-"""The eq. 9 covariance under overlapping windows (stageid.subspace.window_covariance, issue 20)."""
+"""The eq. 9 covariance under overlapping windows (stageid.subspace.statistics.window_covariance)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,8 @@ import pytest
 
 from _subspace_systems import band_limited, random_stage, record
 from stageid.subspace import HankelMAP
-from stageid.subspace.hankel_toeplitz import dense_regression, regressor_indices
-from stageid.subspace.uncertainty import column_solve, weighted_parts
-from stageid.subspace.window_covariance import (
+from stageid.subspace.statistics.hankel_toeplitz import dense_regression, regressor_indices
+from stageid.subspace.statistics.window_covariance import (
     WindowFilter,
     lag_spectrum,
     lag_sum,
@@ -17,6 +16,7 @@ from stageid.subspace.window_covariance import (
     self_lag_products,
     window_lags,
 )
+from stageid.subspace.uncertainty import column_solve, weighted_parts
 
 
 def _explicit_lag_products(recs, p, h, lags):
@@ -52,7 +52,7 @@ def test_self_lag_products_equal_the_sums_over_whole_windows(p):
 def test_self_lag_products_in_several_blocks_equal_the_sums_over_whole_windows(monkeypatch):
     # blocks of a few rows (each transform written into its rows of the lags-last store): the
     # same sums as one block and as by hand
-    import stageid.subspace.window_covariance as wc
+    import stageid.subspace.statistics.window_covariance as wc
 
     rng = np.random.default_rng(7)
     p, r = 3, 3
@@ -188,7 +188,7 @@ def test_lag_statistics_hold_the_fit_gram(horizon):
 def test_lags_of_a_larger_horizon_serve_the_smaller_ones():
     # one pass at the largest candidate: its lags cut to a smaller horizon are that horizon's
     # (to rounding: the FFT blocks differ), and rebuild the whole records' eq. 9 statistics
-    from stageid.subspace.hankel_toeplitz import hankel_toeplitz_statistics
+    from stageid.subspace.statistics.hankel_toeplitz import hankel_toeplitz_statistics
 
     g = random_stage(5, m=2, q=2)
     recs = [(e.u, e.y) for e in (record(g, band_limited(n, 2, g.dt, n), 0.01, n, names=False) for n in (900, 640))]

@@ -40,7 +40,7 @@ def draw_theta(rng: np.random.Generator, amplitude: float) -> np.ndarray:
 def weight_problem(inputs: list[np.ndarray], outputs: list[np.ndarray], amplitude: float, n: int):
     """The identification's weight problem on these records (its defaults: slope floor 2 % of
     the mean slope, ridge 1e-6, every sample a row)."""
-    from stageid.hysteresis.weights import WeightProblem
+    from stageid.hysteresis.identify.weights import WeightProblem
 
     eps = 0.02 * max(float(np.ptp(y)) for y in outputs) / (2 * amplitude)
     recs = list(zip(inputs, outputs))

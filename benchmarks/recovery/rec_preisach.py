@@ -33,7 +33,7 @@ def draw_weights(rng: np.random.Generator, n: int) -> np.ndarray:
 
 def cost_terms(inputs: list[np.ndarray], outputs: list[np.ndarray], input_range: tuple, n: int):
     """``(A, b, lam D)``: centred cell states and outputs of all records, and the penalty rows."""
-    from stageid.hysteresis.preisach_identification import cell_regressors, second_differences
+    from stageid.hysteresis.identify.preisach import cell_regressors, second_differences
 
     blocks = [cell_regressors(u, input_range, n) for u in inputs]
     A = np.vstack([P - P.mean(axis=0) for P in blocks])
@@ -62,7 +62,7 @@ def reference(w0: np.ndarray, A: np.ndarray, b: np.ndarray, D: np.ndarray) -> np
 
 
 def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
-    from stageid.hysteresis.preisach import PreisachModel
+    from stageid.hysteresis.models.preisach import PreisachModel
     from stageid.models.serialization import model_from_dict
 
     rng = np.random.default_rng([seed, 303])

@@ -51,9 +51,9 @@ def _true_stage(rng: np.random.Generator, half_range: float, centre: float):
     from scipy.signal import cont2discrete
 
     from stageid.hysteresis import PIModel
-    from stageid.hysteresis.creep import CreepTerm
-    from stageid.hysteresis.dynamics import transfer_to_statespace
+    from stageid.hysteresis.models.creep import CreepTerm
     from stageid.hysteresis.stage import StageModel
+    from stageid.hysteresis.stage.dynamics import transfer_to_statespace
 
     n = int(rng.integers(4, 9))
     r = np.arange(n) * half_range / n
@@ -108,7 +108,7 @@ def _reference(true, recs, order: int):
 
     from scipy.optimize import least_squares
 
-    from stageid.hysteresis.dynamics import statespace_to_transfer, transfer_to_statespace
+    from stageid.hysteresis.stage.dynamics import statespace_to_transfer, transfer_to_statespace
 
     h = true.hysteresis
     nw = h.weights.size

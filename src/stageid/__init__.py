@@ -15,7 +15,6 @@ Sub-packages, one capability each:
 ==============  =====================================================================
 """
 
-from . import numba_cache
 from ._errors import (
     ClusterError,
     DataError,
@@ -32,7 +31,10 @@ from ._errors import (
     StageIdError,
     StageIdWarning,
 )
+from ._moved import install_moved_paths
+from .runtime import numba_cache
 
+install_moved_paths()  # old module paths of moved modules still import (see _moved.MOVED)
 numba_cache.configure()  # before any kernel is defined: a read-only install must still run
 
 __version__ = "0.1.0"

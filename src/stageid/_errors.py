@@ -65,7 +65,7 @@ class ParameterError(StageIdError, ValueError):
 class ResourceError(StageIdError, MemoryError):
     """A request would need more memory (or work) than this machine can give; nothing was done.
 
-    Raised before the work starts (see :mod:`stageid.resources`), with what the request would
+    Raised before the work starts (see :mod:`stageid.runtime.resources`), with what the request would
     need and what is available.
     """
 

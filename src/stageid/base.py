@@ -24,6 +24,7 @@ hand-written list.  The shape follows scikit-learn's ``utils/_param_validation.p
 
 from __future__ import annotations
 
+import copy
 import inspect
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
@@ -200,6 +201,14 @@ class Estimator:
     def get_params(self) -> dict[str, Any]:
         """The hyper-parameters as a dict, in ``__init__`` order."""
         return {name: getattr(self, name) for name in self.parameter_names()}
+
+    def clone(self) -> Estimator:
+        """A new estimator of the same class with copies of the same settings.
+
+        What a result keeps of its estimator: changing the estimator after a fit then changes
+        neither the result nor what its ``update`` does.
+        """
+        return type(self)(**copy.deepcopy(self.get_params()))
 
     def __repr__(self) -> str:
         sig = inspect.signature(type(self).__init__)

@@ -11,7 +11,8 @@ Each helper takes the exception class to raise (``error``), so a signal generato
 text.  Numbers are Python or numpy reals, never ``bool`` and never strings: ``"0.002"`` is
 refused everywhere, as ``True`` is.
 
-A frequency band is one rule: ``(f_low, f_high)`` in Hz with ``0 <= f_low < f_high`` finite,
+Frequencies to evaluate a response at (``check_freqs``) are finite, ``>= 0`` and at most the
+Nyquist frequency.  A frequency band is one rule: ``(f_low, f_high)`` in Hz with ``0 <= f_low < f_high`` finite,
 and ``f_high`` at most the Nyquist frequency when the sample time is known.  A method that
 needs a positive lower edge (a logarithmic grid) starts its grid at its first positive point.
 """
@@ -25,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ._errors import ParameterError
+from ._errors import DataError, ParameterError
 
 __all__ = [
     "is_real",
@@ -36,6 +37,7 @@ __all__ = [
     "check_integer",
     "check_choice",
     "check_band",
+    "check_freqs",
     "check_seed",
     "describe_interval",
     "shown",
@@ -179,6 +181,23 @@ class _Hz:
 
     def __repr__(self) -> str:
         return f"{self.lo:g}-{self.hi:g} Hz"
+
+
+def check_freqs(freqs_hz: object, dt: float) -> np.ndarray:
+    """Frequencies in Hz as a finite 1-D array within ``[0, 1 / (2 dt)]`` (DataError otherwise)."""
+    try:
+        f = np.asarray(freqs_hz, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError(
+            f"`freqs_hz` must be a 1-D array of frequencies in Hz; got {type(freqs_hz).__name__}."
+        ) from None
+    if f.ndim != 1 or f.size == 0:
+        raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
+    nyq = 0.5 / dt
+    bad = ~np.isfinite(f) | (f < 0) | (f > nyq * (1 + 1e-12))
+    if bad.any():
+        raise DataError(f"`freqs_hz` must be finite and within 0-{nyq:g} Hz (Nyquist); got {float(f[bad][0])!r}.")
+    return f
 
 
 def check_seed(

@@ -47,7 +47,7 @@ def aligned_error(model, u, y, initial: str = "kinds") -> np.ndarray:
     (:func:`~stageid.hysteresis.stage_validation.validate_record`: ``"kinds"`` own offset and
     the best of the three standard memories; ``"estimate"`` also an earlier minor loop and the
     linear states)."""
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.validation import validate_record
 
     return y - validate_record(model, u, y, DT, initial).simulated
 
@@ -75,8 +75,8 @@ def figures(name: str, u: np.ndarray, y: np.ndarray, models: dict) -> None:
 def simulated(lines: list[str]) -> None:
     from stage_study import simulated_stage
 
-    from stageid.hysteresis.stage_identification import StageIdentifier
-    from stageid.hysteresis.stage_inverse import stage_feedforward
+    from stageid.hysteresis.stage.identification import StageIdentifier
+    from stageid.hysteresis.stage.inverse import stage_feedforward
     from stageid.signals import triangle
 
     plant, rec = simulated_stage()  # the same plant and records as stage_study.py
@@ -129,8 +129,8 @@ def real(lines: list[str], configs: list[str]) -> None:
     from run_study import _trim_dspace
 
     from stageid.data.datasets import load_dspace_piezo, shared_data_dir
-    from stageid.hysteresis.stage_identification import StageIdentifier
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.identification import StageIdentifier
+    from stageid.hysteresis.stage.validation import validate_record
 
     root = shared_data_dir()
     folder = None if root is None else root / "piezo_dspace_preisach"
@@ -193,8 +193,8 @@ def disturbance(lines: list[str], recs: dict, train: list, fit) -> None:
     residual of the model without modes, per FORC record and for the identification pair."""
     from scipy.signal import savgol_filter, welch
 
-    from stageid.hysteresis.disturbance_modes import disturbance_modes
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.disturbance_modes import disturbance_modes
+    from stageid.hysteresis.stage.validation import validate_record
 
     lines.append("### The mode in the FORC records' disturbance\n")
     lines.append("Band RMS of the fast part `y - savgol(y, 51, 3)` [um] and of the drive's [V] (Welch, 4096):\n")
@@ -234,9 +234,9 @@ def resonance(lines: list[str], recs: dict, train: list, fit) -> None:
     the FORC records only."""
     from scipy.signal import csd, welch
 
-    from stageid.hysteresis.dynamics import zoh_resonance
-    from stageid.hysteresis.stage_preisach import PreisachStageProblem, best_start_kinds
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.dynamics import zoh_resonance
+    from stageid.hysteresis.stage.preisach import PreisachStageProblem, best_start_kinds
+    from stageid.hysteresis.stage.validation import validate_record
 
     lines.append("### The resonance near 740 Hz\n")
     freqs = (5, 100, 300, 500, 650, 700, 740, 780, 900, 1500)

@@ -34,8 +34,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     sys.path.insert(0, str(HERE.parents[1] / "tests"))
     from _dspace_records import dspace_record
-    from stageid.hysteresis.stage_identification import StageIdentifier
-    from stageid.hysteresis.stage_validation import validate_record
+    from stageid.hysteresis.stage.identification import StageIdentifier
+    from stageid.hysteresis.stage.validation import validate_record
 
     print("| pair | " + " | ".join(TRACKING) + " | order / creep / modes | seconds |")
     print("|---" * (len(TRACKING) + 3) + "|")

@@ -92,7 +92,7 @@ class PreisachActuator:
 def resonance(dt: float, f_n: float = 1000.0, zeta: float = 0.05):
     from scipy.signal import cont2discrete
 
-    from stageid.hysteresis.dynamics import transfer_to_statespace
+    from stageid.hysteresis.stage.dynamics import transfer_to_statespace
 
     wn = 2 * np.pi * f_n
     b, a, _ = cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), dt, "zoh")
@@ -126,8 +126,8 @@ def simulated_stage(seed: int = 0):
 
 def simulated(lines: list[str]) -> None:
     from stageid.hysteresis import compensate
-    from stageid.hysteresis.stage_identification import StageIdentifier
-    from stageid.hysteresis.stage_inverse import stage_feedforward
+    from stageid.hysteresis.stage.identification import StageIdentifier
+    from stageid.hysteresis.stage.inverse import stage_feedforward
     from stageid.signals import triangle
 
     plant, rec = simulated_stage()
@@ -181,7 +181,7 @@ def real(lines: list[str]) -> None:
     from run_study import _trim_dspace
 
     from stageid.data.datasets import load_dspace_piezo, shared_data_dir
-    from stageid.hysteresis.stage_identification import StageIdentifier
+    from stageid.hysteresis.stage.identification import StageIdentifier
 
     root = shared_data_dir()
     folder = None if root is None else root / "piezo_dspace_preisach"

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.signal as ss
 
 from stageid.hysteresis import PIIdentifier, PIModel
-from stageid.hysteresis.weight_uncertainty import plot_loop_band
+from stageid.hysteresis.identify.weight_uncertainty import plot_loop_band
 from stageid.plants.piezo_actuator import EXPERIMENTS
 from stageid.signals import decaying_triangle
 

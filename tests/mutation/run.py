@@ -38,11 +38,11 @@ ROOT = Path(__file__).resolve().parents[2]
 #: group -> (modules mutated, tests run against each mutant, fastest first)
 GROUPS: dict[str, tuple[list[str], list[str]]] = {
     "hysteresis-inverse": (
-        ["src/stageid/hysteresis/inverse.py"],
+        ["src/stageid/hysteresis/inverse/__init__.py"],
         ["tests/test_hysteresis_inverse.py"],
     ),
     "hysteresis-identification": (
-        ["src/stageid/hysteresis/closed_form.py", "src/stageid/hysteresis/identification.py"],
+        ["src/stageid/hysteresis/inverse/closed_form.py", "src/stageid/hysteresis/identify/pi.py"],
         [
             "tests/test_hysteresis_inverse.py",  # pi_inverse / forward_state of closed_form.py
             "tests/test_hysteresis_identification.py",
@@ -51,7 +51,7 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ],
     ),
     "subspace-weighting": (
-        ["src/stageid/subspace/weighting.py"],
+        ["src/stageid/subspace/realisation/weighting.py"],
         ["tests/test_subspace_output_weighting.py", "tests/test_subspace_estimator.py"],
     ),
     "subspace-result": (
@@ -59,11 +59,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_subspace_estimator.py", "tests/test_subspace_output_weighting.py"],
     ),
     "subspace-realization": (
-        ["src/stageid/subspace/realization.py"],
+        ["src/stageid/subspace/realisation/era.py"],
         ["tests/test_subspace_realization.py", "tests/test_subspace_estimator.py"],
     ),
     "subspace-map": (
-        ["src/stageid/subspace/map_estimator.py", "src/stageid/subspace/hankel_toeplitz.py"],
+        ["src/stageid/subspace/map/posterior.py", "src/stageid/subspace/statistics/hankel_toeplitz.py"],
         ["tests/test_subspace_map.py", "tests/test_subspace_hankel_toeplitz.py", "tests/test_subspace_estimator.py"],
     ),
     "closedloop-reduction": (
@@ -112,7 +112,7 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ],
     ),
     "disturbance-modes": (
-        ["src/stageid/hysteresis/disturbance_modes.py"],
+        ["src/stageid/hysteresis/stage/disturbance_modes.py"],
         [
             "tests/test_stage_disturbance_modes.py",
             "tests/test_stage_evidence.py",
@@ -120,15 +120,15 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ],
     ),
     "creep": (
-        ["src/stageid/hysteresis/creep.py"],
+        ["src/stageid/hysteresis/models/creep.py"],
         ["tests/test_hysteresis_creep.py"],
     ),
     "preisach": (
-        ["src/stageid/hysteresis/preisach.py", "src/stageid/hysteresis/preisach_identification.py"],
+        ["src/stageid/hysteresis/models/preisach.py", "src/stageid/hysteresis/identify/preisach.py"],
         ["tests/test_hysteresis_preisach.py", "tests/test_stage_preisach.py"],
     ),
     "stage": (
-        ["src/stageid/hysteresis/stage.py", "src/stageid/hysteresis/stage_identification.py"],
+        ["src/stageid/hysteresis/stage/__init__.py", "src/stageid/hysteresis/stage/identification.py"],
         ["tests/test_hysteresis_stage.py", "tests/test_stage_dynamics_filter.py", "tests/test_stage_validation.py"],
     ),
 }

@@ -57,12 +57,11 @@ def compare(session: Session, model: str, data: str, out: str) -> Action:
 def _overlay(session: Session, entry: dict[str, Any], d: dict[str, Any]) -> dict[str, str]:
     """The record's outputs with the model's simulation (its own initial state), the residual
     correlations of each output (MATLAB's ``resid``) and the model's Bode plot."""
-    from ..cli.validate import ALPHA, MAX_LAG
     from ..data.io import read_table
     from ..models import load_model
     from ..plots import time_overlay_figure
     from ..plots.residuals import residual_figure
-    from ..validation.residuals import validate_model
+    from ..validation.residuals import ALPHA, MAX_LAG, validate_model
 
     model = load_model(session.workspace / f"{entry['name']}.json")
     exp = read_table(session.workspace / d["file"]).experiment(d["inputs"], d["outputs"])

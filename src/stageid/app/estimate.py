@@ -274,7 +274,7 @@ def singular_values(session: Session, data: str, options: dict[str, Any]) -> dic
     from ..data.io import read_table
     from ..plots.subspace import error_curve
     from ..subspace import HankelMAP
-    from ..subspace.realization import hankel_matrices
+    from ..subspace.realisation.era import hankel_matrices
 
     d = _dataset(session, data, "time")
     horizon = int(_text(options, "horizon", "20") if _text(options, "horizon") != "auto" else 20)

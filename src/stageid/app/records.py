@@ -1,7 +1,7 @@
 """The data board of ``stageid serve``: read a record, pick channels, trim, detrend, and plot.
 
 A record is read with the package's readers (:func:`stageid.data.io.read_table`,
-:func:`stageid.frf.frd.frd_from_columns`).  A MATLAB file whose frequency response sits in a
+:func:`stageid.models.frequency_response.frd_from_columns`).  A MATLAB file whose frequency response sits in a
 struct (a frequency vector beside complex response vectors, as instrument exports store
 them) is read by :func:`mat_struct_responses`.  Preparing a record writes it into the
 session's workspace as the file the estimate board's commands read.
@@ -89,7 +89,7 @@ def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
     neither, the table reader's message is the one raised.
     """
     from ..data.io import read_table
-    from ..frf.frd import frd_from_columns, read_frd
+    from ..models.frequency_response import frd_from_columns, read_frd
 
     try:
         table = read_table(path, ts)

@@ -10,7 +10,7 @@ module                      concept
 ==========================  ===========================================================
 
 The command is ``stageid batch MANIFEST.csv --out DIR [--scheduler tcp://HOST:PORT]``
-(:mod:`stageid.cli.batch`); the cluster comes from :func:`stageid.cluster.dask_client`.
+(:mod:`stageid.cli.batch`); the cluster comes from :func:`stageid.runtime.cluster.dask_client`.
 """
 
 from .commands import BATCH_VERBS, Job, resolve_job

@@ -73,7 +73,7 @@ def batch_command(manifest_path: str, out_dir: str, scheduler: str | None, n_wor
     """
     from .. import __version__
     from ..batch import SUMMARY_FILE, read_manifest, resolve_job, run_batch
-    from ..cluster import check_scheduler_address, dask_client
+    from ..runtime.cluster import check_scheduler_address, dask_client
 
     # Dask's sockets closed by the garbage collector are its own business, not the user's
     warnings.filterwarnings("ignore", category=ResourceWarning)

@@ -64,7 +64,7 @@ def statistics_client(scheduler: str | None) -> Iterator[object]:
     if scheduler is None:
         yield None
         return
-    from ..cluster import dask_client
+    from ..runtime.cluster import dask_client
 
     with dask_client(scheduler) as client:
         yield client

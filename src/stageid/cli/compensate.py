@@ -50,8 +50,8 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     state; a model with a creep term is inverted at the reference file's sampling period.
     """
     from ..hysteresis import Compensator
-    from ..hysteresis.pi import ModifiedPIModel, PIModel
-    from ..hysteresis.preisach import PreisachModel
+    from ..hysteresis.models.pi import ModifiedPIModel, PIModel
+    from ..hysteresis.models.preisach import PreisachModel
     from ..hysteresis.stage import StageModel
     from ..models import load_model
     from ._common import check_output, parse_limits, read_table_checked, write_table_output
@@ -69,13 +69,13 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     if table.dt is None:
         raise DataError(f"'{ref_path}' has no `t` column; give its sample time with --ts.")
     if stage is not None and (stage.dynamics is not None or stage.creep is not None):
-        from ..hysteresis.stage_inverse import stage_feedforward
+        from ..hysteresis.stage.inverse import stage_feedforward
 
         # offline: stable inversion of the dynamics over the whole reference, then the hysteresis
         # (a Preisach stage's creep folded into its exact inverse)
         u = stage_feedforward(stage, yref, table.dt, limits=lim)
     elif isinstance(model, PreisachModel):
-        from ..hysteresis.preisach_inverse import preisach_feedforward
+        from ..hysteresis.inverse.preisach import preisach_feedforward
 
         u = preisach_feedforward(model, yref, limits=lim)
     else:

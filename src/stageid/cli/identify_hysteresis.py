@@ -284,7 +284,7 @@ def _identify_stage(
     """The stage model (hysteresis -> creep -> dynamics); the records' time axis gives dt.
     A Preisach model holds no creep term of its own, so any --creep makes it a stage.
     Its progress goes to stderr (a search over candidates takes minutes) unless ``quiet``."""
-    from ..hysteresis.stage_identification import StageIdentifier
+    from ..hysteresis.stage.identification import StageIdentifier
     from ._common import StepProgress
 
     progress = None if quiet else StepProgress()

@@ -181,7 +181,7 @@ FREQRESP_WORK_LIMIT = 2e10
 
 def _require_frequency_work(model, n_points: int) -> None:
     """Refuse an ``--n`` whose response would not fit in memory or would run for many minutes."""
-    from ..resources import require_memory, require_work
+    from ..runtime.resources import require_memory, require_work
 
     n_states = int(getattr(model, "n_states", 0) or 0)  # transfer matrices: polynomial evaluation, cheap
     pairs = model.n_outputs * model.n_inputs

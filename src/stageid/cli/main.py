@@ -16,6 +16,7 @@ import warnings
 import click
 
 from .._errors import StageIdError
+from .flags import as_flags
 
 EXAMPLES = """
 \b
@@ -101,7 +102,7 @@ def _register() -> None:
     for module, attr, group in _COMMANDS:
         command = getattr(importlib.import_module(module), attr)
         _GROUPS[group].add_command(command)
-    identify.add_command(identify.commands["closed-loop"], name="closedloop")  # the issue's spelling works too
+    identify.add_command(identify.commands["closed-loop"], name="closedloop")  # both spellings are accepted
 
 
 _register()
@@ -148,8 +149,8 @@ def _failure(exc: BaseException) -> tuple[int | None, str]:
         return 130, "stageid: aborted"
     if isinstance(exc, click.ClickException):
         return 2, f"stageid: error: {_one_line(exc.format_message())}"
-    if isinstance(exc, StageIdError):
-        return 2, f"stageid: error: {_one_line(str(exc))}"
+    if isinstance(exc, StageIdError):  # the library names parameters (`fmax=`); the user typed flags
+        return 2, f"stageid: error: {_one_line(as_flags(str(exc)))}"
     if isinstance(exc, (OSError, MemoryError)):
         return 2, f"stageid: error: {_one_line(str(exc) or type(exc).__name__)}"
     if isinstance(exc, Exception):  # a bug: still one line, with a hint how to see more

@@ -5,10 +5,8 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError
+from ..validation.residuals import ALPHA, MAX_LAG
 from ._common import check_output, check_output_folder, read_experiments, say, split_names, trim_options
-
-MAX_LAG = 25  # lags 1..25 (whiteness) and 0..25 (independence)
-ALPHA = 0.01  # each test at the 1 % level
 
 
 @click.command(
@@ -148,10 +146,10 @@ def _experiments(model, data, inputs, outputs, ts):
 
 
 def _initial_conditions(model, experiments, initial: str):
-    """Per record, :func:`~stageid.hysteresis.stage_validation.validate_record` (None for ``model``)."""
+    """Per record, :func:`~stageid.hysteresis.stage.validation.validate_record` (None for ``model``)."""
     if initial == "model":
         return None
-    from ..hysteresis.stage_validation import validate_record
+    from ..hysteresis.stage.validation import validate_record
 
     return [validate_record(model, e.u[:, 0], e.y[:, 0], e.dt, initial) for e in experiments]
 

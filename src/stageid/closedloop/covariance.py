@@ -28,9 +28,9 @@ import numpy as np
 import scipy.fft as sfft
 
 from .._errors import IdentificationError
-from .._threads import single_blas_thread
 from ..data import Experiment
 from ..models import StateSpaceModel
+from ..runtime.threads import single_blas_thread
 from .pem import jacobian
 from .polynomial import PolynomialModel, residual_parts
 

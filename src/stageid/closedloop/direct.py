@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from .._threads import single_blas_thread
 from ..data import Experiment
+from ..runtime.threads import single_blas_thread
 from .innovation_fit import as_records, fit_innovation, split_references
 from .unknown_checks import (
     excitation_check,

@@ -19,11 +19,11 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .._threads import single_blas_thread
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ..checks import check_band, is_integer
 from ..data import Experiment
 from ..models import StateSpaceModel, TransferMatrix
+from ..runtime.threads import single_blas_thread
 from .cancellation import cancel_entries, z_to_s
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import (

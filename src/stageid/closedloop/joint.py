@@ -22,10 +22,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import IdentificationError
-from .._threads import single_blas_thread
 from ..base import Boolean, Interval
 from ..data import Experiment
 from ..models import StateSpaceModel, series
+from ..runtime.threads import single_blas_thread
 from .innovation_fit import as_records, fit_innovation, split_references
 from .predictor_subspace import InnovationMatrices
 from .unknown_checks import ASSUMPTIONS, excitation_check, reference_share_check, residual_checks

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..display import html_repr, short_repr
-from ..frf.frd import FrequencyResponse
 from ..models import StateSpaceModel, TransferMatrix
+from ..models.frequency_response import FrequencyResponse
 from .cancellation import CancelledPair, EntryPoleZero, z_to_s
 from .covariance import ClosedLoopCovariance
 from .deduction import plant_response

@@ -18,9 +18,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import IdentificationError
-from .._threads import single_blas_thread
 from ..data import Experiment
 from ..models import StateSpaceModel
+from ..runtime.threads import single_blas_thread
 from .innovation_fit import as_records, fit_innovation, split_references
 from .unknown_checks import excitation_check, reference_share_check, residual_checks
 from .unknown_estimator import UnknownControllerEstimator

@@ -46,8 +46,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from .._threads import single_blas_thread
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
+from ..runtime.threads import single_blas_thread
 from .covariance import transfer_gradient, transfer_gradient_at
 from .reduction import ReducedEntry
 from .zoh import zoh_response

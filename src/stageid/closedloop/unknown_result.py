@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import DataError, IdentificationError
-from ..frf.frd import FrequencyResponse
 from ..models import StateSpaceModel
+from ..models.frequency_response import FrequencyResponse
 from .innovation_pem import response_std
 from .predictor_subspace import InnovationMatrices
 from .unknown_checks import Check

@@ -19,7 +19,7 @@ import numpy as np
 from .._errors import DataError
 from ..atomic import atomic_write
 from ..checks import shown
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .experiment import Experiment
 from .files import SNIFF_BYTES, PathLike, looks_like, open_checked, resolve_ts, table_for_writing
 from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, check_unique_names, file_prefix

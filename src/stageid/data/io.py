@@ -25,7 +25,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import DataError
-from .._heap import prime_heap
+from ..runtime.heap import prime_heap
 from .csv_format import read_csv, write_csv
 from .files import PathLike
 from .mat_format import read_mat

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import DataError, NoSampleTimeError, StageIdError
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .files import HDF5_SIGNATURE, PathLike, array_columns, is_dunder, looks_like, open_checked, resolve_ts
 from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
 

@@ -16,7 +16,7 @@ import numpy as np
 from .._errors import DataError, StageIdError
 from ..atomic import atomic_write
 from ..checks import shown
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .experiment import Experiment
 from .files import (
     ZIP_SIGNATURES,

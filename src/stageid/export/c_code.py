@@ -69,13 +69,13 @@ def discretised(model: Any, dt: float | None, method: str | None) -> Any:
     if model.dt is not None:
         if method is not None or (dt is not None and not np.isclose(dt, model.dt, rtol=1e-9, atol=0.0)):
             raise ModelError(
-                f"--dt/--method discretise a continuous model; this one is discrete with dt = {model.dt!r} s"
-                f"{'' if dt is None else f' (got --dt {dt!r})'}."
+                f"`dt=`/`method=` discretise a continuous model; this one is discrete with dt = {model.dt!r} s"
+                f"{'' if dt is None else f' (got `dt={dt!r}`)'}."
             )
         return model
     if dt is None:
         raise ModelError(
-            "the model is continuous (dt = null); give --dt S [--method zoh|tustin] to discretise it on the way."
+            "the model is continuous (dt = null); give `dt=S` [`method=zoh|tustin`] to discretise it on the way."
         )
     if isinstance(model, TransferMatrix):
         model = model.to_statespace(minimal=False)
@@ -126,23 +126,23 @@ def _model_fields(
     if _is_lti(model):
         if inverse:
             raise ModelError(
-                "--inverse needs a hysteresis model (PI or modified PI); an LTI model has no exported causal inverse."
+                "`inverse=True` needs a hysteresis model (PI or modified PI); an LTI model has no exported causal inverse."
             )
         if limits is not None:
             raise ModelError(
-                "drive limits apply to the compensator of a hysteresis model (--inverse); got an LTI model."
+                "drive limits apply to the compensator of a hysteresis model (`inverse=True`); got an LTI model."
             )
         fields = lti_fields(discretised(model, dt, method), ctype)
     elif _is_hysteresis(model):
         if method is not None:
-            raise ModelError("--method discretises a continuous LTI model; got a hysteresis model.")
+            raise ModelError("`method=` discretises a continuous LTI model; got a hysteresis model.")
         if limits is not None and not inverse:
-            raise ModelError("drive limits apply to the compensator (--inverse); got the forward model.")
+            raise ModelError("drive limits apply to the compensator (`inverse=True`); got the forward model.")
         if inverse:
             fields = inverse_fields(model, ctype, prefix, limits)
         else:
             if dt is not None and model.creep is None:
-                raise ModelError("--dt sets the creep lags' sample time; this hysteresis model has no creep term.")
+                raise ModelError("`dt=` sets the creep lags' sample time; this hysteresis model has no creep term.")
             fields = forward_fields(model, ctype, prefix, dt)
     elif _is_stage(model):
         fields = _stage_fields(model, prefix, ctype, inverse, dt, method, limits)

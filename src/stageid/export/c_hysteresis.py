@@ -177,7 +177,7 @@ def inverse_fields(model: Any, ctype: CType, prefix: str, limits: tuple[float, f
 
     if model.creep is not None:
         raise ModelError(
-            "--inverse exports the compensator of rate-independent models; got a model with a creep term "
+            "`inverse=True` exports the compensator of rate-independent models; got a model with a creep term "
             "(its drive depends on the sampling rate: use `stageid compensate`)."
         )
     comp = Compensator(model, limits)  # the package's own checks: invertible, limits well formed

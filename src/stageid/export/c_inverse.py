@@ -427,7 +427,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     solved to a float's resolution, not to a rounding bound of F (which would be ``1 / SMIN``
     times wider in the drive).
     """
-    from ..hysteresis.compensator import residual_bound
+    from ..hysteresis.inverse.compensator import residual_bound
 
     p = prefix
     lo, hi = _limits(model, limits)

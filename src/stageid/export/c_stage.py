@@ -88,7 +88,7 @@ def _balanced_lines(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, ctype
 
 def _dynamics(model: Any, ctype: CType, p: str) -> dict[str, Any]:
     """Members, init, constants and step lines that filter ``v`` through the dynamics."""
-    from ..hysteresis.dynamics import unit_gain_coefficients
+    from ..hysteresis.stage.dynamics import unit_gain_coefficients
 
     t = ctype.name
     b, a = unit_gain_coefficients(*model.transfer())

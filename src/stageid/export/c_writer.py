@@ -80,7 +80,7 @@ def literal(value: float, ctype: CType) -> str:
     with np.errstate(over="ignore"):
         r = ctype.round(v)
     if not math.isfinite(r):
-        raise ModelError(f"the model constant {v!r} does not fit a {ctype.name}; export it without --float.")
+        raise ModelError(f"the model constant {v!r} does not fit a {ctype.name}; export it without `single=True`.")
     text = repr(r)
     return text + "f" if ctype.is_float else text
 

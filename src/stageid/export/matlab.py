@@ -105,7 +105,7 @@ def mat_variables(model: Any, dt: float | None = None, method: str | None = None
         out = stage_variables(model)
     elif isinstance(model, (PIModel, ModifiedPIModel)):
         if method is not None or dt is not None:
-            raise ModelError("--dt/--method discretise a continuous LTI model; got a hysteresis model.")
+            raise ModelError("`dt=`/`method=` discretise a continuous LTI model; got a hysteresis model.")
         out = {"hysteresis": _matlab_value(model.to_dict())}
     else:
         raise ModelError(

@@ -3,7 +3,6 @@
 ========================  =================================================================
 module                    what it holds
 ========================  =================================================================
-:mod:`.frd`               :class:`FrequencyResponse` (the FRF object), its CSV/NPZ table format
 :mod:`.welch`             Welch H1 with pooled cross spectra, multiple coherence, std of H
 :mod:`.lpm`               local polynomial method (Pintelon & Schoukens), noise from residuals
 :mod:`.lpm_kernels`       compiled LPM line solves (moments, complex Cholesky), edge lines
@@ -19,30 +18,33 @@ module                    what it holds
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
 :mod:`.mode_exchange`     weakest pole pair moved to a residual peak, out of local minima
 :mod:`.fit_uncertainty`   covariance of that fit from the data's std, ``FRDResult.response_uncertainty``
-:mod:`.plotting`          Bode figure with a +-2 std band and a coherence panel
 ========================  =================================================================
+
+:class:`FrequencyResponse`, ``read_frd`` and ``frd_columns`` live in
+:mod:`stageid.models.frequency_response` (a model object that every package's results return);
+they are re-exported here, and ``stageid.frf.frd`` still imports as that module.  The FRF's
+Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`.
 """
 
 import importlib
 from typing import Any
 
-# Names load on first use (PEP 562): `stageid.frf.frd` is imported by every estimator that
-# reports a response with its std; the LPM's numba kernels must not load with it into every
-# command's start-up (tests/test_import_cost.py).
+# Names load on first use (PEP 562): the LPM's numba kernels must not load into the start-up
+# of every command that only reads or writes a response (tests/test_import_cost.py).
 _WHERE = {
-    "FrequencyResponse": "frd",
-    "read_frd": "frd",
-    "frd_columns": "frd",
-    "welch_frf": "welch",
-    "cross_spectra": "welch",
-    "default_segment": "welch",
-    "lpm_frf": "lpm",
-    "periodic_frf": "periodic",
-    "bla_frf": "bla",
-    "BLAAccumulator": "bla",
-    "BLAResult": "bla_result",
-    "FRDIdentification": "identification",
-    "FRDResult": "identification",
+    "FrequencyResponse": "..models.frequency_response",
+    "read_frd": "..models.frequency_response",
+    "frd_columns": "..models.frequency_response",
+    "welch_frf": ".welch",
+    "cross_spectra": ".welch",
+    "default_segment": ".welch",
+    "lpm_frf": ".lpm",
+    "periodic_frf": ".periodic",
+    "bla_frf": ".bla",
+    "BLAAccumulator": ".bla",
+    "BLAResult": ".bla_result",
+    "FRDIdentification": ".identification",
+    "FRDResult": ".identification",
 }
 
 __all__ = list(_WHERE)
@@ -51,7 +53,7 @@ __all__ = list(_WHERE)
 def __getattr__(name: str) -> Any:
     if name not in _WHERE:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    value = getattr(importlib.import_module(_WHERE[name], __name__), name)
     globals()[name] = value
     return value
 

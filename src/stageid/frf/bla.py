@@ -34,8 +34,8 @@ import numpy as np
 
 from .._errors import DataError, ParameterError
 from ..data import Experiment
+from ..models.frequency_response import FrequencyResponse
 from .bla_result import DETECTION_DB, BLAResult, DetectionLevels
-from .frd import FrequencyResponse
 from .periodic import excited_lines, period_average
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 
 __all__ = ["BLAResult", "DetectionLevels", "DETECTION_DB"]
 
@@ -96,7 +96,7 @@ class BLAResult:
         return None if d is None else self.n_realisations * d**2
 
     def to_columns(self) -> dict[str, np.ndarray]:
-        """The FRD columns (:mod:`stageid.frf.frd`, with ``stdtot_``) plus ``stdnl_``, ``stdodd_``, ``stdeven_``."""
+        """The FRD columns (:mod:`stageid.models.frequency_response`, with ``stdtot_``) plus ``stdnl_``, ``stdodd_``, ``stdeven_``."""
         cols = self.frd.to_columns()
         extra = (("stdnl_", self.distortion_std), ("stdodd_", self.odd_std), ("stdeven_", self.even_std))
         for prefix, value in extra:

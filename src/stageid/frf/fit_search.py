@@ -7,7 +7,7 @@ mode goes unfitted; a start far from the data's poles), so :func:`fit_at_order` 
 several fits that fail in different ways (:func:`fit_starts`: McKelvey, Akcay & Ljung 1996
 subspace realisations, their balanced truncations, vector fitting), refines each by
 Levenberg-Marquardt until a step lowers the cost by less than ``REFINE_TOL`` of it
-(:func:`stageid.subspace.refinement.refine_frequency_fit`), keeps the lowest, and then tries
+(:func:`stageid.subspace.realisation.refinement.refine_frequency_fit`), keeps the lowest, and then tries
 mode exchanges (:mod:`.mode_exchange`) while they lower it further.
 """
 
@@ -16,8 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import IdentificationError
-from ..subspace.frequency_domain import balanced_start, fit_input_matrices, frequency_realization, reflect_unstable
-from ..subspace.refinement import model_response, refine_frequency_fit
+from ..subspace.realisation.frequency_domain import (
+    balanced_start,
+    fit_input_matrices,
+    frequency_realization,
+    reflect_unstable,
+)
+from ..subspace.realisation.refinement import model_response, refine_frequency_fit
 from .mode_exchange import exchanged_modes, residual_peaks
 from .vector_fitting import vector_fit_start
 

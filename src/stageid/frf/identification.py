@@ -33,10 +33,10 @@ from .._errors import DataError, FitWarning, IdentificationError
 from ..base import Estimator, Interval, Options
 from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
+from ..models.frequency_response import FrequencyResponse
 from ..validation.order_choice import chosen_order, poor_order_message, scan_orders
 from .fit_search import fit_at_order
 from .fit_uncertainty import FitCovariance, fit_covariance
-from .frd import FrequencyResponse
 from .welch import welch_frf
 
 __all__ = [
@@ -240,7 +240,7 @@ class FRDIdentification(Estimator):
         if self.dt is not None and frd.freqs[-1] > 0.5 / self.dt * (1 + 1e-9):
             raise DataError(
                 f"the response reaches {frd.freqs[-1]:g} Hz, above the Nyquist frequency {0.5 / self.dt:g} Hz "
-                "of `dt`; give --fmax or a smaller --dt."
+                "of `dt`; give `fmax=` or a smaller `dt=`."
             )
         G = frd.response
         # lines with next to no weight (unexcited, noise only) must not set the scale or the error
@@ -291,7 +291,7 @@ class FRDIdentification(Estimator):
             if self.order > limit:
                 raise DataError(
                     f"order {self.order} needs more frequencies than the {n_freqs} in the band "
-                    f"(at most order {limit} here); lower --order or widen the band."
+                    f"(at most order {limit} here); lower `order=` or widen the band."
                 )
             return int(self.order), ()
         return select_order(Gd, fz, T, min(self.max_order, limit), w)
@@ -339,7 +339,7 @@ def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) ->
         weight = "std" if has_std else ("coherence" if frd.coherence is not None else "none")
     if weight == "std":
         if not has_std:
-            raise DataError("--weight std needs std_<out>_<in> columns in the frequency response; it has none.")
+            raise DataError("`weight='std'` needs std_<out>_<in> columns in the frequency response; it has none.")
         std = frd.total_std if frd.total_std is not None else frd.std
         weight = "total-std" if frd.total_std is not None else "std"
         var = np.mean((std / scale[None, None, :]) ** 2, axis=(1, 2))
@@ -349,13 +349,13 @@ def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) ->
         w = 1.0 / np.maximum(var, floor)
     elif weight == "coherence":
         if frd.coherence is None:
-            raise DataError("--weight coherence needs coh_<out> columns in the frequency response; it has none.")
+            raise DataError("`weight='coherence'` needs coh_<out> columns in the frequency response; it has none.")
         c = np.clip(frd.coherence, 0.0, 1.0 - 1e-6)
         w = np.mean(c / (1.0 - c), axis=1)
     else:
         w = np.ones(frd.n_freqs)
     if not np.any(w > 0):
-        raise DataError(f"the {weight} weights are zero at every frequency; use --weight none.")
+        raise DataError(f"the {weight} weights are zero at every frequency; use `weight='none'`.")
     return weight, w / np.mean(w)
 
 

@@ -28,8 +28,8 @@ import numpy as np
 from .._errors import DataError
 from ..checks import check_integer
 from ..data import Experiment, as_experiments
-from ..resources import require_memory
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
+from ..runtime.resources import require_memory
 from .lpm_kernels import lpm_lines_kernel
 
 __all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..simd import vbcast, vfma, vfnma, vload, vmul, vstore, vzero
+from ..runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vzero
 
 __all__ = ["LANES", "lanes_block", "lane_work"]
 

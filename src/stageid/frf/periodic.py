@@ -19,7 +19,7 @@ import numpy as np
 from .._errors import DataError
 from ..checks import check_integer
 from ..data import Experiment, as_experiments
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 
 __all__ = ["periodic_frf", "excited_lines", "period_average"]
 

@@ -209,7 +209,7 @@ def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: 
     """The period of the record by the sample-time rule (``ts`` without a time column)."""
     if t is None:
         if ts is None:
-            raise DataError(f"{name}: no time column 't'; give the sample time with --ts.")
+            raise DataError(f"{name}: no time column 't'; give the sample time as `ts=`.")
         return check_period(ts, "ts", f"{name}: ")
     if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")

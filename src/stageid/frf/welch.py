@@ -26,8 +26,8 @@ import numpy as np
 from .._errors import DataError, ParameterError
 from ..checks import check_integer, check_real
 from ..data import Experiment
-from ..resources import require_memory
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
+from ..runtime.resources import require_memory
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 
 __all__ = [
@@ -152,7 +152,7 @@ def cross_spectra(
         if r.n_samples < segment:
             raise DataError(
                 f"record '{r.name or 'data'}' has {r.n_samples} samples, fewer than one segment of {segment}; "
-                "give a shorter --segment."
+                "give a shorter `segment=`."
             )
     n_ch = len(recs[0].channels)
     nf = segment // 2 + 1
@@ -248,7 +248,7 @@ def h1_from_spectra(
     if spectra.effective_segments <= m + 0.5:
         raise DataError(
             f"Welch needs more independent segments than inputs ({m}) to estimate the noise; got "
-            f"{spectra.n_segments} segments: give a shorter --segment or longer records."
+            f"{spectra.n_segments} segments: give a shorter `segment=` or longer records."
         )
     Suu_inv = np.linalg.inv(Suu)
     HT = Suu_inv @ Suy  # (nf, m, q): H^T = S_uu^-1 S_uy

@@ -16,7 +16,7 @@ import numpy as np
 from .._errors import DataError
 from ..checks import check_integer, check_real
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
-from .frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from .records import ChannelRecord
 from .welch import CrossSpectra, default_segment, get_window, h1_from_spectra, segment_sums, spectra_from_sums
 
@@ -58,7 +58,7 @@ def chunked_cross_spectra(
     if n < segment:
         raise DataError(
             f"record '{record.name or 'data'}' has {n} samples, fewer than one segment of {segment}; "
-            "give a shorter --segment."
+            "give a shorter `segment=`."
         )
     n_seg = (n - segment) // step + 1
     per_task = max(1, chunk // step)

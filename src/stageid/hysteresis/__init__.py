@@ -32,48 +32,43 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``hysteresis_percent``
 ==========================  ==================================================================
 
-Modules, from the letter's sections down (each imports only the ones below it):
+Sub-packages and modules, from the letter's sections down (each imports only the ones below it):
 
 ===============================  ==================================================================
-:mod:`.stage_identification`     ``StageIdentifier``: hysteresis, then weights / creep / dynamics
-                                 alternated (:mod:`.stage_problem`), auto order and creep
-:mod:`.stage_inverse`            offline stage feedforward (stable inversion, then the inverse)
-:mod:`.preisach_inverse`         ``PreisachCompensator``, ``preisach_feedforward`` (exact inverse)
-:mod:`.preisach_identification`  ``PreisachIdentifier`` (NNLS, second-difference smoothing)
-:mod:`.preisach`                 ``PreisachModel`` (kind ``preisach``), ``everett``, ``everett_output``
-:mod:`.stage`                    ``StageModel`` (kind ``stage`` of the JSON format)
-:mod:`.dynamics`                 unit-DC-gain discrete dynamics: fits and filtering
-:mod:`.identification`           ``PIIdentifier``: steps 1-5 in order (thresholds, weights, CP
-                                 thresholds, starting states, creep)
-:mod:`.weights`                  step 2: constrained least-squares weights (invertibility bounds)
-:mod:`.threshold_search`         step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
-:mod:`.records`                  records, starting states (step 4), per-record errors, ``align_record``
-:mod:`.compensator`              Fig. 9 feedforward: ``Compensator``, ``compensate``, ``CreepInverse``
-:mod:`.inverse`                  eq. 5: ``invert`` (per-sample), re-exports the closed form
-:mod:`.closed_form`              the classical PI's inverse PI model (``pi_inverse``)
-:mod:`.serialization`            the ``stageid.hysteresis/1`` JSON format, ``register_kind``
-:mod:`.pi`                       eq. 4: ``PIModel``, ``ModifiedPIModel``
-:mod:`.creep`                    ``CreepTerm`` (our extension)
-:mod:`.operators`                eq. 1-3: play and coupled-play operators, plain-Python references
-:mod:`.common`                   helpers shared by models, inverse and compensator
+:mod:`.stage`                    the rate-dependent stage (our extension): ``StageModel``,
+                                 ``StageIdentifier`` (hysteresis, then weights / creep / dynamics
+                                 alternated), its dynamics, disturbance modes, order and creep
+                                 evidence, validation and offline feedforward
+:mod:`.identify`                 identification, one module per step of the letter: ``PIIdentifier``
+                                 (thresholds, weights, CP thresholds, starting states, creep),
+                                 weight covariance, ``PreisachIdentifier``
+:mod:`.inverse`                  eq. 5 and Fig. 9: ``invert`` (per sample), the classical PI's
+                                 closed form, the compensators, the exact Preisach inverse
+:mod:`.models`                   eq. 1-4: play and coupled-play operators, ``PIModel``,
+                                 ``ModifiedPIModel``, ``CreepTerm``, ``PreisachModel``, and the
+                                 ``stageid.hysteresis/1`` JSON format (``serialization``)
 :mod:`.kernels`                  the compiled loops (numba), imported on first use
 :mod:`.metrics`                  the letter's error and hysteresis measures
 ===============================  ==================================================================
+
+The flat module paths of earlier versions (``stageid.hysteresis.stage_problem``,
+``stageid.hysteresis.pi``, ...) still import, as the modules at their new places
+(:mod:`stageid._moved`).
 """
 
-from .compensator import Compensator, compensate
-from .creep import CreepTerm
-from .identification import HysteresisFit, PIIdentifier, align_record
+from .identify.pi import HysteresisFit, PIIdentifier, align_record
+from .identify.preisach import PreisachFit, PreisachIdentifier
 from .inverse import invert, pi_inverse
+from .inverse.compensator import Compensator, compensate
+from .inverse.preisach import PreisachCompensator, preisach_feedforward
 from .metrics import hysteresis_percent, max_error_percent, rms_error_percent, tracking_error_percent
-from .operators import OperatorState, coupled_play, play
-from .pi import ModifiedPIModel, PIModel
-from .preisach import PreisachModel, everett, everett_output
-from .preisach_identification import PreisachFit, PreisachIdentifier
-from .preisach_inverse import PreisachCompensator, preisach_feedforward
+from .models.creep import CreepTerm
+from .models.operators import OperatorState, coupled_play, play
+from .models.pi import ModifiedPIModel, PIModel
+from .models.preisach import PreisachModel, everett, everett_output
 from .stage import StageModel
-from .stage_identification import StageFit, StageIdentifier
-from .stage_inverse import stage_feedforward
+from .stage.identification import StageFit, StageIdentifier
+from .stage.inverse import stage_feedforward
 
 __all__ = [
     "OperatorState",

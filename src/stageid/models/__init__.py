@@ -8,12 +8,15 @@
 ``feedback``, ``series``  interconnections used by the closed-loop tools and plants
 ``load_model``            read any stageid model file (LTI or registered formats)
 ``save_model``            write a model file atomically; ``dumps``/``loads`` for text
+``frequency_response``    ``FrequencyResponse`` (a measured or computed FRF) and its
+                          CSV/NPZ table (``read_frd``); re-exported by :mod:`stageid.frf`
 ========================  ==================================================================
 
 Layers, each importing only those below it: ``_validate``, ``_kernels``, ``minimal``,
 ``conversions`` (one-way functions on matrices), ``json_text`` (the file text) ->
 ``lti`` (both model classes; ``statespace`` and ``transfer`` re-export them) ->
-``discretization``, ``interconnect``, ``serialization``.
+``discretization``, ``interconnect``, ``serialization``; ``frequency_response`` stands apart
+(no LTI model class), and ``control_bridge`` turns arrays into python-control objects.
 """
 
 from .discretization import c2d, d2c

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelFormatError
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 
 __all__ = ["LTI_FORMAT", "MAX_DEPTH", "dumps", "parse", "nesting_depth"]
 

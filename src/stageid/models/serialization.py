@@ -29,7 +29,7 @@ from .._errors import ModelError, ModelFormatError
 from ..atomic import atomic_write_text
 from ..checks import shown
 from ..plugins import MODEL_FORMATS, declared, load_object
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 from .json_text import LTI_FORMAT, dumps, parse
 from .lti import StateSpaceModel, TransferMatrix
 

@@ -44,9 +44,9 @@ import numpy as np
 from .._errors import ModelError, ModelFormatError
 from ..checks import is_real, shown
 from ..data.experiment import Experiment
-from ..hysteresis.dynamics import zoh_resonance
-from ..hysteresis.pi import ModifiedPIModel
-from ..hysteresis.serialization import register_kind
+from ..hysteresis.models.pi import ModifiedPIModel
+from ..hysteresis.models.serialization import register_kind
+from ..hysteresis.stage.dynamics import zoh_resonance
 from . import experiment_seed, noise_entropy
 
 __all__ = ["PiezoActuator", "model", "EXPERIMENTS", "open_loop_gain"]
@@ -157,7 +157,7 @@ class PiezoActuator:
     def from_dict(cls, d: dict) -> PiezoActuator:
         """Inverse of :meth:`to_dict`; :class:`~stageid.ModelFormatError` names a bad field.
 
-        Registered with :func:`stageid.hysteresis.serialization.register_kind` for the kind
+        Registered with :func:`stageid.hysteresis.models.serialization.register_kind` for the kind
         ``"piezo-actuator"``; every parameter is a JSON number, a list of two, or null.
         """
         params = d.get("parameters")

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from ._style import loglog, subplots
 from .scale import magnitude_label, set_log_magnitude
+from .style import loglog, subplots
 
 __all__ = ["plot_plant_bode", "plot_closed_loop_bode", "plot_pole_zero", "plot_reclosed_loop"]
 
@@ -99,11 +99,11 @@ def plot_closed_loop_bode(
 
 def plot_pole_zero(result: Any, entry: tuple[int, int] = (0, 0), limit: float = 2.5e4) -> Any:
     """Pole-zero maps of one entry: full-order deduction (Fig. 6a) and reduced fit (Fig. 6b), s-plane."""
-    from ..closedloop.cancellation import z_to_s
-
     fig, axes = _figure(1, 2, (9.0, 3.8))
     ent = next(e for e in result.entries if (e.output, e.input) == tuple(entry))
-    sp, sz = z_to_s(ent.poles, result.dt), z_to_s(ent.zeros, result.dt)
+    # s = ln(z) / dt; z = 0 goes to -inf, which the |s| < limit filter below drops
+    with np.errstate(divide="ignore"):
+        sp, sz = (np.log(np.asarray(z, complex)) / result.dt for z in (ent.poles, ent.zeros))
     keep_p, keep_z = np.abs(sp) < limit, np.abs(sz) < limit
     axes[0, 0].plot(sp.real[keep_p], sp.imag[keep_p], "x", label="poles")
     axes[0, 0].plot(sz.real[keep_z], sz.imag[keep_z], "o", mfc="none", label="zeros")

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import subplots
+from .style import subplots
 
 __all__ = ["loop_figure", "model_errors_figure", "tracking_figure", "creep_figure", "stage_dynamics_figure"]
 

@@ -7,8 +7,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import scale
-from ._style import loglog, positive, subplots
 from .scale import envelope, peak, set_log_magnitude
+from .style import loglog, positive, subplots
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
 

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import loglog, subplots
+from .style import loglog, subplots
 
 __all__ = ["record_figure", "spectrum_figure"]
 

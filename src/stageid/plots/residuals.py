@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import subplots
+from .style import subplots
 
 __all__ = ["residual_figure"]
 

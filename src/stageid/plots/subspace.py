@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from ._style import figure, loglog, positive
 from .scale import magnitude_label, peak, set_log_magnitude
+from .style import figure, loglog, positive
 
 __all__ = ["bode_with_bands", "selection_plot", "error_curve"]
 

@@ -332,7 +332,7 @@ def _record_error(y: np.ndarray, y_hat: np.ndarray, unit: str) -> tuple[float, n
 
 def _loop_figure(u, y, y_hat, time, labels: tuple[str, str], err_trace, err_label: str) -> Any:
     """Measured and modelled loop (left) and the modelling error over time (right)."""
-    from ..plots._style import subplots
+    from ..plots.style import subplots
 
     fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
     a.plot(u, y, color="0.2", lw=1.2, label="measured")

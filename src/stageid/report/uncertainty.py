@@ -91,7 +91,7 @@ def loop_band_figure(
     shaded band.  ``std`` is the simulated output's standard deviation
     (:meth:`~stageid.hysteresis.WeightUncertainty.output_band`).
     """
-    from ..plots._style import subplots
+    from ..plots.style import subplots
 
     unit = 100.0 / y_range if y_range > 0 else 1.0
     fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))

@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import checks
 from .._errors import SignalError
-from ..resources import require_memory
+from ..runtime.resources import require_memory
 
 __all__ = ["time_vector", "crest_factor", "check_limits"]
 

@@ -2,34 +2,37 @@
 estimation of Cao & Chen (2013), "State space system identification of 3-DOF piezo-actuator-
 driven stages with unknown configuration", Actuators 2, 1-18.
 
-Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one named function:
+Sub-packages and modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one
+named function:
 
 =======================  ===================================================================
-``hankel_toeplitz``      2.1 Simplified Hankel-Toeplitz model: eq. 9 statistics
-                         (``hankel_toeplitz_statistics``), ``theta`` split (eq. 16)
-``theta_response``       2.1 the eq. 9 model's frequency response (and its posterior spread)
-``correlations``         2.1 the window Gram matrix of eq. 9 from lag correlations (FFT)
-``map_estimator``        2.3 MAP online estimation: prior, posterior, eq. 17-18
-                         (``map_posterior``); ``method`` -> prior (``METHODS``)
-``recursion``            2.3 eq. 17-18 sample by sample (``recursive_map``) and its numpy twin
-``map_kernels``          2.3 the compiled (numba) kernels of that recursion
-``unroll``               writes out the kernels' short constant-count loops before compiling
-``realization``          2.1-2.2 H0 (eq. 10), H_i (eq. 12), H(0)/H(1) (eq. 14), Lemma 1
-                         (eq. 15, ``era``); ``realize`` with ``realization`` -> route
-                         (``REALIZATIONS``)
-``frequency_domain``     the frequency route: the eq. 9 response over the excited band
-                         realised (frequency counterpart of Lemma 1), two starts
-``refinement``           output-error refinement of a realisation on that response
-``weighting``            noise weighting of the outputs in the realisation and selection
-``selection``            3.2 choice of p and of the order by held-out prediction error
+``statistics``           2.1 eq. 9: ``hankel_toeplitz`` (the model, its normal equations,
+                         ``theta`` split of eq. 16), ``correlations`` (window Gram matrix from
+                         lag correlations), ``window_covariance`` (the lags a fit keeps),
+                         ``theta_response`` (the eq. 9 model's frequency response),
+                         ``chunked_statistics`` (records larger than memory)
+``map``                  2.3 MAP online estimation, eq. 16-18: ``posterior`` (prior,
+                         posterior, ``METHODS``), ``recursion`` (sample by sample),
+                         ``kernels`` (compiled)
+``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
+                         routes), ``frequency_domain`` (the frequency
+                         route), ``refinement``, ``weighting``
+``selection``            3.2 choice of p and of the order by held-out prediction error;
+                         ``nested_horizons``, ``chunked_order``
+``uncertainty``          the posterior carried through the realisation to the realised
+                         model (delta method or draws); ``grid_placement``,
+                         ``realisation_bias``
 ``channels``             2.4 per-input records (eq. 19), stacking (eq. 20-22,
                          ``stack_channel_models``)
 ``records``              mean removal, unit-RMS scaling, excited band of the records
 ``estimator``            the whole method: ``HankelMAP(...).fit(data)`` -> result
+``chunked_fit``          the same on one record larger than memory
 ``result``               ``HankelMAPResult``: model, posterior, bands, ``update(new_data)``
-``uncertainty``          the posterior carried through the realisation to the realised model
-                         (``HankelMAPResult.response_uncertainty``: delta method or draws)
 =======================  ===================================================================
+
+The flat module paths of earlier versions (``stageid.subspace.hankel_toeplitz``,
+``stageid.subspace.map_estimator``, ...) still import, as the modules at their new places
+(:mod:`stageid._moved`).
 
 ``HankelMAP``            the estimator (configure, fit, get a frozen ``HankelMAPResult``)
 ``HankelMAPResult``      model, posterior, diagnostics, uncertainty bands, ``update``
@@ -38,10 +41,10 @@ Modules follow the paper's sections; each step of :meth:`HankelMAP.fit` is one n
 """
 
 from .estimator import HankelMAP
-from .frequency_domain import frequency_realization
-from .map_estimator import Posterior, Prior, batch_posterior
-from .realization import era, markov_from_theta
-from .recursion import recursive_map
+from .map.posterior import Posterior, Prior, batch_posterior
+from .map.recursion import recursive_map
+from .realisation.era import era, markov_from_theta
+from .realisation.frequency_domain import frequency_realization
 from .result import ChannelFit, HankelMAPResult
 
 __all__ = [

@@ -25,21 +25,21 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..models.statespace import StateSpaceModel
-from ..resources import require_memory
-from .chunked_order import select_order_chunked
-from .chunked_statistics import column_moments, range_lag_sums, ranged_statistics
-from .hankel_toeplitz import WindowStatistics, statistics_bytes
-from .map_estimator import METHODS, map_posterior
-from .realization import realize
+from ..runtime.resources import require_memory
+from ..runtime.threads import single_blas_thread
+from .map.posterior import METHODS, map_posterior
+from .realisation.era import realize
+from .realisation.refinement import refinement_bytes
 from .records import excited_band
-from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
 from .selection import held_out_segments, horizon_candidates, select_horizon
-from .theta_response import response_bytes
+from .selection.chunked_order import select_order_chunked
+from .statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
+from .statistics.hankel_toeplitz import WindowStatistics, statistics_bytes
+from .statistics.theta_response import response_bytes
 
 __all__ = ["fit_chunked", "chunked_split_statistics"]
 
@@ -51,7 +51,7 @@ def _check_settings(est, record: ChunkedRecord) -> None:
     if est.per_channel:
         raise DataError(
             "per-channel identification needs one record per excited input; a chunked record is one "
-            "record: drop --per-channel."
+            "record: drop `per_channel=True`."
         )
     if est.forgetting != 1.0:
         raise DataError(f"forgetting is not available for chunked records; got {est.forgetting}, expected 1.")
@@ -204,4 +204,4 @@ def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CH
         "stable": bool(stable),
         "warnings": notes,
     }
-    return HankelMAPResult(model, (fit,), est, diagnostics, su.copy(), sy.copy())
+    return HankelMAPResult(model, (fit,), est.clone(), diagnostics, su.copy(), sy.copy())

@@ -36,16 +36,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError, ExcitationWarning, StabilityWarning
-from .._threads import single_blas_thread
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
-from ..resources import require_memory
+from ..runtime.resources import require_memory
+from ..runtime.threads import single_blas_thread
 from ..validation.order_choice import poor_order_message
 from .channels import channel_groups, stack_channel_models
-from .hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
-from .map_estimator import (
+from .map.posterior import (
     LS_RIDGE_STRENGTH,
     LS_SINGULAR_PIVOT,
     METHODS,
@@ -53,7 +52,8 @@ from .map_estimator import (
     map_posterior,
     singular_pivot,
 )
-from .realization import REALIZATIONS, realize
+from .realisation.era import REALIZATIONS, realize
+from .realisation.refinement import refinement_bytes
 from .records import (
     as_records,
     check_continuation,
@@ -63,7 +63,6 @@ from .records import (
     still_inputs,
     to_unit_rms,
 )
-from .refinement import refinement_bytes
 from .result import ChannelFit, HankelMAPResult
 from .selection import (
     SelectionTable,
@@ -73,8 +72,9 @@ from .selection import (
     select_order,
     split_statistics,
 )
-from .theta_response import response_bytes
-from .window_covariance import WindowLags, window_lags
+from .statistics.hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
+from .statistics.theta_response import response_bytes
+from .statistics.window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -134,7 +134,7 @@ class HankelMAP(Estimator):
     The fit works on channels scaled to unit RMS (each input and output divided by its RMS
     over the records, after the mean removal) and scales the model back: the identified
     poles and frequency response do not depend on the units of the data.  The realisation and
-    the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.weighting`): each
+    the held-out scores weigh noise-whitened outputs (:mod:`stageid.subspace.realisation.weighting`): each
     output multiplied by the inverse of its noise standard deviation, estimated from the
     eq. 9 residual, the weight undone on ``C`` and ``D``; for the horizon, the noise of the
     largest candidate's training residual on the scored block rows.  A small coupling output that is mostly sensor
@@ -266,7 +266,9 @@ class HankelMAP(Estimator):
                 StabilityWarning,
                 stacklevel=4,  # the caller of fit / update (past the BLAS-thread wrapper)
             )
-        return HankelMAPResult(model, tuple(fits), self, _diagnostics(fits, stable, notes), su.copy(), sy.copy())
+        return HankelMAPResult(
+            model, tuple(fits), self.clone(), _diagnostics(fits, stable, notes), su.copy(), sy.copy()
+        )
 
     def _fit_channel(
         self,

@@ -13,11 +13,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError
+from ..checks import check_freqs  # re-exported: result.py checks its frequencies with it
 from ..data.experiment import Experiment, as_experiments
 from ..data.sampling import PERIOD_RTOL, same_period, seconds
 from ..models.statespace import StateSpaceModel
-from .hankel_toeplitz import WindowStatistics
-from .map_estimator import Posterior, regressor_scales
+from .map.posterior import Posterior, regressor_scales
+from .statistics.hankel_toeplitz import WindowStatistics
 
 __all__ = [
     "as_records",
@@ -183,20 +184,3 @@ def excited_lines(stats: WindowStatistics) -> int:
     if P is None:
         return 10**6
     return int(np.sum(_excited(P)))
-
-
-def check_freqs(freqs_hz: object, dt: float) -> np.ndarray:
-    """Frequencies in Hz as a finite 1-D array within ``[0, 1 / (2 dt)]`` (DataError otherwise)."""
-    try:
-        f = np.asarray(freqs_hz, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError(
-            f"`freqs_hz` must be a 1-D array of frequencies in Hz; got {type(freqs_hz).__name__}."
-        ) from None
-    if f.ndim != 1 or f.size == 0:
-        raise DataError(f"`freqs_hz` must be a non-empty 1-D array of frequencies in Hz; got shape {f.shape}.")
-    nyq = 0.5 / dt
-    bad = ~np.isfinite(f) | (f < 0) | (f > nyq * (1 + 1e-12))
-    if bad.any():
-        raise DataError(f"`freqs_hz` must be finite and within 0-{nyq:g} Hz (Nyquist); got {float(f[bad][0])!r}.")
-    return f

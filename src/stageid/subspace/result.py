@@ -15,19 +15,19 @@ from functools import cached_property
 import numpy as np
 
 from .._errors import DataError
-from .._threads import single_blas_thread
 from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
 from ..display import html_repr, short_repr
-from ..frf.frd import FrequencyResponse
+from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
-from .map_estimator import Posterior
+from ..runtime.threads import single_blas_thread
+from .map.posterior import Posterior
+from .realisation.weighting import output_weights, weight_scales, weighted_theta
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
-from .theta_response import theta_response_std
-from .weighting import output_weights, weight_scales, weighted_theta
-from .window_covariance import WindowLags
+from .statistics.theta_response import theta_response_std
+from .statistics.window_covariance import WindowLags
 
 __all__ = ["ChannelFit", "HankelMAPResult"]
 
@@ -79,7 +79,8 @@ class HankelMAPResult:
         ``scaled_posterior`` is the one the fit worked with (every channel divided by
         ``input_scale`` / ``output_scale``), which :meth:`update` continues.
     estimator : HankelMAP
-        The configuration that produced this result (used by :meth:`update`).
+        A copy of the configuration that produced this result, taken at the fit (used by
+        :meth:`update`): settings changed on the original estimator afterwards do not leak in.
     diagnostics : dict
         ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings`` (texts).
     input_scale, output_scale : ndarray of shape (n_inputs,) and (n_outputs,)

@@ -101,7 +101,7 @@ def relative_response_error(estimated: np.ndarray, true: np.ndarray, per: str = 
     estimated, true : ndarray of shape (n_freqs, n_outputs, n_inputs)
     per : {"column", "entry"}
         "column": each entry's error divided by the largest true gain of its input column
-        over the band (the measure the issue tracker uses for MIMO stages); "entry": divided
+        over the band (so a small coupling entry is judged against its column's main gain); "entry": divided
         by that entry's own largest true gain.
 
     Returns

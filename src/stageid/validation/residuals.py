@@ -38,7 +38,12 @@ import numpy as np
 from .._errors import DataError
 from ..display import html_repr, short_repr
 
+MAX_LAG = 25  # default lags: 1..25 (whiteness) and 0..25 (independence)
+ALPHA = 0.01  # default level of each test: 1 %
+
 __all__ = [
+    "MAX_LAG",
+    "ALPHA",
     "CorrelationTest",
     "residual_tests",
     "whiteness_test",
@@ -143,7 +148,7 @@ def _xcorr(a: list[np.ndarray], b: list[np.ndarray], lags: np.ndarray) -> tuple[
     return r / scale, n
 
 
-def whiteness_test(residuals: Sequence[np.ndarray], max_lag: int = 25, alpha: float = 0.01) -> CorrelationTest:
+def whiteness_test(residuals: Sequence[np.ndarray], max_lag: int = MAX_LAG, alpha: float = ALPHA) -> CorrelationTest:
     """Ljung-Box test that the residual is white over lags ``1..max_lag`` (module docstring).
 
     Parameters
@@ -220,8 +225,8 @@ def _prewhiten(signals: list[np.ndarray], poly: np.ndarray) -> list[np.ndarray]:
 def independence_test(
     residuals: Sequence[np.ndarray],
     inputs: Sequence[np.ndarray],
-    max_lag: int = 25,
-    alpha: float = 0.01,
+    max_lag: int = MAX_LAG,
+    alpha: float = ALPHA,
     n_prewhiten: int = 10,
 ) -> CorrelationTest:
     """Chi-square test that the residual is uncorrelated with one input over lags ``0..max_lag``.
@@ -297,8 +302,8 @@ def residual_tests(
     residuals: Sequence[np.ndarray],
     inputs: Sequence[np.ndarray],
     input_names: Sequence[str],
-    max_lag: int = 25,
-    alpha: float = 0.01,
+    max_lag: int = MAX_LAG,
+    alpha: float = ALPHA,
 ) -> dict:
     """Both tests for one output: ``{"whiteness": CorrelationTest, "independence": {name: CorrelationTest}}``.
 
@@ -313,7 +318,7 @@ def residual_tests(
     return {"whiteness": white, "independence": indep}
 
 
-def validate_model(model, experiments, max_lag: int = 25, alpha: float = 0.01, simulated=None) -> dict:
+def validate_model(model, experiments, max_lag: int = MAX_LAG, alpha: float = ALPHA, simulated=None) -> dict:
     """Simulate ``model`` on every record; fit %, NRMSE and both residual tests per output.
 
     Parameters

@@ -19,7 +19,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ...simd import EXACT, LANES, REASSOC, VECTOR, Lanes, contiguous_float64, load_lanes
+from ...runtime.simd import EXACT, LANES, REASSOC, VECTOR, Lanes, contiguous_float64, load_lanes
 
 __all__ = [
     "LANES",
