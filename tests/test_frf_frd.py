@@ -123,6 +123,6 @@ def test_plot_draws_in_the_axes_it_is_given():
     fig = Figure()
     mag, phase = fig.subplots(2, 1)
     assert frd.plot(ax=[mag, phase]) is fig and len(fig.axes) == 2  # no new axes, no new figure
-    assert mag.get_ylabel() == "magnitude" and len(mag.lines) == 1 and len(phase.lines) == 1
+    assert mag.get_ylabel() == "|G| [output/input]" and len(mag.lines) == 1 and len(phase.lines) == 1
     with pytest.raises(ParameterError, match="`ax` must hold 2 x 1 axes"):
         frd.plot(ax=mag)  # magnitude and phase need two
