@@ -409,3 +409,23 @@ def test_closed_loop_plant_from_one_data_set_per_reference(client, folder):
         "/api/estimate", json={"method": "closedloop", "data": names[0], "options": {"controller": "../K.json"}}
     )
     assert refused.status_code == 400 and "outside the served folder" in refused.json()["error"]
+
+
+def test_closed_loop_with_the_controller_unknown_runs_the_direct_route(client, folder):
+    from stageid.plants import levitated_pair
+
+    r, u, y = levitated_pair.record(2000, seed=0)
+    t = np.arange(len(u)) * levitated_pair.DT
+    write_csv(folder / "loop.csv", {"t": t, "u1": u[:, 0], "u2": u[:, 1], "y1": y[:, 0], "y2": y[:, 1]})
+    d = prepare(client, "loop.csv", inputs=["u1", "u2"], outputs=["y1", "y2"], detrend="none")
+    options = {"controller": "unknown", "order": "4"}
+    job = client.post("/api/estimate", json={"method": "closedloop", "data": d["name"], "options": options})
+    state = wait(client, job.json())
+    assert state["status"] == "done", state["error"]
+    assert "--plant-inputs u1,u2 --outputs y1,y2 --controller unknown --method direct --order 4 -o" in state["cli"]
+    assert "DirectPredictionError(order=4).fit(exps)" in state["python"]
+    assert state["result"]["model"]["inputs"] == ["u1", "u2"] and "<svg" in state["result"]["figures"]["bode"]
+    # the levitated pair's unstable poles are 31.4 and 50 rad/s (the fit is told neither nor the controller)
+    line = next(x for x in state["result"]["model"]["summary"].splitlines() if "unstable poles" in x)
+    found = [float(v.split("+-")[0]) for v in line.split(":", 1)[1].split(",")]
+    assert np.allclose(sorted(found), [31.4, 50.0], rtol=0.02), line

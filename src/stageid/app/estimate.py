@@ -218,24 +218,38 @@ def hysteresis(session: Session, data: str, options: dict[str, Any], out: str) -
 
 
 def closedloop(session: Session, data: str, options: dict[str, Any], out: str) -> Action:
-    """Closed-loop identification from one data set per excited reference and the controller's model file.
+    """Closed-loop identification from the records and the controller's model file, or ``unknown``.
 
-    The data sets' inputs are the references, their outputs the measured outputs (same order).
+    Known controller: one data set per excited reference, their inputs the references, their
+    outputs the measured outputs (same order).  ``unknown``: the direct prediction-error method
+    on the data sets' plant inputs and outputs (references not needed).
     """
     names = [n.strip() for n in data.split(",") if n.strip()]
     sets = [_dataset(session, n, "time") for n in names]
     controller = _text(options, "controller")
     if controller is None:
-        raise DataError("closed-loop identification needs the controller's model file; got none.")
+        raise DataError("closed-loop identification needs the controller's model file or 'unknown'; got none.")
     args = ["identify", "closed-loop", *(d["file"] for d in sets)]
-    args += ["--references", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]
-    args += ["--controller", controller]
-    _optional(args, options, [("band", "--band")])
+    if controller == "unknown":
+        args += ["--plant-inputs", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]
+        args += ["--controller", "unknown", "--method", "direct"]
+        _optional(args, options, [("order", "--order"), ("band", "--band")])
+        reads = "".join(f"    read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r}),\n" for d in sets)
+        python = (
+            "from stageid.closedloop import DirectPredictionError\nfrom stageid.data.io import read_table\n"
+            f"exps = [\n{reads}]\n"
+            f"result = DirectPredictionError(order={_literal(_text(options, 'order', 'auto'))}).fit(exps)\n"
+            "plant = result.plant"
+        )
+    else:
+        args += ["--references", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]
+        args += ["--controller", controller]
+        _optional(args, options, [("band", "--band")])
+        python = (
+            "# the command runs stageid.closedloop's ClosedLoopIdentification on the records\n"
+            f"from stageid.models import load_model\nplant = load_model({out + '.json'!r})"
+        )
     args += ["-o", f"{out}.json"]
-    python = (
-        "# the command runs stageid.closedloop's ClosedLoopIdentification on the records\n"
-        f"from stageid.models import load_model\nplant = load_model({out + '.json'!r})"
-    )
 
     def then() -> dict[str, Any]:
         made = _register_model(session, out, "plant (closed loop)", data, lambda: _log(session, out))

@@ -215,7 +215,7 @@ async def estimate(request: Request) -> Response:
     if method not in ESTIMATES:
         raise DataError(f"estimate method must be one of {', '.join(ESTIMATES)}; got {method!r}.")
     options = dict(body.get("options") or {})
-    if method == "closedloop" and options.get("controller"):
+    if method == "closedloop" and options.get("controller") and options["controller"] != "unknown":
         options["controller"] = _controller_copy(request, str(options["controller"]))
     action = ESTIMATES[method](session, str(body.get("data", "")), options, session.next_name("m"))
     return _start(request, f"estimate {method}", action)

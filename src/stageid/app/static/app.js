@@ -49,7 +49,7 @@ async function refresh() {
   fill($("compare-data"), times, true);
   const models = Object.keys(s.models);
   fill($("compare-model"), models, true);
-  fill($("opt-controller"), s.model_files, true);
+  fill($("opt-controller"), s.model_files.concat(["unknown"]), true); // unknown: the direct prediction-error route
   fill($("export-model"), models, true);
   return s;
 }
@@ -108,7 +108,9 @@ function estimateOptions(method) {
   if (method === "statespace") return { order: $("opt-ss-order").value, horizon: $("opt-horizon").value };
   if (method === "frd") return { order: $("opt-order").value, dt: $("opt-dt").value, continuous: $("opt-continuous").checked,
     fmin: $("opt-fmin").value, fmax: $("opt-fmax").value, delay: $("opt-delay").value };
-  if (method === "closedloop") return { controller: $("opt-controller").value, band: $("opt-band").value };
+  if (method === "closedloop") {
+    return { controller: $("opt-controller").value, band: $("opt-band").value, order: $("opt-cl-order").value };
+  }
   return { model: $("opt-hyst").value };
 }
 
