@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv bench recovery mutation docs docs-fast docs-check clean
+.PHONY: demo test test-studies venv bench recovery mutation docs docs-fast docs-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,7 +20,12 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks studies
 	$(VENV)/bin/ruff format --check src tests benchmarks studies
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider -m "not study"
+
+# The long checks on measured records and randomised draws (marked `study`): CI runs them after
+# `make test`, so that the everyday suite stays within a few minutes.
+test-studies: $(STAMP)
+	$(PY) -m pytest -q -p no:cacheprovider -m study
 
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'

@@ -56,6 +56,7 @@ def test_the_guessed_pd_does_not_explain_the_real_commands():
     assert max(fits) < 0  # no reading of the guess beats the commands' mean
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.skipif(

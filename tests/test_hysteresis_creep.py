@@ -289,6 +289,7 @@ def test_cli_creep_flag(tmp_path, capsys):
     assert not (tmp_path / "bad.json").exists()
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_piezo_forc_records_with_creep():

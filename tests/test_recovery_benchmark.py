@@ -45,6 +45,7 @@ def test_every_case_module_is_found():
     assert all(isinstance(label, str) and label for label in found.values())
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.parametrize("module", CASES)
 def test_small_draw_is_recovered(module):

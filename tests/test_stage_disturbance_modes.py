@@ -67,6 +67,7 @@ def _light_poles_hz(model, zeta_max=0.1):
 SLOW = ((10.0, 1.5), (20.0, 1.5))
 
 
+@pytest.mark.study
 def test_a_mode_rung_only_by_the_disturbance_is_recovered():
     """1.5 kHz, damping 0.02, drives at 10 and 20 Hz: without the new step the fit has no pole
     near the mode (the drives do not excite it); with it, on the spectral evidence alone
@@ -170,6 +171,7 @@ def test_cli_disturbance_modes_flag(tmp_path, capsys):
     assert not (tmp_path / "bad.json").exists()
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_tracking_records_meet_the_target_with_the_mode_from_the_disturbance():

@@ -251,6 +251,7 @@ def test_stage_json_without_creep_key_still_loads():
         StageModel.from_dict({**d, "extra": 1})
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_forc_records_preisach_stage():

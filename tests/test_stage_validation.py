@@ -114,6 +114,7 @@ def test_cli_validate_initial(tmp_path, capsys):
     assert "--initial kinds is for hysteresis" in capsys.readouterr().err
 
 
+@pytest.mark.study
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_measured_tracking_records_start_after_an_earlier_minor_loop():
