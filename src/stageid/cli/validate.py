@@ -104,22 +104,18 @@ def validate_command(
         path = _write_report(report_dir, model, experiments, result, summary)
         say(f"report written to {path}")
     say(_summary_text(summary, [e.name for e in experiments]))
-    for line in _edge_lines(model, experiments, result["residuals"]):
+    for line in _edge_lines(model, experiments, result["simulated"]):
         say(line)
 
 
-def _edge_lines(model, experiments, residuals) -> list[str]:
-    """A line per record and output whose error concentrates at an edge (:mod:`stageid.validation.edges`)."""
-    import numpy as np
+def _edge_lines(model, experiments, simulated) -> list[str]:
+    """A line per record and output whose error concentrates at an edge (:mod:`stageid.validation.edges`);
+    an LTI model from each record's estimated initial state, whichever ``--initial`` the fit used."""
+    from ..validation.edges import edge_lines, lti_edge_lines
 
-    from ..validation.edges import edge_errors
-
-    lines = []
-    for exp, e in zip(experiments, residuals):
-        for i, name in enumerate(model.outputs):
-            for edge in edge_errors(e[:, i], float(np.ptp(exp.y[:, i])), exp.dt, exp.t0):
-                lines.append(f"{exp.name}  {name}: {edge.describe()}")
-    return lines
+    if hasattr(model, "frequency_response"):
+        return lti_edge_lines(model, experiments)
+    return edge_lines(experiments, simulated, model.outputs)
 
 
 def _experiments(model, data, inputs, outputs, ts):
