@@ -13,7 +13,14 @@ import numpy as np
 
 from .style import subplots
 
-__all__ = ["loop_figure", "model_errors_figure", "tracking_figure", "creep_figure", "stage_dynamics_figure"]
+__all__ = [
+    "loop_figure",
+    "loop_error_figure",
+    "model_errors_figure",
+    "tracking_figure",
+    "creep_figure",
+    "stage_dynamics_figure",
+]
 
 
 def _figure(nrows: int, ncols: int, size: tuple[float, float]):
@@ -58,6 +65,95 @@ def loop_figure(
     if title:
         ax.set_title(title)
     ax.legend()
+    return fig
+
+
+def loop_error_figure(
+    time: Any,
+    u: Any,
+    y: Any,
+    y_hat: Any,
+    labels: tuple[str, str],
+    error_label: str,
+    scale: float = 1.0,
+    band: Any = None,
+    band_label: str = "",
+) -> Any:
+    """Measured and modelled loops beside the modelling error ``(y - y_hat) * scale`` over time.
+
+    A record of many periods of its input drawn whole is a solid block: when it holds more than
+    twelve periods (:func:`~stageid.plots.scale.zoom_window` of the input's dominant period),
+    (a) draws the loops of the last three periods over the whole record's in grey, (b) the error
+    in that window and (c) the error over the whole record as its min-max envelope with the
+    window marked.  Otherwise (a) the loops and (b) the error, whole.
+
+    Parameters
+    ----------
+    time, u, y, y_hat : array_like of shape (n_samples,)
+    labels : (str, str)
+        The loop's x and y labels (input and output with their units).
+    error_label : str
+        The error axis's label (its unit: ``scale`` turns the output's unit into it).
+    band : array_like of shape (n_samples,), optional
+        Half-width of a band around the model's output (output units): drawn as the loop's
+        edges (colour C1) and, times ``scale``, shaded around zero under the error.
+    band_label : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(0, 5, 1e-3)
+    >>> u = np.sin(2 * np.pi * 10 * t)
+    >>> fig = loop_error_figure(t, u, u**3, 0.9 * u**3, ("V [V]", "y [um]"), "error [um]")
+    >>> [ax.get_title()[:3] for ax in fig.axes]
+    ['(a)', '(b)', '(c)']
+    """
+    from .scale import dominant_period, envelope, zoom_window
+
+    t, x, y, y_hat = _flat(time), _flat(u), _flat(y), _flat(y_hat)
+    period = dominant_period(x, float(t[1] - t[0])) if t.size > 1 else None
+    window = None if period is None else zoom_window(t, period)
+    half = None if band is None else _flat(band)
+    error = (y - y_hat) * scale
+    fig, axes = _figure(1, 3 if window else 2, (15.0 if window else 11.0, 4.2))
+    shown = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
+    span = "" if window is None else f", last {window[1] - window[0]:.3g} s"
+    a, b = axes[0, 0], axes[0, 1]
+    if window is not None:
+        a.plot(x, y, color="0.85", lw=0.6, label="measured, whole record")
+    a.plot(x[shown], y[shown], color="0.2", lw=1.2, label="measured")
+    a.plot(x[shown], y_hat[shown], "--", color="C0", lw=1.0, label="model")
+    if half is not None:
+        for sign in (1.0, -1.0):
+            edge = (y_hat + sign * half)[shown]
+            a.plot(x[shown], edge, color="C1", lw=0.6, label=None if sign < 0 else "band edges")
+    a.set_xlabel(labels[0])
+    a.set_ylabel(labels[1])
+    a.set_title(f"(a) loops{span}")
+    a.legend()
+    if half is not None:
+        b.fill_between(
+            t[shown], -(half * scale)[shown], (half * scale)[shown], color="C1", alpha=0.35, label=band_label
+        )
+    b.plot(t[shown], error[shown], color="C3", lw=0.9, label="measured - model")
+    b.set_xlabel("time [s]")
+    b.set_ylabel(error_label)
+    b.set_title(f"(b) modelling error{span}")
+    if half is not None:
+        b.legend()
+    if window is not None:
+        c = axes[0, 2]
+        te, lo, hi = envelope(t, error)
+        c.fill_between(te, lo, hi, color="C3", lw=0.6, label="error (min-max per bin)")
+        c.axvspan(*window, color="0.85", zorder=0, label="window of (a), (b)")
+        c.set_xlabel("time [s]")
+        c.set_ylabel(error_label)
+        c.set_title("(c) modelling error over the whole record")
+        c.legend()
     return fig
 
 
