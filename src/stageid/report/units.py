@@ -36,6 +36,12 @@ UNIT_RULES: tuple[tuple[str, str, str], ...] = (
     ("equals", "statistic", "1 (chi-square statistic)"),
     ("equals", "threshold", "1 (chi-square statistic)"),
     ("equals", "alpha", "1 (test level)"),
+    ("equals", "p_value", "1 (probability)"),
+    ("equals", "correlations", "1 (normalised correlation)"),
+    ("equals", "max_abs", "1 (normalised correlation)"),
+    ("equals", "bound", "1 (normalised correlation)"),
+    ("equals", "dof", "degrees of freedom"),
+    ("equals", "n_samples", "samples"),
     ("equals", "pass", "true/false"),
     ("equals", "stable", "true/false"),
     ("equals", "lags", "samples"),
@@ -75,11 +81,11 @@ def metric_unit(key: str) -> str | None:
 
 
 def numeric_paths(metrics: Any, prefix: str = "") -> Iterator[str]:
-    """The ``/``-joined path of every number (or list of numbers, or null) in ``metrics``."""
+    """The ``/``-joined path of every number (or non-empty list of numbers, or null) in ``metrics``."""
     if isinstance(metrics, Mapping):
         for key, value in metrics.items():
             yield from numeric_paths(value, f"{prefix}/{key}" if prefix else str(key))
-    elif isinstance(metrics, (list, tuple)) and any(isinstance(v, (Mapping, list, tuple)) for v in metrics):
+    elif isinstance(metrics, (list, tuple)) and any(isinstance(v, Mapping) for v in metrics):
         for k, value in enumerate(metrics):
             yield from numeric_paths(value, f"{prefix}/{k}")
     elif _numeric(metrics):
@@ -87,8 +93,8 @@ def numeric_paths(metrics: Any, prefix: str = "") -> Iterator[str]:
 
 
 def _numeric(value: Any) -> bool:
-    if isinstance(value, (list, tuple)):
-        return all(_numeric(v) for v in value)
+    if isinstance(value, (list, tuple)):  # an empty list holds no number to give a unit
+        return len(value) > 0 and all(_numeric(v) for v in value)
     return value is None or isinstance(value, (bool, int, float))
 
 
