@@ -149,9 +149,7 @@ def _with_time_axis(
     return variables, None
 
 
-def _record_columns(
-    names: list[str], columns: list[np.ndarray], where: str
-) -> tuple[list[str], list[np.ndarray]]:
+def _record_columns(names: list[str], columns: list[np.ndarray], where: str) -> tuple[list[str], list[np.ndarray]]:
     """The columns of the record's length; vectors far shorter are parameters, skipped with a warning.
 
     The record's length is the time axis's, else the length most columns share (the longer on
