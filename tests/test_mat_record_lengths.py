@@ -17,25 +17,19 @@ from conftest import run_main
 from stageid import DataError, StageIdWarning
 from stageid.data import datasets as ds
 from stageid.data import read_table
+from stageid.models import StateSpaceModel, save_model
 
 DT = 1e-3
 N = 300
 
 
-def _gain_model(path, inputs, outputs=("z",), dt=DT):
-    """A static model z = 2 * first input (state space with one idle state)."""
-    model = {
-        "format": "stageid.lti/1",
-        "kind": "statespace",
-        "dt": dt,
-        "A": [[0.0]],
-        "B": [[0.0] * len(inputs)],
-        "C": [[0.0]] * len(outputs),
-        "D": [[2.0] + [0.0] * (len(inputs) - 1)] * len(outputs),
-        "inputs": list(inputs),
-        "outputs": list(outputs),
-    }
-    path.write_text(json.dumps(model))
+def _gain_model(path, inputs, outputs=("z",)):
+    """A static model: every output is twice the first input."""
+    k = len(inputs)
+    D = np.zeros((len(outputs), k))
+    D[:, 0] = 2.0
+    ss = StateSpaceModel(np.zeros((0, 0)), np.zeros((0, k)), np.zeros((len(outputs), 0)), D, dt=DT)
+    save_model(ss.with_names(inputs=tuple(inputs), outputs=tuple(outputs)), path)
     return path
 
 
@@ -64,9 +58,11 @@ def test_the_cli_reads_such_a_file_and_says_what_it_skipped(tmp_path):
     assert np.allclose(read_table(tmp_path / "z.csv").column("z"), 2.0 * u[:, 0])
     (line,) = [s for s in err.splitlines() if "skipped" in s]
     assert "'rec.mat'" in line and "coefficients (5 samples)" in line and "300 samples" in line
-    code, out, err = run_main("validate", _gain_model(tmp_path / "v.json", ["u_1"], ["y"]), path, "--inputs", "u_1")
-    assert code == 0, err
-    assert "coefficients (5 samples)" in err and "fit" in out
+    gain = _gain_model(tmp_path / "v.json", ["u_1"], ["y"])
+    for initial in ("model", "estimate"):  # a static gain has no initial state to estimate
+        code, out, err = run_main("validate", gain, path, "--inputs", "u_1", "--initial", initial)
+        assert code == 0, err
+        assert "coefficients (5 samples)" in err and "y: fit" in out
 
 
 def test_signals_that_cannot_be_aligned_are_refused_in_one_line_naming_them(tmp_path):

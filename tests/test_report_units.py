@@ -17,26 +17,11 @@ from stageid.hysteresis import PIModel
 from stageid.hysteresis.models.creep import CreepTerm
 from stageid.models import StateSpaceModel, save_model
 from stageid.plots import closedloop as closedloop_plots
-from stageid.report import html as report_html
 from stageid.report import write_report_folder
 from stageid.report.model_report import hysteresis_model_report
 from stageid.report.units import numeric_paths
 
 DT = 1e-3
-
-
-@pytest.fixture
-def drawn(monkeypatch):
-    """The figures a report draws, kept open (Report.figure renders them to PNG and forgets them)."""
-    figs = []
-    real = report_html.Report.figure
-
-    def keep(self, fig, caption, dpi=110):
-        figs.append((fig, caption))
-        return real(self, fig, caption, dpi)
-
-    monkeypatch.setattr(report_html.Report, "figure", keep)
-    return figs
 
 
 def _units_of_every_number(path):

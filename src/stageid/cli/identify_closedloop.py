@@ -173,9 +173,12 @@ def closedloop_command(
     if uncertainty_line:
         say(uncertainty_line)
     if report_dir is not None:
-        # the plant's input units are those of the recorded plant inputs, when the files have them
-        u_units = () if u_names is None else tuple(tables[0].units[tables[0].names.index(n)] for n in u_names)
-        _write_report(result, exps, result.controller, report_dir, u_units)
+        _write_report(result, exps, result.controller, report_dir, _column_units(tables[0], u_names))
+
+
+def _column_units(table, names: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The units of ``names`` in ``table`` (the recorded plant inputs: the plant's input units)."""
+    return () if names is None else tuple(table.units[table.names.index(n)] for n in names)
 
 
 def _load_controller(path: str, outs: tuple[str, ...]):

@@ -102,6 +102,7 @@ def loop_error_figure(
     Returns
     -------
     matplotlib.figure.Figure
+        Two panels, or three for a long record of a fast input; Agg canvas.
 
     Examples
     --------
@@ -112,7 +113,7 @@ def loop_error_figure(
     >>> [ax.get_title()[:3] for ax in fig.axes]
     ['(a)', '(b)', '(c)']
     """
-    from .scale import dominant_period, envelope, zoom_window
+    from .scale import dominant_period, zoom_window
 
     t, x, y, y_hat = _flat(time), _flat(u), _flat(y), _flat(y_hat)
     period = dominant_period(x, float(t[1] - t[0])) if t.size > 1 else None
@@ -131,30 +132,29 @@ def loop_error_figure(
         for sign in (1.0, -1.0):
             edge = (y_hat + sign * half)[shown]
             a.plot(x[shown], edge, color="C1", lw=0.6, label=None if sign < 0 else "band edges")
-    a.set_xlabel(labels[0])
-    a.set_ylabel(labels[1])
-    a.set_title(f"(a) loops{span}")
+    a.set(xlabel=labels[0], ylabel=labels[1], title=f"(a) loops{span}")
     a.legend()
     if half is not None:
-        b.fill_between(
-            t[shown], -(half * scale)[shown], (half * scale)[shown], color="C1", alpha=0.35, label=band_label
-        )
+        band_shown = (half * scale)[shown]
+        b.fill_between(t[shown], -band_shown, band_shown, color="C1", alpha=0.35, label=band_label)
     b.plot(t[shown], error[shown], color="C3", lw=0.9, label="measured - model")
-    b.set_xlabel("time [s]")
-    b.set_ylabel(error_label)
-    b.set_title(f"(b) modelling error{span}")
+    b.set(xlabel="time [s]", ylabel=error_label, title=f"(b) modelling error{span}")
     if half is not None:
         b.legend()
     if window is not None:
-        c = axes[0, 2]
-        te, lo, hi = envelope(t, error)
-        c.fill_between(te, lo, hi, color="C3", lw=0.6, label="error (min-max per bin)")
-        c.axvspan(*window, color="0.85", zorder=0, label="window of (a), (b)")
-        c.set_xlabel("time [s]")
-        c.set_ylabel(error_label)
-        c.set_title("(c) modelling error over the whole record")
-        c.legend()
+        _envelope_panel(axes[0, 2], t, error, window, error_label)
     return fig
+
+
+def _envelope_panel(ax: Any, t: np.ndarray, error: np.ndarray, window: tuple[float, float], label: str) -> None:
+    """(c): the error over the whole record as its min-max envelope, the zoom window shaded."""
+    from .scale import envelope
+
+    te, lo, hi = envelope(t, error)
+    ax.fill_between(te, lo, hi, color="C3", lw=0.6, label="error (min-max per bin)")
+    ax.axvspan(*window, color="0.85", zorder=0, label="window of (a), (b)")
+    ax.set(xlabel="time [s]", ylabel=label, title="(c) modelling error over the whole record")
+    ax.legend()
 
 
 def model_errors_figure(
