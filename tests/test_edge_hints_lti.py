@@ -98,3 +98,13 @@ def test_lti_edge_lines_in_the_library(tmp_path):
     (line,) = lti_edge_lines(model, [exp, clean])
     assert line.startswith("r  y: ") and "try --start 0.06" in line
     assert lti_edge_lines(model, [clean]) == []
+
+
+def test_an_unstable_model_gets_no_hint(tmp_path):
+    # its response overflows within the record: the hint must not turn a fit into an error
+    from stageid.data import read_table
+    from stageid.models import StateSpaceModel
+
+    unstable = StateSpaceModel([[1.5]], [[0.1]], [[1.0]], [[0.0]], dt=DT, inputs=("u",), outputs=("y",))
+    exp = read_table(_record(tmp_path / "r.csv", seed=5, settle=0.8)).experiment(["u"], ["y"], name="r")
+    assert lti_edge_lines(unstable, [exp]) == []

@@ -165,8 +165,11 @@ def edge_lines(experiments: Sequence[Any], simulated: Sequence[np.ndarray], outp
 
 
 def lti_edge_lines(model: Any, experiments: Sequence[Any]) -> list[str]:
-    """:func:`edge_lines` of an LTI model, simulated on each record from its estimated initial state."""
+    """:func:`edge_lines` of an LTI model, simulated on each record from its estimated initial state;
+    none for an unstable model (its simulation diverges: no edge to blame)."""
     from .initial_state import simulate_from_estimated_state
 
+    if not model.is_stable():
+        return []
     simulated = [simulate_from_estimated_state(model, e.u, e.y, e.dt) for e in experiments]
     return edge_lines(experiments, simulated, model.outputs)
