@@ -131,3 +131,44 @@ def test_a_long_fast_hysteresis_record_is_drawn_in_a_window_beside_its_envelope(
     hysteresis_model_report(model, [short])
     ((fig, _),) = drawn
     assert len(fig.axes) == 2 and fig.axes[0].get_lines()[0].get_xdata().size == 300
+
+
+@pytest.mark.parametrize(
+    "key, unit",
+    [
+        ("checks_passed/whiteness", "true/false"),  # closed loop without the controller
+        ("hysteresis/model_error_percent_validation/pi", "%"),  # the demo's
+        ("hysteresis/tracking_error_percent_fsr/modified-PI inverse", "% of the full-scale range"),
+        ("maglev/rhp_poles_true_rad_s", "rad/s"),
+        ("p558/z_channel_selected_order", "states"),
+        ("seconds/total", "s"),
+        ("loop_band/error_inside_percent/rec", "% of samples"),
+        ("dynamics/modes/damping", "1 (damping ratio)"),
+    ],
+)
+def test_metric_names_read_as_units(key, unit):
+    from stageid.report.units import metric_unit
+
+    assert metric_unit(key) == unit
+
+
+def test_a_name_without_a_unit_is_left_out_not_guessed():
+    from stageid.report.units import metric_units
+
+    assert metric_units({"fit_percent/r/y": 90.0, "gain": 2.0, "method": "oe", "empty": []}) == {"fit_percent/r/y": "%"}
+
+
+def test_frd_fit_report_gives_every_metric_a_unit(tmp_path):
+    g = StateSpaceModel([[0.9, 0.2], [-0.2, 0.9]], [[1.0], [0.0]], [[0.5, 0.1]], [[0.0]], dt=0.01)
+    save_model(g.with_names(inputs=("u",), outputs=("y",)), tmp_path / "m.json")
+    code, out, err = run_main(
+        "freqresp", tmp_path / "m.json", "--fmin", "0.1", "--fmax", "40", "--n", "200", "-o", tmp_path / "fr.csv"
+    )
+    assert code == 0, err
+    code, out, err = run_main(
+        "identify", "frd", tmp_path / "fr.csv", "--order", "2", "--dt", "0.01", "-o", tmp_path / "fit.json",
+        "--report", tmp_path / "rep",
+    )  # fmt: skip
+    assert code == 0, err
+    _, units = _units_of_every_number(tmp_path / "rep" / "metrics.json")
+    assert units["delay"] == "samples" and units["band_hz"] == "Hz" and units["column_error_percent/u"] == "%"

@@ -44,6 +44,7 @@ UNIT_RULES: tuple[tuple[str, str, str], ...] = (
     ("equals", "n_samples", "samples"),
     ("equals", "pass", "true/false"),
     ("equals", "stable", "true/false"),
+    ("equals", "checks_passed", "true/false"),
     ("equals", "lags", "samples"),
     ("equals", "max_lag", "samples"),
     ("equals", "horizons", "samples (Hankel horizon)"),
