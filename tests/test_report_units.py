@@ -116,12 +116,13 @@ def test_a_long_fast_hysteresis_record_is_drawn_in_a_window_beside_its_envelope(
     hysteresis_model_report(model, [exp])
     ((fig, caption),) = drawn
     loops, window, whole = fig.axes
-    assert "(a) loops, last 0.15 s" == loops.get_title() and "window" in caption
+    # the last three cycles from the seventh-last reversal (a minimum at 2.825 s) to the end
+    assert loops.get_title() == "(a) loops, last 3 cycles (0.174 s)" and "window" in caption
     in_window = [ln for ln in loops.get_lines() if ln.get_label() in ("measured", "model")]
-    assert [ln.get_xdata().size for ln in in_window] == [151, 151]  # three periods of 50 samples, both ends
+    assert [ln.get_xdata().size for ln in in_window] == [175, 175]
     (background,) = [ln for ln in loops.get_lines() if ln.get_label() == "measured, whole record"]
     assert background.get_xdata().size == t.size
-    assert window.get_lines()[0].get_xdata()[0] == pytest.approx(2.849)
+    assert window.get_lines()[0].get_xdata()[0] == pytest.approx(2.825)
     (band,) = [c for c in whole.collections if isinstance(c, PolyCollection) and c.get_label().startswith("error")]
     xs = band.get_paths()[0].vertices[:, 0]
     assert xs.min() == pytest.approx(0.0) and xs.max() > 2.9  # the envelope spans the whole record
@@ -172,3 +173,37 @@ def test_frd_fit_report_gives_every_metric_a_unit(tmp_path):
     assert code == 0, err
     _, units = _units_of_every_number(tmp_path / "rep" / "metrics.json")
     assert units["delay"] == "samples" and units["band_hz"] == "Hz" and units["column_error_percent/u"] == "%"
+
+
+def test_an_idle_start_and_a_staircase_do_not_hide_the_cycles():
+    """A reversal-curve record: 1 s idle at the lowest drive, then 25 triangles of 20 ms whose
+    peaks rise (the shape of the dSPACE records, where the strongest spectral line is the slow
+    staircase, not the cycles)."""
+    from stageid.plots.hysteresis import loop_error_figure, reversal_window
+
+    dt = 1e-4
+    t = np.arange(15000) * dt
+    phase = np.clip(t - 1.0, 0.0, None)
+    peak = -1.0 + 2.0 * np.minimum(phase / 0.5, 1.0)
+    u = np.where(t < 1.0, -1.0, -1.0 + (peak + 1.0) * (1.0 - np.abs((phase * 100.0) % 2.0 - 1.0)))
+    window = reversal_window(t, u)
+    assert window is not None and window[1] == t[-1]
+    assert window[1] - window[0] == pytest.approx(0.07, abs=2 * dt)  # three cycles to the last turn, its tail
+    fig = loop_error_figure(t, u, u**3, 0.98 * u**3, ("V [V]", "y [um]"), "error [um]")
+    assert len(fig.axes) == 3
+    # the same cycles without the idle stretch but only four of them: drawn whole
+    assert reversal_window(t[:1400], np.sin(2 * np.pi * 3 * t[:1400] / 0.14)) is None
+
+
+def test_validate_report_draws_a_long_hysteresis_record_in_a_window(tmp_path, drawn):
+    model = PIModel(r=[0.0, 0.4, 0.8], weights=[1.0, 0.4, 0.2])
+    save_model(model, tmp_path / "pi.json")
+    t = np.arange(3000) * DT
+    u = 2.0 * np.abs(((20.0 * t) % 1.0) - 0.5) * (1.0 + t)
+    y = model.simulate(u)[:, 0] + 0.01 * np.random.default_rng(1).standard_normal(t.size)
+    write_csv(tmp_path / "r.csv", Table([*model.inputs, *model.outputs], np.column_stack([u, y]), dt=DT))
+    code, out, err = run_main("validate", tmp_path / "pi.json", tmp_path / "r.csv", "--report", tmp_path / "rep")
+    assert code == 0, err
+    fig, caption = drawn[-1]
+    assert [ax.get_title()[:3] for ax in fig.axes] == ["(a)", "(b)", "(c)"] and "and the error" in caption
+    assert fig.axes[1].get_ylabel() == "error [% of range]"

@@ -215,13 +215,21 @@ def _write_report(folder: str, model, experiments, result: dict, summary: dict):
 
 
 def _loop_section(report, model, experiments, result: dict) -> None:
-    from ..plots.hysteresis import loop_figure
+    """Measured and simulated loops beside the error in % of range; a long record of a fast input
+    in a window of its last cycles beside the whole record's envelope."""
+    import numpy as np
+
+    from ..plots.hysteresis import loop_error_figure
 
     report.section("Hysteresis loops")
     for exp, ys in zip(experiments, result["simulated"]):
         for i, name in enumerate(model.outputs):
-            fig = loop_figure(exp.u[:, 0], {"measured": exp.y[:, i], "model": ys[:, i]}, title=f"{exp.name}: {name}")
-            report.figure(fig, f"{exp.name}: {name} against {model.inputs[0]}, measured and simulated.")
+            y_range = float(np.ptp(exp.y[:, i]))
+            unit = exp.output_units[i] or "output unit"
+            labels = (f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]", f"{name} [{unit}]")
+            scale, error_label = (100.0 / y_range, "error [% of range]") if y_range > 0 else (1.0, f"error [{unit}]")
+            fig = loop_error_figure(exp.time, exp.u[:, 0], exp.y[:, i], ys[:, i], labels, error_label, scale=scale)
+            report.figure(fig, f"{exp.name}: {name} against {model.inputs[0]}, measured and simulated, and the error.")
 
 
 def _verdict(test: dict) -> str:
