@@ -33,7 +33,7 @@ import numpy as np
 from .._errors import ModelError
 from .c_writer import CType, array, define, literal
 
-__all__ = ["creep_inverse_fields"]
+__all__ = ["creep_inverse_fields", "check_creep_inverse"]
 
 _TARGET = "    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;"
 
@@ -137,6 +137,7 @@ def _first_tables(model: Any, creep: Any, gain_g: float, p: str, clipped: bool) 
     """Double tables of the first sample: the G-folded inverse, its starting state, the g-folded
     forward weights the hand-over uses and, with drive limits, the forward state and thresholds a
     clipped drive replays (as :class:`CreepInverse` builds them)."""
+    from ..hysteresis import OperatorState
     from ..hysteresis.inverse.closed_form import forward_state, inverse_state, pi_inverse
 
     double = CType("double")
@@ -155,7 +156,7 @@ def _first_tables(model: Any, creep: Any, gain_g: float, p: str, clipped: bool) 
         "fold_W": np.cumsum(folded_g.weights),
     }
     if clipped:
-        tables["fwd_z0"] = forward_state(first_inv, type(forward)(float(z0[0]), z0)).z
+        tables["fwd_z0"] = forward_state(first_inv, OperatorState(float(z0[0]), z0)).z
         tables["fold_r"] = folded_g.r
     return [f"static const double {p}_{k}[{p}_N_OPERATORS] = {array(v, double)};" for k, v in tables.items()]
 
