@@ -90,6 +90,23 @@ def assert_one_line_error(rc: int, err: str, *fragments: str) -> None:
         assert fragment in err, err
 
 
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures a report draws, ``[(figure, caption)]``, kept open (``Report.figure`` renders
+    them to PNG and forgets them)."""
+    from stageid.report import html as report_html
+
+    figs = []
+    real = report_html.Report.figure
+
+    def keep(self, fig, caption, dpi=110):
+        figs.append((fig, caption))
+        return real(self, fig, caption, dpi)
+
+    monkeypatch.setattr(report_html.Report, "figure", keep)
+    return figs
+
+
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file under ``folder`` (names relative) with its bytes: "unchanged" is equality."""
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}

@@ -33,7 +33,7 @@ def record(tmp_path):
     """(folder, record name, response name, fit settings) of the FRF the page opens."""
     if AFM is not None and (AFM / "FRF_data_current_stage2.mat").exists():
         settings = {"opt-order": "8", "opt-dt": "4e-5", "opt-fmin": "1", "opt-fmax": "2000"}
-        return AFM, "FRF_data_current_stage2.mat", "modelFit.frf.G_uz2stage", settings
+        return AFM, "FRF_data_current_stage2.mat", "frf.G_uz2stage", settings
     from stageid.data.io import read_table, write_csv
 
     folder = tmp_path / "records"

@@ -370,6 +370,29 @@ def test_records_without_time_column_and_frf_tables(client, folder):
     assert d["kind"] == "frd" and d["band"][1] <= 50.0 and d["inputs"] == ["u"] and "<svg" in d["figures"]["bode"]
 
 
+def test_mat_frf_struct_is_read_as_the_command_line_reads_it(client, folder, tmp_path):
+    """One reader: the board lists a MATLAB FRF file's responses by the names ``identify frd
+    --response`` takes, with the same values, a rad/s axis included."""
+    import scipy.io
+
+    from stageid.models.frequency_response import read_frd
+
+    w = 2 * np.pi * np.geomspace(1.0, 200.0, 40)
+    g = 3.0 / (1.0 + 1j * w / 300.0)
+    scipy.io.savemat(folder / "frf.mat", {"meas": {"w_s": w, "G_V2z": g, "G_V2x": 0.5 * g, "notes": "bench 2"}})
+    info = client.get("/api/inspect", params={"source": "folder", "name": "frf.mat"}).json()
+    assert info["kind"] == "frd" and sorted(info["responses"]) == ["G_V2x", "G_V2z"]
+    assert info["responses"]["G_V2z"]["inputs"] == ["V"] and info["responses"]["G_V2z"]["outputs"] == ["z"]
+    settings = {"response": "G_V2z", "fmax": 100.0}
+    d = client.post("/api/prepare", json={"source": "folder", "name": "frf.mat", "settings": settings}).json()
+    assert d["kind"] == "frd" and d["outputs"] == ["z"] and d["band"][1] <= 100.0
+    cli = read_frd(folder / "frf.mat", "G_V2z").band(None, 100.0)
+    (written,) = (tmp_path / "scratch").rglob(d["file"])
+    board = read_frd(written)
+    assert np.allclose(board.freqs, cli.freqs, rtol=1e-12) and np.allclose(board.response, cli.response, rtol=1e-12)
+    assert np.isclose(board.freqs[0], 1.0, rtol=1e-9)  # w_s [rad/s] read as Hz / (2 pi)
+
+
 def test_hysteresis_estimate_draws_its_loops(client, folder):
     subprocess.run(
         [sys.executable, "-m", "stageid", "plants", "piezo-actuator", "--experiment", "triangle-1hz", "-o", "tri.csv"],

@@ -174,7 +174,10 @@ def test_hysteresis_report_with_a_constant_output_completes(tmp_path, capsys):
         ]
     )
     assert rc == 0, capsys.readouterr().err
-    assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {"max_error_percent_range/yflat.csv": None}
+    assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {
+        "max_error_percent_range/yflat.csv": None,
+        "units": {"max_error_percent_range/yflat.csv": "% of the output's range"},
+    }
 
 
 def test_a_failing_report_leaves_no_folder(tmp_path, monkeypatch, capsys):

@@ -136,10 +136,41 @@ def test_stage_inverse_is_the_hysteresis_compensator(run_c):
     assert_double(run_c(model, y_ref, inverse=True), Compensator(h).run(y_ref)[:, 0])
 
 
+@needs_cc
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_creep_stage_inverse_is_the_package_compensator(run_c, seed):
+    """The creep's lags and the first sample's static gain in the C compensator, as CreepInverse
+    runs them: the same drives in double (offsets, two lags), float within 1e-5 of the range."""
+    model = random_stage(seed)
+    h = model.hysteresis
+    y_ref = model.simulate(drive(seed, 3000))[:, 0]
+    u = Compensator(h).run(y_ref)[:, 0]
+    assert np.max(np.abs(h.simulate(u)[:, 0] - y_ref)) <= 1e-9 * np.max(np.abs(y_ref))  # it inverts the creep
+    assert_double(run_c(model, y_ref, inverse=True), u)
+    assert np.max(np.abs(run_c(model, y_ref, inverse=True, single=True) - u)) <= 1e-5 * np.ptp(u)
+    # drive limits that clip the first drive and later ones: the state rebuilt as the package does
+    limits = (float(u[0]) + 0.5, float(np.quantile(u, 0.9)))
+    clipped = Compensator(h, limits).run(y_ref)[:, 0]
+    assert np.isclose(clipped[0], limits[0], rtol=1e-12) and np.mean(np.isclose(clipped, limits[1], rtol=1e-12)) > 0.05
+    assert_double(run_c(model, y_ref, inverse=True, limits=limits), clipped)
+
+
+@needs_cc
+def test_creep_stage_inverse_starts_from_stored_lags(run_c):
+    model = random_stage(5)
+    h = replace(model.hysteresis, creep=model.hysteresis.creep.with_state([1.5, -2.0]))
+    stored = replace(model, hysteresis=h)
+    y_ref = stored.simulate(drive(5, 2000))[:, 0]
+    assert_double(run_c(stored, y_ref, inverse=True), Compensator(h).run(y_ref)[:, 0])
+
+
 def test_refused_with_one_line():
-    creep_stage = random_stage(0)
-    with pytest.raises(ModelError, match="no C form with creep"):
+    creep_stage = random_stage(0, "modified-pi")
+    with pytest.raises(ModelError, match="modified-PI hysteresis with creep has no C form"):
         export_c(creep_stage, "s", inverse=True)
+    shifted = replace(random_stage(0).hysteresis, r=random_stage(0).hysteresis.r + 0.1)
+    with pytest.raises(ModelError, match="first threshold is 0.1"):
+        export_c(replace(random_stage(0), hysteresis=shifted), "s", inverse=True)
     with pytest.raises(ModelError, match="differs"):
         export_c(creep_stage, "s", dt=2 * DT)
     preisach = PreisachModel((-1.0, 1.0), np.full(3, 0.5))
@@ -196,6 +227,15 @@ def test_cli_inverse_of_stage_says_what_it_omits(tmp_path):
     save_model(StageModel(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]), random_dynamics(rng, 2)), path)
     rc, out, err = run("export", "c", path, "--prefix", "comp", "--inverse", "-o", tmp_path / "b")
     assert rc == 0 and err == "" and "note:" in out and "dynamics are not inverted" in out
+
+
+def test_cli_inverse_of_a_creep_stage_is_exported(tmp_path):
+    path = tmp_path / "s.json"
+    save_model(random_stage(1), path)
+    rc, out, err = run("export", "c", path, "--prefix", "comp", "--inverse", "-o", tmp_path / "b")
+    assert rc == 0 and err == "" and "dynamics are not inverted" in out
+    header = (tmp_path / "b" / "comp.h").read_text()
+    assert "Creep: 2 first-order lags" in header and "lag[2]" in header
 
 
 BAD_FILES = [(d, c) for d in ("no-hysteresis", "no-dynamics", "bad-matrix", "truncated") for c in ("c", "mat")]

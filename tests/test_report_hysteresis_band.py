@@ -12,27 +12,12 @@ from stageid.cli.main import main
 from stageid.data import Experiment
 from stageid.data.io import write_csv
 from stageid.hysteresis import PIIdentifier, PIModel
-from stageid.report import html as report_html
 from stageid.report.model_report import hysteresis_model_report
 from stageid.signals import decaying_triangle
 
 U = decaying_triangle(1.0, 8, 1e-3, amplitude=10.0)
 TRUE = PIModel(r=np.arange(8) * 10.0 / 8, weights=np.array([1.0, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05, 0.05]))
 Y = TRUE.simulate(U).reshape(-1) + 0.01 * 48.0 * np.random.default_rng(0).standard_normal(U.size)
-
-
-@pytest.fixture
-def drawn(monkeypatch):
-    """The figures a report draws, kept open (Report.figure renders them to PNG and forgets them)."""
-    figs = []
-    real = report_html.Report.figure
-
-    def keep(self, fig, caption, dpi=110):
-        figs.append((fig, caption))
-        return real(self, fig, caption, dpi)
-
-    monkeypatch.setattr(report_html.Report, "figure", keep)
-    return figs
 
 
 def _fit():

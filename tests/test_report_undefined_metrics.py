@@ -60,12 +60,16 @@ def test_hysteresis_report_with_constant_output_completes(tmp_path):
         warnings.simplefilter("error")  # the old code divided by a zero range (RuntimeWarning)
         report, metrics = model_report(model, [exp])
         write_report_folder(tmp_path / "rep", report, metrics)
-    assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {"max_error_percent_range/flat": None}
+    assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == {
+        "max_error_percent_range/flat": None,
+        "units": {"max_error_percent_range/flat": "% of the output's range"},
+    }
 
 
 def test_write_metrics_writes_non_finite_as_null(tmp_path):
     write_metrics(tmp_path, {"a": float("-inf"), "b": [1.0, float("nan")], "c": np.float64("inf"), "d": 2.5})
-    assert json.loads((tmp_path / "metrics.json").read_text()) == {"a": None, "b": [1.0, None], "c": None, "d": 2.5}
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert written == {"a": None, "b": [1.0, None], "c": None, "d": 2.5, "units": {}}  # no name says a unit
 
 
 def test_report_folder_is_all_or_nothing(tmp_path):

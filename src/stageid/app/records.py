@@ -1,15 +1,15 @@
 """The data board of ``stageid serve``: read a record, pick channels, trim, detrend, and plot.
 
 A record is read with the package's readers (:func:`stageid.data.io.read_table`,
-:func:`stageid.models.frequency_response.frd_from_columns`).  A MATLAB file whose frequency response sits in a
-struct (a frequency vector beside complex response vectors, as instrument exports store
-them) is read by :func:`mat_struct_responses`.  Preparing a record writes it into the
-session's workspace as the file the estimate board's commands read.
+:func:`stageid.models.frequency_response.read_frd`): a MATLAB file whose frequency responses sit
+beside a frequency vector (structs included, as instrument exports store them) gives every one
+of them (:func:`mat_struct_responses`), by the names the command line's ``--response`` takes.
+Preparing a record writes it into the session's workspace as the file the estimate board's
+commands read.
 """
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +18,6 @@ import numpy as np
 from .._errors import DataError
 
 __all__ = ["inspect_record", "prepare_time", "prepare_frd", "mat_struct_responses", "svg"]
-
-_FREQ_FIELDS = ("freqs_hz", "freq_hz", "f_hz", "frequency_hz", "freqs", "f")
-_NAMED = re.compile(r"^G_(?P<inp>[A-Za-z0-9]+)2(?P<out>[A-Za-z0-9]+)$")
 
 
 def svg(fig: Any) -> str:
@@ -32,53 +29,18 @@ def svg(fig: Any) -> str:
     return buffer.getvalue()
 
 
-def _struct_fields(value: Any, prefix: str, depth: int = 0) -> dict[str, Any]:
-    """Leaf fields of nested MATLAB structs by dotted name (a few levels deep)."""
-    fields = getattr(value, "_fieldnames", None)
-    if fields is None or depth > 3:
-        return {prefix: value}
-    found: dict[str, Any] = {}
-    for name in fields:
-        found |= _struct_fields(getattr(value, name), f"{prefix}.{name}" if prefix else name, depth + 1)
-    return found
-
-
 def mat_struct_responses(path: Path) -> dict[str, Any]:
-    """Frequency responses stored in MATLAB structs: ``{field: FrequencyResponse}``.
+    """The frequency responses of a MATLAB file: ``{name: FrequencyResponse}``, one SISO response each.
 
-    A struct qualifies when it holds a real frequency vector in Hz (a field named like
-    ``freqs_Hz`` or ``f_hz``) and complex vectors of the same length; each complex vector is
-    one single-input single-output response.  A field named ``G_<in>2<out>`` gives its channel
-    names, any other field is output ``<field>`` of input ``u``.
+    Read by the command line's reader (:func:`stageid.data.mat_responses.mat_response_names`,
+    :func:`stageid.models.frequency_response.read_frd`): a real frequency vector (``freqs_Hz``,
+    ``f_hz``, ``w`` ...) and the complex vectors of its length, structs included; each name is
+    the one ``stageid identify frd --response`` takes.
     """
-    from scipy.io import loadmat
+    from ..data.mat_responses import mat_response_names
+    from ..models.frequency_response import read_frd
 
-    from ..frf import FrequencyResponse
-
-    contents = loadmat(path, squeeze_me=True, struct_as_record=False)
-    leaves: dict[str, Any] = {}
-    for key, value in contents.items():
-        if not key.startswith("__"):
-            leaves |= _struct_fields(value, key)
-    groups: dict[str, dict[str, Any]] = {}
-    for name, value in leaves.items():
-        parent, _, leaf = name.rpartition(".")
-        groups.setdefault(parent, {})[leaf] = value
-    responses = {}
-    for parent, fields in groups.items():
-        freq_key = next((k for k in fields if k.lower() in _FREQ_FIELDS), None)
-        if freq_key is None:
-            continue
-        f = np.asarray(fields[freq_key], dtype=float).ravel()
-        for leaf, value in fields.items():
-            arr = np.asarray(value)
-            if arr.dtype.kind == "c" and arr.ndim == 1 and arr.size == f.size:
-                match = _NAMED.match(leaf)
-                inp, out = (match["inp"], match["out"]) if match else ("u", leaf)
-                responses[f"{parent}.{leaf}" if parent else leaf] = FrequencyResponse(
-                    f, arr[:, None, None], inputs=(inp,), outputs=(out,)
-                )
-    return responses
+    return {name: read_frd(path, name) for name in mat_response_names(path)}
 
 
 def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
@@ -97,8 +59,8 @@ def _read(path: Path, ts: float | None = None) -> tuple[str, Any]:
         if path.suffix.lower() == ".mat":
             try:
                 responses = mat_struct_responses(path)
-            except (ValueError, TypeError, OSError, NotImplementedError):
-                responses = {}  # not MATLAB structs either: the table reader's message stands
+            except DataError:
+                responses = {}  # no frequency response either: the table reader's message stands
         else:
             try:
                 responses = {"response": read_frd(path)}

@@ -173,7 +173,12 @@ def closedloop_command(
     if uncertainty_line:
         say(uncertainty_line)
     if report_dir is not None:
-        _write_report(result, exps, result.controller, report_dir)
+        _write_report(result, exps, result.controller, report_dir, _column_units(tables[0], u_names))
+
+
+def _column_units(table, names: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The units of ``names`` in ``table`` (the recorded plant inputs: the plant's input units)."""
+    return () if names is None else tuple(table.units[table.names.index(n)] for n in names)
 
 
 def _load_controller(path: str, outs: tuple[str, ...]):
@@ -263,13 +268,15 @@ def _check_paper_structure(result, band: tuple[float, float]) -> None:
         )
 
 
-def _write_report(result, exps, controller, report_dir: str) -> None:
-    """Closed-loop identification report: the figures of the paper's Figs. 4, 6, 7 and 8."""
+def _write_report(result, exps, controller, report_dir: str, plant_input_units: tuple[str, ...] = ()) -> None:
+    """Closed-loop identification report: the figures of the paper's Figs. 4, 6, 7 and 8, magnitudes
+    in the records' units (the plant's inputs in ``plant_input_units``, ``input`` when unknown)."""
     import numpy as np
 
     from ..closedloop import empirical_transfer, reclose_loop
     from ..plots import time_overlay_figure
     from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero
+    from ..plots.scale import magnitude_unit
     from ..report import Report, uncertainty_section, write_report_folder
     from ..validation import fit_percent
 
@@ -286,7 +293,12 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
     report.section("Identified plant")
     report.paragraph(result.summary())
     report.figure(
-        plot_plant_bode(result, np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300)),
+        plot_plant_bode(
+            result,
+            np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300),
+            input_units=plant_input_units,
+            output_units=exps[0].output_units,
+        ),
         "Identified plant: reduced fit and full-order deduction (eq. 18).",
     )
     if result.covariance is not None:
@@ -306,6 +318,7 @@ def _write_report(result, exps, controller, report_dir: str) -> None:
                 result.closed_loop.frequency_response(ff)[:, j, j],
                 (fe, etfe[:, j]),
                 title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}",
+                unit=magnitude_unit(e.output_units[j], e.input_units[j]),
             ),
             f"{e.name}: identified closed loop beside the empirical transfer function of the record.",
         )

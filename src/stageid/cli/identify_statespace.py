@@ -157,6 +157,11 @@ def statespace_command(
     fit_band = identified_band(result)
     uncertainty_line = uncertainty.write(result, fit_band, result.model.dt)
     say(result.summary())
+    if exps is not None:
+        from ..validation.edges import lti_edge_lines
+
+        for line in lti_edge_lines(result.model, exps):
+            say(line)
     if uncertainty_line:
         say(uncertainty_line)
     if report_dir is not None:

@@ -104,22 +104,18 @@ def validate_command(
         path = _write_report(report_dir, model, experiments, result, summary)
         say(f"report written to {path}")
     say(_summary_text(summary, [e.name for e in experiments]))
-    for line in _edge_lines(model, experiments, result["residuals"]):
+    for line in _edge_lines(model, experiments, result["simulated"]):
         say(line)
 
 
-def _edge_lines(model, experiments, residuals) -> list[str]:
-    """A line per record and output whose error concentrates at an edge (:mod:`stageid.validation.edges`)."""
-    import numpy as np
+def _edge_lines(model, experiments, simulated) -> list[str]:
+    """A line per record and output whose error concentrates at an edge (:mod:`stageid.validation.edges`);
+    an LTI model from each record's estimated initial state, whichever ``--initial`` the fit used."""
+    from ..validation.edges import edge_lines, lti_edge_lines
 
-    from ..validation.edges import edge_errors
-
-    lines = []
-    for exp, e in zip(experiments, residuals):
-        for i, name in enumerate(model.outputs):
-            for edge in edge_errors(e[:, i], float(np.ptp(exp.y[:, i])), exp.dt, exp.t0):
-                lines.append(f"{exp.name}  {name}: {edge.describe()}")
-    return lines
+    if hasattr(model, "frequency_response"):
+        return lti_edge_lines(model, experiments)
+    return edge_lines(experiments, simulated, model.outputs)
 
 
 def _experiments(model, data, inputs, outputs, ts):
@@ -219,13 +215,21 @@ def _write_report(folder: str, model, experiments, result: dict, summary: dict):
 
 
 def _loop_section(report, model, experiments, result: dict) -> None:
-    from ..plots.hysteresis import loop_figure
+    """Measured and simulated loops beside the error in % of range; a long record of a fast input
+    in a window of its last cycles beside the whole record's envelope."""
+    import numpy as np
+
+    from ..plots.hysteresis import loop_error_figure
 
     report.section("Hysteresis loops")
     for exp, ys in zip(experiments, result["simulated"]):
         for i, name in enumerate(model.outputs):
-            fig = loop_figure(exp.u[:, 0], {"measured": exp.y[:, i], "model": ys[:, i]}, title=f"{exp.name}: {name}")
-            report.figure(fig, f"{exp.name}: {name} against {model.inputs[0]}, measured and simulated.")
+            y_range = float(np.ptp(exp.y[:, i]))
+            unit = exp.output_units[i] or "output unit"
+            labels = (f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]", f"{name} [{unit}]")
+            scale, error_label = (100.0 / y_range, "error [% of range]") if y_range > 0 else (1.0, f"error [{unit}]")
+            fig = loop_error_figure(exp.time, exp.u[:, 0], exp.y[:, i], ys[:, i], labels, error_label, scale=scale)
+            report.figure(fig, f"{exp.name}: {name} against {model.inputs[0]}, measured and simulated, and the error.")
 
 
 def _verdict(test: dict) -> str:

@@ -5,16 +5,20 @@ Read by :func:`read_mat`.  Conventions shared with the other formats: :mod:`stag
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .._errors import DataError, NoSampleTimeError, StageIdError
+from .._errors import DataError, NoSampleTimeError, StageIdError, StageIdWarning
 from ..runtime.resources import require_memory
 from .files import HDF5_SIGNATURE, PathLike, array_columns, is_dunder, looks_like, open_checked, resolve_ts
 from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
 
-__all__ = ["read_mat", "mat_leaves", "struct_leaves"]
+__all__ = ["read_mat", "mat_leaves", "struct_leaves", "PARAMETER_RATIO"]
+
+#: A vector with fewer than the record's samples / PARAMETER_RATIO is a parameter, not a signal.
+PARAMETER_RATIO = 10
 
 
 def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFAULT_TIME_RTOL) -> Table:
@@ -31,15 +35,18 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
 
     The time axis is the variable ``t``; else the one vector whose last name part is ``t`` or
     ``time`` (a Simulink "structure with time"); else ``X.Data`` (dSPACE: the time of the ``Y``
-    signals).  Every column must have the length of the others.  Parameters, returns and
-    errors as :func:`read_table`.
+    signals).  The columns are those of the record's length (the time axis's, else the one most
+    columns share); vectors with fewer than a tenth of its samples (a row of means, filter
+    coefficients) are parameters: skipped with a :class:`~stageid.StageIdWarning` naming them.
+    Parameters, returns and errors as :func:`read_table`.
 
     Raises
     ------
     DataError
         As :func:`read_table`; also a file with no numeric vectors (naming what it holds),
-        vectors of unequal lengths (grouped by length, with their names) and several
-        different time vectors.
+        vectors of lengths that cannot be aligned (no single record length with only far shorter
+        vectors beside it; grouped by length, with their names) and several different time
+        vectors.
 
     Examples
     --------
@@ -69,7 +76,7 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
     if not columns:
         found = f"; found only {_listed(skipped)}" if skipped else ""
         raise DataError(f"file '{p.name}' holds no numeric signals (vectors of samples){found}.")
-    _check_one_length(names, columns, where)
+    names, columns = _record_columns(names, columns, where)
     values = stack_columns(names, columns, where)
     units = ["s" if n == TIME_COLUMN else "" for n in names]
     try:
@@ -142,18 +149,40 @@ def _with_time_axis(
     return variables, None
 
 
-def _check_one_length(names: list[str], columns: list[np.ndarray], where: str) -> None:
-    """Columns of unequal lengths: one error listing the names of each length."""
+def _record_columns(names: list[str], columns: list[np.ndarray], where: str) -> tuple[list[str], list[np.ndarray]]:
+    """The columns of the record's length; vectors far shorter are parameters, skipped with a warning.
+
+    The record's length is the time axis's, else the length most columns share (the longer on
+    a tie).  A vector with fewer than its samples / ``PARAMETER_RATIO`` (a row of means,
+    filter coefficients) cannot be a signal of the record and is skipped; any other length
+    cannot be aligned without guessing which samples match, so it is an error listing the names
+    of each length.
+    """
     by_length: dict[int, list[str]] = {}
     for name, col in zip(names, columns):
         by_length.setdefault(int(col.shape[0]), []).append(name)
     if len(by_length) < 2:
-        return
-    groups = "; ".join(
-        f"{n} samples: {_listed(['time' if k == TIME_COLUMN else k for k in ks], 6)}"
-        for n, ks in sorted(by_length.items(), key=lambda item: -len(item[1]))
+        return names, columns
+    if TIME_COLUMN in names:
+        record = int(columns[names.index(TIME_COLUMN)].shape[0])
+    else:
+        record = max(by_length, key=lambda n: (len(by_length[n]), n))
+    short = {n: ks for n, ks in by_length.items() if n * PARAMETER_RATIO < record}
+    if len(by_length) - len(short) > 1:
+        groups = "; ".join(
+            f"{n} samples: {_listed(['time' if k == TIME_COLUMN else k for k in ks], 6)}"
+            for n, ks in sorted(by_length.items(), key=lambda item: -len(item[1]))
+        )
+        raise DataError(f"{where}signals have unequal lengths ({groups}); expected one length for every column.")
+    skipped = "; ".join(f"{_listed(ks, 6)} ({n} samples)" for n, ks in sorted(short.items(), reverse=True))
+    warnings.warn(
+        f"{where}skipped {skipped}: shorter than a tenth of the record's {record} samples, so read as parameters, "
+        "not signals.",
+        StageIdWarning,
+        stacklevel=3,
     )
-    raise DataError(f"{where}signals have unequal lengths ({groups}); expected one length for every column.")
+    kept = [(n, c) for n, c in zip(names, columns) if c.shape[0] == record]
+    return [n for n, _ in kept], [c for _, c in kept]
 
 
 def _mat_column_array(arr: np.ndarray) -> np.ndarray | None:

@@ -23,7 +23,7 @@ from .._errors import DataError
 from .files import PathLike
 from .mat_format import mat_leaves
 
-__all__ = ["mat_responses", "HZ_NAMES", "RAD_NAMES"]
+__all__ = ["mat_responses", "mat_response_names", "HZ_NAMES", "RAD_NAMES"]
 
 HZ_NAMES = ("f_hz", "freqs_hz", "freq_hz", "f", "freq", "freqs", "frequency")
 RAD_NAMES = ("w", "w_s", "omega")
@@ -60,6 +60,46 @@ def _frequency_axis(leaves: list[tuple[str, np.ndarray]], where: str) -> np.ndar
     )
 
 
+def _file_name(path: PathLike) -> str:
+    """The file's name without its folders (either slash), for messages."""
+    return str(getattr(path, "name", path)).replace("\\", "/").rsplit("/", 1)[-1]
+
+
+def _responses(path: PathLike, where: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The frequency axis [Hz] and the complex vectors of its length by flattened name."""
+    leaves, _ = mat_leaves(path)
+    freqs = _frequency_axis(leaves, where)
+    responses = {
+        k: v for k, a in leaves if a.dtype.kind == "c" and (v := _vector(a)) is not None and v.size == freqs.size
+    }
+    if not responses:
+        raise DataError(f"{where}no complex response vector of {freqs.size} values (the frequency vector's length).")
+    return freqs, responses
+
+
+def mat_response_names(path: PathLike) -> tuple[str, ...]:
+    """The flattened names of a ``.mat`` file's frequency responses, in the file's order.
+
+    Each name selects its response in :func:`mat_responses` (and
+    :func:`stageid.models.frequency_response.read_frd`).
+
+    Raises
+    ------
+    DataError
+        As :func:`mat_responses`: no frequency vector, or no complex vector of its length.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os, scipy.io
+    >>> path = os.path.join(tempfile.mkdtemp(), "frf.mat")
+    >>> f = np.array([1.0, 2.0, 4.0])
+    >>> scipy.io.savemat(path, {"meas": {"freqs_Hz": f, "G_u2y": 1 / (1j * f), "G_u2z": 2 / (1j * f)}})
+    >>> mat_response_names(path)
+    ('G_u2y', 'G_u2z')
+    """
+    return tuple(_responses(path, f"file '{_file_name(path)}': ")[1])
+
+
 def mat_responses(path: PathLike, response: str | None = None) -> tuple[np.ndarray, np.ndarray, str, str]:
     """One measured frequency response of a ``.mat`` file: ``(freqs_hz, values, input, output)``.
 
@@ -83,15 +123,9 @@ def mat_responses(path: PathLike, response: str | None = None) -> tuple[np.ndarr
         No frequency vector, no complex vector of its length, several when ``response`` is not
         given, or an unknown ``response`` (listing the available ones).
     """
-    name = str(getattr(path, "name", path)).replace("\\", "/").rsplit("/", 1)[-1]
+    name = _file_name(path)
     where = f"file '{name}': "
-    leaves, _ = mat_leaves(path)
-    freqs = _frequency_axis(leaves, where)
-    responses = {
-        k: v for k, a in leaves if a.dtype.kind == "c" and (v := _vector(a)) is not None and v.size == freqs.size
-    }
-    if not responses:
-        raise DataError(f"{where}no complex response vector of {freqs.size} values (the frequency vector's length).")
+    freqs, responses = _responses(path, where)
     listed = ", ".join(responses)
     if response is None:
         if len(responses) > 1:

@@ -16,10 +16,11 @@ Inverse (``--inverse``)
     rate-independent hysteresis (:func:`.c_hysteresis.inverse_fields`).  ``stageid compensate``
     inverts the dynamics by stable inversion over the whole reference (preview of future
     samples, :mod:`stageid.hysteresis.stage_inverse`), which a per-sample loop cannot do, so the
-    exported compensator omits the dynamics (:data:`STAGE_INVERSE_NOTE`).  A hysteresis with
-    creep has no exported compensator (its per-sample inverse iterates,
-    :class:`stageid.hysteresis.compensator.CreepInverse`), nor has a Preisach hysteresis any C
-    form yet: both are refused with one line.
+    exported compensator omits the dynamics (:data:`STAGE_INVERSE_NOTE`).  The creep of a
+    classical PI hysteresis is included (its lags' memory known before each drive, the rest
+    folded into the linear operator: :mod:`.c_creep_inverse`); a modified PI hysteresis with
+    creep (its per-sample inverse iterates, :class:`stageid.hysteresis.compensator.CreepInverse`)
+    and a Preisach hysteresis have no C form yet: both are refused with one line.
 """
 
 from __future__ import annotations
@@ -141,15 +142,18 @@ def stage_fields(model: Any, ctype: CType, prefix: str, dt: float | None = None)
 def stage_inverse_fields(
     model: Any, ctype: CType, prefix: str, limits: tuple[float, float] | None = None
 ) -> dict[str, str]:
-    """Template fields of the causal part of a stage's inverse: its hysteresis compensator
-    (module notes).  Raises :class:`ModelError` for a Preisach hysteresis or creep."""
+    """Template fields of the causal part of a stage's inverse: its hysteresis compensator, creep
+    included for a classical PI hysteresis (:mod:`.c_creep_inverse`; module notes).  Raises
+    :class:`ModelError` for a Preisach hysteresis, or a modified PI one with creep."""
     _check_kind(model)
-    if model.creep_term is not None:
-        raise ModelError(
-            "--inverse of a stage exports its hysteresis compensator, which has no C form with creep "
-            "(the drive is solved iteratively per sample): use `stageid compensate`."
-        )
-    fields = inverse_fields(model.hysteresis, ctype, prefix, limits)
+    creep = model.hysteresis.creep
+    if creep is not None:
+        from .c_creep_inverse import creep_inverse_fields
+
+        # the lags run at the creep term's sample time, as the package's compensator runs them
+        fields = creep_inverse_fields(model.hysteresis, ctype, prefix, limits, creep.sample_time)
+    else:
+        fields = inverse_fields(model.hysteresis, ctype, prefix, limits)
     if model.dynamics is not None:
         fields["title"] = "stage model: compensator of the hysteresis (dynamics not inverted)"
         fields["summary"] += " Note: " + STAGE_INVERSE_NOTE + "."

@@ -13,7 +13,21 @@ import numpy as np
 
 from .style import subplots
 
-__all__ = ["loop_figure", "model_errors_figure", "tracking_figure", "creep_figure", "stage_dynamics_figure"]
+__all__ = [
+    "loop_figure",
+    "loop_error_figure",
+    "reversal_window",
+    "model_errors_figure",
+    "tracking_figure",
+    "creep_figure",
+    "stage_dynamics_figure",
+]
+
+
+#: Cycles of the input a long record's loops are drawn for (the last ones).
+N_CYCLES = 3
+#: A reversal of the input counts once it has moved back by this fraction of its range.
+REVERSAL_FRACTION = 0.05
 
 
 def _figure(nrows: int, ncols: int, size: tuple[float, float]):
@@ -59,6 +73,140 @@ def loop_figure(
         ax.set_title(title)
     ax.legend()
     return fig
+
+
+def loop_error_figure(
+    time: Any,
+    u: Any,
+    y: Any,
+    y_hat: Any,
+    labels: tuple[str, str],
+    error_label: str,
+    scale: float = 1.0,
+    band: Any = None,
+    band_label: str = "",
+) -> Any:
+    """Measured and modelled loops beside the modelling error ``(y - y_hat) * scale`` over time.
+
+    A record of many loops drawn whole is a solid block: when its input turns more than
+    ``4 * N_CYCLES`` times back and forth (:func:`reversal_window`), (a) draws the loops of the
+    last ``N_CYCLES`` cycles over the whole record's in grey, (b) the error in that window and
+    (c) the error over the whole record as its min-max envelope with the window marked.
+    Otherwise (a) the loops and (b) the error, whole.
+
+    Parameters
+    ----------
+    time, u, y, y_hat : array_like of shape (n_samples,)
+    labels : (str, str)
+        The loop's x and y labels (input and output with their units).
+    error_label : str
+        The error axis's label (its unit: ``scale`` turns the output's unit into it).
+    band : array_like of shape (n_samples,), optional
+        Half-width of a band around the model's output (output units): drawn as the loop's
+        edges (colour C1) and, times ``scale``, shaded around zero under the error.
+    band_label : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels, or three for a long record of a fast input; Agg canvas.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(0, 5, 1e-3)
+    >>> u = np.sin(2 * np.pi * 10 * t)
+    >>> fig = loop_error_figure(t, u, u**3, 0.9 * u**3, ("V [V]", "y [um]"), "error [um]")
+    >>> [ax.get_title()[:3] for ax in fig.axes]
+    ['(a)', '(b)', '(c)']
+    """
+    t, x, y, y_hat = _flat(time), _flat(u), _flat(y), _flat(y_hat)
+    window = reversal_window(t, x)
+    half = None if band is None else _flat(band)
+    error = (y - y_hat) * scale
+    fig, axes = _figure(1, 3 if window else 2, (15.0 if window else 11.0, 4.2))
+    shown = slice(None) if window is None else (t >= window[0]) & (t <= window[1])
+    span = "" if window is None else f", last {N_CYCLES} cycles ({window[1] - window[0]:.3g} s)"
+    a, b = axes[0, 0], axes[0, 1]
+    if window is not None:
+        a.plot(x, y, color="0.85", lw=0.6, label="measured, whole record")
+    a.plot(x[shown], y[shown], color="0.2", lw=1.2, label="measured")
+    a.plot(x[shown], y_hat[shown], "--", color="C0", lw=1.0, label="model")
+    if half is not None:
+        for sign in (1.0, -1.0):
+            edge = (y_hat + sign * half)[shown]
+            a.plot(x[shown], edge, color="C1", lw=0.6, label=None if sign < 0 else "band edges")
+    a.set(xlabel=labels[0], ylabel=labels[1], title=f"(a) loops{span}")
+    a.legend()
+    if half is not None:
+        band_shown = (half * scale)[shown]
+        b.fill_between(t[shown], -band_shown, band_shown, color="C1", alpha=0.35, label=band_label)
+    b.plot(t[shown], error[shown], color="C3", lw=0.9, label="measured - model")
+    b.set(xlabel="time [s]", ylabel=error_label, title=f"(b) modelling error{span}")
+    if half is not None:
+        b.legend()
+    if window is not None:
+        _envelope_panel(axes[0, 2], t, error, window, error_label)
+    return fig
+
+
+def reversal_window(time: Any, u: Any, n_cycles: int = N_CYCLES) -> tuple[float, float] | None:
+    """``(t0, t1)``: the input's last ``n_cycles`` full cycles (from its ``2 n_cycles + 1``-th last
+    reversal to the end) when it has more than ``4 n_cycles`` cycles, else None.
+
+    A reversal is where the input turns after moving at least ``REVERSAL_FRACTION`` of its
+    range, so sensor noise is no cycle and an idle stretch or a slow trend (the staircase of a
+    reversal-curve record) does not hide the cycles, as a dominant spectral period would.
+
+    >>> t = np.arange(0, 2, 1e-3)
+    >>> reversal_window(t, np.sin(2 * np.pi * 20 * t))  # 40 cycles of 50 ms: the last three
+    (1.837, 1.999)
+    >>> reversal_window(t, np.sin(2 * np.pi * 2 * t)) is None  # four cycles are drawn whole
+    True
+    """
+    t, x = _flat(time), _flat(u)
+    if x.size < 3 or not np.ptp(x) > 0:
+        return None
+    slope = np.sign(np.diff(x))
+    moving = np.flatnonzero(slope)
+    turns = moving[1:][slope[moving[1:]] != slope[moving[:-1]]]  # local extrema of the moving input
+    candidates = np.r_[0, turns, x.size - 1]
+    reversals = _dead_band_turns(x[candidates], REVERSAL_FRACTION * float(np.ptp(x)))
+    if len(reversals) <= 4 * 2 * n_cycles:
+        return None
+    return float(t[candidates[reversals[-2 * n_cycles - 1]]]), float(t[-1])
+
+
+def _dead_band_turns(v: np.ndarray, band: float) -> list[int]:
+    """Indices of ``v`` where it turns after a move of at least ``band`` (a peak-valley filter)."""
+    turns: list[int] = []
+    hi = lo = 0
+    rising = 0  # 0: no move beyond the band yet
+    for j in range(1, v.size):
+        if rising >= 0 and v[j] >= v[hi]:
+            hi = j
+        if rising <= 0 and v[j] <= v[lo]:
+            lo = j
+        if rising >= 0 and v[hi] - v[j] >= band:
+            if rising > 0:
+                turns.append(hi)
+            rising, lo = -1, j
+        elif rising <= 0 and v[j] - v[lo] >= band:
+            if rising < 0:
+                turns.append(lo)
+            rising, hi = 1, j
+    return turns
+
+
+def _envelope_panel(ax: Any, t: np.ndarray, error: np.ndarray, window: tuple[float, float], label: str) -> None:
+    """(c): the error over the whole record as its min-max envelope, the zoom window shaded."""
+    from .scale import envelope
+
+    te, lo, hi = envelope(t, error)
+    ax.fill_between(te, lo, hi, color="C3", lw=0.6, label="error (min-max per bin)")
+    ax.axvspan(*window, color="0.85", zorder=0, label="window of (a), (b)")
+    ax.set(xlabel="time [s]", ylabel=label, title="(c) modelling error over the whole record")
+    ax.legend()
 
 
 def model_errors_figure(

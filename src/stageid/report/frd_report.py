@@ -81,6 +81,8 @@ def frd_fit_report(
         "column_errors": [float(e) for e in result.column_errors],
         "stable": bool(result.model.is_stable()),
     }
+    report.unit("delay", "samples")
+    report.unit("column_errors", "1 (max |model - measured| / column peak)")
     return report, metrics
 
 

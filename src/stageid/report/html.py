@@ -63,6 +63,7 @@ class Report:
     title: str
     blocks: list[_Block] = field(default_factory=list)
     n_figures: int = 0
+    units: dict[str, str] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -85,6 +86,11 @@ class Report:
     def table(self, header: Sequence[str], rows: Sequence[Sequence[Any]], caption: str = "") -> None:
         """A table; floats are printed with 4 significant digits, NaN (an undefined value) as "n/a"."""
         self.blocks.append(_Block("table", (list(header), [list(r) for r in rows], caption)))
+
+    def unit(self, key: str, unit: str) -> None:
+        """The unit of metric ``key`` where its name cannot say it (a gain in the records' units);
+        written into the ``units`` map of ``metrics.json`` (:mod:`stageid.report.units`)."""
+        self.units[key] = unit
 
     def figure(self, fig: Any, caption: str, dpi: int = 110) -> None:
         """Embed a matplotlib figure (rendered to PNG now) with a caption."""
@@ -166,14 +172,23 @@ def metrics_json(metrics: dict[str, Any]) -> str:
     return json.dumps(_json_safe(metrics), indent=2, sort_keys=True, allow_nan=False) + "\n"
 
 
-def write_metrics(folder: str | os.PathLike[str], metrics: dict[str, Any], name: str = "metrics.json") -> Path:
-    """Write a metrics dictionary as JSON (sorted keys) atomically.
+def with_units(metrics: dict[str, Any], known: dict[str, str] | None = None) -> dict[str, Any]:
+    """``metrics`` and a ``units`` map: the unit of each of its numbers (:func:`~stageid.report.units.metric_units`)."""
+    from .units import metric_units
+
+    return {**metrics, "units": metric_units(metrics, known)}
+
+
+def write_metrics(
+    folder: str | os.PathLike[str], metrics: dict[str, Any], name: str = "metrics.json", units: dict | None = None
+) -> Path:
+    """Write a metrics dictionary as JSON (sorted keys) atomically, with its ``units`` map.
 
     Undefined values (NaN, +-inf, e.g. the fit % of a constant channel) are written as
-    ``null``: strict JSON has no NaN.
+    ``null``: strict JSON has no NaN.  ``units`` gives the units the keys' names cannot say.
     """
     check_parent(folder).mkdir(exist_ok=True)
-    return atomic_write_text(Path(folder) / name, metrics_json(metrics))
+    return atomic_write_text(Path(folder) / name, metrics_json(with_units(metrics, units)))
 
 
 def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics: dict[str, Any] | None = None) -> Path:
@@ -190,7 +205,8 @@ def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics:
         The report folder; its parent must exist.
     report : Report
     metrics : dict, optional
-        Written as ``metrics.json`` (see :func:`write_metrics`).
+        Written as ``metrics.json`` (see :func:`write_metrics`), with the units of
+        :meth:`Report.unit`.
 
     Returns
     -------
@@ -210,11 +226,11 @@ def write_report_folder(folder: str | os.PathLike[str], report: Report, metrics:
     >>> write_report_folder(out, Report("Empty"), {"fit": float("nan")}).name
     'index.html'
     >>> open(os.path.join(out, "metrics.json")).read()
-    '{\\n  "fit": null\\n}\\n'
+    '{\\n  "fit": null,\\n  "units": {}\\n}\\n'
     """
     files = {"index.html": report.to_html()}
     if metrics is not None:
-        files["metrics.json"] = metrics_json(metrics)
+        files["metrics.json"] = metrics_json(with_units(metrics, report.units))
     with staged_folder(folder) as tmp:
         for name, text in files.items():
             atomic_write_text(tmp / name, text)

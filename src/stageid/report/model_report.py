@@ -257,6 +257,7 @@ def hysteresis_model_report(
     a creep term (step response) get their own figures; ``settings`` and ``command`` open the
     report as in :func:`lti_model_report`.
     """
+    from ..plots.hysteresis import loop_error_figure
     from .uncertainty import LOOP_N_STD, loop_band_figure
 
     report = Report(title)
@@ -275,7 +276,7 @@ def hysteresis_model_report(
         else:
             y_hat, std = model.simulate(exp.u)[:, 0], None
         y_range = float(np.ptp(y))
-        err, err_trace, err_label, err_text = _record_error(y, y_hat, exp.output_units[0] or "output unit")
+        err, err_scale, err_label, err_text = _record_error(y, y_hat, exp.output_units[0] or "output unit")
         metrics[f"max_error_percent_range/{name}"] = err
         labels = (
             f"{model.inputs[0]} [{exp.input_units[0] or 'input unit'}]",
@@ -296,8 +297,9 @@ def hysteresis_model_report(
             )
             continue
         report.figure(
-            _loop_figure(u, y, y_hat, exp.time, labels, err_trace, err_label),
-            f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}).",
+            loop_error_figure(exp.time, u, y, y_hat, labels, err_label, scale=err_scale),
+            f"{exp.name or f'record {k}'}: loops and modelling error ({err_text}); a long record of a fast input "
+            "in a window of its last periods beside the whole record's error envelope.",
         )
     from .stage_report import stage_parts_section
 
@@ -318,32 +320,17 @@ def _weights_band_table(report: Report, band_rows: list, n_std: float) -> None:
         )
 
 
-def _record_error(y: np.ndarray, y_hat: np.ndarray, unit: str) -> tuple[float, np.ndarray, str, str]:
-    """Max error in % of the output's range, the error trace, its axis label and its caption text;
-    in the output's ``unit`` when the output does not move (the % is then undefined: NaN)."""
+def _record_error(y: np.ndarray, y_hat: np.ndarray, unit: str) -> tuple[float, float, str, str]:
+    """Max error in % of the output's range, the factor from output units to the error axis's,
+    its label and the caption text; in the output's ``unit`` when the output does not move (the
+    % is then undefined: NaN)."""
     y_range = float(np.ptp(y))
     if y_range > 0:
         err = 100.0 * float(np.max(np.abs(y - y_hat))) / y_range
         # three decimals, as the fit summary prints it
-        return err, 100 * (y - y_hat) / y_range, "error [% of range]", f"max {err:.3f} % of range"
+        return err, 100.0 / y_range, "error [% of range]", f"max {err:.3f} % of range"
     text = f"% of range n/a: the output does not move; max {float(np.max(np.abs(y - y_hat))):.4g} {unit}"
-    return float("nan"), y - y_hat, f"error [{unit}]", text
-
-
-def _loop_figure(u, y, y_hat, time, labels: tuple[str, str], err_trace, err_label: str) -> Any:
-    """Measured and modelled loop (left) and the modelling error over time (right)."""
-    from ..plots.style import subplots
-
-    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
-    a.plot(u, y, color="0.2", lw=1.2, label="measured")
-    a.plot(u, y_hat, "--", lw=1.0, label="model")
-    a.set_xlabel(labels[0])
-    a.set_ylabel(labels[1])
-    a.legend()
-    b.plot(time, err_trace, color="C3", lw=0.9)
-    b.set_xlabel("time [s]")
-    b.set_ylabel(err_label)
-    return fig
+    return float("nan"), 1.0, f"error [{unit}]", text
 
 
 def model_report(

@@ -37,6 +37,7 @@ def stage_parts_section(
     """Figures of what a model has besides its loops: the linear dynamics' Bode plot with the
     disturbance modes marked (and listed), and the creep term's step response."""
     from ..plots.hysteresis import creep_figure, stage_dynamics_figure
+    from ..plots.scale import magnitude_unit
 
     dynamics = getattr(model, "dynamics", None)
     creep = getattr(model, "creep_term", None) or getattr(model, "creep", None)
@@ -73,3 +74,4 @@ def stage_parts_section(
             f"{float(sum(creep.weights)):.3g} {output_unit or 'output unit'} per {input_unit or 'input unit'}.",
         )
         metrics["creep/total_gain"] = float(sum(creep.weights))
+        report.unit("creep/total_gain", magnitude_unit(output_unit, input_unit))

@@ -88,24 +88,20 @@ def loop_band_figure(
 
     Left: measured loop, the model's loop and its ``+-LOOP_N_STD std`` edges; right: the error
     ``y - y_hat`` in % of ``y_range`` (the output's own unit when the range is 0) inside the
-    shaded band.  ``std`` is the simulated output's standard deviation
-    (:meth:`~stageid.hysteresis.WeightUncertainty.output_band`).
+    shaded band; a long record of a fast input in a window of a few periods beside the whole
+    record's envelope (:func:`~stageid.plots.hysteresis.loop_error_figure`).  ``std`` is the
+    simulated output's standard deviation (:meth:`~stageid.hysteresis.WeightUncertainty.output_band`).
     """
-    from ..plots.style import subplots
+    from ..plots.hysteresis import loop_error_figure
 
-    unit = 100.0 / y_range if y_range > 0 else 1.0
-    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2))
-    a.plot(u, y, color="0.2", lw=1.2, label="measured")
-    a.plot(u, y_hat, "--", color="C0", lw=1.0, label="model")
-    for sign in (1.0, -1.0):
-        a.plot(u, y_hat + sign * LOOP_N_STD * std, color="C1", lw=0.6, label=None if sign < 0 else "band edges")
-    a.set_xlabel(labels[0])
-    a.set_ylabel(labels[1])
-    a.legend()
-    half = LOOP_N_STD * std * unit
-    b.fill_between(time, -half, half, color="C1", alpha=0.35, label=f"+-{LOOP_N_STD:g} std (weights)")
-    b.plot(time, (y - y_hat) * unit, color="C3", lw=0.9, label="measured - model")
-    b.set_xlabel("time [s]")
-    b.set_ylabel("error [% of range]" if y_range > 0 else "error")
-    b.legend()
-    return fig
+    return loop_error_figure(
+        time,
+        u,
+        y,
+        y_hat,
+        labels,
+        "error [% of range]" if y_range > 0 else "error",
+        scale=100.0 / y_range if y_range > 0 else 1.0,
+        band=LOOP_N_STD * np.asarray(std, dtype=float),
+        band_label=f"+-{LOOP_N_STD:g} std (weights)",
+    )

@@ -17,16 +17,29 @@ that reports it:
   error deeper in the edge, beyond such a settled stretch, is not part of it (on the dSPACE
   feedforward records a one-sample end glitch would otherwise stretch to 1000 samples).
 
-A hint, never a change: the fit itself uses every sample it was given.
+A hint, never a change: the fit itself uses every sample it was given.  An LTI model is judged
+on its response from each record's estimated initial state (:mod:`.initial_state`), so a record
+that starts in motion is not blamed for the model's start from rest.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["EDGE_FRACTION", "EDGE_RATIO", "EDGE_FLOOR_PERCENT", "SETTLE_FRACTION", "EdgeError", "edge_errors"]
+__all__ = [
+    "EDGE_FRACTION",
+    "EDGE_RATIO",
+    "EDGE_FLOOR_PERCENT",
+    "SETTLE_FRACTION",
+    "EdgeError",
+    "edge_errors",
+    "edge_lines",
+    "lti_edge_lines",
+]
 
 EDGE_FRACTION = 0.05
 EDGE_RATIO = 3.0
@@ -134,3 +147,29 @@ def _transient_length(inward: np.ndarray, bound: float, settle: int) -> int:
             if run >= settle:
                 break
     return count
+
+
+def edge_lines(experiments: Sequence[Any], simulated: Sequence[np.ndarray], outputs: Sequence[str]) -> list[str]:
+    """``"<record>  <output>: <hint>"`` for each record and output whose error is an edge transient.
+
+    ``simulated[k]`` (n_samples, n_outputs) is the model's output on ``experiments[k]`` (an
+    :class:`~stageid.data.Experiment`: its ``y``, ``dt``, ``t0`` and ``name`` are used).
+    """
+    lines = []
+    for exp, ys in zip(experiments, simulated):
+        error = np.asarray(exp.y, dtype=float) - np.asarray(ys, dtype=float).reshape(exp.y.shape)
+        for i, name in enumerate(outputs):
+            for edge in edge_errors(error[:, i], float(np.ptp(exp.y[:, i])), exp.dt, exp.t0):
+                lines.append(f"{exp.name}  {name}: {edge.describe()}")
+    return lines
+
+
+def lti_edge_lines(model: Any, experiments: Sequence[Any]) -> list[str]:
+    """:func:`edge_lines` of an LTI model, simulated on each record from its estimated initial state;
+    none for an unstable model (its simulation diverges: no edge to blame)."""
+    from .initial_state import simulate_from_estimated_state
+
+    if not model.is_stable():
+        return []
+    simulated = [simulate_from_estimated_state(model, e.u, e.y, e.dt) for e in experiments]
+    return edge_lines(experiments, simulated, model.outputs)

@@ -70,6 +70,8 @@ def estimate_initial_state(model, u: np.ndarray, y: np.ndarray, dt: float | None
     array([2.])
     """
     ss = _discrete_statespace(model, dt)
+    if ss.n_states == 0:  # a static gain has no state to estimate
+        return np.zeros(0)
     uu = np.asarray(u, dtype=float).reshape(len(u), -1)
     yy = np.asarray(y, dtype=float).reshape(len(y), -1)
     error = yy - ss.simulate(uu)  # the error from rest: noise plus the start-up transient
