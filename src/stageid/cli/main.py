@@ -106,7 +106,7 @@ Examples:
   stageid identify closed-loop ex.csv ey.csv --references rx,ry --outputs x,y --controller K.json -o G.json
   stageid identify hysteresis forc.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
-"""
+""",
 )
 def identify() -> None:
     """Identify a model from measured records."""
