@@ -128,3 +128,36 @@ def test_frf_bla_lpm_keeps_every_period(measured):
     assert rc == 0, err
     assert "x 4 periods (every period kept, the transient removed by the local polynomial method)" in out
     assert "y: odd nonlinearity detected" in out
+
+
+@pytest.mark.parametrize(
+    "spoil, fragment",
+    [
+        (lambda t: np.where(np.arange(t.size) == 1234, t + 0.01 * DT, t), "is not uniform: the stamp at row 1234"),
+        (lambda t: np.concatenate([t[:300], t[299:300], t[301:]]), "must be strictly increasing; row 300 "),
+        (lambda t: np.concatenate([t[:300], t[300:] + DT]), "has a gap at row 300 "),  # a lost sample
+    ],
+)
+def test_frf_bla_refuses_a_bad_time_column_in_one_npz_record(measured, spoil, fragment):
+    # NPZ records take the memory-mapped reader: its time-column check is the sample-time rule's
+    tmp_path, files = measured
+    tables = [read_table(f) for f in files]
+    t = np.arange(tables[0].n_samples) * DT
+    paths = [tmp_path / f"{f.stem}.npz" for f in files]
+
+    def write(k, stamps):
+        np.savez(paths[k], t=stamps, u=tables[k].column("u"), y=tables[k].column("y"))
+
+    for k in range(len(files)):
+        write(k, spoil(t) if k == 2 else t)
+    rc, out, err = run("frf", *paths, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "x.npz")
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{paths[2].name}: time column 't' " in err and fragment in err, err
+    assert not (tmp_path / "x.npz").exists()
+    # with a uniform column the NPZ records give what the CSV ones give
+    write(2, t)
+    rc, _, err = run("frf", *paths, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "n.csv")
+    assert rc == 0, err
+    rc, _, err = run("frf", *files, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "c.csv")
+    assert rc == 0, err
+    np.testing.assert_allclose(read_frd(tmp_path / "n.csv").response, read_frd(tmp_path / "c.csv").response, rtol=1e-12)
