@@ -224,6 +224,10 @@ def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: 
         if ts is None:
             raise DataError(f"{name}: no time column 't'; give the sample time as `ts=`.")
         return check_period(ts, "ts", f"{name}: ")
+    if t.dtype != np.float64 or not t.flags.aligned:
+        # a mapped member lies wherever the zip put it: numpy's loops on unaligned stamps cost
+        # several times the copy
+        t = np.array(t, dtype=float)
     if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")
-    return time_column_grid(np.asarray(t, dtype=float), f"{name}: ", ts, rtol).dt
+    return time_column_grid(t, f"{name}: ", ts, rtol).dt
