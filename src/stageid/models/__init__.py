@@ -19,8 +19,7 @@ Layers, each importing only those below it: ``_validate``, ``_kernels``, ``minim
 (no LTI model class), and ``control_bridge`` turns arrays into python-control objects.
 """
 
-import importlib
-from typing import Any
+from ..runtime.lazy import lazy_names
 
 # Names load on first use (PEP 562): a command that only reads or writes a measured response
 # (``models.frequency_response``) must not pay for scipy.linalg, which the LTI classes import.
@@ -42,9 +41,4 @@ _WHERE = {
 __all__ = list(_WHERE)
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_WHERE[name], __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_names(__name__, _WHERE)
