@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import zipfile
 from collections.abc import Sequence
 
 import numpy as np
@@ -118,7 +119,7 @@ def read_npz_record(
     with fh:
         try:
             archive = np.load(fh, allow_pickle=False)
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
             raise DataError(f"{name}: cannot read the archive ({exc}).") from None
         with archive:
             keys = set(archive.files)
@@ -158,8 +159,6 @@ class _Members:
 
     def get(self, key: str) -> np.ndarray:
         """Array ``key``: a view of the mapped file where it can be, else as ``np.load`` reads it."""
-        import zipfile
-
         try:
             # np.load has parsed the zip directory already; reopening it per member cost more than the read
             info = self.archive.zip.getinfo(key + ".npy")
@@ -171,6 +170,8 @@ class _Members:
             (n,), dtype, offset = header
             if self.whole is None:
                 self.whole = np.memmap(self.fh, dtype=np.uint8, mode="r")
+            if offset + n * dtype.itemsize > self.whole.size:  # a cut file: the zip reader says what is wrong
+                return self.archive[key]
             return self.whole[offset : offset + n * dtype.itemsize].view(dtype)
         except (KeyError, ValueError, OSError, AttributeError, zipfile.BadZipFile):
             return self.archive[key]
@@ -225,8 +226,8 @@ def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: 
             raise DataError(f"{name}: no time column 't'; give the sample time as `ts=`.")
         return check_period(ts, "ts", f"{name}: ")
     if t.dtype != np.float64 or not t.flags.aligned:
-        # a mapped member lies wherever the zip put it: numpy's loops on unaligned stamps cost
-        # several times the copy
+        # a mapped member lies wherever the zip put it, and numpy's loops on unaligned stamps
+        # cost more than an aligned copy and the check together
         t = np.array(t, dtype=float)
     if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")
