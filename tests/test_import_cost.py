@@ -66,6 +66,9 @@ def test_model_names_still_import_from_the_package():
         assert value == "stageid.lti/1" if name == "LTI_FORMAT" else value.__name__ == name
     with pytest.raises(AttributeError):
         models.no_such_name  # noqa: B018
+    assert _fresh("import stageid.frf as f, stageid.models as m; print('welch_frf' in dir(f), 'c2d' in dir(m))") == (
+        "True True"  # listed before they load
+    )
     assert _fresh("from stageid.models import *; print(StateSpaceModel.__name__, LTI_FORMAT)") == (
         "StateSpaceModel stageid.lti/1"
     )

@@ -49,4 +49,4 @@ _WHERE = {
 __all__ = list(_WHERE)
 
 
-__getattr__ = lazy_names(__name__, _WHERE)
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

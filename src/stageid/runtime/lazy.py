@@ -11,15 +11,18 @@ from typing import Any
 __all__ = ["lazy_names"]
 
 
-def lazy_names(package: str, where: Mapping[str, str]) -> Callable[[str], Any]:
-    """A module ``__getattr__`` for ``package``: name ``n`` is imported from module ``where[n]``
-    (relative to the package) when first asked for, and kept in the package's namespace.
+def lazy_names(package: str, where: Mapping[str, str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """A module ``__getattr__`` and ``__dir__`` for ``package``: name ``n`` is imported from module
+    ``where[n]`` (relative to the package) when first asked for, and kept in the package's
+    namespace; ``dir()`` lists the names before they are loaded.
 
     Examples
     --------
     >>> import stageid.models as models
     >>> models.c2d.__module__
     'stageid.models.discretization'
+    >>> "save_model" in dir(models)
+    True
     """
 
     def __getattr__(name: str) -> Any:
@@ -29,4 +32,7 @@ def lazy_names(package: str, where: Mapping[str, str]) -> Callable[[str], Any]:
         setattr(sys.modules[package], name, value)
         return value
 
-    return __getattr__
+    def __dir__() -> list[str]:
+        return sorted({*vars(sys.modules[package]), *where})
+
+    return __getattr__, __dir__
