@@ -16,10 +16,12 @@ levels (Pintelon & Schoukens' robust method):
 Both subprocesses import byte-compiled modules (a cache of the benchmark's own, filled by one
 untimed run of each), as an installed package does.
 
-Peak memory (``ru_maxrss`` of a child process) is reported beside one realisation's size.
-Timings are medians of ``--repeat`` runs; the two estimates are compared to 1e-9.
+Peak memory (VmHWM of a fresh child process) is reported beside one realisation's size.
+Timings are medians of ``--repeat`` runs; the largest relative difference of the two estimates
+is reported with them.  ``--compare-src`` times the CLI of another source tree (its ``src``)
+alongside, e.g. a ``git archive`` of an earlier commit.
 
-    .venv/bin/python benchmarks/bench_bla.py [--repeat 7] [--out benchmarks/RESULTS-bla.md]
+    .venv/bin/python benchmarks/bench_bla.py [--repeat 7] [--out FILE] [--compare-src OTHER/src]
 """
 
 from __future__ import annotations
