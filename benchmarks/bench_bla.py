@@ -11,12 +11,17 @@ levels (Pintelon & Schoukens' robust method):
   period-to-period scatter, mean and scatter over realisations, the detection lines' power;
 * **stageid**: ``stageid frf --method bla --design`` as a subprocess (Python start, imports,
   reading the files realisation by realisation, writing the result all counted), and
-  :func:`stageid.frf.bla.bla_frf` in-process.
+  :func:`stageid.cli.bla.estimate_bla` in-process.
 
-Peak memory (``ru_maxrss`` of a child process) is reported beside one realisation's size.
-Timings are medians of ``--repeat`` runs; the two estimates are compared to 1e-9.
+Both subprocesses import byte-compiled modules (a cache of the benchmark's own, filled by one
+untimed run of each), as an installed package does.
 
-    .venv/bin/python benchmarks/bench_bla.py [--repeat 5] [--out benchmarks/RESULTS-bla.md]
+Peak memory (VmHWM of a fresh child process) is reported beside one realisation's size.
+Timings are medians of ``--repeat`` runs; the largest relative difference of the two estimates
+is reported with them.  ``--compare-src`` times the CLI of another source tree (its ``src``)
+alongside, e.g. a ``git archive`` of an earlier commit.
+
+    .venv/bin/python benchmarks/bench_bla.py [--repeat 7] [--out FILE] [--compare-src OTHER/src]
 """
 
 from __future__ import annotations
@@ -139,8 +144,9 @@ def _cpu() -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--compare-src", default=None, help="another stageid source tree (its src/), timed alongside")
     ap.add_argument("--numpy-only", default=None, help=argparse.SUPPRESS)  # the numpy side as a process of its own
     args = ap.parse_args()
     if args.numpy_only:
@@ -151,43 +157,86 @@ def main() -> None:
         folder = Path(tmp)
         files = write_records(folder)
         design = json.loads((folder / "ms.multisine.json").read_text())
-        ref = numpy_bla(files, design)
-        res = stageid_bla(files, design)
-        agree = max(
-            float(np.max(np.abs(res.frd.response - ref["bla"])) / np.max(np.abs(ref["bla"]))),
-            float(np.max(np.abs(res.frd.std - ref["std"]) / ref["std"])),
-            float(np.max(np.abs(res.frd.total_std - ref["total"]) / ref["total"])),
-            float(np.max(np.abs(res.odd.power - ref["odd_power"]) / ref["odd_power"])),
-        )
-        cli = [sys.executable, "-m", "stageid", "frf", *map(str, files), "--inputs", ",".join(CHANNELS_IN)]
-        cli += ["--outputs", ",".join(CHANNELS_OUT), "--method", "bla", "--design", str(folder / "ms.multisine.json")]
-        cli += ["--periods", str(P), "--transient-periods", "0", "-o", str(folder / "bla.npz")]
-        np_cli = [sys.executable, __file__, "--numpy-only", str(folder)]
-        # alternate the four so that the machine's load falls on all alike
-        runs = {k: ([], []) for k in ("np", "api", "np_cli", "cli")}
-        for _ in range(args.repeat):
-            for key, fn in (
-                ("np", lambda: numpy_bla(files, design)),
-                ("api", lambda: stageid_bla(files, design)),
-                ("np_cli", lambda: subprocess.run(np_cli, check=True, capture_output=True)),
-                ("cli", lambda: subprocess.run(cli, check=True, capture_output=True)),
-            ):
-                w, c = timed(fn, 1)
-                runs[key][0].extend(w)
-                runs[key][1].extend(c)
-        setup = f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import bench_bla as b, json, pathlib"
-        files_repr = repr([str(f) for f in files])
-        load = f"files = [pathlib.Path(f) for f in {files_repr}]; d = json.loads(files[0].with_name('ms.multisine.json').read_text())"
-        rss_np = child_rss(f"{setup}; {load}; b.numpy_bla(files, d)")
-        rss_st = child_rss(f"{setup}; {load}; b.stageid_bla(files, d)")
-        rss_base = child_rss(f"{setup}; import stageid.frf.bla, stageid.cli.bla, stageid.frf.records")
-        rss_np_base = child_rss(setup)
+        agree = agreement(stageid_bla(files, design), numpy_bla(files, design))
+        variants = {
+            "np": lambda: numpy_bla(files, design),
+            "api": lambda: stageid_bla(files, design),
+        } | processes(folder, files, args.compare_src)
+        loadavg = [os.getloadavg()[0]]
+        runs = alternated(variants, args.repeat)
+        loadavg.append(os.getloadavg()[0])
+        memory = peak_memory(files)
+    text = report(runs, args.repeat, loadavg, agree, memory, args.compare_src)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text)
+
+
+def agreement(res, ref: dict[str, np.ndarray]) -> float:
+    """The largest relative difference of the two estimates."""
+    return max(
+        float(np.max(np.abs(res.frd.response - ref["bla"])) / np.max(np.abs(ref["bla"]))),
+        float(np.max(np.abs(res.frd.std - ref["std"]) / ref["std"])),
+        float(np.max(np.abs(res.frd.total_std - ref["total"]) / ref["total"])),
+        float(np.max(np.abs(res.odd.power - ref["odd_power"]) / ref["odd_power"])),
+    )
+
+
+def processes(folder: Path, files: list[Path], compare_src: str | None) -> dict:
+    """The whole-process variants: the numpy script, the CLI (and the CLI of ``compare_src``)."""
+    cli = [sys.executable, "-m", "stageid", "frf", *map(str, files), "--inputs", ",".join(CHANNELS_IN)]
+    cli += ["--outputs", ",".join(CHANNELS_OUT), "--method", "bla", "--design", str(folder / "ms.multisine.json")]
+    cli += ["--periods", str(P), "--transient-periods", "0", "-o", str(folder / "bla.npz")]
+    np_cli = [sys.executable, __file__, "--numpy-only", str(folder)]
+    # both processes start from byte-compiled modules, as an installed package does: a cache
+    # of their own (so the source tree is left alone), filled by one untimed run of each
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    commands = {"np_cli": (np_cli, env), "cli": (cli, env)}
+    if compare_src:
+        other = env | {"PYTHONPATH": os.pathsep.join([compare_src, *filter(None, [env.get("PYTHONPATH")])])}
+        commands["cli_other"] = (cli, other)
+    for command, environment in commands.values():
+        subprocess.run(command, check=True, capture_output=True, env=environment)
+    return {
+        key: (lambda c=command, e=environment: subprocess.run(c, check=True, capture_output=True, env=e))
+        for key, (command, environment) in commands.items()
+    }
+
+
+def alternated(variants: dict, repeat: int) -> dict[str, tuple[list[float], list[float]]]:
+    """Wall and CPU seconds of every variant, run in turn ``repeat`` times so the machine's load falls on all alike."""
+    runs = {k: ([], []) for k in variants}
+    for _ in range(repeat):
+        for key, fn in variants.items():
+            w, c = timed(fn, 1)
+            runs[key][0].extend(w)
+            runs[key][1].extend(c)
+    return runs
+
+
+def peak_memory(files: list[Path]) -> dict[str, float]:
+    """VmHWM [MB] of fresh processes: each estimate, and each side's imports alone."""
+    setup = f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import bench_bla as b, json, pathlib"
+    files_repr = repr([str(f) for f in files])
+    load = f"files = [pathlib.Path(f) for f in {files_repr}]; d = json.loads(files[0].with_name('ms.multisine.json').read_text())"
+    return {
+        "np": child_rss(f"{setup}; {load}; b.numpy_bla(files, d)"),
+        "st": child_rss(f"{setup}; {load}; b.stageid_bla(files, d)"),
+        "st_base": child_rss(f"{setup}; import stageid.frf.bla, stageid.cli.bla, stageid.frf.records"),
+        "np_base": child_rss(setup),
+    }
+
+
+def report(runs, repeat: int, loadavg: list[float], agree: float, memory: dict[str, float], compare_src) -> str:
+    """The Markdown table of the runs."""
     one_realisation = 3 * P * L * 2 * NU * 8 / 2**20
     lines = [
         "# BLA estimation speed (benchmarks/bench_bla.py)",
         "",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}, "
-        f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; median of {args.repeat} runs.",
+        f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; median of {repeat} runs; "
+        f"load average {loadavg[0]:.1f} before, {loadavg[1]:.1f} after.",
         "",
         f"3x3, orthogonal random-odd design: {M} realisations x 3 experiments x {P} periods x {L} samples "
         f"({M * 3} NPZ records of {P * L} samples x 6 channels); estimates agree to {agree:.1e} (max relative).",
@@ -200,22 +249,22 @@ def main() -> None:
         "api": ("stageid BLA in-process (`stageid.cli.bla.estimate_bla`)", "np"),
         "np_cli": ("plain numpy composition as a script (start, import, read)", "np_cli"),
         "cli": ("`stageid frf --method bla` whole process (start, read, write)", "np_cli"),
+        "cli_other": (f"the same, stageid from `{compare_src}`", "np_cli"),
     }
     for key, (name, base) in names.items():
+        if key not in runs:
+            continue
         w, c = (float(np.median(x)) for x in runs[key])
         bw, bc = (float(np.median(x)) for x in runs[base])
         all_w = " ".join(f"{x:.2f}" for x in runs[key][0])
         lines.append(f"| {name} | {w:.3f} | {c:.3f} | {all_w} | {bw / w:.2f} / {bc / c:.2f} |")
     lines += [
         "",
-        f"Peak memory (VmHWM of a fresh process): numpy {rss_np:.0f} MB ({rss_np - rss_np_base:.0f} MB over its "
-        f"imports), stageid {rss_st:.0f} MB ({rss_st - rss_base:.0f} MB over its imports); one realisation's "
-        f"records are {one_realisation:.0f} MB, all of them {M * one_realisation:.0f} MB.",
+        f"Peak memory (VmHWM of a fresh process): numpy {memory['np']:.0f} MB ({memory['np'] - memory['np_base']:.0f} "
+        f"MB over its imports), stageid {memory['st']:.0f} MB ({memory['st'] - memory['st_base']:.0f} MB over its "
+        f"imports); one realisation's records are {one_realisation:.0f} MB, all of them {M * one_realisation:.0f} MB.",
     ]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text)
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

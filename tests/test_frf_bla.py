@@ -1,6 +1,10 @@
 """Best linear approximation against truth: a linear plant, odd and even static nonlinearities before a
 resonance, Bussgang's theorem, and distortion levels against a Monte-Carlo truth."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.signal import cont2discrete, lfilter
@@ -219,3 +223,16 @@ def test_local_fit_of_white_noise_gives_its_variance():
     assert np.mean(np.abs(Xc) ** 2) / np.mean(var) == pytest.approx(1.0, abs=0.05)
     with pytest.raises(DataError, match="at least 2 periods per record; got 1"):
         transient_free_lines(X, np.arange(1, 10), 1)
+
+
+def test_reading_an_npz_record_primes_the_heap_as_reading_a_table_does(tmp_path):
+    # the estimate's temporaries then reuse freed pages (stageid.runtime.heap); a fresh process,
+    # since priming happens once per process
+    np.savez(tmp_path / "r.npz", t=np.arange(64) * DT, u=np.zeros(64), y=np.zeros(64))
+    code = (
+        "from stageid.frf.records import read_npz_record; from stageid.runtime.heap import prime_heap; "
+        f"read_npz_record({str(tmp_path / 'r.npz')!r}, ['u'], ['y'], None, 1e-3); print(prime_heap())"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "STAGEID_HEAP_PRIMING"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.strip() == "False"  # already primed by the read (always False off glibc)

@@ -128,3 +128,51 @@ def test_frf_bla_lpm_keeps_every_period(measured):
     assert rc == 0, err
     assert "x 4 periods (every period kept, the transient removed by the local polynomial method)" in out
     assert "y: odd nonlinearity detected" in out
+
+
+def as_npz(files, spoil_time=None):
+    """The CSV records as NPZ files beside them (the memory-mapped reader's path), the time column of
+    record ``k`` passed through ``spoil_time[k]``."""
+    paths = []
+    for k, f in enumerate(files):
+        table = read_table(f)
+        t = np.arange(table.n_samples) * DT
+        paths.append(f.with_suffix(".npz"))
+        np.savez(paths[-1], t=(spoil_time or {}).get(k, lambda x: x)(t), u=table.column("u"), y=table.column("y"))
+    return paths
+
+
+@pytest.mark.parametrize(
+    "spoil, fragment",
+    [
+        (lambda t: np.where(np.arange(t.size) == 1234, t + 0.01 * DT, t), "is not uniform: the stamp at row 1234"),
+        (lambda t: np.concatenate([t[:300], t[299:300], t[301:]]), "must be strictly increasing; row 300 "),
+        (lambda t: np.concatenate([t[:300], t[300:] + DT]), "has a gap at row 300 "),  # a lost sample
+    ],
+)
+def test_frf_bla_refuses_a_bad_time_column_in_one_npz_record(measured, spoil, fragment):
+    # NPZ records take the memory-mapped reader: its time-column check is the sample-time rule's
+    tmp_path, files = measured
+    paths = as_npz(files, {2: spoil})
+    rc, out, err = run("frf", *paths, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "x.npz")
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{paths[2].name}: time column 't' " in err and fragment in err, err
+    assert not (tmp_path / "x.npz").exists()
+    # with a uniform column the NPZ records give what the CSV ones give
+    paths = as_npz(files)
+    rc, _, err = run("frf", *paths, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "n.csv")
+    assert rc == 0, err
+    rc, _, err = run("frf", *files, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "c.csv")
+    assert rc == 0, err
+    np.testing.assert_allclose(read_frd(tmp_path / "n.csv").response, read_frd(tmp_path / "c.csv").response, rtol=1e-12)
+
+
+def test_frf_bla_refuses_a_cut_npz_record_in_one_line(measured):
+    tmp_path, files = measured
+    paths = as_npz(files)
+    whole = paths[1].read_bytes()
+    paths[1].write_bytes(whole[: len(whole) // 2])  # a copy that stopped half-way
+    rc, out, err = run("frf", *paths, *BLA, "--design", tmp_path / "ms.multisine.json", "-o", tmp_path / "x.npz")
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{paths[1].name}: cannot read the archive" in err, err
+    assert not (tmp_path / "x.npz").exists()

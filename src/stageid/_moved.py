@@ -11,7 +11,6 @@ imported until its old name is asked for).  ``CHANGELOG.md`` lists the moves.
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.machinery
 import sys
 from types import ModuleType
@@ -72,8 +71,12 @@ MOVED: dict[str, str] = {
 }
 
 
-class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds an old path in :data:`MOVED` and loads it as the module at its new path."""
+class _MovedModules:
+    """Finds an old path in :data:`MOVED` and loads it as the module at its new path.
+
+    A finder and loader by its methods alone: subclassing ``importlib.abc``'s bases would pull
+    ``importlib.resources`` (and tempfile, zipfile...) into every command's start-up.
+    """
 
     def find_spec(self, name: str, path: object = None, target: object = None) -> importlib.machinery.ModuleSpec | None:
         if name not in MOVED:

@@ -36,32 +36,48 @@ Examples:
   stageid serve .                                        # the same steps in the browser
 """
 
-# (module, attribute, parent group): each command lives in its own module.
-_COMMANDS: list[tuple[str, str, str]] = [
-    ("stageid.cli.lti", "simulate_command", "cli"),
-    ("stageid.cli.lti", "freqresp_command", "cli"),
-    ("stageid.cli.identify_hysteresis", "identify", "identify"),
-    ("stageid.cli.compensate", "cli", "cli"),
-    ("stageid.cli.signal", "signal_command", "cli"),
-    ("stageid.cli.plants", "plants_command", "cli"),
-    ("stageid.cli.report", "report_command", "cli"),
-    ("stageid.cli.demo", "demo_command", "cli"),
-    ("stageid.cli.identify_statespace", "statespace_command", "identify"),
-    ("stageid.cli.identify_closedloop", "closedloop_command", "identify"),
-    ("stageid.cli.export", "export_group", "cli"),
-    ("stageid.cli.frf", "frf_command", "cli"),
-    ("stageid.cli.identify_frd", "frd_command", "identify"),
-    ("stageid.cli.validate", "validate_command", "cli"),
-    ("stageid.cli.batch", "batch_command", "cli"),
-    ("stageid.cli.serve", "serve_command", "cli"),
+# (name, module, attribute, parent group): each command lives in its own module, imported when
+# the command runs or a help text lists it, so one command does not pay for the others' imports.
+_COMMANDS: list[tuple[str, str, str, str]] = [
+    ("simulate", "stageid.cli.lti", "simulate_command", "cli"),
+    ("freqresp", "stageid.cli.lti", "freqresp_command", "cli"),
+    ("hysteresis", "stageid.cli.identify_hysteresis", "identify", "identify"),
+    ("compensate", "stageid.cli.compensate", "cli", "cli"),
+    ("signal", "stageid.cli.signal", "signal_command", "cli"),
+    ("plants", "stageid.cli.plants", "plants_command", "cli"),
+    ("report", "stageid.cli.report", "report_command", "cli"),
+    ("demo", "stageid.cli.demo", "demo_command", "cli"),
+    ("statespace", "stageid.cli.identify_statespace", "statespace_command", "identify"),
+    ("closed-loop", "stageid.cli.identify_closedloop", "closedloop_command", "identify"),
+    ("closedloop", "stageid.cli.identify_closedloop", "closedloop_command", "identify"),  # both spellings
+    ("export", "stageid.cli.export", "export_group", "cli"),
+    ("frf", "stageid.cli.frf", "frf_command", "cli"),
+    ("frd", "stageid.cli.identify_frd", "frd_command", "identify"),
+    ("validate", "stageid.cli.validate", "validate_command", "cli"),
+    ("batch", "stageid.cli.batch", "batch_command", "cli"),
+    ("serve", "stageid.cli.serve", "serve_command", "cli"),
 ]
+
+
+class _LazyGroup(click.Group):
+    """A group whose sub-commands in :data:`_COMMANDS` load on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*self.commands, *(name for name, _, _, group in _COMMANDS if group == self.name)})
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in self.commands:
+            for entry, module, attr, group in _COMMANDS:
+                if (entry, group) == (name, self.name):
+                    self.add_command(getattr(importlib.import_module(module), attr), name=name)
+        return self.commands.get(name)
 
 
 class _Interrupted(Exception):
     """Ctrl-C, carried past click (which would print an empty line and call it "aborted")."""
 
 
-class _RootGroup(click.Group):
+class _RootGroup(_LazyGroup):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
@@ -82,6 +98,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
 
 
 @cli.group(
+    cls=_LazyGroup,
     epilog="""
 \b
 Examples:
@@ -89,23 +106,10 @@ Examples:
   stageid identify closed-loop ex.csv ey.csv --references rx,ry --outputs x,y --controller K.json -o G.json
   stageid identify hysteresis forc.csv --input V --output y --model modified-pi -o hyst.json
   stageid identify frd frf.csv --order auto --dt 0.0002 -o model.json
-"""
+""",
 )
 def identify() -> None:
     """Identify a model from measured records."""
-
-
-_GROUPS = {"cli": cli, "identify": identify}
-
-
-def _register() -> None:
-    for module, attr, group in _COMMANDS:
-        command = getattr(importlib.import_module(module), attr)
-        _GROUPS[group].add_command(command)
-    identify.add_command(identify.commands["closed-loop"], name="closedloop")  # both spellings are accepted
-
-
-_register()
 
 
 def main(argv: list[str] | None = None) -> int:

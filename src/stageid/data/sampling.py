@@ -165,21 +165,9 @@ def scan_stamps(t: np.ndarray, k0: int, scan: StampScan, where: str, rtol: float
     checked by :func:`grid_from_scan` once the whole column has been seen.
     """
     steps = np.diff(t)
-    back = np.flatnonzero(~(steps > 0))
-    if back.size:
-        k = int(back[0])
-        raise DataError(
-            f"{where}time column 't' must be strictly increasing; row {k0 + k + 1} has t={float(t[k + 1])!r} "
-            f"after t={float(t[k])!r} at row {k0 + k} (data rows counted from 0)."
-        )
-    gaps = np.flatnonzero(steps > GAP_STEPS * scan.dt_ends)
-    if gaps.size:
-        k = int(gaps[0])
-        raise DataError(
-            f"{where}time column 't' has a gap at row {k0 + k + 1} (data rows counted from 0): t={float(t[k + 1])!r} "
-            f"after t={float(t[k])!r}, a step of {float(steps[k]) / scan.dt_ends:.6g} periods of "
-            f"{seconds(scan.dt_ends)} s; expected a uniform grid."
-        )
+    if steps.size and not (steps.min() > 0 and steps.max() <= GAP_STEPS * scan.dt_ends):  # two reductions
+        # clear most columns; the refusal's row is searched for only when one fails
+        _refuse_steps(t, steps, k0, scan.dt_ends, where)
     k = np.arange(k0, k0 + t.shape[0], dtype=float)
     deviation = (t - scan.t_first) - k * scan.dt_ends  # small numbers: the slope sum keeps its digits
     worst = int(np.argmax(np.abs(deviation)))
@@ -193,6 +181,26 @@ def scan_stamps(t: np.ndarray, k0: int, scan: StampScan, where: str, rtol: float
         sxy=scan.sxy + float(np.dot(k[first:] - kbar, deviation[first:])),
         resolution=max(scan.resolution, stamp_resolution(t, steps, scan.dt_ends, rtol)),
     )
+
+
+def _refuse_steps(t: np.ndarray, steps: np.ndarray, k0: int, dt: float, where: str) -> None:
+    """DataError at the first repeat or reversal (a step <= 0), else at the first gap (a step beyond
+    :data:`GAP_STEPS` periods ``dt``), of stamps ``t`` whose first row is ``k0``."""
+    back = np.flatnonzero(~(steps > 0))
+    if back.size:
+        k = int(back[0])
+        raise DataError(
+            f"{where}time column 't' must be strictly increasing; row {k0 + k + 1} has t={float(t[k + 1])!r} "
+            f"after t={float(t[k])!r} at row {k0 + k} (data rows counted from 0)."
+        )
+    gaps = np.flatnonzero(steps > GAP_STEPS * dt)
+    if gaps.size:
+        k = int(gaps[0])
+        raise DataError(
+            f"{where}time column 't' has a gap at row {k0 + k + 1} (data rows counted from 0): t={float(t[k + 1])!r} "
+            f"after t={float(t[k])!r}, a step of {float(steps[k]) / dt:.6g} periods of "
+            f"{seconds(dt)} s; expected a uniform grid."
+        )
 
 
 def grid_from_scan(scan: StampScan, where: str = "", rtol: float = UNIFORM_RTOL) -> TimeGrid:
@@ -230,7 +238,7 @@ def simplest_period(dt: float, uncertainty: float) -> float:
 
 
 def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = UNIFORM_RTOL) -> float:
-    """How far rounding alone can move a stamp of ``t`` (steps ``steps``) off its grid [s].
+    """How far rounding alone can move a stamp of increasing ``t`` (steps ``steps``) off its grid [s].
 
     Double stamps: a few ulps of the largest stamp (``4 eps max|t|``; at epoch times that is
     0.24 % of a 10 kHz period).  Stamps that are all float32 values: a float32 spacing.  Stamps
@@ -239,15 +247,19 @@ def stamp_resolution(t: np.ndarray, steps: np.ndarray, dt: float, rtol: float = 
     it): half that quantum (a finer quantum is within the uniformity tolerance anyway; coarser
     stamps cannot tell a lost sample from rounding).
     """
-    big = float(np.max(np.abs(t)))
+    big = max(abs(float(t[0])), abs(float(t[-1])))  # the stamps increase: the largest is at an end
     out = 4.0 * float(np.finfo(float).eps) * big
-    if np.array_equal(t, t.astype(np.float32).astype(float)):
+    if _all_float32(t[:64]) and _all_float32(t):  # double stamps fail on the first few
         out = max(out, float(np.spacing(np.float32(big))))
     if steps.size and float(np.ptp(steps)) > 2.0 * out:
         quantum = decimal_quantum(t, big)
         if rtol * dt < quantum <= MAX_QUANTUM * dt:
             out = max(out, 0.5 * quantum)
     return out
+
+
+def _all_float32(t: np.ndarray) -> bool:
+    return bool(np.array_equal(t, t.astype(np.float32).astype(float)))
 
 
 def decimal_quantum(t: np.ndarray, big: float) -> float:

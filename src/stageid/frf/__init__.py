@@ -26,8 +26,7 @@ they are re-exported here, and ``stageid.frf.frd`` still imports as that module.
 Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`.
 """
 
-import importlib
-from typing import Any
+from ..runtime.lazy import lazy_names
 
 # Names load on first use (PEP 562): the LPM's numba kernels must not load into the start-up
 # of every command that only reads or writes a response (tests/test_import_cost.py).
@@ -50,13 +49,4 @@ _WHERE = {
 __all__ = list(_WHERE)
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_WHERE[name], __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_WHERE])
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

@@ -35,6 +35,7 @@ import numpy as np
 from .._errors import DataError, ParameterError
 from ..data import Experiment
 from ..models.frequency_response import FrequencyResponse
+from ..runtime.heap import prime_heap
 from .bla_result import DETECTION_DB, BLAResult, DetectionLevels
 from .periodic import excited_lines, period_average
 from .records import ChannelRecord, as_channel_records, check_finite_batch
@@ -158,6 +159,7 @@ class BLAAccumulator:
         Records may be :class:`~stageid.data.Experiment` or :class:`~stageid.frf.records.ChannelRecord`
         (e.g. memory-mapped NPZ channels from :func:`~stageid.frf.records.read_npz_record`).
         """
+        prime_heap()  # each realisation's temporaries reuse the pages the last one freed
         recs = as_channel_records(realisation)
         if self.transient == "lpm":
             G, var, Uinv, Ym, detection = self._lpm_lines(recs)
@@ -299,16 +301,22 @@ class BLAAccumulator:
         if keep is not None and keep.max() > L // 2:
             raise DataError(f"line {int(keep.max())} lies above Nyquist of a {L}-sample period.")
         n_lines = L // 2 + 1 if keep is None else keep.size
-        X = np.empty((kept, n_lines, len(first.channels), len(recs)), complex)
+        # one contiguous (periods, lines) block per record and channel, returned as a
+        # (periods, lines, channels, records) view: writing that order directly strides the cache
+        blocks = np.empty((len(recs), len(first.channels), kept, n_lines), complex)
         for e, rec in enumerate(recs):
             for c, x in enumerate(rec.channels):
                 periods_of = np.asarray(x[dropped * L :]).reshape(kept, L)
                 spectrum = np.fft.rfft(periods_of, axis=1)
-                X[:, :, c, e] = spectrum if keep is None else spectrum[:, keep]
+                if keep is None:
+                    blocks[e, c] = spectrum
+                else:
+                    np.take(spectrum, keep, axis=1, out=blocks[e, c])
                 # a NaN or inf sample spreads over every line of its period's DFT: checking the
                 # kept lines finds it; the samples are searched only to name the row
-                if not np.isfinite(X[:, :, c, e]).all():
+                if not np.isfinite(blocks[e, c]).all():
                     check_finite_batch(rec, periods_of, c, dropped * L, L)
+        X = blocks.transpose(2, 3, 1, 0)
         if keep is None:  # the design is inferred from this first realisation's full spectrum
             self._lines = _infer_lines(X[:, :, : first.n_inputs].mean(axis=0))
             X = X[:, np.concatenate(self._lines)]
@@ -360,7 +368,8 @@ def _lines_of(excited, detection_odd, detection_even) -> tuple[np.ndarray, np.nd
         if np.any(x <= 0) or np.any(np.diff(x) <= 0) or (name == "excited" and x.size == 0):
             raise DataError(f"`{name}` must be increasing line indices >= 1; got {x.tolist()[:8]}.")
         sets.append(x)
-    if np.unique(np.concatenate(sets)).size != sum(x.size for x in sets):
+    every = np.sort(np.concatenate(sets))  # each set increases: a repeat is a line in two sets
+    if np.any(every[1:] == every[:-1]):
         raise DataError("a line cannot be both excited and a detection line; got one in two of the sets.")
     return sets[0], sets[1], sets[2]
 

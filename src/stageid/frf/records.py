@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import zipfile
 from collections.abc import Sequence
 
 import numpy as np
@@ -20,6 +21,7 @@ import numpy as np
 from .._errors import DataError
 from ..data.sampling import check_period, shared_period
 from ..data.table import time_column_grid
+from ..runtime.heap import prime_heap
 
 __all__ = ["ChannelRecord", "as_channel_records", "read_npz_record", "check_finite_batch"]
 
@@ -108,20 +110,27 @@ def read_npz_record(
         Unequal lengths, a non-uniform or non-increasing time axis, no time information,
         fewer than 2 samples.
     """
+    prime_heap()  # the estimates' temporaries reuse freed pages instead of faulting in new ones
     name = os.path.basename(os.fspath(path))
     try:
-        archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
+        fh = open(path, "rb")
+    except OSError as exc:
         raise DataError(f"{name}: cannot read the archive ({exc}).") from None
-    with archive:
-        keys = set(archive.files)
-        wanted = list(inputs) + list(outputs)
-        if not all(k in keys for k in wanted):
-            return None
-        arrays = [_member(path, archive, k) for k in wanted]
-        if any(a.ndim != 1 or a.dtype.kind != "f" for a in arrays):
-            return None
-        t = _member(path, archive, "t") if "t" in keys else None
+    with fh:
+        try:
+            archive = np.load(fh, allow_pickle=False)
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+            raise DataError(f"{name}: cannot read the archive ({exc}).") from None
+        with archive:
+            keys = set(archive.files)
+            wanted = list(inputs) + list(outputs)
+            if not all(k in keys for k in wanted):
+                return None
+            members = _Members(fh, archive)
+            arrays = [members.get(k) for k in wanted]
+            if any(a.ndim != 1 or a.dtype.kind != "f" for a in arrays):
+                return None
+            t = members.get("t") if "t" in keys else None
     n = arrays[0].shape[0]
     for k, a in zip(wanted, arrays):
         if a.shape[0] != n:
@@ -135,51 +144,56 @@ def read_npz_record(
     return ChannelRecord(channels, len(inputs), dt, tuple(inputs), tuple(outputs), name)
 
 
-def _member(path: str | os.PathLike[str], archive, key: str) -> np.ndarray:
-    """Array ``key`` of an NPZ archive, memory-mapped when stored uncompressed (``np.savez``).
+class _Members:
+    """The arrays of one open NPZ archive, memory-mapped when stored uncompressed (``np.savez``).
 
     A mapped array is read from the page cache segment by segment as the spectra need it,
-    instead of being copied whole through the zip reader first.  Compressed members and
-    anything but a 1-D array in C order are read the ordinary way.
+    instead of being copied whole through the zip reader first.  The file is mapped once and
+    every member is a view of that map (a map per member cost more than reading the headers).
+    Compressed members and anything but a 1-D array in C order are read the ordinary way.
     """
-    import zipfile
 
-    try:
-        # np.load has parsed the zip directory already; reopening it per member cost more than the read
-        zf = getattr(archive, "zip", None)
-        if zf is None:
-            with zipfile.ZipFile(path) as own:
-                info = own.getinfo(key + ".npy")
-        else:
-            info = zf.getinfo(key + ".npy")
-        if info.compress_type != zipfile.ZIP_STORED:
-            return archive[key]
-        with open(path, "rb") as fh:
-            fh.seek(info.header_offset)
-            local = fh.read(30)  # the local file header: name and extra-field lengths at 26 and 28
-            fh.seek(
-                info.header_offset
-                + 30
-                + int.from_bytes(local[26:28], "little")
-                + int.from_bytes(local[28:30], "little")
-            )
-            version = np.lib.format.read_magic(fh)
-            if version not in ((1, 0), (2, 0)):
-                return archive[key]
-            parsed = _plain_header(fh, version)
-            if parsed is None:
-                reader = (
-                    np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-                )
-                shape, fortran, dtype = reader(fh)
-            else:
-                shape, fortran, dtype = parsed
-            offset = fh.tell()
+    def __init__(self, fh, archive) -> None:
+        self.fh, self.archive = fh, archive
+        self.whole: np.memmap | None = None
+
+    def get(self, key: str) -> np.ndarray:
+        """Array ``key``: a view of the mapped file where it can be, else as ``np.load`` reads it."""
+        try:
+            # np.load has parsed the zip directory already; reopening it per member cost more than the read
+            info = self.archive.zip.getinfo(key + ".npy")
+            if info.compress_type != zipfile.ZIP_STORED:
+                return self.archive[key]
+            header = self._header(info.header_offset)
+            if header is None:
+                return self.archive[key]
+            (n,), dtype, offset = header
+            if self.whole is None:
+                self.whole = np.memmap(self.fh, dtype=np.uint8, mode="r")
+            if offset + n * dtype.itemsize > self.whole.size:  # a cut file: the zip reader says what is wrong
+                return self.archive[key]
+            return self.whole[offset : offset + n * dtype.itemsize].view(dtype)
+        except (KeyError, ValueError, OSError, AttributeError, zipfile.BadZipFile):
+            return self.archive[key]
+
+    def _header(self, header_offset: int) -> tuple[tuple[int], np.dtype, int] | None:
+        """Shape, dtype and data offset of the ``.npy`` member whose local zip header is at
+        ``header_offset``; None unless it is a 1-D array in C order of a plain dtype."""
+        fh = self.fh
+        fh.seek(header_offset)
+        local = fh.read(30)  # the local file header: name and extra-field lengths at 26 and 28
+        fh.seek(header_offset + 30 + int.from_bytes(local[26:28], "little") + int.from_bytes(local[28:30], "little"))
+        version = np.lib.format.read_magic(fh)
+        if version not in ((1, 0), (2, 0)):
+            return None
+        parsed = _plain_header(fh, version)
+        if parsed is None:
+            reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            parsed = reader(fh)
+        shape, fortran, dtype = parsed
         if fortran or dtype.hasobject or len(shape) != 1:
-            return archive[key]
-        return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape)
-    except (KeyError, ValueError, OSError, zipfile.BadZipFile):
-        return archive[key]
+            return None
+        return shape, dtype, fh.tell()
 
 
 #: The header ``np.save`` writes for a 1-D array of a plain dtype (the common case, read without ``ast``).
@@ -211,6 +225,10 @@ def _time_step(t: np.ndarray | None, ts: float | None, n: int, name: str, rtol: 
         if ts is None:
             raise DataError(f"{name}: no time column 't'; give the sample time as `ts=`.")
         return check_period(ts, "ts", f"{name}: ")
+    if t.dtype != np.float64 or not t.flags.aligned:
+        # a mapped member lies wherever the zip put it, and numpy's loops on unaligned stamps
+        # cost more than an aligned copy and the check together
+        t = np.array(t, dtype=float)
     if t.ndim != 1 or t.shape[0] != n or not np.all(np.isfinite(t)):
         raise DataError(f"{name}: the time column 't' must be {n} finite values.")
-    return time_column_grid(np.asarray(t, dtype=float), f"{name}: ", ts, rtol).dt
+    return time_column_grid(t, f"{name}: ", ts, rtol).dt

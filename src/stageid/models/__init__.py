@@ -19,23 +19,26 @@ Layers, each importing only those below it: ``_validate``, ``_kernels``, ``minim
 (no LTI model class), and ``control_bridge`` turns arrays into python-control objects.
 """
 
-from .discretization import c2d, d2c
-from .interconnect import feedback, series
-from .lti import StateSpaceModel, TransferMatrix
-from .minimal import minimal_realization
-from .serialization import LTI_FORMAT, dumps, load_model, loads, save_model
+from ..runtime.lazy import lazy_names
 
-__all__ = [
-    "StateSpaceModel",
-    "TransferMatrix",
-    "c2d",
-    "d2c",
-    "minimal_realization",
-    "feedback",
-    "series",
-    "LTI_FORMAT",
-    "dumps",
-    "loads",
-    "load_model",
-    "save_model",
-]
+# Names load on first use (PEP 562): a command that only reads or writes a measured response
+# (``models.frequency_response``) must not pay for scipy.linalg, which the LTI classes import.
+_WHERE = {
+    "StateSpaceModel": ".lti",
+    "TransferMatrix": ".lti",
+    "c2d": ".discretization",
+    "d2c": ".discretization",
+    "minimal_realization": ".minimal",
+    "feedback": ".interconnect",
+    "series": ".interconnect",
+    "LTI_FORMAT": ".serialization",
+    "dumps": ".serialization",
+    "loads": ".serialization",
+    "load_model": ".serialization",
+    "save_model": ".serialization",
+}
+
+__all__ = list(_WHERE)
+
+
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

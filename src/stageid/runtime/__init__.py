@@ -10,6 +10,7 @@ module                 what it holds
 :mod:`.numba_cache`    where compiled kernels are cached (a read-only install still runs)
 :mod:`.threads`        ``single_blas_thread``: one BLAS thread inside the fits
 :mod:`.heap`           ``prime_heap``: malloc's thresholds raised once per process
+:mod:`.lazy`           ``lazy_names``: a package's names imported on first use (PEP 562)
 :mod:`.resources`      ``require_memory`` / ``require_work``: guards before large work
 :mod:`.cluster`        ``dask_client``: a Dask cluster for batches and larger-than-memory
                        records, with one-line errors for an unreachable scheduler
