@@ -61,21 +61,41 @@ def check_method(method: str) -> str:
 
 
 def strip_leading_zeros(poly: np.ndarray) -> np.ndarray:
-    """The polynomial without leading zero coefficients (a zero polynomial keeps its last one)."""
+    """The polynomial without leading zero coefficients (a zero polynomial keeps its last one).
+
+    A cheap ``np.trim_zeros(poly, "f")`` for 1-D arrays: the reduced closed-loop fits call it for
+    every residual.
+    """
     nz = np.flatnonzero(poly)
     return poly[nz[0] :] if nz.size else poly[-1:]
 
 
 def tf2ss_siso(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(A, B, C, D)`` of ``num/den`` (descending powers), controllable canonical form."""
+    """``(A, B, C, D)`` of ``num/den`` (descending powers), controllable canonical form.
+
+    The same matrices as ``scipy.signal.tf2ss`` (``A``'s first row ``-den[1:] / den[0]``, ``B = e_1``),
+    built directly because fits call it for every residual; a static gain has no state, and the
+    cases scipy trims with a warning (a tiny leading numerator coefficient) or refuses (an
+    improper ``num/den``) go to scipy itself.
+    """
     d = strip_leading_zeros(np.asarray(den, dtype=float))
     n = strip_leading_zeros(np.asarray(num, dtype=float))
     if d.size == 1:
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[n[-1] / d[0] if n.size == 1 else 0.0]])
     if not np.any(n):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.zeros((1, 1))
-    a, b, c, dd = _signal().tf2ss(n, d)
-    return a, b, c, dd
+    n, d = n / d[0], d / d[0]
+    if n.size > d.size or abs(n[0]) <= 1e-14:
+        a, b, c, dd = _signal().tf2ss(n, d)
+        return a, b, c, dd
+    k = d.size - 1
+    n = np.concatenate([np.zeros(d.size - n.size), n])
+    A = np.zeros((k, k))
+    A[0] = -d[1:]
+    A[1:, :-1] = np.eye(k - 1)
+    B = np.zeros((k, 1))
+    B[0, 0] = 1.0
+    return A, B, (n[1:] - n[0] * d[1:])[None, :], np.array([[n[0]]])
 
 
 def tf2ss(num: Sequence, den: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
