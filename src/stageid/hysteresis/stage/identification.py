@@ -17,7 +17,7 @@ Procedure (:meth:`StageIdentifier.fit`):
    weights ``G`` is an output-error fit of ``v = Z w + L c`` to ``y - o``
    (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps,
    from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
-   the variable-projection fit :func:`~.stage_problem.refine_output_error`), keeping the least
+   the variable-projection fit :func:`~.problem.refine_output_error`), keeping the least
    residual: never worse than no dynamics on the fitted rows.
 3. **Order and creep by held-out evidence** (:mod:`.stage_selection`): every candidate is
    fitted on all records but one and scored by its RMS error on the one left out (own
@@ -70,8 +70,9 @@ from . import StageModel
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .dynamics import describe_pole
 from .inverse import invert_dynamics
-from .preisach import PreisachStageProblem, best_start_kinds
-from .problem import N_ALTERNATIONS, StageProblem
+from .pi_columns import N_ALTERNATIONS, PIColumns
+from .preisach import PreisachColumns, best_start_kinds
+from .problem import StageProblem
 from .selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
 
 __all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
@@ -417,14 +418,14 @@ class StageIdentifier(Estimator):
         if self.model == "preisach":
             base = PreisachIdentifier(n_levels=self.n_levels, smoothing=self.smoothing).fit(data, inputs, outputs)
             kinds = best_start_kinds(base.model, recs, self.initial_state)
-            problem = PreisachStageProblem(base.model, recs, kinds, dt, self.smoothing)
+            problem = StageProblem(PreisachColumns(base.model, recs, kinds, self.smoothing), dt)
             return problem, kinds, f"Preisach grid of {self.n_levels} levels (rate-independent start {base.summary()})"
         base = PIIdentifier(
             self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
         ).fit(data, inputs, outputs)
         kinds = list(base.initial_states)
         return (
-            StageProblem(base.model, recs, kinds, dt),
+            StageProblem(PIColumns(base.model, recs, kinds), dt),
             kinds,
             f"hysteresis by PIIdentifier ({base.message.rstrip('.')})",
         )
@@ -437,7 +438,7 @@ class StageIdentifier(Estimator):
             self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
         ).fit(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
-        second = StageProblem(base.model, recs, kinds, dt)
+        second = StageProblem(PIColumns(base.model, recs, kinds), dt)
         w, c, offsets2, ba = second.solve(order, taus, everything)
         model2 = second.build(w, c, offsets2[0], taus, ba, *names)
         old = problem.errors(model, problem.offsets_of(model, recs))[1]
