@@ -28,10 +28,10 @@ import numpy as np
 from .._errors import SignalError
 from ._common import (
     add_offset,
+    as_channels,
     check_dt,
     check_finite,
     check_int,
-    check_limits,
     check_n_channels,
     check_n_samples,
     check_nonnegative,
@@ -434,11 +434,7 @@ def multisine(
         full = np.fft.rfft(one_period, axis=0) * orthogonal_matrix(n_ch)[:, e][None, :]
         one_period = np.fft.irfft(full, n=plan.samples_per_period, axis=0)
     x = np.tile(one_period, (plan.n_periods, 1))
-    x = add_offset(scale_to(x, rms, amplitude, name), off, name)
-    if channels is None:
-        x = x[:, 0]
-    check_limits(x, limits, name)
-    return x
+    return as_channels(add_offset(scale_to(x, rms, amplitude, name), off, name), channels, limits, name)
 
 
 def _one_period(
