@@ -19,6 +19,8 @@ module                    what it holds
 :mod:`.bla_figure`        the BLA's classic figure: BLA magnitude, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
+:mod:`.fit_selection`     its order and input delay chosen on held-out frequencies
+:mod:`.fit_weights`       its per-frequency weights, column errors and large-error warning
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
 :mod:`.mode_exchange`     weakest pole pair moved to a residual peak, out of local minima
 :mod:`.fit_uncertainty`   covariance of that fit from the data's std, ``FRDResult.response_uncertainty``
