@@ -11,9 +11,9 @@ named function:
                          lag correlations), ``window_covariance`` (the lags a fit keeps),
                          ``theta_response`` (the eq. 9 model's frequency response),
                          ``chunked_statistics`` (records larger than memory)
-``map``                  2.3 MAP online estimation, eq. 16-18: ``posterior`` (prior,
-                         posterior, ``METHODS``), ``recursion`` (sample by sample),
-                         ``kernels`` (compiled)
+``map``                  2.3 MAP online estimation, eq. 16-18: ``prior`` (eq. 17's prior,
+                         ``METHODS``), ``posterior`` (the posterior, batch and update),
+                         ``recursion`` (sample by sample), ``kernels`` (compiled)
 ``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
                          routes), ``frequency_domain`` (the frequency
                          route), ``refinement``, ``weighting``
