@@ -31,6 +31,7 @@ module                         what it holds
 ``__init__`` (here)            ``StageModel`` (kind ``stage`` of the JSON format)
 :mod:`.dynamics`               unit-DC-gain discrete dynamics: fits and filtering
 :mod:`.disturbance_modes`      lightly damped modes from the records' disturbance spectrum
+:mod:`.disturbance_spectrum`   that spectrum: each residual's Welch PSD, drive harmonics out
 :mod:`.identification`         ``StageIdentifier``: hysteresis first, then weights / creep /
                                dynamics alternated; auto order and creep
 :mod:`.result`                 ``StageFit``: the model, its errors, the candidates' scores
