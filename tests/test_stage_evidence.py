@@ -18,7 +18,8 @@ from stageid.hysteresis.stage import StageModel
 from stageid.hysteresis.stage.disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from stageid.hysteresis.stage.dynamics import describe_pole, transfer_to_statespace
 from stageid.hysteresis.stage.identification import StageFit, StageIdentifier
-from stageid.hysteresis.stage.preisach import PreisachStageProblem, best_start_kinds
+from stageid.hysteresis.stage.preisach import PreisachColumns, best_start_kinds
+from stageid.hysteresis.stage.problem import StageProblem
 from stageid.hysteresis.stage.selection import prediction_score, simulation_score
 
 DT = 1e-4
@@ -169,7 +170,8 @@ def test_held_out_simulation_error_hides_a_mode_that_the_prediction_error_sees()
     halves with it (0.164 -> 0.073 %)."""
     recs = _rung_records([_drive(20.0, 1.5), _drive(100.0, 0.6)], 0, lag=False)
     base = PreisachIdentifier(n_levels=8).fit(recs)
-    problem = PreisachStageProblem(base.model, recs, best_start_kinds(base.model, recs, "auto"), DT, 1e-4)
+    kinds = best_start_kinds(base.model, recs, "auto")
+    problem = StageProblem(PreisachColumns(base.model, recs, kinds, 1e-4), DT)
     without = problem.held_out_residuals(1, ())
     problem.prefilter = resonance_filter((DisturbanceMode(745.0, 0.02, 10.0),), DT)
     with_mode = problem.held_out_residuals(1, ())

@@ -52,7 +52,7 @@ def test_split_from_the_whole_records_lags_equals_the_split_by_segments(n, n_rec
     # with the whole records' lag correlations, the training segments' are the whole less the
     # held-out segments' and the products straddling the range boundaries: the same statistics
     # as one pass per group of ranges (to rounding), for every candidate, and no such pass made
-    import stageid.subspace.selection as selection
+    import stageid.subspace.selection.split as split
 
     _, recs = _records(n)
     recs = recs[:n_records]
@@ -63,7 +63,7 @@ def test_split_from_the_whole_records_lags_equals_the_split_by_segments(n, n_rec
     def no_pass(*args, **kwargs):
         raise AssertionError("a pass over the segments")
 
-    monkeypatch.setattr(selection, "segments_statistics", no_pass)
+    monkeypatch.setattr(split, "segments_statistics", no_pass)
     got = split_statistics(recs, cands, 1.0, 0.25, whole)
     for g, w in zip(got, want):
         assert sorted(g) == sorted(w) == sorted(cands)

@@ -235,7 +235,8 @@ def resonance(lines: list[str], recs: dict, train: list, fit) -> None:
     from scipy.signal import csd, welch
 
     from stageid.hysteresis.stage.dynamics import zoh_resonance
-    from stageid.hysteresis.stage.preisach import PreisachStageProblem, best_start_kinds
+    from stageid.hysteresis.stage.preisach import PreisachColumns, best_start_kinds
+    from stageid.hysteresis.stage.problem import StageProblem
     from stageid.hysteresis.stage.validation import validate_record
 
     lines.append("### The resonance near 740 Hz\n")
@@ -255,7 +256,7 @@ def resonance(lines: list[str], recs: dict, train: list, fit) -> None:
     h = model.hysteresis
     taus = tuple(fit.creep_time_constants)
     kinds = best_start_kinds(h, train, "auto")
-    problem = PreisachStageProblem(h, train, kinds, DT, 1e-4)
+    problem = StageProblem(PreisachColumns(h, train, kinds, 1e-4), DT)
     cols = problem.columns(taus)
     masks = [np.ones(u.size, bool) for u, _ in train]
     b0, a0 = model.transfer()

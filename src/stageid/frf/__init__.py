@@ -3,11 +3,15 @@
 ========================  =================================================================
 module                    what it holds
 ========================  =================================================================
-:mod:`.welch`             Welch H1 with pooled cross spectra, multiple coherence, std of H
-:mod:`.lpm`               local polynomial method (Pintelon & Schoukens), noise from residuals
+:mod:`.estimate`          :class:`FRFResult`: what the three estimators below return
+:mod:`.welch`             :class:`WelchFRF`: H1 with pooled cross spectra, multiple
+                          coherence, std of H
+:mod:`.welch_chunked`     those spectra summed chunk by chunk (records larger than memory)
+:mod:`.lpm`               :class:`LocalPolynomialFRF` (Pintelon & Schoukens), noise from
+                          the residuals
 :mod:`.lpm_kernels`       compiled LPM line solves (moments, complex Cholesky), edge lines
 :mod:`.lpm_lanes`         the same for interior lines, 16 at a time with 4-wide vectors
-:mod:`.periodic`          averaging over periods of periodic excitation, noise from the scatter
+:mod:`.periodic`          :class:`PeriodicFRF`: averaging over periods, noise from the scatter
 :mod:`.bla`               best linear approximation over random-phase realisations: noise and
                           total (noise + nonlinear) variance, odd/even detection-line levels
 :mod:`.bla_result`        :class:`BLAResult`, the detection-line levels
@@ -15,6 +19,8 @@ module                    what it holds
 :mod:`.bla_figure`        the BLA's classic figure: BLA magnitude, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
 :mod:`.fit_search`        that fit at its optimum: several starts, refinement to convergence
+:mod:`.fit_selection`     its order and input delay chosen on held-out frequencies
+:mod:`.fit_weights`       its per-frequency weights, column errors and large-error warning
 :mod:`.vector_fitting`    common poles by iterated relocation (Gustavsen & Semlyen), a start
 :mod:`.mode_exchange`     weakest pole pair moved to a residual peak, out of local minima
 :mod:`.fit_uncertainty`   covariance of that fit from the data's std, ``FRDResult.response_uncertainty``
@@ -34,10 +40,14 @@ _WHERE = {
     "FrequencyResponse": "..models.frequency_response",
     "read_frd": "..models.frequency_response",
     "frd_columns": "..models.frequency_response",
+    "FRFResult": ".estimate",
+    "WelchFRF": ".welch",
     "welch_frf": ".welch",
     "cross_spectra": ".welch",
     "default_segment": ".welch",
+    "LocalPolynomialFRF": ".lpm",
     "lpm_frf": ".lpm",
+    "PeriodicFRF": ".periodic",
     "periodic_frf": ".periodic",
     "bla_frf": ".bla",
     "BLAAccumulator": ".bla",

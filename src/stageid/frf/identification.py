@@ -29,14 +29,15 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, FitWarning, IdentificationError
+from .._errors import DataError
 from ..base import Estimator, Interval, Options
 from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
 from ..models.frequency_response import FrequencyResponse
-from ..validation.order_choice import chosen_order, poor_order_message, scan_orders
 from .fit_search import fit_at_order
+from .fit_selection import largest_order, select_delay, select_order
 from .fit_uncertainty import FitCovariance, fit_covariance
+from .fit_weights import column_errors, frequency_weights, warn_large_error
 from .welch import welch_frf
 
 __all__ = [
@@ -282,11 +283,11 @@ class FRDIdentification(Estimator):
     def _delay(self, Gs, fz, T, zs, w, n_freqs) -> tuple[int, tuple]:
         if self.delay != "auto":
             return int(self.delay), ()
-        probe = self.order if self.order != "auto" else min(8, _max_order(n_freqs, Gs.shape[1], Gs.shape[2]))
+        probe = self.order if self.order != "auto" else min(8, largest_order(n_freqs, Gs.shape[1], Gs.shape[2]))
         return select_delay(Gs, fz, T, zs, probe, self.max_delay, w)
 
     def _order(self, Gd, fz, T, w, n_freqs) -> tuple[int, tuple]:
-        limit = _max_order(n_freqs, Gd.shape[1], Gd.shape[2])
+        limit = largest_order(n_freqs, Gd.shape[1], Gd.shape[2])
         if self.order != "auto":
             if self.order > limit:
                 raise DataError(
@@ -295,74 +296,6 @@ class FRDIdentification(Estimator):
                 )
             return int(self.order), ()
         return select_order(Gd, fz, T, min(self.max_order, limit), w)
-
-
-#: A fit whose largest column error exceeds this fraction of the column's peak is warned about.
-LARGE_ERROR = 0.10
-
-
-def warn_large_error(
-    response: np.ndarray, G: np.ndarray, std: np.ndarray | None, order: int, order_errors: tuple
-) -> None:
-    """Warn (:class:`FitWarning`) when the fit misses the response by more than ``LARGE_ERROR``
-    of a column's peak beyond 3 std of the data (when it has one): a low order chosen on a
-    held-out plateau must not pass silently, a miss within the data's own noise is no miss."""
-    import warnings
-
-    gap = np.abs(response - G) if std is None else np.maximum(np.abs(response - G) - 3.0 * std, 0.0)
-    peak = np.max(np.abs(G), axis=(0, 1))
-    worst = float(np.max(np.max(gap, axis=(0, 1)) / np.where(peak > 0, peak, 1.0)))
-    if worst <= LARGE_ERROR:
-        return
-    beyond = "" if std is None else " beyond 3 std of the data"
-    message = poor_order_message(
-        "FRDIdentification",
-        order,
-        [n for n, _ in order_errors],
-        f"misses the response by up to {100 * worst:.3g} % of a column's peak{beyond}",
-        f"at most {100 * LARGE_ERROR:g} %",
-        "give a higher `order`, or a band (`fmin`, `fmax`) the model can follow.",
-    )
-    warnings.warn(message, FitWarning, stacklevel=3)
-
-
-def frequency_weights(frd: FrequencyResponse, weight: str, scale: np.ndarray) -> tuple[str, np.ndarray]:
-    """Per-frequency weights of the output-error fit, normalised to mean 1, and their kind.
-
-    ``std``: ``1 / mean_ij (std_ij / scale_j)^2`` (the columns as scaled for the fit), from the
-    total std (noise and nonlinear distortion of a best linear approximation) when the
-    response has one - the kind is then ``"total-std"`` - else from the noise std;
-    ``coherence``: ``mean_i gamma_i^2 / (1 - gamma_i^2)`` capped at 1e6; ``none``: ones.
-    """
-    has_std = frd.std is not None or frd.total_std is not None
-    if weight == "auto":
-        weight = "std" if has_std else ("coherence" if frd.coherence is not None else "none")
-    if weight == "std":
-        if not has_std:
-            raise DataError("`weight='std'` needs std_<out>_<in> columns in the frequency response; it has none.")
-        std = frd.total_std if frd.total_std is not None else frd.std
-        weight = "total-std" if frd.total_std is not None else "std"
-        var = np.mean((std / scale[None, None, :]) ** 2, axis=(1, 2))
-        if not var.max() > 0:  # an exact (computed) response: every line alike
-            var = np.ones_like(var)
-        floor = 1e-12 * float(var.max())  # a zero std would give one frequency all the weight
-        w = 1.0 / np.maximum(var, floor)
-    elif weight == "coherence":
-        if frd.coherence is None:
-            raise DataError("`weight='coherence'` needs coh_<out> columns in the frequency response; it has none.")
-        c = np.clip(frd.coherence, 0.0, 1.0 - 1e-6)
-        w = np.mean(c / (1.0 - c), axis=1)
-    else:
-        w = np.ones(frd.n_freqs)
-    if not np.any(w > 0):
-        raise DataError(f"the {weight} weights are zero at every frequency; use `weight='none'`.")
-    return weight, w / np.mean(w)
-
-
-def column_errors(model_response: np.ndarray, G: np.ndarray) -> np.ndarray:
-    """Max over frequencies and outputs of ``|model - G|`` per input column, over the column's peak."""
-    peak = np.max(np.abs(G), axis=(0, 1))
-    return np.max(np.abs(model_response - G), axis=(0, 1)) / np.where(peak > 0, peak, 1.0)
 
 
 def _fit_grid(freqs: np.ndarray, dt: float | None) -> tuple[float, np.ndarray]:
@@ -396,60 +329,6 @@ def fit_frequencies(freqs: np.ndarray, T: float, dt: float | None) -> np.ndarray
         theta = 2.0 * np.arctan(T / dt * np.tan(np.pi * f * dt))  # Nyquist -> pi
         theta = np.where(theta < 0, theta + 2.0 * np.pi, theta)
     return theta / (2.0 * np.pi * T)
-
-
-def _max_order(n_freqs: int, q: int, m: int) -> int:
-    """The largest order the realisation supports with ``n_freqs`` frequencies (and its 2x start)."""
-    return max(1, min((2 * n_freqs * m) // (m + q) - 2 - q, 400))
-
-
-#: Refinement iterations of each candidate of the order selection.
-SELECTION_ITER = 15
-
-
-def _held_out_error(G, fz, T, order, w, max_iter: int = SELECTION_ITER, vector_fit: bool = False) -> float:
-    """RMS error at every fourth frequency of a model fitted (shortly refined) to the others."""
-    test = np.zeros(fz.size, bool)
-    test[2::4] = True
-    try:
-        A, B, C, D, _ = fit_at_order(G[~test], fz[~test], T, order, w[~test], max_iter, vector_fit=vector_fit)
-        Gm = StateSpaceModel(A, B, C, D, dt=T).frequency_response(fz[test])
-    except (IdentificationError, np.linalg.LinAlgError, ValueError):
-        return float("inf")
-    err = float(np.sqrt(np.mean(w[test][:, None, None] * np.abs(Gm - G[test]) ** 2)))
-    return err if np.isfinite(err) else float("inf")
-
-
-def select_order(G: np.ndarray, fz: np.ndarray, T: float, max_order: int, w: np.ndarray) -> tuple[int, tuple]:
-    """The order of 1..``max_order`` by the rule every ``order="auto"`` shares
-    (:mod:`stageid.validation.order_choice`) on the held-out error of :func:`_held_out_error`.
-
-    Each candidate starts from vector fitting besides the two realisations: on a measured
-    response whose modes the realisations alone miss (the AFM stage), the short fits of every
-    order otherwise stall at the same error, and the scan would stop at a low order.
-    """
-    limit = max(1, min(max_order, _max_order(int((~(np.arange(fz.size) % 4 == 2)).sum()), G.shape[1], G.shape[2])))
-    errors = scan_orders(range(1, limit + 1), lambda n: _held_out_error(G, fz, T, n, w, vector_fit=True))
-    try:
-        scored = int(np.count_nonzero(np.arange(fz.size) % 4 == 2)) * G.shape[1] * G.shape[2]
-        order = chosen_order([n for n, _ in errors], [e for _, e in errors], scored)
-    except ValueError:
-        raise IdentificationError(
-            f"no order from 1 to {limit} could be realised from this frequency response."
-        ) from None
-    return order, tuple(errors)
-
-
-def select_delay(
-    G: np.ndarray, fz: np.ndarray, T: float, zs: np.ndarray, order: int, max_delay: int, w: np.ndarray
-) -> tuple[int, tuple]:
-    """The input delay (samples) in 0..``max_delay`` whose removal gives the best held-out fit
-    of an unrefined realisation (``zs = exp(j 2 pi f dt)``)."""
-    errors = tuple((d, _held_out_error(G * (zs**d)[:, None, None], fz, T, order, w, 0)) for d in range(max_delay + 1))
-    best = min(errors, key=lambda de: de[1])
-    if not np.isfinite(best[1]):
-        raise IdentificationError(f"no delay from 0 to {max_delay} gave a realisation of order {order}.")
-    return best[0], errors
 
 
 def add_input_delay(A, B, C, D, delay: int) -> tuple[np.ndarray, ...]:

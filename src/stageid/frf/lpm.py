@@ -26,13 +26,14 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .._errors import DataError
-from ..checks import check_integer
+from ..base import Boolean, Estimator, Interval
 from ..data import Experiment, as_experiments
 from ..models.frequency_response import FrequencyResponse
 from ..runtime.resources import require_memory
+from .estimate import FRFResult
 from .lpm_kernels import lpm_lines_kernel
 
-__all__ = ["lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
+__all__ = ["LocalPolynomialFRF", "lpm_frf", "lpm_half_width", "solve_lines_python", "solve_lines_compiled"]
 
 #: Lines solved at once (bounds the temporaries to a few tens of MB).
 LINES_PER_BATCH = 8192
@@ -56,40 +57,18 @@ def lpm_half_width(n_inputs: int, n_records: int, degree: int) -> int:
     return max(1, int(np.ceil((n_params + 6 - 1) / 2)))
 
 
-def lpm_frf(
-    data: Experiment | Sequence[Experiment],
-    degree: int = 2,
-    half_width: int | None = None,
-    *,
-    compiled: bool = True,
-) -> FrequencyResponse:
-    """LPM estimate of the FRF with its standard deviation and coherence.
+class LocalPolynomialFRF(Estimator):
+    """LPM estimate of the FRF with its standard deviation and coherence (see the module docstring).
 
     Parameters
     ----------
-    data : Experiment or sequence of Experiment
-        Records of one length (one per excited input, or several inputs excited at once).
     degree : int
-        Polynomial degree ``R`` of the FRF and transient terms (2 in the paper).
+        Polynomial degree ``R`` of the FRF and transient terms (2 in the paper), 0 to 6.
     half_width : int, optional
         Lines on each side of ``k``; default :func:`lpm_half_width`.
     compiled : bool
         Solve the lines with the numba kernel (:func:`solve_lines_compiled`, default) or with
         its plain-numpy twin :func:`solve_lines_python` (the reference the tests compare with).
-
-    Returns
-    -------
-    FrequencyResponse
-        At ``k / (N dt)`` for ``k = 1 .. N//2 - 1``, leaving out the lines that are not
-        excited (an input's power in the window below ``EXCITED_POWER`` of its record mean,
-        as outside the band of band-limited noise) or whose local regression is not
-        invertible (``diag(M) diag(M^-1) > 1e12``).
-
-    Raises
-    ------
-    DataError
-        Records of different lengths, too few lines for the window, or an input with no
-        excitation (a singular local regression).
 
     Examples
     --------
@@ -97,33 +76,92 @@ def lpm_frf(
     >>> from stageid.data import Experiment
     >>> rng = np.random.default_rng(0); u = rng.standard_normal(4000)
     >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:4000]
-    >>> frd = lpm_frf(Experiment(u, y, 1.0))
-    >>> z = np.exp(2j * np.pi * frd.freqs); H = 1 / z + 0.5 / z**2
-    >>> bool(np.max(np.abs(frd.response[:, 0, 0] - H)) < 1e-6)
+    >>> res = LocalPolynomialFRF(degree=2).fit(Experiment(u, y, 1.0))
+    >>> z = np.exp(2j * np.pi * res.model.freqs); H = 1 / z + 0.5 / z**2
+    >>> bool(np.max(np.abs(res.model.response[:, 0, 0] - H)) < 1e-6), res.diagnostics["half_width"]
+    (True, 6)
+    >>> bool(np.array_equal(lpm_frf(Experiment(u, y, 1.0)).response, res.model.response))
     True
     """
-    exps = as_experiments(data)
-    degree = check_integer(degree, "degree", "lpm_frf", low=0, high=6)
-    N = exps[0].n_samples
-    if any(e.n_samples != N for e in exps):
-        raise DataError(f"the LPM needs records of one length; got {sorted({e.n_samples for e in exps})} samples.")
-    m, q, ne = exps[0].n_inputs, exps[0].n_outputs, len(exps)
-    n = (
-        lpm_half_width(m, ne, degree)
-        if half_width is None
-        else check_integer(half_width, "half_width", "lpm_frf", low=1)
-    )
-    K_last = N // 2
-    if K_last + 1 < 2 * n + 1 or K_last < 2:
-        raise DataError(f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}.")
-    ks = np.arange(1, K_last)
-    n_th = (m + ne) * (degree + 1)
-    require_memory(16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + q) * 4, "local polynomial method")
+
+    parameter_constraints = {
+        "degree": [Interval(int, 0, 6)],
+        "half_width": [Interval(int, 1, None), None],
+        "compiled": [Boolean()],
+    }
+
+    def __init__(self, degree: int = 2, half_width: int | None = None, compiled: bool = True) -> None:
+        self.degree = degree
+        self.half_width = half_width
+        self.compiled = compiled
+
+    def fit(self, data: Experiment | Sequence[Experiment]) -> FRFResult:
+        """The LPM estimate of records of one length (one per excited input, or several inputs excited at once).
+
+        Returns
+        -------
+        FRFResult
+            ``model`` at ``k / (N dt)`` for ``k = 1 .. N//2 - 1``, leaving out the lines that
+            are not excited (an input's power in the window below ``EXCITED_POWER`` of its
+            record mean, as outside the band of band-limited noise) or whose local regression
+            is not invertible (``diag(M) diag(M^-1) > 1e12``); ``diagnostics`` the half width
+            and the number of lines left out.
+
+        Raises
+        ------
+        ParameterError
+            A bad setting.
+        DataError
+            Records of different lengths, too few lines for the window, or an input with no
+            excitation (a singular local regression).
+        """
+        self.validate_params()
+        exps = as_experiments(data)
+        degree = int(self.degree)
+        N = exps[0].n_samples
+        if any(e.n_samples != N for e in exps):
+            raise DataError(f"the LPM needs records of one length; got {sorted({e.n_samples for e in exps})} samples.")
+        m, ne = exps[0].n_inputs, len(exps)
+        n = lpm_half_width(m, ne, degree) if self.half_width is None else int(self.half_width)
+        K_last = N // 2
+        if K_last + 1 < 2 * n + 1 or K_last < 2:
+            raise DataError(
+                f"the LPM window of {2 * n + 1} lines needs at least {4 * n + 2} samples per record; got {N}."
+            )
+        ks = np.arange(1, K_last)
+        n_th = (m + ne) * (degree + 1)
+        require_memory(
+            16.0 * min(ks.size, LINES_PER_BATCH) * ne * (2 * n + 1) * (n_th + exps[0].n_outputs) * 4,
+            "local polynomial method",
+        )
+        G, var, coh, ok = _solve(exps, ks, n, degree, K_last, bool(self.compiled))
+        std = np.sqrt(var, out=var)  # in place: at full resolution these arrays are large
+        freqs = ks[ok] / (N * exps[0].dt)
+        frd = FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names, copy=False)
+        return FRFResult(frd, self.clone(), {"half_width": n, "lines_left_out": int(ks.size - ok.sum())})
+
+
+def lpm_frf(
+    data: Experiment | Sequence[Experiment],
+    degree: int = 2,
+    half_width: int | None = None,
+    *,
+    compiled: bool = True,
+) -> FrequencyResponse:
+    """The response of :class:`LocalPolynomialFRF` ``(degree, half_width, compiled).fit(data)``
+    (its examples show both)."""
+    return LocalPolynomialFRF(degree, half_width, compiled).fit(data).model
+
+
+def _solve(
+    exps: list[Experiment], ks: np.ndarray, n: int, degree: int, k_last: int, compiled: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``G``, ``var``, coherence of the usable lines among ``ks`` (in input units), and which are usable."""
     U, Y, u_scale = _spectra(exps)
     if compiled:  # one call: the kernel's work arrays are per line; it writes in input units
-        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, K_last, u_scale)
+        G, var, coh, ok = solve_lines_compiled(U, Y, ks, n, degree, k_last, u_scale)
     else:
-        G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, K_last)
+        G, var, coh, ok = _batched(solve_lines_python, U, Y, ks, n, degree, k_last)
         G /= u_scale
         var /= u_scale**2
     if not ok.any():
@@ -132,9 +170,7 @@ def lpm_frf(
         )
     if not ok.all():
         G, var, coh = G[ok], var[ok], coh[ok]
-    std = np.sqrt(var, out=var)  # in place: at full resolution these arrays are large
-    freqs = ks[ok] / (N * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names, copy=False)
+    return G, var, coh, ok
 
 
 def _spectra(exps: list[Experiment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -17,41 +17,26 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError
-from ..checks import check_integer
+from ..base import Estimator, Interval
 from ..data import Experiment, as_experiments
 from ..models.frequency_response import FrequencyResponse
+from .estimate import FRFResult
 
-__all__ = ["periodic_frf", "excited_lines", "period_average"]
+__all__ = ["PeriodicFRF", "periodic_frf", "excited_lines", "period_average"]
 
 #: Lines whose input power is below this fraction of the strongest line count as not excited.
 EXCITED_FRACTION = 1e-10
 
 
-def periodic_frf(
-    data: Experiment | Sequence[Experiment], periods: int, transient_periods: int = 1
-) -> FrequencyResponse:
-    """Average over periods and estimate the FRF at the excited lines.
+class PeriodicFRF(Estimator):
+    """Average over periods and estimate the FRF at the excited lines (see the module docstring).
 
     Parameters
     ----------
-    data : Experiment or sequence of Experiment
-        Records of one length holding ``periods`` whole periods each; as many records as
-        inputs (each exciting the inputs differently) unless there is one input.
     periods : int
         Periods in each record (the record length must be a multiple of it).
     transient_periods : int
         Leading periods dropped (the transient); at least 2 must remain for the noise.
-
-    Returns
-    -------
-    FrequencyResponse
-        With ``std`` (from the period-to-period scatter) and ``coherence``.
-
-    Raises
-    ------
-    DataError
-        A length that is not a multiple of ``periods``, fewer than 2 periods left, fewer
-        records than inputs, or no line where the input matrix is invertible.
 
     Examples
     --------
@@ -59,14 +44,69 @@ def periodic_frf(
     >>> from stageid.data import Experiment
     >>> u = np.tile(np.random.default_rng(0).standard_normal(100), 5)
     >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:500]
+    >>> res = PeriodicFRF(periods=5, transient_periods=1).fit(Experiment(u, y, 1.0))
+    >>> z = np.exp(2j * np.pi * res.model.freqs); H = 1 / z + 0.5 / z**2
+    >>> bool(np.max(np.abs(res.model.response[:, 0, 0] - H)) < 1e-12), res.diagnostics["period"]
+    (True, 100)
     >>> frd = periodic_frf(Experiment(u, y, 1.0), periods=5, transient_periods=1)
-    >>> z = np.exp(2j * np.pi * frd.freqs); H = 1 / z + 0.5 / z**2
-    >>> bool(np.max(np.abs(frd.response[:, 0, 0] - H)) < 1e-12)
+    >>> bool(np.array_equal(frd.response, res.model.response))
     True
     """
-    exps = as_experiments(data)
-    periods = check_integer(periods, "periods", "periodic_frf", low=1)
-    transient_periods = check_integer(transient_periods, "transient_periods", "periodic_frf", low=0)
+
+    parameter_constraints = {
+        "periods": [Interval(int, 1, None)],
+        "transient_periods": [Interval(int, 0, None)],
+    }
+
+    def __init__(self, periods: int, transient_periods: int = 1) -> None:
+        self.periods = periods
+        self.transient_periods = transient_periods
+
+    def fit(self, data: Experiment | Sequence[Experiment]) -> FRFResult:
+        """The estimate from records of one length holding ``periods`` whole periods each; as
+        many records as inputs (each exciting the inputs differently) unless there is one input.
+
+        Returns
+        -------
+        FRFResult
+            ``model`` with ``std`` (from the period-to-period scatter) and ``coherence``;
+            ``diagnostics`` the period in samples and the periods averaged.
+
+        Raises
+        ------
+        ParameterError
+            A bad setting.
+        DataError
+            A length that is not a multiple of ``periods``, fewer than 2 periods left, fewer
+            records than inputs, or no line where the input matrix is invertible.
+        """
+        self.validate_params()
+        exps = as_experiments(data)
+        periods, transient = int(self.periods), int(self.transient_periods)
+        L, kept = _period_layout(exps, periods, transient)
+        start = transient * L
+
+        def per_period(x: np.ndarray) -> np.ndarray:  # (kept, lines, channels)
+            return np.fft.rfft(x[start:].reshape(kept, L, -1), axis=1)
+
+        Up = np.stack([per_period(e.u) for e in exps], axis=-1)  # (P, lines, m, ne)
+        Yp = np.stack([per_period(e.y) for e in exps], axis=-1)  # (P, lines, q, ne)
+        lines, G, std, coh = _average(Up, Yp)
+        freqs = lines / (L * exps[0].dt)
+        frd = FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+        return FRFResult(frd, self.clone(), {"period": L, "periods_averaged": kept})
+
+
+def periodic_frf(
+    data: Experiment | Sequence[Experiment], periods: int, transient_periods: int = 1
+) -> FrequencyResponse:
+    """The response of :class:`PeriodicFRF` ``(periods, transient_periods).fit(data)`` (its examples show both)."""
+    return PeriodicFRF(periods, transient_periods).fit(data).model
+
+
+def _period_layout(exps: list[Experiment], periods: int, transient: int) -> tuple[int, int]:
+    """The period in samples and the periods kept after the transient; DataError when the
+    records do not hold whole periods of one length, keep fewer than 2, or are fewer than the inputs."""
     N = exps[0].n_samples
     m, ne = exps[0].n_inputs, len(exps)
     if any(e.n_samples != N for e in exps):
@@ -75,24 +115,12 @@ def periodic_frf(
         raise DataError(
             f"a record of {N} samples does not hold {periods} whole periods ({N} / {periods} is not whole)."
         )
-    kept = periods - transient_periods
+    kept = periods - transient
     if kept < 2:
-        raise DataError(
-            f"{periods} periods minus {transient_periods} transient periods leaves {kept}; at least 2 are needed."
-        )
+        raise DataError(f"{periods} periods minus {transient} transient periods leaves {kept}; at least 2 are needed.")
     if ne < m:
         raise DataError(f"{m} inputs need at least {m} records with different excitation; got {ne}.")
-    L = N // periods
-    start = transient_periods * L
-
-    def per_period(x: np.ndarray) -> np.ndarray:  # (kept, lines, channels)
-        return np.fft.rfft(x[start:].reshape(kept, L, -1), axis=1)
-
-    Up = np.stack([per_period(e.u) for e in exps], axis=-1)  # (P, lines, m, ne)
-    Yp = np.stack([per_period(e.y) for e in exps], axis=-1)  # (P, lines, q, ne)
-    lines, G, std, coh = _average(Up, Yp)
-    freqs = lines / (L * exps[0].dt)
-    return FrequencyResponse(freqs, G, std, coh, exps[0].input_names, exps[0].output_names)
+    return N // periods, kept
 
 
 def _average(Up: np.ndarray, Yp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -24,10 +24,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import DataError, ParameterError
+from ..base import Estimator, InstanceOf, Interval
 from ..checks import check_integer, check_real
 from ..data import Experiment
 from ..models.frequency_response import FrequencyResponse
 from ..runtime.resources import require_memory
+from .estimate import FRFResult
 from .records import ChannelRecord, as_channel_records, check_finite_batch
 
 __all__ = [
@@ -35,6 +37,7 @@ __all__ = [
     "cross_spectra",
     "segment_sums",
     "spectra_from_sums",
+    "WelchFRF",
     "welch_frf",
     "h1_from_spectra",
     "default_segment",
@@ -261,36 +264,74 @@ def h1_from_spectra(
     return FrequencyResponse(f, HT.transpose(0, 2, 1), np.sqrt(var), coh, tuple(inputs), tuple(outputs))
 
 
-def welch_frf(
-    data: Experiment | Sequence[Experiment], segment: int | None = None, overlap: float = 0.5, window: str = "hann"
-) -> FrequencyResponse:
+class WelchFRF(Estimator):
     """Welch H1 estimate with coherence and standard deviation (see the module docstring).
 
     Parameters
     ----------
-    data : Experiment or sequence of Experiment
-        One record per excited input, or records with several inputs excited at once.
     segment : int, optional
         Samples per segment; default :func:`default_segment` of the shortest record.
-    overlap, window
-        As :func:`cross_spectra`.
-
-    Returns
-    -------
-    FrequencyResponse
-        At ``k / (segment dt)``, ``k = 1 .. segment // 2``, with ``std`` and ``coherence``.
+    overlap : float
+        Fraction of a segment shared with the next, ``0 <= overlap < 1``.
+    window : str
+        A ``scipy.signal.get_window`` name.
 
     Examples
     --------
     >>> import numpy as np
     >>> from stageid.data import Experiment
     >>> rng = np.random.default_rng(1); u = rng.standard_normal(20000)
-    >>> frd = welch_frf(Experiment(u, 2.0 * u + 0.01 * rng.standard_normal(20000), 0.001), 256)
-    >>> bool(np.allclose(frd.response, 2.0, rtol=1e-2)), bool(frd.coherence.min() > 0.99)
+    >>> exp = Experiment(u, 2.0 * u + 0.01 * rng.standard_normal(20000), 0.001)
+    >>> res = WelchFRF(segment=256).fit(exp)
+    >>> bool(np.allclose(res.model.response, 2.0, rtol=1e-2)), bool(res.model.coherence.min() > 0.99)
     (True, True)
+    >>> res.diagnostics["segment"], bool(np.array_equal(welch_frf(exp, 256).response, res.model.response))
+    (256, True)
     """
-    recs = as_channel_records(data)
-    if segment is None:
-        segment = default_segment(min(r.n_samples for r in recs))
-    spectra = cross_spectra(recs, segment, overlap, window)
-    return h1_from_spectra(spectra, recs[0].input_names, recs[0].output_names)
+
+    parameter_constraints = {
+        "segment": [Interval(int, 2, None), None],
+        "overlap": [Interval(float, 0.0, 1.0, closed="left")],
+        "window": [InstanceOf(str, "a scipy window name such as 'hann'")],
+    }
+
+    def __init__(self, segment: int | None = None, overlap: float = 0.5, window: str = "hann") -> None:
+        self.segment = segment
+        self.overlap = overlap
+        self.window = window
+
+    def fit(self, data: Experiment | Sequence[Experiment]) -> FRFResult:
+        """The H1 estimate of one record per excited input, or of records exciting several inputs at once.
+
+        Returns
+        -------
+        FRFResult
+            ``model`` at ``k / (segment dt)``, ``k = 1 .. segment // 2``, with ``std`` and
+            ``coherence``; ``diagnostics`` the segment, the number of segments and Welch's
+            equivalent number of independent ones.
+
+        Raises
+        ------
+        ParameterError
+            A bad setting or an unknown window.
+        DataError
+            A record shorter than a segment, an input without excitation, or too few segments.
+        """
+        self.validate_params()
+        recs = as_channel_records(data)
+        segment = default_segment(min(r.n_samples for r in recs)) if self.segment is None else int(self.segment)
+        spectra = cross_spectra(recs, segment, float(self.overlap), self.window)
+        frd = h1_from_spectra(spectra, recs[0].input_names, recs[0].output_names)
+        diagnostics = {
+            "segment": segment,
+            "n_segments": spectra.n_segments,
+            "effective_segments": spectra.effective_segments,
+        }
+        return FRFResult(frd, self.clone(), diagnostics)
+
+
+def welch_frf(
+    data: Experiment | Sequence[Experiment], segment: int | None = None, overlap: float = 0.5, window: str = "hann"
+) -> FrequencyResponse:
+    """The response of :class:`WelchFRF` ``(segment, overlap, window).fit(data)`` (its examples show both)."""
+    return WelchFRF(segment, overlap, window).fit(data).model

@@ -13,8 +13,9 @@
 ========================  ==================================================================
 
 Layers, each importing only those below it: ``_validate``, ``_kernels``, ``minimal``,
-``conversions`` (one-way functions on matrices), ``json_text`` (the file text) ->
-``lti`` (both model classes; ``statespace`` and ``transfer`` re-export them) ->
+``conversions`` (one-way functions on matrices), ``json_text`` (the file text),
+``simulation`` (time responses) -> ``lti`` (both model classes; ``statespace`` and
+``transfer`` re-export them) ->
 ``discretization``, ``interconnect``, ``serialization``; ``frequency_response`` stands apart
 (no LTI model class), and ``control_bridge`` turns arrays into python-control objects.
 """

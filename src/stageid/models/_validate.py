@@ -282,3 +282,36 @@ def as_transfer_entries(num: Any, den: Any) -> tuple[tuple, tuple]:
                     f"entry [{i}][{j}] is improper: numerator degree {n.size - 1} exceeds denominator degree {d.size - 1}."
                 )
     return nums, dens
+
+
+def statespace_fields(A: Any, B: Any, C: Any, D: Any, dt: Any, inputs: Any, outputs: Any) -> dict[str, Any]:
+    """The checked fields of a state-space model: float matrices whose shapes fit together (the
+    channel counts from the names, else ``D``, else ``B`` and ``C``), the sample time and the names."""
+    A = as_matrix("A", A, (None, None))
+    n = A.shape[0]
+    if A.shape[1] != n:
+        raise ModelError(f"`A` must be square with shape (n, n); got {A.shape}.")
+    m = count_channels(inputs, D, B, axis=1)
+    p = count_channels(outputs, D, C, axis=0)
+    return {
+        "A": A,
+        "B": as_matrix("B", B, (n, m)),
+        "C": as_matrix("C", C, (p, n)),
+        "D": as_matrix("D", D, (p, m)),
+        "dt": as_dt(dt),
+        "inputs": as_names("inputs", inputs, m, "u"),
+        "outputs": as_names("outputs", outputs, p, "y"),
+    }
+
+
+def transfer_fields(num: Any, den: Any, dt: Any, inputs: Any, outputs: Any) -> dict[str, Any]:
+    """The checked fields of a transfer matrix (:func:`as_transfer_entries`, the sample time, the names)."""
+    nums, dens = as_transfer_entries(num, den)
+    p, m = len(nums), len(nums[0])
+    return {
+        "num": nums,
+        "den": dens,
+        "dt": as_dt(dt),
+        "inputs": as_names("inputs", inputs, m, "u"),
+        "outputs": as_names("outputs", outputs, p, "y"),
+    }

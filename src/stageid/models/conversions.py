@@ -13,6 +13,12 @@ nothing here imports a model class.
 ``invariant_zeros``     finite zeros of the Rosenbrock pencil
 ``ss_response``         ``C (vI - A)^-1 B + D`` on a grid of ``v``
 ``rational_response``   ``num(v) / den(v)`` without overflow for high orders
+``transfer_response``   that for every entry of a transfer matrix
+``ss_dc_gain``          ``D + C (I - A)^-1 B`` (discrete) or ``D - C A^-1 B`` (continuous)
+``transfer_dc_gain``    ``num(v) / den(v)`` at ``v = 1`` or ``0``, every entry
+``markov_parameters``   ``D, CB, CAB, ...``
+``balanced``            a diagonal similarity that balances ``A`` (before a reduction)
+``poles_stable``        all poles inside the unit circle / left half plane, with a margin
 ======================  ===============================================================
 """
 
@@ -40,6 +46,12 @@ __all__ = [
     "invariant_zeros",
     "ss_response",
     "rational_response",
+    "transfer_response",
+    "ss_dc_gain",
+    "transfer_dc_gain",
+    "markov_parameters",
+    "balanced",
+    "poles_stable",
     "dt_from_control",
 ]
 
@@ -61,21 +73,41 @@ def check_method(method: str) -> str:
 
 
 def strip_leading_zeros(poly: np.ndarray) -> np.ndarray:
-    """The polynomial without leading zero coefficients (a zero polynomial keeps its last one)."""
+    """The polynomial without leading zero coefficients (a zero polynomial keeps its last one).
+
+    A cheap ``np.trim_zeros(poly, "f")`` for 1-D arrays: the reduced closed-loop fits call it for
+    every residual.
+    """
     nz = np.flatnonzero(poly)
     return poly[nz[0] :] if nz.size else poly[-1:]
 
 
 def tf2ss_siso(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(A, B, C, D)`` of ``num/den`` (descending powers), controllable canonical form."""
+    """``(A, B, C, D)`` of ``num/den`` (descending powers), controllable canonical form.
+
+    The same matrices as ``scipy.signal.tf2ss`` (``A``'s first row ``-den[1:] / den[0]``, ``B = e_1``),
+    built directly because fits call it for every residual; a static gain has no state, and the
+    cases scipy trims with a warning (a tiny leading numerator coefficient) or refuses (an
+    improper ``num/den``) go to scipy itself.
+    """
     d = strip_leading_zeros(np.asarray(den, dtype=float))
     n = strip_leading_zeros(np.asarray(num, dtype=float))
     if d.size == 1:
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[n[-1] / d[0] if n.size == 1 else 0.0]])
     if not np.any(n):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.zeros((1, 1))
-    a, b, c, dd = _signal().tf2ss(n, d)
-    return a, b, c, dd
+    n, d = n / d[0], d / d[0]
+    if n.size > d.size or abs(n[0]) <= 1e-14:
+        a, b, c, dd = _signal().tf2ss(n, d)
+        return a, b, c, dd
+    k = d.size - 1
+    n = np.concatenate([np.zeros(d.size - n.size), n])
+    A = np.zeros((k, k))
+    A[0] = -d[1:]
+    A[1:, :-1] = np.eye(k - 1)
+    B = np.zeros((k, 1))
+    B[0, 0] = 1.0
+    return A, B, (n[1:] - n[0] * d[1:])[None, :], np.array([[n[0]]])
 
 
 def tf2ss(num: Sequence, den: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -266,6 +298,79 @@ def rational_response(num: np.ndarray, den: np.ndarray, v: np.ndarray) -> np.nda
             ratio = np.polyval(n[::-1], w) / np.polyval(d[::-1], w)
             out[bad] = np.exp(np.log(ratio) + (n.size - d.size) * np.log(v[bad]))
     return out
+
+
+def transfer_response(num: Sequence, den: Sequence, v: np.ndarray) -> np.ndarray:
+    """:func:`rational_response` of every entry ``num[i][j] / den[i][j]``, shape (n_v, p, m)."""
+    out = np.empty((v.size, len(num), len(num[0])), dtype=complex)
+    for i, (nrow, drow) in enumerate(zip(num, den, strict=True)):
+        for j, (n, d) in enumerate(zip(nrow, drow, strict=True)):
+            out[:, i, j] = rational_response(n, d, v)
+    return out
+
+
+def ss_dc_gain(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, dt: float | None) -> np.ndarray:
+    """Static gain ``D + C M^-1 B`` with ``M = -A`` (continuous) or ``I - A`` (discrete), shape (p, m);
+    ModelError when ``M`` is singular (a pole at s = 0 or z = 1)."""
+    n = A.shape[0]
+    M = -A if dt is None else np.eye(n) - A
+    if n and np.linalg.matrix_rank(M) < n:
+        raise ModelError("the DC gain is infinite: the model has a pole at s = 0 (z = 1).")
+    return D + (C @ np.linalg.solve(M, B) if n else 0.0)
+
+
+def transfer_dc_gain(num: Sequence, den: Sequence, dt: float | None) -> np.ndarray:
+    """Static gain of every entry, shape (p, m): ``num/den`` at ``s = 0`` or ``z = 1``; ModelError for
+    a pole there (or a 0/0 a common root would cancel)."""
+    v = 0.0 if dt is None else 1.0
+    out = np.empty((len(num), len(num[0])))
+    for i in range(len(num)):
+        for j in range(len(num[0])):
+            d = np.polyval(den[i][j], v)
+            n = np.polyval(num[i][j], v)
+            if abs(d) <= 1e-14 * max(1.0, np.max(np.abs(den[i][j]))):
+                if abs(n) > 1e-14:
+                    raise ModelError(f"the DC gain of entry [{i}][{j}] is infinite: it has a pole at DC.")
+                raise ModelError(f"entry [{i}][{j}] is 0/0 at DC: cancel the common root first.")
+            out[i, j] = n / d
+    return out
+
+
+def markov_parameters(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, n_parameters: int) -> np.ndarray:
+    """``D, CB, CAB, ..., C A^(k-2) B`` of a discrete model, shape (n_parameters, p, m)."""
+    out = np.empty((n_parameters, C.shape[0], B.shape[1]))
+    if n_parameters:
+        out[0] = D
+    AkB = B.copy()
+    for k in range(1, n_parameters):
+        out[k] = C @ AkB
+        AkB = A @ AkB
+    return out
+
+
+def balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(T^-1 A T, T^-1 B, C T)`` with the diagonal ``T`` that balances ``A`` (no permutation).
+
+    Before a minimal realisation: a continuous companion block carries coefficients up to
+    ``w^n`` (~1e12 for a third-order coupling at 2000 rad/s), and the reduction's threshold,
+    relative to that norm, would call every state of such a plant unobservable.
+    """
+    if not A.shape[0]:
+        return A, B, C
+    import scipy.linalg as sla
+
+    A, scaling = sla.matrix_balance(A, permute=False)
+    d = np.diag(scaling)
+    return A, B / d[:, None], C * d[None, :]
+
+
+def poles_stable(poles: np.ndarray, dt: float | None, margin: float = 0.0) -> bool:
+    """True when every pole is left of ``-margin`` (continuous) or inside ``|z| < 1 - margin`` (discrete)."""
+    if poles.size == 0:
+        return True
+    if dt is None:
+        return bool(np.all(poles.real < -margin))
+    return bool(np.all(np.abs(poles) < 1.0 - margin))
 
 
 def dt_from_control(dt: Any) -> float | None:

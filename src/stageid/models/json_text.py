@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from .._errors import ModelFormatError
 from ..runtime.resources import require_memory
 
-__all__ = ["LTI_FORMAT", "MAX_DEPTH", "dumps", "parse", "nesting_depth"]
+__all__ = ["LTI_FORMAT", "MAX_DEPTH", "lti_dict", "dumps", "parse", "nesting_depth"]
 
 LTI_FORMAT = "stageid.lti/1"
 
@@ -65,6 +66,14 @@ def _encode(value: Any, indent: int) -> str:
     if isinstance(value, str):
         return json.dumps(value)
     raise ModelFormatError(f"cannot write a value of type {type(value).__name__} to a model file.")
+
+
+def lti_dict(
+    kind: str, dt: float | None, fields: dict[str, Any], inputs: Sequence[str], outputs: Sequence[str]
+) -> dict[str, Any]:
+    """The ``stageid.lti/1`` dictionary of a model, keys in file order: format, kind, dt, the
+    model's ``fields`` (``A``..``D`` or ``num``, ``den`` as nested lists), inputs, outputs."""
+    return {"format": LTI_FORMAT, "kind": kind, "dt": dt, **fields, "inputs": list(inputs), "outputs": list(outputs)}
 
 
 def dumps(d: dict[str, Any]) -> str:

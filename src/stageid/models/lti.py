@@ -6,7 +6,8 @@ dx/dt  = A x(t) + B u(t),   y(t) = C x(t) + D u(t)        (continuous, ``dt`` is
 Each converts into the other (``to_transfer``, ``to_statespace``), so both live in this module
 (as scipy keeps its LTI classes in one ``_ltisys.py``); the numerical work is done by the
 one-way functions of :mod:`~stageid.models.conversions` and :mod:`~stageid.models.minimal`,
-and the file format sits above in :mod:`~stageid.models.serialization`.
+the time responses by :mod:`~stageid.models.simulation`, and the file format sits above in
+:mod:`~stageid.models.serialization`.
 """
 
 from __future__ import annotations
@@ -16,27 +17,15 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from .._errors import ModelError
 from ..display import html_repr
 from . import control_bridge as bridge
 from . import conversions as cv
-from ._kernels import simulate_discrete
-from ._validate import (
-    as_dt,
-    as_matrix,
-    as_names,
-    as_sample_time,
-    as_transfer_entries,
-    check_response,
-    check_same_dt,
-    count_channels,
-    frequency_variable,
-    input_samples,
-)
-from .json_text import LTI_FORMAT, dumps
+from ._validate import as_sample_time, frequency_variable, statespace_fields, transfer_fields
+from .json_text import dumps, lti_dict
 from .minimal import minimal_realization
+from .simulation import simulate_statespace, simulate_transfer
 
 __all__ = ["StateSpaceModel", "TransferMatrix"]
 
@@ -82,23 +71,9 @@ class StateSpaceModel:
         return html_repr(self)
 
     def __post_init__(self) -> None:
-        A = as_matrix("A", self.A, (None, None))
-        n = A.shape[0]
-        if A.shape[1] != n:
-            raise ModelError(f"`A` must be square with shape (n, n); got {A.shape}.")
-        m = count_channels(self.inputs, self.D, self.B, axis=1)
-        p = count_channels(self.outputs, self.D, self.C, axis=0)
-        B = as_matrix("B", self.B, (n, m))
-        C = as_matrix("C", self.C, (p, n))
-        D = as_matrix("D", self.D, (p, m))
-        set_ = object.__setattr__
-        set_(self, "A", A)
-        set_(self, "B", B)
-        set_(self, "C", C)
-        set_(self, "D", D)
-        set_(self, "dt", as_dt(self.dt))
-        set_(self, "inputs", as_names("inputs", self.inputs, m, "u"))
-        set_(self, "outputs", as_names("outputs", self.outputs, p, "y"))
+        fields = statespace_fields(self.A, self.B, self.C, self.D, self.dt, self.inputs, self.outputs)
+        for name, value in fields.items():
+            object.__setattr__(self, name, value)
 
     # ---------------------------------------------------------------- basics
     @property
@@ -153,23 +128,14 @@ class StateSpaceModel:
 
     def is_stable(self, margin: float = 0.0) -> bool:
         """True when all poles lie strictly inside the unit circle / left half plane."""
-        poles = self.poles()
-        if poles.size == 0:
-            return True
-        if self.dt is None:
-            return bool(np.all(poles.real < -margin))
-        return bool(np.all(np.abs(poles) < 1.0 - margin))
+        return cv.poles_stable(self.poles(), self.dt, margin)
 
     def dc_gain(self) -> np.ndarray:
         """Static gain, ndarray of shape (n_outputs, n_inputs).
 
         Raises ModelError when the model has a pole at s = 0 (z = 1).
         """
-        n = self.n_states
-        M = -self.A if self.dt is None else np.eye(n) - self.A
-        if n and np.linalg.matrix_rank(M) < n:
-            raise ModelError("the DC gain is infinite: the model has a pole at s = 0 (z = 1).")
-        return self.D + (self.C @ np.linalg.solve(M, self.B) if n else 0.0)
+        return cv.ss_dc_gain(self.A, self.B, self.C, self.D, self.dt)
 
     def frequency_response(self, freqs_hz: Sequence[float] | np.ndarray) -> np.ndarray:
         """Complex response ``C (vI - A)^-1 B + D`` at the given frequencies in Hz.
@@ -189,14 +155,7 @@ class StateSpaceModel:
         """
         if self.dt is None:
             raise ModelError("Markov parameters are defined for discrete models; convert with c2d first.")
-        out = np.empty((n_parameters, self.n_outputs, self.n_inputs))
-        if n_parameters:
-            out[0] = self.D
-        AkB = self.B.copy()
-        for k in range(1, n_parameters):
-            out[k] = self.C @ AkB
-            AkB = self.A @ AkB
-        return out
+        return cv.markov_parameters(self.A, self.B, self.C, self.D, n_parameters)
 
     # ------------------------------------------------------------ simulation
     def simulate(self, u: np.ndarray, x0: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
@@ -221,22 +180,7 @@ class StateSpaceModel:
             Bad input or sample time, or a response that diverges (an unstable model): the
             message names the sample where it left the floating-point range.
         """
-        uu = input_samples(u, self.n_inputs)
-        if not np.all(np.isfinite(uu)):
-            raise ModelError("input contains NaN or inf.")
-        model = self
-        if self.dt is None:
-            if dt is None:
-                raise ModelError("a continuous model needs the sample time `dt` of the input to simulate.")
-            model = self.c2d(dt, method="zoh")
-        else:
-            check_same_dt(dt, self.dt)
-        x = np.zeros(self.n_states) if x0 is None else np.array(x0, dtype=float).reshape(-1)
-        if x.shape != (self.n_states,):
-            raise ModelError(f"`x0` must have shape ({self.n_states},); got {x.shape}.")
-        with np.errstate(over="ignore", invalid="ignore"):  # divergence is reported below
-            y, _ = simulate_discrete(model.A, model.B, model.C, model.D, uu, x)
-        return check_response(y, self.poles(), self.dt) if not np.isfinite(y).all() else y
+        return simulate_statespace(self, u, x0, dt)
 
     # ------------------------------------------------------------ conversion
     def c2d(self, dt: float, method: str = "zoh") -> StateSpaceModel:
@@ -277,17 +221,8 @@ class StateSpaceModel:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.lti/1`` dictionary (keys in file order)."""
-        return {
-            "format": LTI_FORMAT,
-            "kind": "statespace",
-            "dt": self.dt,
-            "A": self.A.tolist(),
-            "B": self.B.tolist(),
-            "C": self.C.tolist(),
-            "D": self.D.tolist(),
-            "inputs": list(self.inputs),
-            "outputs": list(self.outputs),
-        }
+        arrays = {"A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "D": self.D.tolist()}
+        return lti_dict("statespace", self.dt, arrays, self.inputs, self.outputs)
 
     def to_json(self) -> str:
         """The ``stageid.lti/1`` text (byte-stable: ``from_json(s).to_json() == s``)."""
@@ -331,14 +266,8 @@ class TransferMatrix:
         return html_repr(self)
 
     def __post_init__(self) -> None:
-        nums, dens = as_transfer_entries(self.num, self.den)
-        p, m = len(nums), len(nums[0])
-        set_ = object.__setattr__
-        set_(self, "num", nums)
-        set_(self, "den", dens)
-        set_(self, "dt", as_dt(self.dt))
-        set_(self, "inputs", as_names("inputs", self.inputs, m, "u"))
-        set_(self, "outputs", as_names("outputs", self.outputs, p, "y"))
+        for name, value in transfer_fields(self.num, self.den, self.dt, self.inputs, self.outputs).items():
+            object.__setattr__(self, name, value)
 
     # ---------------------------------------------------------------- basics
     @property
@@ -369,27 +298,11 @@ class TransferMatrix:
 
         Infinite or NaN only where a frequency is exactly a pole; high orders do not overflow.
         """
-        v = frequency_variable(freqs_hz, self.dt)
-        out = np.empty((v.size, self.n_outputs, self.n_inputs), dtype=complex)
-        for i in range(self.n_outputs):
-            for j in range(self.n_inputs):
-                out[:, i, j] = cv.rational_response(self.num[i][j], self.den[i][j], v)
-        return out
+        return cv.transfer_response(self.num, self.den, frequency_variable(freqs_hz, self.dt))
 
     def dc_gain(self) -> np.ndarray:
         """Static gain, ndarray of shape (n_outputs, n_inputs); ModelError for a pole at DC."""
-        v = 0.0 if self.dt is None else 1.0
-        out = np.empty((self.n_outputs, self.n_inputs))
-        for i in range(self.n_outputs):
-            for j in range(self.n_inputs):
-                d = np.polyval(self.den[i][j], v)
-                n = np.polyval(self.num[i][j], v)
-                if abs(d) <= 1e-14 * max(1.0, np.max(np.abs(self.den[i][j]))):
-                    if abs(n) > 1e-14:
-                        raise ModelError(f"the DC gain of entry [{i}][{j}] is infinite: it has a pole at DC.")
-                    raise ModelError(f"entry [{i}][{j}] is 0/0 at DC: cancel the common root first.")
-                out[i, j] = n / d
-        return out
+        return cv.transfer_dc_gain(self.num, self.den, self.dt)
 
     def poles(self) -> np.ndarray:
         """Poles of the minimal realisation of the whole matrix (shared poles counted once)."""
@@ -421,28 +334,15 @@ class TransferMatrix:
         continuous ones are simulated through their state-space form under ZOH.  A response
         that diverges (an unstable model) raises ModelError naming the sample.
         """
-        uu = input_samples(u, self.n_inputs)
-        if self.dt is None:
-            return self.to_statespace(minimal=False).simulate(uu, dt=dt)
-        check_same_dt(dt, self.dt)
-        y = cv.filter_entries(self.num, self.den, uu)
-        if not np.isfinite(y).all():
-            poles = [self.entry_poles(i, j) for i in range(self.n_outputs) for j in range(self.n_inputs)]
-            return check_response(y, np.concatenate(poles), self.dt)
-        return y
+        return simulate_transfer(self, u, dt)
 
     # ------------------------------------------------------------ conversion
     def to_statespace(self, minimal: bool = True) -> StateSpaceModel:
         """A state-space realisation: one controllable-canonical block per entry, then
         (by default) reduced to a minimal realisation."""
         A, B, C, D = cv.tf2ss(self.num, self.den)
-        if minimal and A.shape[0]:
-            # balanced first: a continuous entry's companion block carries coefficients up to w^n
-            # (~1e12 for a third-order coupling at 2000 rad/s), and the minimal realisation's
-            # threshold, relative to that norm, called every state of such a plant unobservable
-            A, scaling = sla.matrix_balance(A, permute=False)
-            d = np.diag(scaling)
-            B, C = B / d[:, None], C * d[None, :]
+        if minimal:
+            A, B, C = cv.balanced(A, B, C)
         model = StateSpaceModel(A, B, C, D, self.dt, self.inputs, self.outputs)
         return model.minimal() if minimal else model
 
@@ -491,15 +391,8 @@ class TransferMatrix:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``stageid.lti/1`` dictionary (keys in file order)."""
-        return {
-            "format": LTI_FORMAT,
-            "kind": "transfer",
-            "dt": self.dt,
-            "num": [[e.tolist() for e in row] for row in self.num],
-            "den": [[e.tolist() for e in row] for row in self.den],
-            "inputs": list(self.inputs),
-            "outputs": list(self.outputs),
-        }
+        coefficients = {key: [[e.tolist() for e in row] for row in getattr(self, key)] for key in ("num", "den")}
+        return lti_dict("transfer", self.dt, coefficients, self.inputs, self.outputs)
 
     def to_json(self) -> str:
         """The ``stageid.lti/1`` text (byte-stable)."""

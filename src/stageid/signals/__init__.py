@@ -17,8 +17,8 @@ Broadband random (``random``)
 ``band_limited_random``  Gaussian noise with no FFT energy outside ``[f_low, f_high]``
 ``prbs``                 maximum-length (LFSR) or random binary sequence, multi-channel
 
-Periodic (``periodic``, ``multisine``)
-======================================
+Periodic (``periodic``, ``multisine``, ``multisine_design``)
+============================================================
 ``sine``                 sine wave
 ``triangle``             triangle wave in phase with ``sine``
 ``multisine``            random-phase or Schroeder multisine: detection lines, realisations, MIMO

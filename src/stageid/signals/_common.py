@@ -137,6 +137,15 @@ def check_limits(signal: np.ndarray, limits: tuple[float, float] | None, name: s
         raise SignalError(f"{name} spans [{x_lo:.6g}, {x_hi:.6g}]{u} but limits are [{lo:.6g}, {hi:.6g}]{u}.")
 
 
+def as_channels(x: np.ndarray, channels: int | None, limits: tuple[float, float] | None, name: str) -> np.ndarray:
+    """A generator's output ``x`` (n_samples, n_channels): 1-D when no channel count was asked
+    (``channels`` None), after :func:`check_limits`."""
+    if channels is None:
+        x = x[:, 0]
+    check_limits(x, limits, name)
+    return x
+
+
 def _parse_limits(limits: Any, name: str) -> tuple[float, float]:
     try:
         lo, hi = limits

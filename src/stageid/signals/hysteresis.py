@@ -341,6 +341,17 @@ def forc_staircase(
 
     n = n_from_duration(wait + n_r / f, step, name)
     n_idle = int(round(wait / step))
+    index, w = _forc_cycles(n, step, n_idle, f, n_r, shape)
+    peaks = lo + (hi - lo) * np.arange(1, n_r + 1, dtype=float) / n_r
+    x = lo + (peaks[index] - lo) * w
+    x[:n_idle] = lo
+    check_limits(x, limits, name)
+    return x
+
+
+def _forc_cycles(n: int, step: float, n_idle: int, f: float, n_r: int, shape: str) -> tuple[np.ndarray, np.ndarray]:
+    """Every sample's cycle (0 .. n_r - 1, counted from the end of the idle part) and its height
+    in that cycle, 0 at the minimum to 1 at the reversal: straight ramps or a raised cosine."""
     cycles = (np.arange(n, dtype=float) * step - n_idle * step) * f
     index = np.clip(np.floor(cycles + 1e-9).astype(int), 0, n_r - 1)
     u = cycles - index  # position within the cycle, 0..1
@@ -348,9 +359,4 @@ def forc_staircase(
         w = 1.0 - np.abs(2.0 * u - 1.0)
     else:
         w = 0.5 * (1.0 - np.cos(2.0 * np.pi * u))
-    w = np.clip(w, 0.0, 1.0)
-    peaks = lo + (hi - lo) * np.arange(1, n_r + 1, dtype=float) / n_r
-    x = lo + (peaks[index] - lo) * w
-    x[:n_idle] = lo
-    check_limits(x, limits, name)
-    return x
+    return index, np.clip(w, 0.0, 1.0)

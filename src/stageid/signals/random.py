@@ -13,11 +13,11 @@ import numpy as np
 from .._errors import SignalError
 from ._common import (
     add_offset,
+    as_channels,
     check_choice,
     check_dt,
     check_finite,
     check_int,
-    check_limits,
     check_n_channels,
     check_n_samples,
     check_nonnegative,
@@ -110,6 +110,15 @@ def band_limited_random(
     channels = check_n_channels(n_channels, name, n)
     n_ch = 1 if channels is None else channels
 
+    x = _band_noise(n, step, lo, hi, n_ch, np.random.default_rng(check_seed(seed, name)), name)
+    return as_channels(add_offset(scale_to(x, rms, amplitude, name), off, name), channels, limits, name)
+
+
+def _band_noise(
+    n: int, step: float, lo: float, hi: float, n_ch: int, rng: np.random.Generator, name: str
+) -> np.ndarray:
+    """White Gaussian noise (n, n_ch) with every FFT line ``k / (n step)`` outside ``[lo, hi]`` set
+    to zero; SignalError when no line falls inside."""
     freqs = np.fft.rfftfreq(n, step)
     in_band = (freqs >= lo) & (freqs <= hi)
     if not np.any(in_band):
@@ -117,16 +126,9 @@ def band_limited_random(
             f"{name} needs at least one FFT line k/(n dt) (spacing {1 / (n * step):g} Hz) "
             f"in [{lo:g}, {hi:g}] Hz; got none (use more samples)."
         )
-    rng = np.random.default_rng(check_seed(seed, name))
-    white = rng.standard_normal((n, n_ch))
-    spectrum = np.fft.rfft(white, axis=0)
+    spectrum = np.fft.rfft(rng.standard_normal((n, n_ch)), axis=0)
     spectrum[~in_band, :] = 0.0
-    x = np.fft.irfft(spectrum, n=n, axis=0)
-    x = add_offset(scale_to(x, rms, amplitude, name), off, name)
-    if channels is None:
-        x = x[:, 0]
-    check_limits(x, limits, name)
-    return x
+    return np.fft.irfft(spectrum, n=n, axis=0)
 
 
 def prbs(
@@ -230,10 +232,7 @@ def prbs(
         bits = _mls_bits(n_bits, n_ch, order, seed, n)
 
     x = off + amp * (2.0 * np.repeat(bits, hold, axis=0)[:n].astype(float) - 1.0)
-    if channels is None:
-        x = x[:, 0]
-    check_limits(x, limits, name)
-    return x
+    return as_channels(x, channels, limits, name)
 
 
 def _mls_bits(n_bits: int, n_ch: int, order: Any, seed: Any, n: int) -> np.ndarray:

@@ -11,14 +11,15 @@ named function:
                          lag correlations), ``window_covariance`` (the lags a fit keeps),
                          ``theta_response`` (the eq. 9 model's frequency response),
                          ``chunked_statistics`` (records larger than memory)
-``map``                  2.3 MAP online estimation, eq. 16-18: ``posterior`` (prior,
-                         posterior, ``METHODS``), ``recursion`` (sample by sample),
-                         ``kernels`` (compiled)
+``map``                  2.3 MAP online estimation, eq. 16-18: ``prior`` (eq. 17's prior,
+                         ``METHODS``), ``posterior`` (the posterior, batch and update),
+                         ``recursion`` (sample by sample), ``kernels`` (compiled)
 ``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
                          routes), ``frequency_domain`` (the frequency
                          route), ``refinement``, ``weighting``
 ``selection``            3.2 choice of p and of the order by held-out prediction error;
-                         ``nested_horizons``, ``chunked_order``
+                         ``split`` (training / held-out statistics), ``nested_horizons``,
+                         ``chunked_order``
 ``uncertainty``          the posterior carried through the realisation to the realised
                          model (delta method or draws); ``grid_placement``,
                          ``realisation_bias``
@@ -26,6 +27,8 @@ named function:
                          ``stack_channel_models``)
 ``records``              mean removal, unit-RMS scaling, excited band of the records
 ``estimator``            the whole method: ``HankelMAP(...).fit(data)`` -> result
+``channel_fit``          one input group's steps in order: split and horizon, eq. 9,
+                         eq. 16-18, order, eq. 10-15
 ``chunked_fit``          the same on one record larger than memory
 ``result``               ``HankelMAPResult``: model, posterior, bands, ``update(new_data)``
 =======================  ===================================================================

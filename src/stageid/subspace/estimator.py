@@ -4,17 +4,17 @@
 
 1. ``hankel_toeplitz_statistics``: the normal-equation statistics of the Hankel-Toeplitz
    regression (eq. 9), from lag correlations; several records (e.g. one per excited input)
-   pool their windows (:mod:`.hankel_toeplitz`);
+   pool their windows (:mod:`.statistics.hankel_toeplitz`);
 2. ``map_posterior``: ``theta = [Gamma Phi D_p]`` by MAP (eq. 16-18, prior ``theta_0 = 0`` and
    a weak ``P_0``) or by batch least squares (flat prior, Lim, Phan & Longman), the prior picked
-   by ``method`` from ``METHODS`` (:mod:`.map_estimator`);
+   by ``method`` from ``METHODS`` (:mod:`.map.posterior`);
 3. ``realize``: the system matrices, with every output weighted by the inverse of its noise
-   standard deviation (:mod:`.weighting`), by the route picked by ``realization`` from
-   ``REALIZATIONS`` (:mod:`.realization`):
+   standard deviation (:mod:`.realisation.weighting`), by the route picked by ``realization`` from
+   ``REALIZATIONS`` (:mod:`.realisation.era`):
 
    * ``"frequency"`` (default): the response of the identified model over the excited band,
      realised by the frequency-domain counterpart of Lemma 1 and refined by an output-error
-     fit on that band (:mod:`.frequency_domain`, :mod:`.refinement`).  Band-limited records
+     fit on that band (:mod:`.realisation.frequency_domain`, :mod:`.realisation.refinement`).  Band-limited records
      (the paper's 1-100 Hz chirps at Ts = 2 ms) determine ``theta`` only up to directions
      without input energy, and those directions enter the Markov parameters: Lemma 1 on
      them is then off in band, while the in-band response of eq. 9 stays accurate;
@@ -25,7 +25,8 @@
    (eq. 19-22) when ``per_channel=True`` (:mod:`.channels`).
 
 The horizon and the order are chosen by held-out prediction error when ``"auto"``
-(:mod:`.selection`), with the outputs weighted by their noise as in the realisation.
+(:mod:`.selection`), with the outputs weighted by their noise as in the realisation.  Steps
+1-3 for one input group are :func:`~.channel_fit.fit_channel`.
 """
 
 from __future__ import annotations
@@ -35,46 +36,26 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._errors import DataError, ExcitationWarning, StabilityWarning
+from .._errors import DataError, StabilityWarning
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ..checks import check_band, is_integer
 from ..data.experiment import Experiment
-from ..models.statespace import StateSpaceModel
-from ..runtime.resources import require_memory
 from ..runtime.threads import single_blas_thread
-from ..validation.order_choice import poor_order_message
+from .channel_fit import fit_channel
 from .channels import channel_groups, stack_channel_models
 from .map.posterior import (
-    LS_RIDGE_STRENGTH,
-    LS_SINGULAR_PIVOT,
     METHODS,
     Prior,
-    map_posterior,
-    singular_pivot,
 )
-from .realisation.era import REALIZATIONS, realize
-from .realisation.refinement import refinement_bytes
+from .realisation.era import REALIZATIONS
 from .records import (
     as_records,
     check_continuation,
-    excited_band,
-    excited_lines,
     prepared_records,
     still_inputs,
     to_unit_rms,
 )
 from .result import ChannelFit, HankelMAPResult
-from .selection import (
-    SelectionTable,
-    horizon_candidates,
-    pooled_split,
-    select_horizon,
-    select_order,
-    split_statistics,
-)
-from .statistics.hankel_toeplitz import hankel_toeplitz_statistics, statistics_bytes
-from .statistics.theta_response import response_bytes
-from .statistics.window_covariance import WindowLags, window_lags
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -256,7 +237,7 @@ class HankelMAP(Estimator):
         fits = []
         for gi, (cols, recs) in enumerate(groups):
             prev = previous.channels[gi] if previous is not None else None
-            fits.append(self._fit_channel(recs, cols, orders[gi], first, prev, notes, su[cols], sy))
+            fits.append(fit_channel(self, recs, cols, orders[gi], first, prev, notes, su[cols], sy))
         model = stack_channel_models([f.model for f in fits], dt, first.input_names, first.output_names)  # eq. 20-22
         stable = model.is_stable()
         if not stable:
@@ -270,91 +251,7 @@ class HankelMAP(Estimator):
             model, tuple(fits), self.clone(), _diagnostics(fits, stable, notes), su.copy(), sy.copy()
         )
 
-    def _fit_channel(
-        self,
-        recs: list[tuple[np.ndarray, np.ndarray]],
-        cols: list[int],
-        order: int | str,
-        first: Experiment,
-        prev: ChannelFit | None,
-        notes: list[str],
-        su: np.ndarray,
-        sy: np.ndarray,
-    ) -> ChannelFit:
-        """One (sub-)model from records scaled to unit RMS (``su``, ``sy`` undo it): eq. 9 -> 16-18 -> 10-15."""
-        m, q, dt, lam = len(cols), first.n_outputs, first.dt, float(self.forgetting)
-        in_names = tuple(first.input_names[c] for c in cols)
-        prior_of = METHODS[self.method]
-        horizon, order = (prev.horizon, prev.order) if prev is not None else (self.horizon, order)
-        self._require_memory(recs, m, q, horizon, order)
-        # section 3.2: the horizon, given or chosen by held-out prediction error
-        train, val = {}, {}
-        horizon_table = order_table = None
-        cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
-        # one lag pass over the whole records serves their statistics, the kept WindowLags and
-        # (less the held-out segments') the training segments' statistics
-        pooled = prev is None and lam == 1.0  # a first fit without forgetting: whole-record statistics
-        whole = window_lags(recs, max(cands)) if pooled else None
-        if horizon == "auto" or order == "auto":
-            train, val = split_statistics(recs, cands, lam, self.validation_fraction, whole)
-        if horizon == "auto":
-            horizon, horizon_table = select_horizon(train, val, cands, lambda s: prior_of(s, self.prior, su, sy))
-        short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
-        if short:
-            raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
-        # eq. 9 (without forgetting, from the whole records' lag correlations taken above)
-        stats = pooled_split(train, val, horizon, recs, self.validation_fraction, whole) if pooled else None
-        if stats is None:
-            stats = hankel_toeplitz_statistics(recs, horizon, lam)
-        # eq. 16-18 (an update continues the previous posterior, which holds the prior)
-        if prev is None:
-            post = map_posterior(stats, prior_of(stats, self.prior, su, sy))
-            if self.method == "ls":
-                self._warn_singular(stats, horizon, notes)
-        else:
-            post = map_posterior(stats, None, prev.scaled_posterior, lam)
-        band = prev.band if prev is not None else excited_band(stats, dt, self.band, notes)
-        freqs = np.linspace(band[0], band[1], self.n_frequencies)
-        if order == "auto":  # section 3.2: the order by held-out simulation error
-            if horizon not in train:
-                raise DataError(
-                    "the records are too short to hold out data for choosing the order; give `order` explicitly."
-                )
-            post_train = map_posterior(train[horizon], prior_of(train[horizon], self.prior, su, sy))
-            order, order_table = select_order(
-                post_train, self.max_order, freqs, dt, recs, self.validation_fraction, **self._realize_settings()
-            )
-        _warn_held_out(horizon_table, order_table, in_names, notes)
-        # eq. 10-15 or the frequency route; back to the data's units (u_s = u / su, y_s = y / sy)
-        model, cost = realize(post, int(order), freqs, dt, **self._realize_settings())
-        model = StateSpaceModel(
-            model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :], dt
-        )
-        if model.n_states and excited_lines(stats) * m < int(order) / 2:
-            msg = (
-                f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
-                f"the data are not persistently exciting."
-            )
-            _excitation_warning(msg, notes, stacklevel=6)
-        return ChannelFit(
-            in_names,
-            first.output_names,
-            post,
-            horizon,
-            int(order),
-            band,
-            model.with_names(in_names, first.output_names),
-            horizon_table,
-            order_table,
-            cost,
-            scales=(su.copy(), sy.copy()),
-            window_lags=_kept_lags(whole, recs, horizon) if pooled else None,
-        )
-
     # ----------------------------------------------------------------- helpers
-    def _realize_settings(self) -> dict:
-        return {"realization": self.realization, "feedthrough": self.feedthrough, "refine": self.refine}
-
     def _orders(self, n_groups: int) -> list[int | str]:
         o = self.order
         if isinstance(o, (list, tuple)):
@@ -365,60 +262,6 @@ class HankelMAP(Estimator):
                 )
             return [int(v) for v in o]
         return [o if o == "auto" else int(o)] * n_groups
-
-    def _require_memory(self, recs, m: int, q: int, horizon: int | str, order: int | str) -> None:
-        """Refuse (ResourceError) a horizon, order and frequency count that would not fit in memory."""
-        lengths = [u.shape[0] for u, _ in recs]
-        p = max(horizon_candidates(m, q, lengths)) if horizon == "auto" else int(horizon)
-        n = self.max_order if order == "auto" else int(order)
-        nz = int(self.n_frequencies)
-        need = statistics_bytes(p, m, q) + response_bytes(p, m, q, nz)
-        if self.realization == "frequency" and self.refine:
-            need += refinement_bytes(n, m, q, nz)
-        require_memory(
-            need, f"HankelMAP with horizon {p}, order {n} and {nz} frequencies on {m} inputs and {q} outputs"
-        )
-
-    def _warn_singular(self, stats, horizon: int, notes: list[str]) -> None:
-        pivot = singular_pivot(stats)
-        if pivot is not None:
-            msg = (
-                f"the least-squares normal equations of horizon {horizon} are singular (smallest relative pivot "
-                f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
-                f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate."
-            )
-            _excitation_warning(msg, notes, stacklevel=7)
-
-
-def _kept_lags(whole: WindowLags | None, recs, horizon: int) -> WindowLags | None:
-    """The fit's :class:`WindowLags` at ``horizon``, from those of the largest candidate when
-    the records held them."""
-    return whole.at(horizon) if whole is not None and whole.horizon >= horizon else window_lags(recs, horizon)
-
-
-def _excitation_warning(msg: str, notes: list[str], stacklevel: int) -> None:
-    """Keep ``msg`` in the result's notes and warn with it (``stacklevel`` counted from here)."""
-    notes.append(msg)
-    warnings.warn(msg, ExcitationWarning, stacklevel=stacklevel)
-
-
-def _warn_held_out(horizon_table: SelectionTable | None, order_table: SelectionTable | None, in_names, notes) -> None:
-    """Warn when a chosen horizon or order predicts the held-out data worse than zero."""
-    for table in (horizon_table, order_table):
-        if table is not None:
-            err = table.errors[table.values.index(table.chosen)]
-            if err < 1.0:
-                continue
-            advice = (
-                f"it predicts the held-out data worse than zero (inputs {list(in_names)}): the records are too short "
-                f"or too little excited for this model."
-            )
-            if table.kind == "order":  # one shape with every estimator's order warning
-                measure = f"has held-out error {err:.3g}"
-                msg = poor_order_message("HankelMAP", table.chosen, table.values, measure, "< 1", advice)
-            else:
-                msg = f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1); {advice}"
-            _excitation_warning(msg, notes, stacklevel=7)
 
 
 def _diagnostics(fits: list[ChannelFit], stable: bool, notes: list[str]) -> dict:

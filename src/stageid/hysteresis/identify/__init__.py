@@ -5,15 +5,16 @@ The letter's identification, one step per module (``PIIdentifier.fit`` calls the
 =============================  ==============================================================
 module                         what it holds
 =============================  ==============================================================
-:mod:`.pi`                     ``PIIdentifier``, ``HysteresisFit``: steps 1-5 in order (step 1,
-                               equally spaced thresholds, is a line there)
+:mod:`.pi`                     ``PIIdentifier``: steps 1-5 in order (step 1, equally spaced
+                               thresholds, is a line there)
 :mod:`.weights`                step 2: operator weights by constrained least squares
                                (invertibility bounds)
 :mod:`.threshold_search`       step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
 :mod:`.records`                step 4: records, starting states, per-record errors,
                                ``align_record``
 :mod:`.weight_uncertainty`     covariance of the weights (block-robust least squares)
-:mod:`.preisach`               ``PreisachIdentifier``, ``PreisachFit``: NNLS cell weights with a
-                               smoothness penalty
+:mod:`.preisach`               ``PreisachIdentifier``: NNLS cell weights with a smoothness
+                               penalty
+:mod:`.result`                 ``HysteresisFit``, ``PreisachFit``: the model, per-record errors
 =============================  ==============================================================
 """

@@ -57,7 +57,7 @@ end of the identified range), with the output offset of the first record; use
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -65,10 +65,8 @@ import numpy as np
 from ..._errors import DataError
 from ...base import Boolean, Estimator, Interval, Options, Satisfies
 from ...checks import is_positive_sequence, is_real
-from ...display import html_repr, short_repr
 from ...runtime.resources import require_memory, require_work
 from ...runtime.threads import single_blas_thread
-from ...validation.edges import EdgeError
 from ..models.creep import CreepTerm
 from .records import (
     STATE_CHOICES,
@@ -80,8 +78,9 @@ from .records import (
     record_residuals,
     sampling_period,
 )
+from .result import HysteresisFit
 from .threshold_search import search_thresholds
-from .weight_uncertainty import UNCERTAINTY_METHODS, WeightUncertainty, weight_uncertainty
+from .weight_uncertainty import UNCERTAINTY_METHODS, weight_uncertainty
 from .weights import WeightProblem
 
 __all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
@@ -104,78 +103,6 @@ def _is_range(value: Any) -> bool:
         and all(is_real(v) for v in value)
         and float(value[0]) < float(value[1])
     )
-
-
-@dataclass(frozen=True)
-class HysteresisFit:
-    """Result of :meth:`PIIdentifier.fit` (no training data kept).
-
-    Attributes
-    ----------
-    model : PIModel or ModifiedPIModel
-        The identified model.
-    max_error_percent, rms_error_percent : tuple of float
-        Per identification record, in % of that record's output range.
-    output_offsets : tuple of float
-        Fitted output offset of each record.
-    initial_states : tuple of str
-        Starting-state kind of each record.
-    n_evaluations : int
-        Weight fits done by the nonlinear search (0 for the classical model).
-    success : bool
-        False when the nonlinear search stopped on its evaluation limit (the model is still the
-        best found and never worse than the classical fit it started from).
-    message : str
-    weight_uncertainty : WeightUncertainty or None
-        Covariance of the weights (when asked for; :mod:`.weight_uncertainty`), with the band
-        of a simulated output by ``weight_uncertainty.output_band(model, u)``.
-    edge_errors : tuple of (int, EdgeError)
-        Records whose error concentrates at their start or end, with the trim that removes it
-        (:mod:`stageid.validation.edges`); the summary prints them.
-    """
-
-    model: Any
-    max_error_percent: tuple[float, ...]
-    rms_error_percent: tuple[float, ...]
-    output_offsets: tuple[float, ...]
-    initial_states: tuple[str, ...]
-    n_evaluations: int
-    success: bool
-    message: str
-    weight_uncertainty: WeightUncertainty | None = None
-    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
-
-    def __repr__(self) -> str:
-        return short_repr(self)
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
-
-    def summary(self) -> str:
-        """A short text report."""
-        kind = self.model.kind
-        lines = [f"{kind} model, {self.model.n_operators} operators; fit on {len(self.max_error_percent)} record(s)"]
-        for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
-            lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
-        lines += [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors]
-        if kind == "modified-pi":
-            lines.append(
-                f"  rc/r = {_ratio(self.model.rc, self.model.r):.4f}, ra/r = {_ratio(self.model.ra, self.model.r):.4f}, "
-                f"rb/ra = {_ratio(self.model.rb, self.model.ra):.4f}, centre = {self.model.input_offset:.6g}, "
-                f"input warp = {self.model.input_warp:.4f}"
-            )
-        creep = getattr(self.model, "creep", None)
-        if creep is not None:
-            lines.append(
-                "  creep: " + ", ".join(f"{c:.4g} at {t:g} s" for t, c in zip(creep.time_constants, creep.weights))
-            )
-        lines.append(f"  {self.message}")
-        return "\n".join(lines)
-
-
-def _ratio(a: np.ndarray, b: np.ndarray) -> float:
-    k = b > 0
-    return float(np.median(a[k] / b[k])) if np.any(k) else float("nan")
 
 
 class PIIdentifier(Estimator):

@@ -18,7 +18,6 @@ decomposition (``||A w - b|| = ||R w - Q'b||`` up to a constant) and ``scipy.opt
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,10 +25,9 @@ import numpy as np
 from ..._errors import DataError, IdentificationError
 from ...base import Estimator, Interval, Satisfies
 from ...checks import is_real
-from ...display import html_repr, short_repr
-from ...validation.edges import EdgeError
 from ..models.preisach import PreisachModel
 from .records import error_percents, read_records, record_edges
+from .result import PreisachFit
 
 __all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences", "filled_cells"]
 
@@ -85,47 +83,6 @@ def filled_cells(R: np.ndarray, lam: float, D: np.ndarray) -> int:
     except np.linalg.LinAlgError:  # a grid too small for second differences, records that miss cells
         res = np.diag(np.linalg.lstsq(G + lam * (D.T @ D), G, rcond=None)[0])
     return int(np.sum(res < FILLED_RESOLUTION))
-
-
-@dataclass(frozen=True)
-class PreisachFit:
-    """Result of :meth:`PreisachIdentifier.fit` (no training data kept).
-
-    Attributes
-    ----------
-    model : PreisachModel
-    max_error_percent, rms_error_percent : tuple of float
-        Per record, in % of that record's output range.
-    output_offsets : tuple of float
-        Fitted output offset of each record.
-    filled_cells : int
-        Cells the records leave (nearly) undetermined, whose weights the smoothness prior set.
-    edge_errors : tuple of (int, EdgeError)
-        Records whose error concentrates at their start or end, with the trim that removes it
-        (:mod:`stageid.validation.edges`); the summary prints them.
-    """
-
-    model: PreisachModel
-    max_error_percent: tuple[float, ...]
-    rms_error_percent: tuple[float, ...]
-    output_offsets: tuple[float, ...]
-    filled_cells: int = 0
-    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
-
-    def __repr__(self) -> str:
-        return short_repr(self)
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
-
-    def summary(self) -> str:
-        errs = ", ".join(
-            f"{m:.3f} % max / {r:.3f} % rms" for m, r in zip(self.max_error_percent, self.rms_error_percent)
-        )
-        head = f"Preisach model, {self.model.n_levels} levels ({self.model.n_operators} cells): {errs}"
-        if self.filled_cells:
-            head += f"; the smoothness prior filled {self.filled_cells} cells the records leave undetermined"
-        return "\n".join([head] + [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors])
 
 
 class PreisachIdentifier(Estimator):

@@ -4,7 +4,9 @@
 module                what it holds
 ====================  ==================================================================
 :mod:`.operators`     eq. 1-2 play and eq. 3 coupled-play operators, plain-Python references
-:mod:`.pi`            eq. 4: ``PIModel`` (classical) and ``ModifiedPIModel``
+:mod:`.pi_base`       what every PI model shares: operator bank, state, run, file fields
+:mod:`.pi`            eq. 1: ``PIModel`` (classical; ``ModifiedPIModel`` re-exported)
+:mod:`.modified_pi`   eq. 4: ``ModifiedPIModel`` (coupled-play operators, input warp)
 :mod:`.creep`         ``CreepTerm``: linear creep as first-order lags of the input (our extension)
 :mod:`.preisach`      ``PreisachModel`` (uniform cells on a triangular grid), ``everett``
 :mod:`.serialization`  the ``stageid.hysteresis/1`` JSON format, ``model_from_dict``,
@@ -12,7 +14,8 @@ module                what it holds
 :mod:`.common`        input and state checks shared by the models, inverses and compensator
 ====================  ==================================================================
 
-Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi`` -> ``serialization`` (``preisach``
+Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi_base`` -> ``modified_pi`` -> ``pi`` ->
+``serialization`` (``preisach``
 calls its number helpers when it writes itself).  The compiled loops are
 :mod:`stageid.hysteresis.kernels`.
 """

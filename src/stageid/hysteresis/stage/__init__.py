@@ -31,10 +31,14 @@ module                         what it holds
 ``__init__`` (here)            ``StageModel`` (kind ``stage`` of the JSON format)
 :mod:`.dynamics`               unit-DC-gain discrete dynamics: fits and filtering
 :mod:`.disturbance_modes`      lightly damped modes from the records' disturbance spectrum
-:mod:`.identification`         ``StageIdentifier``, ``StageFit``: hysteresis first, then
-                               weights / creep / dynamics alternated; auto order and creep
-:mod:`.problem`                ``StageProblem``: that alternation for fixed thresholds (step 2)
-:mod:`.preisach`               step 2 with a Preisach hysteresis (``PreisachStageProblem``)
+:mod:`.disturbance_spectrum`   that spectrum: each residual's Welch PSD, drive harmonics out
+:mod:`.identification`         ``StageIdentifier``: hysteresis first, then weights / creep /
+                               dynamics alternated; auto order and creep
+:mod:`.result`                 ``StageFit``: the model, its errors, the candidates' scores
+:mod:`.problem`                ``StageProblem``: that alternation for fixed thresholds (step 2),
+                               the hysteresis side plugged in as a strategy
+:mod:`.pi_columns`             step 2's PI side: operator columns, the invertible weight fit
+:mod:`.preisach`               step 2's Preisach side: cell states, the smoothed NNLS fit
 :mod:`.selection`              held-out evidence for the order, the creep and the modes
 :mod:`.validation`             a stage model on a record that starts mid-history
 :mod:`.inverse`                offline stage feedforward (stable inversion, then the

@@ -65,6 +65,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .disturbance_spectrum import (
+    LINE_HALF_WIDTH,
+    LINE_SPACING,
+    MIN_SEGMENTS,
+    SEGMENT_SECONDS,
+    on_common_grid,
+    record_spectrum,
+    residual_spectra,
+    segment_samples,
+)
 from .dynamics import zoh_resonance
 
 __all__ = [
@@ -90,14 +100,6 @@ __all__ = [
     "numerical_floor",
 ]
 
-#: A record whose drive fundamental spans at least this many bins leaves out its harmonics ...
-LINE_SPACING = 5
-#: ... within this many bins.
-LINE_HALF_WIDTH = 2
-#: Welch segment length [s] (about 10 Hz resolution).
-SEGMENT_SECONDS = 0.1
-#: Fewest Welch segments (half overlap) a record needs to take part.
-MIN_SEGMENTS = 4
 #: Search band as fractions of the sampling rate.
 BAND = (0.02, 0.4)
 #: A local maximum of the detection spectrum at least this far above the floor is fitted.
@@ -137,57 +139,6 @@ class DisturbanceMode:
     frequency_hz: float
     damping: float
     peak_ratio: float
-
-
-def _segment(dt: float) -> int:
-    return int(2 ** round(np.log2(SEGMENT_SECONDS / dt)))
-
-
-def record_spectrum(e: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """``(f, P, nper)``: one residual's Welch PSD on its own bins, NaN on the bins of its drive's
-    harmonics, and its segment length (rule 2); None for a record too short to take part."""
-    from scipy.signal import welch
-
-    base = _segment(dt)
-    f0 = _fundamental(np.asarray(u, float), dt)
-    # segments long enough that the harmonics are LINE_SPACING bins apart
-    nper = base if f0 <= 0 else max(base, int(2 ** np.ceil(np.log2(LINE_SPACING / (f0 * dt)))))
-    if e.size < nper * (MIN_SEGMENTS + 1) // 2:
-        return None
-    ff, p = welch(np.asarray(e, float) - np.mean(e), fs=1.0 / dt, window="hann", nperseg=nper)
-    if f0 > 0:
-        k = np.round(ff / f0)
-        p = np.where((k >= 1) & (np.abs(ff - k * f0) <= LINE_HALF_WIDTH * (ff[1] - ff[0])), np.nan, p)
-    return ff, p, nper
-
-
-def residual_spectra(residuals: list[np.ndarray], drives: list[np.ndarray], dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(f, P)``: the common frequency grid and the residuals' PSDs on it, one row per record
-    that takes part, NaN where a record has only harmonic bins (rules 2-3)."""
-    own = [record_spectrum(e, u, dt) for e, u in zip(residuals, drives)]
-    return _on_common_grid([sp for sp in own if sp is not None], dt)
-
-
-def _on_common_grid(spectra: list, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    f = np.fft.rfftfreq(_segment(dt), dt)
-    df = f[1] - f[0]
-    rows = []
-    for ff, p, _ in spectra:
-        # the mean of the kept fine bins within every common bin
-        idx = np.clip(np.round(ff / df).astype(int), 0, f.size - 1)
-        kept = ~np.isnan(p)
-        total = np.bincount(idx[kept], p[kept], minlength=f.size)
-        count = np.bincount(idx[kept], minlength=f.size)
-        rows.append(np.where(count > 0, total / np.maximum(count, 1), np.nan))
-    return f, np.array(rows).reshape(len(rows), f.size)
-
-
-def _fundamental(u: np.ndarray, dt: float) -> float:
-    """The drive's strongest frequency, from its whole-record spectrum zero-padded 8 times (the
-    harmonics ``k f0`` need ``f0`` far finer than a Welch bin)."""
-    n = 8 * u.size
-    spec = np.abs(np.fft.rfft((u - u.mean()) * np.hanning(u.size), n))
-    return float(np.argmax(spec[1:]) + 1) / (n * dt)
 
 
 def _detection_spectrum(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -243,7 +194,7 @@ def _fit_peak(
     from scipy.optimize import least_squares
 
     over = 8
-    nper = _segment(dt)
+    nper = segment_samples(dt)
     df = f[1] - f[0]
     kernel = _hann_kernel(nper, over)
     m = (f >= fp / SPAN) & (f <= fp * SPAN) & (s > 0) & measured
@@ -290,7 +241,7 @@ def disturbance_modes(
         default the largest absolute residual (a floor that only rules out pure rounding).
     """
     own = [sp for sp in (record_spectrum(e, u, dt) for e, u in zip(residuals, drives)) if sp is not None]
-    f, P = _on_common_grid(own, dt)
+    f, P = on_common_grid(own, dt)
     if P.shape[0] == 0:
         return ()
     s, measured = _detection_spectrum(P)

@@ -155,17 +155,16 @@ def fit_unit_gain_dynamics(
 
 def transfer_to_statespace(b: np.ndarray, a: np.ndarray, dt: float, inputs=("v",), outputs=("y",)):
     """A discrete :class:`~stageid.models.StateSpaceModel` of ``B(z)/A(z)`` (coefficients in ``z^-1``)."""
-    from scipy.signal import tf2ss
-
     from ...models import StateSpaceModel
+    from ...models.conversions import tf2ss_siso
 
     b = np.asarray(b, dtype=float)
     a = np.asarray(a, dtype=float)
     if a.size < 2:
         raise ModelError(f"dynamics need order >= 1; got a denominator of {a.size} coefficient(s).")
-    with warnings.catch_warnings():  # tf2ss warns on a leading zero numerator coefficient (b_0 = 0)
+    with warnings.catch_warnings():  # scipy warns on trimming a tiny fitted b_0 (a one-sample delay)
         warnings.simplefilter("ignore")
-        A, B, C, D = tf2ss(b, a)
+        A, B, C, D = tf2ss_siso(b, a)
     return StateSpaceModel(A, B, C, D, dt=dt, inputs=inputs, outputs=outputs)
 
 

@@ -17,7 +17,7 @@ Procedure (:meth:`StageIdentifier.fit`):
    weights ``G`` is an output-error fit of ``v = Z w + L c`` to ``y - o``
    (:func:`~.dynamics.fit_unit_gain_dynamics`).  ``N_ALTERNATIONS`` rounds, each of both steps,
    from three starts (``G = 1``; the over-parametrised fit :func:`~.dynamics.fit_hammerstein`;
-   the variable-projection fit :func:`~.stage_problem.refine_output_error`), keeping the least
+   the variable-projection fit :func:`~.problem.refine_output_error`), keeping the least
    residual: never worse than no dynamics on the fitted rows.
 3. **Order and creep by held-out evidence** (:mod:`.stage_selection`): every candidate is
    fitted on all records but one and scored by its RMS error on the one left out (own
@@ -52,7 +52,7 @@ model (zero state, first record's offset).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import partial
 from typing import Any
 
@@ -60,28 +60,24 @@ import numpy as np
 
 from ...base import Boolean, Estimator, Interval, Options, Satisfies
 from ...checks import is_positive_sequence
-from ...display import html_repr, short_repr
 from ...runtime.threads import single_blas_thread
-from ...validation.edges import EdgeError
 from ..identify.pi import MODEL_KINDS, PIIdentifier
 from ..identify.preisach import PreisachIdentifier
 from ..identify.records import STATE_CHOICES, error_percents, read_records, record_edges, sampling_period
-from . import StageModel
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
-from .dynamics import describe_pole
 from .inverse import invert_dynamics
-from .preisach import PreisachStageProblem, best_start_kinds
-from .problem import N_ALTERNATIONS, StageProblem
+from .pi_columns import N_ALTERNATIONS, PIColumns
+from .preisach import PreisachColumns, best_start_kinds
+from .problem import StageProblem
+from .result import SUMMARY_CANDIDATES, StageFit
 from .selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
 
-__all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP"]
+__all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP", "SUMMARY_CANDIDATES"]
 
 AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
 #: At least this many samples per dynamics coefficient (2n + 1 of them) in every record.
 SAMPLES_PER_COEFFICIENT = 50
-#: Held-out candidates that :meth:`StageFit.summary` lists (the best ones; the chosen one too).
-SUMMARY_CANDIDATES = 3
 #: ``progress(step, done, total)`` of :meth:`StageIdentifier.fit`.
 Progress = Callable[[str, int, int], None]
 
@@ -96,100 +92,6 @@ def _dynamics_ok(value: Any) -> bool:
 
 def _creep_ok(value: Any) -> bool:
     return value is None or (isinstance(value, str) and value == "auto") or is_positive_sequence(value)
-
-
-@dataclass(frozen=True)
-class StageFit:
-    """Result of :meth:`StageIdentifier.fit` (no training data kept).
-
-    Attributes
-    ----------
-    model : StageModel
-    max_error_percent, rms_error_percent : tuple of float
-        Per record, in % of that record's output range (own offset and starting state).
-    output_offsets : tuple of float
-    initial_states : tuple of str
-    dynamics_order : int
-        0: no dynamics.
-    creep_time_constants : tuple of float
-        Empty: no creep.
-    held_out : tuple of (int, tuple of float, float)
-        ``(order, creep time constants, held-out RMS % summed over folds)`` per candidate when
-        something was ``"auto"``; empty otherwise.
-    message : str
-    modes : tuple of DisturbanceMode
-        The modes of the dynamics taken from the records' disturbance spectrum (step 4).
-    edge_errors : tuple of (int, EdgeError)
-        Records whose error concentrates at their start or end, with the trim that removes it
-        (:mod:`stageid.validation.edges`); the summary prints them.
-    chosen : (int, tuple of float) or None
-        The ``(order, creep time constants)`` that step 3 chose among ``held_out`` (the
-        dynamics' order before any modes; the fitted model may have dropped the dynamics).
-    """
-
-    model: StageModel
-    max_error_percent: tuple[float, ...]
-    rms_error_percent: tuple[float, ...]
-    output_offsets: tuple[float, ...]
-    initial_states: tuple[str, ...]
-    dynamics_order: int
-    creep_time_constants: tuple[float, ...]
-    held_out: tuple[tuple[int, tuple[float, ...], float], ...]
-    message: str
-    modes: tuple[DisturbanceMode, ...] = ()
-    edge_errors: tuple[tuple[int, EdgeError], ...] = ()
-    chosen: tuple[int, tuple[float, ...]] | None = None
-
-    def __repr__(self) -> str:
-        return short_repr(self)
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
-
-    def summary(self) -> str:
-        """A short text report."""
-        h = self.model.hysteresis
-        size = f"{h.n_levels} levels" if h.kind == "preisach" else f"{h.n_operators} operators"
-        lines = [
-            f"stage model: {h.kind} hysteresis, {size}; creep "
-            + (", ".join(f"{t:g} s" for t in self.creep_time_constants) or "none")
-            + f"; dynamics order {self.dynamics_order}; fit on {len(self.max_error_percent)} record(s)"
-        ]
-        for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
-            lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
-        lines += [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors]
-        if self.model.dynamics is not None:
-            # by frequency as the continuous equivalent has it; a pole at z = 0 has none and comes last
-            poles = sorted(self.model.dynamics.poles(), key=lambda z: abs(np.log(complex(z))) if z != 0 else np.inf)
-            lines.append("  dynamics poles at " + ", ".join(describe_pole(z, self.model.dt) for z in poles))
-        for m in self.modes:
-            lines.append(
-                f"  mode from the disturbance spectrum: {m.frequency_hz:.4g} Hz, damping {m.damping:.3g} "
-                f"(peak {m.peak_ratio:.3g} x the floor)"
-            )
-        lines += self.candidate_table(SUMMARY_CANDIDATES)
-        lines.append(f"  {self.message}")
-        return "\n".join(lines)
-
-    def candidate_table(self, best: int | None = None) -> list[str]:
-        """Lines of a table of the held-out candidates, best first: all of them, or the ``best``
-        few and the chosen one (a line then says how many were left out).  Empty without any."""
-        if not self.held_out:
-            return []
-        ranked = sorted(self.held_out, key=lambda c: c[2])
-        chosen = self.chosen
-        shown = [c for i, c in enumerate(ranked) if best is None or i < best or (c[0], tuple(c[1])) == chosen]
-        lines = ["  held-out RMS error (% of range, summed over the records left out) of the candidates:"]
-        lines.append(f"    {'order':>5}  {'creep time constants [s]':<26}  {'held-out RMS %':>14}")
-        for order, taus, score in shown:
-            creep = ", ".join(f"{t:g}" for t in taus) or "none"
-            mark = "  <- chosen" if (order, tuple(taus)) == chosen else ""
-            lines.append(f"    {order:>5}  {creep:<26}  {score:>14.3f}{mark}")
-        if len(shown) < len(ranked):
-            lines.append(
-                f"    ({len(ranked) - len(shown)} more of {len(ranked)} candidates not shown; the HTML report lists all)"
-            )
-        return lines
 
 
 class StageIdentifier(Estimator):
@@ -417,14 +319,14 @@ class StageIdentifier(Estimator):
         if self.model == "preisach":
             base = PreisachIdentifier(n_levels=self.n_levels, smoothing=self.smoothing).fit(data, inputs, outputs)
             kinds = best_start_kinds(base.model, recs, self.initial_state)
-            problem = PreisachStageProblem(base.model, recs, kinds, dt, self.smoothing)
+            problem = StageProblem(PreisachColumns(base.model, recs, kinds, self.smoothing), dt)
             return problem, kinds, f"Preisach grid of {self.n_levels} levels (rate-independent start {base.summary()})"
         base = PIIdentifier(
             self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
         ).fit(data, inputs, outputs)
         kinds = list(base.initial_states)
         return (
-            StageProblem(base.model, recs, kinds, dt),
+            StageProblem(PIColumns(base.model, recs, kinds), dt),
             kinds,
             f"hysteresis by PIIdentifier ({base.message.rstrip('.')})",
         )
@@ -437,7 +339,7 @@ class StageIdentifier(Estimator):
             self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
         ).fit(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
-        second = StageProblem(base.model, recs, kinds, dt)
+        second = StageProblem(PIColumns(base.model, recs, kinds), dt)
         w, c, offsets2, ba = second.solve(order, taus, everything)
         model2 = second.build(w, c, offsets2[0], taus, ba, *names)
         old = problem.errors(model, problem.offsets_of(model, recs))[1]

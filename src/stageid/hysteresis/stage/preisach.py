@@ -1,8 +1,9 @@
 """Step 2 of the stage identification with a Preisach hysteresis: cell weights, creep and dynamics.
 
-The Preisach output is linear in its cell weights (``y = y0 + Phi w``, :mod:`.preisach_identification`),
-so the alternation of :class:`~.stage_problem.StageProblem` carries over with the cell states
-``Phi_j`` of every record as the columns: for fixed ``G`` the weights solve
+The Preisach output is linear in its cell weights (``y = y0 + Phi w``, :mod:`..identify.preisach`),
+so the alternation of :class:`~.problem.StageProblem` carries over with the cell states
+``Phi_j`` of every record as the columns (:class:`PreisachColumns`, the strategy plugged into
+it): for fixed ``G`` the weights solve
 
     min_{w >= 0, c >= 0, o_j}  sum_j ||o_j + G[Phi_j w + L_j c] - y_j||^2 + lambda ||D w||^2
 
@@ -24,15 +25,12 @@ from ..._errors import IdentificationError
 from ..identify.preisach import second_differences
 from ..models.creep import CreepTerm
 from ..models.preisach import PreisachModel
-from . import StageModel
-from .dynamics import transfer_to_statespace
-from .problem import StageProblem
 
-__all__ = ["PreisachStageProblem", "preisach_cell_states", "best_start_kinds", "SEARCH_RANK", "MAX_ROWS", "GRID_POLES"]
+__all__ = ["PreisachColumns", "preisach_cell_states", "best_start_kinds", "SEARCH_RANK", "MAX_ROWS", "GRID_POLES"]
 
 #: Singular directions of the cell states the dynamics searches run on.
 SEARCH_RANK = 24
-#: Poles of the lag-and-delay starts of the alternation (:meth:`PreisachStageProblem.grid_starts`).
+#: Poles of the lag-and-delay starts of the alternation (:meth:`PreisachColumns.grid_starts`).
 GRID_POLES = (0.0, 0.5, 0.9)
 #: Least-squares rows per weight fit (evenly strided; the filters run over every sample).
 MAX_ROWS = 16000
@@ -48,41 +46,52 @@ def preisach_cell_states(u: np.ndarray, model: PreisachModel, kind: str) -> np.n
     return preisach_regressors(x, model.n_levels, lo, model.step, P, top, cur)
 
 
-class PreisachStageProblem(StageProblem):
-    """:class:`StageProblem` with Preisach cell states as the columns and non-negative weights."""
+class PreisachColumns:
+    """The Preisach cell states of every record and the non-negative, smoothed weight fit.
+
+    Parameters
+    ----------
+    hysteresis : PreisachModel
+        Step 1's model: its grid fixes the cells; its weights are refitted.
+    recs : list of (u, y)
+        The records, 1-D arrays each.
+    kinds : list of str
+        Each record's starting state (``"zero"``, ``"ascending"``, ``"descending"``).
+    smoothing : float
+        ``lambda`` of the second-difference penalty, relative to the mean diagonal of the
+        filtered cells' Gram matrix.
+    """
 
     # the searches see only the leading directions, so the alternation finishes the fit of G:
     # it runs until the residual settles (a few rounds on the FORC records, more on a resonance)
     n_alternations = 30
     settle = 1e-4
+    max_rows = MAX_ROWS
 
-    def __init__(self, hysteresis: PreisachModel, recs: list, kinds: list[str], dt: float, smoothing: float) -> None:
-        self.h = hysteresis
+    def __init__(self, hysteresis: PreisachModel, recs: list, kinds: list[str], smoothing: float) -> None:
+        self.model = hysteresis
         self.recs = recs
         self.kinds = kinds
-        self.dt = dt
         self.smoothing = float(smoothing)
         self.Z = [preisach_cell_states(u, hysteresis, kind) for (u, _), kind in zip(recs, kinds)]
         self.live = np.arange(hysteresis.n_operators)
-        self.classical = False
         self.D = second_differences(hysteresis.n_levels)
-        self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
 
-    def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
+    def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray], stride: int) -> list[np.ndarray]:
         """The cell states projected on their ``SEARCH_RANK`` leading right singular vectors (creep lags kept)."""
-        m = self.h.n_operators
-        stacked = np.vstack([c[np.flatnonzero(mk)[:: self.stride], :m] for c, mk in zip(cols, masks) if mk.any()])
+        m = self.model.n_operators
+        stacked = np.vstack([c[np.flatnonzero(mk)[::stride], :m] for c, mk in zip(cols, masks) if mk.any()])
         stacked = stacked - stacked.mean(axis=0)
         _, _, Vt = np.linalg.svd(stacked, full_matrices=False)
         V = Vt[: min(SEARCH_RANK, m)].T
         return [np.hstack([c[:, :m] @ V, c[:, m:]]) for c in cols]
 
-    def grid_starts(self, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
+    def grid_starts(self, problem: Any, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
         """The best of a few lag-and-delay filters (``z^-d (1 - p) / (1 - p z^-1)``, ``d <= order``,
         ``p`` in ``GRID_POLES``) by the weight fit's residual: the searches on the leading
         directions can end in a lead-lag when a plain delay of one sample fits far better (seen
         on the dSPACE FORC records, RESULTS.md section 4d)."""
-        nc = cols[0].shape[1] - self.h.n_operators
+        nc = cols[0].shape[1] - self.model.n_operators
         best = None
         for d in range(order + 1):
             for p in GRID_POLES:
@@ -90,14 +99,16 @@ class PreisachStageProblem(StageProblem):
                 b[d] = 1.0 - p
                 a = np.zeros(order + 1)
                 a[:2] = 1.0, -p
-                filtered = self.filtered((b, a), cols, masks)
-                w, off = self.solve_weights(filtered, masks, nc)
-                err = self.sse(filtered, masks, w, off)
+                filtered = problem.filtered((b, a), cols, masks)
+                w, off = problem.solve_weights(filtered, masks, nc)
+                err = problem.sse(filtered, masks, w, off)
                 if best is None or err < best[0]:
                     best = (err, (b, a))
         return [best[1]]
 
-    def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
+    def solve_weights(
+        self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int, stride: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """NNLS of the cell and creep weights with the smoothness penalty; one free offset per record."""
         from scipy.linalg import cho_factor, solve_triangular
         from scipy.optimize import nnls
@@ -108,7 +119,7 @@ class PreisachStageProblem(StageProblem):
         rhs = np.zeros(p)
         means = []
         for (_, y), c, mask in zip(self.recs, cols, masks):
-            idx = np.flatnonzero(mask)[:: self.stride]
+            idx = np.flatnonzero(mask)[::stride]
             if idx.size == 0:
                 means.append((np.zeros(p), 0.0))
                 continue
@@ -135,22 +146,21 @@ class PreisachStageProblem(StageProblem):
         offsets = np.array([my - mx @ w for mx, my in means])
         return w, offsets
 
-    def build(self, w, c, offset, taus, ba, in_name, out_name) -> StageModel:
+    def hysteresis(self, w, c, offset, taus, dt, in_name, out_name) -> tuple[PreisachModel, CreepTerm | None]:
+        """The Preisach model of the cell weights ``w``, and the creep of ``taus`` with weights ``c`` (or None)."""
         h = PreisachModel(
-            self.h.input_range,
+            self.model.input_range,
             np.maximum(w, 0.0),
             float(offset),
-            self.h.state,
+            self.model.state,
             (in_name,),
             (out_name,),
-            self.h.input_limits,
+            self.model.input_limits,
         )
         creep = None
         if taus:
-            creep = CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=self.dt)
-        ba = self.with_prefilter(ba)
-        dyn = None if ba is None else transfer_to_statespace(ba[0] / (np.sum(ba[0]) / np.sum(ba[1])), ba[1], self.dt)
-        return StageModel(h, dyn, creep)
+            creep = CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=dt)
+        return h, creep
 
 
 def best_start_kinds(model: PreisachModel, recs: list, choice: str) -> list[str]:

@@ -1,64 +1,87 @@
 """Step 2 of the stage identification: weights, creep and dynamics for fixed hysteresis thresholds.
 
-``StageProblem`` holds every record's operator outputs and creep lags at full rate and solves
+``StageProblem`` holds every record's hysteresis columns and creep lags at full rate and solves
 ``y = o_j + G[Z_j w + L_j c]`` on masked rows (all rows, or the folds of the held-out choice):
-constrained least squares for the weights (the PI identification's invertibility constraint),
-output-error fits for ``G`` (:mod:`.dynamics`, and :func:`refine_output_error` by variable
-projection), alternated.  It is a step inside :class:`~.stage_identification.StageIdentifier` (which is the
-estimator), not an estimator itself, so its method is ``solve``, not ``fit``.
+the weights for fixed ``G``, output-error fits for ``G`` (:mod:`.dynamics`, and
+:func:`refine_output_error` by variable projection), alternated.  What depends on the kind of
+hysteresis is a strategy plugged into it (its ``columns``): :class:`~.pi_columns.PIColumns`
+(play operators, the PI identification's invertibility constraint) or
+:class:`~.preisach.PreisachColumns` (Preisach cells, non-negative smoothed weights).  It is a
+step inside :class:`~.identification.StageIdentifier` (which is the estimator), not an
+estimator itself, so its method is ``solve``, not ``fit``.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..._errors import IdentificationError
-from ..identify.weights import cumulative_map, split_map
 from ..models.creep import CreepTerm
 from . import StageModel
 from .dynamics import fit_hammerstein, fit_unit_gain_dynamics, transfer_to_statespace, unit_gain_filter
 from .selection import simulation_score
 
-__all__ = ["StageProblem", "refine_output_error", "constraint_map", "N_ALTERNATIONS", "MAX_ROWS"]
+__all__ = ["StageProblem", "HysteresisColumns", "refine_output_error"]
 
-N_ALTERNATIONS = 4
-#: Least-squares rows per fit (evenly strided); the filters always run over every sample.
-MAX_ROWS = 40000
+
+class HysteresisColumns(Protocol):
+    """What :class:`StageProblem` asks of the hysteresis it fits the weights of.
+
+    ``recs`` and ``kinds`` are the records and their starting states, ``Z`` per record the
+    columns the output is linear in (n_samples, n_columns), ``live`` the columns fitted;
+    ``n_alternations``, ``settle`` and ``max_rows`` set the alternation and its row stride.
+    """
+
+    recs: list
+    kinds: list[str]
+    Z: list[np.ndarray]
+    live: np.ndarray
+    n_alternations: int
+    settle: float
+    max_rows: int
+
+    def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray], stride: int) -> list[np.ndarray]: ...
+
+    def grid_starts(self, problem: Any, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list: ...
+
+    def solve_weights(
+        self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int, stride: int
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def hysteresis(self, w, c, offset, taus, dt, in_name, out_name) -> tuple[Any, Any]: ...
 
 
 class StageProblem:
-    """Operator and creep columns of every record (full rate) and the alternating fit of step 2."""
+    """The hysteresis and creep columns of every record (full rate) and the alternating fit of step 2.
 
-    #: Rounds of the alternation from each start, and the relative drop of the residual below
-    #: which it stops early (0: never; the PI fit runs all its rounds).
-    n_alternations = N_ALTERNATIONS
-    settle = 0.0
-    #: (creep time constants, their columns): the last set asked for (see :meth:`columns`)
-    _columns: tuple[Any, list[np.ndarray]] = (None, [])
-    #: ``(b, a)`` of fixed unit-DC-gain dynamics every column runs through before the fitted
-    #: ``G`` (the modes found in the disturbance, :mod:`.disturbance_modes`); None: none
-    prefilter: tuple[np.ndarray, np.ndarray] | None = None
+    Parameters
+    ----------
+    columns : HysteresisColumns
+        The hysteresis side: :class:`~.pi_columns.PIColumns` or :class:`~.preisach.PreisachColumns`.
+    dt : float
+        Sample time of the records, s.
+    prefilter : (b, a), optional
+        Fixed unit-DC-gain dynamics every column runs through before the fitted ``G`` (the modes
+        found in the disturbance, :mod:`.disturbance_modes`); None: none.  An attribute: the
+        identification tries the problem with and without it.
+    """
 
-    def __init__(self, hysteresis: Any, recs: list, kinds: list[str], dt: float) -> None:
-        self.h = hysteresis
-        self.recs = recs
-        self.kinds = kinds
+    def __init__(self, columns: HysteresisColumns, dt: float, prefilter: tuple | None = None) -> None:
+        self.hysteresis_columns = columns
+        self.recs = columns.recs
+        self.kinds = columns.kinds
         self.dt = dt
-        self.Z = []
-        for (u, _), kind in zip(recs, kinds):
-            m = hysteresis.with_state(hysteresis.consistent_state(u[0], kind))
-            self.Z.append(m.operator_outputs(u)[0])
-        r = hysteresis.r
-        self.live = np.flatnonzero(np.max([np.ptp(z, axis=0) for z in self.Z], axis=0) > 1e-3 * max(r[-1], 1e-300))
-        self.live = np.union1d(self.live, [0])
-        self.classical = hysteresis.kind == "pi"
-        yr = max(float(np.ptp(y)) for _, y in recs)
-        ur = max(float(np.ptp(u)) for u, _ in recs)
-        self.eps = 0.02 * yr / ur  # PIIdentifier's default min_slope_fraction, slope in operator units
-        self.stride = max(1, int(np.ceil(sum(u.size for u, _ in recs) / MAX_ROWS)))
+        self.prefilter = prefilter
+        #: rounds of the alternation from each start, and the relative drop of the residual below
+        #: which it stops early (0: never)
+        self.n_alternations = columns.n_alternations
+        self.settle = columns.settle
+        self.stride = max(1, int(np.ceil(sum(u.size for u, _ in self.recs) / columns.max_rows)))
+        # (creep time constants and prefilter, their columns): the last set asked for (see columns)
+        self._columns: tuple[Any, list[np.ndarray]] = (None, [])
 
     def columns(self, taus: tuple[float, ...]) -> list[np.ndarray]:
         """Per record the live operator columns and the creep lags, C-ordered (the filter runs
@@ -66,8 +89,9 @@ class StageProblem:
         key = (tuple(taus), None if self.prefilter is None else tuple(map(tuple, self.prefilter)))
         if self._columns[0] != key:
             out = []
-            for (u, _), z in zip(self.recs, self.Z):
-                cols = [z[:, self.live]]
+            live = self.hysteresis_columns.live
+            for (u, _), z in zip(self.recs, self.hysteresis_columns.Z):
+                cols = [z[:, live]]
                 if taus:
                     term = CreepTerm(time_constants=taus, weights=np.zeros(len(taus)), sample_time=self.dt)
                     cols.append(term.lags(u))
@@ -82,38 +106,16 @@ class StageProblem:
         return [unit_gain_filter(ba[0], ba[1], c) if mk.any() else c for c, mk in zip(cols, masks)]
 
     def search_columns(self, cols: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
-        """Columns the searches for ``G`` run on (all of them here; a reduced set for many columns)."""
-        return cols
+        """Columns the searches for ``G`` run on (all of them, or a reduced set for many columns)."""
+        return self.hysteresis_columns.search_columns(cols, masks, self.stride)
 
     def grid_starts(self, cols: list[np.ndarray], masks: list[np.ndarray], order: int) -> list:
-        """Further ``(b, a)`` starts of the alternation (none here)."""
-        return []
+        """Further ``(b, a)`` starts of the alternation, from the hysteresis side."""
+        return self.hysteresis_columns.grid_starts(self, cols, masks, order)
 
     def solve_weights(self, cols: list[np.ndarray], masks: list[np.ndarray], nc: int) -> tuple[np.ndarray, np.ndarray]:
-        """Constrained LS of ``y`` by ``cols`` plus one offset per record: (weights incl. creep, offsets)."""
-        from scipy.optimize import lsq_linear
-
-        J = len(cols)
-        p = cols[0].shape[1]
-        m = p - nc
-        rows_X, rows_y = [], []
-        for j, ((_, y), c, mask) in enumerate(zip(self.recs, cols, masks)):
-            idx = np.flatnonzero(mask)[:: self.stride]
-            if idx.size == 0:
-                continue
-            E = np.zeros((idx.size, J))
-            E[:, j] = 1.0
-            rows_X.append(np.hstack([c[idx], E]))
-            rows_y.append(y[idx])
-        X = np.vstack(rows_X)
-        t = np.concatenate(rows_y)
-        # v = (operator variables, creep, offsets); w = T v + shift keeps the model invertible
-        T, shift, lb = constraint_map(m, nc, J, self.eps, self.classical)
-        scale = np.linalg.norm(X @ T, axis=0)
-        scale[scale == 0] = 1.0
-        res = lsq_linear((X @ T) / scale, t - X @ shift, bounds=(lb * scale, np.full(lb.size, np.inf)), method="bvls")
-        sol = T @ (res.x / scale) + shift
-        return sol[:p], sol[p:]
+        """Weights (creep last) and one offset per record fitted to ``y`` on the masked rows of ``cols``."""
+        return self.hysteresis_columns.solve_weights(cols, masks, nc, self.stride)
 
     def segments(self, masks: list[np.ndarray], order: int) -> list[tuple[int, int]]:
         """(record, end) of every record whose fitted rows are a prefix long enough for the dynamics."""
@@ -213,14 +215,12 @@ class StageProblem:
         return out
 
     def build(self, w, c, offset, taus, ba, in_name, out_name) -> StageModel:
-        weights = np.zeros(self.h.n_operators)
-        weights[self.live] = w
-        h = replace(self.h, weights=weights, output_offset=float(offset), inputs=(in_name,), outputs=(out_name,))
-        if taus:
-            h = replace(h, creep=CreepTerm(time_constants=taus, weights=np.maximum(c, 0.0), sample_time=self.dt))
+        """The stage model of fitted weights ``w``, creep weights ``c`` of ``taus``, the first
+        record's ``offset`` and dynamics ``(b, a)`` (None: none), the prefilter in series."""
+        h, creep = self.hysteresis_columns.hysteresis(w, c, offset, taus, self.dt, in_name, out_name)
         ba = self.with_prefilter(ba)
         dyn = None if ba is None else transfer_to_statespace(ba[0] / (np.sum(ba[0]) / np.sum(ba[1])), ba[1], self.dt)
-        return StageModel(h, dyn)
+        return StageModel(h, dyn, creep)
 
     def with_prefilter(self, ba):
         """The fitted ``(b, a)`` (or None) in series with the fixed prefilter."""
@@ -298,18 +298,3 @@ def refine_output_error(problem: StageProblem, cols: list, masks: list, order: i
     if np.any(np.abs(np.roots(a)) >= 0.9995):
         return None
     return np.r_[np.sum(a) - np.sum(res.x[n:]), res.x[n:]], a
-
-
-def constraint_map(m: int, nc: int, J: int, eps: float, classical: bool):
-    """``(T, shift, lb)`` with ``x = T v + shift``, ``v >= lb``: the invertibility constraint of
-    the PI identification (classical: cumulative weights ``>= eps``; modified: ``w_0 = eps + s +
-    sum q``, ``w_i = p_i - q_i``), creep weights ``>= 0``, offsets free."""
-    tail = nc + J
-    shift = np.zeros(m + tail)
-    # the same reformulations as the weight-only fit (weights.py), with the creep and offsets appended
-    if classical:
-        lb = np.concatenate([np.full(m, eps), np.zeros(nc), np.full(J, -np.inf)])
-        return cumulative_map(m, m + tail), shift, lb
-    shift[0] = eps
-    lb = np.concatenate([np.zeros(2 * m - 1 + nc), np.full(J, -np.inf)])
-    return split_map(m, tail), shift, lb

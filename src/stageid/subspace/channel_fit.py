@@ -1,0 +1,209 @@
+"""One channel's fit of :class:`~.estimator.HankelMAP`, step by step in the paper's order.
+
+:func:`fit_channel` takes records scaled to unit RMS (one input group of eq. 19) through
+
+1. the held-out split and the horizon (section 3.2, :mod:`.selection`), when ``"auto"``;
+2. the eq. 9 statistics of the whole records (:mod:`.statistics`), from the same lag pass as
+   the split when there is no forgetting;
+3. the MAP posterior (eq. 16-18, :mod:`.map`), continuing the previous one for an update;
+4. the order by held-out simulation error (section 3.2), when ``"auto"``;
+5. the realisation (eq. 10-15 or the frequency route, :mod:`.realisation`), back in the data's
+   units,
+
+and returns the frozen :class:`~.result.ChannelFit`.  ``settings`` is the estimator whose
+parameters the steps read (``horizon``, ``method``, ``prior``, ``forgetting``, ...).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError, ExcitationWarning
+from ..data.experiment import Experiment
+from ..models.statespace import StateSpaceModel
+from ..runtime.resources import require_memory
+from ..validation.order_choice import poor_order_message
+from .map.posterior import LS_RIDGE_STRENGTH, LS_SINGULAR_PIVOT, METHODS, Posterior, map_posterior, singular_pivot
+from .realisation.era import realize
+from .realisation.refinement import refinement_bytes
+from .records import excited_band, excited_lines
+from .result import ChannelFit
+from .selection import SelectionTable, horizon_candidates, pooled_split, select_horizon, select_order, split_statistics
+from .statistics.hankel_toeplitz import WindowStatistics, hankel_toeplitz_statistics, statistics_bytes
+from .statistics.theta_response import response_bytes
+from .statistics.window_covariance import WindowLags, window_lags
+
+__all__ = ["fit_channel", "HeldOutSplit", "realize_settings"]
+
+
+@dataclasses.dataclass(frozen=True)
+class HeldOutSplit:
+    """The candidate horizons, the training and held-out statistics per candidate (empty when
+    nothing is chosen), and the whole records' lag correlations (None with forgetting or an update)."""
+
+    candidates: list[int]
+    train: dict[int, WindowStatistics]
+    val: dict[int, WindowStatistics]
+    whole: WindowLags | None
+
+
+def fit_channel(
+    settings: Any,
+    recs: list[tuple[np.ndarray, np.ndarray]],
+    cols: list[int],
+    order: int | str,
+    first: Experiment,
+    prev: ChannelFit | None,
+    notes: list[str],
+    su: np.ndarray,
+    sy: np.ndarray,
+) -> ChannelFit:
+    """One (sub-)model from records scaled to unit RMS (``su``, ``sy`` undo it): eq. 9 -> 16-18 -> 10-15."""
+    m, q, dt = len(cols), first.n_outputs, first.dt
+    in_names = tuple(first.input_names[c] for c in cols)
+    horizon, order = (prev.horizon, prev.order) if prev is not None else (settings.horizon, order)
+    require_channel_memory(settings, recs, m, q, horizon, order)
+    split = held_out_split(settings, recs, m, q, horizon, order, pooled=prev is None and settings.forgetting == 1.0)
+    horizon_table = None
+    if horizon == "auto":  # section 3.2: the horizon by held-out prediction error
+        horizon, horizon_table = select_horizon(split.train, split.val, split.candidates, _prior_of(settings, su, sy))
+    stats = channel_statistics(settings, recs, horizon, split)  # eq. 9
+    if prev is None:  # eq. 16-18 (an update continues the previous posterior, which holds the prior)
+        post = map_posterior(stats, _prior_of(settings, su, sy)(stats))
+        if settings.method == "ls":
+            warn_singular(stats, horizon, notes)
+    else:
+        post = map_posterior(stats, None, prev.scaled_posterior, float(settings.forgetting))
+    band = prev.band if prev is not None else excited_band(stats, dt, settings.band, notes)
+    freqs = np.linspace(band[0], band[1], settings.n_frequencies)
+    order_table = None
+    if order == "auto":  # section 3.2: the order by held-out simulation error
+        order, order_table = held_out_order(settings, split, horizon, freqs, dt, recs, su, sy)
+    _warn_held_out(horizon_table, order_table, in_names, notes)
+    model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy)  # eq. 10-15
+    if model.n_states and excited_lines(stats) * m < int(order) / 2:
+        msg = (
+            f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
+            f"the data are not persistently exciting."
+        )
+        _excitation_warning(msg, notes, stacklevel=6)
+    whole = split.whole
+    kept = None if whole is None else whole.at(horizon) if whole.horizon >= horizon else window_lags(recs, horizon)
+    model = model.with_names(in_names, first.output_names)
+    fit = (in_names, first.output_names, post, horizon, int(order), band, model, horizon_table, order_table, cost)
+    return ChannelFit(*fit, scales=(su.copy(), sy.copy()), window_lags=kept)
+
+
+def held_out_split(settings: Any, recs: list, m: int, q: int, horizon: Any, order: Any, pooled: bool) -> HeldOutSplit:
+    """The training / held-out statistics when the horizon or the order is chosen, per candidate.
+
+    ``pooled`` (a first fit without forgetting): one lag pass over the whole records serves
+    their statistics, the kept :class:`WindowLags` and (less the held-out segments') the
+    training segments' statistics.
+    """
+    cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
+    whole = window_lags(recs, max(cands)) if pooled else None
+    train: dict[int, WindowStatistics] = {}
+    val: dict[int, WindowStatistics] = {}
+    if horizon == "auto" or order == "auto":
+        train, val = split_statistics(recs, cands, float(settings.forgetting), settings.validation_fraction, whole)
+    return HeldOutSplit(cands, train, val, whole)
+
+
+def channel_statistics(settings: Any, recs: list, horizon: int, split: HeldOutSplit) -> WindowStatistics:
+    """Eq. 9 over the whole records at ``horizon``: from the split's lag pass when it has one, else
+    their own pass (with forgetting); DataError for a record too short for the horizon."""
+    short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
+    if short:
+        raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
+    stats = None
+    if split.whole is not None:
+        stats = pooled_split(split.train, split.val, horizon, recs, settings.validation_fraction, split.whole)
+    return stats if stats is not None else hankel_toeplitz_statistics(recs, horizon, float(settings.forgetting))
+
+
+def held_out_order(
+    settings: Any, split: HeldOutSplit, horizon: int, freqs: np.ndarray, dt: float, recs: list, su, sy
+) -> tuple[int, SelectionTable]:
+    """Section 3.2: the order whose model, realised from the training segments' posterior,
+    simulates the held-out segments best."""
+    if horizon not in split.train:
+        raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
+    train = split.train[horizon]
+    post_train = map_posterior(train, _prior_of(settings, su, sy)(train))
+    return select_order(
+        post_train, settings.max_order, freqs, dt, recs, settings.validation_fraction, **realize_settings(settings)
+    )
+
+
+def realised_model(
+    settings: Any, post: Posterior, order: int, freqs: np.ndarray, dt: float, su: np.ndarray, sy: np.ndarray
+) -> tuple[StateSpaceModel, Any]:
+    """Eq. 10-15 or the frequency route (``realization``), then back to the data's units
+    (``u_s = u / su``, ``y_s = y / sy``); the model and the realisation's cost."""
+    model, cost = realize(post, order, freqs, dt, **realize_settings(settings))
+    A, B, C, D = model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :]
+    return StateSpaceModel(A, B, C, D, dt), cost
+
+
+def realize_settings(settings: Any) -> dict:
+    """The realisation's keyword settings of the estimator."""
+    return {"realization": settings.realization, "feedthrough": settings.feedthrough, "refine": settings.refine}
+
+
+def require_channel_memory(settings: Any, recs: list, m: int, q: int, horizon: Any, order: Any) -> None:
+    """Refuse (ResourceError) a horizon, order and frequency count that would not fit in memory."""
+    lengths = [u.shape[0] for u, _ in recs]
+    p = max(horizon_candidates(m, q, lengths)) if horizon == "auto" else int(horizon)
+    n = settings.max_order if order == "auto" else int(order)
+    nz = int(settings.n_frequencies)
+    need = statistics_bytes(p, m, q) + response_bytes(p, m, q, nz)
+    if settings.realization == "frequency" and settings.refine:
+        need += refinement_bytes(n, m, q, nz)
+    require_memory(need, f"HankelMAP with horizon {p}, order {n} and {nz} frequencies on {m} inputs and {q} outputs")
+
+
+def warn_singular(stats: WindowStatistics, horizon: int, notes: list[str]) -> None:
+    """Warn (and note) when the least-squares normal equations needed the ridge."""
+    pivot = singular_pivot(stats)
+    if pivot is not None:
+        msg = (
+            f"the least-squares normal equations of horizon {horizon} are singular (smallest relative pivot "
+            f"{pivot:.1e}, expected >= {LS_SINGULAR_PIVOT:g}; noise-free or not persistently exciting data): "
+            f"solved with a {LS_RIDGE_STRENGTH:g} ridge; method='map' is the regularised estimate."
+        )
+        _excitation_warning(msg, notes, stacklevel=7)
+
+
+def _prior_of(settings: Any, su: np.ndarray, sy: np.ndarray):
+    """The prior of ``method`` for given statistics (``METHODS``)."""
+    return lambda stats: METHODS[settings.method](stats, settings.prior, su, sy)
+
+
+def _excitation_warning(msg: str, notes: list[str], stacklevel: int) -> None:
+    """Keep ``msg`` in the result's notes and warn with it (``stacklevel`` counted from here)."""
+    notes.append(msg)
+    warnings.warn(msg, ExcitationWarning, stacklevel=stacklevel)
+
+
+def _warn_held_out(horizon_table: SelectionTable | None, order_table: SelectionTable | None, in_names, notes) -> None:
+    """Warn when a chosen horizon or order predicts the held-out data worse than zero."""
+    for table in (horizon_table, order_table):
+        if table is not None:
+            err = table.errors[table.values.index(table.chosen)]
+            if err < 1.0:
+                continue
+            advice = (
+                f"it predicts the held-out data worse than zero (inputs {list(in_names)}): the records are too short "
+                f"or too little excited for this model."
+            )
+            if table.kind == "order":  # one shape with every estimator's order warning
+                measure = f"has held-out error {err:.3g}"
+                msg = poor_order_message("HankelMAP", table.chosen, table.values, measure, "< 1", advice)
+            else:
+                msg = f"the chosen {table.kind} {table.chosen} has held-out error {err:.3g} (expected < 1); {advice}"
+            _excitation_warning(msg, notes, stacklevel=7)
