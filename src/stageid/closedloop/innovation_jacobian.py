@@ -83,33 +83,34 @@ def error_sensitivity(
     lam, V = np.linalg.eig(A - K @ C)
     if n and np.linalg.cond(V) > MAX_BASIS_CONDITION:
         return None
-    Vinv = np.linalg.inv(V)
     X, E = predictor_signals(mats, z, x0)
     S = np.hstack([X, z[:, : m + 1], E])  # the signals that drive the state: x^, u, 1, e (z's column m is 1)
-    F = _filtered(lam, S).reshape(n, -1)
-    CV = C @ V
-    # T[t, o, i, s]: output o of C dx for the state input e_i s(t); TK the same for the input K_i s(t)
-    T = ((CV[:, None, :] * Vinv.T[None, :, :]).reshape(p * n, n) @ F).real.reshape(p, n, N, -1)
+    # a conjugate pair's two terms are each other's conjugates (real signals): keep one, count it twice
+    keep = lam.imag >= 0
+    CV = (C @ V)[:, keep] * np.where(lam.imag > 0, 2.0, 1.0)[keep]
+    Vinv = np.linalg.inv(V)[keep]
+    F = _filtered(lam[keep], S).reshape(CV.shape[1], -1)
+    # T[o, i, t, s]: output o of C dx for the state input e_i s(t); TK the same for the state input K_i s(t)
+    T = ((CV[:, None, :] * Vinv.T[None, :, :]).reshape(p * n, -1) @ F).real.reshape(p, n, N, -1)
     KV = Vinv @ K
-    TK = ((CV[:, None, :] * KV.T[None, :, :]).reshape(p * p, n) @ F).real.reshape(p, p, N, -1)
-    x_, u_, one, e_ = slice(0, n), slice(n, n + m), n + m, slice(n + m + 1, n + m + 1 + p)
-
-    def output_part(signal: np.ndarray) -> np.ndarray:
-        # the direct term of dC, dD or dd0: -[o == i] s(t), shape (p, p, N, n_signals)
-        out = np.zeros((p, p, N, signal.shape[1]))
-        for o in range(p):
-            out[o, o] = signal
-        return out
-
-    parts = [
-        -T[:, :, :, x_],  # A[i, j]: state input e_i x^_j
-        -T[:, :, :, u_],  # B[i, j]: e_i u_j
-        TK[:, :, :, x_] - output_part(X),  # C[i, j]: -K_i x^_j into the state, -x^_j into e_i
-        -T[:, :, :, e_],  # K[i, j]: e_i e_j
+    TK = ((CV[:, None, :] * KV.T[None, :, :]).reshape(p * p, -1) @ F).real.reshape(p, p, N, -1)
+    x_, u_, one, e_ = slice(0, n), slice(n, n + m), slice(n + m, n + m + 1), slice(n + m + 1, n + m + 1 + p)
+    J = np.empty((N, p, n_parameters(n, m, p, feedthrough)))
+    blocks = [
+        (-T[:, :, :, x_], None),  # A[i, j]: state input e_i x^_j
+        (-T[:, :, :, u_], None),  # B[i, j]: e_i u_j
+        (TK[:, :, :, x_], X),  # C[i, j]: -K_i x^_j into the state, -x^_j into e_i
+        (-T[:, :, :, e_], None),  # K[i, j]: e_i e_j
+        *([(TK[:, :, :, u_], z[:, :m])] if feedthrough else []),  # D[i, j]: like C with u_j
+        (-T[:, :, :, one], None),  # b0[i]
+        (TK[:, :, :, one], z[:, m : m + 1]),  # d0[i]
     ]
-    if feedthrough:
-        parts.append(TK[:, :, :, u_] - output_part(z[:, :m]))  # D[i, j]: like C with u_j
-    parts.append(-T[:, :, :, one][..., None])  # b0[i]
-    parts.append(TK[:, :, :, one][..., None] - output_part(z[:, m : m + 1]))  # d0[i]
-    cols = [np.moveaxis(q, 2, 0).reshape(N, p, -1) for q in parts]  # (N, o, i * n_signals) row-major
-    return np.concatenate(cols, axis=2)
+    start = 0
+    for block, direct in blocks:
+        _, rows, _, cols = block.shape
+        view = J[:, :, start : start + rows * cols].reshape(N, p, rows, cols)
+        view[...] = np.moveaxis(block, 2, 0)
+        for o in range(p if direct is not None else 0):
+            view[:, o, o, :] -= direct  # the direct term -[o == i] s(t) of dC, dD, dd0
+        start += rows * cols
+    return J
