@@ -6,8 +6,10 @@ Identification, 2nd ed., eq. 4.91).  It is simulated as an LTI system from ``[u;
 ``e``, so it stays bounded for an unstable ``A`` as long as ``A - K C`` is stable, and the
 cost ``sum e' Lambda^-1 e`` is minimised over the full matrices by ``scipy.optimize.least_squares``
 (the similarity freedom leaves ``n^2`` flat directions, which the trust region tolerates and the
-covariance removes by a pseudo-inverse).  Bands on poles and on the frequency response follow by
-the delta method from the Jacobian at the optimum.
+covariance removes by a pseudo-inverse).  The Jacobian is the sensitivity system's
+(:mod:`~stageid.closedloop.innovation_jacobian`), forward differences only where ``A - K C`` has
+no usable eigenvector basis.  Bands on poles and on the frequency response follow by the delta
+method from the Jacobian at the optimum.
 """
 
 from __future__ import annotations
