@@ -10,7 +10,7 @@ where the diagonal entries peak.  Both errors are printed per entry over 20-300 
 to the entry's peak, beside the fit's own band (two standard deviations, relative to the same
 peak) and the entry's share of its output in the records: the RMS of ``G_ij u_j`` over the RMS of
 the measurement noise (how far above the noise an entry shows; couplings only, the diagonal
-entries are unstable and cannot be run open loop).
+entries are unstable and cannot be run open loop).  One round takes about 12 minutes of CPU.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_direct_maglev_reference.py \
         [--order auto] [--horizon 40] [--rounds 1]
