@@ -52,7 +52,8 @@ def predictor_residuals(m: InnovationMatrices, records: Sequence[tuple[np.ndarra
 
     From rest the predictor's transient would colour the first hundreds of samples (its slowest
     mode mirrors an unstable pole); the initial state enters ``e`` linearly, ``e = e_0 - O x0``
-    with ``O(t) = C (A - K C)^t``, so it is removed by least squares over the transient.
+    with ``O(t) = C (A - K C)^t``, so it is fitted by least squares over the transient
+    (:func:`initial_state`) and the predictor is run from it.
     """
     return stacked_residuals(m, [np.hstack([u, np.ones((u.shape[0], 1)), y]) for u, y in records])
 
