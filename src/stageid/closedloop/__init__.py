@@ -22,7 +22,8 @@
 ==============================  ============================================================
 
 Without a controller model (``direct``, ``two_stage``, ``joint``; shared steps in
-``predictor_subspace``, ``innovation_pem``, ``innovation_fit``, ``unknown_checks``):
+``predictor_subspace``, ``innovation_pem`` with its Jacobian ``innovation_jacobian``,
+``innovation_fit``, ``unknown_checks``):
 
 ==============================  ============================================================
 ``DirectPredictionError``       prediction error on measured u and y, innovation form

@@ -6,8 +6,10 @@ Identification, 2nd ed., eq. 4.91).  It is simulated as an LTI system from ``[u;
 ``e``, so it stays bounded for an unstable ``A`` as long as ``A - K C`` is stable, and the
 cost ``sum e' Lambda^-1 e`` is minimised over the full matrices by ``scipy.optimize.least_squares``
 (the similarity freedom leaves ``n^2`` flat directions, which the trust region tolerates and the
-covariance removes by a pseudo-inverse).  Bands on poles and on the frequency response follow by
-the delta method from the Jacobian at the optimum.
+covariance removes by a pseudo-inverse).  The Jacobian is the sensitivity system's
+(:mod:`~stageid.closedloop.innovation_jacobian`), forward differences only where ``A - K C`` has
+no usable eigenvector basis.  Bands on poles and on the frequency response follow by the delta
+method from the Jacobian at the optimum.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import IdentificationError
-from ..models import StateSpaceModel
+from .innovation_jacobian import error_sensitivity, n_parameters, predictor_model
 from .predictor_subspace import InnovationMatrices
 
 __all__ = ["PemFit", "predictor_residuals", "refine", "pole_std", "response_std", "pack", "unpack", "transient_length"]
@@ -50,29 +52,57 @@ def predictor_residuals(m: InnovationMatrices, records: Sequence[tuple[np.ndarra
 
     From rest the predictor's transient would colour the first hundreds of samples (its slowest
     mode mirrors an unstable pole); the initial state enters ``e`` linearly, ``e = e_0 - O x0``
-    with ``O(t) = C (A - K C)^t``, so it is removed by least squares over the transient.
+    with ``O(t) = C (A - K C)^t``, so it is fitted by least squares over the transient
+    (:func:`initial_state`) and the predictor is run from it.
     """
     return stacked_residuals(m, [np.hstack([u, np.ones((u.shape[0], 1)), y]) for u, y in records])
 
 
 def stacked_residuals(m: InnovationMatrices, stacked: Sequence[np.ndarray]) -> list[np.ndarray]:
     """:func:`predictor_residuals` on records already stacked as ``[u, 1, y]`` (the optimiser's loop)."""
-    p, n = m.C.shape[0], m.A.shape[0]
-    At = m.A - m.K @ m.C
-    b0 = np.zeros(n) if m.state_offset is None else m.state_offset
-    d0 = np.zeros(p) if m.output_offset is None else m.output_offset
-    Bp = np.hstack([m.B - m.K @ m.D, (b0 - m.K @ d0)[:, None], m.K])
-    pred = StateSpaceModel(At, Bp, -m.C, np.hstack([-m.D, -d0[:, None], np.eye(p)]), dt=1.0)
+    pred = predictor_model(m)
     out = []
     for z in stacked:
-        e = pred.simulate(z)
-        L = transient_length(m, 1, z.shape[0]) if n else 0
-        if L:
-            O = free_response(m.C, At, L).reshape(L * p, n)
-            x0 = np.linalg.lstsq(O, e[:L].ravel(), rcond=None)[0]
-            e[:L] -= (O @ x0).reshape(L, p)
-        out.append(e)
+        x0 = initial_state(m, pred.simulate(z))
+        out.append(pred.simulate(z) if x0 is None else pred.simulate(z, x0=x0))
     return out
+
+
+def initial_state(m: InnovationMatrices, e_rest: np.ndarray) -> np.ndarray | None:
+    """The predictor's initial state fitted to the errors ``e_rest`` it makes from rest, over its transient.
+
+    None without states.  ``e = e_rest - O x0``, ``O(t) = C (A - K C)^t``, by least squares over
+    the samples until the slowest predictor mode has decayed to 1e-3.
+    """
+    p, n = m.C.shape[0], m.A.shape[0]
+    L = transient_length(m, 1, e_rest.shape[0]) if n else 0
+    if not L:
+        return None
+    O = free_response(m.C, m.A - m.K @ m.C, L).reshape(L * p, n)
+    return np.linalg.lstsq(O, e_rest[:L].ravel(), rcond=None)[0]
+
+
+def project_initial_state(m: InnovationMatrices, J: np.ndarray, z: np.ndarray, x0: np.ndarray | None) -> None:
+    """Add to the sensitivities ``J`` (shape (N, p, n_theta), ``x0`` held), in place, the response of ``x0``'s fit.
+
+    ``x0 = O_L^+ e_rest`` moves with ``theta``: ``dx0 = O_L^+ J_L + (O_L' O_L)^+ dO_L' r_L`` (Golub
+    and Pereyra's variable projection, ``r`` the errors from ``x0``); ``-O dx0`` is added until
+    ``O`` has decayed to 1e-12.  ``dO`` is the sensitivity of the free response from each unit state.
+    """
+    p, n = m.C.shape[0], m.A.shape[0]
+    L = transient_length(m, 1, J.shape[0]) if n else 0
+    if not L or x0 is None:
+        return
+    span = min(4 * L, J.shape[0])
+    O = free_response(m.C, m.A - m.K @ m.C, span).reshape(span * p, n)
+    P = np.linalg.pinv(O[: L * p], rcond=np.finfo(float).eps * L * p)
+    r = predictor_model(m).simulate(z[:L], x0=x0)
+    feedthrough = J.shape[2] > n_parameters(n, m.B.shape[1], p, False)
+    rest = np.zeros((L, z.shape[1]))
+    g = np.stack([error_sensitivity(m, rest, feedthrough, unit) for unit in np.eye(n)])  # -dO e_j, (n, L, p, k)
+    g = -np.einsum("jtok,to->jk", g, r)
+    dx0 = P @ J[:L].reshape(L * p, -1) + P @ (P.T @ g)
+    J[:span] -= (O @ dx0).reshape(J[:span].shape)
 
 
 def free_response(C: np.ndarray, A: np.ndarray, length: int) -> np.ndarray:
@@ -151,19 +181,8 @@ def refine(
     fallback = 1e3 * (np.abs(r0) + 1.0)
 
     def jacobian(theta: np.ndarray) -> np.ndarray:
-        # forward differences, stepping backwards where a step would leave the stable predictors
-        f0 = cost_vector(theta)
-        J = np.empty((f0.size, theta.size))
-        for k in range(theta.size):
-            h = 1e-6 * max(abs(theta[k]), 1e-2)
-            t = theta.copy()
-            t[k] += h
-            f1 = cost_vector(t)
-            if f1 is fallback:
-                t[k] -= 2 * h
-                f1, h = cost_vector(t), -h
-            J[:, k] = (f1 - f0) / h
-        return J
+        J = weighted_jacobian(unpack(theta, n, m, p, feedthrough, start.noise_cov), stacked, W, burn, feedthrough)
+        return difference_jacobian(cost_vector, theta, fallback) if J is None else J
 
     sol = least_squares(
         cost_vector, theta0, jac=jacobian, method="trf", x_scale="jac", max_nfev=max_nfev, ftol=1e-7, tr_solver="lsmr"
@@ -174,6 +193,42 @@ def refine(
     lam = pooled.T @ pooled / pooled.shape[0]
     mats = unpack(sol.x, n, m, p, feedthrough, lam)
     return PemFit(mats, cov, k_eff, int(sol.nfev), bool(sol.status > 0), float(r0 @ r0), float(sol.fun @ sol.fun), burn)
+
+
+def weighted_jacobian(
+    mats: InnovationMatrices, stacked: Sequence[np.ndarray], W: np.ndarray, burn: int, feedthrough: bool
+) -> np.ndarray | None:
+    """The Jacobian of :func:`refine`'s cost vector from the sensitivity system, or None without a modal basis.
+
+    Rows as the cost vector: per record ``W e(t)`` for ``t >= burn``, the initial state's fit
+    projected out (:func:`project_initial_state`); columns ``theta`` as :func:`pack` orders it.
+    """
+    blocks = []
+    pred = predictor_model(mats)
+    for z in stacked:
+        x0 = initial_state(mats, pred.simulate(z))
+        J = error_sensitivity(mats, z, feedthrough, x0)
+        if J is None:
+            return None
+        project_initial_state(mats, J, z, x0)
+        blocks.append(np.matmul(W, J[burn:]).reshape(-1, J.shape[2]))
+    return np.vstack(blocks)
+
+
+def difference_jacobian(cost_vector, theta: np.ndarray, wall: np.ndarray) -> np.ndarray:
+    """Forward differences of ``cost_vector``, stepping backwards where a step hits ``wall`` (an unstable predictor)."""
+    f0 = cost_vector(theta)
+    J = np.empty((f0.size, theta.size))
+    for k in range(theta.size):
+        h = 1e-6 * max(abs(theta[k]), 1e-2)
+        t = theta.copy()
+        t[k] += h
+        f1 = cost_vector(t)
+        if f1 is wall:
+            t[k] -= 2 * h
+            f1, h = cost_vector(t), -h
+        J[:, k] = (f1 - f0) / h
+    return J
 
 
 def transient_length(m: InnovationMatrices, at_least: int, at_most: int) -> int:
