@@ -41,6 +41,7 @@ from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .polynomial import FREE_ORDERS, STRUCTURES, PolynomialModel, structure_orders
 from .reduction import keep_full_order, paper_orders, reduce_plant
+from .reliability import deduction_gain, reliability_weights
 from .result import ClosedLoopResult
 
 __all__ = ["ClosedLoopIdentification"]
@@ -283,9 +284,13 @@ class ClosedLoopIdentification(Estimator):
         else:
             orders = paper_orders(p) if self.structure == "paper" else dict(self.structure)
             names = (M.outputs, T.outputs)
+            # lines where an error of T reaches the entry amplified count less (reliability.py)
+            Mr_band = None if Mr is None else Mr.frequency_response(f_band)
+            gain = deduction_gain(T.frequency_response(f_band), M.frequency_response(f_band), P_band, Mr_band)
             plant, reduced, eps, eps_c = reduce_plant(
-                P_band, f_band, dt, orders, entries, s_unstable, names, self.continuous
-            )
+                P_band, f_band, dt, orders, entries, s_unstable, names, self.continuous,
+                reliability_weights(P_band, gain),
+            )  # fmt: skip
         return ClosedLoopResult(
             plant=plant,
             plant_full=G_full,

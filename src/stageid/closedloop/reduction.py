@@ -58,6 +58,9 @@ class ReducedEntry:
     eps_median : float
         The median over the band of ``|P_i - P_r| / |P_i|``: how well the structure follows the
         band as a whole, apart from narrow stretches where the deduced response itself is off.
+    eps_weighted : float
+        ``max w |P_i - P_r| / |P_i|`` with the fit's weights ``w`` (equal to ``eps_complex``
+        unweighted): what the candidates of one entry are compared by.
     """
 
     num: np.ndarray
@@ -66,6 +69,7 @@ class ReducedEntry:
     eps_magnitude: float
     eps_complex: float
     eps_median: float = float("nan")
+    eps_weighted: float = float("nan")
 
     @property
     def poles(self) -> np.ndarray:
@@ -95,6 +99,7 @@ def reduce_entry(
     unstable_poles: np.ndarray | None = None,
     max_nfev: int = 400,
     stable_free: bool = True,
+    weights: np.ndarray | None = None,
 ) -> ReducedEntry:
     """Fit ``P_r = b(s) / (d_u(s) d_s(s))`` to the deduced discrete response over a band.
 
@@ -116,6 +121,9 @@ def reduce_entry(
     stable_free : bool
         Keep the free poles in the left half plane (reflect and refit); with False the
         free poles may land anywhere, so unstable poles are fitted rather than kept.
+    weights : ndarray of shape (n_freqs,), optional
+        Weights of the relative error per line (default 1; the estimator passes
+        :func:`~stageid.closedloop.reliability.reliability_weights`).
 
     Returns
     -------
@@ -136,7 +144,7 @@ def reduce_entry(
     >>> bool(r.eps_complex < 1e-6), np.round(np.sort(r.poles.real), 3).tolist()
     (True, [-80.0, 50.0])
     """
-    fit, theta, up = free_fit(response, freqs_hz, dt, n_zeros, n_poles, unstable_poles, max_nfev)
+    fit, theta, up = free_fit(response, freqs_hz, dt, n_zeros, n_poles, unstable_poles, max_nfev, weights)
     return finish_entry(fit, theta, up, max_nfev, stable_free)
 
 
@@ -148,6 +156,7 @@ def free_fit(
     n_poles: int,
     unstable_poles: np.ndarray | None = None,
     max_nfev: int = 400,
+    weights: np.ndarray | None = None,
 ) -> tuple[_RationalFit, np.ndarray, np.ndarray]:
     """The first step of :func:`reduce_entry`: Levy start and nonlinear fit with the free poles anywhere.
 
@@ -159,10 +168,11 @@ def free_fit(
     up = np.zeros(0, complex) if unstable_poles is None else np.asarray(unstable_poles, dtype=complex).reshape(-1)
     n_free = n_poles - up.size
     _check_entry_fit(P, f, up.size, n_zeros, n_poles)
+    w = np.ones(f.size) if weights is None else np.asarray(weights, dtype=float).reshape(-1)
     w0 = 2 * np.pi * np.sqrt(f.min() * f.max())  # frequency normalisation
     du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
-    theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free)
-    fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles)
+    theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free, w)
+    fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles, w)
     try:
         sol = least_squares(
             fit.residual,
@@ -188,7 +198,7 @@ def finish_entry(
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
     rel = np.abs(fit.P - Pr) / np.abs(fit.P)
-    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)))
+    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)), float(np.max(fit.w * rel)))
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
@@ -227,7 +237,7 @@ def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> n
 
 
 def _levy_start(
-    P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int
+    P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int, w: np.ndarray
 ) -> np.ndarray:
     """Linear estimate of ``[b; a_1..a_nfree]`` on the continuous approximation ``P_c ~ P_d exp(+j w dt / 2)``:
     Levy's equation error, then :data:`SK_ITERATIONS` Sanathanan-Koerner passes.
@@ -236,7 +246,8 @@ def _levy_start(
     the poles and shrinks at a lightly damped mode: the mode is fitted last, and a coupling's
     resonance can come out far off (measured: a [1, 3] coupling reduced to a pole at -2e9 rad/s from
     a deduced response within 2.5 % of the truth). Each pass divides by ``|P_c d_prev(s)|``, the
-    previous pass's denominator, so the equation error tends to the relative error itself.
+    previous pass's denominator, so the equation error tends to the relative error itself (times
+    the weights ``w``, as the nonlinear fit counts it).
     """
     s_n = 2j * np.pi * f / w0
     Pc = P * np.exp(1j * np.pi * f * dt)
@@ -245,7 +256,7 @@ def _levy_start(
     cols += [-Pc * du * s_n**k for k in range(n_free - 1, -1, -1)]  # a_1..a_nfree
     rhs = Pc * du * s_n**n_free
     Phi = np.column_stack(cols) if cols else np.zeros((f.size, 0))
-    scale = np.abs(rhs)
+    scale = np.abs(rhs) / w
     theta = None
     for _ in range(1 + SK_ITERATIONS):
         Phi_w, rhs_w = Phi / scale[:, None], rhs / scale
@@ -258,7 +269,7 @@ def _levy_start(
         den = np.abs(Pc * du * np.polyval(np.concatenate([[1.0], theta[n_zeros + 1 :]]), s_n))
         if not np.all(np.isfinite(den) & (den > 0)):
             break
-        scale = den
+        scale = den / w
     return theta
 
 
@@ -270,8 +281,10 @@ class _RationalFit:
     :func:`zoh_response` on ``f``).
     """
 
-    def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles):
+    def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles, w=None):
         self.P, self.f, self.dt, self.w0, self.du_n = P, f, dt, w0, du_n
+        self.w = np.ones(np.size(f)) if w is None else w
+        self.Pw = P / self.w  # residuals divide by P and multiply by w: once
         self.n_zeros, self.n_poles = n_zeros, n_poles
         self.z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
         self.num_scale = w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
@@ -293,9 +306,9 @@ class _RationalFit:
         return num / den[0], den / den[0]
 
     def residual(self, th: np.ndarray) -> np.ndarray:
-        """``(ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
+        """``w (ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
         num, den = self.polynomials(th)
-        r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.P
+        r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.Pw
         return np.concatenate([r.real, r.imag])
 
     def jacobian(self, th: np.ndarray) -> np.ndarray:
@@ -304,14 +317,21 @@ class _RationalFit:
         _, d_num, d_den = zoh_derivatives(num, den, self.dt, self.z)
         nb = self.n_zeros + 1
         dH = np.hstack([d_num[:, -nb:] * (self.num_scale / self.den_scale[0]), d_den @ self.den_jac])
-        dH /= self.P[:, None]
+        dH /= self.Pw[:, None]
         return np.vstack([dH.real, dH.imag])
 
 
 def reduce_best(
-    P: np.ndarray, f: np.ndarray, dt: float, nz: int, n_p: int, keep: np.ndarray, diagonal: bool
+    P: np.ndarray,
+    f: np.ndarray,
+    dt: float,
+    nz: int,
+    n_p: int,
+    keep: np.ndarray,
+    diagonal: bool,
+    weights: np.ndarray | None = None,
 ) -> ReducedEntry:
-    """Fit one entry three ways and keep the best.
+    """Fit one entry three ways and keep the best by the weighted band error (``eps_weighted``).
 
     * unstable poles fixed at the values the deduction gives (when they fit the structure);
     * all poles free over the band (the zeros of ``M (I - T)`` that place the unstable poles
@@ -323,16 +343,16 @@ def reduce_best(
     """
     cands = []
     if keep.size and keep.size <= n_p:
-        cands.append(reduce_entry(P, f, dt, nz, n_p, keep))
+        cands.append(reduce_entry(P, f, dt, nz, n_p, keep, weights=weights))
     # the all-free and the all-stable candidates start with the same fit: done once
-    free = free_fit(P, f, dt, nz, n_p, np.zeros(0))
+    free = free_fit(P, f, dt, nz, n_p, np.zeros(0), weights=weights)
     cands.append(finish_entry(*free, stable_free=False))
     stable = finish_entry(*free, stable_free=True)
     stable_ok = not np.any(stable.poles.real > 0)
     if stable_ok:
         cands.append(stable)
-    best = min(cands, key=lambda r: r.eps_complex)
-    if not diagonal and stable_ok and stable.eps_complex <= 1.5 * best.eps_complex:
+    best = min(cands, key=lambda r: r.eps_weighted)
+    if not diagonal and stable_ok and stable.eps_weighted <= 1.5 * best.eps_weighted:
         return stable
     return best
 
@@ -363,11 +383,13 @@ def reduce_plant(
     unstable_poles: np.ndarray,
     names: tuple[tuple[str, ...], tuple[str, ...]],
     continuous: bool = True,
+    weights: np.ndarray | None = None,
 ) -> tuple[TransferMatrix, dict, np.ndarray, np.ndarray]:
     """Every entry reduced to its ``(n_zeros, n_poles)`` of ``orders`` over the band (sec. 3.3).
 
     ``response`` is the deduced plant over ``freqs_hz`` (n_freqs, p, p); ``names`` are the
-    plant's (inputs, outputs).  Returns ``(plant, reduced, eps, eps_complex)``: the continuous
+    plant's (inputs, outputs); ``weights`` (n_freqs, p, p), optional, weigh each entry's relative
+    error per line (:func:`~stageid.closedloop.reliability.reliability_weights`).  Returns ``(plant, reduced, eps, eps_complex)``: the continuous
     (or ZOH-discretised) plant, ``{(i, j): ReducedEntry}`` and the band errors (p, p).
     """
     p = response.shape[1]
@@ -379,7 +401,8 @@ def reduce_plant(
             nz, n_p = orders[(i, j)]
             ent = next(e for e in entries if e.output == i and e.input == j)
             keep = entry_unstable_poles(ent, unstable_poles, dt)
-            red = reduce_best(response[:, i, j], freqs_hz, dt, nz, n_p, keep, diagonal=(i == j))
+            w = None if weights is None else weights[:, i, j]
+            red = reduce_best(response[:, i, j], freqs_hz, dt, nz, n_p, keep, i == j, w)
             reduced[(i, j)] = red
             eps[i, j], eps_c[i, j] = red.eps_magnitude, red.eps_complex
             nums[i][j], dens[i][j] = red.num, red.den
