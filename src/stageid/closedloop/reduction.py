@@ -59,8 +59,10 @@ class ReducedEntry:
         The median over the band of ``|P_i - P_r| / |P_i|``: how well the structure follows the
         band as a whole, apart from narrow stretches where the deduced response itself is off.
     eps_weighted : float
-        ``max w |P_i - P_r| / |P_i|`` with the fit's weights ``w`` (equal to ``eps_complex``
-        unweighted): what the candidates of one entry are compared by.
+        The RMS over the band of ``w |P_i - P_r| / |P_i|`` with the fit's weights ``w``: the cost
+        the fit minimises, by which the candidates of one entry are compared.
+    weights : ndarray of shape (n_freqs,), optional
+        The fit's line weights ``w`` over its band (None: all 1).
     """
 
     num: np.ndarray
@@ -70,6 +72,7 @@ class ReducedEntry:
     eps_complex: float
     eps_median: float = float("nan")
     eps_weighted: float = float("nan")
+    weights: np.ndarray | None = None
 
     @property
     def poles(self) -> np.ndarray:
@@ -173,19 +176,23 @@ def free_fit(
     du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
     theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free, w)
     fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles, w)
+    return fit, minimise(fit, theta, max_nfev), up
+
+
+def minimise(fit: _RationalFit, theta: np.ndarray, max_nfev: int = 400) -> np.ndarray:
+    """The weighted relative error of ``fit`` minimised from ``theta`` (nonlinear least squares)."""
     try:
-        sol = least_squares(
+        return least_squares(
             fit.residual,
             theta,
             jac=fit.jacobian,
-            method="lm" if theta.size * 2 <= 2 * f.size else "trf",
+            method="lm" if theta.size <= fit.f.size else "trf",
             max_nfev=max_nfev,
             xtol=1e-12,
             ftol=1e-12,
-        )
+        ).x
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
-    return fit, sol.x, up
+        raise IdentificationError(f"the reduced-order fit [{fit.n_zeros}, {fit.n_poles}] failed: {exc}") from None
 
 
 def finish_entry(
@@ -198,7 +205,7 @@ def finish_entry(
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
     rel = np.abs(fit.P - Pr) / np.abs(fit.P)
-    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)), float(np.max(fit.w * rel)))
+    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)), float(np.sqrt(np.mean((fit.w * rel) ** 2))), fit.w)
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
@@ -295,6 +302,12 @@ class _RationalFit:
         self.den_jac = np.array([np.convolve(du_n, e) for e in unit]).reshape(n_free, n_poles + 1)
         self.den_jac = (self.den_jac * (self.den_scale / self.den_scale[0]))[:, 1:].T
 
+    def parameters(self, num: np.ndarray, den: np.ndarray) -> np.ndarray:
+        """The parameters of a fit without fixed poles (``du_n = [1]``) whose :meth:`polynomials`
+        are ``(num, den)`` (monic ``den`` of degree ``n_poles``, ``num`` of ``n_zeros + 1`` terms)."""
+        den_n = den / self.den_scale * self.den_scale[0]
+        return np.concatenate([num * self.den_scale[0] / self.num_scale, den_n[1:]])
+
     def polynomials(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(num, den)`` in ``s`` (descending, monic ``den``) of the parameters ``th``."""
         nb = self.n_zeros + 1
@@ -331,7 +344,7 @@ def reduce_best(
     diagonal: bool,
     weights: np.ndarray | None = None,
 ) -> ReducedEntry:
-    """Fit one entry three ways and keep the best by the weighted band error (``eps_weighted``).
+    """Fit one entry three ways and keep the best by the cost the fits minimise (``eps_weighted``).
 
     * unstable poles fixed at the values the deduction gives (when they fit the structure);
     * all poles free over the band (the zeros of ``M (I - T)`` that place the unstable poles
@@ -342,10 +355,16 @@ def reduce_best(
       stabilise (see the +9.74 rad/s pole of eq. 22c) and usually a displaced spurious doublet.
     """
     cands = []
+    # the all-free and the all-stable candidates start with the same fit: done once
+    fit, theta, up = free_fit(P, f, dt, nz, n_p, np.zeros(0), weights=weights)
     if keep.size and keep.size <= n_p:
         cands.append(reduce_entry(P, f, dt, nz, n_p, keep, weights=weights))
-    # the all-free and the all-stable candidates start with the same fit: done once
-    free = free_fit(P, f, dt, nz, n_p, np.zeros(0), weights=weights)
+        # the free fit started from the kept one too: the kept poles are one point of its space,
+        # so the free candidate is never worse than the kept one by the cost both minimise
+        other = minimise(fit, fit.parameters(cands[0].num, cands[0].den))
+        if np.sum(fit.residual(other) ** 2) < np.sum(fit.residual(theta) ** 2):
+            theta = other
+    free = (fit, theta, up)
     cands.append(finish_entry(*free, stable_free=False))
     stable = finish_entry(*free, stable_free=True)
     stable_ok = not np.any(stable.poles.real > 0)
