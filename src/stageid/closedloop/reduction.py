@@ -205,7 +205,16 @@ def finish_entry(
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
     rel = np.abs(fit.P - Pr) / np.abs(fit.P)
-    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)), float(np.sqrt(np.mean((fit.w * rel) ** 2))), fit.w)
+    return ReducedEntry(
+        num,
+        den,
+        up,
+        eps_mag,
+        float(np.max(rel)),
+        float(np.median(rel)),
+        float(np.sqrt(np.mean((fit.w * rel) ** 2))),
+        fit.w,
+    )
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
