@@ -33,6 +33,7 @@ from .deduction import (
     deduce_plant,
     discrete_controllers,
     plant_response,
+    resolved_grid,
     unstable_plant_poles,
     wide_response,
 )
@@ -270,7 +271,7 @@ class ClosedLoopIdentification(Estimator):
         T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
-        check_deduction(T, M, Mr, check_grid(lo, dt))
+        check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / max(e.n_samples * e.dt for e in exps)))
         s_unstable = z_to_s(unstable_plant_poles(T, M, Mr), dt)
         # 3. spurious pole-zero pairs cancelled entry by entry (sec. 3.2.3)
         G_cancel, entries = cancel_entries(
