@@ -1,4 +1,4 @@
-"""Tests that kill surviving mutants of ``closedloop/reduction.py`` (tests/MUTATION.md).
+"""Tests that kill surviving mutants of ``closedloop/reduction.py`` and ``plant_reduction.py`` (tests/MUTATION.md).
 
 Each pins one documented rule of the reduction that the end-to-end closed-loop tests reach
 only through a whole identification, where a wrong rule is hidden by another route (for
@@ -15,12 +15,8 @@ import pytest
 
 from stageid._errors import IdentificationError
 from stageid.closedloop.cancellation import EntryPoleZero
-from stageid.closedloop.reduction import (
-    entry_unstable_poles,
-    keep_full_order,
-    paper_orders,
-    reduce_entry,
-)
+from stageid.closedloop.plant_reduction import entry_unstable_poles, keep_full_order
+from stageid.closedloop.reduction import paper_orders, reduce_entry
 from stageid.closedloop.zoh import zoh_response
 from stageid.models import TransferMatrix
 

@@ -27,10 +27,7 @@ run = _runner()
 MODULES = sorted(p.stem for p in RECOVERY.glob("rec_*.py"))
 # Estimators that miss the benchmark's target (benchmarks/RESULTS-recovery.md gives the draws and
 # the causes). Strict: when one recovers its small draw, the mark fails and must go.
-SHORT_OF_TARGET = {
-    "rec_closedloop": "the reduced coupling entries of 3x3 stages miss (spurious or missing unstable poles from the "
-    "zeros of M (I - T), diverged fits) and unstable poles below the band come out up to 13 % off",
-}
+SHORT_OF_TARGET: dict[str, str] = {}
 CASES = [
     pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=SHORT_OF_TARGET[m])) if m in SHORT_OF_TARGET else m
     for m in MODULES

@@ -67,7 +67,7 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_subspace_map.py", "tests/test_subspace_hankel_toeplitz.py", "tests/test_subspace_estimator.py"],
     ),
     "closedloop-reduction": (
-        ["src/stageid/closedloop/reduction.py"],
+        ["src/stageid/closedloop/reduction.py", "src/stageid/closedloop/plant_reduction.py"],
         ["tests/test_closedloop_estimator.py", "tests/test_closedloop_deduction.py"],
     ),
     "closedloop-cancellation": (

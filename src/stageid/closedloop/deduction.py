@@ -39,6 +39,7 @@ __all__ = [
     "as_discrete_controller",
     "discrete_controllers",
     "check_grid",
+    "resolved_grid",
     "check_controller",
     "check_deduction",
     "plant_response",
@@ -109,6 +110,18 @@ def discrete_controllers(
 def check_grid(f_low: float, dt: float) -> np.ndarray:
     """Where eq. 18 is checked: 0 Hz, then 400 log-spaced lines from ``min(f_low / 10, 1 Hz)`` to 0.95 Nyquist."""
     return np.concatenate([[0.0], np.geomspace(min(f_low / 10, 1.0), 0.95 * (0.5 / dt), 400)])
+
+
+def resolved_grid(f_low: float, dt: float, f_resolution: float) -> np.ndarray:
+    """:func:`check_grid` without the lines below ``f_resolution`` (the records' ``1 / duration``).
+
+    The controller is known at every frequency, 0 Hz included; the identified ``T`` only where the
+    records resolve it.  Below that, ``T`` is the pairs' extrapolation: with a lag the loop gain at
+    DC is ~1e4, so ``M (I - T)`` there hangs on ``T(0)`` to ~1e-4, which a 1-2 s record does not
+    fix, and a pair free at DC can make eq. 18 look singular where the true loop is not.
+    """
+    grid = check_grid(f_low, dt)
+    return grid[grid >= f_resolution]
 
 
 def check_controller(controller: StateSpaceModel, freqs_hz: np.ndarray) -> None:

@@ -33,14 +33,17 @@ from .deduction import (
     deduce_plant,
     discrete_controllers,
     plant_response,
+    resolved_grid,
     unstable_plant_poles,
     wide_response,
 )
 from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
+from .plant_reduction import keep_full_order, reduce_plant
 from .polynomial import FREE_ORDERS, STRUCTURES, PolynomialModel, structure_orders
-from .reduction import keep_full_order, paper_orders, reduce_plant
+from .reduction import paper_orders
+from .reliability import deduction_gain, reliability_weights
 from .result import ClosedLoopResult
 
 __all__ = ["ClosedLoopIdentification"]
@@ -228,6 +231,17 @@ class ClosedLoopIdentification(Estimator):
 
         return fit_pair
 
+    def _reduce(self, T, M, Mr, P_band, f_band, entries, s_unstable):
+        """Step 4 with a fixed structure: every entry reduced over the band, its lines weighed by
+        how far an error of T reaches it there (:mod:`~stageid.closedloop.reliability`)."""
+        p = T.n_outputs
+        orders = paper_orders(p) if self.structure == "paper" else dict(self.structure)
+        Mr_band = None if Mr is None else Mr.frequency_response(f_band)
+        gain = deduction_gain(T.frequency_response(f_band), M.frequency_response(f_band), P_band, Mr_band)
+        weights = reliability_weights(P_band, gain)
+        names = (M.outputs, T.outputs)
+        return reduce_plant(P_band, f_band, T.dt, orders, entries, s_unstable, names, self.continuous, weights)
+
     # ---------------------------------------------------------------- fit
     @single_blas_thread
     def fit(self, data: Experiment | Sequence[Experiment]) -> ClosedLoopResult:
@@ -269,7 +283,7 @@ class ClosedLoopIdentification(Estimator):
         T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
-        check_deduction(T, M, Mr, check_grid(lo, dt))
+        check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / max(e.n_samples * e.dt for e in exps)))
         s_unstable = z_to_s(unstable_plant_poles(T, M, Mr), dt)
         # 3. spurious pole-zero pairs cancelled entry by entry (sec. 3.2.3)
         G_cancel, entries = cancel_entries(
@@ -281,11 +295,7 @@ class ClosedLoopIdentification(Estimator):
         if self.structure == "full":
             plant, reduced, eps, eps_c = keep_full_order(G_cancel, P_band, f_band, self.continuous)
         else:
-            orders = paper_orders(p) if self.structure == "paper" else dict(self.structure)
-            names = (M.outputs, T.outputs)
-            plant, reduced, eps, eps_c = reduce_plant(
-                P_band, f_band, dt, orders, entries, s_unstable, names, self.continuous
-            )
+            plant, reduced, eps, eps_c = self._reduce(T, M, Mr, P_band, f_band, entries, s_unstable)
         return ClosedLoopResult(
             plant=plant,
             plant_full=G_full,

@@ -22,9 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .._errors import IdentificationError, ModelError
-from ..models import TransferMatrix
-from .cancellation import EntryPoleZero, z_to_s
+from .._errors import IdentificationError
 from .zoh import zoh_at, zoh_derivatives
 
 #: Sanathanan-Koerner passes after Levy's estimate in the reduction's linear start
@@ -34,9 +32,9 @@ __all__ = [
     "ReducedEntry",
     "reduce_entry",
     "reduce_best",
-    "reduce_plant",
-    "keep_full_order",
-    "entry_unstable_poles",
+    "free_fit",
+    "finish_entry",
+    "minimise",
     "paper_orders",
 ]
 
@@ -58,6 +56,11 @@ class ReducedEntry:
     eps_median : float
         The median over the band of ``|P_i - P_r| / |P_i|``: how well the structure follows the
         band as a whole, apart from narrow stretches where the deduced response itself is off.
+    eps_weighted : float
+        The RMS over the band of ``w |P_i - P_r| / |P_i|`` with the fit's weights ``w``: the cost
+        the fit minimises, by which the candidates of one entry are compared.
+    weights : ndarray of shape (n_freqs,), optional
+        The fit's line weights ``w`` over its band (None: all 1).
     """
 
     num: np.ndarray
@@ -66,6 +69,8 @@ class ReducedEntry:
     eps_magnitude: float
     eps_complex: float
     eps_median: float = float("nan")
+    eps_weighted: float = float("nan")
+    weights: np.ndarray | None = None
 
     @property
     def poles(self) -> np.ndarray:
@@ -95,6 +100,7 @@ def reduce_entry(
     unstable_poles: np.ndarray | None = None,
     max_nfev: int = 400,
     stable_free: bool = True,
+    weights: np.ndarray | None = None,
 ) -> ReducedEntry:
     """Fit ``P_r = b(s) / (d_u(s) d_s(s))`` to the deduced discrete response over a band.
 
@@ -116,6 +122,9 @@ def reduce_entry(
     stable_free : bool
         Keep the free poles in the left half plane (reflect and refit); with False the
         free poles may land anywhere, so unstable poles are fitted rather than kept.
+    weights : ndarray of shape (n_freqs,), optional
+        Weights of the relative error per line (default 1; the estimator passes
+        :func:`~stageid.closedloop.reliability.reliability_weights`).
 
     Returns
     -------
@@ -136,7 +145,7 @@ def reduce_entry(
     >>> bool(r.eps_complex < 1e-6), np.round(np.sort(r.poles.real), 3).tolist()
     (True, [-80.0, 50.0])
     """
-    fit, theta, up = free_fit(response, freqs_hz, dt, n_zeros, n_poles, unstable_poles, max_nfev)
+    fit, theta, up = free_fit(response, freqs_hz, dt, n_zeros, n_poles, unstable_poles, max_nfev, weights)
     return finish_entry(fit, theta, up, max_nfev, stable_free)
 
 
@@ -148,6 +157,7 @@ def free_fit(
     n_poles: int,
     unstable_poles: np.ndarray | None = None,
     max_nfev: int = 400,
+    weights: np.ndarray | None = None,
 ) -> tuple[_RationalFit, np.ndarray, np.ndarray]:
     """The first step of :func:`reduce_entry`: Levy start and nonlinear fit with the free poles anywhere.
 
@@ -159,23 +169,28 @@ def free_fit(
     up = np.zeros(0, complex) if unstable_poles is None else np.asarray(unstable_poles, dtype=complex).reshape(-1)
     n_free = n_poles - up.size
     _check_entry_fit(P, f, up.size, n_zeros, n_poles)
+    w = np.ones(f.size) if weights is None else np.asarray(weights, dtype=float).reshape(-1)
     w0 = 2 * np.pi * np.sqrt(f.min() * f.max())  # frequency normalisation
     du_n = np.real(np.poly(up / w0)) if up.size else np.array([1.0])
-    theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free)
-    fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles)
+    theta = _levy_start(P, f, dt, w0, du_n, n_zeros, n_free, w)
+    fit = _RationalFit(P, f, dt, w0, du_n, n_zeros, n_poles, w)
+    return fit, minimise(fit, theta, max_nfev), up
+
+
+def minimise(fit: _RationalFit, theta: np.ndarray, max_nfev: int = 400) -> np.ndarray:
+    """The weighted relative error of ``fit`` minimised from ``theta`` (nonlinear least squares)."""
     try:
-        sol = least_squares(
+        return least_squares(
             fit.residual,
             theta,
             jac=fit.jacobian,
-            method="lm" if theta.size * 2 <= 2 * f.size else "trf",
+            method="lm" if theta.size <= fit.f.size else "trf",
             max_nfev=max_nfev,
             xtol=1e-12,
             ftol=1e-12,
-        )
+        ).x
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise IdentificationError(f"the reduced-order fit [{n_zeros}, {n_poles}] failed: {exc}") from None
-    return fit, sol.x, up
+        raise IdentificationError(f"the reduced-order fit [{fit.n_zeros}, {fit.n_poles}] failed: {exc}") from None
 
 
 def finish_entry(
@@ -188,7 +203,16 @@ def finish_entry(
     Pr = zoh_at(num, den, fit.dt, fit.z)
     eps_mag = float(np.max(np.abs(np.abs(fit.P) - np.abs(Pr)) / np.abs(fit.P)))
     rel = np.abs(fit.P - Pr) / np.abs(fit.P)
-    return ReducedEntry(num, den, up, eps_mag, float(np.max(rel)), float(np.median(rel)))
+    return ReducedEntry(
+        num,
+        den,
+        up,
+        eps_mag,
+        float(np.max(rel)),
+        float(np.median(rel)),
+        float(np.sqrt(np.mean((fit.w * rel) ** 2))),
+        fit.w,
+    )
 
 
 def _check_entry_fit(P: np.ndarray, f: np.ndarray, n_fixed: int, n_zeros: int, n_poles: int) -> None:
@@ -227,7 +251,7 @@ def _reflect_and_refit(fit: _RationalFit, theta: np.ndarray, max_nfev: int) -> n
 
 
 def _levy_start(
-    P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int
+    P: np.ndarray, f: np.ndarray, dt: float, w0: float, du_n: np.ndarray, n_zeros: int, n_free: int, w: np.ndarray
 ) -> np.ndarray:
     """Linear estimate of ``[b; a_1..a_nfree]`` on the continuous approximation ``P_c ~ P_d exp(+j w dt / 2)``:
     Levy's equation error, then :data:`SK_ITERATIONS` Sanathanan-Koerner passes.
@@ -236,7 +260,8 @@ def _levy_start(
     the poles and shrinks at a lightly damped mode: the mode is fitted last, and a coupling's
     resonance can come out far off (measured: a [1, 3] coupling reduced to a pole at -2e9 rad/s from
     a deduced response within 2.5 % of the truth). Each pass divides by ``|P_c d_prev(s)|``, the
-    previous pass's denominator, so the equation error tends to the relative error itself.
+    previous pass's denominator, so the equation error tends to the relative error itself (times
+    the weights ``w``, as the nonlinear fit counts it).
     """
     s_n = 2j * np.pi * f / w0
     Pc = P * np.exp(1j * np.pi * f * dt)
@@ -245,7 +270,7 @@ def _levy_start(
     cols += [-Pc * du * s_n**k for k in range(n_free - 1, -1, -1)]  # a_1..a_nfree
     rhs = Pc * du * s_n**n_free
     Phi = np.column_stack(cols) if cols else np.zeros((f.size, 0))
-    scale = np.abs(rhs)
+    scale = np.abs(rhs) / w
     theta = None
     for _ in range(1 + SK_ITERATIONS):
         Phi_w, rhs_w = Phi / scale[:, None], rhs / scale
@@ -258,7 +283,7 @@ def _levy_start(
         den = np.abs(Pc * du * np.polyval(np.concatenate([[1.0], theta[n_zeros + 1 :]]), s_n))
         if not np.all(np.isfinite(den) & (den > 0)):
             break
-        scale = den
+        scale = den / w
     return theta
 
 
@@ -270,8 +295,10 @@ class _RationalFit:
     :func:`zoh_response` on ``f``).
     """
 
-    def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles):
+    def __init__(self, P, f, dt, w0, du_n, n_zeros, n_poles, w=None):
         self.P, self.f, self.dt, self.w0, self.du_n = P, f, dt, w0, du_n
+        self.w = np.ones(np.size(f)) if w is None else w
+        self.Pw = P / self.w  # residuals divide by P and multiply by w: once
         self.n_zeros, self.n_poles = n_zeros, n_poles
         self.z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
         self.num_scale = w0 ** (-np.arange(n_zeros, -1, -1, dtype=float))
@@ -281,6 +308,12 @@ class _RationalFit:
         unit = np.eye(n_free + 1)[1:]
         self.den_jac = np.array([np.convolve(du_n, e) for e in unit]).reshape(n_free, n_poles + 1)
         self.den_jac = (self.den_jac * (self.den_scale / self.den_scale[0]))[:, 1:].T
+
+    def parameters(self, num: np.ndarray, den: np.ndarray) -> np.ndarray:
+        """The parameters of a fit without fixed poles (``du_n = [1]``) whose :meth:`polynomials`
+        are ``(num, den)`` (monic ``den`` of degree ``n_poles``, ``num`` of ``n_zeros + 1`` terms)."""
+        den_n = den / self.den_scale * self.den_scale[0]
+        return np.concatenate([num * self.den_scale[0] / self.num_scale, den_n[1:]])
 
     def polynomials(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(num, den)`` in ``s`` (descending, monic ``den``) of the parameters ``th``."""
@@ -293,9 +326,9 @@ class _RationalFit:
         return num / den[0], den / den[0]
 
     def residual(self, th: np.ndarray) -> np.ndarray:
-        """``(ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
+        """``w (ZOH{P_r} - P) / P``, real and imaginary parts stacked."""
         num, den = self.polynomials(th)
-        r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.P
+        r = (zoh_at(num, den, self.dt, self.z) - self.P) / self.Pw
         return np.concatenate([r.real, r.imag])
 
     def jacobian(self, th: np.ndarray) -> np.ndarray:
@@ -304,14 +337,21 @@ class _RationalFit:
         _, d_num, d_den = zoh_derivatives(num, den, self.dt, self.z)
         nb = self.n_zeros + 1
         dH = np.hstack([d_num[:, -nb:] * (self.num_scale / self.den_scale[0]), d_den @ self.den_jac])
-        dH /= self.P[:, None]
+        dH /= self.Pw[:, None]
         return np.vstack([dH.real, dH.imag])
 
 
 def reduce_best(
-    P: np.ndarray, f: np.ndarray, dt: float, nz: int, n_p: int, keep: np.ndarray, diagonal: bool
+    P: np.ndarray,
+    f: np.ndarray,
+    dt: float,
+    nz: int,
+    n_p: int,
+    keep: np.ndarray,
+    diagonal: bool,
+    weights: np.ndarray | None = None,
 ) -> ReducedEntry:
-    """Fit one entry three ways and keep the best.
+    """Fit one entry three ways and keep the best by the cost the fits minimise (``eps_weighted``).
 
     * unstable poles fixed at the values the deduction gives (when they fit the structure);
     * all poles free over the band (the zeros of ``M (I - T)`` that place the unstable poles
@@ -322,103 +362,22 @@ def reduce_best(
       stabilise (see the +9.74 rad/s pole of eq. 22c) and usually a displaced spurious doublet.
     """
     cands = []
-    if keep.size and keep.size <= n_p:
-        cands.append(reduce_entry(P, f, dt, nz, n_p, keep))
     # the all-free and the all-stable candidates start with the same fit: done once
-    free = free_fit(P, f, dt, nz, n_p, np.zeros(0))
+    fit, theta, up = free_fit(P, f, dt, nz, n_p, np.zeros(0), weights=weights)
+    if keep.size and keep.size <= n_p:
+        cands.append(reduce_entry(P, f, dt, nz, n_p, keep, weights=weights))
+        # the free fit started from the kept one too: the kept poles are one point of its space,
+        # so the free candidate is never worse than the kept one by the cost both minimise
+        other = minimise(fit, fit.parameters(cands[0].num, cands[0].den))
+        if np.sum(fit.residual(other) ** 2) < np.sum(fit.residual(theta) ** 2):
+            theta = other
+    free = (fit, theta, up)
     cands.append(finish_entry(*free, stable_free=False))
     stable = finish_entry(*free, stable_free=True)
     stable_ok = not np.any(stable.poles.real > 0)
     if stable_ok:
         cands.append(stable)
-    best = min(cands, key=lambda r: r.eps_complex)
-    if not diagonal and stable_ok and stable.eps_complex <= 1.5 * best.eps_complex:
+    best = min(cands, key=lambda r: r.eps_weighted)
+    if not diagonal and stable_ok and stable.eps_weighted <= 1.5 * best.eps_weighted:
         return stable
     return best
-
-
-def entry_unstable_poles(ent: EntryPoleZero, s_unstable: np.ndarray, dt: float, rel: float = 0.05) -> np.ndarray:
-    """Unstable poles (rad/s) the entry keeps after cancellation, snapped to the plant's deduced values."""
-    kept = z_to_s(ent.kept_poles[np.abs(ent.kept_poles) > 1.0 + 1e-9], dt)
-    out = []
-    pool = list(s_unstable)
-    for s in kept:
-        if pool:
-            k = int(np.argmin([abs(s - q) for q in pool]))
-            if abs(pool[k] - s) <= rel * abs(pool[k]):
-                out.append(pool.pop(k))
-                continue
-        out.append(s)
-    arr = np.array(out, dtype=complex)
-    # real poles as real
-    return np.where(np.abs(arr.imag) < 1e-9 * np.maximum(1, np.abs(arr)), arr.real, arr)
-
-
-def reduce_plant(
-    response: np.ndarray,
-    freqs_hz: np.ndarray,
-    dt: float,
-    orders: dict[tuple[int, int], tuple[int, int]],
-    entries: tuple[EntryPoleZero, ...],
-    unstable_poles: np.ndarray,
-    names: tuple[tuple[str, ...], tuple[str, ...]],
-    continuous: bool = True,
-) -> tuple[TransferMatrix, dict, np.ndarray, np.ndarray]:
-    """Every entry reduced to its ``(n_zeros, n_poles)`` of ``orders`` over the band (sec. 3.3).
-
-    ``response`` is the deduced plant over ``freqs_hz`` (n_freqs, p, p); ``names`` are the
-    plant's (inputs, outputs).  Returns ``(plant, reduced, eps, eps_complex)``: the continuous
-    (or ZOH-discretised) plant, ``{(i, j): ReducedEntry}`` and the band errors (p, p).
-    """
-    p = response.shape[1]
-    reduced: dict[tuple[int, int], ReducedEntry] = {}
-    eps, eps_c = np.zeros((p, p)), np.zeros((p, p))
-    nums, dens = [[None] * p for _ in range(p)], [[None] * p for _ in range(p)]
-    for i in range(p):
-        for j in range(p):
-            nz, n_p = orders[(i, j)]
-            ent = next(e for e in entries if e.output == i and e.input == j)
-            keep = entry_unstable_poles(ent, unstable_poles, dt)
-            red = reduce_best(response[:, i, j], freqs_hz, dt, nz, n_p, keep, diagonal=(i == j))
-            reduced[(i, j)] = red
-            eps[i, j], eps_c[i, j] = red.eps_magnitude, red.eps_complex
-            nums[i][j], dens[i][j] = red.num, red.den
-    plant = TransferMatrix(nums, dens, None, *names)
-    return (plant if continuous else plant.c2d(dt, "zoh")), reduced, eps, eps_c
-
-
-def keep_full_order(
-    cancelled: TransferMatrix, response: np.ndarray, freqs_hz: np.ndarray, continuous: bool = True
-) -> tuple[TransferMatrix, dict, np.ndarray, np.ndarray]:
-    """The cancelled full-order deduction as the plant (structure "full"), checked over the band.
-
-    Returns ``(plant, {}, eps, eps_complex)`` like :func:`reduce_plant`.
-
-    Raises
-    ------
-    IdentificationError
-        When the plant has no continuous ZOH equivalent (``continuous``), or an entry misses
-        the deduced response by more than 5 % somewhere in the band (unreliable cancellation).
-    """
-    plant, resp = cancelled, None
-    if continuous:
-        try:
-            plant = cancelled.d2c("zoh")
-        except ModelError as exc:
-            raise IdentificationError(
-                f"the full-order deduced plant has no continuous ZOH equivalent ({exc}); "
-                "ask for a discrete plant or a reduced structure."
-            ) from None
-        resp = plant.c2d(cancelled.dt, "zoh").frequency_response(freqs_hz)
-    else:
-        resp = plant.frequency_response(freqs_hz)
-    eps = np.max(np.abs(np.abs(response) - np.abs(resp)) / np.abs(response), axis=0)
-    eps_c = np.max(np.abs(response - resp) / np.abs(response), axis=0)
-    if eps_c.max() > 0.05:
-        i, j = np.unravel_index(int(np.argmax(eps_c)), eps_c.shape)
-        raise IdentificationError(
-            f"the cancelled full-order model of entry ({i}, {j}) misses the deduced response by {100 * eps_c[i, j]:.1f} % "
-            f"over {freqs_hz[0]:g}-{freqs_hz[-1]:g} Hz (expected < 5 %): its pole-zero cancellation is unreliable; "
-            "use a reduced structure."
-        )
-    return plant, {}, eps, eps_c

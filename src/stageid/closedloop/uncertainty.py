@@ -9,8 +9,8 @@ Delta method, step by step (all first order, evaluated at the estimate):
    = (I + G M) dT U^-1``, so ``dG_ab = sum_ij (I + G M)_ai dT_ij (U^-1)_jb``;
 3. the reduction (sec. 3.3) is a least-squares fit of the reduced entry ``P_r(phi)`` to the
    deduced response over the band, with relative residual ``r = (ZOH{P_r} - P) / P``.  By the
-   implicit-function theorem its parameters move by ``dphi = J_r^+ (dP / P)`` (real and
-   imaginary parts stacked, ``J_r = d r / d phi``), and the returned model at any frequency by
+   implicit-function theorem its parameters move by ``dphi = (W J_r)^+ W (dP / P)`` (real and
+   imaginary parts stacked, ``J_r = d r / d phi``, ``W`` the fit's line weights), and the returned model at any frequency by
    ``dP_r(f) = dP_r/dphi(f) dphi``.  Cancellation (sec. 3.2.3) removes pairs that cancel to the
    tolerance: it does not move the response, so it adds nothing to first order;
 4. the unstable poles the reduction keeps fixed are the zeros of ``det U(z)`` outside the unit
@@ -198,7 +198,9 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     for (a, b), red in result.reduced.items():
         Pab = P[:, a, b]
         Jr = _stack(_tangent(red, fb, result.dt, w0, zoh=True) / Pab[:, None])
-        Q = np.linalg.pinv(Jr, rcond=1e-10)
+        # the fit weighs its lines (reduction.ReducedEntry.weights): dphi = (W J_r)^+ W dP / P
+        ww = np.tile(np.ones(fb.size) if red.weights is None else red.weights, 2)[:, None]
+        Q = np.linalg.pinv(ww * Jr, rcond=1e-10)
         E = _tangent(red, f, result.dt, w0, zoh=discrete)
         kept = _kept_poles(red, result.unstable_poles)
         Jp = _stack(_pole_tangent(red, [p for p, _ in kept], fb, result.dt, w0, zoh=True) / Pab[:, None])
@@ -209,12 +211,12 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
             S = _stack((L[:, a, i] * R[:, j, b] / Pab)[:, None] * gij)  # d(dP/P)/dtheta, stacked
             Hp = np.array([pole_sens[k][(i, j)] for _, k in kept]).reshape(len(kept), gij.shape[1])
             S = S - Jp @ Hp  # what the free parameters must absorb
-            QS = Q @ S
+            QS = Q @ (ww * S)
             var[:, a, b] += _quadratic(E @ QS + Ep @ Hp, C)
-            Rn = S - Jr @ QS  # what the fit leaves of the noise
+            Rn = ww * (S - Jr @ QS)  # what the fit leaves of the noise, weighted as the fit counts it
             per_row = np.sum((Rn @ C) * Rn, axis=1)  # [Re; Im] rows of each band frequency
             noise_resid += per_row[: fb.size] + per_row[fb.size :]
-        fit = _stack((zoh_response(red.num, red.den, result.dt, fb) - Pab) / Pab)
+        fit = ww[:, 0] * _stack((zoh_response(red.num, red.den, result.dt, fb) - Pab) / Pab)
         misfit[:, a, b], noise[:, a, b] = fit[: fb.size] ** 2 + fit[fb.size :] ** 2, noise_resid
     return var, misfit, noise
 
