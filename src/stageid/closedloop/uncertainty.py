@@ -34,7 +34,9 @@ edge's value and the band's mean);
 ``bias="flat"`` spreads its band average ``b^2 = max(0, ||r||^2 - E||r_noise||^2) / n_band``
 evenly (too narrow at the low end: 84 % coverage at 20-39 Hz on the maglev), and
 ``bias="inflate"`` scales the propagated variance by the misfit's ratio to its noise expectation
-(keeping its frequency shape).  Coverage of each, and where they fail, in
+(keeping its frequency shape).  All three count only the misfit beyond what the noise
+explains at :data:`SIGNIFICANCE` (:func:`significant_share`): the misfit's noise has few degrees
+of freedom, and its chance excess is no bias.  Coverage of each, and where they fail, in
 studies/uncertainty_closedloop/RESULTS.md.
 
 With the ``"full"`` structure the returned plant is the cancelled deduction: its ``std`` is
@@ -44,6 +46,7 @@ that of step 2.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from .._errors import DataError, IdentificationError
 from ..models.frequency_response import FrequencyResponse
@@ -56,6 +59,8 @@ __all__ = [
     "BIAS_RULES",
     "LOCAL_WINDOW",
     "local_bias",
+    "SIGNIFICANCE",
+    "significant_share",
     "check_frequencies",
     "deduction_sensitivity",
     "deduced_variance",
@@ -143,14 +148,17 @@ def plant_uncertainty(result, freqs_hz: object, bias: str = "local") -> Frequenc
     if not result.reduced:  # "full": the cancelled deduction, step 2 only
         var = deduced_variance(result, f)
     else:
-        var, misfit, noise = _reduced_variance(result, f)
+        var, misfit, noise, noise_sq = _reduced_variance(result, f)
         fb = result.covariance.band_freqs
+        # only the misfit the noise cannot explain counts as bias (:func:`significant_share`)
+        share = significant_share(misfit.sum(0), noise.sum(0), noise_sq)
+        excess = np.maximum(misfit.sum(0) - noise.sum(0), 0.0) * share
         if bias == "flat":
-            var += np.maximum(misfit.sum(0) - noise.sum(0), 0.0)[None] / fb.size * np.abs(G) ** 2
+            var += excess[None] / fb.size * np.abs(G) ** 2
         elif bias == "inflate":
-            var *= np.maximum(misfit.sum(0) / np.maximum(noise.sum(0), 1e-300), 1.0)[None]
+            var *= (1.0 + excess / np.maximum(noise.sum(0), 1e-300))[None]
         elif bias == "local":
-            var += local_bias(fb, misfit, noise, f) * np.abs(G) ** 2
+            var += local_bias(fb, misfit, noise, f) * share[None] * np.abs(G) ** 2
     return FrequencyResponse(f, G, np.sqrt(var), None, result.plant.inputs, result.plant.outputs)
 
 
@@ -182,11 +190,39 @@ def local_bias(fb: np.ndarray, misfit: np.ndarray, noise: np.ndarray, f: np.ndar
     return out
 
 
-def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steps 1-4 for every entry of a reduced plant: ``(var, misfit, noise)``.
+#: the misfit counts as bias only beyond this quantile of its distribution under the noise alone
+SIGNIFICANCE = 0.95
+
+
+def significant_share(misfit: np.ndarray, noise: np.ndarray, noise_sq: np.ndarray) -> np.ndarray:
+    """The share of the band's misfit excess ``misfit - noise`` that the noise cannot explain.
+
+    Under the noise alone the band total of ``|r|^2`` is a quadratic form in the PEM parameters,
+    ``sum_k lambda_k chi2_1``, with mean ``noise = sum lambda`` and ``noise_sq = sum lambda^2``.
+    The deduced response's error lives in the few directions ``T``'s parameters determine well,
+    so the form has few effective degrees of freedom (``noise^2 / noise_sq``, about 2 on a SISO
+    loop): its excess over the mean swings by about its own mean from the noise alone, and counted
+    as bias it widens the band on every record whose noise happened to fall outside the reduced
+    structure.  Only the misfit beyond the noise's :data:`SIGNIFICANCE` quantile (Satterthwaite's
+    scaled chi-square, ``noise_sq / noise * chi2(noise^2 / noise_sq)``) counts; when the bias
+    dominates, the share tends to 1.  Arrays of one shape, the share in [0, 1].
+    """
+    m, mu, sq = (np.asarray(x, dtype=float) for x in (misfit, noise, noise_sq))
+    ok = (mu > 0) & (sq > 0)
+    scale = np.where(ok, sq / np.where(ok, mu, 1.0), 0.0)
+    dof = np.where(ok, mu**2 / np.where(ok, sq, 1.0), 1.0)
+    q = scale * chi2.ppf(SIGNIFICANCE, dof)
+    excess = m - mu
+    return np.where(excess > 0, np.maximum(m - q, 0.0) / np.where(excess > 0, excess, 1.0), 0.0)
+
+
+def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Steps 1-4 for every entry of a reduced plant: ``(var, misfit, noise, noise_sq)``.
 
     ``var`` (n_freqs, p, p) is the propagated variance, ``misfit`` (n_band, p, p) the reduction's
-    ``|r|^2`` at each band frequency and ``noise`` (n_band, p, p) its expectation under the noise alone.
+    ``|r|^2`` at each band frequency and ``noise`` (n_band, p, p) its expectation under the noise
+    alone; ``noise_sq`` (p, p) is ``sum(lambda^2)`` over the eigenvalues ``lambda`` of the band
+    total's noise quadratic form (its variance is ``2 noise_sq``).
     """
     fb = result.covariance.band_freqs
     L, R, g, P = deduction_sensitivity(result, fb)
@@ -195,6 +231,7 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     pole_sens = unstable_pole_sensitivity(result)
     p = L.shape[1]
     var, misfit, noise = np.zeros((f.size, p, p)), np.zeros((fb.size, p, p)), np.zeros((fb.size, p, p))
+    noise_sq = np.zeros((p, p))
     for (a, b), red in result.reduced.items():
         Pab = P[:, a, b]
         Jr = _stack(_tangent(red, fb, result.dt, w0, zoh=True) / Pab[:, None])
@@ -216,9 +253,11 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
             Rn = ww * (S - Jr @ QS)  # what the fit leaves of the noise, weighted as the fit counts it
             per_row = np.sum((Rn @ C) * Rn, axis=1)  # [Re; Im] rows of each band frequency
             noise_resid += per_row[: fb.size] + per_row[fb.size :]
+            KC = (Rn.T @ Rn) @ C  # the pairs are independent: their eigenvalues add up as a block diagonal
+            noise_sq[a, b] += np.sum(KC * KC.T)
         fit = ww[:, 0] * _stack((zoh_response(red.num, red.den, result.dt, fb) - Pab) / Pab)
         misfit[:, a, b], noise[:, a, b] = fit[: fb.size] ** 2 + fit[fb.size :] ** 2, noise_resid
-    return var, misfit, noise
+    return var, misfit, noise, noise_sq
 
 
 def _kept_poles(red: ReducedEntry, s_unstable: np.ndarray) -> list[tuple[float, int]]:
