@@ -26,6 +26,7 @@ def _record(path, u, act, seed):
     return y
 
 
+@pytest.mark.study
 @pytest.mark.slow
 def test_unseen_actuator_through_the_cli(tmp_path, capsys):
     u = decaying_triangle(1.0, 10, 1e-3, amplitude=500.0)

@@ -109,6 +109,7 @@ def test_response_uncertainty_refuses_bad_grids_and_missing_covariance() -> None
         ClosedLoopIdentification(_siso_controller(), covariance="bootstrap").fit(exp)
 
 
+@pytest.mark.study
 @pytest.mark.slow
 def test_siso_bands_are_calibrated_over_seeds() -> None:
     """20 noise seeds of an unstable SISO loop: the 1.73-std band covers 85-99 %.

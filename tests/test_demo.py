@@ -8,6 +8,7 @@ from stageid.cli.main import main
 from stageid.models import load_model
 
 
+@pytest.mark.study
 @pytest.mark.slow
 def test_demo_writes_report_metrics_and_models(tmp_path, capsys):
     out = tmp_path / "demo"

@@ -15,6 +15,7 @@ from stageid.hysteresis import Compensator, PIIdentifier
 
 ROOT = datasets.shared_data_dir()
 pytestmark = [
+    pytest.mark.study,
     pytest.mark.skipif(find_compiler() is None, reason="no C compiler (gcc, clang or cc) on PATH"),
     pytest.mark.skipif(ROOT is None, reason="shared data folder not found (../shared/data or STAGEID_SHARED_DATA)"),
 ]

@@ -95,6 +95,7 @@ def test_a_mode_rung_only_by_the_disturbance_is_recovered():
     assert auto.modes == () and "did not lower the held-out one-step prediction error" in auto.message
 
 
+@pytest.mark.study
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_no_mode_without_a_resonance_in_the_noise(seed):
     """No resonance (a 1.5 kHz lag), disturbance and sensor noise; and a 900 Hz resonance the
@@ -152,6 +153,7 @@ def test_stage_json_names_the_modes_and_refuses_bad_ones():
         StageModel(_hysteresis(), g, disturbance_modes=((700.0, -0.02),))
 
 
+@pytest.mark.study
 def test_cli_disturbance_modes_flag(tmp_path, capsys):
     b, a = _resonance(1500.0, 0.02)
     paths = []

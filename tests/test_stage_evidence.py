@@ -179,6 +179,7 @@ def test_held_out_simulation_error_hides_a_mode_that_the_prediction_error_sees()
     assert prediction_score(with_mode, problem.prefilter[1])[0] < 0.6 * prediction_score(without)[0]
 
 
+@pytest.mark.study
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_mode_the_drives_hardly_excite_is_kept_and_lowers_the_error_where_excited(seed):
     """The same stage with a 1.1 kHz lag before the mode, identified with order-1 dynamics: the
