@@ -452,3 +452,17 @@ def test_closed_loop_with_the_controller_unknown_runs_the_direct_route(client, f
     line = next(x for x in state["result"]["model"]["summary"].splitlines() if "unstable poles" in x)
     found = [float(v.split("+-")[0]) for v in line.split(":", 1)[1].split(",")]
     assert np.allclose(sorted(found), [31.4, 50.0], rtol=0.02), line
+
+
+def test_hysteresis_loops_of_a_long_fast_record_show_the_last_cycles(client, folder):
+    t = np.arange(2000) * 1e-3
+    u = 5.0 * np.sin(2 * np.pi * 20.0 * t)  # 40 cycles: drawn whole they are a solid block
+    y = 0.8 * u + 0.3 * np.abs(u) * np.sign(np.gradient(u))
+    write_csv(folder / "fast.csv", {"t": t, "V": u, "y": y})
+    d = prepare(client, "fast.csv", inputs=["V"], outputs=["y"], detrend="none")
+    job = client.post("/api/estimate", json={"method": "hysteresis", "data": d["name"], "options": {"model": "pi"}})
+    state = wait(client, job.json())
+    assert state["status"] == "done", state["error"]
+    loops = state["result"]["figures"]["loops"]
+    # three panels: the last cycles' loops, their error, the whole record's error envelope
+    assert 'id="axes_3"' in loops and 'id="axes_4"' not in loops

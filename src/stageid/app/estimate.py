@@ -205,13 +205,23 @@ def hysteresis(session: Session, data: str, options: dict[str, Any], out: str) -
     )
 
     def then() -> dict[str, Any]:
+        import numpy as np
+
         from ..data.io import read_table
-        from ..plots.hysteresis import loop_figure
+        from ..plots.hysteresis import loop_error_figure
 
         made = _register_model(session, out, f"hysteresis ({kind})", data, lambda: _log(session, out))
         exp = read_table(session.workspace / d["file"]).experiment(d["inputs"], d["outputs"])
-        curves = {"measured": exp.y[:, 0], out: made["object"].simulate(exp.u[:, 0], exp.dt)}
-        loops = loop_figure(exp.u[:, 0], curves, xlabel=d["inputs"][0], ylabel=d["outputs"][0])
+        y_hat = made["object"].simulate(exp.u[:, 0], exp.dt)
+        # a long record of a fast input shows its last cycles beside the whole record's error envelope
+        loops = loop_error_figure(
+            np.arange(exp.n_samples) * exp.dt,
+            exp.u[:, 0],
+            exp.y[:, 0],
+            y_hat,
+            (d["inputs"][0], d["outputs"][0]),
+            f"error [{exp.output_units[0]}]" if exp.output_units and exp.output_units[0] else "error",
+        )
         return {"model": made["model"], "figures": {"loops": svg(loops)}}
 
     return args, python, then
