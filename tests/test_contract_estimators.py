@@ -132,6 +132,30 @@ def test_a_new_subclass_is_registered():
     assert any(cls is Probe for cls in estimators().values())
 
 
+def test_a_former_keyword_still_works_with_a_warning():
+    class Renamed(Estimator):
+        abstract = True
+        renamed_parameters = {"dt": "sample_time", "fmin": ("band", 0), "fmax": ("band", 1)}
+
+        def __init__(self, sample_time=None, band=None):
+            self.sample_time, self.band = sample_time, band
+
+    with pytest.warns(DeprecationWarning, match="`dt` of Renamed is now `sample_time`"):
+        est = Renamed(dt=0.1, fmin=1.0, fmax=5.0)
+    assert est.get_params() == {"sample_time": 0.1, "band": (1.0, 5.0)}
+    with pytest.raises(ParameterError, match="former name of `sample_time`"):
+        Renamed(dt=0.1, sample_time=0.2)
+
+
+@pytest.mark.parametrize("name", sorted(estimators()))
+def test_former_keywords_name_declared_parameters(name):
+    cls = estimators()[name]
+    for old, new in cls.renamed_parameters.items():
+        target = new if isinstance(new, str) else new[0]
+        assert target in cls.parameter_names(), f"{name}: `{old}` maps to undeclared `{target}`"
+        assert old not in cls.parameter_names(), f"{name}: `{old}` is both former and current"
+
+
 def _package_classes():
     import importlib
     import pkgutil

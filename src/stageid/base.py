@@ -25,7 +25,9 @@ hand-written list.  The shape follows scikit-learn's ``utils/_param_validation.p
 from __future__ import annotations
 
 import copy
+import functools
 import inspect
+import warnings
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
@@ -181,12 +183,17 @@ class Estimator:
 
     parameter_constraints: ClassVar[Mapping[str, list[Any]]] = {}
     abstract: ClassVar[bool] = True
+    #: Former keyword -> its parameter now: a name, or ``(name, i)`` for end ``i`` of a pair
+    #: (``{"fmin": ("band", 0)}``).  A former keyword still works, with a DeprecationWarning.
+    renamed_parameters: ClassVar[Mapping[str, str | tuple[str, int]]] = {}
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if not cls.__dict__.get("abstract", False):
             cls.abstract = False
             _REGISTRY[f"{cls.__module__}.{cls.__qualname__}"] = cls
+        if cls.__dict__.get("renamed_parameters") and "__init__" in cls.__dict__:
+            cls.__init__ = _accepting_former_names(cls.__init__, cls.__dict__["renamed_parameters"])
 
     @classmethod
     def parameter_names(cls) -> tuple[str, ...]:
@@ -240,6 +247,34 @@ class Estimator:
 
     def fit(self, data: Any) -> Any:  # pragma: no cover - every concrete estimator overrides it
         raise NotImplementedError
+
+
+def _accepting_former_names(init: Callable, renamed: Mapping[str, str | tuple[str, int]]) -> Callable:
+    """``init`` that maps former keywords to their parameters, warning once per call."""
+
+    @functools.wraps(init)
+    def wrapper(self: Any, *args: Any, **kwargs: Any) -> None:
+        pairs: dict[str, list[Any]] = {}
+        for old in [k for k in kwargs if k in renamed]:
+            new = renamed[old]
+            value = kwargs.pop(old)
+            name = new if isinstance(new, str) else new[0]
+            if name in kwargs:
+                raise ParameterError(f"`{old}` is the former name of `{name}`; give only `{name}`.")
+            if isinstance(new, str):
+                kwargs[new] = value
+            else:
+                pairs.setdefault(name, [None, None])[new[1]] = value
+            warnings.warn(
+                f"`{old}` of {type(self).__name__} is now `{name}`; the former name will be removed.",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+        for name, pair in pairs.items():
+            kwargs[name] = tuple(pair)
+        init(self, *args, **kwargs)
+
+    return wrapper
 
 
 def _same(a: Any, b: Any) -> bool:
