@@ -68,6 +68,7 @@ MOVED: dict[str, str] = {
     "stageid.subspace.nested_horizons": "stageid.subspace.selection.nested_horizons",
     "stageid.subspace.covariance_grid": "stageid.subspace.uncertainty.grid_placement",
     "stageid.subspace.realisation_bias": "stageid.subspace.uncertainty.realisation_bias",
+    "stageid.subspace.chunked_fit": "stageid.subspace.chunked_source",
 }
 
 

@@ -72,7 +72,7 @@ def statistics_client(scheduler: str | None) -> Iterator[object]:
 
 def fit_on_chunks(est, record, scheduler: str | None):
     """``est`` (a HankelMAP) fitted to a chunked record, its statistics here or on ``scheduler``."""
-    from ..subspace.chunked_fit import fit_chunked
+    from ..subspace.chunked_source import fit_chunked
 
     with statistics_client(scheduler) as client:
         return fit_chunked(est, record, client)
