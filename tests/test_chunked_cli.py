@@ -45,9 +45,8 @@ def test_identify_statespace_on_a_chunked_record_equals_the_csv(tmp_path, x, fmt
 
 
 def test_uncertainty_of_a_chunked_fit_equals_the_in_memory_one(tmp_path, x):
-    # the posterior comes from the chunk-by-chunk statistics, so its bands must be the same as
-    # the in-memory fit's under the same covariance rule: a chunked fit keeps no lag statistics,
-    # so both use the posterior's p P allowance (overlap="inflate")
+    # the posterior and the lag statistics a result keeps come from the chunk-by-chunk sums, so
+    # its bands must be the in-memory fit's, overlapping-window covariance included
     from stageid.data import read_table
     from stageid.subspace import HankelMAP
     from stageid.subspace.uncertainty import realised_response_uncertainty
@@ -59,7 +58,8 @@ def test_uncertainty_of_a_chunked_fit_equals_the_in_memory_one(tmp_path, x):
     assert rc == 0, err
     exp = read_table(_csv(tmp_path, x)).experiment(list(IO[1].split(",")), list(IO[3].split(",")))
     res = HankelMAP(order=4, horizon=8, band=(0.0, 450.0)).fit(exp)
-    fr = realised_response_uncertainty(res, np.geomspace(1, 450, 30), overlap="inflate")
+    assert res.channels[0].window_lags is not None  # the in-memory fit uses the lags, not the p P allowance
+    fr = realised_response_uncertainty(res, np.geomspace(1, 450, 30))
     want = fr.to_columns()
     got = np.genfromtxt(tmp_path / "c.csv", delimiter=",", names=True)
     assert set(got.dtype.names) == set(want) and any(n.startswith("std_") for n in want)

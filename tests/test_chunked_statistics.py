@@ -10,7 +10,7 @@ from _chunked_data import DT, columns, experiment, write
 from stageid.data.chunked import open_chunked
 from stageid.frf.welch import cross_spectra, welch_frf
 from stageid.frf.welch_chunked import chunked_cross_spectra, chunked_welch_frf
-from stageid.subspace.chunked_fit import chunked_split_statistics, fit_chunked
+from stageid.subspace.chunked_source import ChunkedSource, chunked_split_statistics, fit_chunked
 from stageid.subspace.estimator import HankelMAP
 from stageid.subspace.records import channel_scales, prepared_records, to_unit_rms
 from stageid.subspace.selection import held_out_segments, horizon_candidates, split_statistics
@@ -79,7 +79,7 @@ def test_held_out_split_equals_in_memory(data, chunk):
     x, rec = data
     (u, y), scale = _scaled_in_memory(x)
     cands = horizon_candidates(2, 2, [N])
-    train, val, _ = chunked_split_statistics(rec, cands, 0.25, x.mean(axis=0), scale, chunk)
+    train, val = chunked_split_statistics(ChunkedSource(rec, x.mean(axis=0), scale, chunk), cands, 0.25)
     want_train, want_val = split_statistics([(u, y)], cands, 1.0, 0.25)
     assert set(train) == set(want_train) and set(val) == set(want_val) and train
     for p in train:

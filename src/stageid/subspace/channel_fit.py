@@ -1,7 +1,10 @@
 """One channel's fit of :class:`~.estimator.HankelMAP`, step by step in the paper's order.
 
-:func:`fit_channel` takes records scaled to unit RMS (one input group of eq. 19) through
+:func:`fit_channel` takes a record source (:mod:`.sources`: records in memory, or one record
+larger than memory, :mod:`.chunked_source`) of channels scaled to unit RMS, one input group of
+eq. 19, through
 
+0. the memory check of the steps below (ResourceError before any work);
 1. the held-out split and the horizon (section 3.2, :mod:`.selection`), when ``"auto"``;
 2. the eq. 9 statistics of the whole records (:mod:`.statistics`), from the same lag pass as
    the split when there is no forgetting;
@@ -10,20 +13,19 @@
 5. the realisation (eq. 10-15 or the frequency route, :mod:`.realisation`), back in the data's
    units,
 
-and returns the frozen :class:`~.result.ChannelFit`.  ``settings`` is the estimator whose
-parameters the steps read (``horizon``, ``method``, ``prior``, ``forgetting``, ...).
+and returns the frozen :class:`~.result.ChannelFit`; its warnings go to ``notes`` (the result's
+diagnostics) as well.  ``settings`` is the estimator whose parameters the steps read
+(``horizon``, ``method``, ``prior``, ``forgetting``, ...).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from typing import Any
 
 import numpy as np
 
 from .._errors import DataError, ExcitationWarning
-from ..data.experiment import Experiment
 from ..models.statespace import StateSpaceModel
 from ..runtime.resources import require_memory
 from ..validation.order_choice import poor_order_message
@@ -32,57 +34,50 @@ from .realisation.era import realize
 from .realisation.refinement import refinement_bytes
 from .records import excited_band, excited_lines
 from .result import ChannelFit
-from .selection import SelectionTable, horizon_candidates, pooled_split, select_horizon, select_order, split_statistics
-from .statistics.hankel_toeplitz import WindowStatistics, hankel_toeplitz_statistics, statistics_bytes
+from .selection import SelectionTable, horizon_candidates, select_horizon
+from .sources import HeldOutSplit, check_lengths
+from .statistics.hankel_toeplitz import WindowStatistics, statistics_bytes
 from .statistics.theta_response import response_bytes
-from .statistics.window_covariance import WindowLags, window_lags
 
-__all__ = ["fit_channel", "HeldOutSplit", "realize_settings"]
-
-
-@dataclasses.dataclass(frozen=True)
-class HeldOutSplit:
-    """The candidate horizons, the training and held-out statistics per candidate (empty when
-    nothing is chosen), and the whole records' lag correlations (None with forgetting or an update)."""
-
-    candidates: list[int]
-    train: dict[int, WindowStatistics]
-    val: dict[int, WindowStatistics]
-    whole: WindowLags | None
+__all__ = ["fit_channel", "realize_settings", "require_channel_memory"]
 
 
 def fit_channel(
     settings: Any,
-    recs: list[tuple[np.ndarray, np.ndarray]],
+    source: Any,
     cols: list[int],
     order: int | str,
-    first: Experiment,
     prev: ChannelFit | None,
     notes: list[str],
     su: np.ndarray,
     sy: np.ndarray,
 ) -> ChannelFit:
-    """One (sub-)model from records scaled to unit RMS (``su``, ``sy`` undo it): eq. 9 -> 16-18 -> 10-15."""
-    m, q, dt = len(cols), first.n_outputs, first.dt
-    in_names = tuple(first.input_names[c] for c in cols)
+    """One (sub-)model from a record source of channels scaled to unit RMS (``su``, ``sy`` undo
+    it; :mod:`.sources`): eq. 9 -> 16-18 -> 10-15."""
+    m, q, dt = len(cols), len(source.output_names), source.dt
+    in_names = tuple(source.input_names[c] for c in cols)
     horizon, order = (prev.horizon, prev.order) if prev is not None else (settings.horizon, order)
-    require_channel_memory(settings, recs, m, q, horizon, order)
-    split = held_out_split(settings, recs, m, q, horizon, order, pooled=prev is None and settings.forgetting == 1.0)
+    require_channel_memory(settings, source.lengths, m, q, horizon, order)
+    cands = horizon_candidates(m, q, source.lengths) if horizon == "auto" else [horizon]
+    pooled = prev is None and settings.forgetting == 1.0
+    forgetting, fraction = float(settings.forgetting), settings.validation_fraction
+    split = source.held_out_split(cands, "auto" in (horizon, order), forgetting, fraction, pooled)
     horizon_table = None
     if horizon == "auto":  # section 3.2: the horizon by held-out prediction error
         horizon, horizon_table = select_horizon(split.train, split.val, split.candidates, _prior_of(settings, su, sy))
-    stats = channel_statistics(settings, recs, horizon, split)  # eq. 9
+    check_lengths(source.lengths, horizon)
+    stats = source.statistics(horizon, forgetting, fraction, split)  # eq. 9
     if prev is None:  # eq. 16-18 (an update continues the previous posterior, which holds the prior)
         post = map_posterior(stats, _prior_of(settings, su, sy)(stats))
         if settings.method == "ls":
             warn_singular(stats, horizon, notes)
     else:
-        post = map_posterior(stats, None, prev.scaled_posterior, float(settings.forgetting))
+        post = map_posterior(stats, None, prev.scaled_posterior, forgetting)
     band = prev.band if prev is not None else excited_band(stats, dt, settings.band, notes)
     freqs = np.linspace(band[0], band[1], settings.n_frequencies)
     order_table = None
     if order == "auto":  # section 3.2: the order by held-out simulation error
-        order, order_table = held_out_order(settings, split, horizon, freqs, dt, recs, su, sy)
+        order, order_table = held_out_order(settings, source, split, horizon, freqs, su, sy)
     _warn_held_out(horizon_table, order_table, in_names, notes)
     model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy)  # eq. 10-15
     if model.n_states and excited_lines(stats) * m < int(order) / 2:
@@ -91,43 +86,13 @@ def fit_channel(
             f"the data are not persistently exciting."
         )
         _excitation_warning(msg, notes, stacklevel=6)
-    whole = split.whole
-    kept = None if whole is None else whole.at(horizon) if whole.horizon >= horizon else window_lags(recs, horizon)
-    model = model.with_names(in_names, first.output_names)
-    fit = (in_names, first.output_names, post, horizon, int(order), band, model, horizon_table, order_table, cost)
-    return ChannelFit(*fit, scales=(su.copy(), sy.copy()), window_lags=kept)
-
-
-def held_out_split(settings: Any, recs: list, m: int, q: int, horizon: Any, order: Any, pooled: bool) -> HeldOutSplit:
-    """The training / held-out statistics when the horizon or the order is chosen, per candidate.
-
-    ``pooled`` (a first fit without forgetting): one lag pass over the whole records serves
-    their statistics, the kept :class:`WindowLags` and (less the held-out segments') the
-    training segments' statistics.
-    """
-    cands = horizon_candidates(m, q, [u.shape[0] for u, _ in recs]) if horizon == "auto" else [horizon]
-    whole = window_lags(recs, max(cands)) if pooled else None
-    train: dict[int, WindowStatistics] = {}
-    val: dict[int, WindowStatistics] = {}
-    if horizon == "auto" or order == "auto":
-        train, val = split_statistics(recs, cands, float(settings.forgetting), settings.validation_fraction, whole)
-    return HeldOutSplit(cands, train, val, whole)
-
-
-def channel_statistics(settings: Any, recs: list, horizon: int, split: HeldOutSplit) -> WindowStatistics:
-    """Eq. 9 over the whole records at ``horizon``: from the split's lag pass when it has one, else
-    their own pass (with forgetting); DataError for a record too short for the horizon."""
-    short = [u.shape[0] for u, _ in recs if u.shape[0] <= 2 * horizon]
-    if short:
-        raise DataError(f"horizon {horizon} needs records of more than {2 * horizon} samples; got {min(short)}.")
-    stats = None
-    if split.whole is not None:
-        stats = pooled_split(split.train, split.val, horizon, recs, settings.validation_fraction, split.whole)
-    return stats if stats is not None else hankel_toeplitz_statistics(recs, horizon, float(settings.forgetting))
+    model = model.with_names(in_names, source.output_names)
+    fit = (in_names, source.output_names, post, horizon, int(order), band, model, horizon_table, order_table, cost)
+    return ChannelFit(*fit, scales=(su.copy(), sy.copy()), window_lags=source.kept_lags(horizon, split))
 
 
 def held_out_order(
-    settings: Any, split: HeldOutSplit, horizon: int, freqs: np.ndarray, dt: float, recs: list, su, sy
+    settings: Any, source: Any, split: HeldOutSplit, horizon: int, freqs: np.ndarray, su, sy
 ) -> tuple[int, SelectionTable]:
     """Section 3.2: the order whose model, realised from the training segments' posterior,
     simulates the held-out segments best."""
@@ -135,9 +100,8 @@ def held_out_order(
         raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
     train = split.train[horizon]
     post_train = map_posterior(train, _prior_of(settings, su, sy)(train))
-    return select_order(
-        post_train, settings.max_order, freqs, dt, recs, settings.validation_fraction, **realize_settings(settings)
-    )
+    fraction = settings.validation_fraction
+    return source.select_order(post_train, settings.max_order, freqs, fraction, realize_settings(settings))
 
 
 def realised_model(
@@ -155,9 +119,8 @@ def realize_settings(settings: Any) -> dict:
     return {"realization": settings.realization, "feedthrough": settings.feedthrough, "refine": settings.refine}
 
 
-def require_channel_memory(settings: Any, recs: list, m: int, q: int, horizon: Any, order: Any) -> None:
+def require_channel_memory(settings: Any, lengths: list[int], m: int, q: int, horizon: Any, order: Any) -> None:
     """Refuse (ResourceError) a horizon, order and frequency count that would not fit in memory."""
-    lengths = [u.shape[0] for u, _ in recs]
     p = max(horizon_candidates(m, q, lengths)) if horizon == "auto" else int(horizon)
     n = settings.max_order if order == "auto" else int(order)
     nz = int(settings.n_frequencies)

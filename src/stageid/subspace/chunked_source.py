@@ -1,153 +1,205 @@
-"""``HankelMAP`` on one record larger than memory (a :class:`~stageid.data.chunked.ChunkedRecord`).
+"""One record larger than memory (a :class:`~stageid.data.chunked.ChunkedRecord`) as a record
+source of :class:`~.estimator.HankelMAP` (:mod:`.sources` lists what a source answers).
 
-:func:`fit_chunked` runs the steps of :meth:`HankelMAP.fit <.estimator.HankelMAP.fit>` with the
-statistics computed chunk by chunk (:mod:`.chunked_statistics`), locally or on a Dask cluster:
+The fit is the in-memory one, step for step (:func:`~.channel_fit.fit_channel`); only the
+data's answers are computed chunk by chunk (:mod:`.statistics.chunked_statistics`), here or on
+a Dask cluster:
 
-1. the channel moments: mean removal, unit-RMS scales, inputs that do not move (:mod:`.records`);
-2. eq. 9: the window statistics, of the whole record for a given horizon, or (``horizon="auto"``)
-   of the training and held-out segments of :func:`~.selection.held_out_segments` for every
-   candidate, in one pass, pooled into the whole record's statistics as
-   :func:`~.selection.pooled_split` does;
-3. eq. 16-18 (MAP or least squares), the excited band, the realisation (eq. 10-15 or the
-   frequency route) on the statistics alone, as the in-memory fit.
+* the channel moments: mean removal, unit-RMS scales, inputs that do not move;
+* eq. 9: one pass over the whole record for its lag correlations up to the largest candidate
+  horizon (the statistics at every horizon below it, and the lags a result keeps for its
+  uncertainty) and the input spectrum; one pass over the training and held-out ranges of
+  :func:`~.selection.held_out_segments` when the horizon or the order is chosen;
+* the order by held-out simulation error: one sequential pass (:mod:`.selection.chunked_order`).
 
 The statistics equal the in-memory ones to rounding; the excited band (when ``band`` is not
-given) comes from a block-averaged input periodogram (see :mod:`.chunked_statistics`), so it
-can differ from the in-memory band by a bin of ``1 / (1024 dt)``.
-
-``order="auto"`` simulates every candidate over the record in one sequential pass here
-(:mod:`.chunked_order`).  Not available on a chunked record (a one-line DataError says what to
-give instead): ``per_channel`` (one record per excited input), ``forgetting`` below 1.
+given) comes from a block-averaged input periodogram (see :mod:`.statistics.chunked_statistics`),
+so it can differ from the in-memory band by a bin of ``1 / (1024 dt)``.  Not available on a
+chunked record (a one-line DataError says what to give instead): ``per_channel`` (one record per
+excited input), ``forgetting`` below 1, a list of several orders.
 """
 
 from __future__ import annotations
+
+import dataclasses
+from typing import Any
 
 import numpy as np
 
 from .._errors import DataError
 from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
-from ..models.statespace import StateSpaceModel
-from ..runtime.resources import require_memory
 from ..runtime.threads import single_blas_thread
-from .map.posterior import METHODS, map_posterior
-from .realisation.era import realize
-from .realisation.refinement import refinement_bytes
-from .records import excited_band
-from .result import ChannelFit, HankelMAPResult
-from .selection import held_out_segments, horizon_candidates, select_horizon
+from .map.posterior import Posterior
+from .result import HankelMAPResult
+from .selection import SelectionTable, held_out_segments
 from .selection.chunked_order import select_order_chunked
+from .sources import HeldOutSplit, kept_window_lags
 from .statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
-from .statistics.hankel_toeplitz import WindowStatistics, statistics_bytes
-from .statistics.theta_response import response_bytes
+from .statistics.hankel_toeplitz import WindowStatistics
+from .statistics.window_covariance import WindowLags
 
-__all__ = ["fit_chunked", "chunked_split_statistics"]
+__all__ = ["ChunkedSource", "chunked_source", "fit_chunked", "chunked_split_statistics", "check_chunked_settings"]
 
 
-def _check_settings(est, record: ChunkedRecord) -> None:
+def check_chunked_settings(settings: Any) -> None:
     """The settings a chunked record cannot serve, refused with what to give instead."""
-    if isinstance(est.order, (list, tuple)) and len(est.order) > 1:
-        raise DataError(f"a chunked record gets one model order; got {list(est.order)}.")
-    if est.per_channel:
+    if isinstance(settings.order, (list, tuple)) and len(settings.order) > 1:
+        raise DataError(f"a chunked record gets one model order; got {list(settings.order)}.")
+    if settings.per_channel:
         raise DataError(
             "per-channel identification needs one record per excited input; a chunked record is one "
             "record: drop `per_channel=True`."
         )
-    if est.forgetting != 1.0:
-        raise DataError(f"forgetting is not available for chunked records; got {est.forgetting}, expected 1.")
-    if est.band is not None:
-        check_band(est.band, "band", "HankelMAP", nyquist=0.5 / record.dt)
+    if settings.forgetting != 1.0:
+        raise DataError(f"forgetting is not available for chunked records; got {settings.forgetting}, expected 1.")
 
 
-def _shift_and_scale(est, record: ChunkedRecord, client, chunk: int, notes: list[str]):
-    """The mean removed from every channel and its unit-RMS scale (``records.to_unit_rms``)."""
-    mom = column_moments(record, chunk, client)
-    m = record.n_inputs
-    still = (mom.high - mom.low)[:m] == 0
-    if still.all():
-        raise DataError(
-            f"at least one input must move in some record; got every input ({', '.join(record.input_names)}) "
-            f"constant in all 1 record(s)."
-        )
-    for name in np.asarray(record.input_names)[still]:
-        notes.append(f"input '{name}' does not move in any record; its response cannot be identified.")
-    if est.detrend:
-        return mom.mean, mom.rms
-    raw = np.sqrt((mom.m2 + mom.count * mom.mean**2) / mom.count)
-    return np.zeros_like(mom.mean), np.where(np.isfinite(raw) & (raw > 0), raw, 1.0)
+def _spectrum(power: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The block periodogram with its bin centres in cycles per sample."""
+    return power, (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0])
 
 
-def chunked_split_statistics(record, cands, validation_fraction, shift, scale, chunk=DEFAULT_CHUNK, client=None):
-    """:func:`~.selection.split_statistics` of a chunked record (no forgetting), with the block
-    input periodogram of the whole record: ``(train, val, (power, freqs))``.
+@dataclasses.dataclass(frozen=True, eq=False)
+class ChunkedSource:
+    """A chunked record as a record source: its channels are ``(x - shift) / scale``, read chunk
+    by chunk of ``chunk`` samples, the sums on ``client``'s workers when given."""
+
+    record: ChunkedRecord
+    shift: np.ndarray
+    scale: np.ndarray
+    chunk: int = DEFAULT_CHUNK
+    client: Any = None
+
+    @classmethod
+    def prepare(
+        cls, record: ChunkedRecord, detrend: bool, notes: list[str], chunk: int = DEFAULT_CHUNK, client: Any = None
+    ) -> tuple[ChunkedSource, np.ndarray, np.ndarray]:
+        """The source and the channels' unit-RMS ``(input, output)`` scales, from one pass of
+        channel moments (:func:`~.records.prepared_records`, :func:`~.records.to_unit_rms`)."""
+        mom = column_moments(record, chunk, client)
+        m = record.n_inputs
+        still = (mom.high - mom.low)[:m] == 0
+        if still.all():
+            raise DataError(
+                f"at least one input must move in some record; got every input ({', '.join(record.input_names)}) "
+                f"constant in all 1 record(s)."
+            )
+        for name in np.asarray(record.input_names)[still]:
+            notes.append(f"input '{name}' does not move in any record; its response cannot be identified.")
+        if detrend:
+            shift, scale = mom.mean, mom.rms
+        else:
+            raw = np.sqrt((mom.m2 + mom.count * mom.mean**2) / mom.count)
+            shift, scale = np.zeros_like(mom.mean), np.where(np.isfinite(raw) & (raw > 0), raw, 1.0)
+        return cls(record, shift, scale, chunk, client), scale[:m], scale[m:]
+
+    input_names = property(lambda self: tuple(self.record.input_names))
+    output_names = property(lambda self: tuple(self.record.output_names))
+    dt = property(lambda self: self.record.dt)
+    lengths = property(lambda self: [self.record.n_samples])
+
+    def groups(self, per_channel: bool) -> list[tuple[list[int], ChunkedSource]]:
+        """One direct fit of all inputs (``per_channel`` is refused by :func:`check_chunked_settings`)."""
+        return [(list(range(self.record.n_inputs)), self)]
+
+    def whole_lags(self, horizon: int) -> tuple[WindowLags | None, np.ndarray]:
+        """The record's :class:`WindowLags` at ``horizon`` (None when shorter than ``8 p``, as in
+        memory) and its block input periodogram, from one pass."""
+        n, p = self.record.n_samples, int(horizon)
+        L = 4 * p - 1 if n >= 8 * p else 1  # a short record: the spectrum alone
+        lags, power = self.lag_sums([(0, n)], L - 1, spectrum=True)
+        if n < 8 * p:
+            return None, power
+        ends = [(self.record.read(a, b) - self.shift) / self.scale for a, b in ((0, L - 1), (n - L + 1, n))]
+        return WindowLags(lags[0], ends[0][None], ends[1][None], (n,)), power
+
+    def lag_sums(self, ranges: list[tuple[int, int]], max_lag: int, spectrum: bool = False):
+        """Lag sums of the scaled channels over each range (:func:`~.statistics.chunked_statistics.range_lag_sums`)."""
+        r = self.record
+        return range_lag_sums(r, ranges, max_lag, self.shift, self.scale, self.chunk, self.client, spectrum)
+
+    def held_out_split(
+        self, cands: list[int], needed: bool, forgetting: float, validation_fraction: float, pooled: bool
+    ) -> HeldOutSplit:
+        """The whole record's lags and spectrum (one pass) and, when ``needed``, the training /
+        held-out statistics per candidate (one pass over their ranges)."""
+        whole, power = self.whole_lags(max(cands))
+        train: dict[int, WindowStatistics] = {}
+        val: dict[int, WindowStatistics] = {}
+        if needed:
+            train, val = chunked_split_statistics(self, cands, validation_fraction)
+        return HeldOutSplit(cands, train, val, whole, _spectrum(power))
+
+    def statistics(
+        self, horizon: int, forgetting: float, validation_fraction: float, split: HeldOutSplit
+    ) -> WindowStatistics:
+        """Eq. 9 over the whole record, from the split's lags when they reach ``horizon``."""
+        n, m = self.record.n_samples, self.record.n_inputs
+        if split.whole is not None and split.whole.horizon >= horizon:
+            s = split.whole.statistics(horizon, m)
+        else:
+            lags = self.lag_sums([(0, n)], 2 * horizon - 1)[0]
+            s = ranged_statistics(self.record, [(0, n)], lags, horizon, self.shift, self.scale)
+        power, freqs = split.input_power
+        return WindowStatistics(s.W, s.n_windows, horizon, s.n_inputs, s.n_outputs, power, freqs, s.count)
+
+    def kept_lags(self, horizon: int, split: HeldOutSplit) -> WindowLags | None:
+        return kept_window_lags(split, horizon, lambda p: self.whole_lags(p)[0])
+
+    def select_order(
+        self, post: Posterior, max_order: int, freqs: np.ndarray, validation_fraction: float, realize_settings: dict
+    ) -> tuple[int, SelectionTable]:
+        """Section 3.2 in one sequential pass over the record (:func:`~.selection.chunked_order.select_order_chunked`)."""
+        r, vf = self.record, validation_fraction
+        args = (self.shift, self.scale, self.chunk)
+        return select_order_chunked(post, max_order, freqs, r.dt, r, vf, *args, **realize_settings)
+
+
+def chunked_split_statistics(
+    source: ChunkedSource, cands: list[int], validation_fraction: float
+) -> tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]]:
+    """:func:`~.selection.split_statistics` of a chunked record (no forgetting): ``(train, val)``.
 
     One pass: the lag sums of every training and held-out range up to the largest candidate's
     window; each range counts at the largest candidate it holds, smaller horizons use the
     leading block of that Gram matrix, as in the in-memory split.
     """
-    n = record.n_samples
-    tr, va = held_out_segments(n, validation_fraction)
+    record = source.record
+    tr, va = held_out_segments(record.n_samples, validation_fraction)
     ranges = tr + va
-    lags, power = range_lag_sums(record, ranges, 2 * max(cands) - 1, shift, scale, chunk, client, spectrum=True)
+    lags, _ = source.lag_sums(ranges, 2 * max(cands) - 1)
     out: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
     for part, acc in ((range(len(tr)), out[0]), (range(len(tr), len(ranges)), out[1])):
         groups: dict[int, list[int]] = {}
         for i in part:
-            a, b = ranges[i]
-            usable = [p for p in cands if 2 * p + 1 <= b - a]
+            usable = [p for p in cands if 2 * p + 1 <= ranges[i][1] - ranges[i][0]]
             if usable:
                 groups.setdefault(usable[-1], []).append(i)
-        tops = {
-            ph: ranged_statistics(record, [ranges[i] for i in idx], [lags[i] for i in idx], ph, shift, scale)
-            for ph, idx in groups.items()
-        }
-        for p in cands:
-            for ph, top in tops.items():
-                if ph >= p:
-                    k = 2 * p * (top.n_inputs + top.n_outputs)
-                    sp = WindowStatistics(
-                        top.W[:k, :k], top.n_windows, p, top.n_inputs, top.n_outputs, None, None, top.count
-                    )
-                    acc[p] = sp if p not in acc else acc[p] + sp
-    return out[0], out[1], (power, (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0]))
+        for ph, idx in groups.items():
+            top = ranged_statistics(
+                record, [ranges[i] for i in idx], [lags[i] for i in idx], ph, source.shift, source.scale
+            )
+            for p in (p for p in cands if p <= ph):
+                sp = top.leading(p)
+                acc[p] = sp if p not in acc else acc[p] + sp
+    return out[0], out[1]
 
 
-def _record_statistics(est, record, shift, scale, su, sy, chunk, client):
-    """Eq. 9 for the whole record at the given or chosen horizon: ``(stats, train, horizon table)``,
-    ``train`` the training segments' statistics (per horizon) when a selection needs them."""
-    m, q, n = record.n_inputs, record.n_outputs, record.n_samples
-    if est.horizon == "auto" or est.order == "auto":
-        cands = horizon_candidates(m, q, [n]) if est.horizon == "auto" else [int(est.horizon)]
-        train, val, (power, _) = chunked_split_statistics(
-            record, cands, est.validation_fraction, shift, scale, chunk, client
-        )
-    else:
-        train, val = {}, {}
-    table = None
-    if est.horizon == "auto":
-        prior_of = METHODS[est.method]
-        p, table = select_horizon(train, val, cands, lambda s: prior_of(s, est.prior, su, sy))
-    else:
-        p = int(est.horizon)
-    if n <= 2 * p:
-        raise DataError(f"horizon {p} needs records of more than {2 * p} samples; got {n}.")
-    if p in train and p in val and train[p].count + val[p].count >= 0.99 * (n - 2 * p + 1):
-        return _with_power(train[p] + val[p], power), train, table  # as selection.pooled_split
-    lags, power = range_lag_sums(record, [(0, n)], 2 * p - 1, shift, scale, chunk, client, spectrum=True)
-    return _with_power(ranged_statistics(record, [(0, n)], lags, p, shift, scale), power), train, table
-
-
-def _with_power(stats: WindowStatistics, power: np.ndarray) -> WindowStatistics:
-    freqs = (np.arange(power.shape[0]) + 0.5) / (2 * power.shape[0])
-    return WindowStatistics(
-        stats.W, stats.n_windows, stats.horizon, stats.n_inputs, stats.n_outputs, power, freqs, stats.count
-    )
+def chunked_source(
+    settings: Any, record: ChunkedRecord, notes: list[str], chunk: int = DEFAULT_CHUNK, client: Any = None
+) -> tuple[ChunkedSource, np.ndarray, np.ndarray]:
+    """The settings checked against a chunked record, then :meth:`ChunkedSource.prepare`."""
+    check_chunked_settings(settings)
+    if settings.band is not None:  # the one band rule, with the record's Nyquist frequency
+        check_band(settings.band, "band", "HankelMAP", nyquist=0.5 / record.dt)
+    return ChunkedSource.prepare(record, settings.detrend, notes, chunk, client)
 
 
 @single_blas_thread
 def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CHUNK) -> HankelMAPResult:
-    """``est.fit`` (a :class:`~.estimator.HankelMAP`) on a chunked record; statistics on ``client``'s
-    workers when given (a ``dask.distributed.Client``), else here, chunk by chunk.
+    """``est.fit(record)`` (a :class:`~.estimator.HankelMAP`) with the statistics on ``client``'s
+    workers when given (a ``dask.distributed.Client``), else here, chunk by chunk of ``chunk`` samples.
 
     Raises
     ------
@@ -155,53 +207,5 @@ def fit_chunked(est, record: ChunkedRecord, client=None, chunk: int = DEFAULT_CH
         As :meth:`HankelMAP.fit`; DataError also for the settings in the module notes.
     """
     est.validate_params()
-    _check_settings(est, record)
     notes: list[str] = []
-    m, q, dt = record.n_inputs, record.n_outputs, record.dt
-    order = None if est.order == "auto" else int(est.order[0] if isinstance(est.order, (list, tuple)) else est.order)
-    p_max = max(horizon_candidates(m, q, [record.n_samples])) if est.horizon == "auto" else int(est.horizon)
-    nz = int(est.n_frequencies)
-    n_max = est.max_order if order is None else order
-    need = statistics_bytes(p_max, m, q) + response_bytes(p_max, m, q, nz) + refinement_bytes(n_max, m, q, nz)
-    require_memory(
-        need, f"HankelMAP with horizon {p_max}, order {n_max} and {nz} frequencies on {m} inputs and {q} outputs"
-    )
-    shift, scale = _shift_and_scale(est, record, client, chunk, notes)
-    su, sy = scale[:m], scale[m:]
-    stats, train, horizon_table = _record_statistics(est, record, shift, scale, su, sy, chunk, client)
-    prior_of = METHODS[est.method]
-    post = map_posterior(stats, prior_of(stats, est.prior, su, sy))  # eq. 16-18
-    band = excited_band(stats, dt, est.band, notes)
-    freqs = np.linspace(band[0], band[1], est.n_frequencies)
-    settings = {"realization": est.realization, "feedthrough": est.feedthrough, "refine": est.refine}
-    order_table = None
-    if order is None:  # section 3.2: the order by held-out simulation error, one pass here
-        p = stats.horizon
-        if p not in train:
-            raise DataError(
-                "the records are too short to hold out data for choosing the order; give `order` explicitly."
-            )
-        post_train = map_posterior(train[p], prior_of(train[p], est.prior, su, sy))
-        order, order_table = select_order_chunked(
-            post_train, est.max_order, freqs, dt, record, est.validation_fraction, shift, scale, chunk, **settings
-        )
-    model, cost = realize(post, order, freqs, dt, **settings)  # eq. 10-15 or the frequency route
-    model = StateSpaceModel(
-        model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :], dt
-    ).with_names(record.input_names, record.output_names)
-    fit = ChannelFit(
-        record.input_names, record.output_names, post, stats.horizon, order, band, model,
-        horizon_table, order_table, cost, scales=(su.copy(), sy.copy()),
-    )  # fmt: skip
-    stable = model.is_stable()
-    if not stable:
-        notes.append("the identified model is unstable (a pole on or outside the unit circle).")
-    diagnostics = {
-        "horizon": stats.horizon,
-        "order": order,
-        "band_hz": band,
-        "n_windows": float(post.n_windows),
-        "stable": bool(stable),
-        "warnings": notes,
-    }
-    return HankelMAPResult(model, (fit,), est.clone(), diagnostics, su.copy(), sy.copy())
+    return est.fit_source(*chunked_source(est, record, notes, chunk, client), None, notes)

@@ -33,29 +33,27 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from .._errors import DataError, StabilityWarning
 from ..base import Band, Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ..checks import check_band, is_integer
+from ..data.chunked import ChunkedRecord
 from ..data.experiment import Experiment
 from ..runtime.threads import single_blas_thread
 from .channel_fit import fit_channel
-from .channels import channel_groups, stack_channel_models
+from .channels import stack_channel_models
+from .chunked_source import chunked_source
 from .map.posterior import (
     METHODS,
     Prior,
 )
 from .realisation.era import REALIZATIONS
-from .records import (
-    as_records,
-    check_continuation,
-    prepared_records,
-    still_inputs,
-    to_unit_rms,
-)
+from .records import as_records, check_continuation
 from .result import ChannelFit, HankelMAPResult
+from .sources import RecordArrays
 
 __all__ = ["HankelMAP", "HankelMAPResult", "ChannelFit"]
 
@@ -191,13 +189,15 @@ class HankelMAP(Estimator):
             raise self.invalid("order", "one order (a list of several needs per_channel=True)")
 
     @single_blas_thread
-    def fit(self, data: Experiment | Sequence[Experiment]) -> HankelMAPResult:
-        """Identify a model from one or several records.
+    def fit(self, data: Experiment | Sequence[Experiment] | ChunkedRecord) -> HankelMAPResult:
+        """Identify a model from one or several records, or from one record larger than memory.
 
         Parameters
         ----------
-        data : Experiment or sequence of Experiment
-            Records sharing channels and sample time.
+        data : Experiment, sequence of Experiment, or ChunkedRecord
+            Records sharing channels and sample time; a :class:`~stageid.data.chunked.ChunkedRecord`
+            is read chunk by chunk (:mod:`.chunked_source`; ``fit_chunked`` computes its
+            statistics on a Dask cluster).
 
         Returns
         -------
@@ -210,35 +210,45 @@ class HankelMAP(Estimator):
         DataError
             A ``band`` above the Nyquist frequency, a list of orders whose length is not the
             number of inputs, records too short for the horizon, no input moving in any
-            record, or (``per_channel``) no record in which only a given input moves.
+            record, (``per_channel``) no record in which only a given input moves, or a
+            chunked record with ``per_channel``, ``forgetting`` or several orders.
         ResourceError
             When the horizon, order and frequency count would need more memory than is available.
         IdentificationError
             When no model can be realised.
         """
         self.validate_params()
-        return self.fit_records(as_records(data, "HankelMAP.fit"), previous=None)
+        notes: list[str] = []
+        if isinstance(data, ChunkedRecord):
+            return self.fit_source(*chunked_source(self, data, notes), None, notes)
+        return self.fit_source(*self.memory_source(as_records(data, "HankelMAP.fit"), None, notes), None, notes)
 
-    def fit_records(self, exps: tuple[Experiment, ...], previous: HankelMAPResult | None) -> HankelMAPResult:
-        """The method on checked records: a first fit, or an update continuing ``previous``
-        (what :meth:`HankelMAPResult.update` calls)."""
-        first, notes = exps[0], []
-        dt = first.dt
+    def memory_source(
+        self, exps: tuple[Experiment, ...], previous: HankelMAPResult | None, notes: list[str]
+    ) -> tuple[RecordArrays, np.ndarray, np.ndarray]:
+        """Checked records in memory as a record source, with their unit-RMS scales (an update
+        keeps those of ``previous``, whose channels and sample time the records must have)."""
+        first = exps[0]
         if previous is not None:
             check_continuation(previous.model, first)
         if self.band is not None:  # the one band rule, now with the records' Nyquist frequency
-            check_band(self.band, "band", "HankelMAP", nyquist=0.5 / dt)
-        records = prepared_records(exps, self.detrend)
-        still_inputs(records, first.input_names, notes)
-        # every channel to unit RMS (an update keeps the first fit's scales), see `records`
-        su, sy = to_unit_rms(records, None if previous is None else (previous.input_scale, previous.output_scale))
-        groups = channel_groups(records, first.input_names, self.per_channel)  # eq. 19
+            check_band(self.band, "band", "HankelMAP", nyquist=0.5 / first.dt)
+        scales = None if previous is None else (previous.input_scale, previous.output_scale)
+        return RecordArrays.prepare(exps, self.detrend, scales, notes)
+
+    def fit_source(
+        self, source: Any, su: np.ndarray, sy: np.ndarray, previous: HankelMAPResult | None, notes: list[str]
+    ) -> HankelMAPResult:
+        """The method on a record source (:mod:`.sources`) of channels scaled by ``su``, ``sy``: a
+        first fit, or an update continuing ``previous`` (what :meth:`HankelMAPResult.update` calls)."""
+        groups = source.groups(self.per_channel)  # eq. 19
         orders = self._orders(len(groups))
         fits = []
-        for gi, (cols, recs) in enumerate(groups):
+        for gi, (cols, group) in enumerate(groups):
             prev = previous.channels[gi] if previous is not None else None
-            fits.append(fit_channel(self, recs, cols, orders[gi], first, prev, notes, su[cols], sy))
-        model = stack_channel_models([f.model for f in fits], dt, first.input_names, first.output_names)  # eq. 20-22
+            fits.append(fit_channel(self, group, cols, orders[gi], prev, notes, su[cols], sy))
+        names = (source.input_names, source.output_names)
+        model = stack_channel_models([f.model for f in fits], source.dt, *names)  # eq. 20-22
         stable = model.is_stable()
         if not stable:
             notes.append("the identified model is unstable (a pole on or outside the unit circle).")

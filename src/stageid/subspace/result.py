@@ -125,7 +125,9 @@ class HankelMAPResult:
         DataError
             When the new records have other channels or another sample time than this result.
         """
-        return self.estimator.fit_records(as_records(data, "HankelMAPResult.update"), previous=self)
+        notes: list[str] = []
+        est = self.estimator  # the settings of this fit, copied then: later changes to the estimator do not leak in
+        return est.fit_source(*est.memory_source(as_records(data, "HankelMAPResult.update"), self, notes), self, notes)
 
     # --------------------------------------------------------- uncertainty
     def markov_parameters(self, n_parameters: int | None = None) -> tuple[np.ndarray, np.ndarray]:

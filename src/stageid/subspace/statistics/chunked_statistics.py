@@ -113,7 +113,8 @@ def _own_lag_sums(z: np.ndarray, n_own: int, max_lag: int) -> np.ndarray:
     n, r = z.shape
     R = np.zeros((max_lag + 1, r, r))
     if n * (max_lag + 1) > 1 << 16:  # long: FFTs; short: the direct products cost less than their set-up
-        R += lag_correlations(z, max_lag)
+        top = min(max_lag, n - 1)  # near the record's end fewer lags than asked fit in z
+        R[: top + 1] += lag_correlations(z, top)
     else:
         for c in range(min(n, max_lag + 1)):
             R[c] += z[: n - c].T @ z[c:]

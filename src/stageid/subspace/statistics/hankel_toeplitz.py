@@ -107,6 +107,14 @@ class WindowStatistics:
             self.count,
         )
 
+    def leading(self, horizon: int) -> WindowStatistics:
+        """The statistics of a horizon up to this one over the same windows: the leading block
+        of ``W`` (window positions ``0 .. 2 horizon - 1``), without the input spectrum."""
+        k = 2 * int(horizon) * (self.n_inputs + self.n_outputs)
+        return WindowStatistics(
+            self.W[:k, :k], self.n_windows, int(horizon), self.n_inputs, self.n_outputs, None, None, self.count
+        )
+
     def blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(XX, YX, YY)``: ``sum x x^T``, ``sum y_p x^T`` and ``sum y_p y_p^T`` of eq. 9
         (computed once per statistics object; read-only views)."""
