@@ -8,9 +8,11 @@ parameters of eq. 4 and to the frequency response of eq. 9.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 
@@ -81,8 +83,9 @@ class HankelMAPResult:
     estimator : HankelMAP
         A copy of the configuration that produced this result, taken at the fit (used by
         :meth:`update`): settings changed on the original estimator afterwards do not leak in.
-    diagnostics : dict
-        ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings`` (texts).
+    diagnostics : mapping
+        Read-only: ``horizon``, ``order``, ``band_hz``, ``n_windows``, ``stable``, ``warnings``
+        (a tuple of texts).
     input_scale, output_scale : ndarray of shape (n_inputs,) and (n_outputs,)
         RMS of each (mean-removed) channel of the first fit's records: the fit works on
         channels scaled to unit RMS so that its result does not depend on the units.
@@ -91,9 +94,15 @@ class HankelMAPResult:
     model: StateSpaceModel
     channels: tuple[ChannelFit, ...]
     estimator: Estimator
-    diagnostics: dict = field(default_factory=dict)
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
     input_scale: np.ndarray | None = None
     output_scale: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        d = dict(self.diagnostics)
+        if "warnings" in d:
+            d["warnings"] = tuple(d["warnings"])
+        object.__setattr__(self, "diagnostics", MappingProxyType(d))
 
     def __repr__(self) -> str:
         return short_repr(self)
