@@ -10,6 +10,7 @@ import pytest
 
 from stageid._errors import IdentificationError
 from stageid.subspace.realisation.era import era, hankel_matrices, markov_realization
+from stageid.subspace.realisation.route import RouteTask
 
 
 def _markov(A, B, C, D, n: int) -> np.ndarray:
@@ -60,6 +61,6 @@ def test_markov_route_keeps_the_feedthrough_only_when_asked() -> None:
     theta = np.zeros((2, 6))
     theta[0, 4], theta[1, 4] = 0.7, 0.5  # D = 0.7, CB = 0.5, nothing after
     for feedthrough, d in ((True, 0.7), (False, 0.0)):
-        A, B, C, D, cost = markov_realization(theta, 2, 1, 1, 1, np.zeros(0), 1e-3, feedthrough, False, 0)
+        A, B, C, D, cost = markov_realization(RouteTask(theta, 2, 1, 1, 1, np.zeros(0), 1e-3, feedthrough, False, 0))
         assert D.tolist() == [[d]] and np.isnan(cost)
         assert (C @ B).item() == pytest.approx(0.5) and A.item() == pytest.approx(0.0, abs=1e-15)

@@ -31,84 +31,87 @@ def _jit_written_out(fn):
 
 
 @_jit
+def _load_window(z, k, p, m, q, x, y):  # pragma: no cover - compiled by numba
+    """Window ``k`` in eq. 9 order: ``x = [u_p(k); y_p(k); u_p(k+p)]`` and ``y = y_p(k+p)``."""
+    for i in range(p):
+        for j in range(m):
+            x[i * m + j] = z[k + i, j]
+            x[p * m + p * q + i * m + j] = z[k + p + i, j]
+        for j in range(q):
+            x[p * m + i * q + j] = z[k + i, m + j]
+            y[i * q + j] = z[k + p + i, m + j]
+
+
+@_jit
+def _mat_vec(M, x, out):  # pragma: no cover - compiled by numba
+    """``out = M x`` for the rows of ``out``."""
+    for a in range(out.shape[0]):
+        acc = 0.0
+        for b in range(x.shape[0]):
+            acc += M[a, b] * x[b]
+        out[a] = acc
+
+
+@_jit
+def _theta_step(theta, y, tx, g, xn, txn):  # pragma: no cover - compiled by numba
+    """Eq. 17, ``theta += e g^T`` with ``e = y - theta x`` (eq. 18), and ``theta x_next``: one pass."""
+    for r in range(theta.shape[0]):
+        e = y[r] - tx[r]
+        acc = 0.0
+        for b in range(g.shape[0]):
+            v = theta[r, b] + e * g[b]
+            theta[r, b] = v
+            acc += v * xn[b]
+        txn[r] = acc
+
+
+@_jit
+def _p_step(P, g, Px, il, xn, Pxn):  # pragma: no cover - compiled by numba
+    """``P = (P - g (P x)^T) / lambda`` and ``P x_next``: one pass over P (rows are contiguous)."""
+    for a in range(P.shape[0]):
+        ga = g[a] * il
+        acc = 0.0
+        for b in range(P.shape[0]):
+            v = P[a, b] * il - ga * Px[b]
+            P[a, b] = v
+            acc += v * xn[b]
+        Pxn[a] = acc
+
+
+@_jit
 def _recursive_kernel(z, p, m, q, theta, P, lam):  # pragma: no cover - compiled by numba
     """Fused eq. 17-18: one memory pass over theta and one over P per window, each pass also
     forming ``theta x`` and ``P x`` for the next window (P stays symmetric: g is P x / s)."""
     d = 2 * p * m + p * q
     rows = p * q
-    x = np.empty(d)
-    xn = np.empty(d)
-    yv = np.empty(rows)
-    yn = np.empty(rows)
-    Px = np.zeros(d)
-    Pxn = np.zeros(d)
-    tx = np.zeros(rows)
-    txn = np.zeros(rows)
-    g = np.empty(d)
+    x, xn, g = np.empty(d), np.empty(d), np.empty(d)
+    yv, yn = np.empty(rows), np.empty(rows)
+    Px, Pxn = np.zeros(d), np.zeros(d)
+    tx, txn = np.zeros(rows), np.zeros(rows)
     n_windows = z.shape[0] - 2 * p + 1
     if n_windows <= 0:
         return theta, P
-    for i in range(p):
-        for j in range(m):
-            x[i * m + j] = z[i, j]
-            x[p * m + p * q + i * m + j] = z[p + i, j]
-        for j in range(q):
-            x[p * m + i * q + j] = z[i, m + j]
-            yv[i * q + j] = z[p + i, m + j]
-    for a in range(d):
-        acc = 0.0
-        for b in range(d):
-            acc += P[a, b] * x[b]
-        Px[a] = acc
-    for r in range(rows):
-        acc = 0.0
-        for b in range(d):
-            acc += theta[r, b] * x[b]
-        tx[r] = acc
+    _load_window(z, 0, p, m, q, x, yv)
+    _mat_vec(P, x, Px)
+    _mat_vec(theta, x, tx)
     il = 1.0 / lam
     for k in range(n_windows):
-        last = k == n_windows - 1
-        if not last:
-            for i in range(p):
-                for j in range(m):
-                    xn[i * m + j] = z[k + 1 + i, j]
-                    xn[p * m + p * q + i * m + j] = z[k + 1 + p + i, j]
-                for j in range(q):
-                    xn[p * m + i * q + j] = z[k + 1 + i, m + j]
-                    yn[i * q + j] = z[k + 1 + p + i, m + j]
+        if k < n_windows - 1:
+            _load_window(z, k + 1, p, m, q, xn, yn)
         else:
-            for a in range(d):
-                xn[a] = 0.0
+            xn[:] = 0.0
         s = lam
         for a in range(d):
             s += x[a] * Px[a]
         inv = 1.0 / s
         for a in range(d):
             g[a] = Px[a] * inv
-        # theta += e g^T and theta x_next, one pass
-        for r in range(rows):
-            e = yv[r] - tx[r]
-            acc = 0.0
-            for b in range(d):
-                v = theta[r, b] + e * g[b]
-                theta[r, b] = v
-                acc += v * xn[b]
-            txn[r] = acc
-        # P = (P - g Px^T) / lam and P x_next, one pass over P (rows are contiguous)
-        for a in range(d):
-            ga = g[a] * il
-            acc = 0.0
-            for b in range(d):
-                v = P[a, b] * il - ga * Px[b]
-                P[a, b] = v
-                acc += v * xn[b]
-            Pxn[a] = acc
-        for a in range(d):
-            x[a] = xn[a]
-            Px[a] = Pxn[a]
-        for r in range(rows):
-            yv[r] = yn[r]
-            tx[r] = txn[r]
+        _theta_step(theta, yv, tx, g, xn, txn)
+        _p_step(P, g, Px, il, xn, Pxn)
+        x, xn = xn, x
+        Px, Pxn = Pxn, Px
+        yv, yn = yn, yv
+        tx, txn = txn, tx
     return theta, P
 
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from ..._errors import DataError, IdentificationError
 from ..statistics.hankel_toeplitz import WindowStatistics
-from .prior import (
+from .prior import (  # noqa: F401 - the prior's names, re-exported (PRIOR_NAMES)
     DEFAULT_PRIOR_STRENGTH,
     LS_RIDGE_STRENGTH,
     LS_SINGULAR_PIVOT,
@@ -52,24 +52,10 @@ from .prior import (
     regressor_scales,
     singular_pivot,
 )
+from .prior import __all__ as PRIOR_NAMES
 
-__all__ = [
-    "Prior",
-    "Posterior",
-    "default_prior",
-    "map_estimate",
-    "batch_posterior",
-    "map_posterior",
-    "map_prior",
-    "least_squares_prior",
-    "METHODS",
-    "singular_pivot",
-    "regressor_scales",
-    "DEFAULT_PRIOR_STRENGTH",
-    "LS_SINGULAR_PIVOT",
-    "LS_RIDGE_STRENGTH",
-    "prior_identity_diagonal",
-]
+# the prior's names are re-exported here (the old ``map_estimator`` module held both)
+__all__ = ["Posterior", "map_estimate", "batch_posterior", "map_posterior", "prior_identity_diagonal", *PRIOR_NAMES]
 
 
 @dataclass(frozen=True, eq=False)

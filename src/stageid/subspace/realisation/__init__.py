@@ -7,6 +7,7 @@ module                       what it holds
                              ``era``); ``realize`` picks the route by name (``REALIZATIONS``)
 :mod:`.frequency_domain`     the frequency route: that response over the excited band,
                              realised (frequency counterpart of Lemma 1), two starts
+:mod:`.route`                ``RouteTask``: what every route is given
 :mod:`.refinement`           output-error refinement of a realisation on that response
 :mod:`.weighting`            noise weighting of the outputs in the realisation and selection
 ===========================  ================================================================

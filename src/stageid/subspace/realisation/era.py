@@ -27,6 +27,7 @@ from ...models.statespace import StateSpaceModel
 from ..map.posterior import Posterior
 from ..statistics.hankel_toeplitz import split_theta
 from .frequency_domain import response_realization
+from .route import RouteTask
 from .weighting import output_weights, weighted_theta
 
 __all__ = [
@@ -157,29 +158,19 @@ def era(
     return A, B, C, markov[0].copy(), s
 
 
-def markov_realization(
-    theta: np.ndarray,
-    p: int,
-    m: int,
-    q: int,
-    order: int,
-    freqs: np.ndarray,
-    dt: float,
-    feedthrough: bool,
-    refine: bool,
-    max_iter: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def markov_realization(task: RouteTask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """``realization="markov"``, the paper's route: eq. 10-12 Markov parameters, eq. 14, Lemma 1.
 
     ``Y_0 .. Y_(2p-1)`` come from ``D_p`` and ``H0`` (eq. 10); longer sequences only when the
-    order needs them (``H_i = Phi^i H0``, eq. 12).  ``freqs``, ``refine`` and ``max_iter``
-    are not used (the signature is that of every route); the cost is NaN.
+    order needs them (``H_i = Phi^i H0``, eq. 12).  The task's ``freqs``, ``refine`` and
+    ``max_iter`` are not used; the cost is NaN.
     """
+    (p, m, q), order = task.shape, task.order
     n2 = int(np.ceil(order / q))
     n1 = max(int(np.ceil(order / m)), 2 * p - 3 - n2)
-    Y = markov_from_theta(theta, p, m, q, n1 + n2 + 3)
+    Y = markov_from_theta(task.theta, p, m, q, n1 + n2 + 3)
     A, B, C, D, _ = era(Y, order, n1=n1, n2=n2)
-    if not feedthrough:
+    if not task.feedthrough:
         D = np.zeros_like(D)
     return A, B, C, D, float("nan")
 
@@ -208,5 +199,6 @@ def realize(
     p, m, q = post.horizon, post.n_inputs, post.n_outputs
     w = output_weights(post)
     theta_w = weighted_theta(post.theta, w, p, m, q)
-    A, B, C, D, cost = REALIZATIONS[realization](theta_w, p, m, q, order, freqs, dt, feedthrough, refine, max_iter)
+    task = RouteTask(theta_w, p, m, q, order, freqs, dt, feedthrough, refine, max_iter)
+    A, B, C, D, cost = REALIZATIONS[realization](task)
     return StateSpaceModel(A, B, C / w[:, None], D / w[:, None], dt), cost

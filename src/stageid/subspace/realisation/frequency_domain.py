@@ -19,6 +19,7 @@ import numpy as np
 from ..._errors import IdentificationError
 from ..statistics.theta_response import theta_frequency_response
 from .refinement import MULTI_START_MISFIT, REFINE_TOL, fit_cost, model_response, refine_frequency_fit
+from .route import RouteTask
 
 __all__ = [
     "frequency_realization",
@@ -330,18 +331,7 @@ def refine_from_starts(
     return A, B, C, D, info["cost"] / energy
 
 
-def response_realization(
-    theta: np.ndarray,
-    p: int,
-    m: int,
-    q: int,
-    order: int,
-    freqs: np.ndarray,
-    dt: float,
-    feedthrough: bool,
-    refine: bool,
-    max_iter: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def response_realization(task: RouteTask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """``realization="frequency"``: the response of eq. 9 over ``freqs``, realised and refined.
 
     Each input column of the response is scaled to a unit peak for the realisation and
@@ -349,7 +339,8 @@ def response_realization(
     (``B``, ``D`` fitted again) before the refinement.  Returns ``A, B, C, D`` and the
     relative misfit of the refinement (NaN without it).
     """
-    G = theta_frequency_response(theta, p, m, q, freqs, dt)
+    freqs, dt, order, feedthrough = task.freqs, task.dt, task.order, task.feedthrough
+    G = theta_frequency_response(task.theta, *task.shape, freqs, dt)
     scale = np.max(np.abs(G), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
     Gs = G / scale[None, None, :]
@@ -359,8 +350,8 @@ def response_realization(
         A = reflect_unstable(A)
         B, D = fit_input_matrices(A, C, Gs, zs, feedthrough)
     cost = float("nan")
-    if refine:
-        A, B, C, D, cost = refine_from_starts((A, B, C, D), Gs, freqs, dt, order, feedthrough, max_iter)
+    if task.refine:
+        A, B, C, D, cost = refine_from_starts((A, B, C, D), Gs, freqs, dt, order, feedthrough, task.max_iter)
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
         raise IdentificationError(f"the realisation of order {order} is not finite.")
     return A, B * scale[None, :], C, D * scale[None, :], cost
