@@ -115,7 +115,7 @@ def test_column_solve_applies_the_posterior_covariance():
     res = HankelMAP(horizon=10, order=4).fit(record(g, band_limited(3000, 1, g.dt, 0), 0.02, 0, names=False))
     post = res.channels[0].scaled_posterior
     V = np.random.default_rng(0).standard_normal((post.information.shape[0], 5))
-    _, col_cov, _, _ = weighted_parts(post)
+    col_cov = weighted_parts(post)[0].column_cov
     want = col_cov / post.horizon @ V
     np.testing.assert_allclose(column_solve(post)(V), want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
 
@@ -127,7 +127,7 @@ def test_column_solve_of_a_complex_right_hand_side():
     post = res.channels[0].scaled_posterior
     rng = np.random.default_rng(1)
     V = rng.standard_normal((post.information.shape[0], 5)) + 1j * rng.standard_normal((post.information.shape[0], 5))
-    _, col_cov, _, _ = weighted_parts(post)
+    col_cov = weighted_parts(post)[0].column_cov
     want = col_cov / post.horizon @ V
     got = column_solve(post)(V)
     assert np.iscomplexobj(got)
@@ -152,7 +152,8 @@ def test_eq9_response_std_matches_its_scatter_over_noise_seeds():
         ch = res.channels[0]
         post = ch.scaled_posterior
         p, m, q = post.horizon, post.n_inputs, post.n_outputs
-        theta_w, col_cov, _, w = weighted_parts(post)
+        spread, w = weighted_parts(post)
+        theta_w, col_cov = spread.theta, spread.column_cov
         stats = ch.window_lags.weighted(np.concatenate([np.ones(m), w]))
         G, cov, _ = overlap_response_covariance(theta_w, col_cov / p, stats, post.n_windows, p, m, q, f, g.dt)
         G9.append(G.reshape(-1) / np.repeat(w, m)[None, :].repeat(f.size, 0).reshape(-1))

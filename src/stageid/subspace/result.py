@@ -25,7 +25,7 @@ from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from ..runtime.threads import single_blas_thread
 from .map.posterior import Posterior
-from .realisation.weighting import output_weights, weight_scales, weighted_theta
+from .realisation.weighting import weighted_parts
 from .records import as_records, check_freqs, unscaled_posterior
 from .selection import SelectionTable
 from .statistics.theta_response import theta_response_std
@@ -197,20 +197,9 @@ class HankelMAPResult:
         Gs, Ss = [], []
         for ch in self.channels:
             post = ch.scaled_posterior
-            p, m, q = post.horizon, post.n_inputs, post.n_outputs
             # in the noise-whitened outputs the realisation fits (theta_w = W theta diag(c))
-            w = output_weights(post)
-            wp, c = weight_scales(w, p, m)
-            G, S = theta_response_std(
-                weighted_theta(post.theta, w, p, m, q),
-                post.covariance * p * np.outer(c, c),
-                post.noise_cov * np.outer(wp, wp),
-                p,
-                m,
-                q,
-                f,
-                self.model.dt,
-            )
+            spread, w = weighted_parts(post)
+            G, S = theta_response_std(spread, f, self.model.dt)
             G, S = G / w[None, :, None], S / w[None, :, None]
             if self.input_scale is not None and self.output_scale is not None:
                 su = self.input_scale[[self.model.inputs.index(n) for n in ch.inputs]]

@@ -16,32 +16,20 @@ from ..._errors import DataError
 __all__ = ["recursive_map", "recursive_map_python", "run_recursion"]
 
 
-def _window(z: np.ndarray, k: int, p: int, m: int, q: int, x: np.ndarray, yv: np.ndarray) -> None:
-    r = m + q
-    for i in range(p):
-        for j in range(m):
-            x[i * m + j] = z[k + i, j]
-            x[p * m + p * q + i * m + j] = z[k + p + i, j]
-        for j in range(q):
-            x[p * m + i * q + j] = z[k + i, m + j]
-            yv[i * q + j] = z[k + p + i, m + j]
-    _ = r
-
-
 def recursive_map_python(
     u: np.ndarray, y: np.ndarray, horizon: int, theta: np.ndarray, P: np.ndarray, forgetting: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain-numpy reference of eq. 17-18 (one window at a time); see :func:`recursive_map`."""
-    m, q = u.shape[1], y.shape[1]
+    m = u.shape[1]
     p = horizon
     z = np.hstack([u, y])
     theta = np.array(theta, dtype=float)
     P = np.array(P, dtype=float)
-    d = 2 * p * m + p * q
-    x = np.empty(d)
-    yv = np.empty(p * q)
     for k in range(z.shape[0] - 2 * p + 1):
-        _window(z, k, p, m, q, x, yv)
+        # the window in eq. 9 order, x = [u_p(k); y_p(k); u_p(k+p)], yv = y_p(k+p) (channels fastest)
+        past, future = z[k : k + p], z[k + p : k + 2 * p]
+        x = np.concatenate([past[:, :m].ravel(), past[:, m:].ravel(), future[:, :m].ravel()])
+        yv = future[:, m:].ravel()
         Px = P @ x
         g = Px / (forgetting + x @ Px)
         e = yv - theta @ x

@@ -21,8 +21,17 @@ import numpy as np
 
 from ..map.posterior import Posterior
 from ..statistics.hankel_toeplitz import WindowStatistics, row_residuals
+from ..statistics.theta_response import ThetaSpread
 
-__all__ = ["NOISE_STD_FLOOR", "output_weights", "noise_weights", "training_weights", "weight_scales", "weighted_theta"]
+__all__ = [
+    "NOISE_STD_FLOOR",
+    "output_weights",
+    "noise_weights",
+    "training_weights",
+    "weight_scales",
+    "weighted_theta",
+    "weighted_parts",
+]
 
 #: Floor of an output's noise std, as a fraction of its RMS: noise-free records then weigh the
 #: outputs as unit RMS does.
@@ -79,3 +88,13 @@ def weighted_theta(theta: np.ndarray, w: np.ndarray, p: int, m: int, q: int) -> 
     """``theta`` of eq. 9 for the outputs ``w * y``: rows times ``w``, past-output columns over ``w``."""
     rows, cols = weight_scales(w, p, m)
     return theta * rows[:, None] * cols[None, :]
+
+
+def weighted_parts(post: Posterior) -> tuple[ThetaSpread, np.ndarray]:
+    """``theta`` and its covariance factors for the noise-whitened outputs the realisation fits
+    (``p P`` for the window overlap: windows counted as independent), and the output weights."""
+    p, m, q = post.horizon, post.n_inputs, post.n_outputs
+    w = output_weights(post)
+    wp, c = weight_scales(w, p, m)
+    theta_w = weighted_theta(post.theta, w, p, m, q)
+    return ThetaSpread(theta_w, post.covariance * p * np.outer(c, c), post.noise_cov * np.outer(wp, wp), p, m, q), w

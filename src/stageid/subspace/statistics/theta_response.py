@@ -9,11 +9,36 @@ starts from this response; :func:`theta_response_std` adds its posterior spread 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .hankel_toeplitz import split_theta
 
-__all__ = ["response_bytes", "response_systems", "theta_frequency_response", "theta_response_std"]
+__all__ = ["ThetaSpread", "response_bytes", "response_systems", "theta_frequency_response", "theta_response_std"]
+
+
+@dataclass(frozen=True, eq=False)
+class ThetaSpread:
+    """``theta = [Gamma Phi D_p]`` of eq. 16 with the factors of its matrix-normal covariance
+    ``Cov(vec theta) = column_cov (x) noise_cov``, in one set of coordinates.
+
+    Attributes
+    ----------
+    theta : ndarray of shape (p q, 2 p m + p q)
+    column_cov : ndarray of shape (2 p m + p q, 2 p m + p q)
+        ``P``, the covariance of the columns (times ``p`` for the window overlap where the caller says so).
+    noise_cov : ndarray of shape (p q, p q)
+        ``Sigma``, the covariance of the eq. 9 error.
+    horizon, n_inputs, n_outputs : int
+    """
+
+    theta: np.ndarray
+    column_cov: np.ndarray
+    noise_cov: np.ndarray
+    horizon: int
+    n_inputs: int
+    n_outputs: int
 
 
 def _response_system(
@@ -123,16 +148,7 @@ def theta_frequency_response(
     return np.linalg.solve(normal[:, :, :q], normal[:, :, q:])
 
 
-def theta_response_std(
-    theta: np.ndarray,
-    column_cov: np.ndarray,
-    noise_cov: np.ndarray,
-    horizon: int,
-    n_inputs: int,
-    n_outputs: int,
-    freqs: np.ndarray,
-    dt: float,
-) -> tuple[np.ndarray, np.ndarray]:
+def theta_response_std(spread: ThetaSpread, freqs: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Response of :func:`theta_frequency_response` with its posterior standard deviation.
 
     With ``Cov(vec theta) = P (x) Sigma`` (matrix-normal posterior) and the first-order
@@ -146,7 +162,8 @@ def theta_response_std(
     std : ndarray of shape (n_freqs, q, m)
         Standard deviation of ``G`` (square root of ``E|dG|^2``).
     """
-    p, m, q = horizon, n_inputs, n_outputs
+    theta, column_cov, noise_cov = spread.theta, spread.column_cov, spread.noise_cov
+    p, m, q = spread.horizon, spread.n_inputs, spread.n_outputs
     zs = np.exp(2j * np.pi * np.asarray(freqs, dtype=float) * dt)
     G = np.empty((zs.size, q, m), dtype=complex)
     std = np.empty((zs.size, q, m))

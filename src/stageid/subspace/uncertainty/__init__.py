@@ -143,10 +143,10 @@ def channel_delta_std(
         solve = column_solve(post)
         G9, cov, pseudo = overlap_response_covariance(theta_w, solve, stats, post.n_windows, p, m, q, f_grid, dt)
     else:
-        theta_w, col_cov, noise_cov, w = weighted_parts(post)
+        spread, w = weighted_parts(post)
         f_grid = covariance_grid(ch.band, int(estimator.n_frequencies), q * m)
         quad = np.ones(f_grid.size)
-        G9, cov, pseudo = eq9_response_covariance(theta_w, col_cov, noise_cov, p, m, q, f_grid, dt)
+        G9, cov, pseudo = eq9_response_covariance(spread, f_grid, dt)
     scale = np.max(np.abs(G9), axis=(0, 1))
     scale = np.where(scale > 0, scale, 1.0)
     A, B, C, D = _fit_coordinates(ch.model, su, sy, w)

@@ -3,7 +3,8 @@
 ``dG_9 = L^+ dtheta V(z)`` (first order in the block-row equations of eq. 9) with the
 matrix-normal posterior ``Cov(vec theta) = P (x) Sigma`` (:func:`eq9_response_covariance`), on
 a grid coarse enough to keep the covariance small (:func:`covariance_grid`), in the
-noise-whitened coordinates the realisation fits (:func:`weighted_parts`, :func:`column_solve`).
+noise-whitened coordinates the realisation fits (:func:`~.realisation.weighting.weighted_parts`,
+:func:`column_solve`).
 """
 
 from __future__ import annotations
@@ -13,9 +14,11 @@ from collections.abc import Callable
 import numpy as np
 
 from ..map.posterior import Posterior
-from ..realisation.weighting import output_weights, weight_scales, weighted_theta
+from ..realisation.weighting import output_weights, weight_scales, weighted_parts
+from ..statistics.theta_response import ThetaSpread
 from ..statistics.window_covariance import response_directions
 
+# weighted_parts is re-exported (the uncertainty package's name for it)
 __all__ = ["MAX_COVARIANCE_ENTRIES", "eq9_response_covariance", "covariance_grid", "weighted_parts", "column_solve"]
 
 #: Most response entries (frequencies x outputs x inputs) of the eq. 9 covariance in ``"delta"``.
@@ -23,14 +26,7 @@ MAX_COVARIANCE_ENTRIES = 300
 
 
 def eq9_response_covariance(
-    theta: np.ndarray,
-    column_cov: np.ndarray,
-    noise_cov: np.ndarray,
-    horizon: int,
-    n_inputs: int,
-    n_outputs: int,
-    freqs: np.ndarray,
-    dt: float,
+    spread: ThetaSpread, freqs: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The eq. 9 response on a grid and the covariance of its error across the whole grid.
 
@@ -43,9 +39,10 @@ def eq9_response_covariance(
     G : ndarray of shape (n_freqs, q, m), complex
     cov, pseudo : ndarrays of shape (n_freqs q m, n_freqs q m), complex (``vec`` in (k, i, j) order)
     """
-    p, m, q = horizon, n_inputs, n_outputs
-    G, Lp, V = response_directions(theta, p, m, q, freqs, dt)
+    p, m, q = spread.horizon, spread.n_inputs, spread.n_outputs
+    G, Lp, V = response_directions(spread.theta, p, m, q, freqs, dt)
     nz = G.shape[0]
+    column_cov, noise_cov = spread.column_cov, spread.noise_cov
     PV = column_cov @ V.real + 1j * (column_cov @ V.imag)  # a real matrix: half the flops of complex
     A_c = (V.T @ np.conj(PV)).reshape(nz, m, nz, m)
     A_p = (V.T @ PV).reshape(nz, m, nz, m)
@@ -73,18 +70,8 @@ def covariance_grid(
     return np.linspace(band[0], band[1], n_frequencies)[::stride]
 
 
-def weighted_parts(post: Posterior) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``theta`` and its covariance factors for the noise-whitened outputs the realisation fits
-    (``p P`` for the window overlap, as ``response_bands``), and the output weights."""
-    p, m, q = post.horizon, post.n_inputs, post.n_outputs
-    w = output_weights(post)
-    wp, c = weight_scales(w, p, m)
-    theta_w = weighted_theta(post.theta, w, p, m, q)
-    return theta_w, post.covariance * p * np.outer(c, c), post.noise_cov * np.outer(wp, wp), w
-
-
 def column_solve(post: Posterior) -> Callable[[np.ndarray], np.ndarray]:
-    """``V -> P V`` in the coordinates of :func:`weighted_parts` (without its factor ``p``): a
+    """``V -> P V`` in the coordinates of :func:`~.realisation.weighting.weighted_parts` (without its factor ``p``): a
     solve with the posterior information instead of its inverse (``Posterior.covariance``), the
     same definiteness test (Cholesky) and the same fallback (the pseudo-inverse)."""
     _, c = weight_scales(output_weights(post), post.horizon, post.n_inputs)
