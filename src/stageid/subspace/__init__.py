@@ -9,14 +9,15 @@ named function:
 ``statistics``           2.1 eq. 9: ``hankel_toeplitz`` (the model, its normal equations,
                          ``theta`` split of eq. 16), ``correlations`` (window Gram matrix from
                          lag correlations), ``window_covariance`` (the lags a fit keeps),
-                         ``theta_response`` (the eq. 9 model's frequency response),
+                         ``theta_response`` (the eq. 9 model's frequency response and its
+                         posterior spread, ``ThetaSpread``),
                          ``chunked_statistics`` (records larger than memory)
 ``map``                  2.3 MAP online estimation, eq. 16-18: ``prior`` (eq. 17's prior,
                          ``METHODS``), ``posterior`` (the posterior, batch and update),
                          ``recursion`` (sample by sample), ``kernels`` (compiled)
 ``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
-                         routes), ``frequency_domain`` (the frequency
-                         route), ``refinement``, ``weighting``
+                         routes), ``frequency_domain`` (the frequency route), ``route``
+                         (what a route is given), ``refinement``, ``weighting``
 ``selection``            3.2 choice of p and of the order by held-out prediction error;
                          ``split`` (training / held-out statistics), ``nested_horizons``,
                          ``chunked_order``
@@ -26,15 +27,19 @@ named function:
 ``channels``             2.4 per-input records (eq. 19), stacking (eq. 20-22,
                          ``stack_channel_models``)
 ``records``              mean removal, unit-RMS scaling, excited band of the records
+``sources``              where the statistics come from: a record source answers what the
+                         fit asks of the data; ``RecordArrays`` (records in memory)
+``chunked_source``       ``ChunkedSource``: one record larger than memory, chunk by chunk,
+                         here or on a Dask cluster (``fit_chunked``)
 ``estimator``            the whole method: ``HankelMAP(...).fit(data)`` -> result
-``channel_fit``          one input group's steps in order: split and horizon, eq. 9,
-                         eq. 16-18, order, eq. 10-15
-``chunked_fit``          the same on one record larger than memory
-``result``               ``HankelMAPResult``: model, posterior, bands, ``update(new_data)``
+``channel_fit``          one input group's steps in order, whatever the source: memory
+                         check, split and horizon, eq. 9, eq. 16-18, order, eq. 10-15
+``result``               ``HankelMAPResult``: model, posterior, diagnostics, ``summary()``,
+                         bands, ``update(new_data)``
 =======================  ===================================================================
 
 The flat module paths of earlier versions (``stageid.subspace.hankel_toeplitz``,
-``stageid.subspace.map_estimator``, ...) still import, as the modules at their new places
+``stageid.subspace.map_estimator``, ``stageid.subspace.chunked_fit``, ...) still import, as the modules at their new places
 (:mod:`stageid._moved`).
 
 ``HankelMAP``            the estimator (configure, fit, get a frozen ``HankelMAPResult``)

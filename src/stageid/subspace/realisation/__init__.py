@@ -10,5 +10,6 @@ module                       what it holds
 :mod:`.route`                ``RouteTask``: what every route is given
 :mod:`.refinement`           output-error refinement of a realisation on that response
 :mod:`.weighting`            noise weighting of the outputs in the realisation and selection
+                             (``weighted_parts``: theta and its covariance in those outputs)
 ===========================  ================================================================
 """

@@ -9,7 +9,8 @@ module                         what it holds
                                (FFT)
 :mod:`.window_covariance`      ``WindowLags``: the lag statistics a fit keeps, and the
                                covariance of the eq. 9 response under overlapping windows
-:mod:`.theta_response`       the eq. 9 model's frequency response (and its posterior spread)
+:mod:`.theta_response`         the eq. 9 model's frequency response (and its posterior spread,
+                               ``ThetaSpread``: theta with its covariance factors)
 :mod:`.chunked_statistics`     the same statistics of a record larger than memory, chunk by
                                chunk
 =============================  ==============================================================
