@@ -35,8 +35,8 @@ import numpy as np
 
 from ..._errors import DataError
 from ...data.chunked import DEFAULT_CHUNK, ChunkedRecord, check_finite_rows, map_reduce
-from .correlations import gram_from_lags, lag_correlations
-from .hankel_toeplitz import WindowStatistics
+from .correlations import lag_correlations
+from .hankel_toeplitz import WindowStatistics, lag_statistics
 
 __all__ = [
     "SPECTRUM_BLOCK",
@@ -221,7 +221,4 @@ def ranged_statistics(
     heads = np.stack([(record.read(a, a + L) - shift) / scale for a, _ in ranges])
     tails = np.stack([(record.read(b - L, b) - shift) / scale for _, b in ranges])
     count = int(sum(b - a - L + 1 for a, b in ranges))
-    m = record.n_inputs
-    return WindowStatistics(
-        gram_from_lags(R, heads, tails), float(count), int(horizon), m, record.n_outputs, None, None, count
-    )
+    return lag_statistics(R, heads, tails, count, record.n_inputs)  # as segments_statistics, from the same parts
