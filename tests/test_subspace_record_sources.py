@@ -86,3 +86,20 @@ def test_lag_sums_of_more_lags_than_the_last_chunk_holds(tmp_path):
         warnings.simplefilter("error")
         lags, _ = range_lag_sums(rec, [(0, 3001)], 318, shift, scale, chunk=101)
     assert _rel(lags[0], lag_correlations(z, 318)) < 1e-10
+
+
+def test_a_still_input_is_noted_and_no_moving_input_refused_alike(tmp_path):
+    x = columns(3000, seed=5)
+    x[:, 1] = 0.3  # u2 held
+    est = HankelMAP(horizon=8, order=2, band=(0.0, 450.0))
+    want = est.fit(experiment(x)).diagnostics["warnings"]
+    got = est.fit(_record(tmp_path, x)).diagnostics["warnings"]
+    assert "input 'u2' does not move in any record; its response cannot be identified." in want
+    assert got == want
+    x[:, 0] = 0.3
+    (tmp_path / "still").mkdir()
+    with pytest.raises(ValueError, match="at least one input must move") as chunked:
+        est.fit(_record(tmp_path / "still", x))
+    with pytest.raises(ValueError, match="at least one input must move") as in_memory:
+        est.fit(experiment(x))
+    assert str(chunked.value) == str(in_memory.value)

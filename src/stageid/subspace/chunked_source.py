@@ -31,6 +31,7 @@ from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..runtime.threads import single_blas_thread
 from .map.posterior import Posterior
+from .records import note_still_inputs
 from .result import HankelMAPResult
 from .selection import SelectionTable, held_out_segments
 from .selection.chunked_order import select_order_chunked
@@ -76,17 +77,10 @@ class ChunkedSource:
         cls, record: ChunkedRecord, detrend: bool, notes: list[str], chunk: int = DEFAULT_CHUNK, client: Any = None
     ) -> tuple[ChunkedSource, np.ndarray, np.ndarray]:
         """The source and the channels' unit-RMS ``(input, output)`` scales, from one pass of
-        channel moments (:func:`~.records.prepared_records`, :func:`~.records.to_unit_rms`)."""
+        channel moments (as :func:`~.records.prepared_records` and :func:`~.records.to_unit_rms`)."""
         mom = column_moments(record, chunk, client)
         m = record.n_inputs
-        still = (mom.high - mom.low)[:m] == 0
-        if still.all():
-            raise DataError(
-                f"at least one input must move in some record; got every input ({', '.join(record.input_names)}) "
-                f"constant in all 1 record(s)."
-            )
-        for name in np.asarray(record.input_names)[still]:
-            notes.append(f"input '{name}' does not move in any record; its response cannot be identified.")
+        note_still_inputs(list((mom.high - mom.low)[:m] == 0), record.input_names, 1, notes)
         if detrend:
             shift, scale = mom.mean, mom.rms
         else:
@@ -94,10 +88,21 @@ class ChunkedSource:
             shift, scale = np.zeros_like(mom.mean), np.where(np.isfinite(raw) & (raw > 0), raw, 1.0)
         return cls(record, shift, scale, chunk, client), scale[:m], scale[m:]
 
-    input_names = property(lambda self: tuple(self.record.input_names))
-    output_names = property(lambda self: tuple(self.record.output_names))
-    dt = property(lambda self: self.record.dt)
-    lengths = property(lambda self: [self.record.n_samples])
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        return tuple(self.record.input_names)
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        return tuple(self.record.output_names)
+
+    @property
+    def dt(self) -> float:
+        return self.record.dt
+
+    @property
+    def lengths(self) -> list[int]:
+        return [self.record.n_samples]
 
     def groups(self, per_channel: bool) -> list[tuple[list[int], ChunkedSource]]:
         """One direct fit of all inputs (``per_channel`` is refused by :func:`check_chunked_settings`)."""

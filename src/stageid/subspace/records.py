@@ -25,6 +25,7 @@ __all__ = [
     "check_continuation",
     "prepared_records",
     "still_inputs",
+    "note_still_inputs",
     "channel_scales",
     "to_unit_rms",
     "unscaled_posterior",
@@ -93,15 +94,20 @@ def still_inputs(
     """Which inputs never move in any record (a note for each); DataError when none moves."""
     # column by column: numpy reduces a (n, 3) array along axis 0 much slower
     still = [all(np.ptp(r[0][:, j]) == 0 for r in records) for j in range(len(names))]
+    note_still_inputs(still, names, len(records), notes)
+    return still
+
+
+def note_still_inputs(still: Sequence[bool], names: Sequence[str], n_records: int, notes: list[str]) -> None:
+    """A note for every input that does not move in any of ``n_records`` records; DataError when none moves."""
     if all(still):
         raise DataError(
             f"at least one input must move in some record; got every input ({', '.join(names)}) "
-            f"constant in all {len(records)} record(s)."
+            f"constant in all {n_records} record(s)."
         )
-    for j, name in enumerate(names):
-        if still[j]:
+    for name, is_still in zip(names, still):
+        if is_still:
             notes.append(f"input '{name}' does not move in any record; its response cannot be identified.")
-    return still
 
 
 def channel_scales(records: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
