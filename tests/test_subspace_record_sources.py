@@ -3,14 +3,15 @@ steps, checks, warnings and diagnostics as records in memory, and ``fit`` takes 
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
 import pytest
 
 from _chunked_data import PLANT, columns, experiment, write
-from stageid._errors import ExcitationWarning
-from stageid.data.chunked import open_chunked
+from stageid._errors import ExcitationWarning, ResourceError
+from stageid.data.chunked import ChunkedRecord, open_chunked
 from stageid.subspace import HankelMAP
 from stageid.subspace.chunked_source import fit_chunked
 from stageid.subspace.statistics.chunked_statistics import range_lag_sums
@@ -103,3 +104,18 @@ def test_a_still_input_is_noted_and_no_moving_input_refused_alike(tmp_path):
     with pytest.raises(ValueError, match="at least one input must move") as in_memory:
         est.fit(experiment(x))
     assert str(chunked.value) == str(in_memory.value)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Unread(ChunkedRecord):
+    """A chunked record that must not be read."""
+
+    def read(self, start: int, stop: int) -> np.ndarray:
+        raise AssertionError(f"read {start}..{stop}")
+
+
+def test_a_chunked_record_too_large_a_horizon_is_refused_before_any_read(tmp_path):
+    rec = _record(tmp_path, columns(3000, seed=6))
+    unread = _Unread(**dataclasses.asdict(rec))
+    with pytest.raises(ResourceError, match="horizon 20000"):
+        HankelMAP(horizon=20000, order=4).fit(unread)  # about 1 TB of statistics

@@ -30,6 +30,7 @@ from .._errors import DataError
 from ..checks import check_band
 from ..data.chunked import DEFAULT_CHUNK, ChunkedRecord
 from ..runtime.threads import single_blas_thread
+from .channel_fit import require_channel_memory
 from .map.posterior import Posterior
 from .records import note_still_inputs
 from .result import HankelMAPResult
@@ -194,10 +195,17 @@ def chunked_split_statistics(
 def chunked_source(
     settings: Any, record: ChunkedRecord, notes: list[str], chunk: int = DEFAULT_CHUNK, client: Any = None
 ) -> tuple[ChunkedSource, np.ndarray, np.ndarray]:
-    """The settings checked against a chunked record, then :meth:`ChunkedSource.prepare`."""
+    """The settings checked against a chunked record, then :meth:`ChunkedSource.prepare`.
+
+    The memory check of the fit (:func:`~.channel_fit.require_channel_memory`) runs here as
+    well, before the first pass over the record: a refusal does not wait for a read of it all.
+    """
     check_chunked_settings(settings)
     if settings.band is not None:  # the one band rule, with the record's Nyquist frequency
         check_band(settings.band, "band", "HankelMAP", nyquist=0.5 / record.dt)
+    order = settings.order[0] if isinstance(settings.order, (list, tuple)) else settings.order
+    m, q = record.n_inputs, record.n_outputs
+    require_channel_memory(settings, [record.n_samples], m, q, settings.horizon, order)
     return ChunkedSource.prepare(record, settings.detrend, notes, chunk, client)
 
 
