@@ -44,6 +44,9 @@ def test_fit_takes_a_chunked_record(tmp_path):
     kept, ref = got.channels[0].window_lags, want.channels[0].window_lags
     assert kept is not None and kept.lags.shape == ref.lags.shape
     assert _rel(kept.lags, ref.lags) < 1e-10
+    # and its result continues with new records in memory as the in-memory one does
+    more = experiment(columns(3000, seed=8))
+    assert _rel(got.update(more).model.frequency_response(f), want.update(more).model.frequency_response(f)) < 1e-7
 
 
 def test_chunked_fit_warns_and_notes_as_in_memory(tmp_path):
