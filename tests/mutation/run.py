@@ -71,7 +71,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_closedloop_estimator.py", "tests/test_closedloop_deduction.py"],
     ),
     "closedloop-cancellation": (
-        ["src/stageid/closedloop/cancellation.py", "src/stageid/closedloop/deduction.py", "src/stageid/closedloop/controller.py"],
+        [
+            "src/stageid/closedloop/cancellation.py",
+            "src/stageid/closedloop/deduction.py",
+            "src/stageid/closedloop/controller.py",
+        ],
         [
             "tests/test_closedloop_cancellation_pairs.py",  # cancel_pairs against recomputed distances
             "tests/test_closedloop_deduction.py",
