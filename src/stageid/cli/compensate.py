@@ -54,7 +54,8 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     from ..hysteresis.models.preisach import PreisachModel
     from ..hysteresis.stage import StageModel
     from ..models import load_model
-    from ._common import check_output, parse_limits, read_table_checked, write_table_output
+    from ._common import parse_limits, read_table_checked
+    from .outputs import check_output, write_table_output
 
     check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, read_experiments, say, split_names, trim_options, write_table_output
+from ._common import read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, scheduler_option, statistics_client
+from .outputs import check_output, write_table_output
 
 
 @click.command(

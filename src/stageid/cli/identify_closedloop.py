@@ -5,8 +5,9 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, parse_band, say, split_names, trim_options, write_model_output
+from ._common import parse_band, say, split_names, trim_options
 from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
+from .outputs import check_output, check_output_folder, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 

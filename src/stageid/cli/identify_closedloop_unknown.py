@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import click
 
 from .._errors import IdentificationError, ModelError
-from ._common import say, split_names, write_model_output
+from ._common import say, split_names
+from .outputs import write_model_output
 
 __all__ = ["UNKNOWN_METHODS", "UnknownRequest", "run_unknown", "known_controller_method"]
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, command_line, say, write_model_output
+from ._common import command_line, say
+from .outputs import check_output, check_output_folder, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 

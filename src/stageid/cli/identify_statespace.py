@@ -4,17 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ._common import (
-    check_output,
-    check_output_folder,
-    parse_band,
-    read_experiments,
-    say,
-    split_names,
-    trim_options,
-    write_model_output,
-)
+from ._common import parse_band, read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
+from .outputs import check_output, check_output_folder, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 

@@ -54,7 +54,8 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     """
     from ..data.sampling import PERIOD_RTOL, same_period, seconds
     from ..models import load_model
-    from ._common import check_output, read_table_checked, write_table_output
+    from ._common import read_table_checked
+    from .outputs import check_output, write_table_output
 
     check_output(output, "table")  # a bad -o is refused before the model is loaded or run
     model = load_model(model_path)
@@ -146,7 +147,7 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
     import numpy as np
 
     from ..models import load_model
-    from ._common import check_output, write_table_output
+    from .outputs import check_output, write_table_output
 
     check_output(output, "table")
     if not (np.isfinite(fmin) and fmin > 0):
