@@ -108,7 +108,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_batch_runner.py", "tests/test_batch_jobs.py", "tests/test_batch.py"],
     ),
     "validation": (
-        ["src/stageid/validation/residuals.py", "src/stageid/validation/metrics.py"],
+        [
+            "src/stageid/validation/residuals.py",
+            "src/stageid/validation/correlation_tests.py",
+            "src/stageid/validation/metrics.py",
+        ],
         [
             "tests/test_validation_residual_statistics.py",
             "tests/test_validation_residuals.py",

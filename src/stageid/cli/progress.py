@@ -23,7 +23,7 @@ def progress(total: int | None = None, desc: str = "", unit: str = "it"):
 
 class StepProgress:
     """Progress of a long fit on stderr, as the callback ``(step, done, total)`` of
-    :meth:`stageid.hysteresis.stage_identification.StageIdentifier.fit`.
+    :meth:`stageid.hysteresis.stage.identification.StageIdentifier.fit`.
 
     On a terminal: a tqdm bar per counted step, with the time left that tqdm estimates from the
     rate so far, and the step's name for steps without a count (bars are removed when done).
