@@ -22,10 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import DataError
+from .columns import time_axis
 from .experiment import Experiment
 from .io import PathLike
 from .sampling import UNIFORM_RTOL
-from .table import Table, time_axis
+from .table import Table
 
 __all__ = [
     "SHARED_DATA",
