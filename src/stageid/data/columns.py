@@ -78,7 +78,9 @@ def time_column_grid(t: np.ndarray, where: str, ts: float | None, rtol: float) -
         ts = check_period(ts, "ts", where)
     if t.shape[0] < 2:
         if ts is None:
-            raise DataError(f"{where}the time column '{TIME_COLUMN}' has a single sample, so dt is unknown; pass `ts=`.")
+            raise DataError(
+                f"{where}the time column '{TIME_COLUMN}' has a single sample, so dt is unknown; pass `ts=`."
+            )
         return TimeGrid(float(t[0]), ts)
     grid = time_grid(t, where, rtol)
     if ts is None:
