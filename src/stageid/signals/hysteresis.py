@@ -31,6 +31,7 @@ from ._common import (
     check_nyquist,
     check_positive,
     check_span,
+    check_tone,
     n_from_duration,
 )
 from .periodic import triangle_wave
@@ -117,8 +118,7 @@ def _decaying(
     limits: tuple[float, float] | None,
 ) -> np.ndarray:
     step = check_dt(dt, name)
-    f = check_positive(freq, "freq", name)
-    check_nyquist(f, "freq", step, name, strict=True)
+    f = check_tone(freq, step, name)
     off = check_finite(offset, "offset", name)
     env = decay_envelope(n_cycles, amplitude, decay, final_fraction)
     check_span(off, float(env[0]), name)
@@ -222,22 +222,8 @@ def decaying_triangle(
 
     Parameters
     ----------
-    freq : float
-        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
-    n_cycles : int
-        Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
-    dt : float
-        Sample time in seconds.
-    amplitude : float, default 1.0
-        Amplitude of the first cycle (half the full input range), > 0.
-    offset : float, default 0.0
-        Centre of the input range.
-    decay : {"linear", "exponential"}, default "linear"
-        Envelope law, see :func:`decay_envelope`.
-    final_fraction : float, optional
-        Last-cycle amplitude relative to the first, in (0, 1).
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    freq, n_cycles, dt, amplitude, offset, decay, final_fraction, limits
+        As :func:`decaying_sine`.
 
     Returns
     -------
