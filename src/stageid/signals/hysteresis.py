@@ -222,8 +222,22 @@ def decaying_triangle(
 
     Parameters
     ----------
-    freq, n_cycles, dt, amplitude, offset, decay, final_fraction, limits
-        As :func:`decaying_sine`.
+    freq : float
+        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
+    n_cycles : int
+        Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
+    dt : float
+        Sample time in seconds.
+    amplitude : float, default 1.0
+        Amplitude of the first cycle (half the full input range), > 0.
+    offset : float, default 0.0
+        Centre of the input range.
+    decay : {"linear", "exponential"}, default "linear"
+        Envelope law, see :func:`decay_envelope`.
+    final_fraction : float, optional
+        Last-cycle amplitude relative to the first, in (0, 1).
+    limits : (float, float), optional
+        Allowed range ``(lo, hi)`` of the signal.
 
     Returns
     -------

@@ -133,12 +133,25 @@ def log_chirp(
 
     Parameters
     ----------
-    f0, f1, duration, dt, amplitude, offset, phase, limits
-        As :func:`chirp`, with ``0 < f0``.
+    f0, f1 : float
+        Start and end frequency in Hz, ``0 < f0 < f1 <= 1 / (2 dt)``.
+    duration : float
+        Sweep time in seconds.
+    dt : float
+        Sample time in seconds.
+    amplitude : float, default 1.0
+        Half the peak-to-peak swing, > 0.
+    offset : float, default 0.0
+        Centre value.
+    phase : float, default 0.0
+        Phase in radians.
+    limits : (float, float), optional
+        Allowed range ``(lo, hi)`` of the signal.
 
     Returns
     -------
     ndarray of shape (n_samples,)
+        The chirp, ``n_samples = round(duration / dt)``.
 
     Raises
     ------
