@@ -196,7 +196,7 @@ def _plant_input_names(plant_inputs: str | None, K, tables) -> tuple[str, ...] |
 
 def _write_models(result, output: str, loop_output: str | None, uncertainty: UncertaintyRequest, dt: float) -> None:
     """The plant (and the closed loop) files, the uncertainty table, and the summary."""
-    write_model_output(output, result.plant)
+    write_model_output(output, result.model)
     if loop_output is not None:
         write_model_output(loop_output, result.closed_loop)
     uncertainty_line = uncertainty.write(result, result.band, dt)
@@ -290,7 +290,7 @@ def _check_paper_structure(result, band: tuple[float, float]) -> None:
     if diag.max() > STRUCTURE_MEDIAN:
         k = int(np.argmax(diag))
         raise IdentificationError(
-            f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
+            f"the deduced plant does not fit the paper structure: entry {result.model.outputs[k]}<-{result.model.inputs[k]} "
             f"misses [0, 2] by {100 * diag[k]:.1f} % over half of {band[0]:g}-{band[1]:g} Hz (median; expected < "
             f"{100 * STRUCTURE_MEDIAN:g} %); the loop was probably not closed by this controller (or the plant is not of "
             "this structure: try --structure full)."
@@ -371,7 +371,7 @@ def _record_figures(report, metrics: dict, result, controller, e) -> None:
         ),
         f"{e.name}: identified closed loop beside the empirical transfer function of the record.",
     )
-    ysim, _ = reclose_loop(result.plant, controller, e.u, dt)
+    ysim, _ = reclose_loop(result.model, controller, e.u, dt)
     for name, v in zip(e.output_names, fit_percent(e.y, ysim)):
         metrics[f"reclosed_fit_percent/{e.name}/{name}"] = float(v)
     report.figure(

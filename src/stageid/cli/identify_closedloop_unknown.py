@@ -105,7 +105,7 @@ def run_unknown(req: UnknownRequest, uncertainty) -> None:
     )
     uncertainty.check_nyquist(exps[0].dt)
     result = est.fit(exps)
-    plant = result.plant
+    plant = result.model
     if not req.discrete:
         try:
             plant = plant.d2c("zoh")

@@ -288,7 +288,7 @@ class ClosedLoopIdentification(Estimator):
         else:
             plant, reduced, eps, eps_c = self._reduce(T, M, Mr, P_band, f_band, entries, s_unstable)
         return ClosedLoopResult(
-            plant=plant,
+            model=plant,
             plant_full=G_full,
             plant_cancelled=G_cancel,
             closed_loop=T,

@@ -90,24 +90,41 @@ class UnknownControllerEstimator(Estimator):
         if s is None:
             s = np.log(np.linalg.eigvals(m.A).astype(complex)) / dt
         order = np.argsort(-s.real, kind="stable")[::-1]
-        return UnknownControllerResult(
-            method=self.method_name,
-            plant=plant,
+        return self.route_result(
+            plant,
+            s[order],
+            (fit.order, fit.horizon),
+            checks,
+            {**pem_account(fit), **details},
             innovation=m,
-            poles=s[order],
             pole_std=None if std is None else std[order],
-            order=fit.order,
-            horizon=fit.horizon,
-            dt=dt,
-            assumptions=ASSUMPTIONS[self.method_name],
-            checks=tuple(checks),
             parameter_covariance=fit.covariance,
             feedthrough=bool(self.feedthrough),
-            details={
-                "nfev": fit.pem.nfev,
-                "converged": fit.pem.converged,
-                "cost_start": fit.pem.cost_start,
-                "cost": fit.pem.cost,
-                **details,
-            },
+        )
+
+    def route_result(
+        self,
+        plant: StateSpaceModel,
+        poles: np.ndarray,
+        order_horizon: tuple[int, int],
+        checks: list[Check],
+        diagnostics: dict,
+        **bands,
+    ) -> UnknownControllerResult:
+        """The frozen result of this route: its plant and poles, its assumptions and what the records say of them.
+
+        ``bands`` are the fields a route with a parameter covariance fills (``innovation``,
+        ``pole_std``, ``parameter_covariance``, ``feedthrough``).
+        """
+        return UnknownControllerResult(
+            method=self.method_name,
+            model=plant,
+            poles=poles,
+            order=order_horizon[0],
+            horizon=order_horizon[1],
+            dt=plant.dt,
+            assumptions=ASSUMPTIONS[self.method_name],
+            checks=tuple(checks),
+            diagnostics=diagnostics,
+            **bands,
         )
