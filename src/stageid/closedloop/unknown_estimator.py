@@ -10,7 +10,7 @@ import numpy as np
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_integer
 from ..models import StateSpaceModel
-from .innovation_fit import InnovationFit
+from .innovation_fit import InnovationResult
 from .innovation_pem import pole_std
 from .unknown_checks import ASSUMPTIONS, Check
 from .unknown_result import UnknownControllerResult
@@ -31,7 +31,7 @@ def _is_names(value: object) -> bool:
     return isinstance(value, (list, tuple)) and len(value) > 0 and all(isinstance(n, str) for n in value)
 
 
-def pem_account(fit: InnovationFit) -> dict:
+def pem_account(fit: InnovationResult) -> dict:
     """The optimiser's account of a fit (empty for a subspace estimate without refinement)."""
     if fit.pem is None:
         return {}
@@ -77,7 +77,7 @@ class UnknownControllerEstimator(Estimator):
 
     def plant_result(
         self,
-        fit: InnovationFit,
+        fit: InnovationResult,
         dt: float,
         names: tuple[tuple[str, ...], tuple[str, ...]],
         checks: list[Check],
