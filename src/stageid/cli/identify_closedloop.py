@@ -7,7 +7,7 @@ import click
 from .._errors import DataError, IdentificationError
 from ._common import parse_band, say, split_names, trim_options
 from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
-from .outputs import check_output, check_output_folder, write_model_output
+from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -77,9 +77,7 @@ Examples:
     show_default=True,
     help="Controller unknown: states of the plant (and noise) model, or auto.",
 )
-@click.option(
-    "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1)."
-)
+@output_option("Plant file (stageid.lti/1).")
 @click.option(
     "--closed-loop-output",
     "loop_output",

@@ -8,6 +8,7 @@ import click
 
 from .._errors import DataError, ModelError
 from ._common import trim_options
+from .outputs import output_option
 
 
 @click.command(
@@ -25,14 +26,7 @@ Examples:
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("input_path", metavar="INPUT.(csv|npz|mat)", type=click.Path(dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Output .csv or .npz (by extension): `t` then one column per model output.",
-)
+@output_option("Output .csv or .npz (by extension): `t` then one column per model output.")
 @click.option(
     "--ts",
     type=float,
@@ -130,14 +124,7 @@ Examples:
 @click.option("--fmin", type=float, required=True, help="Lowest frequency [Hz], > 0.")
 @click.option("--fmax", type=float, required=True, help="Highest frequency [Hz].")
 @click.option("--n", "n_points", type=int, default=200, show_default=True, help="Number of log-spaced frequencies.")
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Output .csv or .npz (by extension).",
-)
+@output_option("Output .csv or .npz (by extension).")
 def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, output: str) -> None:
     """Frequency response of an LTI model at N log-spaced frequencies.
 

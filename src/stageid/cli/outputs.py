@@ -18,6 +18,7 @@ from .._errors import DataError
 from ..atomic import check_not_input, check_parent, note_input
 
 __all__ = [
+    "output_option",
     "check_output",
     "check_output_folder",
     "write_table_output",
@@ -36,6 +37,11 @@ _OUTPUT_KINDS = {
     "model": (MODEL_SUFFIXES, "a model"),
     "mat": ((".mat",), "a MATLAB file"),
 }
+
+
+def output_option(help_text: str, name: str = "output"):
+    """The required ``-o/--output FILE`` option of a command, passed as ``name`` (checked by :func:`check_output`)."""
+    return click.option("-o", "--output", name, required=True, type=click.Path(dir_okay=False), help=help_text)
 
 
 def _command_inputs() -> list[str]:
