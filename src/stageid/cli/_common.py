@@ -98,9 +98,12 @@ def say(text: str, err: bool = False) -> None:
     """Print ``text`` (stdout, or stderr with ``err``) once the command has succeeded.
 
     Results and warnings wait for the outputs to be committed, so a command that fails
-    later prints its one error line and nothing else.
+    later prints its one error line and nothing else.  A parameter the library names
+    (`` `start=0.5` ``) is printed as the flag the user types (``--start 0.5``).
     """
-    _MESSAGES.append((text, err))
+    from .flags import as_flags
+
+    _MESSAGES.append((as_flags(text), err))
 
 
 def flush_messages(print_them: bool = True) -> None:
