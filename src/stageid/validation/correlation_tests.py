@@ -187,6 +187,7 @@ def whiteness_test(residuals: Sequence[np.ndarray], max_lag: int = MAX_LAG, alph
     Returns
     -------
     CorrelationTest
+        The Ljung-Box ``Q`` against chi2(``max_lag``), the autocorrelations at lags ``1..max_lag``.
 
     Raises
     ------
@@ -258,6 +259,7 @@ def independence_test(
     Returns
     -------
     CorrelationTest
+        ``S`` against chi2(``max_lag + 1``), the raw cross-correlations at lags ``0..max_lag``.
 
     Raises
     ------
