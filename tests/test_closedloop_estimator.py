@@ -227,7 +227,11 @@ def test_automatic_order_range_reaches_the_loop_order() -> None:
 def test_result_holds_the_plant_as_model_with_read_only_diagnostics_and_pickles() -> None:
     import pickle
 
-    res = ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9)).fit(_siso_experiment(0))
+    est = ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9))
+    res = est.fit(_siso_experiment(0))
+    est.band = (30.0, 200.0)  # a setting changed after the fit does not reach the result
+    assert res.estimator is not est and res.estimator.band == (20.0, 300.0)
+    assert list(res.estimator.order_range) == list(range(2, 9))
     assert res.plant is res.model  # the former name still reads the same model
     assert res.diagnostics["band_error_max"] == float(res.band_error.max())
     assert res.diagnostics["cancelled_pairs"] == len(res.cancellations)

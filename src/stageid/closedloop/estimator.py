@@ -310,4 +310,5 @@ class ClosedLoopIdentification(Estimator):
             covariance=None
             if self.covariance == "none"
             else closed_loop_covariance(groups, pem_models, f_band, Mr, self.covariance),
+            estimator=self.clone(),
         )

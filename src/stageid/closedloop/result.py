@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..base import Estimator
 from ..display import html_repr, short_repr
 from ..frozen import FrozenMapping
 from ..models import StateSpaceModel, TransferMatrix
@@ -69,6 +70,9 @@ class ClosedLoopResult:
     covariance : ClosedLoopCovariance or None
         The pairs' parameter covariances for :meth:`response_uncertainty` (None when fitted
         with ``covariance="none"``).
+    estimator : ClosedLoopIdentification or None
+        A copy of the settings it was fitted with (changing the estimator afterwards changes
+        nothing here).
     """
 
     model: TransferMatrix
@@ -90,6 +94,7 @@ class ClosedLoopResult:
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
     covariance: ClosedLoopCovariance | None = None
     band_error_median: np.ndarray | None = None
+    estimator: Estimator | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "diagnostics", FrozenMapping({**self.diagnostics, **self._figures()}))

@@ -126,5 +126,6 @@ class UnknownControllerEstimator(Estimator):
             assumptions=ASSUMPTIONS[self.method_name],
             checks=tuple(checks),
             diagnostics=diagnostics,
+            estimator=self.clone(),
             **bands,
         )

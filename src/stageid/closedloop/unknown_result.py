@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, IdentificationError
+from ..base import Estimator
 from ..frozen import FrozenMapping
 from ..models import StateSpaceModel
 from ..models.frequency_response import FrequencyResponse
@@ -52,6 +53,8 @@ class UnknownControllerResult:
     diagnostics : mapping of str to float, int, bool or dict
         Read-only: the optimiser's account and route-specific figures (stage-1 fit, ...).
         Also :attr:`details`, its former name.
+    estimator : Estimator or None
+        A copy of the route's settings at the fit.
     """
 
     method: str
@@ -67,6 +70,7 @@ class UnknownControllerResult:
     parameter_covariance: np.ndarray | None = None
     feedthrough: bool = False
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
+    estimator: Estimator | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "diagnostics", FrozenMapping(self.diagnostics))
