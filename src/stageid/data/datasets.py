@@ -106,6 +106,7 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
     Parameters
     ----------
     path : str or path-like
+        The ``.mat`` file as ControlDesk wrote it.
 
     Returns
     -------
@@ -192,6 +193,7 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
     Parameters
     ----------
     path : str or path-like
+        The CSV file, without a header row.
 
     Returns
     -------
