@@ -163,7 +163,7 @@ def test_table_between_keeps_the_caller_table():
     part = table.between(start=2.2)  # 2.2 s lies between samples: the next one is the first kept
     assert part.t0 == 2.5 and part.column("u")[0] == 3.0 and table.n_samples == 10
     assert table.between(stop=1.5).column("u").tolist() == [0.0, 1.0]
-    with pytest.raises(DataError, match=r"^file 'r.csv': --start/--stop window \[5.1 s, 5.2 s\] keeps 0 samples"):
+    with pytest.raises(DataError, match=r"^file 'r.csv': `start=`/`stop=` window \[5.1 s, 5.2 s\] keeps 0 samples"):
         table.between(5.1, 5.2)
 
 

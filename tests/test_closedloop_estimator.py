@@ -222,3 +222,24 @@ def test_automatic_order_range_reaches_the_loop_order() -> None:
     est = ClosedLoopIdentification(_siso_controller())
     assert est._candidate_orders(3, 6) == range(2, 33)  # the bound plus its margin of 2
     assert est._candidate_orders(1, 2) == range(2, 17)  # never below the former range
+
+
+def test_result_holds_the_plant_as_model_with_read_only_diagnostics_and_pickles() -> None:
+    import pickle
+
+    est = ClosedLoopIdentification(_siso_controller(), order_range=range(2, 9))
+    res = est.fit(_siso_experiment(0))
+    est.band = (30.0, 200.0)  # a setting changed after the fit does not reach the result
+    assert res.estimator is not est and res.estimator.band == (20.0, 300.0)
+    assert list(res.estimator.order_range) == list(range(2, 9))
+    assert res.plant is res.model  # the former name still reads the same model
+    assert res.diagnostics["band_error_max"] == float(res.band_error.max())
+    assert res.diagnostics["cancelled_pairs"] == len(res.cancellations)
+    assert res.diagnostics["unstable_poles"] == len(res.unstable_poles) == 1
+    assert res.diagnostics["closed_loop_fit_min_percent"] == float(res.closed_loop_fit.min())
+    with pytest.raises(TypeError):
+        res.diagnostics["band_error_max"] = 0.0
+    back = pickle.loads(pickle.dumps(res))
+    f = np.geomspace(20.0, 300.0, 20)
+    assert np.array_equal(back.model.frequency_response(f), res.model.frequency_response(f))
+    assert dict(back.diagnostics) == dict(res.diagnostics)

@@ -56,6 +56,17 @@ def test_zoh_derivatives_are_those_of_zoh_at(num, den) -> None:
         np.testing.assert_allclose(d_den[:, i], fd, rtol=0, atol=1e-6 * max(np.max(np.abs(fd)), scale))
 
 
+def test_zoh_derivatives_at_a_zero_numerator_keep_the_denominators_states() -> None:
+    # H is linear in the numerator: at num = 0 its numerator derivative is the one at any num
+    den = np.poly([50.0, -80.0])
+    z = np.exp(2j * np.pi * F * DT)
+    H0, d_num0, d_den0 = zoh_derivatives(np.zeros(3), den, DT, z)
+    H1, d_num1, _ = zoh_derivatives(np.array([0.0, 1.0, 3.0]), den, DT, z)
+    assert np.array_equal(H0, np.zeros(F.size)) and np.array_equal(d_den0, np.zeros((F.size, 2)))
+    np.testing.assert_allclose(d_num0, d_num1, rtol=1e-12)
+    np.testing.assert_allclose(zoh_at(np.zeros(3), den, DT, z), 0.0, atol=0)
+
+
 @pytest.mark.parametrize(("num", "den"), CASES)
 def test_zoh_at_equals_zoh_response_and_an_independent_discretisation(num, den) -> None:
     num, den = np.asarray(num, float), np.asarray(den, float)

@@ -74,3 +74,19 @@ def test_references_are_required(linear_record):
         TwoStageProjection(order=4).fit(linear_record)
     with pytest.raises(DataError, match="needs recorded references"):
         JointInputOutput(order=8).fit(linear_record)
+
+
+def test_route_results_hold_the_plant_as_model_with_read_only_diagnostics(linear_record):
+    import pickle
+
+    est = JointInputOutput(order=8, references=["r1", "r2"])
+    res = est.fit(linear_record)
+    est.order = 4  # a setting changed after the fit does not reach the result
+    assert res.estimator is not est and res.estimator.get_params()["order"] == 8
+    assert res.plant is res.model and res.details is res.diagnostics  # the former names read the same
+    assert set(res.diagnostics) == {"reference_share", "weak_modes_left_out", "orders"}
+    with pytest.raises(TypeError):
+        res.diagnostics["reference_share"] = 1.0
+    back = pickle.loads(pickle.dumps(res))
+    assert np.array_equal(back.model.frequency_response(BAND), res.model.frequency_response(BAND))
+    assert dict(back.diagnostics) == dict(res.diagnostics)

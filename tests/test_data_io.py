@@ -155,7 +155,7 @@ def test_csv_without_time_when_dt_unknown(tmp_path):
     path = tmp_path / "x.csv"
     write_csv(path, {"a": [1.0, 2.0], "b": [3.0, 4.0]})
     assert open(path).read().splitlines()[0] == "a,b"
-    with pytest.raises(DataError, match="no time column 't'; pass ts="):
+    with pytest.raises(DataError, match="no time column 't'; pass `ts=`"):
         read_table(path)
     table = read_table(path, ts=0.25)
     assert table.dt == 0.25 and table.t0 == 0.0

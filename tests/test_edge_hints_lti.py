@@ -1,5 +1,5 @@
-"""The edge-transient hint (``try --start``/``--stop``) for LTI models: ``identify statespace`` and
-``validate``, in the wording ``identify hysteresis`` uses."""
+"""The edge-transient hint (``try `start=...``` in the library, ``try --start ...`` on the command line)
+for LTI models: ``identify statespace`` and ``validate``, in the wording ``identify hysteresis`` uses."""
 
 from __future__ import annotations
 
@@ -96,7 +96,9 @@ def test_lti_edge_lines_in_the_library(tmp_path):
     exp = read_table(_record(tmp_path / "r.csv", seed=4, settle=0.8)).experiment(["u"], ["y"], name="r")
     clean = read_table(_record(tmp_path / "c.csv", seed=4)).experiment(["u"], ["y"], name="c")
     (line,) = lti_edge_lines(model, [exp, clean])
-    assert line.startswith("r  y: ") and "try --start 0.06" in line
+    assert (
+        line.startswith("r  y: ") and "try `start=0.06`" in line
+    )  # the library names the parameter; the CLI prints --start
     assert lti_edge_lines(model, [clean]) == []
 
 

@@ -193,7 +193,7 @@ _SPIN = textwrap.dedent(
     """
     import sys, click, numba, numpy as np
     from stageid.cli import main as cli_main
-    from stageid.cli._common import write_table_output
+    from stageid.cli.outputs import write_table_output
 
     @numba.njit(nogil=True)
     def kernel(n):

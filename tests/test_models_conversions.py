@@ -40,6 +40,8 @@ def test_tf2ss_siso_edge_cases():
     assert A.shape == (0, 0) and D[0, 0] == 1.5
     A, B, C, D = tf2ss_siso(np.zeros(2), np.array([1.0, -0.5]))
     assert A.shape == (0, 0) and D[0, 0] == 0.0
+    A, B, C, D = tf2ss_siso(np.zeros(2), np.array([1.0, -0.5]), keep_states=True)  # scipy's form
+    assert A.tolist() == [[0.5]] and B.tolist() == [[1.0]] and C.tolist() == [[0.0]] and D[0, 0] == 0.0
     with pytest.raises(ValueError):  # improper: scipy's refusal, unchanged
         tf2ss_siso(np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.5]))
 

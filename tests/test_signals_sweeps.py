@@ -109,7 +109,7 @@ def test_chirp_limits_error_names_span_and_limits():
         (dict(f0=1.0, f1=5.0, duration=1.0, dt=1e-3, amplitude=-1.0), "`amplitude` of chirp must be a number > 0"),
         (dict(f0=1.0, f1=5.0, duration=1.0, dt=1e-3, method="cubic"), "'linear', 'logarithmic'; got 'cubic'"),
         (dict(f0=-1.0, f1=5.0, duration=1.0, dt=1e-3), "`f0` of chirp must be a number >= 0; got -1"),
-        (dict(f0=1.0, f1=float("nan"), duration=1.0, dt=1e-3), "`f1` of chirp must be a number >= 0; got nan"),
+        (dict(f0=1.0, f1=float("nan"), duration=1.0, dt=1e-3), "`f1` of chirp must be a number > 0; got nan"),
     ],
 )
 def test_chirp_parameter_errors(kwargs, fragment):

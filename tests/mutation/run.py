@@ -71,7 +71,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_closedloop_estimator.py", "tests/test_closedloop_deduction.py"],
     ),
     "closedloop-cancellation": (
-        ["src/stageid/closedloop/cancellation.py", "src/stageid/closedloop/deduction.py"],
+        [
+            "src/stageid/closedloop/cancellation.py",
+            "src/stageid/closedloop/deduction.py",
+            "src/stageid/closedloop/controller.py",
+        ],
         [
             "tests/test_closedloop_cancellation_pairs.py",  # cancel_pairs against recomputed distances
             "tests/test_closedloop_deduction.py",
@@ -104,7 +108,11 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_batch_runner.py", "tests/test_batch_jobs.py", "tests/test_batch.py"],
     ),
     "validation": (
-        ["src/stageid/validation/residuals.py", "src/stageid/validation/metrics.py"],
+        [
+            "src/stageid/validation/residuals.py",
+            "src/stageid/validation/correlation_tests.py",
+            "src/stageid/validation/metrics.py",
+        ],
         [
             "tests/test_validation_residual_statistics.py",
             "tests/test_validation_residuals.py",

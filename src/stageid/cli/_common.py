@@ -1,17 +1,12 @@
-"""Helpers shared by the ``stageid`` commands: name lists, reading experiments, safe outputs.
+"""Helpers shared by the ``stageid`` commands: name lists, reading experiments, deferred messages.
 
 Rules every command follows: bad input raises a :class:`~stageid.StageIdError` (or
 ``click.UsageError``); ``main`` turns it into one line on stderr and exit code 2.  ``main``
 runs every command in one :func:`stageid.atomic.transaction`: the outputs are written to
 temporaries and moved into place together when the command has succeeded, and what the
 command prints (:func:`say`) is printed after that, so a failed command leaves no file and
-prints only its error.
-
-Output files, one rule for every verb: check ``-o`` with :func:`check_output` *before any
-work* (its extension picks the format, its directory must exist and is never created, ``-``
-is refused, an input of the command is refused), then write with :func:`write_table_output`
-(tables: ``.csv`` or ``.npz``) or :func:`write_model_output` (models: ``.json``).  Report
-folders: :func:`check_output_folder` (the same rules; the folder itself may be created).
+prints only its error.  Output files follow the rules of :mod:`.outputs`; progress on
+stderr is :mod:`.progress`.
 """
 
 from __future__ import annotations
@@ -22,9 +17,6 @@ from pathlib import Path
 
 import click
 
-from .._errors import DataError
-from ..atomic import check_not_input, check_parent, note_input
-
 __all__ = [
     "split_names",
     "parse_band",
@@ -34,28 +26,11 @@ __all__ = [
     "current_trim",
     "say",
     "flush_messages",
-    "check_output",
-    "check_output_folder",
-    "write_table_output",
-    "write_model_output",
-    "TABLE_SUFFIXES",
-    "MODEL_SUFFIXES",
-    "progress",
-    "StepProgress",
-    "is_interactive",
     "plain_help",
+    "parse_limits",
+    "command_line",
+    "command_settings",
 ]
-
-#: Extensions of table outputs (signals, simulated records, frequency responses), by format.
-TABLE_SUFFIXES = (".csv", ".npz")
-#: Extensions of model outputs (stageid.lti/1 and the hysteresis formats are JSON).
-MODEL_SUFFIXES = (".json",)
-#: kind of an ``-o`` file -> (its extensions, the words in messages)
-_OUTPUT_KINDS = {
-    "table": (TABLE_SUFFIXES, "a table"),
-    "model": (MODEL_SUFFIXES, "a model"),
-    "mat": ((".mat",), "a MATLAB file"),
-}
 
 
 def plain_help(text: str) -> str:
@@ -123,9 +98,12 @@ def say(text: str, err: bool = False) -> None:
     """Print ``text`` (stdout, or stderr with ``err``) once the command has succeeded.
 
     Results and warnings wait for the outputs to be committed, so a command that fails
-    later prints its one error line and nothing else.
+    later prints its one error line and nothing else.  A parameter the library names
+    (`` `start=0.5` ``) is printed as the flag the user types (``--start 0.5``).
     """
-    _MESSAGES.append((text, err))
+    from .flags import as_flags
+
+    _MESSAGES.append((as_flags(text), err))
 
 
 def flush_messages(print_them: bool = True) -> None:
@@ -251,188 +229,3 @@ def command_settings() -> dict[str, object]:
         if isinstance(param, click.Option) and param.name in ctx.params and not param.hidden:
             out[max(param.opts, key=len)] = ctx.params[param.name]
     return out
-
-
-def _command_inputs() -> list[str]:
-    """The files the running command reads: its path arguments and its ``*_path`` options."""
-    ctx = click.get_current_context(silent=True)
-    if ctx is None:
-        return []
-    paths: list[str] = []
-    for param in ctx.command.params:
-        if not isinstance(param.type, click.Path) or not (
-            isinstance(param, click.Argument) or (param.name or "").endswith("_path")
-        ):
-            continue
-        value = ctx.params.get(param.name or "")
-        paths += [str(v) for v in (value if isinstance(value, tuple) else (value,)) if v]
-    return paths
-
-
-def _protect_inputs(target: Path) -> None:
-    """Register the command's input files with the output transaction; refuse ``target`` if it is one."""
-    for source in _command_inputs():
-        note_input(source)
-    check_not_input(target)
-
-
-def check_output(path: str | os.PathLike[str], kind: str) -> Path:
-    """Check an ``-o`` path before any work is done; returns it as a Path.
-
-    Parameters
-    ----------
-    path : str or path-like
-        The output file.
-    kind : {"table", "model", "mat"}
-        A table is written as CSV or NPZ by its extension (:data:`TABLE_SUFFIXES`); a model
-        as JSON (:data:`MODEL_SUFFIXES`); a MATLAB export as ``.mat``.
-
-    Raises
-    ------
-    DataError
-        ``-`` (standard output is not supported), an extension that does not match the
-        kind, a missing directory, or a path that is an existing directory.
-
-    Examples
-    --------
-    >>> from stageid.cli._common import check_output
-    >>> check_output("fr.npz", "table").suffix
-    '.npz'
-    >>> check_output("fr.mat", "table")
-    Traceback (most recent call last):
-    ...
-    stageid._errors.DataError: output 'fr.mat' has extension '.mat'; expected .csv or .npz for a table.
-    """
-    if kind not in _OUTPUT_KINDS:
-        raise ValueError(f"kind must be one of {', '.join(_OUTPUT_KINDS)}; got {kind!r}.")
-    allowed, words = _OUTPUT_KINDS[kind]
-    if str(path) == "-":
-        raise DataError(
-            f"-o '-' (standard output) is not supported; expected a file name ending in {' or '.join(allowed)}."
-        )
-    target = Path(path)
-    suffix = target.suffix.lower()
-    if suffix not in allowed:
-        shown = f"extension '{suffix}'" if suffix else "no extension"
-        # a bare name is most often a column given to -o/--output (a file) instead of --outputs
-        hint = "" if suffix else " -o names the file to write, not a data column."
-        raise DataError(f"output '{target}' has {shown}; expected {' or '.join(allowed)} for {words}.{hint}")
-    check_parent(target)
-    if target.is_dir():
-        raise DataError(f"cannot write '{target}': it is a directory; expected a file name.")
-    _protect_inputs(target)
-    return target
-
-
-def check_output_folder(path: str | os.PathLike[str], what: str = "a report") -> Path:
-    """Check a report folder (``--out``/``--report``) before any work: its parent must exist.
-
-    Raises
-    ------
-    DataError
-        A missing parent directory, ``-``, or an existing file at ``path``.
-    """
-    if str(path) == "-":
-        raise DataError(f"the folder for {what} cannot be '-' (standard output); expected a folder name.")
-    target = check_parent(path)
-    if target.exists() and not target.is_dir():
-        raise DataError(f"cannot write {what} into '{target}': it is a file; expected a folder.")
-    _protect_inputs(target)
-    return target
-
-
-def write_table_output(path: str | os.PathLike[str], data, *, dt: float | None = None, t0: float | None = None) -> Path:
-    """Write a table to ``path`` as CSV or NPZ, chosen by its extension, atomically.
-
-    ``data`` and ``dt``/``t0`` as :func:`stageid.data.write_csv`.  Raises :class:`DataError`
-    as :func:`check_output` and the writers.
-    """
-    from ..data.io import write_csv, write_npz
-
-    target = check_output(path, "table")
-    writer = write_npz if target.suffix.lower() == ".npz" else write_csv
-    return writer(target, data, dt=dt, t0=t0)
-
-
-def write_model_output(path: str | os.PathLike[str], model) -> Path:
-    """Save a model as JSON at ``path`` atomically (checked as :func:`check_output` ``"model"``)."""
-    from ..models.serialization import save_model
-
-    target = check_output(path, "model")
-    save_model(model, target)
-    return target
-
-
-def is_interactive() -> bool:
-    """True when stderr is a terminal (progress bars only make sense there)."""
-    import sys
-
-    return sys.stderr.isatty()
-
-
-def progress(total: int | None = None, desc: str = "", unit: str = "it"):
-    """A tqdm progress bar on stderr, silent when stderr is not a terminal."""
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc=desc, unit=unit, disable=not is_interactive(), leave=False)
-
-
-class StepProgress:
-    """Progress of a long fit on stderr, as the callback ``(step, done, total)`` of
-    :meth:`stageid.hysteresis.stage_identification.StageIdentifier.fit`.
-
-    On a terminal: a tqdm bar per counted step, with the time left that tqdm estimates from the
-    rate so far, and the step's name for steps without a count (bars are removed when done).
-    Otherwise (a log, a pipe): a line ``[elapsed] step done/total, about N s left`` when a
-    counted step starts, after its first candidate, at its end and otherwise at most every
-    ``interval`` seconds, so a log shows that the fit moves without one line per candidate;
-    steps without a count get a line only once counting has begun (the input checks come
-    before it, and a command refused there prints only its one-line error).
-    """
-
-    def __init__(self, interval: float = 30.0) -> None:
-        import time
-
-        self._clock = time.perf_counter
-        self._start = self._clock()
-        self._interval = interval
-        self._step: str | None = None
-        self._step_start = self._start
-        self._last_line = -float("inf")
-        self._bar = None
-        self._counted = False
-
-    def __call__(self, step: str, done: int, total: int) -> None:
-        now = self._clock()
-        if step != self._step:
-            self.close()
-            self._step, self._step_start, self._last_line = step, now, -float("inf")
-            if is_interactive() and total:
-                self._bar = progress(total, step, "candidate")
-            elif is_interactive():  # no count: the step's name and its elapsed time
-                from tqdm.auto import tqdm
-
-                self._bar = tqdm(desc=step, bar_format="{desc} [{elapsed}]", leave=False)
-        if self._bar is not None:
-            self._bar.update(done - self._bar.n)
-            return
-        if not total:
-            if self._counted:  # before the count starts a failing command must print only its error
-                self._line(now, step)
-            return
-        self._counted = True
-        if done <= 1 or done == total or now - self._last_line >= self._interval:
-            text = f"{step} {done}/{total}"
-            if 0 < done < total:
-                text += f", about {(now - self._step_start) / done * (total - done):.0f} s left"
-            self._line(now, text)
-
-    def _line(self, now: float, text: str) -> None:
-        click.echo(f"[{now - self._start:5.0f} s] {text}", err=True)
-        self._last_line = now
-
-    def close(self) -> None:
-        """Remove the terminal's bar (the command prints its result after this)."""
-        if self._bar is not None:
-            self._bar.close()
-            self._bar = None

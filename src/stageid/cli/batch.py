@@ -9,7 +9,9 @@ import warnings
 import click
 
 from .._errors import DataError
-from ._common import check_output_folder, progress, say
+from ._common import say
+from .outputs import check_output_folder
+from .progress import progress
 
 # One stageid command at a time per worker process: the command line keeps per-process state
 # (its message buffer, the warning filters, sys.stdout/sys.stderr while a job runs), so jobs on

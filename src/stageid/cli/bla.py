@@ -25,7 +25,8 @@ def bla_command(
     """``stageid frf --method bla``: check the options, estimate, say the findings, write the table."""
     import click
 
-    from ._common import say, write_table_output
+    from ._common import say
+    from .outputs import write_table_output
 
     periods, transient_periods, transient = timing
     if scheduler is not None:
@@ -68,7 +69,7 @@ def estimate_bla(
 ):
     """Group the files into realisations (in the given order), add each, return the BLAResult."""
     from ..frf.bla import BLAAccumulator
-    from ._common import is_interactive, progress
+    from .progress import is_interactive, progress
 
     design = read_design(design_path)
     group = int(design.get("experiments_per_realisation", len(inputs)))

@@ -6,6 +6,7 @@ import click
 
 from .._errors import DataError
 from ._common import say
+from .outputs import output_option
 
 
 @click.command(
@@ -28,14 +29,7 @@ Examples:
     "warning tells when the reference needs drives outside the model's input_limits.",
 )
 @click.option("--ts", type=float, default=None, help="Sample time [s] when REF has no `t` column.")
-@click.option(
-    "-o",
-    "--output",
-    "out",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Drive .csv or .npz (by extension): columns `t` and the model's input name.",
-)
+@output_option("Drive .csv or .npz (by extension): columns `t` and the model's input name.", "out")
 def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: float | None, out: str) -> None:
     """Inverse-model feedforward: the drive that makes the hysteresis model follow REF's COLUMN.
 
@@ -54,7 +48,8 @@ def cli(model_path: str, ref_path: str, column: str, limits: str | None, ts: flo
     from ..hysteresis.models.preisach import PreisachModel
     from ..hysteresis.stage import StageModel
     from ..models import load_model
-    from ._common import check_output, parse_limits, read_table_checked, write_table_output
+    from ._common import parse_limits, read_table_checked
+    from .outputs import check_output, write_table_output
 
     check_output(out, "table")  # a bad -o is refused before the model is loaded or inverted
     model = load_model(model_path)

@@ -37,7 +37,9 @@ def demo_command(out_dir: str, only: tuple[str, ...]) -> None:
     from tqdm.auto import tqdm
 
     from ..demo import WORKFLOWS, run_demo
-    from ._common import check_output_folder, command_line, is_interactive, say
+    from ._common import command_line, say
+    from .outputs import check_output_folder
+    from .progress import is_interactive
 
     check_output_folder(out_dir)  # one rule for every verb: the parent folder must exist
     workflows = only or WORKFLOWS

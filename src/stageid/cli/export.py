@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, parse_limits
+from ._common import parse_limits
+from .outputs import check_output, check_output_folder
 
 _METHODS = click.Choice(["zoh", "tustin"])
 

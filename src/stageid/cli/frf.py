@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, read_experiments, say, split_names, trim_options, write_table_output
+from ._common import read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, scheduler_option, statistics_client
+from .outputs import check_output, output_option, write_table_output
 
 
 @click.command(
@@ -61,14 +62,7 @@ Examples:
     default=None,
     help="bla: the .multisine.json of `stageid signal multisine` (periods, lines, experiments per realisation).",
 )
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Output .csv or .npz (by extension).",
-)
+@output_option("Output .csv or .npz (by extension).")
 @scheduler_option
 @trim_options
 def frf_command(

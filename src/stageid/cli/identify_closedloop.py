@@ -5,8 +5,9 @@ from __future__ import annotations
 import click
 
 from .._errors import DataError, IdentificationError
-from ._common import check_output, check_output_folder, parse_band, say, split_names, trim_options, write_model_output
+from ._common import parse_band, say, split_names, trim_options
 from .identify_closedloop_unknown import UNKNOWN_METHODS, UnknownRequest, known_controller_method, run_unknown
+from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -76,9 +77,7 @@ Examples:
     show_default=True,
     help="Controller unknown: states of the plant (and noise) model, or auto.",
 )
-@click.option(
-    "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Plant file (stageid.lti/1)."
-)
+@output_option("Plant file (stageid.lti/1).")
 @click.option(
     "--closed-loop-output",
     "loop_output",
@@ -124,15 +123,8 @@ def closedloop_command(
     the summary states each route's assumptions and what the records say about them.
     """
     from ..closedloop import ClosedLoopIdentification
-    from ..data import as_experiments
-    from ._common import read_table_checked
 
-    # a bad -o or --report is refused before the records are read or any loop is fitted
-    check_output(output, "model")
-    if loop_output is not None:
-        check_output(loop_output, "model")
-    if report_dir is not None:
-        check_output_folder(report_dir)
+    _check_outputs(output, loop_output, report_dir)  # refused before any record is read or loop fitted
     uncertainty = UncertaintyRequest(uncertainty_file, uncertainty_grid)
     if controller_path == "unknown":
         request = UnknownRequest(
@@ -141,23 +133,12 @@ def closedloop_command(
         )  # fmt: skip
         return run_unknown(request, uncertainty)
     method = known_controller_method(method, references)
-    refs = split_names(references, "--references")
-    outs = split_names(outputs, "--outputs")
-    assert refs is not None and outs is not None
-    if len(refs) != len(outs):
-        raise click.UsageError(
-            f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}."
-        )
+    refs, outs = _loop_names(references, outputs)
     band = parse_band(band_text)
     K = _load_controller(controller_path, outs)
-    tables = [read_table_checked(path, ts) for path in experiments]
-    exps = as_experiments(
-        [t.experiment(inputs=list(refs), outputs=list(outs), name=str(path)) for t, path in zip(tables, experiments)]
-    )
+    tables, exps = _read_records(experiments, refs, outs, ts)
     uncertainty.check_nyquist(exps[0].dt)  # the records' Nyquist frequency bounds what they tell
-    u_names = split_names(plant_inputs, "--plant-inputs")
-    if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
-        u_names = tuple(K.outputs)
+    u_names = _plant_input_names(plant_inputs, K, tables)
     disc = "tustin" if u_names is None else _check_loop_closed_by(K, u_names, tables, exps, experiments)
     est = ClosedLoopIdentification(
         K, method=method, structure=structure, band=band, continuous=not discrete, controller_discretization=disc
@@ -165,15 +146,61 @@ def closedloop_command(
     result = est.fit(exps)
     if structure == "paper":
         _check_paper_structure(result, band)
-    write_model_output(output, result.plant)
+    _write_models(result, output, loop_output, uncertainty, exps[0].dt)
+    if report_dir is not None:
+        _write_report(result, exps, result.controller, report_dir, _column_units(tables[0], u_names))
+
+
+def _check_outputs(output: str, loop_output: str | None, report_dir: str | None) -> None:
+    """The model files and the report folder, checked before any work."""
+    check_output(output, "model")
+    if loop_output is not None:
+        check_output(loop_output, "model")
+    if report_dir is not None:
+        check_output_folder(report_dir)
+
+
+def _loop_names(references: str | None, outputs: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The reference and output columns, as many of each."""
+    refs = split_names(references, "--references")
+    outs = split_names(outputs, "--outputs")
+    assert refs is not None and outs is not None
+    if len(refs) != len(outs):
+        raise click.UsageError(
+            f"--references and --outputs must name as many columns; got {len(refs)} and {len(outs)}."
+        )
+    return refs, outs
+
+
+def _read_records(paths: tuple[str, ...], refs: tuple[str, ...], outs: tuple[str, ...], ts: float | None):
+    """``(tables, experiments)``: every file read once, its experiment from references to outputs."""
+    from ..data import as_experiments
+    from ._common import read_table_checked
+
+    tables = [read_table_checked(path, ts) for path in paths]
+    exps = as_experiments(
+        [t.experiment(inputs=list(refs), outputs=list(outs), name=str(path)) for t, path in zip(tables, paths)]
+    )
+    return tables, exps
+
+
+def _plant_input_names(plant_inputs: str | None, K, tables) -> tuple[str, ...] | None:
+    """The recorded plant-input columns: as given, else the controller's outputs when every file has them."""
+    u_names = split_names(plant_inputs, "--plant-inputs")
+    if u_names is None and all(all(n in t.names for n in K.outputs) for t in tables):
+        u_names = tuple(K.outputs)
+    return u_names
+
+
+def _write_models(result, output: str, loop_output: str | None, uncertainty: UncertaintyRequest, dt: float) -> None:
+    """The plant (and the closed loop) files, the uncertainty table, and the summary."""
+    write_model_output(output, result.model)
     if loop_output is not None:
         write_model_output(loop_output, result.closed_loop)
-    uncertainty_line = uncertainty.write(result, result.band, exps[0].dt)
+    uncertainty_line = uncertainty.write(result, result.band, dt)
     say(result.summary())
     if uncertainty_line:
         say(uncertainty_line)
-    if report_dir is not None:
-        _write_report(result, exps, result.controller, report_dir, _column_units(tables[0], u_names))
 
 
 def _column_units(table, names: tuple[str, ...] | None) -> tuple[str, ...]:
@@ -261,7 +288,7 @@ def _check_paper_structure(result, band: tuple[float, float]) -> None:
     if diag.max() > STRUCTURE_MEDIAN:
         k = int(np.argmax(diag))
         raise IdentificationError(
-            f"the deduced plant does not fit the paper structure: entry {result.plant.outputs[k]}<-{result.plant.inputs[k]} "
+            f"the deduced plant does not fit the paper structure: entry {result.model.outputs[k]}<-{result.model.inputs[k]} "
             f"misses [0, 2] by {100 * diag[k]:.1f} % over half of {band[0]:g}-{band[1]:g} Hz (median; expected < "
             f"{100 * STRUCTURE_MEDIAN:g} %); the loop was probably not closed by this controller (or the plant is not of "
             "this structure: try --structure full)."
@@ -273,23 +300,32 @@ def _write_report(result, exps, controller, report_dir: str, plant_input_units: 
     in the records' units (the plant's inputs in ``plant_input_units``, ``input`` when unknown)."""
     import numpy as np
 
-    from ..closedloop import empirical_transfer, reclose_loop
-    from ..plots import time_overlay_figure
-    from ..plots.closedloop import plot_closed_loop_bode, plot_plant_bode, plot_pole_zero
-    from ..plots.scale import magnitude_unit
-    from ..report import Report, uncertainty_section, write_report_folder
-    from ..validation import fit_percent
-
-    dt = result.dt
-    report = Report("Closed-loop identification")
+    from ..report import Report, write_report_folder
     from ..report.provenance import settings_section
     from ._common import command_line, command_settings
 
+    report = Report("Closed-loop identification")
     settings_section(report, command_settings(), command_line())
     metrics = {
         "band_error_percent": (100 * np.asarray(result.band_error)).tolist(),
         "unstable_poles_rad_s": [float(p.real) for p in np.asarray(result.plant_unstable_poles)],
     }
+    _plant_section(report, metrics, result, exps[0].output_units, plant_input_units)
+    report.section("Validation against the data")
+    for e in exps:
+        _record_figures(report, metrics, result, controller, e)
+    path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
+    say(f"report written to {path}")
+
+
+def _plant_section(report, metrics: dict, result, output_units, plant_input_units: tuple[str, ...]) -> None:
+    """The identified plant: its summary, its Bode figure (Fig. 7), its uncertainty, a pole-zero map (Fig. 6)."""
+    import numpy as np
+
+    from ..plots.closedloop import plot_plant_bode, plot_pole_zero
+    from ..report import uncertainty_section
+
+    dt = result.dt
     report.section("Identified plant")
     report.paragraph(result.summary())
     report.figure(
@@ -297,7 +333,7 @@ def _write_report(result, exps, controller, report_dir: str, plant_input_units: 
             result,
             np.geomspace(max(result.band[0] / 20, 0.1), 0.45 / dt, 300),
             input_units=plant_input_units,
-            output_units=exps[0].output_units,
+            output_units=output_units,
         ),
         "Identified plant: reduced fit and full-order deduction (eq. 18).",
     )
@@ -307,35 +343,43 @@ def _write_report(result, exps, controller, report_dir: str, plant_input_units: 
     report.figure(
         plot_pole_zero(result, (0, 0)), "Pole-zero map of the first diagonal entry before and after cancellation."
     )
-    report.section("Validation against the data")
-    for e in exps:
-        j = int(np.argmax(np.std(e.u, axis=0)))
-        ff = np.geomspace(max(1.0 / e.duration, 0.1), 0.45 / dt, 300)
-        fe, etfe = empirical_transfer(e.u[:, j], e.y, dt, band=(ff[0], ff[-1]))
-        report.figure(
-            plot_closed_loop_bode(
-                ff,
-                result.closed_loop.frequency_response(ff)[:, j, j],
-                (fe, etfe[:, j]),
-                title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}",
-                unit=magnitude_unit(e.output_units[j], e.input_units[j]),
-            ),
-            f"{e.name}: identified closed loop beside the empirical transfer function of the record.",
-        )
-        ysim, _ = reclose_loop(result.plant, controller, e.u, dt)
-        fit = fit_percent(e.y, ysim)
-        for name, v in zip(e.output_names, fit):
-            metrics[f"reclosed_fit_percent/{e.name}/{name}"] = float(v)
-        report.figure(
-            time_overlay_figure(
-                e.time,
-                e.y,
-                {"re-closed loop": ysim},
-                e.output_names,
-                e.output_units,
-                title=f"{e.name}: identified plant re-closed with the known controller",
-            ),
-            f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
-        )
-    path = write_report_folder(report_dir, report, metrics)  # index.html and metrics.json, all or nothing
-    say(f"report written to {path}")
+
+
+def _record_figures(report, metrics: dict, result, controller, e) -> None:
+    """One record: the identified closed loop beside its empirical transfer (Fig. 4b), the re-closed loop (Fig. 8)."""
+    import numpy as np
+
+    from ..closedloop import empirical_transfer, reclose_loop
+    from ..plots import time_overlay_figure
+    from ..plots.closedloop import plot_closed_loop_bode
+    from ..plots.scale import magnitude_unit
+    from ..validation import fit_percent
+
+    dt = result.dt
+    j = int(np.argmax(np.std(e.u, axis=0)))
+    ff = np.geomspace(max(1.0 / e.duration, 0.1), 0.45 / dt, 300)
+    fe, etfe = empirical_transfer(e.u[:, j], e.y, dt, band=(ff[0], ff[-1]))
+    report.figure(
+        plot_closed_loop_bode(
+            ff,
+            result.closed_loop.frequency_response(ff)[:, j, j],
+            (fe, etfe[:, j]),
+            title=f"{e.name}: {e.input_names[j]} -> {e.output_names[j]}",
+            unit=magnitude_unit(e.output_units[j], e.input_units[j]),
+        ),
+        f"{e.name}: identified closed loop beside the empirical transfer function of the record.",
+    )
+    ysim, _ = reclose_loop(result.model, controller, e.u, dt)
+    for name, v in zip(e.output_names, fit_percent(e.y, ysim)):
+        metrics[f"reclosed_fit_percent/{e.name}/{name}"] = float(v)
+    report.figure(
+        time_overlay_figure(
+            e.time,
+            e.y,
+            {"re-closed loop": ysim},
+            e.output_names,
+            e.output_units,
+            title=f"{e.name}: identified plant re-closed with the known controller",
+        ),
+        f"{e.name}: measured outputs and the identified plant in the loop with the known controller (Fig. 8).",
+    )

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import click
 
 from .._errors import IdentificationError, ModelError
-from ._common import say, split_names, write_model_output
+from ._common import say, split_names
+from .outputs import write_model_output
 
 __all__ = ["UNKNOWN_METHODS", "UnknownRequest", "run_unknown", "known_controller_method"]
 
@@ -104,7 +105,7 @@ def run_unknown(req: UnknownRequest, uncertainty) -> None:
     )
     uncertainty.check_nyquist(exps[0].dt)
     result = est.fit(exps)
-    plant = result.plant
+    plant = result.model
     if not req.discrete:
         try:
             plant = plant.d2c("zoh")

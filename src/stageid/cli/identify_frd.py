@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from ._common import check_output, check_output_folder, command_line, say, write_model_output
+from ._common import command_line, say
+from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -55,7 +56,7 @@ Examples:
 @click.option(
     "--report", "report_dir", default=None, type=click.Path(file_okay=False), help="Folder for an HTML report."
 )
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model .json.")
+@output_option("Model .json.")
 @uncertainty_options
 def frd_command(
     frf_path: str,

@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 
 from .._errors import DataError
-from ._common import check_output, check_output_folder, say, trim_options, write_model_output
+from ._common import say, trim_options
+from .outputs import check_output, check_output_folder, write_model_output
 
 
 def _time_constants(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[float, ...] | str | None:
@@ -285,7 +286,7 @@ def _identify_stage(
     A Preisach model holds no creep term of its own, so any --creep makes it a stage.
     Its progress goes to stderr (a search over candidates takes minutes) unless ``quiet``."""
     from ..hysteresis.stage.identification import StageIdentifier
-    from ._common import StepProgress
+    from .progress import StepProgress
 
     progress = None if quiet else StepProgress()
     try:

@@ -4,17 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ._common import (
-    check_output,
-    check_output_folder,
-    parse_band,
-    read_experiments,
-    say,
-    split_names,
-    trim_options,
-    write_model_output,
-)
+from ._common import parse_band, read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
+from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
 
 
@@ -87,9 +79,7 @@ Examples:
 @click.option(
     "--band", "band_text", default=None, help="Band FMIN:FMAX in Hz for the realisation (default: the excited band)."
 )
-@click.option(
-    "-o", "--output", "output", required=True, type=click.Path(dir_okay=False), help="Model file (stageid.lti/1)."
-)
+@output_option("Model file (stageid.lti/1).")
 @click.option(
     "--report",
     "report_dir",

@@ -8,6 +8,7 @@ import click
 
 from .._errors import DataError, ModelError
 from ._common import trim_options
+from .outputs import output_option
 
 
 @click.command(
@@ -25,14 +26,7 @@ Examples:
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("input_path", metavar="INPUT.(csv|npz|mat)", type=click.Path(dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Output .csv or .npz (by extension): `t` then one column per model output.",
-)
+@output_option("Output .csv or .npz (by extension): `t` then one column per model output.")
 @click.option(
     "--ts",
     type=float,
@@ -54,7 +48,8 @@ def simulate_command(model_path: str, input_path: str, output: str, ts: float | 
     """
     from ..data.sampling import PERIOD_RTOL, same_period, seconds
     from ..models import load_model
-    from ._common import check_output, read_table_checked, write_table_output
+    from ._common import read_table_checked
+    from .outputs import check_output, write_table_output
 
     check_output(output, "table")  # a bad -o is refused before the model is loaded or run
     model = load_model(model_path)
@@ -129,14 +124,7 @@ Examples:
 @click.option("--fmin", type=float, required=True, help="Lowest frequency [Hz], > 0.")
 @click.option("--fmax", type=float, required=True, help="Highest frequency [Hz].")
 @click.option("--n", "n_points", type=int, default=200, show_default=True, help="Number of log-spaced frequencies.")
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Output .csv or .npz (by extension).",
-)
+@output_option("Output .csv or .npz (by extension).")
 def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, output: str) -> None:
     """Frequency response of an LTI model at N log-spaced frequencies.
 
@@ -146,7 +134,7 @@ def freqresp_command(model_path: str, fmin: float, fmax: float, n_points: int, o
     import numpy as np
 
     from ..models import load_model
-    from ._common import check_output, write_table_output
+    from .outputs import check_output, write_table_output
 
     check_output(output, "table")
     if not (np.isfinite(fmin) and fmin > 0):

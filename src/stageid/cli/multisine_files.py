@@ -34,7 +34,8 @@ def write_multisine_files(
     """Generate every realisation and experiment of the design, write them and the design JSON."""
     from ..atomic import atomic_write_text
     from ..signals import crest_factor, multisine, multisine_plan
-    from ._common import check_output, say, write_table_output
+    from ._common import say
+    from .outputs import check_output, write_table_output
 
     kwargs = dict(kwargs)
     if realisations > 1 and kwargs.get("kind", "random-phase") != "random-phase":

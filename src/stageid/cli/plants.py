@@ -5,7 +5,8 @@ from __future__ import annotations
 import click
 
 from .._errors import StageIdError
-from ._common import check_output, say, write_model_output, write_table_output
+from ._common import say
+from .outputs import check_output, write_model_output, write_table_output
 
 
 @click.command(

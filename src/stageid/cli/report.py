@@ -6,15 +6,8 @@ from pathlib import Path
 
 import click
 
-from ._common import (
-    check_output_folder,
-    command_line,
-    command_settings,
-    read_experiments,
-    say,
-    split_names,
-    trim_options,
-)
+from ._common import command_line, command_settings, read_experiments, say, split_names, trim_options
+from .outputs import check_output_folder
 
 
 def write_report(model, experiments, out_dir: str, title: str | None = None, extra=None, uncertainty=None) -> Path:

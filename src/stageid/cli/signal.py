@@ -140,9 +140,10 @@ def _write_signal(kind: str, kwargs: dict[str, Any]) -> None:
     """Generate the signal from the parsed options and write it with one column per channel."""
     import numpy as np
 
-    from ..data.table import TIME_COLUMN
+    from ..data.columns import TIME_COLUMN
     from ..signals import generate, signal_parameters
-    from ._common import check_output, split_names, write_table_output
+    from ._common import split_names
+    from .outputs import check_output, write_table_output
 
     params = signal_parameters(kind)
     output = check_output(kwargs.pop("output"), "table")

@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from ._common import check_output, write_table_output
+from .outputs import check_output, write_table_output
 
 __all__ = ["uncertainty_options", "UncertaintyRequest", "DEFAULT_POINTS"]
 

@@ -6,7 +6,8 @@ import click
 
 from .._errors import DataError
 from ..validation.residuals import ALPHA, MAX_LAG
-from ._common import check_output, check_output_folder, read_experiments, say, split_names, trim_options
+from ._common import read_experiments, say, split_names, trim_options
+from .outputs import check_output, check_output_folder
 
 
 @click.command(

@@ -25,18 +25,9 @@ from ..data import Experiment
 from ..models import StateSpaceModel, TransferMatrix
 from ..runtime.threads import single_blas_thread
 from .cancellation import cancel_entries, z_to_s
+from .controller import check_controller, check_grid, discrete_controllers, resolved_grid
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
-from .deduction import (
-    check_controller,
-    check_deduction,
-    check_grid,
-    deduce_plant,
-    discrete_controllers,
-    plant_response,
-    resolved_grid,
-    unstable_plant_poles,
-    wide_response,
-)
+from .deduction import check_deduction, deduce_plant, plant_response, unstable_plant_poles, wide_response
 from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
@@ -297,7 +288,7 @@ class ClosedLoopIdentification(Estimator):
         else:
             plant, reduced, eps, eps_c = self._reduce(T, M, Mr, P_band, f_band, entries, s_unstable)
         return ClosedLoopResult(
-            plant=plant,
+            model=plant,
             plant_full=G_full,
             plant_cancelled=G_cancel,
             closed_loop=T,
@@ -319,4 +310,5 @@ class ClosedLoopIdentification(Estimator):
             covariance=None
             if self.covariance == "none"
             else closed_loop_covariance(groups, pem_models, f_band, Mr, self.covariance),
+            estimator=self.clone(),
         )

@@ -13,17 +13,17 @@ import numpy as np
 
 from .._errors import DataError, IdentificationError
 from ..data import Experiment
-from .innovation_pem import PemFit, predictor_residuals, refine, transient_length
+from .innovation_pem import PemResult, predictor_residuals, refine, transient_length
 from .predictor_subspace import InnovationMatrices, choose_horizon, order_by_bic, pbsid, varx
 
-__all__ = ["InnovationFit", "fit_innovation", "as_records", "split_references", "HORIZONS"]
+__all__ = ["InnovationResult", "InnovationFit", "fit_innovation", "as_records", "split_references", "HORIZONS"]
 
 #: Past horizons tried when ``horizon="auto"`` (BIC of the VARX predictor).
 HORIZONS = (5, 10, 15, 20, 30, 40)
 
 
 @dataclass(frozen=True)
-class InnovationFit:
+class InnovationResult:
     """The fitted innovation form in the data's units and what the fit saw (records are not kept)."""
 
     matrices: InnovationMatrices
@@ -31,9 +31,12 @@ class InnovationFit:
     order: int
     horizon: int
     rcond: float
-    pem: PemFit | None
+    pem: PemResult | None
     residuals: tuple[np.ndarray, ...]
     burn: int
+
+
+InnovationFit = InnovationResult  # its former name
 
 
 def as_records(data: Experiment | Sequence[Experiment]) -> list[Experiment]:
@@ -76,7 +79,7 @@ def fit_innovation(
     feedthrough: bool,
     max_nfev: int,
     refine_start: bool = True,
-) -> InnovationFit:
+) -> InnovationResult:
     """Centre and scale the records, pick horizon and order, start by PBSID, refine by PEM.
 
     ``refine_start=False`` keeps the (consistent) subspace estimate: no covariance, no bands.
@@ -106,11 +109,11 @@ def fit_innovation(
         burn = transient_length(start, p, shortest // 4)
         mats, _ = _unscale(start, None, su, sy, feedthrough)
         res = tuple(e[burn:] * sy for e in predictor_residuals(start, records))
-        return InnovationFit(mats, None, n, p, rcond, None, res, burn)
+        return InnovationResult(mats, None, n, p, rcond, None, res, burn)
     fit = refine(records, start, feedthrough, p, max_nfev)
     mats, cov = _unscale(fit.matrices, fit.covariance, su, sy, feedthrough)
     residuals = tuple(e * sy for e in predictor_residuals(fit.matrices, records))
-    return InnovationFit(mats, cov, n, p, rcond, fit, tuple(e[fit.burn :] for e in residuals), fit.burn)
+    return InnovationResult(mats, cov, n, p, rcond, fit, tuple(e[fit.burn :] for e in residuals), fit.burn)
 
 
 def split_references(

@@ -23,7 +23,17 @@ from .._errors import IdentificationError
 from .innovation_jacobian import error_sensitivity, n_parameters, predictor_model
 from .predictor_subspace import InnovationMatrices
 
-__all__ = ["PemFit", "predictor_residuals", "refine", "pole_std", "response_std", "pack", "unpack", "transient_length"]
+__all__ = [
+    "PemResult",
+    "PemFit",
+    "predictor_residuals",
+    "refine",
+    "pole_std",
+    "response_std",
+    "pack",
+    "unpack",
+    "transient_length",
+]
 
 
 def pack(m: InnovationMatrices, feedthrough: bool) -> np.ndarray:
@@ -124,7 +134,7 @@ def free_response(C: np.ndarray, A: np.ndarray, length: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class PemFit:
+class PemResult:
     """Refined matrices, the covariance of ``theta`` (None when not computed), and the optimiser's account."""
 
     matrices: InnovationMatrices
@@ -135,6 +145,9 @@ class PemFit:
     cost_start: float
     cost: float
     burn: int
+
+
+PemFit = PemResult  # its former name
 
 
 def _whitener(noise_cov: np.ndarray) -> np.ndarray:
@@ -149,7 +162,7 @@ def refine(
     feedthrough: bool,
     burn: int,
     max_nfev: int,
-) -> PemFit:
+) -> PemResult:
     """Minimise the weighted one-step prediction error from ``start`` (see the module notes).
 
     The predictor's initial state is fitted in every evaluation (:func:`predictor_residuals`);
@@ -192,7 +205,9 @@ def refine(
     pooled = np.vstack([e[burn:] for e in E])
     lam = pooled.T @ pooled / pooled.shape[0]
     mats = unpack(sol.x, n, m, p, feedthrough, lam)
-    return PemFit(mats, cov, k_eff, int(sol.nfev), bool(sol.status > 0), float(r0 @ r0), float(sol.fun @ sol.fun), burn)
+    return PemResult(
+        mats, cov, k_eff, int(sol.nfev), bool(sol.status > 0), float(r0 @ r0), float(sol.fun @ sol.fun), burn
+    )
 
 
 def weighted_jacobian(

@@ -28,7 +28,7 @@ from ..models import StateSpaceModel, series
 from ..runtime.threads import single_blas_thread
 from .innovation_fit import as_records, fit_innovation, split_references
 from .predictor_subspace import InnovationMatrices
-from .unknown_checks import ASSUMPTIONS, excitation_check, reference_share_check, residual_checks
+from .unknown_checks import excitation_check, reference_share_check, residual_checks
 from .unknown_estimator import UnknownControllerEstimator
 from .unknown_result import UnknownControllerResult
 
@@ -174,20 +174,10 @@ class JointInputOutput(UnknownControllerEstimator):
         ]
         z, strong = strong_modes(G)
         s = np.log(z[strong].astype(complex)) / dt
-        return UnknownControllerResult(
-            method=self.method_name,
-            plant=G,
-            innovation=None,
-            poles=s[np.argsort(s.real, kind="stable")],
-            pole_std=None,
-            order=G.n_states,
-            horizon=max(fit_u.horizon, fit_y.horizon),
-            dt=dt,
-            assumptions=ASSUMPTIONS[self.method_name],
-            checks=tuple(checks),
-            details={
-                "reference_share": share,
-                "weak_modes_left_out": int(np.sum(~strong)),
-                "orders": {"r->u": fit_u.order, "r->y": fit_y.order},
-            },
-        )
+        details = {
+            "reference_share": share,
+            "weak_modes_left_out": int(np.sum(~strong)),
+            "orders": {"r->u": fit_u.order, "r->y": fit_y.order},
+        }
+        poles = s[np.argsort(s.real, kind="stable")]
+        return self.route_result(G, poles, (G.n_states, max(fit_u.horizon, fit_y.horizon)), checks, details)

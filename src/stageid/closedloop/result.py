@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from ..base import Estimator
 from ..display import html_repr, short_repr
+from ..frozen import FrozenMapping
 from ..models import StateSpaceModel, TransferMatrix
 from ..models.frequency_response import FrequencyResponse
 from .cancellation import CancelledPair, EntryPoleZero, z_to_s
@@ -24,9 +27,10 @@ class ClosedLoopResult:
 
     Attributes
     ----------
-    plant : TransferMatrix
+    model : TransferMatrix
         The identified plant in the requested structure (continuous unless
-        ``continuous=False``); inputs named after the controller's outputs.
+        ``continuous=False``); inputs named after the controller's outputs.  Also
+        :attr:`plant`, its former name.
     plant_full : StateSpaceModel
         The full-order discrete deduction of eq. 18 (with its spurious pairs).
     plant_cancelled : TransferMatrix
@@ -59,14 +63,19 @@ class ClosedLoopResult:
         Sample time of the data.
     structure : str
         "paper", "full" or "custom" (a dict of orders).
-    diagnostics : dict
-        Free-form notes of the fit (empty by default).
+    diagnostics : mapping of str to float
+        Named figures of the fit, read-only: the worst closed-loop fit of a pair [%], the
+        largest band error ``eps``, the number of cancelled pole-zero pairs and of unstable
+        poles.
     covariance : ClosedLoopCovariance or None
         The pairs' parameter covariances for :meth:`response_uncertainty` (None when fitted
         with ``covariance="none"``).
+    estimator : ClosedLoopIdentification or None
+        A copy of the settings it was fitted with (changing the estimator afterwards changes
+        nothing here).
     """
 
-    plant: TransferMatrix
+    model: TransferMatrix
     plant_full: StateSpaceModel
     plant_cancelled: TransferMatrix
     closed_loop: TransferMatrix
@@ -82,9 +91,27 @@ class ClosedLoopResult:
     closed_loop_fit: np.ndarray
     dt: float
     structure: str = "paper"
-    diagnostics: dict = field(default_factory=dict)
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
     covariance: ClosedLoopCovariance | None = None
     band_error_median: np.ndarray | None = None
+    estimator: Estimator | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "diagnostics", FrozenMapping({**self.diagnostics, **self._figures()}))
+
+    @property
+    def plant(self) -> TransferMatrix:
+        """The identified plant: :attr:`model` under its former name."""
+        return self.model
+
+    def _figures(self) -> dict[str, float]:
+        """The named figures :attr:`diagnostics` holds, from the result's own fields (so they always agree)."""
+        return {
+            "closed_loop_fit_min_percent": float(np.min(self.closed_loop_fit)),
+            "band_error_max": float(np.max(self.band_error)),
+            "cancelled_pairs": len(self.cancellations),
+            "unstable_poles": len(self.unstable_poles),
+        }
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -125,11 +152,11 @@ class ClosedLoopResult:
     def plant_unstable_poles(self) -> np.ndarray:
         """Right-half-plane poles of the returned plant's entries (rad/s; duplicates merged)."""
         poles: list[complex] = []
-        for row in self.plant.den:
+        for row in self.model.den:
             for d in row:
                 r = np.roots(d)
-                if self.plant.dt is not None:
-                    r = z_to_s(r, self.plant.dt)
+                if self.model.dt is not None:
+                    r = z_to_s(r, self.model.dt)
                 for q in r[r.real > 0]:
                     if not any(abs(q - o) <= 1e-9 * max(1.0, abs(q)) for o in poles):
                         poles.append(complex(q))
@@ -154,7 +181,7 @@ class ClosedLoopResult:
         for i in range(p):
             for j in range(p):
                 lines.append(
-                    f"  G[{self.plant.outputs[i]}<-{self.plant.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
+                    f"  G[{self.model.outputs[i]}<-{self.model.inputs[j]}]: eps = {100 * self.band_error[i, j]:.3f} % "
                     f"(complex {100 * self.band_error_complex[i, j]:.3f} %)"
                 )
         lines.append(

@@ -142,7 +142,7 @@ def plant_uncertainty(result, freqs_hz: object, bias: str = "local") -> Frequenc
             "this closed-loop result has no parameter covariance: fit with covariance='sandwich' or 'white'."
         )
     with np.errstate(all="ignore"):
-        G = result.plant.frequency_response(f)
+        G = result.model.frequency_response(f)
     if not np.all(np.isfinite(G)):
         raise DataError("`freqs_hz` hits a pole of the identified plant; choose other frequencies.")
     if not result.reduced:  # "full": the cancelled deduction, step 2 only
@@ -159,7 +159,7 @@ def plant_uncertainty(result, freqs_hz: object, bias: str = "local") -> Frequenc
             var *= (1.0 + excess / np.maximum(noise.sum(0), 1e-300))[None]
         elif bias == "local":
             var += local_bias(fb, misfit, noise, f) * share[None] * np.abs(G) ** 2
-    return FrequencyResponse(f, G, np.sqrt(var), None, result.plant.inputs, result.plant.outputs)
+    return FrequencyResponse(f, G, np.sqrt(var), None, result.model.inputs, result.model.outputs)
 
 
 #: ``bias="local"``: the misfit is averaged over this fraction of the band's (log-spaced) points
@@ -227,7 +227,7 @@ def _reduced_variance(result, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     fb = result.covariance.band_freqs
     L, R, g, P = deduction_sensitivity(result, fb)
     w0 = 2 * np.pi * np.sqrt(fb[0] * fb[-1])
-    discrete = result.plant.dt is not None
+    discrete = result.model.dt is not None
     pole_sens = unstable_pole_sensitivity(result)
     p = L.shape[1]
     var, misfit, noise = np.zeros((f.size, p, p)), np.zeros((fb.size, p, p)), np.zeros((fb.size, p, p))

@@ -10,7 +10,7 @@ import numpy as np
 from ..base import Boolean, Estimator, Interval, Options, Satisfies
 from ..checks import is_integer
 from ..models import StateSpaceModel
-from .innovation_fit import InnovationFit
+from .innovation_fit import InnovationResult
 from .innovation_pem import pole_std
 from .unknown_checks import ASSUMPTIONS, Check
 from .unknown_result import UnknownControllerResult
@@ -31,7 +31,7 @@ def _is_names(value: object) -> bool:
     return isinstance(value, (list, tuple)) and len(value) > 0 and all(isinstance(n, str) for n in value)
 
 
-def pem_account(fit: InnovationFit) -> dict:
+def pem_account(fit: InnovationResult) -> dict:
     """The optimiser's account of a fit (empty for a subspace estimate without refinement)."""
     if fit.pem is None:
         return {}
@@ -77,7 +77,7 @@ class UnknownControllerEstimator(Estimator):
 
     def plant_result(
         self,
-        fit: InnovationFit,
+        fit: InnovationResult,
         dt: float,
         names: tuple[tuple[str, ...], tuple[str, ...]],
         checks: list[Check],
@@ -90,24 +90,42 @@ class UnknownControllerEstimator(Estimator):
         if s is None:
             s = np.log(np.linalg.eigvals(m.A).astype(complex)) / dt
         order = np.argsort(-s.real, kind="stable")[::-1]
-        return UnknownControllerResult(
-            method=self.method_name,
-            plant=plant,
+        return self.route_result(
+            plant,
+            s[order],
+            (fit.order, fit.horizon),
+            checks,
+            {**pem_account(fit), **details},
             innovation=m,
-            poles=s[order],
             pole_std=None if std is None else std[order],
-            order=fit.order,
-            horizon=fit.horizon,
-            dt=dt,
-            assumptions=ASSUMPTIONS[self.method_name],
-            checks=tuple(checks),
             parameter_covariance=fit.covariance,
             feedthrough=bool(self.feedthrough),
-            details={
-                "nfev": fit.pem.nfev,
-                "converged": fit.pem.converged,
-                "cost_start": fit.pem.cost_start,
-                "cost": fit.pem.cost,
-                **details,
-            },
+        )
+
+    def route_result(
+        self,
+        plant: StateSpaceModel,
+        poles: np.ndarray,
+        order_horizon: tuple[int, int],
+        checks: list[Check],
+        diagnostics: dict,
+        **bands,
+    ) -> UnknownControllerResult:
+        """The frozen result of this route: its plant and poles, its assumptions and what the records say of them.
+
+        ``bands`` are the fields a route with a parameter covariance fills (``innovation``,
+        ``pole_std``, ``parameter_covariance``, ``feedthrough``).
+        """
+        return UnknownControllerResult(
+            method=self.method_name,
+            model=plant,
+            poles=poles,
+            order=order_horizon[0],
+            horizon=order_horizon[1],
+            dt=plant.dt,
+            assumptions=ASSUMPTIONS[self.method_name],
+            checks=tuple(checks),
+            diagnostics=diagnostics,
+            estimator=self.clone(),
+            **bands,
         )

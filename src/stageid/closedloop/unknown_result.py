@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from .._errors import DataError, IdentificationError
+from ..base import Estimator
+from ..frozen import FrozenMapping
 from ..models import StateSpaceModel
 from ..models.frequency_response import FrequencyResponse
 from .innovation_pem import response_std
@@ -25,15 +28,11 @@ class UnknownControllerResult:
     ----------
     method : str
         "direct", "two-stage" or "joint".
-    plant : StateSpaceModel
-        The identified plant ``u -> y`` at the data's sample time (offsets removed).
-    innovation : InnovationMatrices or None
-        The fitted innovation form (direct: the plant with its noise model; two-stage: the
-        second stage); None for the joint route, whose model maps the references.
+    model : StateSpaceModel
+        The identified plant ``u -> y`` at the data's sample time (offsets removed).  Also
+        :attr:`plant`, its former name.
     poles : ndarray of complex
-        Continuous-time poles of ``plant``, ``ln(z) / dt`` (rad/s), sorted by real part.
-    pole_std : ndarray or None
-        ``sqrt(E|s_est - s|^2)`` of each pole (delta method), None without a covariance.
+        Continuous-time poles of ``model``, ``ln(z) / dt`` (rad/s), sorted by real part.
     order, horizon : int
         States of the fitted model and past horizon of the subspace start.
     dt : float
@@ -42,27 +41,49 @@ class UnknownControllerResult:
         What the route assumes, in words.
     checks : tuple of Check
         What the records could check about those assumptions.
+    innovation : InnovationMatrices or None
+        The fitted innovation form (direct: the plant with its noise model; two-stage: the
+        second stage); None for the joint route, whose model maps the references.
+    pole_std : ndarray or None
+        ``sqrt(E|s_est - s|^2)`` of each pole (delta method), None without a covariance.
     parameter_covariance : ndarray or None
         Covariance of the innovation form's parameters (the bands' source).
     feedthrough : bool
         Whether ``D`` was fitted.
-    details : dict
-        Optimiser account and route-specific figures (stage-1 fit, ...).
+    diagnostics : mapping of str to float, int, bool or dict
+        Read-only: the optimiser's account and route-specific figures (stage-1 fit, ...).
+        Also :attr:`details`, its former name.
+    estimator : Estimator or None
+        A copy of the route's settings at the fit.
     """
 
     method: str
-    plant: StateSpaceModel
-    innovation: InnovationMatrices | None
+    model: StateSpaceModel
     poles: np.ndarray
-    pole_std: np.ndarray | None
     order: int
     horizon: int
     dt: float
     assumptions: tuple[str, ...]
     checks: tuple[Check, ...]
+    innovation: InnovationMatrices | None = None
+    pole_std: np.ndarray | None = None
     parameter_covariance: np.ndarray | None = None
     feedthrough: bool = False
-    details: dict = field(default_factory=dict)
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
+    estimator: Estimator | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "diagnostics", FrozenMapping(self.diagnostics))
+
+    @property
+    def plant(self) -> StateSpaceModel:
+        """The identified plant: :attr:`model` under its former name."""
+        return self.model
+
+    @property
+    def details(self) -> Mapping[str, Any]:
+        """:attr:`diagnostics` under its former name."""
+        return self.diagnostics
 
     @property
     def unstable_poles(self) -> np.ndarray:
@@ -95,7 +116,7 @@ class UnknownControllerResult:
         if self.parameter_covariance is None or self.innovation is None:
             raise IdentificationError(f"the {self.method} route gives no covariance for bands.")
         H, std = response_std(self.innovation, self.parameter_covariance, f, self.dt, self.feedthrough)
-        return FrequencyResponse(f, H, std, inputs=self.plant.inputs, outputs=self.plant.outputs)
+        return FrequencyResponse(f, H, std, inputs=self.model.inputs, outputs=self.model.outputs)
 
     def summary(self) -> str:
         """Plain text: route, order, unstable poles with bands, assumptions, checks."""

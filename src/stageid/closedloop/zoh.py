@@ -2,17 +2,19 @@
 
 The reduced fits (:mod:`~stageid.closedloop.reduction`) compare a continuous ``P_r = num / den``
 with the sampled plant through ``ZOH{P_r}(z)`` at ``z = exp(j w dt)``; they evaluate it for every
-residual, so the realisation is built directly (:func:`controller_canonical`) and the hold's
-``expm`` differentiated exactly (:func:`zoh_derivatives`) for an analytic Jacobian.
+residual, so the realisation is the cheap controllable canonical form of
+:func:`~stageid.models.conversions.tf2ss_siso` and the hold's ``expm`` is differentiated exactly
+(:func:`zoh_derivatives`) for an analytic Jacobian.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.signal as ss
 
-__all__ = ["zoh_response", "zoh_at", "zoh_derivatives", "controller_canonical", "trim_leading"]
+from ..models.conversions import strip_leading_zeros, tf2ss_siso
+
+__all__ = ["zoh_response", "zoh_at", "zoh_derivatives"]
 
 
 def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarray) -> np.ndarray:
@@ -29,10 +31,10 @@ def zoh_response(num: np.ndarray, den: np.ndarray, dt: float, freqs_hz: np.ndarr
 def zoh_at(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) -> np.ndarray:
     """:func:`zoh_response` at given points ``z = exp(j 2 pi f dt)`` (1-D float ``num``, ``den``):
     the reduced fits evaluate it for every residual on one grid."""
-    num_t, den_t = trim_leading(num), trim_leading(den)
-    if den_t.size == 1 and num_t.size <= 1:  # a static gain: tf2ss would give it one state at z = 1
-        return np.full(z.shape, complex(num_t.sum() / den_t[0]))
-    A, B, C, D = controller_canonical(num, den)
+    num_t, den_t = strip_leading_zeros(num), strip_leading_zeros(den)
+    if den_t.size == 1 and num_t.size <= 1:  # a static gain: no state, no hold
+        return np.full(z.shape, complex(num_t[0] / den_t[0]))
+    A, B, C, D = tf2ss_siso(num, den, keep_states=True)
     n = A.shape[0]
     blk = np.zeros((n + 1, n + 1))
     blk[:n, :n] = A * dt
@@ -63,7 +65,7 @@ def zoh_derivatives(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) 
     ``expm`` is differentiated exactly (its Frechet derivative), so the fits need no differences.
     """
     n = den.size - 1
-    A, _, C, D = controller_canonical(num, den)  # the realisation zoh_at differentiates
+    A, _, C, D = tf2ss_siso(num, den, keep_states=True)  # the realisation zoh_at differentiates
     C, d0 = C[0], D[0, 0]
     # expm of [[K, K_1 .. K_n], [0, K, 0 ..], ..] (K the hold's block, K_i = dK / d den_i): its
     # first block row holds expm(K) and every Frechet derivative L(K, K_i) (Van Loan 1978)
@@ -88,27 +90,3 @@ def zoh_derivatives(num: np.ndarray, den: np.ndarray, dt: float, z: np.ndarray) 
         dE = E[:, (i + 1) * m : (i + 2) * m]
         d_den[:, i] = -d0 * X[:, i] + np.einsum("kj,kj->k", V, X @ dE[:n, :n].T + dE[:n, n])
     return H, d_num, d_den
-
-
-def trim_leading(p: np.ndarray) -> np.ndarray:
-    """``np.trim_zeros(p, "f")`` for a 1-D array (without its generic, slower machinery)."""
-    nz = np.flatnonzero(p)
-    return p[nz[0] :] if nz.size else p[:0]
-
-
-def controller_canonical(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``scipy.signal.tf2ss(num, den)`` for a proper SISO ``num/den`` (the same numbers, without its
-    argument handling: the reduced fits call it for every residual).  Cases where ``tf2ss`` would
-    trim or warn about tiny leading numerator coefficients, or refuse, go to ``tf2ss`` itself."""
-    den_t = trim_leading(den)
-    numn, dn = num / den_t[0], den_t / den_t[0]
-    K = dn.size
-    if numn.size == 0 or abs(numn[0]) <= 1e-14 or numn.size > K or K == 1:
-        return ss.tf2ss(num, den)
-    nump = np.concatenate([np.zeros(K - numn.size), numn])
-    A = np.zeros((K - 1, K - 1))
-    A[0] = -dn[1:]
-    A[1:, :-1] = np.eye(K - 2)
-    B = np.zeros((K - 1, 1))
-    B[0, 0] = 1.0
-    return A, B, (nump[1:] - nump[0] * dn[1:])[None, :], np.array([[nump[0]]])

@@ -18,13 +18,23 @@ and preprocessing (offset/trend removal, train/validation split, merging).
 ``decimate``           anti-aliased down-sampling
 =====================  ==========================================================
 
-The sampling period of a record follows one rule, in :mod:`stageid.data.sampling`: the
-least-squares period of a time column, uniformity to a stated tolerance, periods of records
-compared to one relative tolerance.
+Modules:
 
-Loaders for the real records in ``../shared/data`` live in :mod:`stageid.data.datasets`;
-the readers and writers are in :mod:`stageid.data.io` (one module per format family:
-:mod:`~stageid.data.csv_format`, :mod:`~stageid.data.npz_format`, :mod:`~stageid.data.mat_format`).
+=====================  ==========================================================
+``experiment``         the Experiment container and its sample checks
+``table``              the Table, and ``assemble_table`` that every reader ends in
+``columns``            the readers' shared rules: names, finite samples, the ``t`` column
+``sampling``           the sample-time rule: a period from a time column, periods compared
+``io``                 the front door of the readers and writers, by extension
+``files``              what the formats share: opening and sniffing a file, column lists
+``csv_format``         CSV records (``name [unit]`` headers)
+``npz_format``         NumPy ``.npz`` records
+``mat_format``         MATLAB ``.mat`` records (v4-v7 through scipy, v7.3 through h5py)
+``mat_responses``      measured frequency responses in a ``.mat`` file
+``chunked``            records larger than memory (HDF5, Zarr, ``.npy``), read range by range
+``preprocess``         offset/trend removal, split, merge, decimation
+``datasets``           loaders of the real records in ``../shared/data``
+=====================  ==========================================================
 """
 
 from .experiment import Experiment, as_experiments

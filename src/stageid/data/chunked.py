@@ -10,16 +10,16 @@ Layouts
 -------
 * **HDF5** (``.h5``, ``.hdf5``): one 1-D dataset per column at the file's root.  The sample
   time is the root attribute ``dt`` (seconds), or a 1-D dataset ``t`` (uniform, increasing),
-  or ``--ts``.
+  or ``ts``.
 * **Zarr** (a directory store, v2 or v3): one 1-D array per column at the root group; ``dt``
-  as a group attribute, a ``t`` array, or ``--ts``.
-* **NumPy** ``.npy`` (memory-mapped, no metadata, so the sample time is ``t`` or ``--ts``):
+  as a group attribute, a ``t`` array, or ``ts``.
+* **NumPy** ``.npy`` (memory-mapped, no metadata, so the sample time is ``t`` or ``ts``):
 
   - a folder of one 1-D ``<column>.npy`` file per column (and optionally ``t.npy``): the
     layout a logger writing channel by channel produces;
   - one ``<name>.npy`` file: a 1-D array is the column ``<name>``; a 2-D array of shape
     (n_samples, k) holds the columns ``<name>_1 .. <name>_k`` (the rule of the ``.npz`` and
-    ``.mat`` readers for 2-D arrays); ``--ts`` gives the sample time.
+    ``.mat`` readers for 2-D arrays); ``ts`` gives the sample time.
 
 The sample time follows the one rule of :mod:`stageid.data.sampling`: the ``t`` column's
 least-squares period, uniform within ``time_rtol``; when more than one source gives it they must
@@ -37,6 +37,7 @@ import numpy as np
 
 from .._errors import DataError
 from ..atomic import note_input
+from .columns import TIME_COLUMN
 from .sampling import (
     PERIOD_RTOL,
     UNIFORM_RTOL,
@@ -48,7 +49,6 @@ from .sampling import (
     scan_stamps,
     seconds,
 )
-from .table import TIME_COLUMN
 
 __all__ = [
     "ChunkedRecord",
@@ -301,7 +301,7 @@ def _sample_time(path, kind, entries, n, attr_dt, ts, rtol, where) -> float:
     if ts is not None:
         given.append(("ts", check_period(ts, "ts", f"{where}: ")))
     if not given:
-        raise DataError(f"{where}: no sample time; expected a 'dt' attribute, a 't' column or --ts.")
+        raise DataError(f"{where}: no sample time; expected a 'dt' attribute, a 't' column or `ts=`.")
     first_name, first = given[0]
     for other_name, other in given[1:]:
         if not same_period(other, first):

@@ -20,9 +20,10 @@ from .._errors import DataError
 from ..atomic import atomic_write
 from ..checks import shown
 from ..runtime.resources import require_memory
+from .columns import DEFAULT_TIME_RTOL, TIME_COLUMN, check_unique_names, file_prefix
 from .experiment import Experiment
 from .files import SNIFF_BYTES, PathLike, looks_like, open_checked, resolve_ts, table_for_writing
-from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, check_unique_names, file_prefix
+from .table import Table, assemble_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from numpy.typing import ArrayLike

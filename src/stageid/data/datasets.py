@@ -22,10 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import DataError
+from .columns import time_axis
 from .experiment import Experiment
 from .io import PathLike
 from .sampling import UNIFORM_RTOL
-from .table import Table, time_axis
+from .table import Table
 
 __all__ = [
     "SHARED_DATA",
@@ -105,6 +106,7 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
     Parameters
     ----------
     path : str or path-like
+        The ``.mat`` file as ControlDesk wrote it.
 
     Returns
     -------
@@ -154,6 +156,19 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
             nominal = float(np.ravel(cap["SamplingPeriod"])[0]) * float(np.ravel(cap["Downsampling"])[0])
         except (KeyError, ValueError, IndexError, TypeError):
             nominal = None
+    return _piezo_experiment(t, volt, disp, nominal, where, p.stem)
+
+
+def _check_time(t: np.ndarray, where: str) -> None:
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise DataError(f"{where}the time stamps have NaN/inf at row {int(bad[0])} (data rows counted from 0).")
+
+
+def _piezo_experiment(
+    t: np.ndarray, volt: np.ndarray, disp: np.ndarray, nominal: float | None, where: str, name: str
+) -> Experiment:
+    """The piezo records' one shape: drive ``V`` [V] in, displacement ``y`` [um] out, on the grid of ``t``."""
     _check_time(t, where)
     t0, dt = time_axis(t, where, nominal, UNIFORM_RTOL)
     return Experiment(
@@ -165,14 +180,8 @@ def load_dspace_piezo(path: PathLike) -> Experiment:
         input_units=("V",),
         output_units=("um",),
         t0=t0,
-        name=p.stem,
+        name=name,
     )
-
-
-def _check_time(t: np.ndarray, where: str) -> None:
-    bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise DataError(f"{where}the time stamps have NaN/inf at row {int(bad[0])} (data rows counted from 0).")
 
 
 # ============================================================== smarthysteresis (.csv)
@@ -184,6 +193,7 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
     Parameters
     ----------
     path : str or path-like
+        The CSV file, without a header row.
 
     Returns
     -------
@@ -214,19 +224,7 @@ def load_smarthysteresis(path: PathLike) -> Experiment:
         ) from None
     if data.shape[0] == 0:
         raise DataError(f"file '{p.name}' is empty; expected lines of index, time, displacement, voltage.")
-    _check_time(data[:, 0], where)
-    t0, dt = time_axis(data[:, 0], where, None, UNIFORM_RTOL)
-    return Experiment(
-        u=data[:, 2:3],
-        y=data[:, 1:2],
-        dt=dt,
-        input_names=("V",),
-        output_names=("y",),
-        input_units=("V",),
-        output_units=("um",),
-        t0=t0,
-        name=p.stem,
-    )
+    return _piezo_experiment(data[:, 0], data[:, 2], data[:, 1], None, where, p.stem)
 
 
 # ============================================================== EMPS (.mat)

@@ -17,16 +17,9 @@ import numpy as np
 from .._errors import DataError
 from ..atomic import note_input
 from ..checks import shown
+from .columns import DEFAULT_TIME_RTOL, TIME_COLUMN, check_finite, positive_seconds, stack_columns, time_axis
 from .experiment import Experiment
-from .table import (
-    DEFAULT_TIME_RTOL,
-    TIME_COLUMN,
-    Table,
-    check_finite,
-    positive_seconds,
-    stack_columns,
-    time_axis,
-)
+from .table import Table
 
 if TYPE_CHECKING:  # pragma: no cover
     from numpy.typing import ArrayLike

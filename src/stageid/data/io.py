@@ -26,11 +26,12 @@ from pathlib import Path
 
 from .._errors import DataError
 from ..runtime.heap import prime_heap
+from .columns import DEFAULT_TIME_RTOL
 from .csv_format import read_csv, write_csv
 from .files import PathLike
 from .mat_format import read_mat
 from .npz_format import read_npz, write_npz
-from .table import DEFAULT_TIME_RTOL, Table
+from .table import Table
 
 __all__ = ["Table", "read_table", "read_csv", "read_npz", "read_mat", "write_csv", "write_npz"]
 

@@ -12,8 +12,9 @@ import numpy as np
 
 from .._errors import DataError, NoSampleTimeError, StageIdError, StageIdWarning
 from ..runtime.resources import require_memory
+from .columns import DEFAULT_TIME_RTOL, TIME_COLUMN, file_prefix, stack_columns
 from .files import HDF5_SIGNATURE, PathLike, array_columns, is_dunder, looks_like, open_checked, resolve_ts
-from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
+from .table import Table, assemble_table
 
 __all__ = ["read_mat", "mat_leaves", "struct_leaves", "PARAMETER_RATIO"]
 
@@ -88,7 +89,7 @@ def read_mat(path: PathLike, ts: float | None = None, *, time_rtol: float = DEFA
         # complex vectors and no time: most likely a measured FRF, which is not a time record
         raise NoSampleTimeError(
             f"{str(exc).rstrip('.')}; the complex vectors ({_listed(responses, 4)}) look like frequency "
-            "responses: fit them with `stageid identify frd FILE --response NAME`."
+            "responses: read one with stageid.data.mat_responses, or fit it with `stageid identify frd`."
         ) from None
     except DataError as exc:
         if time_source is None:

@@ -130,7 +130,7 @@ def mat_responses(path: PathLike, response: str | None = None) -> tuple[np.ndarr
     if response is None:
         if len(responses) > 1:
             raise DataError(
-                f"file '{name}' holds {len(responses)} frequency responses ({listed}); choose one with --response."
+                f"file '{name}' holds {len(responses)} frequency responses ({listed}); choose one with `response=`."
             )
         key = next(iter(responses))
     else:
@@ -139,7 +139,7 @@ def mat_responses(path: PathLike, response: str | None = None) -> tuple[np.ndarr
         if len(keys) != 1:
             found = "matches several" if keys else "is not one"
             raise DataError(
-                f"{where}--response '{response}' {found} of the frequency responses; expected one of {listed}."
+                f"{where}`response=` '{response}' {found} of the frequency responses; expected one of {listed}."
             )
         key = keys[0]
     last = key.rsplit(".", 1)[-1]

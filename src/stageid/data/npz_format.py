@@ -17,6 +17,7 @@ from .._errors import DataError, StageIdError
 from ..atomic import atomic_write
 from ..checks import shown
 from ..runtime.resources import require_memory
+from .columns import DEFAULT_TIME_RTOL, TIME_COLUMN, file_prefix, stack_columns
 from .experiment import Experiment
 from .files import (
     ZIP_SIGNATURES,
@@ -28,7 +29,7 @@ from .files import (
     resolve_ts,
     table_for_writing,
 )
-from .table import DEFAULT_TIME_RTOL, TIME_COLUMN, Table, assemble_table, file_prefix, stack_columns
+from .table import Table, assemble_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from numpy.typing import ArrayLike

@@ -1,11 +1,7 @@
 """The :class:`Table`: named float columns on a uniform time grid, as read from a file.
 
-Shared conventions (used by every reader in :mod:`stageid.data.io`), and the helpers the
-readers share to keep them (:func:`assemble_table`, :func:`time_axis`, ...):
-
-* **Rows are data rows counted from 0**: row 0 is the first sample.
-* The column named ``t`` (seconds) is the time axis, not a data column: it must be strictly
-  increasing and uniform and becomes ``Table.t0`` and ``Table.dt``.
+Every reader in :mod:`stageid.data.io` ends in :func:`assemble_table`; the rules it keeps
+(names, finite samples, the time column ``t``) are :mod:`.columns`, re-exported here.
 """
 
 from __future__ import annotations
@@ -19,8 +15,19 @@ import numpy as np
 
 from .._errors import DataError, NoSampleTimeError
 from ..checks import shown
-from .experiment import Experiment, check_samples
-from .sampling import PERIOD_RTOL, UNIFORM_RTOL, TimeGrid, check_period, same_period, seconds, time_grid
+from .columns import (  # the readers' shared rules, re-exported where they were
+    DEFAULT_TIME_RTOL,
+    TIME_COLUMN,
+    check_finite,
+    check_unique_names,
+    file_prefix,
+    positive_seconds,
+    stack_columns,
+    time_axis,
+    time_column_grid,
+)
+from .experiment import Experiment
+from .sampling import check_period
 
 __all__ = [
     "Table",
@@ -36,11 +43,7 @@ __all__ = [
     "stack_columns",
 ]
 
-TIME_COLUMN = "t"
-DEFAULT_TIME_RTOL = UNIFORM_RTOL
 
-
-# ====================================================================== Table
 @dataclass(frozen=True, eq=False)
 class Table:
     """Named float columns sampled on a uniform time grid (what a file reader returns).
@@ -252,8 +255,8 @@ class Table:
         """
         where = file_prefix(self.source)
         if start is not None and stop is not None and not start < stop:
-            raise DataError(f"{where}--start {start:g} s must be before --stop {stop:g} s.")
-        dt = self._require_dt("--start/--stop")
+            raise DataError(f"{where}`start={start:g}` s must be before `stop={stop:g}` s.")
+        dt = self._require_dt("`start=`/`stop=`")
         n = self.n_samples
         first = 0 if start is None else max(0, math.ceil((start - self.t0) / dt - 1e-6))
         last = n - 1 if stop is None else min(n - 1, math.floor((stop - self.t0) / dt + 1e-6))
@@ -261,7 +264,7 @@ class Table:
             span = f"{self.t0:g} s to {self.t0 + (n - 1) * dt:g} s"
             window = f"[{'start' if start is None else f'{start:g} s'}, {'end' if stop is None else f'{stop:g} s'}]"
             raise DataError(
-                f"{where}--start/--stop window {window} keeps {max(last - first + 1, 0)} samples of the record "
+                f"{where}`start=`/`stop=` window {window} keeps {max(last - first + 1, 0)} samples of the record "
                 f"({span}); expected at least 2."
             )
         return dataclasses.replace(self, values=self.values[first : last + 1], t0=self.t0 + first * dt)
@@ -297,68 +300,13 @@ class Table:
     def _require_dt(self, purpose: str) -> float:
         if self.dt is None:
             raise DataError(
-                f"{file_prefix(self.source)}the sample time is unknown; {purpose} needs dt (pass ts= when reading)."
+                f"{file_prefix(self.source)}the sample time is unknown; {purpose} needs dt (pass `ts=` when reading)."
             )
         return self.dt
 
     def __repr__(self) -> str:
         dt = "None" if self.dt is None else f"{self.dt:g}"
         return f"Table(source={self.source!r}, n_samples={self.n_samples}, dt={dt}, columns={list(self.names)})"
-
-
-# ====================================================================== helpers
-# Shared by the readers and writers of stageid.data (csv_format, npz_format, mat_format, datasets).
-def file_prefix(source: str) -> str:
-    """``"file 'x.csv': "`` for messages about a table read from ``source``; ``""`` without one."""
-    return f"file '{source}': " if source else ""
-
-
-def positive_seconds(label: str, value: object, where: str = "") -> float:
-    """``value`` as a sample time in seconds (:func:`~stageid.data.sampling.check_period`), else DataError."""
-    return check_period(value, label, where)
-
-
-def check_unique_names(names: Sequence[str], where: str) -> None:
-    """Raise :class:`DataError` for the first name that occurs twice."""
-    first: dict[str, int] = {}
-    for i, n in enumerate(names):
-        if n in first:
-            raise DataError(f"{where}duplicate column name '{n}' (columns {first[n]} and {i}); names must be unique.")
-        first[n] = i
-
-
-def check_finite(values: np.ndarray, names: Sequence[str], where: str) -> None:
-    """Raise :class:`DataError` naming the first NaN or inf of a table."""
-    check_samples(values, names, "column", where, " (data rows counted from 0)", max_abs=math.inf)
-
-
-def time_axis(t: np.ndarray, where: str, ts: float | None, rtol: float) -> tuple[float, float]:
-    """Check a time column (finite already) and return ``(t0, dt)`` (:func:`time_column_grid`)."""
-    grid = time_column_grid(t, where, ts, rtol)
-    return grid.t0, grid.dt
-
-
-def time_column_grid(t: np.ndarray, where: str, ts: float | None, rtol: float) -> TimeGrid:
-    """The grid of a time column by the sample-time rule (:mod:`stageid.data.sampling`).
-
-    A ``ts`` given beside the column must agree with its period (to ``PERIOD_RTOL``) and is then
-    the period.
-    """
-    if ts is not None:
-        ts = check_period(ts, "ts", where)
-    if t.shape[0] < 2:
-        if ts is None:
-            raise DataError(f"{where}the time column '{TIME_COLUMN}' has a single sample, so dt is unknown; pass ts=.")
-        return TimeGrid(float(t[0]), ts)
-    grid = time_grid(t, where, rtol)
-    if ts is None:
-        return grid
-    if not same_period(ts, grid.dt):
-        raise DataError(
-            f"{where}ts={seconds(ts)} s disagrees with the period {seconds(grid.dt)} s of the time column "
-            f"'{TIME_COLUMN}' (tolerance {PERIOD_RTOL:g} relative)."
-        )
-    return dataclasses.replace(grid, dt=ts)
 
 
 def assemble_table(
@@ -389,19 +337,8 @@ def assemble_table(
         units = [units[j] for j in keep]
     else:
         if ts is None:
-            raise NoSampleTimeError(f"{where}no time column '{TIME_COLUMN}'; pass ts= (the sample time in seconds).")
+            raise NoSampleTimeError(f"{where}no time column '{TIME_COLUMN}'; pass `ts=` (the sample time in seconds).")
         t0, dt, jitter = 0.0, check_period(ts, "ts", where), 0.0
     if not names:
         raise DataError(f"{where}only a time column '{TIME_COLUMN}' was found; expected at least one data column.")
     return Table(names=tuple(names), values=values, dt=dt, t0=t0, units=tuple(units), source=source, jitter=jitter)
-
-
-def stack_columns(names: Sequence[str], columns: Sequence[np.ndarray], where: str) -> np.ndarray:
-    """Columns of one length as an (n_samples, n_columns) array, else :class:`DataError`."""
-    n0 = columns[0].shape[0]
-    for name, col in zip(names, columns):
-        if col.shape[0] != n0:
-            raise DataError(
-                f"{where}columns have unequal lengths: '{names[0]}' has {n0} rows and '{name}' has {col.shape[0]}; expected one length."
-            )
-    return np.column_stack(columns) if n0 else np.empty((0, len(columns)))

@@ -82,22 +82,31 @@ def strip_leading_zeros(poly: np.ndarray) -> np.ndarray:
     return poly[nz[0] :] if nz.size else poly[-1:]
 
 
-def tf2ss_siso(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def tf2ss_siso(
+    num: np.ndarray, den: np.ndarray, keep_states: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(A, B, C, D)`` of ``num/den`` (descending powers), controllable canonical form.
 
     The same matrices as ``scipy.signal.tf2ss`` (``A``'s first row ``-den[1:] / den[0]``, ``B = e_1``),
     built directly because fits call it for every residual; a static gain has no state, and the
     cases scipy trims with a warning (a tiny leading numerator coefficient) or refuses (an
-    improper ``num/den``) go to scipy itself.
+    improper ``num/den``) go to scipy itself.  A zero numerator has no state either, unless
+    ``keep_states``: then it keeps ``den``'s states with ``C = 0``, as scipy does (a derivative
+    with respect to the numerator's coefficients needs them).
+
+    Examples
+    --------
+    >>> tf2ss_siso([0.0], [1.0, 0.5])[0].shape, tf2ss_siso([0.0], [1.0, 0.5], keep_states=True)[0].tolist()
+    ((0, 0), [[-0.5]])
     """
     d = strip_leading_zeros(np.asarray(den, dtype=float))
     n = strip_leading_zeros(np.asarray(num, dtype=float))
     if d.size == 1:
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[n[-1] / d[0] if n.size == 1 else 0.0]])
-    if not np.any(n):
+    if not np.any(n) and not keep_states:
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.zeros((1, 1))
     n, d = n / d[0], d / d[0]
-    if n.size > d.size or abs(n[0]) <= 1e-14:
+    if n.size > d.size or 0.0 < abs(n[0]) <= 1e-14:
         a, b, c, dd = _signal().tf2ss(n, d)
         return a, b, c, dd
     k = d.size - 1

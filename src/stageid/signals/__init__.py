@@ -32,8 +32,8 @@ Hysteresis identification (``hysteresis``)
 ``decay_envelope``       the per-cycle amplitudes of the two above
 ``forc_staircase``       first-order-reversal cycles up to maxima rising in equal steps
 
-Helpers and registry
-====================
+Helpers (``_common``) and registry (``registry``)
+=================================================
 ``time_vector``          sample instants ``k dt``
 ``crest_factor``         peak / RMS of the zero-mean part
 ``check_limits``         raise ``SignalError`` when a signal leaves ``(lo, hi)``

@@ -258,6 +258,32 @@ def check_span(offset: float, amplitude: float, name: str) -> None:
         )
 
 
+def check_swing(amplitude: Any, offset: Any, name: str) -> tuple[float, float]:
+    """``(amplitude, offset)`` of a signal that swings ``offset +- amplitude``: ``amplitude > 0``,
+    ``offset`` finite, the span finite; else SignalError."""
+    amp = check_positive(amplitude, "amplitude", name)
+    off = check_finite(offset, "offset", name)
+    check_span(off, amp, name)
+    return amp, off
+
+
+def check_band(low: Any, high: Any, params: tuple[str, str], dt: float, name: str) -> tuple[float, float]:
+    """``(low, high)`` in Hz with ``0 <= low < high <= 1 / (2 dt)``, else SignalError naming ``params``."""
+    lo = check_nonnegative(low, params[0], name)
+    hi = check_positive(high, params[1], name)
+    if hi <= lo:
+        raise SignalError(f"`{params[1]}` of {name} must be greater than {params[0]} = {lo:g} Hz; got {hi:g} Hz.")
+    check_nyquist(hi, params[1], dt, name)
+    return lo, hi
+
+
+def check_tone(freq: Any, dt: float, name: str) -> float:
+    """The frequency of a single tone in Hz: ``0 < freq < 1 / (2 dt)``, else SignalError."""
+    f = check_positive(freq, "freq", name)
+    check_nyquist(f, "freq", dt, name, strict=True)
+    return f
+
+
 def add_offset(x: np.ndarray, offset: float, name: str) -> np.ndarray:
     """``x + offset``, raising SignalError instead of overflowing to inf."""
     peak = float(np.max(np.abs(x))) if x.size else 0.0

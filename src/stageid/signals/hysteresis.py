@@ -31,6 +31,7 @@ from ._common import (
     check_nyquist,
     check_positive,
     check_span,
+    check_tone,
     n_from_duration,
 )
 from .periodic import triangle_wave
@@ -117,8 +118,7 @@ def _decaying(
     limits: tuple[float, float] | None,
 ) -> np.ndarray:
     step = check_dt(dt, name)
-    f = check_positive(freq, "freq", name)
-    check_nyquist(f, "freq", step, name, strict=True)
+    f = check_tone(freq, step, name)
     off = check_finite(offset, "offset", name)
     env = decay_envelope(n_cycles, amplitude, decay, final_fraction)
     check_span(off, float(env[0]), name)

@@ -199,16 +199,27 @@ def multisine(
     n_ch = 1 if channels is None else channels
     r = check_int(realisation, "realisation", name, 0)
     plan = multisine_plan(n_samples, dt, f_low, f_high, n_periods, lines, detection_group, shape, seed, n_ch, mimo)
-    e = check_int(experiment, "experiment", name, 0)
-    if e >= plan.n_experiments:
-        raise SignalError(f"`experiment` of {name} must be below the design's {plan.n_experiments}; got {e}.")
+    e = _experiment_index(experiment, plan, name)
     iterations = check_int(crest_iterations, "crest_iterations", name, 0)
     one_period = _one_period(plan, kind, realisation_rng(seed, r) if kind == "random-phase" else None, n_ch, iterations)
     if mimo == "orthogonal":
-        full = np.fft.rfft(one_period, axis=0) * orthogonal_matrix(n_ch)[:, e][None, :]
-        one_period = np.fft.irfft(full, n=plan.samples_per_period, axis=0)
+        one_period = _orthogonal_experiment(one_period, e)
     x = np.tile(one_period, (plan.n_periods, 1))
     return as_channels(add_offset(scale_to(x, rms, amplitude, name), off, name), channels, limits, name)
+
+
+def _experiment_index(experiment: int, plan: MultisinePlan, name: str) -> int:
+    """The experiment of the design, an integer below its ``n_experiments``, else SignalError."""
+    e = check_int(experiment, "experiment", name, 0)
+    if e >= plan.n_experiments:
+        raise SignalError(f"`experiment` of {name} must be below the design's {plan.n_experiments}; got {e}.")
+    return e
+
+
+def _orthogonal_experiment(one_period: np.ndarray, e: int) -> np.ndarray:
+    """Channel ``j`` of experiment ``e`` weighted line by line by ``T[j, e]`` of :func:`orthogonal_matrix`."""
+    full = np.fft.rfft(one_period, axis=0) * orthogonal_matrix(one_period.shape[1])[:, e][None, :]
+    return np.fft.irfft(full, n=one_period.shape[0], axis=0)
 
 
 def _one_period(

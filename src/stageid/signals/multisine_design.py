@@ -25,7 +25,13 @@ import dataclasses
 import numpy as np
 
 from .._errors import SignalError
-from ._common import check_dt, check_int, check_n_samples, check_nonnegative, check_nyquist, check_positive, check_seed
+from ._common import (
+    check_band,
+    check_dt,
+    check_int,
+    check_n_samples,
+    check_seed,
+)
 
 __all__ = [
     "LINE_SETS",
@@ -83,11 +89,7 @@ def multisine_lines(n_samples: int, dt: float, f_low: float, f_high: float, n_pe
     period = n // p
     if period < 4:
         raise SignalError(f"{name} needs at least 4 samples per period; got {period} (n_samples {n} / n_periods {p}).")
-    lo = check_nonnegative(f_low, "f_low", name)
-    hi = check_positive(f_high, "f_high", name)
-    if hi <= lo:
-        raise SignalError(f"`f_high` of {name} must be greater than f_low = {lo:g} Hz; got {hi:g} Hz.")
-    check_nyquist(hi, "f_high", step, name)
+    lo, hi = check_band(f_low, f_high, ("f_low", "f_high"), step, name)
     df = 1.0 / (period * step)
     # a tiny slack so that band edges given as exact line frequencies are included
     k_lo = max(1, int(np.ceil(lo / df - 1e-9)))

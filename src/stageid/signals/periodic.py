@@ -13,9 +13,8 @@ from ._common import (
     check_dt,
     check_finite,
     check_limits,
-    check_nyquist,
-    check_positive,
-    check_span,
+    check_swing,
+    check_tone,
     n_from_duration,
 )
 
@@ -36,11 +35,8 @@ def _check_periodic(
 ) -> tuple[float, int, float, float, float]:
     step = check_dt(dt, name)
     n = n_from_duration(duration, step, name)
-    f = check_positive(freq, "freq", name)
-    check_nyquist(f, "freq", step, name, strict=True)
-    amp = check_positive(amplitude, "amplitude", name)
-    off = check_finite(offset, "offset", name)
-    check_span(off, amp, name)
+    f = check_tone(freq, step, name)
+    amp, off = check_swing(amplitude, offset, name)
     return step, n, f, amp, off
 
 

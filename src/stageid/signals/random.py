@@ -14,17 +14,15 @@ from .._errors import SignalError
 from ._common import (
     add_offset,
     as_channels,
+    check_band,
     check_choice,
     check_dt,
     check_finite,
     check_int,
     check_n_channels,
     check_n_samples,
-    check_nonnegative,
-    check_nyquist,
-    check_positive,
     check_seed,
-    check_span,
+    check_swing,
     scale_to,
 )
 
@@ -101,11 +99,7 @@ def band_limited_random(
     name = "band-limited random signal"
     n = check_n_samples(n_samples, name)
     step = check_dt(dt, name)
-    lo = check_nonnegative(f_low, "f_low", name)
-    hi = check_positive(f_high, "f_high", name)
-    if hi <= lo:
-        raise SignalError(f"`f_high` of {name} must be greater than f_low = {lo:g} Hz; got {hi:g} Hz.")
-    check_nyquist(hi, "f_high", step, name)
+    lo, hi = check_band(f_low, f_high, ("f_low", "f_high"), step, name)
     off = check_finite(offset, "offset", name)
     channels = check_n_channels(n_channels, name, n)
     n_ch = 1 if channels is None else channels
@@ -212,27 +206,24 @@ def prbs(
     """
     name = "prbs"
     n = check_n_samples(n_samples, name)
-    amp = check_positive(amplitude, "amplitude", name)
-    off = check_finite(offset, "offset", name)
-    check_span(off, amp, name)
+    amp, off = check_swing(amplitude, offset, name)
     seed = check_seed(seed, name)
     method = check_choice(method, "method", name, _PRBS_METHODS)
     channels = check_n_channels(n_channels, name, n)
-    n_ch = 1 if channels is None else channels
     hold = check_int(clock_period, "clock_period", name, 1)
     n_bits = -(-n // hold)  # bits needed to cover n samples
-
-    if method == "random":
-        if order is not None:
-            raise SignalError(
-                f"`order` of prbs applies to method='mls' only; got order={order!r} with method='random'."
-            )
-        bits = np.random.default_rng(seed).integers(0, 2, size=(n_bits, n_ch))
-    else:
-        bits = _mls_bits(n_bits, n_ch, order, seed, n)
-
+    bits = _prbs_bits(method, n_bits, 1 if channels is None else channels, order, seed, n)
     x = off + amp * (2.0 * np.repeat(bits, hold, axis=0)[:n].astype(float) - 1.0)
     return as_channels(x, channels, limits, name)
+
+
+def _prbs_bits(method: str, n_bits: int, n_ch: int, order: Any, seed: Any, n: int) -> np.ndarray:
+    """``n_bits`` bits per channel: independent coin flips, or a shifted maximum-length sequence."""
+    if method == "mls":
+        return _mls_bits(n_bits, n_ch, order, seed, n)
+    if order is not None:
+        raise SignalError(f"`order` of prbs applies to method='mls' only; got order={order!r} with method='random'.")
+    return np.random.default_rng(seed).integers(0, 2, size=(n_bits, n_ch))
 
 
 def _mls_bits(n_bits: int, n_ch: int, order: Any, seed: Any, n: int) -> np.ndarray:

@@ -10,17 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import SignalError
-from ._common import (
-    check_choice,
-    check_dt,
-    check_finite,
-    check_limits,
-    check_nonnegative,
-    check_nyquist,
-    check_positive,
-    check_span,
-    n_from_duration,
-)
+from ._common import check_band, check_choice, check_dt, check_finite, check_limits, check_swing, n_from_duration
 
 __all__ = ["chirp", "log_chirp"]
 
@@ -54,8 +44,7 @@ def chirp(
     f0, f1 : float
         Start and end frequency in Hz, ``0 <= f0 < f1 <= 1 / (2 dt)``.
     duration : float
-        Sweep time ``T`` in seconds; the record has ``round(duration / dt)`` samples
-        at ``t = k dt`` (end point excluded).
+        Sweep time ``T`` in seconds (``round(duration / dt)`` samples, end point excluded).
     dt : float
         Sample time in seconds.
     amplitude : float, default 1.0
@@ -73,14 +62,12 @@ def chirp(
     Returns
     -------
     ndarray of shape (n_samples,)
-        The chirp, ``n_samples = round(duration / dt)``.
 
     Raises
     ------
     SignalError
-        If a parameter is out of range (``dt <= 0``, ``duration <= 0``, ``f1 <= f0``,
-        ``f1`` above Nyquist, ``f0 <= 0`` with ``method="logarithmic"``, ...) or the
-        signal would leave ``limits``.
+        If a parameter is out of range (``f1 <= f0``, ``f1`` above Nyquist, ``f0 <= 0`` with
+        ``method="logarithmic"``, ...) or the signal would leave ``limits``.
 
     Examples
     --------
@@ -88,8 +75,7 @@ def chirp(
     2 ms sampling, kept within the 0-40 um travel:
 
     >>> from stageid.signals import chirp
-    >>> u = chirp(1.0, 100.0, duration=10.0, dt=2e-3, amplitude=20.0, offset=20.0,
-    ...           limits=(0.0, 40.0))
+    >>> u = chirp(1.0, 100.0, duration=10.0, dt=2e-3, amplitude=20.0, offset=20.0, limits=(0.0, 40.0))
     >>> u.shape
     (5000,)
     >>> bool(u.min() >= 0.0 and u.max() <= 40.0)
@@ -104,31 +90,30 @@ def chirp(
     method = check_choice(method, "method", "chirp", _METHODS)
     step = check_dt(dt, name)
     n = n_from_duration(duration, step, name)
-    T = float(duration)
-    fa = check_nonnegative(f0, "f0", name)
-    fb = check_nonnegative(f1, "f1", name)
-    if fb <= fa:
-        raise SignalError(f"`f1` of {name} must be greater than f0 = {fa:g} Hz; got {fb:g} Hz.")
-    check_nyquist(fb, "f1", step, name)
-    amp = check_positive(amplitude, "amplitude", name)
-    off = check_finite(offset, "offset", name)
-    check_span(off, amp, name)
+    fa, fb = check_band(f0, f1, ("f0", "f1"), step, name)
+    amp, off = check_swing(amplitude, offset, name)
     ph = check_finite(phase, "phase", name)
-
-    t = np.arange(n, dtype=float) * step
-    if method == "linear":
-        phi = 2.0 * np.pi * (fa * t + 0.5 * (fb - fa) / T * t**2)
-    else:
-        if fa <= 0:
-            raise SignalError(
-                f"`f0` of a logarithmic chirp must be > 0 Hz (log sweeps cannot start at DC); got {fa:g} Hz."
-            )
-        log_ratio = np.log(fb / fa)
-        # expm1 keeps the phase accurate near t = 0
-        phi = 2.0 * np.pi * fa * T / log_ratio * np.expm1(log_ratio * t / T)
+    phi = _PHASES[method](fa, fb, float(duration), np.arange(n, dtype=float) * step)
     x = off + amp * np.sin(phi + ph)
     check_limits(x, limits, name)
     return x
+
+
+def _linear_phase(fa: float, fb: float, T: float, t: np.ndarray) -> np.ndarray:
+    """``phi(t) = 2 pi (f0 t + (f1 - f0) t^2 / (2 T))``: the frequency rises by equal steps."""
+    return 2.0 * np.pi * (fa * t + 0.5 * (fb - fa) / T * t**2)
+
+
+def _log_phase(fa: float, fb: float, T: float, t: np.ndarray) -> np.ndarray:
+    """``phi(t) = 2 pi f0 T ((f1 / f0)^(t / T) - 1) / ln(f1 / f0)``: equal time per decade."""
+    if fa <= 0:
+        raise SignalError(f"`f0` of a logarithmic chirp must be > 0 Hz (log sweeps cannot start at DC); got {fa:g} Hz.")
+    log_ratio = np.log(fb / fa)
+    # expm1 keeps the phase accurate near t = 0
+    return 2.0 * np.pi * fa * T / log_ratio * np.expm1(log_ratio * t / T)
+
+
+_PHASES = {"linear": _linear_phase, "logarithmic": _log_phase}
 
 
 def log_chirp(

@@ -7,13 +7,21 @@
 ``relative_response_error``     max frequency-response error relative to the true gain
 ``whiteness_test``              residual whiteness: Ljung-Box chi-square over lags 1..25
 ``independence_test``           residual-input independence: chi-square over lags 0..25
-``residual_tests``              both tests on every output (:mod:`.residuals`)
+``residual_tests``              both tests on every output
 ``validate_model``              simulate a model on records and test it (``stageid validate``)
-``edge_errors``                 an error concentrated at a record's start or end (:mod:`.edges`)
+``edge_errors``                 an error concentrated at a record's start or end
 ==============================  ===========================================================
 
-:mod:`.order_choice` holds the rule by which every ``order="auto"`` picks an order from its
-validation errors, and the one text of the warning for a poor model.
+Modules:
+
+==============================  ===========================================================
+``metrics``                     fit %, NRMSE, RMS and response errors
+``correlation_tests``           the whiteness and independence tests (Ljung, sec. 16.6)
+``residuals``                   a model's residual tests on records, and their JSON form
+``edges``                       a record's start-up or end transient, and the trim for it
+``initial_state``               the initial state that best explains a record
+``order_choice``                how ``order="auto"`` picks an order; the poor-model warning
+==============================  ===========================================================
 """
 
 from .edges import EdgeError, edge_errors

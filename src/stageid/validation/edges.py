@@ -12,7 +12,7 @@ that reports it:
   range (smaller errors are not worth trimming data for);
 * the transient runs from the record's edge inward up to the last sample whose error exceeds the
   middle's largest, and ends once the error has stayed within it for ``SETTLE_FRACTION``
-  (0.5 %, at least 10) samples: the trim (``--start`` / ``--stop``) drops exactly that run.  A
+  (0.5 %, at least 10) samples: the trim (``start`` / ``stop``) drops exactly that run.  A
   ringing transient crosses zero, so one sample within the bound is not its end; ordinary fit
   error deeper in the edge, beyond such a settled stretch, is not part of it (on the dSPACE
   feedforward records a one-sample end glitch would otherwise stretch to 1000 samples).
@@ -61,7 +61,7 @@ class EdgeError:
     edge_percent, rest_percent : float
         Largest absolute error in the edge and in the middle, in % of the output range.
     trim_at : float or None
-        Time [s] on the record's axis to pass to ``--start``/``--stop`` (the first/last sample
+        Time [s] on the record's axis to pass as ``start``/``stop`` (the first/last sample
         kept); None when the record has no time axis.
     """
 
@@ -78,11 +78,11 @@ class EdgeError:
         --------
         >>> from stageid.validation.edges import EdgeError
         >>> EdgeError("start", 336, 35.3, 3.3, 0.0336).describe()
-        'max error in the first 336 samples (35.3 % of range there, at most 3.3 % in the middle 90 %): a start-up transient; try --start 0.0336'
+        'max error in the first 336 samples (35.3 % of range there, at most 3.3 % in the middle 90 %): a start-up transient; try `start=0.0336`'
         """
         where, what = ("first", "a start-up transient") if self.edge == "start" else ("last", "an end transient")
         samples = "sample" if self.n_samples == 1 else f"{self.n_samples} samples"
-        trim = f"--{self.edge} {self.trim_at:.6g}" if self.trim_at is not None else "dropping those samples"
+        trim = f"`{self.edge}={self.trim_at:.6g}`" if self.trim_at is not None else "dropping those samples"
         return (
             f"max error in the {where} {samples} ({self.edge_percent:.1f} % of range there, "
             f"at most {self.rest_percent:.1f} % in the middle {100 - 200 * EDGE_FRACTION:g} %): {what}; try {trim}"
