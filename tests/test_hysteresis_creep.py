@@ -304,9 +304,7 @@ def test_measured_piezo_forc_records_with_creep():
     uv, yv, _ = record("40_hz_no_lp")
     errors = {}
     for taus in (None, (0.05, 0.2, 1.0, 5.0, 20.0)):
-        fit = PIIdentifier(
-            "modified-pi", n_operators=20, input_warp=False, creep=taus, sample_time=dt
-        ).fit((u, y))
+        fit = PIIdentifier("modified-pi", n_operators=20, input_warp=False, creep=taus, sample_time=dt).fit((u, y))
         errors[taus is not None] = (fit.max_error_percent[0], max_error_percent(yv, align_record(fit.model, uv, yv)[1]))
     assert errors[True][0] <= 2.0  # measured 1.10 % (without creep 2.70 %)
     assert errors[True][1] < errors[False][1]  # measured 1.46 % vs 3.09 %

@@ -73,7 +73,7 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, err_w, err_r):  # pragma:
     piecewise linear and nondecreasing: safeguarded Newton steps inside a bracket land on the
     piece that holds the root in a few iterations, and the Newton step from that piece lands on
     the root itself.  The iteration stops there: when ``|F(x) - target|`` is within the rounding
-    error of the computed F, ``err_w (|x| + err_r)`` (see ``compensator.residual_bound``), or a
+    error of the computed F, ``err_w (|x| + err_r)`` (see ``models.common.residual_bound``), or a
     step no longer moves x.
     """
     f, sp, sm = cp_eval(x_prev, P, z)
