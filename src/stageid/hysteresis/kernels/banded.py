@@ -199,6 +199,39 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
 
 
 @jit_exact
+def by_band_width(ident, width, w):  # pragma: no cover - compiled
+    """``(W0, order)``: the summed weight of the identity operators (``ident``), and the other
+    operators' indices sorted by band ``width`` (stable: equal widths keep their order)."""
+    W0 = 0.0
+    mm = 0
+    for i in range(ident.shape[0]):
+        if ident[i]:
+            W0 += w[i]
+        else:
+            mm += 1
+    live = np.empty(mm, np.int64)
+    widths = np.empty(mm)
+    j = 0
+    for i in range(ident.shape[0]):
+        if not ident[i]:
+            live[j] = i
+            widths[j] = width[i]
+            j += 1
+    return W0, live[stable_argsort(widths)]
+
+
+@jit_exact
+def final_states(zfinal, P, row, order, ident, x_last):  # pragma: no cover - compiled
+    """The operator outputs after the last sample into ``zfinal``: row ``row`` of the blocks for
+    the sorted operators ``order``, the last input for the identity operators."""
+    for j in range(order.shape[0]):
+        zfinal[order[j]] = P[j // LANES, row, j % LANES]
+    for i in range(ident.shape[0]):
+        if ident[i]:
+            zfinal[i] = x_last
+
+
+@jit_exact
 def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover - compiled
     """Weighted CP sum (eq. 4) that touches only the operators that can move.
 
@@ -225,23 +258,12 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
     if n == 0:
         return np.empty(0), zfinal
     ident = np.zeros(m, np.bool_)
-    W0 = 0.0
-    mm = 0
+    width = np.empty(m)
     for i in range(m):
         ident[i] = r[i] == 0.0 and rc[i] == 0.0 and ra[i] == 0.0 and rb[i] == 0.0
-        if ident[i]:
-            W0 += w[i]
-        else:
-            mm += 1
-    nz = np.empty(mm, np.int64)
-    width = np.empty(mm)
-    j = 0
-    for i in range(m):
-        if not ident[i]:
-            nz[j] = i
-            width[j] = min(r[i] + rb[i], rc[i] + ra[i])
-            j += 1
-    srt = nz[stable_argsort(width)]
+        width[i] = min(r[i] + rb[i], rc[i] + ra[i])
+    W0, srt = by_band_width(ident, width, w)
+    mm = srt.shape[0]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, CP_ROWS, LANES))
     for b in range(nb):
@@ -262,11 +284,7 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
         P[b, 5, l] = z0[i]
         P[b, 6, l] = 1e-15 * (r[i] + rc[i] + ra[i] + rb[i])
     y = banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, False)
-    for j in range(mm):
-        zfinal[srt[j]] = P[j // LANES, 5, j % LANES]
-    for i in range(m):
-        if ident[i]:
-            zfinal[i] = x[n - 1]
+    final_states(zfinal, P, 5, srt, ident, x[n - 1])
     return y, zfinal
 
 
@@ -285,22 +303,9 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
     zfinal = z0.copy()
     if n == 0:
         return np.empty(0), zfinal
-    W0 = 0.0
-    mm = 0
-    for i in range(m):
-        if r[i] == 0.0:
-            W0 += w[i]
-        else:
-            mm += 1
-    nz = np.empty(mm, np.int64)
-    width = np.empty(mm)
-    j = 0
-    for i in range(m):
-        if r[i] != 0.0:
-            nz[j] = i
-            width[j] = r[i]
-            j += 1
-    srt = nz[stable_argsort(width)]
+    ident = r == 0.0
+    W0, srt = by_band_width(ident, r, w)
+    mm = srt.shape[0]
     nb = max((mm + LANES - 1) // LANES, 1)
     P = np.zeros((nb, PLAY_ROWS, LANES))
     for b in range(nb):
@@ -315,9 +320,5 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
         P[b, 2, l] = z0[i]
         P[b, 3, l] = 4e-15 * r[i]
     y = banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, True)
-    for j in range(mm):
-        zfinal[srt[j]] = P[j // LANES, 2, j % LANES]
-    for i in range(m):
-        if r[i] == 0.0:
-            zfinal[i] = x[n - 1]
+    final_states(zfinal, P, 2, srt, ident, x[n - 1])
     return y, zfinal
