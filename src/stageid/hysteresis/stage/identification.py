@@ -137,9 +137,7 @@ class StageIdentifier(Estimator):
     Examples
     --------
     >>> import numpy as np
-    >>> from stageid.hysteresis import PIModel
-    >>> from stageid.hysteresis.stage import StageModel
-    >>> from stageid.hysteresis.stage_identification import StageIdentifier
+    >>> from stageid.hysteresis import PIModel, StageIdentifier, StageModel
     >>> from stageid.models import StateSpaceModel
     >>> from stageid.signals import decaying_triangle
     >>> u = decaying_triangle(20.0, 8, 1e-4, amplitude=10.0)
