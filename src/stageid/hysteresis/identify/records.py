@@ -64,7 +64,8 @@ class Records:
     starts : tuple of float
         Each record's first time (an Experiment's ``t0``; 0 for a pair).
     labels : tuple of str
-        Each record as messages name it ("record 0 ('fast')").
+        Each record's name as the sample-time messages give it (an Experiment's name, else
+        "record k").
     """
 
     pairs: tuple[tuple[np.ndarray, np.ndarray], ...]
