@@ -52,7 +52,7 @@ def test_identification_recovers_known_creep_weights():
     taus = (0.05, 0.5)
     truth = _pi_truth(CreepTerm(taus, [0.2, 0.1], DT))
     u = _drive()
-    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep_time_constants=taus, sample_time=DT).fit(
+    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep=taus, sample_time=DT).fit(
         (u, truth.simulate(u))
     )
     # the truth is inside the model class and no constraint is active: least squares is exact
@@ -68,7 +68,7 @@ def test_identification_recovers_known_creep_weights():
 def test_identification_without_creep_in_the_data_finds_none():
     truth = _pi_truth()
     u = _drive()
-    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep_time_constants=(0.05, 0.5), sample_time=DT).fit(
+    fit = PIIdentifier("pi", n_operators=5, initial_state="zero", creep=(0.05, 0.5), sample_time=DT).fit(
         (u, truth.simulate(u))
     )
     assert np.max(fit.model.creep.weights) < 1e-8  # 1e-8 of the unit gain: numerically zero
@@ -88,7 +88,7 @@ def test_modified_pi_with_creep_fits_a_modified_actuator_with_creep():
     y = truth.simulate(u)
     plain = PIIdentifier("modified-pi", n_operators=4, input_warp=False, max_evaluations=120).fit((u, y))
     fit = PIIdentifier(
-        "modified-pi", n_operators=4, input_warp=False, max_evaluations=120, creep_time_constants=(0.1,), sample_time=DT
+        "modified-pi", n_operators=4, input_warp=False, max_evaluations=120, creep=(0.1,), sample_time=DT
     ).fit((u, y))
     assert fit.max_error_percent[0] < 0.5 * plain.max_error_percent[0]
     assert 0.2 < fit.model.creep.weights[0] < 0.3  # thresholds are searched (0.249 found), so only near 0.25
@@ -226,9 +226,9 @@ def test_bad_creep_arguments_raise_one_line_errors():
         pi_inverse(_pi_truth(CreepTerm([1.0], [0.1], DT)))
     u = _drive()[:500]
     with pytest.raises(ParameterError, match="^`sample_time` of PIIdentifier must be the sampling period"):
-        PIIdentifier("pi", n_operators=3, creep_time_constants=(0.1,)).fit((u, u))
-    with pytest.raises(ParameterError, match="creep_time_constants"):
-        PIIdentifier("pi", n_operators=3, creep_time_constants=(-1.0,), sample_time=DT).fit((u, u))
+        PIIdentifier("pi", n_operators=3, creep=(0.1,)).fit((u, u))
+    with pytest.raises(ParameterError, match="^`creep` of PIIdentifier must be"):
+        PIIdentifier("pi", n_operators=3, creep=(-1.0,), sample_time=DT).fit((u, u))
 
 
 def test_cli_creep_flag(tmp_path, capsys):
@@ -304,9 +304,7 @@ def test_measured_piezo_forc_records_with_creep():
     uv, yv, _ = record("40_hz_no_lp")
     errors = {}
     for taus in (None, (0.05, 0.2, 1.0, 5.0, 20.0)):
-        fit = PIIdentifier(
-            "modified-pi", n_operators=20, input_warp=False, creep_time_constants=taus, sample_time=dt
-        ).fit((u, y))
+        fit = PIIdentifier("modified-pi", n_operators=20, input_warp=False, creep=taus, sample_time=dt).fit((u, y))
         errors[taus is not None] = (fit.max_error_percent[0], max_error_percent(yv, align_record(fit.model, uv, yv)[1]))
     assert errors[True][0] <= 2.0  # measured 1.10 % (without creep 2.70 %)
     assert errors[True][1] < errors[False][1]  # measured 1.46 % vs 3.09 %
@@ -328,7 +326,7 @@ def test_too_many_creep_lags_refused_before_the_work(monkeypatch, tmp_path, caps
     with pytest.raises(
         ResourceError, match=r"modified-pi fit with 20 operators and 2000 creep lags would take"
     ) as info:
-        PIIdentifier("modified-pi", creep_time_constants=taus).fit(exp)
+        PIIdentifier("modified-pi", creep=taus).fit(exp)
     assert "\n" not in str(info.value)
     write_csv(tmp_path / "d.csv", {"V": exp.u[:, 0], "y": exp.y[:, 0]}, dt=exp.dt)
     args = ["identify", "hysteresis", str(tmp_path / "d.csv"), "--input", "V", "--output", "y"]

@@ -97,9 +97,9 @@ def test_modified_pi_has_a_band_and_a_figure() -> None:
 def test_creep_weights_are_part_of_the_band() -> None:
     rng = np.random.default_rng(5)
     y = Y0 + 0.3 * ss.lfilter([0.01], [1, -0.99], U) + 0.01 * np.ptp(Y0) * rng.standard_normal(U.size)
-    fit = PIIdentifier(
-        "pi", n_operators=N_OPS, creep_time_constants=[0.5], sample_time=1e-3, weight_uncertainty="sandwich"
-    ).fit((U, y))
+    fit = PIIdentifier("pi", n_operators=N_OPS, creep=[0.5], sample_time=1e-3, weight_uncertainty="sandwich").fit(
+        (U, y)
+    )
     wu = fit.weight_uncertainty
     assert wu.parameter_covariance.shape == (N_OPS + 2, N_OPS + 2)  # weights, offset, one creep weight
     yb, s = wu.output_band(fit.model, U)

@@ -42,7 +42,7 @@ def _costs(monkeypatch: pytest.MonkeyPatch, est: PIIdentifier, recs) -> tuple[fl
     monkeypatch.setattr(ident, "require_memory", memory)
     monkeypatch.setattr(ident, "require_work", work)
     with pytest.raises(_Stop):
-        est.fit(recs, **({} if est.creep_time_constants is None else {}))
+        est.fit(recs, **({} if est.creep is None else {}))
     assert seen["limit"] == 3e11
     return seen["bytes"], seen["ops"]
 
@@ -57,9 +57,7 @@ def test_cost_estimate_of_a_classical_fit_by_hand(monkeypatch: pytest.MonkeyPatc
 
 def test_cost_estimate_of_a_modified_fit_with_creep_by_hand(monkeypatch: pytest.MonkeyPatch) -> None:
     recs = _records(1000, 1000)  # 2000 samples, default max_rows: stride 1
-    est = PIIdentifier(
-        "modified-pi", n_operators=6, max_evaluations=7, creep_time_constants=[0.01, 0.1, 1.0], sample_time=1e-3
-    )
+    est = PIIdentifier("modified-pi", n_operators=6, max_evaluations=7, creep=[0.01, 0.1, 1.0], sample_time=1e-3)
     n_bytes, ops = _costs(monkeypatch, est, recs)
     assert n_bytes == 8.0 * 1000 * (6 + 3) * 2
     p, rows, n_fits = 6 + 3 + 2, 2000, 3 * 2 + 2 + 7  # the search does one weight fit per evaluation

@@ -155,9 +155,9 @@ FACTS: dict[str, Callable[[Any], list[tuple[str, str]]]] = {
     "HankelMAPResult": _hankel_facts,
     "FRDResult": _frd_result_facts,
     "ClosedLoopResult": _closedloop_facts,
-    "HysteresisFit": _hysteresis_fit_facts,
-    "PreisachFit": _hysteresis_fit_facts,
-    "StageFit": _hysteresis_fit_facts,
+    "HysteresisResult": _hysteresis_fit_facts,
+    "PreisachResult": _hysteresis_fit_facts,
+    "StageResult": _hysteresis_fit_facts,
     "PIModel": _hysteresis_facts,
     "ModifiedPIModel": _hysteresis_facts,
     "PreisachModel": _hysteresis_facts,
@@ -234,8 +234,10 @@ def _figure(obj: Any) -> Any:
     if name in ("HankelMAPResult", "FRDResult"):
         freqs = _grid(obj.model)
         return _bode(obj.model, freqs, _band(obj, freqs))
-    if name in ("PIModel", "ModifiedPIModel", "PreisachModel", "StageModel") or name.endswith("Fit"):
-        return _loop(obj.model if name.endswith("Fit") else obj)
+    if name in ("PIModel", "ModifiedPIModel", "PreisachModel", "StageModel"):
+        return _loop(obj)
+    if name in ("HysteresisResult", "PreisachResult", "StageResult"):
+        return _loop(obj.model)
     return None
 
 

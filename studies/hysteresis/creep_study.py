@@ -34,7 +34,7 @@ Part B -- models identified on the 20 Hz record only, validated without refittin
 
 In 2-3 the modified-PI thresholds are those of model 1 (joint re-search: ``--research``).
 
-Part C -- the library option (``PIIdentifier(..., creep_time_constants=TAUS)``, CLI
+Part C -- the library option (``PIIdentifier(..., creep=TAUS)``, CLI
 ``--creep``): creep fitted jointly with the weights *and* the threshold search, classical,
 modified (letter) and modified + warp; one row with the starting state forced to
 "ascending" shows why the ``"auto"`` starting state is chosen without the creep columns.
@@ -308,18 +308,18 @@ def library(lines, recs, dts):
     u0, y0 = recs[NAMES[0]]
     variants = (
         ("classical PI", "pi", {}),
-        ("classical PI + creep", "pi", {"creep_time_constants": TAUS}),
+        ("classical PI + creep", "pi", {"creep": TAUS}),
         ("modified PI (letter)", "modified-pi", {"input_warp": False}),
-        ("modified PI (letter) + creep", "modified-pi", {"input_warp": False, "creep_time_constants": TAUS}),
+        ("modified PI (letter) + creep", "modified-pi", {"input_warp": False, "creep": TAUS}),
         ("modified PI + warp", "modified-pi", {}),
-        ("modified PI + warp + creep", "modified-pi", {"creep_time_constants": TAUS}),
+        ("modified PI + warp + creep", "modified-pi", {"creep": TAUS}),
         (
             "modified PI (letter) + creep, start forced 'ascending'",
             "modified-pi",
-            {"input_warp": False, "creep_time_constants": TAUS, "initial_state": "ascending"},
+            {"input_warp": False, "creep": TAUS, "initial_state": "ascending"},
         ),
     )
-    lines.append("## C. Library option: `PIIdentifier(..., creep_time_constants=(0.05, 0.2, 1, 5, 20))`\n")
+    lines.append("## C. Library option: `PIIdentifier(..., creep=(0.05, 0.2, 1, 5, 20))`\n")
     lines.append(
         "Identified on the 20 Hz record (creep jointly with weights and threshold search), other records "
         "through `align_record` (own offset and starting-state kind; creep at rest at the first input, like the operators).  "
@@ -331,7 +331,7 @@ def library(lines, recs, dts):
     lines.append("|---" * (len(NAMES) + 2) + "|")
     notes = []
     for label, kind, kw in variants:
-        if "creep_time_constants" in kw:
+        if "creep" in kw:
             kw = {**kw, "sample_time": dts[NAMES[0]]}
         t0 = time.perf_counter()
         fit = PIIdentifier(kind, n_operators=20, **kw).fit((u0, y0))
@@ -381,7 +381,7 @@ def library(lines, recs, dts):
     lines.append("|---|---|---|---|---|---|---|")
     for tau in (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 2.0):
         fit = PIIdentifier(
-            "modified-pi", n_operators=20, input_warp=False, creep_time_constants=(tau,), sample_time=dts[NAMES[0]]
+            "modified-pi", n_operators=20, input_warp=False, creep=(tau,), sample_time=dts[NAMES[0]]
         ).fit((u0, y0))
         cells = []
         for n in (NAMES[0], NAMES[1], NAMES[2], "tri50_1", "sine50_1"):

@@ -198,7 +198,7 @@ def dspace(lines, quick: bool, figures: bool):
         n_operators=20,
         input_warp=False,
         sample_time=load_dspace_piezo(folder / "20_hz_no_lp.mat").dt,
-        creep_time_constants=(0.05, 0.2, 1.0, 5.0, 20.0),
+        creep=(0.05, 0.2, 1.0, 5.0, 20.0),
     ).fit(recs["20_hz_no_lp"])
     for n in names:
         u, y = recs[n]

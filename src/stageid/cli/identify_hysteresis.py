@@ -205,7 +205,7 @@ def identify(
             n_operators=n_operators,
             initial_state=initial_state,
             input_warp=input_warp,
-            creep_time_constants=None if creep == "none" else creep,
+            creep=None if creep == "none" else creep,
             # a report draws the band the weights' uncertainty puts on the loops
             weight_uncertainty="auto" if report_dir is not None else "none",
         ).fit(list(exps))

@@ -421,13 +421,13 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     is never seen; weight-0 operators with zero thresholds pad the rest to a multiple of
     :data:`PAD`, so that gcc vectorises the passes also at -O2 (its cheap cost model there takes
     only loops without a remainder).  ``ROUNDING`` and ``R_MAX`` are the package's rounding bound of F
-    (:func:`stageid.hysteresis.compensator.residual_bound`).  In single precision the passes
+    (:func:`stageid.hysteresis.models.common.residual_bound`).  In single precision the passes
     return ``F - target`` to about its own rounding (:mod:`.c_float_sums`), so the bound is
     ``FLOAT_ROUNDING u SMIN (|x| + R_MAX)`` or the products' roundings of the pass: the drive is
     solved to a float's resolution, not to a rounding bound of F (which would be ``1 / SMIN``
     times wider in the drive).
     """
-    from ..hysteresis.inverse.compensator import residual_bound
+    from ..hysteresis.models.common import residual_bound
 
     p = prefix
     lo, hi = _limits(model, limits)

@@ -12,16 +12,16 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``ModifiedPIModel``         modified PI of eq. 4
 ``CreepTerm``               optional linear creep of either model (first-order lags of the input)
 ``PIIdentifier``            thresholds equally spaced, constrained LS weights, CP thresholds by
-                            nonlinear optimisation; ``fit`` returns ``HysteresisFit``
+                            nonlinear optimisation; ``fit`` returns ``HysteresisResult``
 ``pi_inverse``              closed-form inverse of a classical PI model (a PI model)
 ``invert``                  per-sample monotone inversion of any (modified) PI model
 ``Compensator``             streaming feedforward compensator with state and drive limits
 ``compensate``              batch feedforward
 ``StageModel``              rate-dependent stage: hysteresis -> creep -> unit-DC-gain dynamics
-``StageIdentifier``         joint identification of a stage; ``fit`` returns ``StageFit``
+``StageIdentifier``         joint identification of a stage; ``fit`` returns ``StageResult``
 ``stage_feedforward``       offline inverse of a stage (stable inversion of the dynamics)
 ``PreisachModel``           discrete Preisach model: uniform-density cells on a triangular grid
-``PreisachIdentifier``      NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachFit``
+``PreisachIdentifier``      NNLS weights with a smoothness penalty; ``fit`` returns ``PreisachResult``
 ``PreisachCompensator``     exact Preisach inverse, streaming, with memory and drive limits
 ``preisach_feedforward``    exact Preisach inverse, batch
 ``everett``                 Everett function of a Preisach model (``everett_output``: the output
@@ -31,6 +31,10 @@ eq. 5 (inverse) and the feedforward scheme of Fig. 9.
 ``tracking_error_percent``
 ``hysteresis_percent``
 ==========================  ==================================================================
+
+Every estimator's ``fit`` takes the data as one argument (an Experiment, a sequence of them,
+or (u, y) pairs); ``HysteresisFit``, ``PreisachFit`` and ``StageFit`` are the former names of
+the results.
 
 Sub-packages and modules, from the letter's sections down (each imports only the ones below it):
 
@@ -56,8 +60,8 @@ The flat module paths of earlier versions (``stageid.hysteresis.stage_problem``,
 (:mod:`stageid._moved`).
 """
 
-from .identify.pi import HysteresisFit, PIIdentifier, align_record
-from .identify.preisach import PreisachFit, PreisachIdentifier
+from .identify.pi import HysteresisFit, HysteresisResult, PIIdentifier, align_record
+from .identify.preisach import PreisachFit, PreisachIdentifier, PreisachResult
 from .inverse import invert, pi_inverse
 from .inverse.compensator import Compensator, compensate
 from .inverse.preisach import PreisachCompensator, preisach_feedforward
@@ -67,7 +71,7 @@ from .models.operators import OperatorState, coupled_play, play
 from .models.pi import ModifiedPIModel, PIModel
 from .models.preisach import PreisachModel, everett, everett_output
 from .stage import StageModel
-from .stage.identification import StageFit, StageIdentifier
+from .stage.identification import StageFit, StageIdentifier, StageResult
 from .stage.inverse import stage_feedforward
 
 __all__ = [
@@ -78,6 +82,7 @@ __all__ = [
     "ModifiedPIModel",
     "CreepTerm",
     "PIIdentifier",
+    "HysteresisResult",
     "HysteresisFit",
     "align_record",
     "pi_inverse",
@@ -86,10 +91,12 @@ __all__ = [
     "compensate",
     "StageModel",
     "StageIdentifier",
+    "StageResult",
     "StageFit",
     "stage_feedforward",
     "PreisachModel",
     "PreisachIdentifier",
+    "PreisachResult",
     "PreisachFit",
     "PreisachCompensator",
     "preisach_feedforward",

@@ -10,11 +10,12 @@ module                         what it holds
 :mod:`.weights`                step 2: operator weights by constrained least squares
                                (invertibility bounds)
 :mod:`.threshold_search`       step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
-:mod:`.records`                step 4: records, starting states, per-record errors,
-                               ``align_record``
+:mod:`.records`                the records read once (``Records``), step 4: starting
+                               states, per-record errors, ``align_record``
 :mod:`.weight_uncertainty`     covariance of the weights (block-robust least squares)
 :mod:`.preisach`               ``PreisachIdentifier``: NNLS cell weights with a smoothness
                                penalty
-:mod:`.result`                 ``HysteresisFit``, ``PreisachFit``: the model, per-record errors
+:mod:`.result`                 ``HysteresisResult``, ``PreisachResult``: the model, per-record
+                               errors, diagnostics
 =============================  ==============================================================
 """

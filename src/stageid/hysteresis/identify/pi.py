@@ -36,7 +36,7 @@ Procedure (the letter's, made explicit):
    record that starts at 0 input (within 1 % of the range: at rest, the letter's condition) and
    otherwise the kind with the smallest residual.
 
-5. **Creep** (optional, ``creep_time_constants``; our extension): the lags
+5. **Creep** (optional, ``creep``; our extension): the lags
    ``lowpass_{tau_j}(u)`` of :mod:`~stageid.hysteresis.models.creep` (at rest at each record's first input) are extra
    columns of the same least-squares problem, with ``c_j >= 0``, so the weights, offsets and
    creep weights are fitted jointly and the threshold search of step 3 sees the creep.  The
@@ -63,27 +63,27 @@ from typing import Any
 import numpy as np
 
 from ..._errors import DataError
-from ...base import Boolean, Estimator, Interval, Options, Satisfies
+from ...base import Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ...checks import is_positive_sequence, is_real
 from ...runtime.resources import require_memory, require_work
 from ...runtime.threads import single_blas_thread
 from ..models.creep import CreepTerm
 from .records import (
     STATE_CHOICES,
+    Records,
     align_record,
     choose_initial_states,
     error_percents,
     read_records,
-    record_edges,
     record_residuals,
-    sampling_period,
+    with_former_channels,
 )
-from .result import HysteresisFit
+from .result import HysteresisFit, HysteresisResult
 from .threshold_search import search_thresholds
 from .weight_uncertainty import UNCERTAINTY_METHODS, weight_uncertainty
 from .weights import WeightProblem
 
-__all__ = ["PIIdentifier", "HysteresisFit", "align_record", "MODEL_KINDS"]
+__all__ = ["PIIdentifier", "HysteresisResult", "HysteresisFit", "align_record", "MODEL_KINDS"]
 
 MODEL_KINDS = ("pi", "modified-pi")
 #: Largest ``n_operators`` per model kind (the modified PI refits all weights for every step of
@@ -135,9 +135,10 @@ class PIIdentifier(Estimator):
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).
-    creep_time_constants : sequence of float, optional
+    creep : sequence of float, optional
         Time constants [s] of a linear creep term (:class:`~stageid.hysteresis.models.creep.CreepTerm`)
         fitted jointly with the weights (``c_j >= 0``); default none (rate independent).
+        Formerly ``creep_time_constants`` (still accepted, with a DeprecationWarning).
     sample_time : float, optional
         Sampling period [s] for ``(u, y)`` records when creep is fitted (Experiments carry
         their own ``dt``; all records must share one).
@@ -149,6 +150,9 @@ class PIIdentifier(Estimator):
     weight_uncertainty : {"none", "auto", "sandwich", "bootstrap"}, default "none"
         Covariance of the weights on the result (:mod:`~stageid.hysteresis.identify.weight_uncertainty`):
         "auto" is the block-robust sandwich unless a bound is active, then 200 bootstrap refits.
+    inputs, outputs : str, optional
+        The input and output channel: of Experiments with several, the column of that name; the
+        model's channel names (default: the first Experiment's, else "V" and "y").
 
     Notes
     -----
@@ -178,10 +182,13 @@ class PIIdentifier(Estimator):
         "max_evaluations": [Interval(int, 1, None, closed="left"), None],
         "ridge": [Interval(float, 0, None, closed="left")],
         "input_warp": [Boolean()],
-        "creep_time_constants": [Satisfies(is_positive_sequence, "a non-empty sequence of positive seconds"), None],
+        "creep": [Satisfies(is_positive_sequence, "a non-empty sequence of positive seconds"), None],
         "sample_time": [Interval(float, 0, None, closed="neither"), None],
         "weight_uncertainty": [Options("none", *UNCERTAINTY_METHODS)],
+        "inputs": [InstanceOf(str, "a channel name"), None],
+        "outputs": [InstanceOf(str, "a channel name"), None],
     }
+    renamed_parameters = {"creep_time_constants": "creep"}
 
     def check_together(self) -> None:
         cap = MAX_OPERATORS[self.model]
@@ -199,9 +206,11 @@ class PIIdentifier(Estimator):
         max_evaluations: int | None = None,
         ridge: float = 1e-6,
         input_warp: bool = True,
-        creep_time_constants: Sequence[float] | None = None,
+        creep: Sequence[float] | None = None,
         sample_time: float | None = None,
         weight_uncertainty: str = "none",
+        inputs: str | None = None,
+        outputs: str | None = None,
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -212,24 +221,25 @@ class PIIdentifier(Estimator):
         self.max_evaluations = max_evaluations
         self.ridge = ridge
         self.input_warp = input_warp
-        self.creep_time_constants = creep_time_constants
+        self.creep = creep
         self.sample_time = sample_time
         self.weight_uncertainty = weight_uncertainty
+        self.inputs = inputs
+        self.outputs = outputs
 
-    @single_blas_thread
-    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> HysteresisFit:
+    @with_former_channels
+    def fit(self, data: Any) -> HysteresisResult:
         """Identify the model from one or several records.
 
         Parameters
         ----------
         data : Experiment, sequence of Experiment, or (u, y) tuple(s)
-            Single-input single-output records, arrays of shape (n_samples,) or (n_samples, 1).
-        inputs, outputs : str, optional
-            Channel names for the model (default: the first Experiment's, else "V", "y").
+            Single-input single-output records (or Experiments whose channel ``inputs`` and
+            ``outputs`` name), arrays of shape (n_samples,) or (n_samples, 1).
 
         Returns
         -------
-        HysteresisFit
+        HysteresisResult
 
         Raises
         ------
@@ -244,11 +254,22 @@ class PIIdentifier(Estimator):
             ``MAX_FIT_OPERATIONS`` operations (many creep time constants, before any work).
         IdentificationError
             A failed least-squares problem.
+
+        Notes
+        -----
+        The former call ``fit(data, inputs, outputs)`` still works, with a DeprecationWarning.
         """
         self.validate_params()
-        recs, in_name, out_name = read_records(data, inputs, outputs)
+        return self.fit_records(read_records(data, self.inputs, self.outputs))
+
+    @single_blas_thread
+    def fit_records(self, records: Records) -> HysteresisResult:
+        """:meth:`fit` on records already read (:func:`~.records.read_records`), as a fit that
+        holds them (the stage identification) hands them down: they are not read again."""
+        self.validate_params()
+        recs = records.recs
         u_lo, u_hi = self._check_records(recs)
-        creep = self._creep_lags(data)
+        creep = self._creep_lags(records)
         lo, hi = (float(v) for v in self.input_range) if self.input_range is not None else (u_lo, u_hi)
         classical = self.model == "pi"
         self._check_cost(recs, creep)
@@ -275,7 +296,7 @@ class PIIdentifier(Estimator):
                 kinds = choose_initial_states(problem, theta, kinds, at_rest, False)
         # step 2 for the final thresholds (and step 5, the creep weights, jointly)
         sse, w, offsets = problem.solve(theta, kinds, classical=classical)
-        model = problem.build(theta, w, offsets[0], in_name, out_name, lo, hi, (u_lo, u_hi))
+        model = problem.build(theta, w, offsets[0], records.input_name, records.output_name, lo, hi, (u_lo, u_hi))
         if creep is not None:
             c = problem.solve_creep(theta, kinds, classical=classical)[3]
             model = replace(
@@ -283,7 +304,7 @@ class PIIdentifier(Estimator):
             )
         residuals = record_residuals(model, recs, kinds, offsets)
         max_e, rms_e = error_percents(recs, residuals)
-        return HysteresisFit(
+        return HysteresisResult(
             model=model,
             max_error_percent=tuple(max_e),
             rms_error_percent=tuple(rms_e),
@@ -293,7 +314,8 @@ class PIIdentifier(Estimator):
             success=success,
             message=message,
             weight_uncertainty=self._weight_uncertainty(problem, theta, kinds, classical, model, w, offsets),
-            edge_errors=record_edges(data, recs, residuals),
+            edge_errors=records.edges(residuals),
+            estimator=self.clone(),
         )
 
     def _weight_uncertainty(self, problem, theta, kinds, classical, model, w, offsets):
@@ -324,14 +346,14 @@ class PIIdentifier(Estimator):
             )
         return u_lo, u_hi
 
-    def _creep_lags(self, data: Any) -> tuple[np.ndarray, float] | None:
+    def _creep_lags(self, records: Records) -> tuple[np.ndarray, float] | None:
         """(time constants, sampling period) of the creep term to fit, or None."""
-        if self.creep_time_constants is None:
+        if self.creep is None:
             return None
-        dt = sampling_period(data, self.sample_time)
+        dt = records.sample_time(self.sample_time)
         if dt is None:
             raise self.invalid("sample_time", "the sampling period in seconds when creep is fitted to (u, y) records")
-        return np.asarray(self.creep_time_constants, dtype=float).reshape(-1), dt
+        return np.asarray(self.creep, dtype=float).reshape(-1), dt
 
     def _stride(self, recs: list) -> int:
         """Sample stride of the least-squares rows (at most ``max_rows`` rows)."""

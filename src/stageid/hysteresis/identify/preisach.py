@@ -23,13 +23,20 @@ from typing import Any
 import numpy as np
 
 from ..._errors import DataError, IdentificationError
-from ...base import Estimator, Interval, Satisfies
+from ...base import Estimator, InstanceOf, Interval, Satisfies
 from ...checks import is_real
 from ..models.preisach import PreisachModel
-from .records import error_percents, read_records, record_edges
-from .result import PreisachFit
+from .records import Records, error_percents, read_records, with_former_channels
+from .result import PreisachFit, PreisachResult
 
-__all__ = ["PreisachIdentifier", "PreisachFit", "cell_regressors", "second_differences", "filled_cells"]
+__all__ = [
+    "PreisachIdentifier",
+    "PreisachResult",
+    "PreisachFit",
+    "cell_regressors",
+    "second_differences",
+    "filled_cells",
+]
 
 #: Smallest smoothness weight (relative to the mean diagonal of ``Phi' Phi``): even with
 #: ``smoothing=0`` the prior outweighs the data in directions whose singular value is below
@@ -96,6 +103,9 @@ class PreisachIdentifier(Estimator):
         ``lambda`` relative to the mean diagonal of the Gram matrix.
     input_range : (float, float), optional
         Range of the grid; default the records' input range.
+    inputs, outputs : str, optional
+        The input and output channel: of Experiments with several, the column of that name; the
+        model's channel names (default: the first Experiment's, else "V" and "y").
 
     Raises
     ------
@@ -106,24 +116,45 @@ class PreisachIdentifier(Estimator):
     -----
     Cells that no reversal pair of the records reaches (a grid finer than the records, an input
     that covers part of the triangle) are filled by the smoothness prior, never refused;
-    :attr:`PreisachFit.filled_cells` counts them and the summary says so in one line.
+    :attr:`PreisachResult.filled_cells` counts them and the summary says so in one line.
     """
 
     parameter_constraints = {
         "n_levels": [Interval(int, 2, None, closed="left")],
         "smoothing": [Interval(float, 0, None, closed="left")],
         "input_range": [Satisfies(_is_range, "(low, high) with finite low < high"), None],
+        "inputs": [InstanceOf(str, "a channel name"), None],
+        "outputs": [InstanceOf(str, "a channel name"), None],
     }
 
-    def __init__(self, n_levels: int = 20, smoothing: float = 1e-4, input_range: Any = None) -> None:
+    def __init__(
+        self,
+        n_levels: int = 20,
+        smoothing: float = 1e-4,
+        input_range: Any = None,
+        inputs: str | None = None,
+        outputs: str | None = None,
+    ) -> None:
         self.n_levels = n_levels
         self.smoothing = smoothing
         self.input_range = input_range
+        self.inputs = inputs
+        self.outputs = outputs
 
-    def fit(self, data: Any, inputs: str | None = None, outputs: str | None = None) -> PreisachFit:
-        """Identify the weights and the offsets from one or several (u, y) records."""
+    @with_former_channels
+    def fit(self, data: Any) -> PreisachResult:
+        """Identify the weights and the offsets from one or several records (Experiments or
+        (u, y) pairs, as :meth:`PIIdentifier.fit <stageid.hysteresis.PIIdentifier.fit>` takes them).
+
+        The former call ``fit(data, inputs, outputs)`` still works, with a DeprecationWarning.
+        """
         self.validate_params()
-        recs, in_name, out_name = read_records(data, inputs, outputs)
+        return self.fit_records(read_records(data, self.inputs, self.outputs))
+
+    def fit_records(self, records: Records) -> PreisachResult:
+        """:meth:`fit` on records already read (:func:`~.records.read_records`): not read again."""
+        self.validate_params()
+        recs = records.recs
         lo = min(float(u.min()) for u, _ in recs)
         hi = max(float(u.max()) for u, _ in recs)
         if self.input_range is None and not lo < hi:
@@ -138,16 +169,18 @@ class PreisachIdentifier(Estimator):
         D = second_differences(n)
         w = self._solve(A, b, lam, D)
         offsets = tuple(float(my - mp @ w) for mp, my in means)
-        model = PreisachModel((lo, hi), w, offsets[0], inputs=(in_name,), outputs=(out_name,), input_limits=(lo, hi))
+        names = {"inputs": (records.input_name,), "outputs": (records.output_name,)}
+        model = PreisachModel((lo, hi), w, offsets[0], **names, input_limits=(lo, hi))
         residuals = [y - (cell_regressors(u, (lo, hi), n) @ w + y0) for (u, y), y0 in zip(recs, offsets)]
         maxe, rmse = error_percents(recs, residuals)
-        return PreisachFit(
+        return PreisachResult(
             model.with_state(model.consistent_state(recs[0][0][0])),
             tuple(maxe),
             tuple(rmse),
             offsets,
             filled_cells(A, lam, D),
-            record_edges(data, recs, residuals),
+            records.edges(residuals),
+            self.clone(),
         )
 
     def _centred_problem(self, recs: list, input_range: tuple, n: int) -> tuple[np.ndarray, np.ndarray, list]:

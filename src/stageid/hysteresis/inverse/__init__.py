@@ -22,7 +22,7 @@ Modified PI: per-sample monotone inversion (eq. 5)
     on the bracket ``[x_prev, x_prev + (y_ref - F(x_prev)) / s]``.  On a piecewise-linear
     function a Newton step from the piece that holds the root lands on the root itself, so the
     iteration does not stop at a tolerance: it goes on until ``|F(x) - y_ref|`` is within the
-    rounding error of the computed F (:func:`~stageid.hysteresis.inverse.compensator.residual_bound`,
+    rounding error of the computed F (:func:`~stageid.hysteresis.models.common.residual_bound`,
     about ``4 (m + 2) 2**-53 sum|w| (|x| + max r)``), one step after it first reaches the
     right piece.  The drive is the exact root to rounding (it does not depend on how the
     iteration got there: any exact solver, e.g. the exported C, agrees with it to rounding).
@@ -37,7 +37,7 @@ module                     what it holds
                            the closed form
 :mod:`.closed_form`        the classical PI's inverse PI model (``pi_inverse``)
 :mod:`.compensator`        Fig. 9 feedforward: ``Compensator`` (streaming), ``compensate``
-                           (batch), ``CreepInverse``, ``residual_bound``
+                           (batch), ``CreepInverse``
 :mod:`.preisach`           exact Preisach inverse: ``PreisachCompensator``,
                            ``preisach_feedforward``
 =========================  ================================================================
@@ -48,11 +48,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed
+from ..models.common import as_input, check_limits, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .compensator import CreepInverse, residual_bound
+from .compensator import CreepInverse
 
 __all__ = ["pi_inverse", "inverse_state", "forward_state", "invert"]
 

@@ -7,7 +7,7 @@ model says produces it, so the cascade compensator -> actuator is close to the i
   (:func:`~stageid.hysteresis.pi_inverse`), one play-operator update per threshold and sample;
 * :class:`~stageid.hysteresis.ModifiedPIModel`: the per-sample monotone inversion of
   :func:`~stageid.hysteresis.invert` (the exact root of each sample's equation, to rounding:
-  :func:`residual_bound`);
+  :func:`~stageid.hysteresis.models.common.residual_bound`);
 * either with a ``creep`` term: per-sample inversion with the creep state
   (:class:`CreepInverse`, here because it drives rate-independent compensators and the
   compensator delegates to it; the creep term itself is :mod:`~stageid.hysteresis.models.creep`).
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed
+from ..models.common import as_input, check_limits, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
@@ -226,26 +226,10 @@ class Compensator:
 def compensate(
     model: PIModel | ModifiedPIModel, y_ref: object, limits: tuple[float, float] | None = None
 ) -> np.ndarray:
-    """Batch feedforward: the drive of shape (n_samples, 1) for a desired output record.
-
-    Parameters
-    ----------
-    model : PIModel or ModifiedPIModel
-    y_ref : array_like of shape (n_samples, 1) or (n_samples,)
-        Desired outputs (finite).
-    limits : (float, float), optional
-        Drive limits ``(low, high)``, ``low < high``; default ``model.input_limits`` (an
-        identified model's identified input range).  The drive is clipped to them; it is
-        unlimited only when both are None (``(-numpy.inf, numpy.inf)`` lifts a model's limits).
-
-    Returns
-    -------
-    ndarray of shape (n_samples, 1)
-
-    Raises
-    ------
-    ModelError
-        Non-invertible model, malformed ``limits`` or a non-finite ``y_ref``.
+    """Batch feedforward: the drive of shape (n_samples, 1) for a desired output record
+    ``y_ref`` (array_like of shape (n_samples,) or (n_samples, 1), finite), from the model's own
+    state: ``Compensator(model, limits).run(y_ref)``, with the limits and errors of
+    :class:`Compensator`.
 
     Examples
     --------
@@ -257,32 +241,6 @@ def compensate(
     True
     """
     return Compensator(model, limits).run(y_ref)
-
-
-def residual_bound(model: PIModel | ModifiedPIModel) -> tuple[float, float]:
-    """The rounding error of the computed per-sample output ``F(x) = sum_i w_i CP_i(x; z_i)``.
-
-    ``|computed F(x) - F(x)| <= err_w (|x| + err_r)`` with ``err_w = 4 (m + 2) u sum|w_i|`` and
-    ``err_r`` the largest threshold (``u = 2**-53``, ``m`` operators): each operator output is one
-    rounded ``x -+ threshold`` (at most ``|x| + err_r`` in size), each term one rounded product,
-    the sum ``m - 1`` rounded additions; the factor 4 also covers the rounding of the Newton step
-    that lands on the root.  The per-sample inversion stops once ``|F(x) - target|`` is within
-    this bound: ``x`` is then the exact root to rounding.
-
-    Returns
-    -------
-    (err_w, err_r) : (float, float)
-
-    Examples
-    --------
-    >>> from stageid.hysteresis import PIModel
-    >>> err_w, err_r = residual_bound(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]))
-    >>> err_r, bool(err_w < 1e-14)
-    (1.0, True)
-    """
-    thresholds = np.abs(np.vstack(model.coupled_play_thresholds()))
-    err_w = 4.0 * (model.n_operators + 2) * 2.0**-53 * float(np.sum(np.abs(model.weights)))
-    return err_w, float(np.max(thresholds))
 
 
 class CreepInverse:

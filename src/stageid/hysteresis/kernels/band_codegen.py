@@ -166,13 +166,37 @@ def make_block(kind):
     return block
 
 
+def _emit_hot_sums(context, builder, vec, kind, registers, memory, xk):
+    """The hot blocks updated at ``xk``, as one vector of weighted outputs (an empty list
+    without any): the register blocks (``registers``: their rows and output slots), then with
+    ``memory`` = ``(array type, P, n_hot)`` the others in memory, summed pairwise."""
+    _, wrow, zrow = _layout(kind)[:3]
+    rows, z_slots = registers
+    xs = vec.splat(xk)
+    t = vec.splat(builder.fneg(xk))
+    parts = []
+    for b in range(len(z_slots)):
+        in_register = list(rows[b])
+        in_register[zrow] = z_slots[b]
+        v = _update_lanes(vec, kind, in_register, xs, t)
+        parts.append(vec.mul(vec.load(rows[b][wrow]), v))
+    if memory is not None:
+        aryty, Pa, nh = memory
+        first = ir.Constant(_I64, len(z_slots))
+        parts.append(_emit_memory_blocks(context, builder, aryty, Pa, first, nh, xs, t, kind))
+    while len(parts) > 1:  # pairwise sum of the block sums
+        pairs = [vec.add(parts[i], parts[i + 1], REASSOC) for i in range(0, len(parts) - 1, 2)]
+        parts = pairs + ([parts[-1]] if len(parts) % 2 else [])
+    return parts
+
+
 def _emit_run(context, builder, signature, args, kind, n_reg, memory):
     """One variant of the run loop (see :func:`make_run`); returns the values (k, xl, yl).
 
     The first ``n_reg`` hot blocks keep their outputs in registers (no store-to-load latency
     from one sample to the next); with ``memory`` the others are updated in memory.
     """
-    n_rows, wrow, zrow = _layout(kind)[:3]
+    n_rows, _, zrow = _layout(kind)[:3]
     xa, ya, k0, k1v, Pa, nh, Cv, lov, hiv, W0v, xlv, ylv = args
     k0 = context.cast(builder, k0, signature.args[2], types.int64)
     k1v = context.cast(builder, k1v, signature.args[3], types.int64)
@@ -208,19 +232,7 @@ def _emit_run(context, builder, signature, args, kind, n_reg, memory):
     )
     builder.cbranch(inside, update, done)
     builder.position_at_end(update)
-    xs = vec.splat(xk)
-    t = vec.splat(builder.fneg(xk))
-    parts = []
-    for b in range(n_reg):
-        in_register = list(rows[b])
-        in_register[zrow] = z_slots[b]
-        v = _update_lanes(vec, kind, in_register, xs, t)
-        parts.append(vec.mul(vec.load(rows[b][wrow]), v))
-    if memory:
-        parts.append(_emit_memory_blocks(context, builder, aryty, Pa, ir.Constant(_I64, n_reg), nh, xs, t, kind))
-    while len(parts) > 1:  # pairwise sum of the block sums
-        pairs = [vec.add(parts[i], parts[i + 1], REASSOC) for i in range(0, len(parts) - 1, 2)]
-        parts = pairs + ([parts[-1]] if len(parts) % 2 else [])
+    parts = _emit_hot_sums(context, builder, vec, kind, (rows, z_slots), (aryty, Pa, nh) if memory else None, xk)
     yk = vec.add(Cv, vec.mul(W0v, xk), REASSOC)
     if parts:
         yk = vec.add(yk, vec.hsum(parts[0]), REASSOC)

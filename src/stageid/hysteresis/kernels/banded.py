@@ -14,10 +14,8 @@ import numba
 import numpy as np
 
 from .band_codegen import (
-    CP_ROWS,
     INERT,
     LANES,
-    PLAY_ROWS,
     make_block,
     make_hot,
     make_run,
@@ -199,6 +197,62 @@ def banded_drive(x, P, W0, n_hot_blocks, play):  # pragma: no cover - compiled
 
 
 @jit_exact
+def by_band_width(ident, width, w):  # pragma: no cover - compiled
+    """``(W0, order)``: the summed weight of the identity operators (``ident``), and the other
+    operators' indices sorted by band ``width`` (stable: equal widths keep their order)."""
+    W0 = 0.0
+    mm = 0
+    for i in range(ident.shape[0]):
+        if ident[i]:
+            W0 += w[i]
+        else:
+            mm += 1
+    live = np.empty(mm, np.int64)
+    widths = np.empty(mm)
+    j = 0
+    for i in range(ident.shape[0]):
+        if not ident[i]:
+            live[j] = i
+            widths[j] = width[i]
+            j += 1
+    return W0, live[stable_argsort(widths)]
+
+
+@jit_exact
+def in_blocks(order, rows, padding):  # pragma: no cover - compiled
+    """The operators ``order`` in blocks of ``LANES``: ``P[b, k, l]`` is ``rows[k]`` of operator
+    ``order[b * LANES + l]``; the lanes past the last operator hold ``padding[k]`` (an inert
+    operator: zero weight, thresholds it never reaches)."""
+    nb = max((order.shape[0] + LANES - 1) // LANES, 1)
+    P = np.empty((nb, rows.shape[0], LANES))
+    for b in range(nb):
+        for k in range(rows.shape[0]):
+            P[b, k, :] = padding[k]
+    for j in range(order.shape[0]):
+        for k in range(rows.shape[0]):
+            P[j // LANES, k, j % LANES] = rows[k, order[j]]
+    return P
+
+
+@jit_exact
+def banded_sum(x, P, W0, order, ident, z0, row, n_hot_blocks, play):  # pragma: no cover - compiled
+    """The weighted sums over ``x`` of the packed blocks ``P`` (operators ``order`` by band width,
+    their outputs in row ``row``) and ``W0`` times the input, and the final operator outputs
+    (the identity operators' is the last input)."""
+    x = np.ascontiguousarray(x)  # the vector code indexes the raw data
+    zfinal = z0.copy()
+    if x.shape[0] == 0:
+        return np.empty(0), zfinal
+    y = banded_drive(x, P, W0, 0 if order.shape[0] == 0 else n_hot_blocks, play)
+    for j in range(order.shape[0]):
+        zfinal[order[j]] = P[j // LANES, row, j % LANES]
+    for i in range(ident.shape[0]):
+        if ident[i]:
+            zfinal[i] = x[-1]
+    return y, zfinal
+
+
+@jit_exact
 def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover - compiled
     """Weighted CP sum (eq. 4) that touches only the operators that can move.
 
@@ -218,56 +272,16 @@ def cp_sum_banded(x, r, rc, ra, rb, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: 
     hot blocks cost every sample, cold ones only on exits), so an input that moves every
     operator at every sample ends up with all blocks hot -- the loop kernel.
     """
-    x = np.ascontiguousarray(x)  # the vector code indexes the raw data
-    n = x.shape[0]
     m = r.shape[0]
-    zfinal = z0.copy()
-    if n == 0:
-        return np.empty(0), zfinal
     ident = np.zeros(m, np.bool_)
-    W0 = 0.0
-    mm = 0
+    width = np.empty(m)
     for i in range(m):
         ident[i] = r[i] == 0.0 and rc[i] == 0.0 and ra[i] == 0.0 and rb[i] == 0.0
-        if ident[i]:
-            W0 += w[i]
-        else:
-            mm += 1
-    nz = np.empty(mm, np.int64)
-    width = np.empty(mm)
-    j = 0
-    for i in range(m):
-        if not ident[i]:
-            nz[j] = i
-            width[j] = min(r[i] + rb[i], rc[i] + ra[i])
-            j += 1
-    srt = nz[stable_argsort(width)]
-    nb = max((mm + LANES - 1) // LANES, 1)
-    P = np.zeros((nb, CP_ROWS, LANES))
-    for b in range(nb):
-        for l in range(LANES):
-            P[b, 0, l] = -INERT
-            P[b, 1, l] = -INERT
-            P[b, 2, l] = INERT
-            P[b, 3, l] = INERT
-    for j in range(mm):
-        i = srt[j]
-        b = j // LANES
-        l = j % LANES
-        P[b, 0, l] = -r[i]
-        P[b, 1, l] = -rc[i]
-        P[b, 2, l] = ra[i]
-        P[b, 3, l] = rb[i]
-        P[b, 4, l] = w[i]
-        P[b, 5, l] = z0[i]
-        P[b, 6, l] = 1e-15 * (r[i] + rc[i] + ra[i] + rb[i])
-    y = banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, False)
-    for j in range(mm):
-        zfinal[srt[j]] = P[j // LANES, 5, j % LANES]
-    for i in range(m):
-        if ident[i]:
-            zfinal[i] = x[n - 1]
-    return y, zfinal
+        width[i] = min(r[i] + rb[i], rc[i] + ra[i])
+    W0, srt = by_band_width(ident, width, w)
+    rows = np.vstack((-r, -rc, ra, rb, w, z0, 1e-15 * (r + rc + ra + rb)))
+    P = in_blocks(srt, rows, np.array([-INERT, -INERT, INERT, INERT, 0.0, 0.0, 0.0]))
+    return banded_sum(x, P, W0, srt, ident, z0, 5, n_hot_blocks, False)
 
 
 @jit_exact
@@ -279,45 +293,7 @@ def play_sum_banded(x, r, w, z0, x0=0.0, n_hot_blocks=-1):  # pragma: no cover -
     operator outputs equal :func:`operators.play_reference` bit for bit, for any starting
     state; ``x0`` is ignored as in :func:`cp_sum_banded`.
     """
-    x = np.ascontiguousarray(x)  # the vector code indexes the raw data
-    n = x.shape[0]
-    m = r.shape[0]
-    zfinal = z0.copy()
-    if n == 0:
-        return np.empty(0), zfinal
-    W0 = 0.0
-    mm = 0
-    for i in range(m):
-        if r[i] == 0.0:
-            W0 += w[i]
-        else:
-            mm += 1
-    nz = np.empty(mm, np.int64)
-    width = np.empty(mm)
-    j = 0
-    for i in range(m):
-        if r[i] != 0.0:
-            nz[j] = i
-            width[j] = r[i]
-            j += 1
-    srt = nz[stable_argsort(width)]
-    nb = max((mm + LANES - 1) // LANES, 1)
-    P = np.zeros((nb, PLAY_ROWS, LANES))
-    for b in range(nb):
-        for l in range(LANES):
-            P[b, 0, l] = INERT
-    for j in range(mm):
-        i = srt[j]
-        b = j // LANES
-        l = j % LANES
-        P[b, 0, l] = r[i]
-        P[b, 1, l] = w[i]
-        P[b, 2, l] = z0[i]
-        P[b, 3, l] = 4e-15 * r[i]
-    y = banded_drive(x, P, W0, 0 if mm == 0 else n_hot_blocks, True)
-    for j in range(mm):
-        zfinal[srt[j]] = P[j // LANES, 2, j % LANES]
-    for i in range(m):
-        if r[i] == 0.0:
-            zfinal[i] = x[n - 1]
-    return y, zfinal
+    ident = r == 0.0
+    W0, srt = by_band_width(ident, r, w)
+    P = in_blocks(srt, np.vstack((r, w, z0, 4e-15 * r)), np.array([INERT, 0.0, 0.0, 0.0]))
+    return banded_sum(x, P, W0, srt, ident, z0, 2, n_hot_blocks, True)

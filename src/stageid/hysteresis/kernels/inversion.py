@@ -8,9 +8,13 @@ models.  Exact arithmetic (no fast-math): the bracket logic compares values.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .loops import jit_exact
+
+#: Steps of :func:`cp_invert_step`, inlined into it in numba's IR: the per-sample code stays one piece
+_step_part = numba.njit(cache=True, nogil=True, inline="always")
 
 
 @jit_exact
@@ -73,7 +77,7 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, err_w, err_r):  # pragma:
     piecewise linear and nondecreasing: safeguarded Newton steps inside a bracket land on the
     piece that holds the root in a few iterations, and the Newton step from that piece lands on
     the root itself.  The iteration stops there: when ``|F(x) - target|`` is within the rounding
-    error of the computed F, ``err_w (|x| + err_r)`` (see ``compensator.residual_bound``), or a
+    error of the computed F, ``err_w (|x| + err_r)`` (see ``models.common.residual_bound``), or a
     step no longer moves x.
     """
     f, sp, sm = cp_eval(x_prev, P, z)
@@ -135,14 +139,18 @@ def cp_invert_step(P, z, x_prev, target, lo, hi, smin, err_w, err_r):  # pragma:
                     xc, fc, sc = xn, fn, snm
                 if b - a <= 1e-15 * (1.0 + abs(a) + abs(b)):
                     break
-    # update the state with the chosen input
-    m = P.shape[1]
-    for i in range(m):
+    cp_settle(P, z, x)
+    return x
+
+
+@_step_part
+def cp_settle(P, z, x):  # pragma: no cover - compiled
+    """Every operator output ``z`` (updated in place) moved to the input ``x``."""
+    for i in range(P.shape[1]):
         r, rc, ra, rb = P[0, i], P[1, i], P[2, i], P[3, i]
         up = max(x - r, min(x - rc, 0.0))
         down = min(x + ra, max(x + rb, 0.0))
         z[i] = max(up, min(down, z[i]))
-    return x
 
 
 @jit_exact

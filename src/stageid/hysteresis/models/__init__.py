@@ -11,7 +11,9 @@ module                what it holds
 :mod:`.preisach`      ``PreisachModel`` (uniform cells on a triangular grid), ``everett``
 :mod:`.serialization`  the ``stageid.hysteresis/1`` JSON format, ``model_from_dict``,
                       ``register_kind`` (kinds of higher packages load by name)
-:mod:`.common`        input and state checks shared by the models, inverses and compensator
+:mod:`.common`        input and state checks shared by the models, inverses and compensator;
+                      the packed operator parameters and the rounding bound of the computed
+                      output (``residual_bound``) that the inversion kernels take
 ====================  ==================================================================
 
 Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi_base`` -> ``modified_pi`` -> ``pi`` ->

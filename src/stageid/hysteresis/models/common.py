@@ -3,7 +3,9 @@
 The lowest module of :mod:`stageid.hysteresis` besides :mod:`.operators`: it imports no other
 module of the package, so models (:mod:`.pi`), inversion (:mod:`stageid.hysteresis.inverse`)
 and compensation (:mod:`stageid.hysteresis.inverse.compensator`) can all use it without
-importing each other.
+importing each other.  Besides the checks: a model's operator parameters as the inversion
+kernels take them (:func:`packed`) and the rounding bound of its computed output at which
+the per-sample inversion stops (:func:`residual_bound`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import numpy as np
 
 from ..._errors import ModelError
 
-__all__ = ["as_input", "check_limits", "packed"]
+__all__ = ["as_input", "check_limits", "packed", "residual_bound"]
 
 
 def as_input(u: object, name: str) -> np.ndarray:
@@ -52,3 +54,30 @@ def packed(model: Any) -> np.ndarray:
     rows ``r, rc, ra, rb, w``, shape (5, n_operators), C-contiguous."""
     r, rc, ra, rb = model.coupled_play_thresholds()
     return np.ascontiguousarray(np.vstack([r, rc, ra, rb, model.weights]))
+
+
+def residual_bound(model: Any) -> tuple[float, float]:
+    """The rounding error of the computed per-sample output ``F(x) = sum_i w_i CP_i(x; z_i)``.
+
+    ``|computed F(x) - F(x)| <= err_w (|x| + err_r)`` with ``err_w = 4 (m + 2) u sum|w_i|`` and
+    ``err_r`` the largest threshold (``u = 2**-53``, ``m`` operators): each operator output is one
+    rounded ``x -+ threshold`` (at most ``|x| + err_r`` in size), each term one rounded product,
+    the sum ``m - 1`` rounded additions; the factor 4 also covers the rounding of the Newton step
+    that lands on the root.  The per-sample inversion stops once ``|F(x) - target|`` is within
+    this bound: ``x`` is then the exact root to rounding.
+
+    Returns
+    -------
+    (err_w, err_r) : (float, float)
+
+    Examples
+    --------
+    >>> from stageid.hysteresis import PIModel
+    >>> from stageid.hysteresis.models.common import residual_bound
+    >>> err_w, err_r = residual_bound(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]))
+    >>> err_r, bool(err_w < 1e-14)
+    (1.0, True)
+    """
+    thresholds = np.abs(np.vstack(model.coupled_play_thresholds()))
+    err_w = 4.0 * (model.n_operators + 2) * 2.0**-53 * float(np.sum(np.abs(model.weights)))
+    return err_w, float(np.max(thresholds))

@@ -34,7 +34,7 @@ module                         what it holds
 :mod:`.disturbance_spectrum`   that spectrum: each residual's Welch PSD, drive harmonics out
 :mod:`.identification`         ``StageIdentifier``: hysteresis first, then weights / creep /
                                dynamics alternated; auto order and creep
-:mod:`.result`                 ``StageFit``: the model, its errors, the candidates' scores
+:mod:`.result`                 ``StageResult``: the model, its errors, the candidates' scores
 :mod:`.problem`                ``StageProblem``: that alternation for fixed thresholds (step 2),
                                the hysteresis side plugged in as a strategy
 :mod:`.pi_columns`             step 2's PI side: operator columns, the invertible weight fit

@@ -58,21 +58,29 @@ from typing import Any
 
 import numpy as np
 
-from ...base import Boolean, Estimator, Interval, Options, Satisfies
+from ...base import Boolean, Estimator, InstanceOf, Interval, Options, Satisfies
 from ...checks import is_positive_sequence
 from ...runtime.threads import single_blas_thread
 from ..identify.pi import MODEL_KINDS, PIIdentifier
 from ..identify.preisach import PreisachIdentifier
-from ..identify.records import STATE_CHOICES, error_percents, read_records, record_edges, sampling_period
+from ..identify.records import STATE_CHOICES, Records, error_percents, read_records, with_former_channels
 from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
 from .inverse import invert_dynamics
 from .pi_columns import N_ALTERNATIONS, PIColumns
 from .preisach import PreisachColumns, best_start_kinds
 from .problem import StageProblem
-from .result import SUMMARY_CANDIDATES, StageFit
+from .result import SUMMARY_CANDIDATES, StageFit, StageResult
 from .selection import choose_candidate, fixed_order, modes_improve, prediction_score, simulation_score
 
-__all__ = ["StageIdentifier", "StageFit", "choose_candidate", "AUTO_ORDERS", "AUTO_CREEP", "SUMMARY_CANDIDATES"]
+__all__ = [
+    "StageIdentifier",
+    "StageResult",
+    "StageFit",
+    "choose_candidate",
+    "AUTO_ORDERS",
+    "AUTO_CREEP",
+    "SUMMARY_CANDIDATES",
+]
 
 AUTO_ORDERS = (0, 1, 2, 3, 4)
 AUTO_CREEP = ((), (0.05,), (0.01, 0.1, 1.0), (0.005, 0.05, 0.5, 5.0))
@@ -122,13 +130,14 @@ class StageIdentifier(Estimator):
         Lightly damped modes found in the records' disturbance spectrum are put in the dynamics
         (step 5; only when ``dynamics`` is not None): ``"auto"`` when they lower the held-out
         error, ``"spectrum"`` whenever found; ``None``: never.
+    inputs, outputs : str, optional
+        The input and output channel: of Experiments with several, the column of that name; the
+        model's channel names (default: the first Experiment's, else "V" and "y").
 
     Examples
     --------
     >>> import numpy as np
-    >>> from stageid.hysteresis import PIModel
-    >>> from stageid.hysteresis.stage import StageModel
-    >>> from stageid.hysteresis.stage_identification import StageIdentifier
+    >>> from stageid.hysteresis import PIModel, StageIdentifier, StageModel
     >>> from stageid.models import StateSpaceModel
     >>> from stageid.signals import decaying_triangle
     >>> u = decaying_triangle(20.0, 8, 1e-4, amplitude=10.0)
@@ -151,6 +160,8 @@ class StageIdentifier(Estimator):
         "n_levels": [Interval(int, 2, None, closed="left")],
         "smoothing": [Interval(float, 0, None, closed="left")],
         "disturbance_modes": [Options("auto", "spectrum"), None],
+        "inputs": [InstanceOf(str, "a channel name"), None],
+        "outputs": [InstanceOf(str, "a channel name"), None],
     }
 
     def __init__(
@@ -165,6 +176,8 @@ class StageIdentifier(Estimator):
         n_levels: int = 20,
         smoothing: float = 1e-4,
         disturbance_modes: str | None = "auto",
+        inputs: str | None = None,
+        outputs: str | None = None,
     ) -> None:
         self.model = model
         self.n_operators = n_operators
@@ -176,12 +189,18 @@ class StageIdentifier(Estimator):
         self.n_levels = n_levels
         self.smoothing = smoothing
         self.disturbance_modes = disturbance_modes
+        self.inputs = inputs
+        self.outputs = outputs
 
+    @with_former_channels
     @single_blas_thread
-    def fit(
-        self, data: Any, inputs: str | None = None, outputs: str | None = None, *, progress: Progress | None = None
-    ) -> StageFit:
+    def fit(self, data: Any, *, progress: Progress | None = None) -> StageResult:
         """Identify the stage from one or several records (several rates are the normal input).
+
+        ``data``: Experiments or (u, y) pairs, as :meth:`PIIdentifier.fit
+        <stageid.hysteresis.PIIdentifier.fit>` takes them; they are read once and handed down
+        to the hysteresis identification of step 1.  The former call ``fit(data, inputs,
+        outputs)`` still works, with a DeprecationWarning.
 
         ``progress(step, done, total)``, when given, is told what the fit is doing: the step's
         name, and for the held-out candidates of ``auto`` how many of ``total`` are scored
@@ -196,15 +215,15 @@ class StageIdentifier(Estimator):
             As :meth:`PIIdentifier.fit`, or a dynamics fit that fails.
         """
         self.validate_params()
-        recs, in_name, out_name = read_records(data, inputs, outputs)
-        names = (in_name, out_name)
-        dt = sampling_period(data, self.sample_time)
+        records = read_records(data, self.inputs, self.outputs)
+        recs, names = records.recs, (records.input_name, records.output_name)
+        dt = records.sample_time(self.sample_time)
         if dt is None:
             raise self.invalid("sample_time", "the sampling period in seconds for dynamics and creep on (u, y) records")
         orders, creeps = self._candidates(min(u.size for u, _ in recs))
         tell = progress if progress is not None else _silent
         tell("hysteresis thresholds", 0, 0)
-        problem, kinds, base_message = self._first_step(data, inputs, outputs, recs, dt)
+        problem, kinds, base_message = self._first_step(records, dt)
         notes: list[str] = []
         counted = partial(tell, "held-out candidates")
         if self.dynamics in (None, "auto"):
@@ -215,7 +234,7 @@ class StageIdentifier(Estimator):
             notes += [note] if note else []
         chosen = (order, tuple(taus))
         tell("fit of the chosen candidate on all records", 0, 0)
-        problem, model, offsets = self._fit_chosen(problem, recs, kinds, dt, order, taus, names)
+        problem, model, offsets = self._fit_chosen(problem, records, kinds, dt, order, taus)
         modes: tuple[DisturbanceMode, ...] = ()
         if self.disturbance_modes is not None and self.dynamics is not None:  # step 5
             poles = None if model.dynamics is None else model.dynamics.poles()
@@ -236,7 +255,7 @@ class StageIdentifier(Estimator):
         fitted = "alternated " + (f"{N_ALTERNATIONS} times" if problem.settle == 0 else "until settled")
         if model.dynamics_order != order + 2 * len(modes):
             notes.append(f"order-{order} dynamics did not lower the residual: none")
-        return StageFit(
+        return StageResult(
             model=model,
             max_error_percent=tuple(max_e),
             rms_error_percent=tuple(rms_e),
@@ -246,9 +265,10 @@ class StageIdentifier(Estimator):
             creep_time_constants=tuple(taus),
             held_out=tuple(held_out),
             modes=modes,
-            edge_errors=record_edges(data, problem.recs, residuals),
+            edge_errors=records.edges(residuals),
             chosen=chosen,
             message=f"{base_message}; weights, creep and dynamics {fitted}" + "".join(f"; {n}" for n in notes) + ".",
+            estimator=self.clone(),
         )
 
     def _candidates(self, shortest: int) -> tuple[tuple[int, ...], tuple]:
@@ -265,13 +285,14 @@ class StageIdentifier(Estimator):
             )
         return tuple(n for n in orders if SAMPLES_PER_COEFFICIENT * (2 * n + 1) <= shortest), creeps
 
-    def _fit_chosen(self, problem, recs, kinds, dt, order, taus, names):
+    def _fit_chosen(self, problem, records, kinds, dt, order, taus):
         """``(problem, model, offsets)`` of the chosen order and creep on all records (steps 2 and 4)."""
-        everything = [np.ones(u.size, bool) for u, _ in recs]
+        names = (records.input_name, records.output_name)
+        everything = [np.ones(u.size, bool) for u, _ in records.pairs]
         w, c, offsets, ba = problem.solve(order, taus, everything)
         model = problem.build(w, c, offsets[0], taus, ba, *names)
         if model.dynamics is not None and self.model != "preisach":  # step 4: thresholds again, G inverted
-            return self._second_pass(problem, model, recs, kinds, dt, order, taus, names)
+            return self._second_pass(problem, model, records, kinds, dt, order, taus)
         return problem, model, offsets
 
     def _with_modes(self, problem, modes, orders, creeps, order, taus, names, tell=None):
@@ -314,16 +335,15 @@ class StageIdentifier(Estimator):
         )
         return True, order_m, taus_m, held_out, model, offsets, note
 
-    def _first_step(self, data, inputs, outputs, recs, dt):
+    def _first_step(self, records: Records, dt: float):
         """Step 1: the rate-independent hysteresis, the records' starting states and the step-2 problem."""
+        recs = records.recs
         if self.model == "preisach":
-            base = PreisachIdentifier(n_levels=self.n_levels, smoothing=self.smoothing).fit(data, inputs, outputs)
+            base = PreisachIdentifier(n_levels=self.n_levels, smoothing=self.smoothing).fit_records(records)
             kinds = best_start_kinds(base.model, recs, self.initial_state)
             problem = StageProblem(PreisachColumns(base.model, recs, kinds, self.smoothing), dt)
             return problem, kinds, f"Preisach grid of {self.n_levels} levels (rate-independent start {base.summary()})"
-        base = PIIdentifier(
-            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
-        ).fit(data, inputs, outputs)
+        base = self._hysteresis_identifier().fit_records(records)
         kinds = list(base.initial_states)
         return (
             StageProblem(PIColumns(base.model, recs, kinds), dt),
@@ -331,13 +351,18 @@ class StageIdentifier(Estimator):
             f"hysteresis by PIIdentifier ({base.message.rstrip('.')})",
         )
 
-    def _second_pass(self, problem, model, recs, kinds, dt, order, taus, names):
+    def _hysteresis_identifier(self) -> PIIdentifier:
+        """The rate-independent PI identification of steps 1 and 4 (no creep: step 2 fits it)."""
+        return PIIdentifier(
+            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
+        )
+
+    def _second_pass(self, problem, model, records, kinds, dt, order, taus):
         """Thresholds refitted on ``G^-1[y]`` (stable inversion), then step 2 again; kept when
         the residual on the records is smaller (the first pass saw the dynamics as hysteresis)."""
-        unfiltered = [(u, invert_dynamics(model, y)) for u, y in recs]
-        base = PIIdentifier(
-            self.model, n_operators=self.n_operators, initial_state=self.initial_state, input_warp=self.input_warp
-        ).fit(unfiltered)
+        recs, names = records.recs, (records.input_name, records.output_name)
+        unfiltered = records.with_outputs([invert_dynamics(model, y) for _, y in recs])
+        base = self._hysteresis_identifier().fit_records(unfiltered)
         everything = [np.ones(u.size, bool) for u, _ in recs]
         second = StageProblem(PIColumns(base.model, recs, kinds), dt)
         w, c, offsets2, ba = second.solve(order, taus, everything)

@@ -1,39 +1,40 @@
 """The result of :class:`~.identification.StageIdentifier`: the stage model and how it was chosen.
 
-:class:`StageFit` holds the model, each record's errors, offset and starting state, the
+:class:`StageResult` holds the model, each record's errors, offset and starting state, the
 dynamics order and creep chosen (with the held-out score of every candidate), the modes taken
-from the disturbance spectrum and the records whose error sits at an edge; ``summary()`` is
-its text report.
+from the disturbance spectrum, the records whose error sits at an edge and a copy of the
+settings of the fit; ``summary()`` is its text report, ``diagnostics`` a read-only mapping.
+``StageFit`` is its former name.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from ...display import html_repr, short_repr
 from ...validation.edges import EdgeError
+from ..identify.result import RecordsResult
 from . import StageModel
 from .disturbance_modes import DisturbanceMode
 from .dynamics import describe_pole
 
-__all__ = ["StageFit", "SUMMARY_CANDIDATES"]
+__all__ = ["StageResult", "StageFit", "SUMMARY_CANDIDATES"]
 
-#: Held-out candidates that :meth:`StageFit.summary` lists (the best ones; the chosen one too).
+#: Held-out candidates that :meth:`StageResult.summary` lists (the best ones; the chosen one too).
 SUMMARY_CANDIDATES = 3
 
 
-@dataclass(frozen=True)
-class StageFit:
+@dataclass(frozen=True, repr=False)
+class StageResult(RecordsResult):
     """Result of :meth:`StageIdentifier.fit` (no training data kept).
 
     Attributes
     ----------
     model : StageModel
-    max_error_percent, rms_error_percent : tuple of float
-        Per record, in % of that record's output range (own offset and starting state).
-    output_offsets : tuple of float
+    max_error_percent, rms_error_percent, output_offsets
+        As :class:`~stageid.hysteresis.identify.result.RecordsResult`.
     initial_states : tuple of str
     dynamics_order : int
         0: no dynamics.
@@ -46,17 +47,18 @@ class StageFit:
     modes : tuple of DisturbanceMode
         The modes of the dynamics taken from the records' disturbance spectrum (step 4).
     edge_errors : tuple of (int, EdgeError)
-        Records whose error concentrates at their start or end, with the trim that removes it
-        (:mod:`stageid.validation.edges`); the summary prints them.
+        As :class:`~stageid.hysteresis.identify.result.RecordsResult`.
     chosen : (int, tuple of float) or None
         The ``(order, creep time constants)`` that step 3 chose among ``held_out`` (the
         dynamics' order before any modes; the fitted model may have dropped the dynamics).
+    estimator : StageIdentifier or None
+        A copy of the settings of the fit (None for a result built by hand).
+    diagnostics : mapping
+        ``records``, the worst ``max_error_percent`` and ``rms_error_percent``,
+        ``dynamics_order``, ``creep_time_constants``, ``modes`` (their count) and ``message``.
     """
 
     model: StageModel
-    max_error_percent: tuple[float, ...]
-    rms_error_percent: tuple[float, ...]
-    output_offsets: tuple[float, ...]
     initial_states: tuple[str, ...]
     dynamics_order: int
     creep_time_constants: tuple[float, ...]
@@ -65,12 +67,15 @@ class StageFit:
     modes: tuple[DisturbanceMode, ...] = ()
     edge_errors: tuple[tuple[int, EdgeError], ...] = ()
     chosen: tuple[int, tuple[float, ...]] | None = None
+    estimator: Any = None
 
-    def __repr__(self) -> str:
-        return short_repr(self)
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
+    def diagnostic_items(self) -> dict[str, Any]:
+        return {
+            "dynamics_order": self.dynamics_order,
+            "creep_time_constants": self.creep_time_constants,
+            "modes": len(self.modes),
+            "message": self.message,
+        }
 
     def summary(self) -> str:
         """A short text report."""
@@ -81,9 +86,7 @@ class StageFit:
             + (", ".join(f"{t:g} s" for t in self.creep_time_constants) or "none")
             + f"; dynamics order {self.dynamics_order}; fit on {len(self.max_error_percent)} record(s)"
         ]
-        for i, (m, r, s) in enumerate(zip(self.max_error_percent, self.rms_error_percent, self.initial_states)):
-            lines.append(f"  record {i}: max error {m:.3f} % of range, RMS {r:.3f} %, start {s}")
-        lines += [f"  record {i}: {edge.describe()}" for i, edge in self.edge_errors]
+        lines += self.record_lines(self.initial_states)
         if self.model.dynamics is not None:
             # by frequency as the continuous equivalent has it; a pole at z = 0 has none and comes last
             poles = sorted(self.model.dynamics.poles(), key=lambda z: abs(np.log(complex(z))) if z != 0 else np.inf)
@@ -116,3 +119,7 @@ class StageFit:
                 f"    ({len(ranked) - len(shown)} more of {len(ranked)} candidates not shown; the HTML report lists all)"
             )
         return lines
+
+
+#: Former name (kept importable).
+StageFit = StageResult
