@@ -33,9 +33,9 @@ _jit = numba.njit(cache=True, nogil=True, fastmath=True)
 _step = numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
 
 
-def _jit_written_out(fn):
-    """``_jit`` of ``fn`` with its loops over the groups and its register lists written out."""
-    return _jit(written_out(fn, {"GROUPS": GROUPS}))
+def _written_out(jit):
+    """``jit`` of a kernel with its loops over the groups and its register lists written out."""
+    return lambda fn: jit(written_out(fn, {"GROUPS": GROUPS}))
 
 
 @_step
@@ -66,7 +66,7 @@ def _store_scaled(xr, xi, d, r, i, o):  # pragma: no cover - compiled
     vstore(xi, o, vmul(i, vload(d, o)))
 
 
-@_jit_written_out
+@_written_out(_jit)
 def _lane_moments(Z, off, pw, n_pow, S):  # pragma: no cover - compiled
     """``S[e, p, s, l] = sum_j r_j^p Z[e, s, off + l + j]`` for ``p < n_pow[s]``.
 
@@ -197,7 +197,7 @@ def _pivots(dj, diag, floor, ok):  # pragma: no cover - compiled
         dj[l] = 1.0 / dj[l]
 
 
-@_jit_written_out
+@_written_out(_jit)
 def _lane_cholesky(n, Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
     """Lower Cholesky factor in place, ``dinv = 1 / diag(L)``; ``ok`` False where a pivot falls
     below ``floor`` of its diagonal entry (that lane's factor is then garbage).  The lane
@@ -228,7 +228,7 @@ def _lane_cholesky(n, Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
                 _store_scaled(xr, xi, dj, r[g], im[g], WIDTH * g)
 
 
-@_jit_written_out
+@_written_out(_step)
 def _substitution(n, q, Lr, Li, dinv, Xr, Xi, Tr, Ti, backwards):  # pragma: no cover - compiled
     """``T = L^-1 X`` per lane, rows in order (``backwards`` None), or ``T = L^-H X``, rows from
     the last (``backwards`` True); numba compiles each form without the other's branches."""
@@ -260,7 +260,7 @@ def _lane_solve(n, q, Lr, Li, dinv, Br, Bi, Tr, Ti):  # pragma: no cover - compi
     _substitution(n, q, Lr, Li, dinv, Tr, Ti, Tr, Ti, True)
 
 
-@_jit_written_out
+@_written_out(_jit)
 def _lane_inverse_diagonal(n, Lr, Li, dinv, col, xr, xi, acc):  # pragma: no cover - compiled
     """``acc = [(L L^H)^-1]_cc = |L^-1 e_c|^2`` per lane, ``c = col`` (the lane groups at once)."""
     acc[:] = 0.0
