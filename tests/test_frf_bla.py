@@ -156,9 +156,9 @@ def test_identification_weights_by_the_total_variance_when_the_frd_has_it(tmp_pa
     frd = read_frd(tmp_path / "bla.csv")
     np.testing.assert_allclose(frd.total_std, res.frd.total_std, rtol=1e-12)
     np.testing.assert_allclose(frd.std, res.frd.std, rtol=1e-12)
-    total = FRDIdentification(order=2, dt=DT).fit(frd)
+    total = FRDIdentification(order=2, sample_time=DT).fit(frd)
     noise_only = FrequencyResponse(frd.freqs, frd.response, frd.std, None, frd.inputs, frd.outputs)
-    noise = FRDIdentification(order=2, dt=DT).fit(noise_only)
+    noise = FRDIdentification(order=2, sample_time=DT).fit(noise_only)
     assert total.weight == "total-std" and noise.weight == "std"
     # the fit's uncertainty then covers the nonlinear scatter: far wider than from the noise alone
     f = frd.freqs[::10]

@@ -97,7 +97,7 @@ def test_identify_frd_discrete_continuous_and_report(tmp_path, record):
     fitted = load_model(tmp_path / "m.json")
     # the file holds the API's fit of the same FRF, and that fit recovers G: 0.075 % of the peak
     # seen, from data 0.65 % off (Welch noise and leakage)
-    api = FRDIdentification(order=2, dt=DT).fit(frd).model
+    api = FRDIdentification(order=2, sample_time=DT).fit(frd).model
     np.testing.assert_allclose(fitted.frequency_response(f), api.frequency_response(f), rtol=1e-10, atol=0)
     assert np.max(np.abs(fitted.frequency_response(f) - G.frequency_response(f))) < 3e-3 * peak
     rc, _, err = run(
@@ -116,7 +116,7 @@ def test_identify_frd_discrete_continuous_and_report(tmp_path, record):
     assert json.loads((tmp_path / "c.json").read_text())["dt"] is None
     band = f <= 100.0
     continuous = load_model(tmp_path / "c.json").frequency_response(f[band])
-    api = FRDIdentification(order="auto", fmax=100.0).fit(frd).model
+    api = FRDIdentification(order="auto", band=(None, 100.0)).fit(frd).model
     np.testing.assert_allclose(continuous, api.frequency_response(f[band]), rtol=1e-10, atol=0)
     assert np.max(np.abs(continuous - G.frequency_response(f[band]))) < 5e-3 * peak  # 0.15 % seen
 

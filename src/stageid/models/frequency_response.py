@@ -245,7 +245,7 @@ def read_frd(path: str | os.PathLike[str], response: str | None = None) -> Frequ
         except DataError as exc:
             raise DataError(f"file '{os.path.basename(os.fspath(path))}': {exc}") from None
     if response is not None:
-        raise DataError(f"--response '{response}' selects a response of a .mat file; got '{os.fspath(path)}'.")
+        raise DataError(f"`response={response!r}` selects a response of a .mat file; got '{os.fspath(path)}'.")
     # f_hz is the axis; the reader wants a time step, which a frequency table does not have
     table = read_table(path, ts=1.0)
     return frd_from_columns({n: table.column(n) for n in table.names}, os.path.basename(os.fspath(path)))
