@@ -273,7 +273,7 @@ class FRDIdentification(Estimator):
         if dt is not None and frd.freqs[-1] > 0.5 / dt * (1 + 1e-9):
             raise DataError(
                 f"the response reaches {frd.freqs[-1]:g} Hz, above the Nyquist frequency {0.5 / dt:g} Hz "
-                "of `sample_time`; end the band below it (`band=`) or give a smaller `sample_time=`."
+                "of the sample time; end the band below it (`band=`) or give a smaller `sample_time=`."
             )
         G = frd.response
         # lines with next to no weight (unexcited, noise only) must not set the scale or the error
