@@ -193,14 +193,14 @@ class FrequencyResponse:
 
         ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data;
         ``fit_band`` greys the frequencies a fit left out; the units label the magnitude axes
-        (see :func:`stageid.plots.frf.bode_figure`).  ``ax``: draw in these matplotlib axes
-        instead of a new figure: magnitude, phase (and coherence) rows by input columns, as a
-        2-D array or each input's panels in turn.  Returns the matplotlib figure (imported
-        lazily; use the Agg backend off-screen).
+        (see :func:`stageid.plots.frf.frf_figure`).  ``ax``: draw in these matplotlib axes
+        instead of a new figure: magnitude and phase rows per output (and a coherence row) by
+        input columns, as a 2-D array or each input's panels in turn.  Returns the matplotlib
+        figure (imported lazily; use the Agg backend off-screen).
         """
-        from ..plots.frf import bode_figure
+        from ..plots.frf import frf_figure
 
-        return bode_figure(self, model, fit_band, input_units, output_units, ax)
+        return frf_figure(self, model, fit_band, input_units, output_units, ax)
 
 
 def frd_columns(frd: FrequencyResponse) -> dict[str, np.ndarray]:
