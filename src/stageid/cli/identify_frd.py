@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from .._errors import StageIdError
@@ -93,19 +95,9 @@ def frd_command(
     if dt is not None and continuous:
         raise click.UsageError("give either --dt or --continuous, not both.")
     uncertainty.check_nyquist(dt)
-    if dt is not None and fmax is not None and fmax > 0.5 / dt * (1 + 1e-12):
-        raise click.BadParameter(
-            f"must be at most the Nyquist frequency {0.5 / dt:g} Hz of --dt; got {fmax:g}.", param_hint="--fmax"
-        )
-    from ..frf import FRDIdentification, read_frd
+    from ..frf import read_frd
 
-    estimator = FRDIdentification(
-        order=_order_or_auto(order, "--order"),
-        sample_time=dt,
-        band=None if fmin is None and fmax is None else (fmin, fmax),
-        weight=weight,
-        delay=_order_or_auto(delay, "--delay"),
-    )
+    estimator = _estimator(order, dt, fmin, fmax, weight, delay)
     frd = read_frd(frf_path, response)
     try:
         result = estimator.fit(frd)
@@ -134,6 +126,23 @@ def frd_command(
     say(f"model written to {output}")
     if uncertainty_line:
         say(uncertainty_line)
+
+
+def _estimator(order: str, dt: float | None, fmin: float | None, fmax: float | None, weight: str, delay: str) -> Any:
+    """The fit the options ask for (a band end above Nyquist refused in the options' words)."""
+    from ..frf import FRDIdentification
+
+    if dt is not None and fmax is not None and fmax > 0.5 / dt * (1 + 1e-12):
+        raise click.BadParameter(
+            f"must be at most the Nyquist frequency {0.5 / dt:g} Hz of --dt; got {fmax:g}.", param_hint="--fmax"
+        )
+    return FRDIdentification(
+        order=_order_or_auto(order, "--order"),
+        sample_time=dt,
+        band=None if fmin is None and fmax is None else (fmin, fmax),
+        weight=weight,
+        delay=_order_or_auto(delay, "--delay"),
+    )
 
 
 #: How the summary names the weightings whose source matters to the user.

@@ -96,7 +96,7 @@ def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CTy
     consts += snap_consts
     if limits is not None:
         consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
-        # the rebuild runs in double also with --float: the duality sums cancel (terms up to
+        # the rebuild runs in double even in single-precision code: the duality sums cancel (terms up to
         # sum|w| / w0 times the output), which cost single precision up to 6e-4 of the drive range
         rebuild, suffix = CType("double"), "_d" if ctype.is_float else ""
         tables = {"r": model.r, "w": model.weights, "W": np.cumsum(model.weights), "W_inv": np.cumsum(inv.weights)}

@@ -11,7 +11,7 @@ Forward (``stageid simulate``)
     minimal ``G`` runs in balanced coordinates instead (rounded polynomial coefficients move slow
     poles, see :mod:`.c_lti`).
 
-Inverse (``--inverse``)
+Inverse (``inverse=True``)
     Only the causal part has a real-time form: the streaming compensator of the stage's
     rate-independent hysteresis (:func:`.c_hysteresis.inverse_fields`).  ``stageid compensate``
     inverts the dynamics by stable inversion over the whole reference (preview of future
