@@ -30,7 +30,8 @@ module                    what it holds
 :class:`FrequencyResponse`, ``read_frd`` and ``frd_columns`` live in
 :mod:`stageid.models.frequency_response` (a model object that every package's results return);
 they are re-exported here, and ``stageid.frf.frd`` still imports as that module.  The FRF's
-Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`.
+Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`, drawn by the one
+Bode figure of :mod:`stageid.plots.bode`.
 """
 
 from ..runtime.lazy import lazy_names
