@@ -68,7 +68,7 @@ def frd():
     sd = 0.02 * np.abs(Gt).max() * np.ones(Gt.shape)
     rng = np.random.default_rng(0)
     data = FrequencyResponse(f, Gt + sd * (rng.standard_normal(Gt.shape) + 1j * rng.standard_normal(Gt.shape)), sd)
-    return lambda: FRDIdentification(order="auto", dt=g.dt).fit(data)
+    return lambda: FRDIdentification(order="auto", sample_time=g.dt).fit(data)
 
 
 def band_of(res):

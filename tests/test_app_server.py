@@ -466,3 +466,17 @@ def test_hysteresis_loops_of_a_long_fast_record_show_the_last_cycles(client, fol
     loops = state["result"]["figures"]["loops"]
     # three panels: the last cycles' loops, their error, the whole record's error envelope
     assert 'id="axes_3"' in loops and 'id="axes_4"' not in loops
+
+
+def test_the_frd_fit_python_uses_the_fit_s_parameter_names():
+    import warnings
+
+    from stageid.app.estimate import _frd_settings
+    from stageid.frf import FRDIdentification
+
+    text = _frd_settings({"order": "6", "dt": "4e-05", "fmin": "", "fmax": "2000", "delay": "auto"})
+    assert text == "order=6, sample_time=4e-05, band=(None, 2000), delay='auto'"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no former name in the code the board shows
+        est = eval(f"FRDIdentification({text})", {"FRDIdentification": FRDIdentification})
+    assert est.band == (None, 2000) and est.sample_time == 4e-05

@@ -222,11 +222,11 @@ def test_frd_fit_that_misses_the_flexure_warns_and_a_good_auto_fit_does_not():
 
     frd = _flexure_frd()
     with pytest.warns(FitWarning, match=r"order-2 model \(as given\) misses the response by up to") as caught:
-        low = FRDIdentification(order=2, dt=None).fit(frd)
+        low = FRDIdentification(order=2, sample_time=None).fit(frd)
     assert low.max_error > 0.1 and caught[0].filename == __file__  # pointed at the caller's line
     with warnings.catch_warnings():
         warnings.simplefilter("error", FitWarning)
-        auto = FRDIdentification(order="auto", dt=None).fit(frd)
+        auto = FRDIdentification(order="auto", sample_time=None).fit(frd)
     assert auto.max_error < 0.01 and auto.order >= 6
 
 
@@ -241,7 +241,7 @@ def test_frd_fit_within_the_datas_noise_does_not_warn():
     G, std = noisy(frd.response, seed=3, level=0.2)  # misses of up to ~60 % of a peak, all noise
     with warnings.catch_warnings():
         warnings.simplefilter("error", FitWarning)
-        res = FRDIdentification(order=6, dt=None).fit(
+        res = FRDIdentification(order=6, sample_time=None).fit(
             FrequencyResponse(frd.freqs, G, std, None, frd.inputs, frd.outputs)
         )
     assert res.max_error > 0.1  # against the noisy lines; the warning looks past 3 std of them

@@ -91,7 +91,7 @@ CASES = {
         lambda cls: cls(_CONTROLLER, orders=1, structure="full", band=(1.0, 100.0)),
         _closed_loop_data,
     ),
-    "FRDIdentification": (lambda cls: cls(order=2, dt=0.01), _siso_data),
+    "FRDIdentification": (lambda cls: cls(order=2, sample_time=0.01), _siso_data),
     "PreisachIdentifier": (lambda cls: cls(n_levels=8), _hysteresis_data),
     "DirectPredictionError": (lambda cls: cls(order=4, horizon=10, references=["r1", "r2"]), _unknown_controller_data),
     "TwoStageProjection": (

@@ -24,6 +24,7 @@ from stageid.cli.main import main
 from stageid.data import read_table, write_csv
 from stageid.export import export_c, export_mat
 from stageid.export.host import build, find_compiler
+from stageid.export.matlab import mat_variables
 from stageid.hysteresis import Compensator, CreepTerm, ModifiedPIModel, PIModel, PreisachModel
 from stageid.hysteresis.stage import StageModel
 from stageid.hysteresis.stage.dynamics import transfer_to_statespace, zoh_resonance
@@ -286,3 +287,26 @@ def test_creep_runs_at_the_dynamics_sample_time(run_c):
     model = StageModel(replace(model.hysteresis, creep=off), model.dynamics)
     u = drive(5, 3000)
     assert_double(run_c(model, u), model.simulate(u)[:, 0])
+
+
+@pytest.mark.parametrize(
+    ("settings", "parameter"),
+    [
+        ({"method": "zoh"}, "`method=`"),
+        ({"inverse": True, "dt": 0.001}, "`dt=`"),
+        ({"limits": (-1.0, 1.0)}, "`inverse=True`"),
+        ({"dt": 0.5}, "`dt=0.5`"),
+    ],
+)
+def test_refusals_name_the_parameter_as_in_a_call_not_a_flag(settings, parameter):
+    model = StageModel(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]), random_dynamics(np.random.default_rng(3), 2))
+    with pytest.raises(ModelError) as err:
+        export_c(model, "s", **settings)
+    assert parameter in str(err.value) and "--" not in str(err.value)
+
+
+def test_matlab_export_of_a_stage_names_the_parameters_it_refuses():
+    model = StageModel(PIModel(r=[0.0, 1.0], weights=[1.0, 0.5]), random_dynamics(np.random.default_rng(3), 2))
+    with pytest.raises(ModelError) as err:
+        mat_variables(model, dt=0.1)
+    assert "`dt=`/`method=` discretise a continuous LTI model" in str(err.value) and "--" not in str(err.value)

@@ -156,9 +156,9 @@ def test_identification_weights_by_the_total_variance_when_the_frd_has_it(tmp_pa
     frd = read_frd(tmp_path / "bla.csv")
     np.testing.assert_allclose(frd.total_std, res.frd.total_std, rtol=1e-12)
     np.testing.assert_allclose(frd.std, res.frd.std, rtol=1e-12)
-    total = FRDIdentification(order=2, dt=DT).fit(frd)
+    total = FRDIdentification(order=2, sample_time=DT).fit(frd)
     noise_only = FrequencyResponse(frd.freqs, frd.response, frd.std, None, frd.inputs, frd.outputs)
-    noise = FRDIdentification(order=2, dt=DT).fit(noise_only)
+    noise = FRDIdentification(order=2, sample_time=DT).fit(noise_only)
     assert total.weight == "total-std" and noise.weight == "std"
     # the fit's uncertainty then covers the nonlinear scatter: far wider than from the noise alone
     f = frd.freqs[::10]
@@ -205,7 +205,7 @@ def test_lpm_variant_removes_the_transient_of_two_period_records_from_rest():
     expected = np.sqrt(L * 0.01**2 / 2 / 16) / U
     assert np.median(lpm.frd.std[:, 0, 0] / expected) == pytest.approx(1.0, abs=0.2)
     assert not lpm.odd.detected[0] and not lpm.even.detected[0]
-    assert "transient removed by the local polynomial method" in lpm.summary()[0]
+    assert "transient removed by the local polynomial method" in lpm.summary().splitlines()[0]
     # a cubic is still told from noise, and as odd
     cubic = bla_frf(list(realisations(lambda u: u + 0.3 * u**3, 8, 0.01, seed=2, extra_periods=-2)), transient="lpm")
     assert cubic.odd.detected[0] and not cubic.even.detected[0]
@@ -236,3 +236,14 @@ def test_reading_an_npz_record_primes_the_heap_as_reading_a_table_does(tmp_path)
     env = {k: v for k, v in os.environ.items() if k != "STAGEID_HEAP_PRIMING"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
     assert out.strip() == "False"  # already primed by the read (always False off glibc)
+
+
+def test_result_has_the_model_a_text_summary_and_read_only_diagnostics():
+    res = bla_frf(realisations(lambda u: u + 0.3 * u**2, 3, 0.01, seed=4), transient_periods=1)
+    assert isinstance(res.model, FrequencyResponse)
+    assert res.frd is res.model  # the former name still reads the BLA
+    text = res.summary()
+    assert isinstance(text, str) and text.splitlines()[0].startswith("bla: 3 realisation(s)")
+    assert dict(res.diagnostics) == {"n_realisations": 3, "n_periods": P, "transient_periods": 1, "transient": "drop"}
+    with pytest.raises(TypeError):
+        res.diagnostics["n_periods"] = 1

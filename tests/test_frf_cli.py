@@ -10,7 +10,7 @@ import pytest
 
 from stageid.cli.main import main
 from stageid.data import Experiment, write_csv
-from stageid.frf import FRDIdentification, read_frd, welch_frf
+from stageid.frf import FRDIdentification, FrequencyResponse, read_frd, welch_frf
 from stageid.models import StateSpaceModel, load_model
 
 DT = 1e-3
@@ -97,7 +97,7 @@ def test_identify_frd_discrete_continuous_and_report(tmp_path, record):
     fitted = load_model(tmp_path / "m.json")
     # the file holds the API's fit of the same FRF, and that fit recovers G: 0.075 % of the peak
     # seen, from data 0.65 % off (Welch noise and leakage)
-    api = FRDIdentification(order=2, dt=DT).fit(frd).model
+    api = FRDIdentification(order=2, sample_time=DT).fit(frd).model
     np.testing.assert_allclose(fitted.frequency_response(f), api.frequency_response(f), rtol=1e-10, atol=0)
     assert np.max(np.abs(fitted.frequency_response(f) - G.frequency_response(f))) < 3e-3 * peak
     rc, _, err = run(
@@ -116,7 +116,7 @@ def test_identify_frd_discrete_continuous_and_report(tmp_path, record):
     assert json.loads((tmp_path / "c.json").read_text())["dt"] is None
     band = f <= 100.0
     continuous = load_model(tmp_path / "c.json").frequency_response(f[band])
-    api = FRDIdentification(order="auto", fmax=100.0).fit(frd).model
+    api = FRDIdentification(order="auto", band=(None, 100.0)).fit(frd).model
     np.testing.assert_allclose(continuous, api.frequency_response(f[band]), rtol=1e-10, atol=0)
     assert np.max(np.abs(continuous - G.frequency_response(f[band]))) < 5e-3 * peak  # 0.15 % seen
 
@@ -219,3 +219,13 @@ def test_bad_output_refused_before_any_reading(tmp_path, monkeypatch, args, bad,
     rc, out, err = run(*args, "-o", bad)
     assert rc == 2 and fragment in err and err.count("\n") == 1, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_identify_frd_words_the_fit_s_refusals_in_its_own_flags(tmp_path):
+    f = np.linspace(1.0, 400.0, 200)
+    write_csv(tmp_path / "frf.csv", FrequencyResponse(f, G.frequency_response(f)).to_columns(), dt=None)
+    # the response reaches 400 Hz, above the Nyquist frequency of --dt 0.01
+    rc, _, err = run("identify", "frd", tmp_path / "frf.csv", "--order", "2", "--dt", "0.01", "-o", tmp_path / "m.json")
+    assert rc == 2 and "end the band below it (--fmax) or give a smaller --dt." in err and "`" not in err
+    rc, _, err = run("identify", "frd", tmp_path / "frf.csv", "--dt", "0.01", "--fmax", "80", "-o", tmp_path / "m.json")
+    assert rc == 2 and "--fmax" in err and "must be at most the Nyquist frequency 50 Hz of --dt; got 80." in err

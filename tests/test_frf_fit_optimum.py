@@ -23,7 +23,7 @@ from test_frf_identify import flexure_stage  # noqa: E402
 
 def _fit(draw):
     frd = FrequencyResponse(draw.freqs, draw.response, draw.std)
-    return FRDIdentification(order=draw.order, dt=draw.dt).fit(frd).model.frequency_response(draw.freqs)
+    return FRDIdentification(order=draw.order, sample_time=draw.dt).fit(frd).model.frequency_response(draw.freqs)
 
 
 @pytest.mark.parametrize(
@@ -72,7 +72,7 @@ def test_zero_std_means_an_exact_response(tmp_path):
     # a computed response written with std 0 once made every weight NaN (an internal error)
     draw = rec_frd.flexure(3, 0.0)
     frd = FrequencyResponse(draw.freqs, draw.response, np.zeros(draw.response.shape))
-    res = FRDIdentification(order=draw.order, dt=draw.dt).fit(frd)
+    res = FRDIdentification(order=draw.order, sample_time=draw.dt).fit(frd)
     assert res.weight == "std"
     assert res.max_error < 1e-8  # noise-free: exact to rounding
 

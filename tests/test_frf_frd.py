@@ -72,8 +72,20 @@ def test_python_control_round_trip():
 
 def test_figure_has_std_band_and_coherence_panel():
     fig = _frd().plot()
-    assert len(fig.axes) == 9  # magnitude, phase, coherence for each of 3 inputs
-    assert any(len(ax.collections) for ax in fig.axes[:3])  # the shaded +-2 std band
+    # per input column: magnitude and phase of each of the 2 outputs, then the coherence row
+    assert len(fig.axes) == 15
+    assert all(len(ax.collections) for ax in fig.axes[:3])  # the shaded +-2 std band of each entry
+    assert fig.axes[-1].get_ylabel() == "coherence [-]" and len(fig.axes[-1].lines) == 2
+
+
+def test_the_measured_response_is_drawn_by_the_one_bode_figure(monkeypatch):
+    from stageid.plots import bode, lti
+    from stageid.plots import frf as frf_plots
+
+    assert lti.bode_figure is bode.bode_figure and frf_plots.bode_figure is bode.bode_figure
+    calls = []
+    monkeypatch.setattr(frf_plots, "bode_figure", lambda *args, **kwargs: calls.append(kwargs) or "figure")
+    assert _frd().plot() == "figure" and calls[0]["band_label"] == "+-2 std" and calls[0]["coherence"] is not None
 
 
 @pytest.mark.parametrize(

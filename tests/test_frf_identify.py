@@ -50,7 +50,9 @@ def test_flexure_stage_within_one_percent(seed, dt):
     g = flexure_stage() if dt is None else flexure_stage().c2d(dt)
     G = g.frequency_response(F)
     Gn, std = noisy(G, seed)
-    res = FRDIdentification(order=6, dt=dt).fit(FrequencyResponse(F, Gn, std, inputs=g.inputs, outputs=g.outputs))
+    res = FRDIdentification(order=6, sample_time=dt).fit(
+        FrequencyResponse(F, Gn, std, inputs=g.inputs, outputs=g.outputs)
+    )
     assert res.model.is_stable() and res.model.dt == dt
     assert res.model.inputs == ("X", "Y") and res.model.outputs == ("x", "y")
     err = np.max(np.abs(res.model.frequency_response(F) - G), axis=(0, 1)) / np.max(np.abs(G), axis=(0, 1))
@@ -60,7 +62,7 @@ def test_flexure_stage_within_one_percent(seed, dt):
 def test_automatic_order_finds_the_three_modes():
     g = flexure_stage()
     Gn, std = noisy(g.frequency_response(F), 0)
-    res = FRDIdentification(order="auto", dt=None).fit(FrequencyResponse(F, Gn, std))
+    res = FRDIdentification(order="auto", sample_time=None).fit(FrequencyResponse(F, Gn, std))
     assert res.order == 6
     assert res.order_errors[0][0] == 1
 
@@ -72,7 +74,7 @@ def test_input_delay_recovered():
     g = StateSpaceModel(d.A, d.B, d.C, [[0.05, 0.0], [0.0, -0.03]], dt=1e-4)
     z = np.exp(2j * np.pi * F * 1e-4)
     G = g.frequency_response(F) * (z**-5)[:, None, None]  # five samples of input delay
-    res = FRDIdentification(order=6, dt=1e-4, delay="auto").fit(FrequencyResponse(F, G))
+    res = FRDIdentification(order=6, sample_time=1e-4, delay="auto").fit(FrequencyResponse(F, G))
     assert res.delay == 5
     held_out = dict(res.delay_errors)
     assert min(held_out[4], held_out[6]) > 1e6 * held_out[5]  # the record decides, not the rounding
@@ -84,8 +86,10 @@ def test_weights_and_settings_checked():
     frd = FrequencyResponse(F, flexure_stage().frequency_response(F))
     with pytest.raises(ParameterError, match="`delay` of FRDIdentification must be 0 for a continuous model"):
         FRDIdentification(order=6, delay=2).fit(frd)
-    with pytest.raises(ParameterError, match="`fmax` of FRDIdentification must be at most the Nyquist"):
-        FRDIdentification(order=6, dt=1e-3, fmax=900.0).fit(frd)
+    with pytest.raises(ParameterError, match="`band` of FRDIdentification must be a band up to the Nyquist"):
+        FRDIdentification(order=6, sample_time=1e-3, band=(None, 900.0)).fit(frd)
+    with pytest.raises(ParameterError, match=r"`band` of FRDIdentification must be None or \(f_low, f_high\)"):
+        FRDIdentification(order=6, band=(900.0, 10.0)).fit(frd)
     with pytest.raises(ValueError, match="needs std_"):
         FRDIdentification(order=6, weight="std").fit(frd)
 
@@ -100,8 +104,39 @@ def _afm():
 
 def test_afm_stage_order_16_within_three_percent():
     frd = _afm()
-    res = FRDIdentification(order=16, dt=4e-5, fmin=1.0, fmax=2000.0).fit(frd)
-    raw = FRDIdentification(order=16, dt=4e-5, fmin=1.0, fmax=2000.0, max_iter=0).fit(frd)
+    res = FRDIdentification(order=16, sample_time=4e-5, band=(1.0, 2000.0)).fit(frd)
+    raw = FRDIdentification(order=16, sample_time=4e-5, band=(1.0, 2000.0), max_iter=0).fit(frd)
     assert res.model.is_stable()
     assert res.max_error <= 0.03, res.max_error  # the target on the measured stage
     assert res.max_error < 0.7 * raw.max_error  # the output-error refinement is what gets there
+
+
+def test_former_names_dt_fmin_fmax_still_fit_the_same_with_a_deprecation_warning():
+    frd = FrequencyResponse(F, flexure_stage().frequency_response(F))
+    with pytest.warns(DeprecationWarning) as caught:
+        old = FRDIdentification(order=6, dt=1e-4, fmax=2000.0)
+    assert sorted(str(w.message).split(" of ")[0] for w in caught) == ["`dt`", "`fmax`"]
+    new = FRDIdentification(order=6, sample_time=1e-4, band=(None, 2000.0))
+    assert old.get_params() == new.get_params()
+    a, b = old.fit(frd), new.fit(frd)
+    assert a.band == b.band and a.band[1] <= 2000.0  # one end given: the other is the response's own
+    np.testing.assert_array_equal(a.model.frequency_response(F[:50]), b.model.frequency_response(F[:50]))
+
+
+def test_result_summary_diagnostics_and_settings_copy():
+    frd = FrequencyResponse(F, flexure_stage().frequency_response(F))
+    est = FRDIdentification(order=6, sample_time=1e-4, band=(10.0, None))
+    res = est.fit(frd)
+    est.order = 2  # changing the estimator afterwards changes nothing in the result
+    assert res.estimator.order == 6 and res.estimator.band == (10.0, None)
+    assert dict(res.diagnostics) == {
+        "order": 6,
+        "delay": 0,
+        "weight": res.weight,
+        "band": res.band,
+        "max_error": res.max_error,
+    }
+    with pytest.raises(TypeError):
+        res.diagnostics["order"] = 3
+    text = res.summary()
+    assert text.startswith("FRD fit: 6 states (discrete, sample time 0.0001 s)") and "  band: (" in text

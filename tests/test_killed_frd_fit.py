@@ -29,6 +29,6 @@ def test_the_largest_order_the_band_supports():
     g = StateSpaceModel([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=1e-3)
     f = np.linspace(10.0, 400.0, 10)
     frd = FrequencyResponse(f, g.frequency_response(f))
-    FRDIdentification(order=7, dt=1e-3).fit(frd)
+    FRDIdentification(order=7, sample_time=1e-3).fit(frd)
     with pytest.raises(DataError, match="at most order 7 here"):
-        FRDIdentification(order=8, dt=1e-3).fit(frd)
+        FRDIdentification(order=8, sample_time=1e-3).fit(frd)

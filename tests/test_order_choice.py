@@ -112,7 +112,7 @@ def test_frd_auto_on_the_afm_stage_goes_past_the_low_order_plateau():
     afm = FrequencyResponse(np.asarray(frf.freqs_Hz), np.asarray(frf.G_uz2stage), inputs=("uz",), outputs=("stage",))
     with warnings.catch_warnings():
         warnings.simplefilter("error", FitWarning)  # a good order needs no warning
-        res = FRDIdentification(order="auto", dt=4e-5).fit(afm)
+        res = FRDIdentification(order="auto", sample_time=4e-5).fit(afm)
     held_out = dict(res.order_errors)
     assert res.order >= 12 and res.max_error <= 0.05, (res.order, res.max_error)  # order 3 missed by 21 %
     assert held_out[3] > 3 * held_out[res.order]  # the higher order predicts held-out lines much better

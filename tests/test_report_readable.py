@@ -80,7 +80,7 @@ def test_the_frf_caption_promises_exactly_what_the_figure_draws(std, coherence):
     fig = frd.plot(model=_resonance(), fit_band=(2.0, 50.0), input_units=("V",), output_units=("um",))
     legends = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
     caption = frf_caption(frd, fit_band=(2.0, 50.0))
-    assert ("y +-2 std" in legends) == std and ("shaded: +-2 std" in caption) == std
+    assert ("data +-2 std" in legends) == std and ("shaded: +-2 std" in caption) == std
     assert ("no band: the data give no std" in caption) == (not std)
     assert ("y coherence" in legends) == coherence and ("bottom: multiple coherence" in caption) == coherence
     assert ("no coherence panel" in caption) == (not coherence)

@@ -40,7 +40,7 @@ def test_fit_bands_are_calibrated(with_std):
     Gt = g.frequency_response(fe)
     err, std = [], []
     for seed in SEEDS:
-        res = FRDIdentification(order=4, dt=g.dt).fit(noisy_frf(g, f, seed, with_std))
+        res = FRDIdentification(order=4, sample_time=g.dt).fit(noisy_frf(g, f, seed, with_std))
         assert res.covariance.noise_source == ("std" if with_std else "residual")
         fr = res.response_uncertainty(fe)
         err.append(np.abs(fr.response - Gt))
@@ -69,14 +69,14 @@ def test_continuous_fit_and_delay():
     z = np.exp(2j * np.pi * f * gd.dt)
     data = noisy_frf(gd, f, 1)
     delayed = FrequencyResponse(f, data.response * (z**-2)[:, None, None], data.std)
-    res_d = FRDIdentification(order=4, dt=gd.dt, delay=2).fit(delayed)
+    res_d = FRDIdentification(order=4, sample_time=gd.dt, delay=2).fit(delayed)
     fr_d = res_d.response_uncertainty(fe[fe <= 250])
     assert res_d.delay == 2 and np.all(fr_d.std > 0)
 
 
 def test_grid_is_checked():
     g = two_mode_plant()
-    res = FRDIdentification(order=4, dt=g.dt).fit(noisy_frf(g, np.linspace(1, 200, 300), 0))
+    res = FRDIdentification(order=4, sample_time=g.dt).fit(noisy_frf(g, np.linspace(1, 200, 300), 0))
     for bad in ([np.nan], [10.0, 300.0], [-1.0], []):
         with pytest.raises(DataError):
             res.response_uncertainty(bad)

@@ -23,14 +23,14 @@ path = folder / "afm_piezo_stage_frf" / "FRF_data_current_stage2.mat" if folder 
 if path is not None and path.exists():
     frf = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)["modelFit"].frf
     data = FrequencyResponse(np.asarray(frf.freqs_Hz), np.asarray(frf.G_uz2stage), inputs=("uz",), outputs=("stage",))
-    fit = FRDIdentification(order=16, dt=4e-5, fmin=1.0, fmax=2000.0)
+    fit = FRDIdentification(order=16, sample_time=4e-5, band=(1.0, 2000.0))
     unit = "stage / uz"
 else:
     print("AFM record absent: fitting the P-558 reference stage instead")
     g = plant_module("p558").model()
     freqs = np.logspace(0, 2.3, 200)
     data = FrequencyResponse(freqs, g.frequency_response(freqs)[:, :1, :1], inputs=("Z",), outputs=("z",))
-    fit = FRDIdentification(order=7, dt=g.dt)
+    fit = FRDIdentification(order=7, sample_time=g.dt)
     unit = "um/um"
 
 result = fit.fit(data)

@@ -31,14 +31,14 @@ def main(max_order: int) -> None:
     frd = afm()
     warnings.simplefilter("ignore")
     t = time.perf_counter()
-    auto = FRDIdentification(order="auto", dt=4e-5).fit(frd)
+    auto = FRDIdentification(order="auto", sample_time=4e-5).fit(frd)
     print(f"order='auto': order {auto.order}, max error {100 * auto.max_error:.2f} % ({time.perf_counter() - t:.0f} s)")
     # the whole table: the scan without its early end (rule 1), for the record
     order_choice.PATIENCE = max_order
-    held_out = dict(FRDIdentification(order="auto", dt=4e-5, max_order=max_order).fit(frd).order_errors)
+    held_out = dict(FRDIdentification(order="auto", sample_time=4e-5, max_order=max_order).fit(frd).order_errors)
     print("\n| order | held-out RMS (scan) | max error of the fit |\n|---|---|---|")
     for n in range(1, max_order + 1):
-        fit = FRDIdentification(order=n, dt=4e-5).fit(frd)
+        fit = FRDIdentification(order=n, sample_time=4e-5).fit(frd)
         print(f"| {n} | {held_out.get(n, float('nan')):.4g} | {100 * fit.max_error:.2f} % |", flush=True)
 
 

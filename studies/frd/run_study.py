@@ -39,13 +39,13 @@ def p558_section(lines: list[str]) -> None:
     lines.append(f"| Welch H1 itself (the data) | - | {_fmt(welch_err)} | - |")
     for order in (6, 10, 15, "auto"):
         t = time.perf_counter()
-        res = FRDIdentification(order=order, dt=truth.dt, fmax=100.0).fit(frd)
+        res = FRDIdentification(order=order, sample_time=truth.dt, band=(None, 100.0)).fit(frd)
         err = np.max(np.abs(res.model.frequency_response(band.freqs) - G), axis=(0, 1)) / peak
         lines.append(
             f"| Welch -> identify frd, order {order} | {res.order} | {_fmt(err)} | {time.perf_counter() - t:.1f} |"
         )
     t = time.perf_counter()
-    res = FRDIdentification(order=15, dt=truth.dt).fit(frd)  # whole band: the std weights mute 100-250 Hz
+    res = FRDIdentification(order=15, sample_time=truth.dt).fit(frd)  # whole band: the std weights mute 100-250 Hz
     err = np.max(np.abs(res.model.frequency_response(band.freqs) - G), axis=(0, 1)) / peak
     lines.append(
         f"| Welch (whole band, std weights) -> identify frd, order 15 | 15 | {_fmt(err)} | {time.perf_counter() - t:.1f} |"
@@ -56,7 +56,7 @@ def p558_section(lines: list[str]) -> None:
     lines.append(f"| LPM itself (the data, 1-100 Hz) | - | {_fmt(lpm_err)} | - |")
     for order in (10, 15, "auto"):
         t = time.perf_counter()
-        res = FRDIdentification(order=order, dt=truth.dt).fit(lpm)
+        res = FRDIdentification(order=order, sample_time=truth.dt).fit(lpm)
         err = np.max(np.abs(res.model.frequency_response(band.freqs) - G), axis=(0, 1)) / peak
         lines.append(
             f"| LPM -> identify frd, order {order} | {res.order} | {_fmt(err)} | {time.perf_counter() - t:.1f} |"
@@ -90,7 +90,9 @@ def afm_section(lines: list[str], out: Path) -> None:
                 row, found = [], set()
                 for n in orders:
                     try:
-                        res = FRDIdentification(order=n, dt=4e-5, fmin=lo, fmax=hi, delay=delay, max_iter=it).fit(frd)
+                        res = FRDIdentification(order=n, sample_time=4e-5, band=(lo, hi), delay=delay, max_iter=it).fit(
+                            frd
+                        )
                         row.append(f"{100 * res.max_error:.2f} %")
                         found.add(res.delay)
                         curves.setdefault((lo, hi, str(delay), label), []).append((n, res.max_error))
@@ -99,7 +101,7 @@ def afm_section(lines: list[str], out: Path) -> None:
                 d = str(delay) if delay == 0 else f"auto ({','.join(map(str, sorted(found)))})"
                 lines.append(f"| {lo:g}-{hi:g} Hz | {d} | {label} | " + " | ".join(row) + " |")
     lines.append("")
-    res = FRDIdentification(order=16, dt=4e-5, fmin=1.0, fmax=2000.0).fit(frd)
+    res = FRDIdentification(order=16, sample_time=4e-5, band=(1.0, 2000.0)).fit(frd)
     fig = frd.band(1.0, 2000.0).plot(model=res.model)
     fig.savefig(out / "afm_order16_bode.png", dpi=110)
     _error_figure(curves, out / "afm_error_vs_order.png")

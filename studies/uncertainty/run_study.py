@@ -133,7 +133,7 @@ def frd_case(seed: int, with_std: bool = True):
     rng = np.random.default_rng([seed, 7])
     noise = sd * (rng.standard_normal(Gt.shape) + 1j * rng.standard_normal(Gt.shape)) / np.sqrt(2)
     t = time.perf_counter()
-    res = FRDIdentification(order=4, dt=g.dt).fit(FrequencyResponse(f, Gt + noise, sd if with_std else None))
+    res = FRDIdentification(order=4, sample_time=g.dt).fit(FrequencyResponse(f, Gt + noise, sd if with_std else None))
     return g, res, time.perf_counter() - t
 
 

@@ -160,10 +160,9 @@ def frd_fit(session: Session, data: str, options: dict[str, Any], out: str) -> A
         args.append("--continuous")
     _optional(args, options, [("dt", "--dt"), ("fmin", "--fmin"), ("fmax", "--fmax"), ("delay", "--delay")])
     args += ["-o", f"{out}.json", "--uncertainty", f"{out}_bands.csv"]
-    settings = {k: _literal(v) for k, v in options.items() if k in ("order", "dt", "fmin", "fmax", "delay") and v}
     python = (
         "from stageid.frf import FRDIdentification, read_frd\nfrom stageid.models import save_model\n"
-        f"result = FRDIdentification({', '.join(f'{k}={v}' for k, v in settings.items())})"
+        f"result = FRDIdentification({_frd_settings(options)})"
         f".fit(read_frd({d['file']!r}))\nsave_model(result.model, {out + '.json'!r})"
     )
 
@@ -266,6 +265,17 @@ def closedloop(session: Session, data: str, options: dict[str, Any], out: str) -
         return {"model": made["model"], "figures": {"bode": model_bode(made["object"])}}
 
     return args, python, then
+
+
+def _frd_settings(options: dict[str, Any]) -> str:
+    """The keywords of ``FRDIdentification`` for the form's settings (``dt``, ``fmin``, ``fmax`` as
+    ``sample_time`` and ``band``)."""
+    given = {k: _literal(v) for k, v in options.items() if k in ("order", "dt", "fmin", "fmax", "delay") and v}
+    settings = {"order": given.get("order"), "sample_time": given.get("dt")}
+    if "fmin" in given or "fmax" in given:
+        settings["band"] = f"({given.get('fmin', 'None')}, {given.get('fmax', 'None')})"
+    settings["delay"] = given.get("delay")
+    return ", ".join(f"{k}={v}" for k, v in settings.items() if v is not None)
 
 
 def _literal(text: Any) -> str:

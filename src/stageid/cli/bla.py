@@ -34,7 +34,7 @@ def bla_command(
     if transient == "lpm" and transient_periods is not None:
         raise click.UsageError("--transient-periods applies to --transient drop; got --transient lpm.")
     result = estimate_bla(paths, inputs, outputs, ts, periods, transient_periods, design_path, transient or "drop")
-    for line in result.summary():
+    for line in result.summary().splitlines():
         say(line)
     write_table_output(output, result.to_columns())
     say(f"best linear approximation written to {output}")

@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
+from .._errors import StageIdError
 from ._common import command_line, say
+from .flags import as_flags
 from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
+
+#: The fit's parameters as this command's options (its band's upper end is what a user lowers).
+_OPTIONS = {"sample_time": "dt", "band": "fmax"}
 
 
 def _order_or_auto(text: str, option: str) -> int | str:
@@ -89,18 +96,14 @@ def frd_command(
     if dt is not None and continuous:
         raise click.UsageError("give either --dt or --continuous, not both.")
     uncertainty.check_nyquist(dt)
-    from ..frf import FRDIdentification, read_frd
+    from ..frf import read_frd
 
-    estimator = FRDIdentification(
-        order=_order_or_auto(order, "--order"),
-        dt=dt,
-        fmin=fmin,
-        fmax=fmax,
-        weight=weight,
-        delay=_order_or_auto(delay, "--delay"),
-    )
+    estimator = _estimator(order, dt, fmin, fmax, weight, delay)
     frd = read_frd(frf_path, response)
-    result = estimator.fit(frd)
+    try:
+        result = estimator.fit(frd)
+    except StageIdError as exc:
+        raise type(exc)(as_flags(str(exc), _OPTIONS)) from None
     write_model_output(output, result.model)
     uncertainty_line = uncertainty.write(result, result.band, result.model.dt)
     if report_dir is not None:
@@ -124,6 +127,23 @@ def frd_command(
     say(f"model written to {output}")
     if uncertainty_line:
         say(uncertainty_line)
+
+
+def _estimator(order: str, dt: float | None, fmin: float | None, fmax: float | None, weight: str, delay: str) -> Any:
+    """The fit the options ask for (a band end above Nyquist refused in the options' words)."""
+    from ..frf import FRDIdentification
+
+    if dt is not None and fmax is not None and fmax > 0.5 / dt * (1 + 1e-12):
+        raise click.BadParameter(
+            f"must be at most the Nyquist frequency {0.5 / dt:g} Hz of --dt; got {fmax:g}.", param_hint="--fmax"
+        )
+    return FRDIdentification(
+        order=_order_or_auto(order, "--order"),
+        sample_time=dt,
+        band=None if fmin is None and fmax is None else (fmin, fmax),
+        weight=weight,
+        delay=_order_or_auto(delay, "--delay"),
+    )
 
 
 #: How the summary names the weightings whose source matters to the user.

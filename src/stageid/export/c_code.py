@@ -88,70 +88,68 @@ def _is_stage(model: Any) -> bool:
     return isinstance(model, StageModel)
 
 
-def _stage_fields(
-    model: Any,
-    prefix: str,
-    ctype: CType,
-    inverse: bool,
-    dt: float | None,
-    method: str | None,
-    limits: tuple[float, float] | None,
-) -> dict[str, str]:
+@dataclass(frozen=True)
+class _Request:
+    """What ``export_c`` was asked for, beside the model."""
+
+    prefix: str
+    ctype: CType
+    inverse: bool
+    dt: float | None
+    method: str | None
+    limits: tuple[float, float] | None
+
+
+def _stage_fields(model: Any, r: _Request) -> dict[str, str]:
     from .c_stage import stage_fields, stage_inverse_fields
 
-    if method is not None:
-        raise ModelError("--method discretises a continuous LTI model; a stage model is discrete already.")
-    if inverse:
-        if dt is not None:
-            raise ModelError("--dt applies to the forward model; the compensator of a stage takes no --dt.")
-        return stage_inverse_fields(model, ctype, prefix, limits)
-    if limits is not None:
-        raise ModelError("drive limits apply to the compensator (--inverse); got the forward model.")
-    return stage_fields(model, ctype, prefix, dt)
+    if r.method is not None:
+        raise ModelError("`method=` discretises a continuous LTI model; a stage model is discrete already.")
+    if r.inverse:
+        if r.dt is not None:
+            raise ModelError("`dt=` applies to the forward model; the compensator of a stage takes no sample time.")
+        return stage_inverse_fields(model, r.ctype, r.prefix, r.limits)
+    if r.limits is not None:
+        raise ModelError("drive limits apply to the compensator (`inverse=True`); got the forward model.")
+    return stage_fields(model, r.ctype, r.prefix, r.dt)
 
 
-def _model_fields(
-    model: Any,
-    prefix: str,
-    ctype: CType,
-    inverse: bool,
-    dt: float | None,
-    method: str | None,
-    limits: tuple[float, float] | None,
-) -> dict[str, str]:
-    """The template fields of ``model`` from the module that knows its kind (see the table above)."""
+def _hysteresis_fields(model: Any, r: _Request) -> dict[str, str]:
     from .c_hysteresis import forward_fields, inverse_fields
+
+    if r.method is not None:
+        raise ModelError("`method=` discretises a continuous LTI model; got a hysteresis model.")
+    if r.limits is not None and not r.inverse:
+        raise ModelError("drive limits apply to the compensator (`inverse=True`); got the forward model.")
+    if r.inverse:
+        return inverse_fields(model, r.ctype, r.prefix, r.limits)
+    if r.dt is not None and model.creep is None:
+        raise ModelError("`dt=` sets the creep lags' sample time; this hysteresis model has no creep term.")
+    return forward_fields(model, r.ctype, r.prefix, r.dt)
+
+
+def _model_fields(model: Any, r: _Request) -> dict[str, str]:
+    """The template fields of ``model`` from the module that knows its kind (see the table above)."""
     from .c_lti import lti_fields
 
     if _is_lti(model):
-        if inverse:
+        if r.inverse:
             raise ModelError(
                 "`inverse=True` needs a hysteresis model (PI or modified PI); an LTI model has no exported causal inverse."
             )
-        if limits is not None:
+        if r.limits is not None:
             raise ModelError(
                 "drive limits apply to the compensator of a hysteresis model (`inverse=True`); got an LTI model."
             )
-        fields = lti_fields(discretised(model, dt, method), ctype)
-    elif _is_hysteresis(model):
-        if method is not None:
-            raise ModelError("`method=` discretises a continuous LTI model; got a hysteresis model.")
-        if limits is not None and not inverse:
-            raise ModelError("drive limits apply to the compensator (`inverse=True`); got the forward model.")
-        if inverse:
-            fields = inverse_fields(model, ctype, prefix, limits)
-        else:
-            if dt is not None and model.creep is None:
-                raise ModelError("`dt=` sets the creep lags' sample time; this hysteresis model has no creep term.")
-            fields = forward_fields(model, ctype, prefix, dt)
-    elif _is_stage(model):
-        fields = _stage_fields(model, prefix, ctype, inverse, dt, method, limits)
-    else:
-        raise ModelError(
-            f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model, a PI / modified-PI "
-            "hysteresis model or a stage model."
-        )
-    return fields
+        return lti_fields(discretised(model, r.dt, r.method), r.ctype)
+    if _is_hysteresis(model):
+        return _hysteresis_fields(model, r)
+    if _is_stage(model):
+        return _stage_fields(model, r)
+    raise ModelError(
+        f"cannot export a {type(model).__name__} to C; expected a stageid.lti/1 model, a PI / modified-PI "
+        "hysteresis model or a stage model."
+    )
 
 
 def export_c(
@@ -212,7 +210,7 @@ def export_c(
     """
     prefix = check_prefix(prefix)
     ctype = CType("float" if single else "double")
-    fields = _model_fields(model, prefix, ctype, inverse, dt, method, limits)
+    fields = _model_fields(model, _Request(prefix, ctype, inverse, dt, method, limits))
     fields = {"includes": "", "helpers": "", "constants": "", **fields}
     fields.update(prefix=prefix, ctype=ctype.name, source=comment(source))
     for key in ("input_names", "output_names", "summary", "title"):

@@ -25,13 +25,12 @@ threshold is not 0 (no linear operator to fold into; the package iterates there 
 from __future__ import annotations
 
 from dataclasses import replace
-from string import Template
 from typing import Any
 
 import numpy as np
 
 from .._errors import ModelError
-from .c_writer import CType, array, define, literal
+from .c_writer import CType, array, define, fill, literal
 
 __all__ = ["creep_inverse_fields", "check_creep_inverse"]
 
@@ -113,10 +112,6 @@ _STEP_TAIL = """\
     }"""
 
 
-def _sub(text: str, ctype: CType, prefix: str, **extra: str) -> str:
-    return Template(text).substitute(T=ctype.name, f="f" if ctype.is_float else "", p=prefix, **extra)
-
-
 def check_creep_inverse(hysteresis: Any) -> None:
     """Refuse, in one line, a creep model whose compensator has no C form (module notes)."""
     from ..hysteresis import PIModel
@@ -187,7 +182,7 @@ def creep_inverse_fields(
     fields = inverse_fields(folded, ctype, p, limits if limits is not None else hysteresis.input_limits)
     clipped = (limits if limits is not None else hysteresis.input_limits) is not None
     body = fields["step_body"]
-    target = _sub(_TARGET, ctype, p)
+    target = fill(_TARGET, ctype, p)
     if body.count(target) != 1:  # the inverse's step names its target once; anything else is a bug here
         raise AssertionError("the PI compensator's step does not read its target as expected")
     body = body.replace(target, target.replace("in[0]", "y_creep"))
@@ -202,23 +197,23 @@ def creep_inverse_fields(
     init = [f"    s->u_prev = {literal(u0, ctype)};", f"    s->creep_fresh = {int(creep.state is None)};"]
     lags = np.full(creep.n_lags, u0) if creep.state is None else creep.state
     init += [f"    s->lag[{j}] = {literal(v, ctype)};" for j, v in enumerate(lags)]
-    head = _sub(_STEP_HEAD, ctype, p)
+    head = fill(_STEP_HEAD, ctype, p)
     helpers = ""
     if creep.state is None:
         G = float(np.sum(creep.weights))
         consts += [define(p, "CREEP_G_STATIC", G, CType("double"))]
         consts += [define(p, "CREEP_EXCESS0", u0 - float(hysteresis.to_operator_input(u0)), CType("double"))]
         consts += _first_tables(hysteresis, creep, g, p, clipped)
-        head = _sub(_STEP_FRESH, ctype, p) + head
-        helpers = "\n" + _sub(
-            _FIRST, ctype, p, clip=_sub(_FIRST_CLIP, ctype, p) if clipped else "",
-            replay=_sub(_FIRST_REPLAY, ctype, p) if clipped else "",
+        head = fill(_STEP_FRESH, ctype, p) + head
+        helpers = "\n" + fill(
+            _FIRST, ctype, p, clip=fill(_FIRST_CLIP, ctype, p) if clipped else "",
+            replay=fill(_FIRST_REPLAY, ctype, p) if clipped else "",
         )  # fmt: skip
     fields["members"] += "\n" + "\n".join(members)
     fields["init_body"] += "\n" + "\n".join(init)
     fields["constants"] += "\n".join(consts) + "\n"
     fields["helpers"] += helpers
-    fields["step_body"] = head + body + "\n" + _sub(_STEP_TAIL, ctype, p)
+    fields["step_body"] = head + body + "\n" + fill(_STEP_TAIL, ctype, p)
     fields["summary"] += (
         f" Creep: {creep.n_lags} first-order lags at {dt!r} s folded into the linear operator "
         f"(instantaneous gain {g:.6g}, static gain {float(np.sum(creep.weights)):.6g})."

@@ -26,13 +26,10 @@ order); the modified-PI compensator agrees to rounding because both return the e
 
 from __future__ import annotations
 
-from string import Template
 from typing import Any
 
-import numpy as np
-
 from .._errors import ModelError
-from .c_writer import CType, array, define, literal
+from .c_writer import CType, array, define, fill, init_lines
 
 __all__ = ["forward_fields", "inverse_fields"]
 
@@ -83,10 +80,6 @@ _CREEP = """\
 """
 
 
-def _sub(text: str, ctype: CType, prefix: str) -> str:
-    return Template(text).substitute(T=ctype.name, f="f" if ctype.is_float else "", p=prefix)
-
-
 def _table(prefix: str, name: str, values: object, ctype: CType, size: str) -> str:
     return f"static const {ctype.name} {prefix}_{name}[{size}] = {array(values, ctype)};"
 
@@ -98,10 +91,6 @@ def _names(model: Any) -> dict[str, str]:
         "input_names": model.inputs[0],
         "output_names": model.outputs[0],
     }
-
-
-def _init_lines(name: str, values: object, ctype: CType) -> list[str]:
-    return [f"    s->{name}[{i}] = {literal(v, ctype)};" for i, v in enumerate(np.asarray(values).reshape(-1))]
 
 
 def forward_fields(
@@ -126,7 +115,7 @@ def forward_fields(
         consts.append(define(p, "WARP_SCALE", model.warp_scale, ctype))
         consts.append(define(p, "WARP_QR", model.input_warp * model.warp_scale, ctype))
     members = [f"    {ctype.name} z[{m}];  /* operator outputs */"]
-    init = _init_lines("z", model.state.z, ctype)
+    init = init_lines("z", model.state.z, ctype)
     body = [f"    const {ctype.name} u = in[0];", f"    const {ctype.name} d = u - {p}_INPUT_OFFSET;"]
     body += [f"    {ctype.name} x = d;", f"    {ctype.name} y = 0.0{'f' if ctype.is_float else ''};", "    int i;"]
     creep = model.creep
@@ -145,12 +134,12 @@ def forward_fields(
             init += [f"    s->lag[{j}] = 0.0{'f' if ctype.is_float else ''};" for j in range(creep.n_lags)]
         else:
             init.append("    s->creep_at_rest = 0;")
-            init += _init_lines("lag", poles * creep.state, ctype)
+            init += init_lines("lag", poles * creep.state, ctype)
     if warp:
-        body.append(_sub(_WARP, ctype, p).rstrip("\n"))
-    body.append(_sub(_PLAY_LOOP if classical else _CP_LOOP, ctype, p).rstrip("\n"))
+        body.append(fill(_WARP, ctype, p).rstrip("\n"))
+    body.append(fill(_PLAY_LOOP if classical else _CP_LOOP, ctype, p).rstrip("\n"))
     if creep is not None:
-        body.append(_sub(_CREEP, ctype, p).rstrip("\n"))
+        body.append(fill(_CREEP, ctype, p).rstrip("\n"))
     body.append(f"    {output} = y + {p}_OUTPUT_OFFSET;")
     rate = "" if creep is None else f", creep lags at dt = {float(dt or creep.sample_time)!r} s"
     return {
@@ -160,7 +149,7 @@ def forward_fields(
         "members": "\n".join(members),
         "init_doc": "to the model's stored operator state, where `stageid simulate` starts",
         "constants": "\n".join(consts) + "\n",
-        "helpers": _sub(_MINMAX, ctype, p),
+        "helpers": fill(_MINMAX, ctype, p),
         "init_body": "\n".join(init),
         "step_body": "\n".join(body),
     }
@@ -181,7 +170,8 @@ def inverse_fields(model: Any, ctype: CType, prefix: str, limits: tuple[float, f
             "(its drive depends on the sampling rate: use `stageid compensate`)."
         )
     comp = Compensator(model, limits)  # the package's own checks: invertible, limits well formed
-    from .c_inverse import modified_pi_inverse, pi_inverse_fields
+    from .c_inverse import modified_pi_inverse
+    from .c_pi_inverse import pi_inverse_fields
 
     fields = (pi_inverse_fields if isinstance(model, PIModel) else modified_pi_inverse)(
         model, comp.limits, ctype, prefix
@@ -191,5 +181,5 @@ def inverse_fields(model: Any, ctype: CType, prefix: str, limits: tuple[float, f
     fields["input_names"], fields["output_names"] = model.outputs[0] + " (desired output)", model.inputs[0] + " (drive)"
     fields["summary"] = f"{model.n_operators} operators, {lim}."
     fields["init_doc"] = "to the model's stored operator state, where `stageid compensate` starts"
-    fields["helpers"] = _sub(_MINMAX, ctype, prefix) + fields.get("helpers", "")
+    fields["helpers"] = fill(_MINMAX, ctype, prefix) + fields.get("helpers", "")
     return fields

@@ -1,16 +1,9 @@
-"""C99 streaming compensators: closed-form inverse PI and per-sample modified-PI inversion.
+"""C99 streaming compensator of a modified PI model: per-sample inversion.
 
 What the C computes is what :class:`stageid.hysteresis.Compensator` computes (see
-:mod:`stageid.export.c_hysteresis`):
-
-* classical PI -- the inverse PI model of :func:`stageid.hysteresis.pi_inverse` (thresholds
-  ``r'``, weights ``w'``, state ``z'``), step for step; a drive outside the limits is clipped
-  and the state rebuilt: forward state ``z_j = W'_j z'_j + sum_{i>j} w'_i z'_i``, one play
-  update at the clipped drive, back with ``z'_j = W_j z_j + sum_{i>j} w_i z_i``
-  (``W = cumsum(w)``).  This rebuild runs in double precision also in single-precision code:
-  its sums cancel;
-* modified PI -- ``F(x) = sum_i w_i CP_i(x; z_i)`` is piecewise linear and nondecreasing with
-  slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
+:mod:`stageid.export.c_hysteresis`; the classical PI model's closed-form inverse is
+:mod:`.c_pi_inverse`, re-exported here): ``F(x) = sum_i w_i CP_i(x; z_i)`` is piecewise linear and nondecreasing with
+slope at least ``smin``; each sample solves ``F(x) = y_ref - y0`` for its exact root, as the
   package does (:mod:`stageid.hysteresis.inverse`), by its own iteration: Newton steps from the
   last input with the slope on the side of travel (kept from the last sample; at a reversal
   the slope of the zero-width operators), except that a move whose first Newton step would
@@ -32,68 +25,16 @@ In single precision the passes return ``F(x) - target`` by compensated sums
 
 from __future__ import annotations
 
-from string import Template
 from typing import Any
 
 import numpy as np
 
 from . import c_float_sums as fs
+from .c_pi_inverse import operator_limits, pi_inverse_fields
 from .c_reversal_curve import reversal_curve
-from .c_writer import CType, const_tables, define, limit_define, literal
+from .c_writer import CType, const_tables, define, fill, init_lines, limit_define, literal
 
 __all__ = ["pi_inverse_fields", "modified_pi_inverse"]
-
-_PI_STEP = """\
-    const ${T} target = in[0] - ${p}_OUTPUT_OFFSET;
-    ${T} zn[${p}_N_OPERATORS];
-    ${T} x = 0.0${f};
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {  /* the inverse PI model: a play sum */
-        const ${T} v = ${p}_max(target - ${p}_r_inv[i], ${p}_min(target + ${p}_r_inv[i], s->z[i]));
-        zn[i] = v;
-        x += ${p}_w_inv[i] * v;
-    }
-${clip}    for (i = 0; i < ${p}_N_OPERATORS; ++i) s->z[i] = zn[i];
-    out[0] = x + ${p}_INPUT_OFFSET;
-"""
-
-_PI_CLIP = """\
-    if (x < ${p}_LOW || x > ${p}_HIGH) {  /* clipped drive: rebuild the state from it */
-        x = ${p}_min(${p}_max(x, ${p}_LOW), ${p}_HIGH);
-        ${p}_rebase(s->z, x, zn);
-    }
-"""
-
-_PI_REBASE = """\
-/* Dual state: out_j = W_j z_j + sum_{i>j} w_i z_i (W = cumsum(w)), summed from the last operator. */
-static void ${p}_dual(const ${R} *W, const ${R} *w, const ${R} *z, ${R} *out)
-{
-    ${R} tail = 0.0;
-    int i;
-    for (i = ${p}_N_OPERATORS - 1; i >= 0; --i) {
-        const ${R} wz = w[i] * z[i];
-        out[i] = W[i] * z[i] + tail;
-        tail = i == ${p}_N_OPERATORS - 1 ? wz : tail + wz;
-    }
-}
-
-/* The inverse state after the forward model is driven to x from the inverse state z_inv
-   (the package's rebuild: forward state by duality, one play update at x, back by duality). */
-static void ${p}_rebase(const ${T} *z_inv, ${T} x, ${T} *out)
-{
-    ${R} zi[${p}_N_OPERATORS], zf[${p}_N_OPERATORS], zo[${p}_N_OPERATORS];
-    int i;
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) zi[i] = z_inv[i];
-    ${p}_dual(${p}_W_inv${d}, ${p}_w_inv${d}, zi, zf);
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) {  /* play update at x: min(x + r, z), then max(x - r, .) */
-        const ${R} hi = x + ${p}_r${d}[i], lo = x - ${p}_r${d}[i];
-        const ${R} v = zf[i] < hi ? zf[i] : hi;
-        zf[i] = v > lo ? v : lo;
-    }
-    ${p}_dual(${p}_W${d}, ${p}_w${d}, zf, zo);
-    for (i = 0; i < ${p}_N_OPERATORS; ++i) out[i] = (${T})zo[i];
-}
-"""
 
 _CP_PASS = """\
 /* F(x) = sum_i w_i CP_i(x; z_i) for x ${side} the state's input, the operator outputs there (zn)
@@ -291,56 +232,6 @@ _UNWARP = """\
 """
 
 
-def _sub(text: str, ctype: CType, prefix: str, **extra: str) -> str:
-    f = "f" if ctype.is_float else ""
-    return Template(text).substitute(T=ctype.name, f=f, fn=f, p=prefix, **extra)
-
-
-def _limits(model: Any, limits: tuple[float, float] | None) -> tuple[float, float]:
-    if limits is None:
-        return -np.inf, np.inf
-    return float(model.to_operator_input(limits[0])), float(model.to_operator_input(limits[1]))
-
-
-def _init(name: str, values: object, ctype: CType) -> list[str]:
-    return [f"    s->{name}[{i}] = {literal(v, ctype)};" for i, v in enumerate(np.asarray(values).reshape(-1))]
-
-
-def pi_inverse_fields(model: Any, limits: tuple[float, float] | None, ctype: CType, prefix: str) -> dict[str, str]:
-    """Fields of the closed-form inverse of a classical PI model (drive ``limits`` or None)."""
-    from ..hysteresis import pi_inverse
-
-    p, inv = prefix, pi_inverse(model)
-    lo, hi = _limits(model, limits)
-    consts = [f"#define {p}_N_OPERATORS {model.n_operators}"]
-    consts += [define(p, "INPUT_OFFSET", model.input_offset, ctype)]
-    consts += [define(p, "OUTPUT_OFFSET", model.output_offset, ctype)]
-    consts += const_tables(p, ctype, r_inv=inv.r, w_inv=inv.weights)
-    clip, helpers = "", ""
-    snap_consts, snap = fs.pinned(limits, ctype, p)
-    consts += snap_consts
-    if limits is not None:
-        consts += [limit_define(p, "LOW", lo, ctype), limit_define(p, "HIGH", hi, ctype)]
-        # the rebuild runs in double also with --float: the duality sums cancel (terms up to
-        # sum|w| / w0 times the output), which cost single precision up to 6e-4 of the drive range
-        rebuild, suffix = CType("double"), "_d" if ctype.is_float else ""
-        tables = {"r": model.r, "w": model.weights, "W": np.cumsum(model.weights), "W_inv": np.cumsum(inv.weights)}
-        if ctype.is_float:
-            tables["w_inv"] = inv.weights
-        consts += const_tables(p, rebuild, **{name + suffix: v for name, v in tables.items()})
-        clip = _sub(_PI_CLIP, ctype, p)
-        helpers = "\n" + _sub(_PI_REBASE, ctype, p, R="double", d=suffix)
-    return {
-        "title": "compensator of a classical Prandtl-Ishlinskii model (closed-form inverse)",
-        "members": f"    {ctype.name} z[{model.n_operators}];  /* operator outputs of the inverse PI model */",
-        "constants": "\n".join(consts) + "\n",
-        "helpers": helpers,
-        "includes": "#include <math.h>\n" if limits is not None and not (np.isfinite(lo) and np.isfinite(hi)) else "",
-        "init_body": "\n".join(_init("z", inv.state.z, ctype)),
-        "step_body": (_sub(_PI_STEP, ctype, p, clip=clip) + snap).rstrip("\n"),
-    }
-
-
 FLOAT_ROUNDING = 0.5  # float: solve and stop to this many u (|x| + R_MAX) in x (a few ulps)
 TURNS = 16  # turns the modified-PI compensator keeps for its first iterates (return-point memory)
 PAD = 2  # operators per 16-byte vector of doubles (SSE2 / NEON, the baseline targets)
@@ -366,14 +257,14 @@ def _cp_functions(ctype: CType, prefix: str, consistent: bool, turn_guess: str) 
             else "The stored state need not be the outputs at x: both branches enter, as in eq. 3."
         )
         fields = {**d, "new_output": d["lean" if consistent else "general"], "name": name, "why": why}
-        filled = {k: _sub(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
+        filled = {k: fill(v, ctype, prefix) for k, v in fields.items() if k not in ("lean", "general")}
         if ctype.is_float:
             passes.append(fs.float_pass(filled, ctype, prefix))
         else:
-            passes.append(_sub(_CP_PASS, ctype, prefix, **filled))
-    move = "\n".join(passes) + "\n" + _sub(_MOVE, ctype, prefix, **frag)
-    guess = _sub(_LONG_MOVE, ctype, prefix) if turn_guess else ""
-    return move + "\n" + turn_guess + "\n" + _sub(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
+            passes.append(fill(_CP_PASS, ctype, prefix, **filled))
+    move = "\n".join(passes) + "\n" + fill(_MOVE, ctype, prefix, **frag)
+    guess = fill(_LONG_MOVE, ctype, prefix) if turn_guess else ""
+    return move + "\n" + turn_guess + "\n" + fill(_CP_SOLVE, ctype, prefix, guess=guess, **frag)
 
 
 def _consistent(model: Any, keep: np.ndarray) -> bool:
@@ -396,7 +287,7 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     consts += [define(p, "WARP_4Q", 4.0 * q, ctype), define(p, "WARP_UP", 1.0 + q, ctype)]
     consts += [define(p, "WARP_DOWN", -1.0 + q, ctype), define(p, "WARP_UP_SLOPE", 1.0 + 2.0 * q, ctype)]
     consts += [define(p, "WARP_DOWN_SLOPE", 1.0 - 2.0 * q, ctype)]
-    drive = _sub(_UNWARP, ctype, p)
+    drive = fill(_UNWARP, ctype, p)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
         consts += [define(p, "DRIVE_LOW", limits[0], ctype), define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
@@ -412,6 +303,23 @@ def _turn_slope(model: Any) -> float:
     r, rc, ra, rb = model.coupled_play_thresholds()
     zero_width = (r == 0.0) & (rc == 0.0) & (ra == 0.0) & (rb == 0.0)
     return max(float(np.sum(model.weights[zero_width])), model.min_slope())
+
+
+def _init_body(model: Any, z: np.ndarray, consistent: bool, ctype: CType, p: str) -> str:
+    """The init body: the operator outputs ``z``, the input, F there and the first turn."""
+    return "\n".join(
+        init_lines("z", z, ctype)
+        + [
+            f"    s->x = {literal(model.state.x, ctype)};",
+            f"    s->fresh = {int(not consistent)};",
+            "    s->rising = 1;",
+            f"    {{\n        {ctype.name} scratch[{p}_N_OPERATORS];\n" + fs.init_f(ctype, p) + "    }",
+            "    s->x_turn[0] = s->x;",
+            "    s->f_turn[0] = s->f;",
+            "    s->turns = 1;",
+            "    s->oldest = 0;",
+        ]
+    )
 
 
 def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: CType, prefix: str) -> dict[str, str]:
@@ -430,7 +338,7 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
     from ..hysteresis.models.common import residual_bound
 
     p = prefix
-    lo, hi = _limits(model, limits)
+    lo, hi = operator_limits(model, limits)
     keep = model.weights != 0.0
     m = int(np.count_nonzero(keep))
     block = fs.LANES if ctype.is_float else PAD  # operators per vector of the passes
@@ -476,18 +384,6 @@ def modified_pi_inverse(model: Any, limits: tuple[float, float] | None, ctype: C
         "constants": "\n".join(consts + warp_consts) + "\n",
         "helpers": helpers + "\n" + _cp_functions(ctype, p, consistent, curve[1] if curve else ""),
         "includes": "#include <math.h>\n" if uses_math else "",
-        "init_body": "\n".join(
-            _init("z", pad(model.state.z), ctype)
-            + [
-                f"    s->x = {literal(model.state.x, ctype)};",
-                f"    s->fresh = {int(not consistent)};",
-                "    s->rising = 1;",
-                f"    {{\n        {T} scratch[{p}_N_OPERATORS];\n" + fs.init_f(ctype, p) + "    }",
-                "    s->x_turn[0] = s->x;",
-                "    s->f_turn[0] = s->f;",
-                "    s->turns = 1;",
-                "    s->oldest = 0;",
-            ]
-        ),
-        "step_body": _sub(_CP_STEP, ctype, p, drive=drive, **frag).rstrip("\n"),
+        "init_body": _init_body(model, pad(model.state.z), consistent, ctype, p),
+        "step_body": fill(_CP_STEP, ctype, p, drive=drive, **frag).rstrip("\n"),
     }

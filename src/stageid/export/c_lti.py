@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
+from ..models.conversions import strip_leading_zeros
 from .c_writer import CType, literal
 
 __all__ = ["lti_fields", "weighted_sum", "balanced_realisation", "balanced_blocks"]
@@ -81,9 +82,9 @@ def _statespace(model: Any, ctype: CType) -> dict[str, str]:
 
 def _entry(num: object, den: object) -> tuple[np.ndarray, np.ndarray]:
     """Normalised, equal-length b and a of one entry, as lfilter uses them."""
-    den = np.trim_zeros(np.asarray(den, dtype=float), "f")
-    num = np.trim_zeros(np.asarray(num, dtype=float), "f")
-    if den.size == 0:
+    den = strip_leading_zeros(np.asarray(den, dtype=float).reshape(-1))
+    num = strip_leading_zeros(np.asarray(num, dtype=float).reshape(-1))
+    if not np.any(den):
         raise ModelError("a transfer entry has an all-zero denominator; cannot export it.")
     num = np.concatenate([np.zeros(max(den.size - num.size, 0)), num])
     size = max(num.size, den.size)

@@ -11,7 +11,7 @@ Forward (``stageid simulate``)
     minimal ``G`` runs in balanced coordinates instead (rounded polynomial coefficients move slow
     poles, see :mod:`.c_lti`).
 
-Inverse (``--inverse``)
+Inverse (``inverse=True``)
     Only the causal part has a real-time form: the streaming compensator of the stage's
     rate-independent hysteresis (:func:`.c_hysteresis.inverse_fields`).  ``stageid compensate``
     inverts the dynamics by stable inversion over the whole reference (preview of future
@@ -54,11 +54,11 @@ def _check_kind(model: Any) -> None:
 
 def _lag_dt(model: Any, dt: float | None) -> float | None:
     """The sample time the creep lags run at: the stage's (its dynamics', as
-    :meth:`StageModel.simulate` runs them), which ``--dt`` may only repeat."""
+    :meth:`StageModel.simulate` runs them), which ``dt`` may only repeat."""
     if dt is None or model.dt is None:
         return model.dt if dt is None else dt
     if not np.isclose(dt, model.dt, rtol=1e-9, atol=0.0):
-        raise ModelError(f"the stage model runs at dt = {model.dt!r} s; --dt {dt!r} differs (it cannot be resampled).")
+        raise ModelError(f"the stage model runs at dt = {model.dt!r} s; `dt={dt!r}` differs (it cannot be resampled).")
     return model.dt
 
 

@@ -34,6 +34,8 @@ __all__ = [
     "const_tables",
     "check_prefix",
     "comment",
+    "fill",
+    "init_lines",
     "render_pair",
     "HEADER",
     "SOURCE",
@@ -116,6 +118,19 @@ def const_tables(prefix: str, ctype: CType, **tables: object) -> list[str]:
         f"static const {ctype.name} {prefix}_{name}[{prefix}_N_OPERATORS] = {array(v, ctype)};"
         for name, v in tables.items()
     ]
+
+
+def fill(text: str, ctype: CType, prefix: str, **extra: str) -> str:
+    """A C template filled in: ``${T}`` the C type, ``${f}`` and ``${fn}`` the suffix of float
+    literals and math functions ("f" in single precision, else ""), ``${p}`` the prefix, and
+    ``extra``."""
+    f = "f" if ctype.is_float else ""
+    return Template(text).substitute(T=ctype.name, f=f, fn=f, p=prefix, **extra)
+
+
+def init_lines(name: str, values: object, ctype: CType) -> list[str]:
+    """The lines of an init body that set ``s->name[i]`` to each of ``values``."""
+    return [f"    s->{name}[{i}] = {literal(v, ctype)};" for i, v in enumerate(np.asarray(values).reshape(-1))]
 
 
 def check_prefix(prefix: object) -> str:

@@ -101,7 +101,7 @@ def mat_variables(model: Any, dt: float | None = None, method: str | None = None
             out["num"], out["den"] = _polynomials(model, "num"), _polynomials(model, "den")
     elif isinstance(model, StageModel):
         if method is not None or dt is not None:
-            raise ModelError("--dt/--method discretise a continuous LTI model; a stage model is discrete already.")
+            raise ModelError("`dt=`/`method=` discretise a continuous LTI model; a stage model is discrete already.")
         out = stage_variables(model)
     elif isinstance(model, (PIModel, ModifiedPIModel)):
         if method is not None or dt is not None:

@@ -15,6 +15,7 @@ module                    what it holds
 :mod:`.bla`               best linear approximation over random-phase realisations: noise and
                           total (noise + nonlinear) variance, odd/even detection-line levels
 :mod:`.bla_result`        :class:`BLAResult`, the detection-line levels
+:mod:`.periods`           the periods of a periodic record and its transient ones
 :mod:`.bla_lpm`           transient removal of periodic records by a local polynomial (robust LPM)
 :mod:`.bla_figure`        the BLA's classic figure: BLA magnitude, noise and total distortion level
 :mod:`.identification`    :class:`FRDIdentification`: subspace + weighted output-error fit
@@ -29,7 +30,8 @@ module                    what it holds
 :class:`FrequencyResponse`, ``read_frd`` and ``frd_columns`` live in
 :mod:`stageid.models.frequency_response` (a model object that every package's results return);
 they are re-exported here, and ``stageid.frf.frd`` still imports as that module.  The FRF's
-Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`.
+Bode figure (``FrequencyResponse.plot``) is :mod:`stageid.plots.frf`, drawn by the one
+Bode figure of :mod:`stageid.plots.bode`.
 """
 
 from ..runtime.lazy import lazy_names

@@ -4,6 +4,9 @@ levels at the odd and even detection lines (see :mod:`stageid.frf.bla` for the e
 from __future__ import annotations
 
 import dataclasses
+import types
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -58,9 +61,10 @@ class BLAResult:
 
     Attributes
     ----------
-    frd : FrequencyResponse
+    model : FrequencyResponse
         ``response`` the BLA at the excited lines; ``std`` its noise part; ``total_std`` noise
-        and stochastic nonlinear distortion together (None from a single realisation).
+        and stochastic nonlinear distortion together (None from a single realisation).  Also
+        readable as ``frd``, its former name.
     n_realisations : int
     n_periods : int
         Steady-state periods averaged (the fewest over the realisations).
@@ -72,7 +76,7 @@ class BLAResult:
         The BLA's std from odd / even distortions, interpolated from the detection lines.
     """
 
-    frd: FrequencyResponse
+    model: FrequencyResponse
     n_realisations: int
     n_periods: int
     transient_periods: int
@@ -83,11 +87,28 @@ class BLAResult:
     transient: str = "drop"
 
     @property
+    def frd(self) -> FrequencyResponse:
+        """The BLA: :attr:`model` under its former name."""
+        return self.model
+
+    @property
+    def diagnostics(self) -> Mapping[str, Any]:
+        """How the BLA was made: realisations, steady-state periods, transient periods and how."""
+        return types.MappingProxyType(
+            {
+                "n_realisations": self.n_realisations,
+                "n_periods": self.n_periods,
+                "transient_periods": self.transient_periods,
+                "transient": self.transient,
+            }
+        )
+
+    @property
     def distortion_std(self) -> np.ndarray | None:
         """``sqrt(max(total_std^2 - std^2, 0))``: the BLA's std from stochastic nonlinear distortions."""
-        if self.frd.total_std is None:
+        if self.model.total_std is None:
             return None
-        return np.sqrt(np.maximum(self.frd.total_std**2 - self.frd.std**2, 0.0))
+        return np.sqrt(np.maximum(self.model.total_std**2 - self.model.std**2, 0.0))
 
     @property
     def stochastic_variance(self) -> np.ndarray | None:
@@ -97,19 +118,19 @@ class BLAResult:
 
     def to_columns(self) -> dict[str, np.ndarray]:
         """The FRD columns (:mod:`stageid.models.frequency_response`, with ``stdtot_``) plus ``stdnl_``, ``stdodd_``, ``stdeven_``."""
-        cols = self.frd.to_columns()
+        cols = self.model.to_columns()
         extra = (("stdnl_", self.distortion_std), ("stdodd_", self.odd_std), ("stdeven_", self.even_std))
         for prefix, value in extra:
             if value is None:
                 continue
-            for i, out in enumerate(self.frd.outputs):
-                for j, inp in enumerate(self.frd.inputs):
+            for i, out in enumerate(self.model.outputs):
+                for j, inp in enumerate(self.model.inputs):
                     cols[f"{prefix}{out}_{inp}"] = value[:, i, j]
         return cols
 
-    def summary(self) -> list[str]:
+    def summary(self) -> str:
         """One line per finding: averaging, distortion above noise, odd/even detection per output."""
-        f = self.frd
+        f = self.model
         how = (
             "every period kept, the transient removed by the local polynomial method"
             if self.transient == "lpm"
@@ -137,10 +158,10 @@ class BLAResult:
                     f"bla: {out}: {levels.kind} nonlinearity {found} "
                     f"({levels.level_db[i]:+.1f} dB over noise at {levels.freqs.size} {levels.kind} detection lines)"
                 )
-        return lines
+        return "\n".join(lines)
 
     def plot(self):
         """The classic figure: |BLA|, its noise and total std (and odd/even shares) vs frequency."""
         from .bla_figure import bla_figure
 
-        return bla_figure(self.frd, self.odd_std, self.even_std)
+        return bla_figure(self.model, self.odd_std, self.even_std)

@@ -4,7 +4,7 @@
 Ljung (IEEE TAC 41, 1996), reused from :mod:`stageid.subspace`, then a weighted output-error
 refinement on the complex response:
 
-1. the band ``[fmin, fmax]`` of the FRF, per-frequency weights (``1/std^2``, or
+1. the band ``(f_low, f_high)`` of the FRF, per-frequency weights (``1/std^2``, or
    ``gamma^2 / (1 - gamma^2)`` from the coherence, or none);
 2. an input delay of ``d`` samples removed from the data (``G z^d``), ``d`` given or chosen by
    the held-out error of a realisation (:func:`select_delay`);
@@ -25,12 +25,15 @@ refinement on the complex response:
 from __future__ import annotations
 
 import dataclasses
+import types
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from .._errors import DataError
-from ..base import Estimator, Interval, Options
+from ..base import Estimator, Interval, Options, Satisfies
+from ..checks import is_real
 from ..display import html_repr, short_repr
 from ..models import StateSpaceModel
 from ..models.frequency_response import FrequencyResponse
@@ -85,6 +88,8 @@ class FRDResult:
     covariance : FitCovariance or None
         The refined fit's parameter covariance (from the data's std, else the residual);
         see :meth:`response_uncertainty`.
+    estimator : FRDIdentification or None
+        A copy of the settings it was fitted with.
     """
 
     model: StateSpaceModel
@@ -97,6 +102,7 @@ class FRDResult:
     weight: str = "none"
     band: tuple = ()
     covariance: FitCovariance | None = None
+    estimator: Estimator | None = None
 
     def __repr__(self) -> str:
         return short_repr(self)
@@ -108,6 +114,19 @@ class FRDResult:
     def max_error(self) -> float:
         """The largest of :attr:`column_errors`."""
         return float(np.max(self.column_errors))
+
+    @property
+    def diagnostics(self) -> Mapping[str, Any]:
+        """What the fit chose and reached: order, delay, weighting, band, largest column error."""
+        names = ("order", "delay", "weight", "band", "max_error")
+        return types.MappingProxyType({name: getattr(self, name) for name in names})
+
+    def summary(self) -> str:
+        """One line per fact: the model, then :attr:`diagnostics`."""
+        m = self.model
+        kind = "continuous" if m.dt is None else f"discrete, sample time {m.dt:g} s"
+        lines = [f"FRD fit: {m.n_states} states ({kind}), inputs {list(m.inputs)}, outputs {list(m.outputs)}"]
+        return "\n".join(lines + [f"  {name}: {value}" for name, value in self.diagnostics.items()])
 
     def response_uncertainty(self, freqs_hz: Any) -> FrequencyResponse:
         """The model's frequency response with ``std = sqrt(E|G_est - G|^2)`` per entry.
@@ -143,6 +162,16 @@ class FRDResult:
         return FrequencyResponse(f, m.frequency_response(f), std, None, m.inputs, m.outputs)
 
 
+def _open_band(value: Any) -> bool:
+    """``(f_low, f_high)`` in Hz, either end None; the given ends finite, ``0 <= f_low < f_high``."""
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        return False
+    ends = [float(v) for v in value if v is not None and is_real(v)]
+    if len(ends) != sum(v is not None for v in value) or not all(np.isfinite(v) and v >= 0 for v in ends):
+        return False
+    return len(ends) < 2 or ends[0] < ends[1]
+
+
 class FRDIdentification(Estimator):
     """State-space model from a frequency response (subspace start, weighted output-error fit).
 
@@ -152,10 +181,13 @@ class FRDIdentification(Estimator):
         States of the model (without delay states); ``"auto"`` chooses 1..``max_order`` by
         the error on held-out frequencies, with the rule every ``order="auto"`` shares
         (:mod:`stageid.validation.order_choice`).
-    dt : float or None
-        Sample time of a discrete model; None fits a continuous model (``dt: null``).
-    fmin, fmax : float or None
-        The band fitted, Hz (None: the whole response).
+    sample_time : float or None
+        Sample time of a discrete model, s; None fits a continuous model (``dt: null``).
+        Formerly ``dt`` (still accepted, with a DeprecationWarning).
+    band : (f_low, f_high) or None
+        The band fitted, Hz; an end given as None is the response's own end, and None is the
+        whole response.  Formerly ``fmin`` and ``fmax`` (still accepted, with a
+        DeprecationWarning; ``fmin=1.0`` alone reads as ``band=(1.0, None)``).
     weight : {"auto", "none", "std", "coherence"}
         ``auto``: ``std`` when the FRF has it, else ``coherence`` when it has that, else none.
     delay : int or "auto"
@@ -175,16 +207,15 @@ class FRDIdentification(Estimator):
     >>> from stageid.models import StateSpaceModel
     >>> g = StateSpaceModel([[0.9, 0.3], [-0.3, 0.9]], [[1.0], [0.0]], [[0.2, 0.1]], [[0.0]], dt=0.01)
     >>> f = np.linspace(0.5, 49.5, 100)
-    >>> res = FRDIdentification(order=2, dt=0.01).fit(FrequencyResponse(f, g.frequency_response(f)))
+    >>> res = FRDIdentification(order=2, sample_time=0.01).fit(FrequencyResponse(f, g.frequency_response(f)))
     >>> bool(res.max_error < 1e-8)
     True
     """
 
     parameter_constraints = {
         "order": [Interval(int, 1, 400), Options("auto")],
-        "dt": [Interval(float, 0.0, None, closed="neither"), None],
-        "fmin": [Interval(float, 0.0, None), None],
-        "fmax": [Interval(float, 0.0, None, closed="neither"), None],
+        "sample_time": [Interval(float, 0.0, None, closed="neither"), None],
+        "band": [None, Satisfies(_open_band, "(f_low, f_high) in Hz, 0 <= f_low < f_high finite, either end None")],
         "weight": [Options("auto", "none", "std", "coherence")],
         "delay": [Interval(int, 0, 10000), Options("auto")],
         "max_order": [Interval(int, 1, 400)],
@@ -192,12 +223,13 @@ class FRDIdentification(Estimator):
         "max_iter": [Interval(int, 0, 10000)],
     }
 
+    renamed_parameters = {"dt": "sample_time", "fmin": ("band", 0), "fmax": ("band", 1)}
+
     def __init__(
         self,
         order: int | str = "auto",
-        dt: float | None = None,
-        fmin: float | None = None,
-        fmax: float | None = None,
+        sample_time: float | None = None,
+        band: tuple[float | None, float | None] | None = None,
         weight: str = "auto",
         delay: int | str = 0,
         max_order: int = 20,
@@ -205,9 +237,8 @@ class FRDIdentification(Estimator):
         max_iter: int = 1000,
     ) -> None:
         self.order = order
-        self.dt = dt
-        self.fmin = fmin
-        self.fmax = fmax
+        self.sample_time = sample_time
+        self.band = band
         self.weight = weight
         self.delay = delay
         self.max_order = max_order
@@ -215,12 +246,12 @@ class FRDIdentification(Estimator):
         self.max_iter = max_iter
 
     def check_together(self) -> None:
-        if self.fmin is not None and self.fmax is not None and not self.fmin < self.fmax:
-            raise self.invalid("fmax", f"above `fmin` ({self.fmin:g} Hz)")
-        if self.dt is None and self.delay != 0:
-            raise self.invalid("delay", "0 for a continuous model (an input delay needs a sample time `dt`)")
-        if self.dt is not None and self.fmax is not None and self.fmax > 0.5 / self.dt * (1 + 1e-12):
-            raise self.invalid("fmax", f"at most the Nyquist frequency {0.5 / self.dt:g} Hz of `dt`")
+        f_high = None if self.band is None else self.band[1]
+        if self.sample_time is None and self.delay != 0:
+            raise self.invalid("delay", "0 for a continuous model (an input delay needs a `sample_time`)")
+        if self.sample_time is not None and f_high is not None and f_high > 0.5 / self.sample_time * (1 + 1e-12):
+            nyquist = 0.5 / self.sample_time
+            raise self.invalid("band", f"a band up to the Nyquist frequency {nyquist:g} Hz of `sample_time`")
 
     def fit(self, data: FrequencyResponse | Any) -> FRDResult:
         """Identify from a :class:`FrequencyResponse` (or records: their Welch H1 first).
@@ -230,18 +261,19 @@ class FRDIdentification(Estimator):
         ParameterError
             A bad setting.
         DataError
-            No frequency in the band, frequencies above Nyquist of ``dt``, or an order the
+            No frequency in the band, frequencies above Nyquist of ``sample_time``, or an order the
             number of frequencies cannot support.
         IdentificationError
             No stable model could be found.
         """
         self.validate_params()
         frd = data if isinstance(data, FrequencyResponse) else welch_frf(data)
-        frd = frd.band(self.fmin, self.fmax)
-        if self.dt is not None and frd.freqs[-1] > 0.5 / self.dt * (1 + 1e-9):
+        dt = self.sample_time
+        frd = frd.band(*(self.band or (None, None)))
+        if dt is not None and frd.freqs[-1] > 0.5 / dt * (1 + 1e-9):
             raise DataError(
-                f"the response reaches {frd.freqs[-1]:g} Hz, above the Nyquist frequency {0.5 / self.dt:g} Hz "
-                "of `dt`; give `fmax=` or a smaller `dt=`."
+                f"the response reaches {frd.freqs[-1]:g} Hz, above the Nyquist frequency {0.5 / dt:g} Hz "
+                "of the sample time; end the band below it (`band=`) or give a smaller `sample_time=`."
             )
         G = frd.response
         # lines with next to no weight (unexcited, noise only) must not set the scale or the error
@@ -251,9 +283,9 @@ class FRDIdentification(Estimator):
         scale = np.where(scale > 0, scale, 1.0)
         Gs = G / scale[None, None, :]
         weight, w = frequency_weights(frd, self.weight, scale)
-        T, fz = _fit_grid(frd.freqs, self.dt)
+        T, fz = _fit_grid(frd.freqs, dt)
         # the delay acts on the sample grid of dt: z^d with z = exp(j 2 pi f dt)
-        z_dt = np.exp(2j * np.pi * frd.freqs * (self.dt or 0.0))
+        z_dt = np.exp(2j * np.pi * frd.freqs * (dt or 0.0))
         delay, delay_errors = self._delay(Gs, fz, T, z_dt, w, frd.n_freqs)
         Gd = Gs * (z_dt**delay)[:, None, None]
         order, order_errors = self._order(Gd, fz, T, w, frd.n_freqs)
@@ -263,7 +295,7 @@ class FRDIdentification(Estimator):
         std = None if data_std is None else data_std / scale[None, None, :]
         covariance = fit_covariance((A, B, C, D), Gd, np.exp(2j * np.pi * fz * T), w, std, T, scale)
         B, D = B * scale[None, :], D * scale[None, :]
-        model = _assemble(A, B, C, D, T, self.dt, delay, frd)
+        model = _assemble(A, B, C, D, T, dt, delay, frd)
         response = model.frequency_response(frd.freqs[counted])
         errors = column_errors(response, G[counted])
         warn_large_error(response, G[counted], None if frd.std is None else frd.std[counted], order, order_errors)
@@ -278,6 +310,7 @@ class FRDIdentification(Estimator):
             weight,
             (float(frd.freqs[0]), float(frd.freqs[-1])),
             covariance,
+            self.clone(),
         )
 
     def _delay(self, Gs, fz, T, zs, w, n_freqs) -> tuple[int, tuple]:

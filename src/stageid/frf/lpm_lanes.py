@@ -7,6 +7,9 @@ numbers are kept as real and imaginary arrays.  Interior lines only (their windo
 line's neighbours ``k - n .. k + n``, the offsets ``r`` are the same for every lane); the
 lines near DC and Nyquist go through :func:`~stageid.frf.lpm_kernels.lpm_lines_kernel`.
 The product layout ``Z[e, s, line]`` is that of ``stageid.frf.lpm_kernels``.
+
+The lanes are ``GROUPS`` four-wide vectors (:mod:`stageid.runtime.simd`), one accumulator each:
+loops over the groups and register lists, written out by :mod:`stageid.runtime.unroll`.
 """
 
 from __future__ import annotations
@@ -14,24 +17,63 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..runtime.simd import LANES as WIDTH
 from ..runtime.simd import vbcast, vfma, vfnma, vload, vmul, vstore, vzero
+from ..runtime.unroll import written_out
 
 __all__ = ["LANES", "lanes_block", "lane_work"]
 
-#: Lines solved side by side (four four-wide vectors in :func:`_lane_moments`).
+#: Lines solved side by side.
 LANES = 16
+#: Four-wide vectors per lane block: independent accumulators enough to hide the FMA latency.
+GROUPS = LANES // WIDTH
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=True)
+# small steps inlined in numba IR where called: their vectors stay in the caller's registers
+_step = numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
 
 
-@_jit
+def _written_out(jit):
+    """``jit`` of a kernel with its loops over the groups and its register lists written out."""
+    return lambda fn: jit(written_out(fn, {"GROUPS": GROUPS}))
+
+
+@_step
+def _minus_product(r, i, ar, ai, br, bi, o):  # pragma: no cover - compiled
+    """``(r + i i) - a b`` for the vectors of ``a`` and ``b`` at lane offset ``o``."""
+    a_r, a_i, b_r, b_i = vload(ar, o), vload(ai, o), vload(br, o), vload(bi, o)
+    return vfma(a_i, b_i, vfnma(a_r, b_r, r)), vfnma(a_i, b_r, vfnma(a_r, b_i, i))
+
+
+@_step
+def _minus_conj_product(r, i, ar, ai, br, bi, o):  # pragma: no cover - compiled
+    """``(r + i i) - a conj(b)`` for the vectors of ``a`` and ``b`` at lane offset ``o``."""
+    a_r, a_i, b_r, b_i = vload(ar, o), vload(ai, o), vload(br, o), vload(bi, o)
+    return vfnma(a_i, b_i, vfnma(a_r, b_r, r)), vfma(a_r, b_i, vfnma(a_i, b_r, i))
+
+
+@_step
+def _minus_conj_times(r, i, ar, ai, br, bi, o):  # pragma: no cover - compiled
+    """``(r + i i) - conj(a) b`` for the vectors of ``a`` and ``b`` at lane offset ``o``."""
+    a_r, a_i, b_r, b_i = vload(ar, o), vload(ai, o), vload(br, o), vload(bi, o)
+    return vfnma(a_i, b_i, vfnma(a_r, b_r, r)), vfma(a_i, b_r, vfnma(a_r, b_i, i))
+
+
+@_step
+def _store_scaled(xr, xi, d, r, i, o):  # pragma: no cover - compiled
+    """``x = (r + i i) * d`` at lane offset ``o``."""
+    vstore(xr, o, vmul(r, vload(d, o)))
+    vstore(xi, o, vmul(i, vload(d, o)))
+
+
+@_written_out(_jit)
 def _lane_moments(Z, off, pw, n_pow, S):  # pragma: no cover - compiled
     """``S[e, p, s, l] = sum_j r_j^p Z[e, s, off + l + j]`` for ``p < n_pow[s]``.
 
     The window is symmetric (``r_(n+i) = -r_(n-i)``), so the even powers are sums over
     ``Z(+i) + Z(-i)`` and the odd ones over ``Z(+i) - Z(-i)``: half the multiplications.
-    Powers go in pairs (one even, one odd) over four four-wide lane groups: eight
-    independent accumulators, enough to hide the FMA latency."""
+    Powers go in pairs (one even, one odd) over the lane groups: twice ``GROUPS`` independent
+    accumulators."""
     ne, ns, _ = Z.shape
     rows, _ = pw.shape
     n = rows // 2
@@ -42,51 +84,69 @@ def _lane_moments(Z, off, pw, n_pow, S):  # pragma: no cover - compiled
             z = Z[e, s]
             for p in range(0, n_pow[s], 2):
                 if p == 0:  # r^0 = 1 at the centre; r^p = 0 there for p > 0
-                    a0 = vload(z, c)
-                    a1 = vload(z, c + 4)
-                    a2 = vload(z, c + 8)
-                    a3 = vload(z, c + 12)
+                    a = [vload(z, c + WIDTH * g) for g in range(GROUPS)]
                 else:
-                    a0 = vzero()
-                    a1 = vzero()
-                    a2 = vzero()
-                    a3 = vzero()
-                b0 = vzero()
-                b1 = vzero()
-                b2 = vzero()
-                b3 = vzero()
+                    a = [vzero() for g in range(GROUPS)]
+                b = [vzero() for g in range(GROUPS)]
                 odd = p + 1 < n_pow[s]
                 for i in range(1, n + 1):
                     we = vbcast(pw[n + i, p])
-                    zp0 = vload(z, c + i)
-                    zm0 = vload(z, c - i)
-                    zp1 = vload(z, c + i + 4)
-                    zm1 = vload(z, c - i + 4)
-                    zp2 = vload(z, c + i + 8)
-                    zm2 = vload(z, c - i + 8)
-                    zp3 = vload(z, c + i + 12)
-                    zm3 = vload(z, c - i + 12)
-                    a0 = vfma(we, vfma(one, zp0, zm0), a0)
-                    a1 = vfma(we, vfma(one, zp1, zm1), a1)
-                    a2 = vfma(we, vfma(one, zp2, zm2), a2)
-                    a3 = vfma(we, vfma(one, zp3, zm3), a3)
+                    zp = [vload(z, c + i + WIDTH * g) for g in range(GROUPS)]
+                    zm = [vload(z, c - i + WIDTH * g) for g in range(GROUPS)]
+                    for g in range(GROUPS):
+                        a[g] = vfma(we, vfma(one, zp[g], zm[g]), a[g])
                     if odd:
                         wo = vbcast(pw[n + i, p + 1])
-                        b0 = vfma(wo, vfnma(one, zm0, zp0), b0)
-                        b1 = vfma(wo, vfnma(one, zm1, zp1), b1)
-                        b2 = vfma(wo, vfnma(one, zm2, zp2), b2)
-                        b3 = vfma(wo, vfnma(one, zm3, zp3), b3)
-                out = S[e, p, s]
-                vstore(out, 0, a0)
-                vstore(out, 4, a1)
-                vstore(out, 8, a2)
-                vstore(out, 12, a3)
+                        for g in range(GROUPS):
+                            b[g] = vfma(wo, vfnma(one, zm[g], zp[g]), b[g])
+                for g in range(GROUPS):
+                    vstore(S[e, p, s], WIDTH * g, a[g])
                 if odd:
-                    out = S[e, p + 1, s]
-                    vstore(out, 0, b0)
-                    vstore(out, 4, b1)
-                    vstore(out, 8, b2)
-                    vstore(out, 12, b3)
+                    for g in range(GROUPS):
+                        vstore(S[e, p + 1, s], WIDTH * g, b[g])
+
+
+@_jit
+def _input_rows(S, e, a, s, m, q, R1, Mr, Mi, Br, Bi):  # pragma: no cover - compiled
+    """Input ``a``'s rows of ``M`` and ``B`` from record ``e``'s moments, from slot ``s`` on
+    (the first record assigns, the others add); returns the next slot."""
+    first = e == 0
+    t0 = m * R1 + e * R1
+    for b in range(a, m):
+        for p in range(R1):
+            for t in range(R1 if b > a else p + 1):
+                # lower entry (b, t), (a, p): conj of the moment for b > a; on the diagonal
+                # block the moment itself (its imaginary part is rounding)
+                i, j = (b * R1 + t, a * R1 + p) if b > a else (a * R1 + p, a * R1 + t)
+                sgn = -1.0 if b > a else 1.0
+                if first:
+                    for l in range(LANES):
+                        Mr[i, j, l] = S[e, p + t, s, l]
+                        Mi[i, j, l] = sgn * S[e, p + t, s + 1, l]
+                else:
+                    for l in range(LANES):
+                        Mr[i, j, l] += S[e, p + t, s, l]
+                        Mi[i, j, l] += sgn * S[e, p + t, s + 1, l]
+        s += 2
+    for p in range(R1):
+        for t in range(R1):
+            i, j = a * R1 + p, t0 + t
+            for l in range(LANES):
+                Mr[j, i, l] = S[e, p + t, s, l]
+                Mi[j, i, l] = -S[e, p + t, s + 1, l]
+    s += 2
+    for c in range(q):
+        for p in range(R1):
+            if first:
+                for l in range(LANES):
+                    Br[a * R1 + p, c, l] = S[e, p, s, l]
+                    Bi[a * R1 + p, c, l] = S[e, p, s + 1, l]
+            else:
+                for l in range(LANES):
+                    Br[a * R1 + p, c, l] += S[e, p, s, l]
+                    Bi[a * R1 + p, c, l] += S[e, p, s + 1, l]
+        s += 2
+    return s
 
 
 @_jit
@@ -101,52 +161,16 @@ def _lane_normal_equations(S, Sr, ne, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma
                 Mr[i, j] = 0.0
                 Mi[i, j] = 0.0
     for e in range(ne):
-        first = e == 0
         t0 = nG + e * R1
         s = 0
         for a in range(m):
-            for b in range(a, m):
-                for p in range(R1):
-                    for t in range(R1 if b > a else p + 1):
-                        # lower entry (b, t), (a, p): conj of the moment for b > a; on the
-                        # diagonal block the moment itself (its imaginary part is rounding)
-                        i, j = b * R1 + t, a * R1 + p
-                        if b == a:
-                            i, j = a * R1 + p, a * R1 + t
-                        sgn = -1.0 if b > a else 1.0
-                        if first:
-                            for l in range(LANES):
-                                Mr[i, j, l] = S[e, p + t, s, l]
-                                Mi[i, j, l] = sgn * S[e, p + t, s + 1, l]
-                        else:
-                            for l in range(LANES):
-                                Mr[i, j, l] += S[e, p + t, s, l]
-                                Mi[i, j, l] += sgn * S[e, p + t, s + 1, l]
-                s += 2
-            for p in range(R1):
-                for t in range(R1):
-                    i, j = a * R1 + p, t0 + t
-                    for l in range(LANES):
-                        Mr[j, i, l] = S[e, p + t, s, l]
-                        Mi[j, i, l] = -S[e, p + t, s + 1, l]
-            s += 2
-            for c in range(q):
-                for p in range(R1):
-                    if first:
-                        for l in range(LANES):
-                            Br[a * R1 + p, c, l] = S[e, p, s, l]
-                            Bi[a * R1 + p, c, l] = S[e, p, s + 1, l]
-                    else:
-                        for l in range(LANES):
-                            Br[a * R1 + p, c, l] += S[e, p, s, l]
-                            Bi[a * R1 + p, c, l] += S[e, p, s + 1, l]
-                s += 2
+            s = _input_rows(S, e, a, s, m, q, R1, Mr, Mi, Br, Bi)
         for c in range(q):
             for p in range(R1):
                 for l in range(LANES):
                     Br[t0 + p, c, l] = S[e, p, s, l]
                     Bi[t0 + p, c, l] = S[e, p, s + 1, l]
-            if first:
+            if e == 0:
                 ypow[c] = S[e, 0, s + 2]
             else:
                 for l in range(LANES):
@@ -158,161 +182,102 @@ def _lane_normal_equations(S, Sr, ne, m, q, R1, Mr, Mi, Br, Bi, ypow):  # pragma
                 Mi[t0 + p, t0 + t, :] = 0.0
 
 
-@_jit
+@_step
+def _pivots(dj, diag, floor, ok):  # pragma: no cover - compiled
+    """``dj`` (a column's ``d - sum |L|^2``) to ``1 / L_jj``, and ``diag`` to ``L_jj``; a lane
+    whose pivot falls below ``floor`` of its diagonal entry is not ok and gets the pivot 1."""
+    for l in range(LANES):
+        good = dj[l] > floor * diag[l]
+        ok[l] = ok[l] and good
+        dj[l] = dj[l] if good else 1.0
+    for l in range(LANES):  # one-array loops: vector sqrt and division
+        dj[l] = np.sqrt(dj[l])
+    diag[:] = dj
+    for l in range(LANES):
+        dj[l] = 1.0 / dj[l]
+
+
+@_written_out(_jit)
 def _lane_cholesky(n, Mr, Mi, dinv, floor, ok):  # pragma: no cover - compiled
     """Lower Cholesky factor in place, ``dinv = 1 / diag(L)``; ``ok`` False where a pivot falls
-    below ``floor`` of its diagonal entry (that lane's factor is then garbage).  The four lane
-    groups go through each dot product together: eight independent FMA chains."""
+    below ``floor`` of its diagonal entry (that lane's factor is then garbage).  The lane
+    groups go through each dot product together: independent FMA chains."""
     ok[:] = True
     for j in range(n):
-        d0 = vload(Mr[j, j], 0)
-        d1 = vload(Mr[j, j], 4)
-        d2 = vload(Mr[j, j], 8)
-        d3 = vload(Mr[j, j], 12)
+        d = [vload(Mr[j, j], WIDTH * g) for g in range(GROUPS)]
         for k in range(j):
             xr = Mr[j, k]
             xi = Mi[j, k]
-            d0 = vfnma(vload(xi, 0), vload(xi, 0), vfnma(vload(xr, 0), vload(xr, 0), d0))
-            d1 = vfnma(vload(xi, 4), vload(xi, 4), vfnma(vload(xr, 4), vload(xr, 4), d1))
-            d2 = vfnma(vload(xi, 8), vload(xi, 8), vfnma(vload(xr, 8), vload(xr, 8), d2))
-            d3 = vfnma(vload(xi, 12), vload(xi, 12), vfnma(vload(xr, 12), vload(xr, 12), d3))
+            for g in range(GROUPS):
+                o = WIDTH * g
+                d[g] = vfnma(vload(xi, o), vload(xi, o), vfnma(vload(xr, o), vload(xr, o), d[g]))
         dj = dinv[j]
-        vstore(dj, 0, d0)
-        vstore(dj, 4, d1)
-        vstore(dj, 8, d2)
-        vstore(dj, 12, d3)
-        for l in range(LANES):
-            good = dj[l] > floor * Mr[j, j, l]
-            ok[l] = ok[l] and good
-            dj[l] = dj[l] if good else 1.0
-        for l in range(LANES):  # one-array loops: vector sqrt and division
-            dj[l] = np.sqrt(dj[l])
-        Mr[j, j] = dj
+        for g in range(GROUPS):
+            vstore(dj, WIDTH * g, d[g])
+        _pivots(dj, Mr[j, j], floor, ok)
         Mi[j, j] = 0.0
-        for l in range(LANES):
-            dj[l] = 1.0 / dj[l]
         for i in range(j + 1, n):
-            r0 = vload(Mr[i, j], 0)
-            r1 = vload(Mr[i, j], 4)
-            r2 = vload(Mr[i, j], 8)
-            r3 = vload(Mr[i, j], 12)
-            i0 = vload(Mi[i, j], 0)
-            i1 = vload(Mi[i, j], 4)
-            i2 = vload(Mi[i, j], 8)
-            i3 = vload(Mi[i, j], 12)
+            r = [vload(Mr[i, j], WIDTH * g) for g in range(GROUPS)]
+            im = [vload(Mi[i, j], WIDTH * g) for g in range(GROUPS)]
             for k in range(j):  # L[i, k] conj(L[j, k])
-                ar = Mr[i, k]
-                ai = Mi[i, k]
-                br = Mr[j, k]
-                bi = Mi[j, k]
-                a_r, a_i, b_r, b_i = vload(ar, 0), vload(ai, 0), vload(br, 0), vload(bi, 0)
-                r0 = vfnma(a_i, b_i, vfnma(a_r, b_r, r0))
-                i0 = vfma(a_r, b_i, vfnma(a_i, b_r, i0))
-                a_r, a_i, b_r, b_i = vload(ar, 4), vload(ai, 4), vload(br, 4), vload(bi, 4)
-                r1 = vfnma(a_i, b_i, vfnma(a_r, b_r, r1))
-                i1 = vfma(a_r, b_i, vfnma(a_i, b_r, i1))
-                a_r, a_i, b_r, b_i = vload(ar, 8), vload(ai, 8), vload(br, 8), vload(bi, 8)
-                r2 = vfnma(a_i, b_i, vfnma(a_r, b_r, r2))
-                i2 = vfma(a_r, b_i, vfnma(a_i, b_r, i2))
-                a_r, a_i, b_r, b_i = vload(ar, 12), vload(ai, 12), vload(br, 12), vload(bi, 12)
-                r3 = vfnma(a_i, b_i, vfnma(a_r, b_r, r3))
-                i3 = vfma(a_r, b_i, vfnma(a_i, b_r, i3))
-            xr = Mr[i, j]
-            xi = Mi[i, j]
-            vstore(xr, 0, vmul(r0, vload(dj, 0)))
-            vstore(xr, 4, vmul(r1, vload(dj, 4)))
-            vstore(xr, 8, vmul(r2, vload(dj, 8)))
-            vstore(xr, 12, vmul(r3, vload(dj, 12)))
-            vstore(xi, 0, vmul(i0, vload(dj, 0)))
-            vstore(xi, 4, vmul(i1, vload(dj, 4)))
-            vstore(xi, 8, vmul(i2, vload(dj, 8)))
-            vstore(xi, 12, vmul(i3, vload(dj, 12)))
+                ar, ai, br, bi = Mr[i, k], Mi[i, k], Mr[j, k], Mi[j, k]
+                for g in range(GROUPS):
+                    r[g], im[g] = _minus_conj_product(r[g], im[g], ar, ai, br, bi, WIDTH * g)
+            xr, xi = Mr[i, j], Mi[i, j]
+            for g in range(GROUPS):
+                _store_scaled(xr, xi, dj, r[g], im[g], WIDTH * g)
+
+
+@_written_out(_step)
+def _substitution(n, q, Lr, Li, dinv, Xr, Xi, Tr, Ti, backwards):  # pragma: no cover - compiled
+    """``T = L^-1 X`` per lane, rows in order (``backwards`` None), or ``T = L^-H X``, rows from
+    the last (``backwards`` True); numba compiles each form without the other's branches."""
+    for step in range(n):
+        i = step if backwards is None else n - 1 - step
+        lo, hi = (0, i) if backwards is None else (i + 1, n)
+        for c in range(q):
+            r = [vload(Xr[i, c], WIDTH * g) for g in range(GROUPS)]
+            im = [vload(Xi[i, c], WIDTH * g) for g in range(GROUPS)]
+            for k in range(lo, hi):
+                tr, ti = Tr[k, c], Ti[k, c]
+                if backwards is None:  # L[i, k] T[k]
+                    lr, li = Lr[i, k], Li[i, k]
+                    for g in range(GROUPS):
+                        r[g], im[g] = _minus_product(r[g], im[g], lr, li, tr, ti, WIDTH * g)
+                else:  # conj(L[k, i]) T[k]
+                    lr, li = Lr[k, i], Li[k, i]
+                    for g in range(GROUPS):
+                        r[g], im[g] = _minus_conj_times(r[g], im[g], lr, li, tr, ti, WIDTH * g)
+            xr, xi, d = Tr[i, c], Ti[i, c], dinv[i]
+            for g in range(GROUPS):
+                _store_scaled(xr, xi, d, r[g], im[g], WIDTH * g)
 
 
 @_jit
 def _lane_solve(n, q, Lr, Li, dinv, Br, Bi, Tr, Ti):  # pragma: no cover - compiled
-    """``T = (L L^H)^-1 B`` per lane (forward then back substitution, four lane groups at once)."""
-    for i in range(n):
-        for c in range(q):
-            r0, r1, r2, r3 = vload(Br[i, c], 0), vload(Br[i, c], 4), vload(Br[i, c], 8), vload(Br[i, c], 12)
-            i0, i1, i2, i3 = vload(Bi[i, c], 0), vload(Bi[i, c], 4), vload(Bi[i, c], 8), vload(Bi[i, c], 12)
-            for k in range(i):  # L[i, k] T[k]
-                lr, li, tr, ti = Lr[i, k], Li[i, k], Tr[k, c], Ti[k, c]
-                a_r, a_i, t_r, t_i = vload(lr, 0), vload(li, 0), vload(tr, 0), vload(ti, 0)
-                r0 = vfma(a_i, t_i, vfnma(a_r, t_r, r0))
-                i0 = vfnma(a_i, t_r, vfnma(a_r, t_i, i0))
-                a_r, a_i, t_r, t_i = vload(lr, 4), vload(li, 4), vload(tr, 4), vload(ti, 4)
-                r1 = vfma(a_i, t_i, vfnma(a_r, t_r, r1))
-                i1 = vfnma(a_i, t_r, vfnma(a_r, t_i, i1))
-                a_r, a_i, t_r, t_i = vload(lr, 8), vload(li, 8), vload(tr, 8), vload(ti, 8)
-                r2 = vfma(a_i, t_i, vfnma(a_r, t_r, r2))
-                i2 = vfnma(a_i, t_r, vfnma(a_r, t_i, i2))
-                a_r, a_i, t_r, t_i = vload(lr, 12), vload(li, 12), vload(tr, 12), vload(ti, 12)
-                r3 = vfma(a_i, t_i, vfnma(a_r, t_r, r3))
-                i3 = vfnma(a_i, t_r, vfnma(a_r, t_i, i3))
-            _store_scaled(Tr[i, c], Ti[i, c], dinv[i], r0, r1, r2, r3, i0, i1, i2, i3)
-    for i in range(n - 1, -1, -1):
-        for c in range(q):
-            r0, r1, r2, r3 = vload(Tr[i, c], 0), vload(Tr[i, c], 4), vload(Tr[i, c], 8), vload(Tr[i, c], 12)
-            i0, i1, i2, i3 = vload(Ti[i, c], 0), vload(Ti[i, c], 4), vload(Ti[i, c], 8), vload(Ti[i, c], 12)
-            for k in range(i + 1, n):  # conj(L[k, i]) T[k]
-                lr, li, tr, ti = Lr[k, i], Li[k, i], Tr[k, c], Ti[k, c]
-                a_r, a_i, t_r, t_i = vload(lr, 0), vload(li, 0), vload(tr, 0), vload(ti, 0)
-                r0 = vfnma(a_i, t_i, vfnma(a_r, t_r, r0))
-                i0 = vfma(a_i, t_r, vfnma(a_r, t_i, i0))
-                a_r, a_i, t_r, t_i = vload(lr, 4), vload(li, 4), vload(tr, 4), vload(ti, 4)
-                r1 = vfnma(a_i, t_i, vfnma(a_r, t_r, r1))
-                i1 = vfma(a_i, t_r, vfnma(a_r, t_i, i1))
-                a_r, a_i, t_r, t_i = vload(lr, 8), vload(li, 8), vload(tr, 8), vload(ti, 8)
-                r2 = vfnma(a_i, t_i, vfnma(a_r, t_r, r2))
-                i2 = vfma(a_i, t_r, vfnma(a_r, t_i, i2))
-                a_r, a_i, t_r, t_i = vload(lr, 12), vload(li, 12), vload(tr, 12), vload(ti, 12)
-                r3 = vfnma(a_i, t_i, vfnma(a_r, t_r, r3))
-                i3 = vfma(a_i, t_r, vfnma(a_r, t_i, i3))
-            _store_scaled(Tr[i, c], Ti[i, c], dinv[i], r0, r1, r2, r3, i0, i1, i2, i3)
+    """``T = (L L^H)^-1 B`` per lane: forward, then back substitution in place."""
+    _substitution(n, q, Lr, Li, dinv, Br, Bi, Tr, Ti, None)
+    _substitution(n, q, Lr, Li, dinv, Tr, Ti, Tr, Ti, True)
 
 
-@_jit
-def _store_scaled(xr, xi, d, r0, r1, r2, r3, i0, i1, i2, i3):  # pragma: no cover - compiled
-    """``x = (r + i i) * d`` for the four lane groups."""
-    vstore(xr, 0, vmul(r0, vload(d, 0)))
-    vstore(xr, 4, vmul(r1, vload(d, 4)))
-    vstore(xr, 8, vmul(r2, vload(d, 8)))
-    vstore(xr, 12, vmul(r3, vload(d, 12)))
-    vstore(xi, 0, vmul(i0, vload(d, 0)))
-    vstore(xi, 4, vmul(i1, vload(d, 4)))
-    vstore(xi, 8, vmul(i2, vload(d, 8)))
-    vstore(xi, 12, vmul(i3, vload(d, 12)))
-
-
-@_jit
-def _lane_inverse_diagonal(n, Lr, Li, dinv, g, xr, xi, acc):  # pragma: no cover - compiled
-    """``acc = [(L L^H)^-1]_gg = |L^-1 e_g|^2`` per lane (four lane groups at once)."""
-    vstore(acc, 0, vzero())
-    vstore(acc, 4, vzero())
-    vstore(acc, 8, vzero())
-    vstore(acc, 12, vzero())
-    xr[g] = dinv[g]
-    xi[g] = 0.0
-    for i in range(g + 1, n):
-        r0 = r1 = r2 = r3 = i0 = i1 = i2 = i3 = vzero()
-        for k in range(g, i):
+@_written_out(_jit)
+def _lane_inverse_diagonal(n, Lr, Li, dinv, col, xr, xi, acc):  # pragma: no cover - compiled
+    """``acc = [(L L^H)^-1]_cc = |L^-1 e_c|^2`` per lane, ``c = col`` (the lane groups at once)."""
+    acc[:] = 0.0
+    xr[col] = dinv[col]
+    xi[col] = 0.0
+    for i in range(col + 1, n):
+        r = [vzero() for g in range(GROUPS)]
+        im = [vzero() for g in range(GROUPS)]
+        for k in range(col, i):
             lr, li, pr, pi = Lr[i, k], Li[i, k], xr[k], xi[k]
-            a_r, a_i, p_r, p_i = vload(lr, 0), vload(li, 0), vload(pr, 0), vload(pi, 0)
-            r0 = vfma(a_i, p_i, vfnma(a_r, p_r, r0))
-            i0 = vfnma(a_i, p_r, vfnma(a_r, p_i, i0))
-            a_r, a_i, p_r, p_i = vload(lr, 4), vload(li, 4), vload(pr, 4), vload(pi, 4)
-            r1 = vfma(a_i, p_i, vfnma(a_r, p_r, r1))
-            i1 = vfnma(a_i, p_r, vfnma(a_r, p_i, i1))
-            a_r, a_i, p_r, p_i = vload(lr, 8), vload(li, 8), vload(pr, 8), vload(pi, 8)
-            r2 = vfma(a_i, p_i, vfnma(a_r, p_r, r2))
-            i2 = vfnma(a_i, p_r, vfnma(a_r, p_i, i2))
-            a_r, a_i, p_r, p_i = vload(lr, 12), vload(li, 12), vload(pr, 12), vload(pi, 12)
-            r3 = vfma(a_i, p_i, vfnma(a_r, p_r, r3))
-            i3 = vfnma(a_i, p_r, vfnma(a_r, p_i, i3))
-        _store_scaled(xr[i], xi[i], dinv[i], r0, r1, r2, r3, i0, i1, i2, i3)
-    for i in range(g, n):  # the squared norm, in the order of the column
-        for o in range(0, LANES, 4):
+            for g in range(GROUPS):
+                r[g], im[g] = _minus_product(r[g], im[g], lr, li, pr, pi, WIDTH * g)
+        yr, yi, d = xr[i], xi[i], dinv[i]
+        for g in range(GROUPS):
+            _store_scaled(yr, yi, d, r[g], im[g], WIDTH * g)
+    for i in range(col, n):  # the squared norm, in the order of the column
+        for o in range(0, LANES, WIDTH):
             sr = vload(xr[i], o)
             si = vload(xi[i], o)
             vstore(acc, o, vfma(si, si, vfma(sr, sr, vload(acc, o))))

@@ -193,14 +193,14 @@ class FrequencyResponse:
 
         ``model`` (anything with ``frequency_response(freqs)``) is drawn over the data;
         ``fit_band`` greys the frequencies a fit left out; the units label the magnitude axes
-        (see :func:`stageid.plots.frf.bode_figure`).  ``ax``: draw in these matplotlib axes
-        instead of a new figure: magnitude, phase (and coherence) rows by input columns, as a
-        2-D array or each input's panels in turn.  Returns the matplotlib figure (imported
-        lazily; use the Agg backend off-screen).
+        (see :func:`stageid.plots.frf.frf_figure`).  ``ax``: draw in these matplotlib axes
+        instead of a new figure: magnitude and phase rows per output (and a coherence row) by
+        input columns, as a 2-D array or each input's panels in turn.  Returns the matplotlib
+        figure (imported lazily; use the Agg backend off-screen).
         """
-        from ..plots.frf import bode_figure
+        from ..plots.frf import frf_figure
 
-        return bode_figure(self, model, fit_band, input_units, output_units, ax)
+        return frf_figure(self, model, fit_band, input_units, output_units, ax)
 
 
 def frd_columns(frd: FrequencyResponse) -> dict[str, np.ndarray]:
@@ -245,7 +245,7 @@ def read_frd(path: str | os.PathLike[str], response: str | None = None) -> Frequ
         except DataError as exc:
             raise DataError(f"file '{os.path.basename(os.fspath(path))}': {exc}") from None
     if response is not None:
-        raise DataError(f"--response '{response}' selects a response of a .mat file; got '{os.fspath(path)}'.")
+        raise DataError(f"`response={response!r}` selects a response of a .mat file; got '{os.fspath(path)}'.")
     # f_hz is the axis; the reader wants a time step, which a frequency table does not have
     table = read_table(path, ts=1.0)
     return frd_from_columns({n: table.column(n) for n in table.names}, os.path.basename(os.fspath(path)))

@@ -1,4 +1,4 @@
-"""Figures for LTI models: Bode magnitude/phase grids, pole-zero maps, time-domain overlays."""
+"""Figures for LTI models: pole-zero maps, time-domain overlays (the Bode figure is :mod:`.bode`, re-exported)."""
 
 from __future__ import annotations
 
@@ -6,108 +6,11 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from . import scale
-from .scale import envelope, peak, set_log_magnitude
-from .style import loglog, positive, subplots
+from .bode import bode_figure
+from .scale import envelope
+from .style import subplots
 
 __all__ = ["bode_figure", "pzmap_figure", "time_overlay_figure"]
-
-
-def bode_figure(
-    freqs_hz: np.ndarray,
-    responses: Mapping[str, np.ndarray],
-    input_names: Sequence[str],
-    output_names: Sequence[str],
-    bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
-    title: str = "",
-    magnitude_unit: str = "",
-    phase: bool = True,
-    styles: Mapping[str, str] | None = None,
-    input_units: Sequence[str] = (),
-    output_units: Sequence[str] = (),
-    band_label: str = "band",
-):
-    """Bode magnitude (and phase) of several MIMO responses on one grid of subplots.
-
-    Parameters
-    ----------
-    freqs_hz : ndarray of shape (n_freqs,)
-    responses : mapping label -> complex ndarray of shape (n_freqs, n_outputs, n_inputs)
-    input_names, output_names : channel names for the subplot titles
-    bands : mapping label -> (lower, upper) magnitude arrays of shape (n_freqs, n_outputs, n_inputs),
-        drawn as shaded uncertainty bands under the response with the same label.
-    phase : bool
-        Add a phase row under every magnitude row.
-    magnitude_unit : str
-        The unit of every entry's magnitude (e.g. ``"um/V"``); by default each entry's unit is
-        ``output_units[i]/input_units[j]``, ``output/input`` where a unit is not known.
-    input_units, output_units : sequence of str, optional
-        The channels' units.
-    band_label : str
-        The legend names a band ``"<label> <band_label>"`` (e.g. ``"model +-2 std"``).
-
-    Every magnitude axis is limited to its lines' peak down to ``peak / 1e6``
-    (:func:`~stageid.plots.scale.set_log_magnitude`); an entry below a millionth of the
-    largest entry's peak says it is numerically zero.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    p, m = len(output_names), len(input_names)
-    rows = 2 * p if phase else p
-    fig, axes = subplots(
-        rows, m, figsize=(3.6 * m + 1.0, (2.2 if phase else 2.6) * rows + 0.6), squeeze=False, sharex=True
-    )
-    styles = dict(styles or {})
-    for i in range(p):
-        for j in range(m):
-            ax = axes[2 * i if phase else i, j]
-            axp = axes[2 * i + 1, j] if phase else None
-            for label, H in responses.items():
-                band = None if not bands or label not in bands else (bands[label][0][:, i, j], bands[label][1][:, i, j])
-                style = styles.get(label, "-")
-                _draw_entry(ax, axp, freqs_hz, H[:, i, j], band, style, label, f"{label} {band_label}")
-            ax.set_title(f"{input_names[j]} → {output_names[i]}")
-            unit = magnitude_unit or scale.magnitude_unit(_unit(output_units, i), _unit(input_units, j))
-            ax.set_ylabel(f"|G| [{unit}]")
-    # limits from the lines, not the bands: a band edge at |G| - 2 std <= 0 would reach 1e-300
-    top = peak(np.abs(H) for H in responses.values())
-    for i in range(p):
-        for j in range(m):
-            mags = [np.abs(H[:, i, j]) for H in responses.values()]
-            set_log_magnitude(axes[2 * i if phase else i, j], mags, reference_peak=top if top > 0 else None)
-    for ax in axes[-1]:
-        ax.set_xlabel("frequency [Hz]")
-    axes[0, 0].legend(loc="best")
-    if title:
-        fig.suptitle(title)
-    return fig
-
-
-def _draw_entry(ax, axp, freqs_hz, h, band, style: str, label: str, band_label: str) -> None:
-    """One entry of one response: magnitude (with its band, labelled for the legend) and phase."""
-    color = style[0] if style[:1].isalpha() else None
-    ls = style[1:] if color else style
-    line = loglog(ax, freqs_hz, np.abs(h), ls, color=color, label=label, lw=1.3)
-    if band is not None:
-        upper = positive(band[1])
-        ax.fill_between(
-            positive(freqs_hz),
-            np.fmin(np.maximum(band[0], 1e-300), upper),
-            upper,
-            color=line.get_color(),
-            alpha=0.25,
-            lw=0,
-            label=band_label,
-        )
-    if axp is not None:
-        axp.semilogx(positive(freqs_hz), np.degrees(np.unwrap(np.angle(h))), ls, color=line.get_color(), lw=1.1)
-        axp.set_ylabel("phase [deg]")
-
-
-def _unit(units: Sequence[str], k: int) -> str:
-    return units[k] if k < len(units) else ""
 
 
 def pzmap_figure(
