@@ -261,6 +261,28 @@ def test_fit_keeps_caller_data_and_returns_frozen_result(name):
     assert _model_text(_result_model(second)) != before  # and the second fit used the new data
 
 
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_every_result_has_the_same_face(name):
+    """One ``fit(data)``; a ``*Result`` with ``.model``, ``summary()`` and read-only ``diagnostics``
+    that survives pickling (a worker returns it, a study caches it)."""
+    import collections.abc
+    import pickle
+
+    est, data = _make(name)
+    fit = inspect.signature(type(est).fit).parameters
+    required = [n for n, p in fit.items() if n != "self" and p.default is inspect.Parameter.empty]
+    assert required == ["data"], f"{name}.fit requires {required}"
+    result = est.fit(data(0))
+    assert type(result).__name__.endswith("Result")
+    assert result.model is not None
+    assert isinstance(result.summary(), str) and result.summary()
+    assert isinstance(result.diagnostics, collections.abc.Mapping)
+    with pytest.raises(TypeError):
+        result.diagnostics["probe"] = 1
+    again = pickle.loads(pickle.dumps(result))
+    assert _model_text(_result_model(again)) == _model_text(_result_model(result))
+
+
 def test_closed_loop_recovers_the_unstable_pole():
     est, data = _make("ClosedLoopIdentification")
     result = est.fit(data(0))

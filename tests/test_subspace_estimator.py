@@ -195,7 +195,7 @@ def test_fit_does_not_modify_or_keep_the_data():
     # record, a view of one, or a signal-length array (the result's own arrays are a few dozen wide)
     found = list(_reachable(res))
     reached = {type(o).__name__ for o in found}
-    assert {"ChannelFit", "Posterior", "StateSpaceModel", "mappingproxy", "HankelMAP"} <= reached  # the walk goes deep
+    assert {"ChannelFit", "Posterior", "StateSpaceModel", "FrozenMapping", "HankelMAP"} <= reached  # the walk goes deep
     for obj in found:
         assert not isinstance(obj, Experiment), "the result keeps a record"
         if isinstance(obj, np.ndarray) and obj.dtype != object:

@@ -4,12 +4,12 @@ levels at the odd and even detection lines (see :mod:`stageid.frf.bla` for the e
 from __future__ import annotations
 
 import dataclasses
-import types
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from ..frozen import FrozenMapping
 from ..models.frequency_response import FrequencyResponse
 
 __all__ = ["BLAResult", "DetectionLevels", "DETECTION_DB"]
@@ -94,7 +94,7 @@ class BLAResult:
     @property
     def diagnostics(self) -> Mapping[str, Any]:
         """How the BLA was made: realisations, steady-state periods, transient periods and how."""
-        return types.MappingProxyType(
+        return FrozenMapping(
             {
                 "n_realisations": self.n_realisations,
                 "n_periods": self.n_periods,

@@ -9,11 +9,11 @@ other result of stageid, so that a caller moves between estimators without learn
 from __future__ import annotations
 
 import dataclasses
-import types
 from collections.abc import Mapping
 from typing import Any
 
 from ..base import Estimator
+from ..frozen import FrozenMapping
 from ..models.frequency_response import FrequencyResponse
 
 __all__ = ["FRFResult"]
@@ -39,7 +39,7 @@ class FRFResult:
     diagnostics: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "diagnostics", types.MappingProxyType(dict(self.diagnostics)))
+        object.__setattr__(self, "diagnostics", FrozenMapping(dict(self.diagnostics)))
 
     def summary(self) -> str:
         """One line per fact: the estimator, the frequencies and the diagnostics."""

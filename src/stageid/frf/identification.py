@@ -25,7 +25,6 @@ refinement on the complex response:
 from __future__ import annotations
 
 import dataclasses
-import types
 from collections.abc import Mapping
 from typing import Any
 
@@ -35,6 +34,7 @@ from .._errors import DataError
 from ..base import Estimator, Interval, Options, Satisfies
 from ..checks import is_real
 from ..display import html_repr, short_repr
+from ..frozen import FrozenMapping
 from ..models import StateSpaceModel
 from ..models.frequency_response import FrequencyResponse
 from .fit_search import fit_at_order
@@ -119,7 +119,7 @@ class FRDResult:
     def diagnostics(self) -> Mapping[str, Any]:
         """What the fit chose and reached: order, delay, weighting, band, largest column error."""
         names = ("order", "delay", "weight", "band", "max_error")
-        return types.MappingProxyType({name: getattr(self, name) for name in names})
+        return FrozenMapping({name: getattr(self, name) for name in names})
 
     def summary(self) -> str:
         """One line per fact: the model, then :attr:`diagnostics`."""

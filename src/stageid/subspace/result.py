@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -21,6 +20,7 @@ from ..base import Estimator
 from ..checks import is_integer
 from ..data.experiment import Experiment
 from ..display import html_repr, short_repr
+from ..frozen import FrozenMapping
 from ..models.frequency_response import FrequencyResponse
 from ..models.statespace import StateSpaceModel
 from ..runtime.threads import single_blas_thread
@@ -102,7 +102,7 @@ class HankelMAPResult:
         d = dict(self.diagnostics)
         if "warnings" in d:
             d["warnings"] = tuple(d["warnings"])
-        object.__setattr__(self, "diagnostics", MappingProxyType(d))
+        object.__setattr__(self, "diagnostics", FrozenMapping(d))
 
     def __repr__(self) -> str:
         return short_repr(self)

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from ...display import html_repr, short_repr
+from ...frozen import FrozenMapping
 from ...validation.edges import EdgeError
 from ..models.preisach import PreisachModel
 from .weight_uncertainty import WeightUncertainty
@@ -63,7 +63,7 @@ class RecordsResult:
             "max_error_percent": max(self.max_error_percent),
             "rms_error_percent": max(self.rms_error_percent),
         }
-        return MappingProxyType(items | self.diagnostic_items())
+        return FrozenMapping(items | self.diagnostic_items())
 
     def diagnostic_items(self) -> dict[str, Any]:
         """The entries of :attr:`diagnostics` particular to the kind of result."""
