@@ -64,8 +64,9 @@ from ...runtime.threads import single_blas_thread
 from ..identify.pi import MODEL_KINDS, PIIdentifier
 from ..identify.preisach import PreisachIdentifier
 from ..identify.records import STATE_CHOICES, error_percents, read_records, record_edges, sampling_period
-from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
+from .disturbance_modes import DisturbanceMode, resonance_filter
 from .inverse import invert_dynamics
+from .mode_proposals import proposed_modes
 from .pi_columns import N_ALTERNATIONS, PIColumns
 from .preisach import PreisachColumns, best_start_kinds
 from .problem import StageProblem
@@ -218,9 +219,7 @@ class StageIdentifier(Estimator):
         problem, model, offsets = self._fit_chosen(problem, recs, kinds, dt, order, taus, names)
         modes: tuple[DisturbanceMode, ...] = ()
         if self.disturbance_modes is not None and self.dynamics is not None:  # step 5
-            poles = None if model.dynamics is None else model.dynamics.poles()
-            scale = max(float(np.max(np.abs(y))) for _, y in recs)
-            found = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles, scale)
+            found = proposed_modes(problem, model, offsets, orders, taus)
             if found:
                 orders_m = orders if self.dynamics == "auto" else (order,)
                 outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names, tell)
