@@ -6,24 +6,19 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-from scipy.signal import cont2discrete, lfilter
+from scipy.signal import lfilter
 
 from stageid.hysteresis.stage.disturbance_modes import MAX_MODES, DisturbanceMode, disturbance_modes
+from stageid.hysteresis.stage.dynamics import zoh_resonance
 from stageid.hysteresis.stage.mode_proposals import fold_residuals, proposed_modes, strongest_distinct
 
 DT = 1e-4
 
 
-def _resonance(fn, zeta):
-    wn = 2 * np.pi * fn
-    b, a, _ = cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), DT, "zoh")
-    b = np.ravel(b)
-    return b * np.sum(a) / np.sum(b), a
-
-
 def _drive(f, seconds):
-    t = np.arange(int(round(seconds / DT))) * DT
-    return 10.0 * np.exp(-1.5 * t / seconds) * np.sin(2 * np.pi * f * t)
+    """A decaying sine of ``f`` Hz (the FORC records' kind of drive)."""
+    n = int(round(seconds / DT))
+    return 10.0 * np.exp(-1.5 * np.arange(n) / n) * np.sin(2 * np.pi * f * DT * np.arange(n))
 
 
 class _Problem:
@@ -50,7 +45,7 @@ def _white_and_rung(seed):
     rng = np.random.default_rng(seed)
     drives = [_drive(20.0, 1.5), _drive(100.0, 0.6)]
     white = [0.05 * rng.standard_normal(u.size) for u in drives]
-    b, a = _resonance(700.0, 0.015)
+    b, a = zoh_resonance(700.0, 0.015, DT)
     rung = [lfilter(b, a, rng.standard_normal(u.size)) + 0.05 * rng.standard_normal(u.size) for u in drives]
     return drives, white, rung
 
