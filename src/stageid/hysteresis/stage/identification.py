@@ -35,7 +35,9 @@ Procedure (:meth:`StageIdentifier.fit`):
    ``None``): the residual of the fit of steps 2-4 on every record goes to
    :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
    lightly damped modes a broadband disturbance rings in every record, which the drives
-   themselves do not excite, above a floor that is never below numerical precision.  Found
+   themselves do not excite, above a floor that is never below numerical precision; when it
+   shows none, the residuals of the held-out fits of step 3's orders at the chosen creep
+   propose them (:func:`~.mode_proposals.proposed_modes`: a fit can hide the ring).  Found
    modes become a fixed unit-DC-gain resonance filter in series with ``G``
    (:func:`~.disturbance_modes.resonance_filter`); with ``auto`` order or creep, step 3 runs
    again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
