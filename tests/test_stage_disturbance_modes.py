@@ -197,3 +197,31 @@ def test_measured_tracking_records_meet_the_target_with_the_mode_from_the_distur
     off = StageIdentifier("preisach", dynamics=1, creep=(0.05,), sample_time=DT, disturbance_modes=None).fit(train)
     assert off.modes == ()
     assert validate_record(off.model, *dspace_record("bigsine_1"), "estimate").rms_error_percent > 1.0
+
+
+@pytest.mark.study
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_the_40_and_100_hz_records_propose_the_mode_from_a_held_out_fit():
+    """The dSPACE 40 + 100 Hz FORC records (studies/hysteresis/RESULTS.md section 4j), order 1,
+    creep 0.05 s, default ``disturbance_modes="auto"``: the fit on both records leaves the ~745 Hz
+    ring too low above its model error to be found, the fit on the 100 Hz record alone (a held-out
+    fold of the selection) shows it; proposed from there, it lowers the held-out one-step
+    prediction error and is kept.  Measured: every tracking record but the big sine within 1 %
+    RMS (0.44-0.59 %), the big sine 1.35 % against 2.53 % without the mode (the target's 1 % is
+    missed there: its error sits at the mode, whose frequency it is sensitive to)."""
+    from _dspace_records import dspace_record
+    from stageid.hysteresis.stage.validation import validate_record
+
+    train = [dspace_record(n)[:2] for n in ("40_hz_no_lp", "100_hz_no_lp")]
+    fit = StageIdentifier("preisach", dynamics=1, creep=(0.05,), sample_time=DT).fit(train)
+    assert len(fit.modes) == 1 and 700.0 < fit.modes[0].frequency_hz < 800.0, fit.summary()
+    assert "lowered the held-out one-step prediction error" in fit.message
+    assert validate_record(fit.model, *dspace_record("20_hz_no_lp"), "estimate").max_error_percent <= 1.5
+    for name in ("tri50_1", "tri100_1", "sine50_1", "sine100_1", "prbn_1"):
+        assert validate_record(fit.model, *dspace_record(name), "estimate").rms_error_percent <= 1.0, name
+    off = StageIdentifier("preisach", dynamics=1, creep=(0.05,), sample_time=DT, disturbance_modes=None).fit(train)
+    big = [
+        validate_record(m, *dspace_record("bigsine_1"), "estimate").rms_error_percent for m in (fit.model, off.model)
+    ]
+    assert big[0] < 0.6 * big[1], big

@@ -2,7 +2,7 @@
 
 Run: ``OMP_NUM_THREADS=1 python studies/hysteresis/stage_pairs_study.py [--modes auto|spectrum]
 [--pair A+B ...] [--order N --creep TAU ...]``; prints one Markdown row per pair (the table of ``studies/hysteresis/RESULTS.md``
-sections 4h and 4i).
+sections 4h-4j).
 
 The recipe is the one a user passes for a rate-dependent stage per the README:
 ``stageid identify hysteresis A.csv B.csv --input V --output y --model preisach --dynamics auto

@@ -32,6 +32,7 @@ module                         what it holds
 :mod:`.dynamics`               unit-DC-gain discrete dynamics: fits and filtering
 :mod:`.disturbance_modes`      lightly damped modes from the records' disturbance spectrum
 :mod:`.disturbance_spectrum`   that spectrum: each residual's Welch PSD, drive harmonics out
+:mod:`.mode_proposals`         which fits' residuals propose the modes to the held-out test
 :mod:`.identification`         ``StageIdentifier``: hysteresis first, then weights / creep /
                                dynamics alternated; auto order and creep
 :mod:`.result`                 ``StageResult``: the model, its errors, the candidates' scores

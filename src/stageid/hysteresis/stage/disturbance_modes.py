@@ -13,6 +13,7 @@ puts in series with its low-order dynamics (:mod:`.stage_identification`).
 tracking records are validation data and did not set it):
 
 1. Residual ``e_j`` of the current stage fit on every record ``j`` (own offset and start).
+   Which fits' residuals are searched is :mod:`.mode_proposals`' choice.
 2. Welch PSD of every residual, Hann segments, half overlap, on a common grid of
    ``SEGMENT_SECONDS`` bins (a power of two samples; 1024 at 10 kHz, about 10 Hz).  A record's
    segments are longer when its drive fundamental ``f0`` (the largest peak of the drive's

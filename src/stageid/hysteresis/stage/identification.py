@@ -35,7 +35,9 @@ Procedure (:meth:`StageIdentifier.fit`):
    ``None``): the residual of the fit of steps 2-4 on every record goes to
    :func:`~.disturbance_modes.disturbance_modes`, whose rule (in that module) finds the
    lightly damped modes a broadband disturbance rings in every record, which the drives
-   themselves do not excite, above a floor that is never below numerical precision.  Found
+   themselves do not excite, above a floor that is never below numerical precision; when it
+   shows none, the residuals of the held-out fits of step 3's orders at the chosen creep
+   propose them (:func:`~.mode_proposals.proposed_modes`: a fit can hide the ring).  Found
    modes become a fixed unit-DC-gain resonance filter in series with ``G``
    (:func:`~.disturbance_modes.resonance_filter`); with ``auto`` order or creep, step 3 runs
    again with the modes in place, and step 2 is fitted again (weights, creep, offsets and the
@@ -64,8 +66,9 @@ from ...runtime.threads import single_blas_thread
 from ..identify.pi import MODEL_KINDS, PIIdentifier
 from ..identify.preisach import PreisachIdentifier
 from ..identify.records import STATE_CHOICES, Records, error_percents, read_records, with_former_channels
-from .disturbance_modes import DisturbanceMode, disturbance_modes, resonance_filter
+from .disturbance_modes import DisturbanceMode, resonance_filter
 from .inverse import invert_dynamics
+from .mode_proposals import proposed_modes
 from .pi_columns import N_ALTERNATIONS, PIColumns
 from .preisach import PreisachColumns, best_start_kinds
 from .problem import StageProblem
@@ -237,9 +240,7 @@ class StageIdentifier(Estimator):
         problem, model, offsets = self._fit_chosen(problem, records, kinds, dt, order, taus)
         modes: tuple[DisturbanceMode, ...] = ()
         if self.disturbance_modes is not None and self.dynamics is not None:  # step 5
-            poles = None if model.dynamics is None else model.dynamics.poles()
-            scale = max(float(np.max(np.abs(y))) for _, y in recs)
-            found = disturbance_modes(problem.residuals(model, offsets), [u for u, _ in recs], dt, poles, scale)
+            found = proposed_modes(problem, model, offsets, orders, taus)
             if found:
                 orders_m = orders if self.dynamics == "auto" else (order,)
                 outcome = self._with_modes(problem, found, orders_m, creeps, order, taus, names, tell)
