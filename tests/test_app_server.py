@@ -437,7 +437,7 @@ def test_closed_loop_plant_from_one_data_set_per_reference(client, folder):
 def test_closed_loop_with_the_controller_unknown_runs_the_direct_route(client, folder):
     from stageid.plants import levitated_pair
 
-    r, u, y = levitated_pair.record(2000, seed=0)
+    _, u, y = levitated_pair.record(2000, seed=0)
     t = np.arange(len(u)) * levitated_pair.DT
     write_csv(folder / "loop.csv", {"t": t, "u1": u[:, 0], "u2": u[:, 1], "y1": y[:, 0], "y2": y[:, 1]})
     d = prepare(client, "loop.csv", inputs=["u1", "u2"], outputs=["y1", "y2"], detrend="none")

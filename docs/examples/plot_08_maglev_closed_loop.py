@@ -31,7 +31,7 @@ print(
     "paper (54.6, 82.2, 86.7)",
 )
 f = np.geomspace(20.0, 300.0, 300)
-G_true, G_id = true.frequency_response(f), result.plant.frequency_response(f)
+G_true, G_id = true.frequency_response(f), result.model.frequency_response(f)
 rel = np.max(np.abs(G_id - G_true) / np.abs(G_true), axis=0)
 print("largest error on the diagonal, 20-300 Hz [%]:", np.round(100 * np.diag(rel), 2), "(paper: below 1 %)")
 

@@ -90,7 +90,7 @@ def _frd_result_facts(result: Any) -> list[tuple[str, str]]:
 def _closedloop_facts(result: Any) -> list[tuple[str, str]]:
     poles = np.sort(np.asarray(result.plant_unstable_poles).real)
     return [
-        ("plant", _model_line(result.plant)),
+        ("plant", _model_line(result.model)),
         ("unstable poles", ", ".join(_fmt(p) for p in poles) or "none"),
         ("band", f"{_fmt(result.band[0])}-{_fmt(result.band[1])} Hz"),
     ]
@@ -230,7 +230,7 @@ def _figure(obj: Any) -> Any:
     if name == "FrequencyResponse":
         return _bode(None, obj.freqs, obj)
     if name == "ClosedLoopResult":
-        return _bode(obj.plant, np.geomspace(obj.band[0], obj.band[1], N_POINTS), None)
+        return _bode(obj.model, np.geomspace(obj.band[0], obj.band[1], N_POINTS), None)
     if name in ("HankelMAPResult", "FRDResult"):
         freqs = _grid(obj.model)
         return _bode(obj.model, freqs, _band(obj, freqs))

@@ -55,10 +55,12 @@ def channel_args(d: dict[str, Any]) -> list[str]:
 
 def reading(d: dict[str, Any]) -> str:
     """The Python lines that read a time data set as an experiment ``exp``."""
-    return (
-        "from stageid.data.io import read_table\n"
-        f"exp = read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r})"
-    )
+    return f"from stageid.data.io import read_table\nexp = {experiment_call(d)}"
+
+
+def experiment_call(d: dict[str, Any]) -> str:
+    """The Python expression that reads a time data set as an Experiment."""
+    return f"read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r})"
 
 
 def model_bode(model: Any, frd: Any = None) -> str:
@@ -243,12 +245,12 @@ def closedloop(session: Session, data: str, options: dict[str, Any], out: str) -
         args += ["--plant-inputs", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]
         args += ["--controller", "unknown", "--method", "direct"]
         _optional(args, options, [("order", "--order"), ("band", "--band")])
-        reads = "".join(f"    read_table({d['file']!r}).experiment({d['inputs']!r}, {d['outputs']!r}),\n" for d in sets)
+        reads = "".join(f"    {experiment_call(d)},\n" for d in sets)
         python = (
             "from stageid.closedloop import DirectPredictionError\nfrom stageid.data.io import read_table\n"
             f"exps = [\n{reads}]\n"
             f"result = DirectPredictionError(order={_literal(_text(options, 'order', 'auto'))}).fit(exps)\n"
-            "plant = result.plant"
+            "plant = result.model"
         )
     else:
         args += ["--references", ",".join(sets[0]["inputs"]), "--outputs", ",".join(sets[0]["outputs"])]

@@ -36,12 +36,12 @@ def run(report: Report, metrics: dict[str, Any], out_dir: Path, step: Callable[[
     step("maglev: PEM of the closed loop, plant deduction, reduction")
     controller = maglev.controller()
     result = ClosedLoopIdentification(controller, band=(20.0, 300.0)).fit(exps)
-    save_model(result.plant, out_dir / "maglev_plant.json")
+    save_model(result.model, out_dir / "maglev_plant.json")
     save_model(controller, out_dir / "maglev_controller.json")
 
     true = maglev.model()
     f = np.geomspace(20.0, 300.0, 300)
-    Gt, Gh = true.frequency_response(f), result.plant.frequency_response(f)
+    Gt, Gh = true.frequency_response(f), result.model.frequency_response(f)
     rel = np.max(np.abs(Gh - Gt) / np.abs(Gt), axis=0)
     of_peak = np.max(np.abs(Gh - Gt), axis=0) / np.max(np.abs(Gt), axis=0)
     rhp = np.sort(np.asarray(result.plant_unstable_poles).real)
@@ -127,7 +127,7 @@ def _report_figures(report, metrics, result, true, exps, controller, outs) -> No
         ),
         "Identified closed-loop response r_x -> x beside the empirical transfer function from the data's FFTs.",
     )
-    ysim, _ = reclose_loop(result.plant, controller, exps[0].u, maglev.DT)
+    ysim, _ = reclose_loop(result.model, controller, exps[0].u, maglev.DT)
     fit = 100 * (
         1 - np.linalg.norm(exps[0].y - ysim, axis=0) / np.linalg.norm(exps[0].y - exps[0].y.mean(axis=0), axis=0)
     )

@@ -48,7 +48,7 @@ def plot_plant_bode(
     p = result.closed_loop.n_outputs
     fig, axes = _figure(p, p, (3.2 * p, 2.6 * p))
     full = result.deduced_response(f)
-    red = result.plant.frequency_response(f)
+    red = result.model.frequency_response(f)
     tru = None if true_plant is None else true_plant.frequency_response(f)
     for i in range(p):
         for j in range(p):
@@ -58,7 +58,7 @@ def plot_plant_bode(
             loglog(ax, f, np.abs(full[:, i, j]), "--", lw=1.6, label="deduced (full order)")
             loglog(ax, f, np.abs(red[:, i, j]), "-", lw=1.6, label="reduced")
             ax.axvspan(*result.band, color="0.9", zorder=0, label="identification band" if i + j == 0 else None)
-            ax.set_title(f"{result.plant.inputs[j]} -> {result.plant.outputs[i]}", fontsize=9)
+            ax.set_title(f"{result.model.inputs[j]} -> {result.model.outputs[i]}", fontsize=9)
             ax.set_ylabel(magnitude_label(_at(output_units, i), _at(input_units, j)), fontsize=8)
             lines = [np.abs(full[:, i, j]), np.abs(red[:, i, j])] + ([] if tru is None else [np.abs(tru[:, i, j])])
             set_log_magnitude(ax, lines)
