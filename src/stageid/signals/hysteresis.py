@@ -34,6 +34,7 @@ from ._common import (
     check_tone,
     n_from_duration,
 )
+from ._docs import fill_doc
 from .periodic import triangle_wave
 
 __all__ = ["decaying_sine", "decaying_triangle", "forc_staircase", "decay_envelope"]
@@ -133,6 +134,7 @@ def _decaying(
     return x
 
 
+@fill_doc
 def decaying_sine(
     freq: float,
     n_cycles: int,
@@ -153,22 +155,7 @@ def decaying_sine(
 
     Parameters
     ----------
-    freq : float
-        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
-    n_cycles : int
-        Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
-    dt : float
-        Sample time in seconds.
-    amplitude : float, default 1.0
-        Amplitude of the first cycle (half the full input range), > 0.
-    offset : float, default 0.0
-        Centre of the input range.
-    decay : {"linear", "exponential"}, default "linear"
-        Envelope law, see :func:`decay_envelope`.
-    final_fraction : float, optional
-        Last-cycle amplitude relative to the first, in (0, 1).
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {decaying}
 
     Returns
     -------
@@ -178,8 +165,7 @@ def decaying_sine(
 
     Raises
     ------
-    SignalError
-        If a parameter is out of range or the signal leaves ``limits``.
+    {raises}
 
     Examples
     --------
@@ -205,6 +191,7 @@ def decaying_sine(
     )
 
 
+@fill_doc
 def decaying_triangle(
     freq: float,
     n_cycles: int,
@@ -222,22 +209,7 @@ def decaying_triangle(
 
     Parameters
     ----------
-    freq : float
-        Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
-    n_cycles : int
-        Number of cycles, >= 2; ``round(n_cycles / (freq dt))`` samples at ``t = k dt``.
-    dt : float
-        Sample time in seconds.
-    amplitude : float, default 1.0
-        Amplitude of the first cycle (half the full input range), > 0.
-    offset : float, default 0.0
-        Centre of the input range.
-    decay : {"linear", "exponential"}, default "linear"
-        Envelope law, see :func:`decay_envelope`.
-    final_fraction : float, optional
-        Last-cycle amplitude relative to the first, in (0, 1).
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {decaying}
 
     Returns
     -------
@@ -246,8 +218,7 @@ def decaying_triangle(
 
     Raises
     ------
-    SignalError
-        If a parameter is out of range or the signal leaves ``limits``.
+    {raises}
 
     Examples
     --------
@@ -256,19 +227,11 @@ def decaying_triangle(
     [0.0, 4.0, 0.0, -4.0, 0.0, 2.0, 0.0, -2.0]
     """
     return _decaying(
-        "decaying triangle",
-        triangle_wave,
-        freq,
-        n_cycles,
-        dt,
-        amplitude,
-        offset,
-        decay,
-        final_fraction,
-        limits,
+        "decaying triangle", triangle_wave, freq, n_cycles, dt, amplitude, offset, decay, final_fraction, limits
     )
 
 
+@fill_doc
 def forc_staircase(
     minimum: float,
     maximum: float,
@@ -296,8 +259,7 @@ def forc_staircase(
         records).
     freq : float
         Cycles per second, ``0 < freq <= 1 / (2 dt)``.
-    dt : float
-        Sample time in seconds.
+    {dt}
     shape : {"triangle", "cosine"}, default "triangle"
         Shape of one cycle: straight ramps, or the raised cosine
         ``minimum + (M_j - minimum) (1 - cos(2 pi freq t)) / 2``.  The dSPACE records
@@ -305,8 +267,7 @@ def forc_staircase(
     idle : float, default 0.0
         Seconds held at ``minimum`` before the first cycle (the dSPACE records idle
         1.5 s).
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {limits}
 
     Returns
     -------
@@ -317,8 +278,7 @@ def forc_staircase(
 
     Raises
     ------
-    SignalError
-        If a parameter is out of range or the signal leaves ``limits``.
+    {raises}
 
     Examples
     --------

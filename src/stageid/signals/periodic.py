@@ -17,6 +17,7 @@ from ._common import (
     check_tone,
     n_from_duration,
 )
+from ._docs import fill_doc
 
 __all__ = ["sine", "triangle"]
 
@@ -40,6 +41,7 @@ def _check_periodic(
     return step, n, f, amp, off
 
 
+@fill_doc
 def sine(
     freq: float,
     duration: float,
@@ -55,18 +57,13 @@ def sine(
     ----------
     freq : float
         Frequency in Hz, ``0 < freq < 1 / (2 dt)`` (at Nyquist a sine samples to a constant).
-    duration : float
-        Length in seconds; ``round(duration / dt)`` samples at ``t = k dt``.
-    dt : float
-        Sample time in seconds.
-    amplitude : float, default 1.0
-        Peak value about ``offset``, > 0.
-    offset : float, default 0.0
-        Centre value.
+    {duration}
+    {dt}
+    {amplitude}
+    {offset}
     phase : float, default 0.0
         Phase in radians.
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {limits}
 
     Returns
     -------
@@ -75,8 +72,7 @@ def sine(
 
     Raises
     ------
-    SignalError
-        If a parameter is out of range or the signal leaves ``limits``.
+    {raises}
 
     Examples
     --------
@@ -96,6 +92,7 @@ def sine(
     return x
 
 
+@fill_doc
 def triangle(
     freq: float,
     duration: float,
@@ -116,18 +113,13 @@ def triangle(
     ----------
     freq : float
         Frequency in Hz, ``0 < freq < 1 / (2 dt)``.
-    duration : float
-        Length in seconds; ``round(duration / dt)`` samples at ``t = k dt``.
-    dt : float
-        Sample time in seconds.
-    amplitude : float, default 1.0
-        Peak value about ``offset``, > 0.
-    offset : float, default 0.0
-        Centre value.
+    {duration}
+    {dt}
+    {amplitude}
+    {offset}
     phase : float, default 0.0
         Phase in radians (``2 pi`` is one period).
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {limits}
 
     Returns
     -------
@@ -136,8 +128,7 @@ def triangle(
 
     Raises
     ------
-    SignalError
-        If a parameter is out of range or the signal leaves ``limits``.
+    {raises}
 
     Examples
     --------

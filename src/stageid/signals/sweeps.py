@@ -11,12 +11,14 @@ import numpy as np
 
 from .._errors import SignalError
 from ._common import check_band, check_choice, check_dt, check_finite, check_limits, check_swing, n_from_duration
+from ._docs import fill_doc
 
 __all__ = ["chirp", "log_chirp"]
 
 _METHODS = ("linear", "logarithmic")
 
 
+@fill_doc
 def chirp(
     f0: float,
     f1: float,
@@ -45,8 +47,7 @@ def chirp(
         Start and end frequency in Hz, ``0 <= f0 < f1 <= 1 / (2 dt)``.
     duration : float
         Sweep time ``T`` in seconds (``round(duration / dt)`` samples, end point excluded).
-    dt : float
-        Sample time in seconds.
+    {dt}
     amplitude : float, default 1.0
         Half the peak-to-peak swing, > 0.
     offset : float, default 0.0
@@ -116,6 +117,7 @@ def _log_phase(fa: float, fb: float, T: float, t: np.ndarray) -> np.ndarray:
 _PHASES = {"linear": _linear_phase, "logarithmic": _log_phase}
 
 
+@fill_doc
 def log_chirp(
     f0: float,
     f1: float,
@@ -137,16 +139,14 @@ def log_chirp(
         Start and end frequency in Hz, ``0 < f0 < f1 <= 1 / (2 dt)``.
     duration : float
         Sweep time in seconds.
-    dt : float
-        Sample time in seconds.
+    {dt}
     amplitude : float, default 1.0
         Half the peak-to-peak swing, > 0.
     offset : float, default 0.0
         Centre value.
     phase : float, default 0.0
         Phase in radians.
-    limits : (float, float), optional
-        Allowed range ``(lo, hi)`` of the signal.
+    {limits}
 
     Returns
     -------
