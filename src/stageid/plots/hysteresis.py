@@ -38,6 +38,24 @@ def _flat(a: Any) -> np.ndarray:
     return np.asarray(a, dtype=float).reshape(-1)
 
 
+def _curves_figure(
+    x: Any, curves: Mapping[str, Any], size: tuple[float, float], lw: float, labels: tuple[str, str, str]
+) -> Any:
+    """One axis with every curve of ``curves`` against ``x``, labelled ``(xlabel, ylabel, title)``."""
+    fig, axes = _figure(1, 1, size)
+    ax = axes[0, 0]
+    xs = _flat(x)
+    for label, y in curves.items():
+        ax.plot(xs, _flat(y), lw=lw, label=label)
+    xlabel, ylabel, title = labels
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.legend()
+    return fig
+
+
 def loop_figure(
     u: Any, curves: Mapping[str, Any], xlabel: str = "input [V]", ylabel: str = "output [um]", title: str = ""
 ) -> Any:
@@ -62,17 +80,7 @@ def loop_figure(
     >>> len(fig.axes)
     1
     """
-    fig, axes = _figure(1, 1, (5.0, 4.0))
-    ax = axes[0, 0]
-    x = _flat(u)
-    for label, y in curves.items():
-        ax.plot(x, _flat(y), lw=0.8, label=label)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    ax.legend()
-    return fig
+    return _curves_figure(u, curves, (5.0, 4.0), 0.8, (xlabel, ylabel, title))
 
 
 def loop_error_figure(
@@ -213,17 +221,7 @@ def model_errors_figure(
     time: Any, errors: Mapping[str, Any], ylabel: str = "modelling error [um]", title: str = ""
 ) -> Any:
     """Modelling-error traces of several models over time (Fig. 8)."""
-    fig, axes = _figure(1, 1, (7.0, 3.2))
-    ax = axes[0, 0]
-    t = _flat(time)
-    for label, e in errors.items():
-        ax.plot(t, _flat(e), lw=0.7, label=label)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    ax.legend()
-    return fig
+    return _curves_figure(time, errors, (7.0, 3.2), 0.7, ("time [s]", ylabel, title))
 
 
 def tracking_figure(
