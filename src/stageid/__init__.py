@@ -15,22 +15,8 @@ Sub-packages, one capability each:
 ==============  =====================================================================
 """
 
-from ._errors import (
-    ClusterError,
-    DataError,
-    ExcitationWarning,
-    FitWarning,
-    IdentificationError,
-    ModelError,
-    ModelFormatError,
-    NoSampleTimeError,
-    ParameterError,
-    ResourceError,
-    SignalError,
-    StabilityWarning,
-    StageIdError,
-    StageIdWarning,
-)
+from ._errors import *  # noqa: F403 - every error and warning class is public at the top level
+from ._errors import __all__ as _error_names
 from ._moved import install_moved_paths
 from .runtime import numba_cache
 
@@ -39,20 +25,4 @@ numba_cache.configure()  # before any kernel is defined: a read-only install mus
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "StageIdError",
-    "DataError",
-    "ModelError",
-    "ModelFormatError",
-    "SignalError",
-    "IdentificationError",
-    "ParameterError",
-    "ResourceError",
-    "ClusterError",
-    "NoSampleTimeError",
-    "StageIdWarning",
-    "ExcitationWarning",
-    "FitWarning",
-    "StabilityWarning",
-    "__version__",
-]
+__all__ = [*_error_names, "__version__"]

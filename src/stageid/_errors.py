@@ -21,6 +21,7 @@ __all__ = [
     "ClusterError",
     "StageIdWarning",
     "ExcitationWarning",
+    "FitWarning",
     "StabilityWarning",
 ]
 

@@ -17,7 +17,7 @@ import numpy as np
 from .._errors import DataError
 from .sampling import check_period, shared_period
 
-__all__ = ["Experiment", "as_experiments", "check_samples", "MAX_ABS_SAMPLE"]
+__all__ = ["Experiment", "as_experiments", "check_same_channels", "check_samples", "MAX_ABS_SAMPLE"]
 
 
 def _as_2d(name: str, values: object) -> np.ndarray:
@@ -297,13 +297,23 @@ def as_experiments(data: Experiment | Sequence[Experiment]) -> tuple[Experiment,
     for e in exps:
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects; got {type(e).__name__}.")
-    first = exps[0]
     dt = shared_period([e.dt for e in exps], [e.name or f"record {i}" for i, e in enumerate(exps)], "experiments")
     exps = tuple(e if e.dt == dt else replace(e, dt=dt) for e in exps)
-    for e in exps[1:]:
-        if e.input_names != first.input_names or e.output_names != first.output_names:
-            raise DataError(
-                f"all experiments must have the same channels; got inputs {list(first.input_names)} / outputs "
-                f"{list(first.output_names)} and inputs {list(e.input_names)} / outputs {list(e.output_names)}."
-            )
+    check_same_channels(exps, "names", "have the same channels")
     return exps
+
+
+def check_same_channels(exps: Sequence[Experiment], field: str, rule: str) -> None:
+    """Raise DataError unless every experiment's ``input_<field>`` and ``output_<field>`` equal the first one's.
+
+    ``field`` is ``"names"`` or ``"units"``; ``rule`` ends the message ("all experiments must <rule>").
+    """
+    first = exps[0]
+    want = (getattr(first, f"input_{field}"), getattr(first, f"output_{field}"))
+    for e in exps[1:]:
+        got = (getattr(e, f"input_{field}"), getattr(e, f"output_{field}"))
+        if got != want:
+            raise DataError(
+                f"all experiments must {rule}; got inputs {list(want[0])} / outputs {list(want[1])} "
+                f"and inputs {list(got[0])} / outputs {list(got[1])}."
+            )

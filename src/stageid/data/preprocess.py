@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DataError
-from .experiment import Experiment, as_experiments
+from .experiment import Experiment, as_experiments, check_same_channels
 
 __all__ = ["Offsets", "remove_offset", "split", "merge", "decimate"]
 
@@ -231,13 +231,7 @@ def merge(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, .
     2
     """
     exps = as_experiments(experiments)
-    first = exps[0]
-    for e in exps[1:]:
-        if e.input_units != first.input_units or e.output_units != first.output_units:
-            raise DataError(
-                f"all experiments must use the same units; got inputs {list(first.input_units)} / outputs "
-                f"{list(first.output_units)} and inputs {list(e.input_units)} / outputs {list(e.output_units)}."
-            )
+    check_same_channels(exps, "units", "use the same units")
     return exps
 
 

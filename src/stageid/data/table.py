@@ -15,33 +15,13 @@ import numpy as np
 
 from .._errors import DataError, NoSampleTimeError
 from ..checks import shown
-from .columns import (  # the readers' shared rules, re-exported where they were
-    DEFAULT_TIME_RTOL,
-    TIME_COLUMN,
-    check_finite,
-    check_unique_names,
-    file_prefix,
-    positive_seconds,
-    stack_columns,
-    time_axis,
-    time_column_grid,
-)
+from . import columns
+from .columns import *  # noqa: F403 - the readers' shared rules, re-exported where they were
+from .columns import TIME_COLUMN, check_finite, check_unique_names, file_prefix, time_column_grid
 from .experiment import Experiment
 from .sampling import check_period
 
-__all__ = [
-    "Table",
-    "TIME_COLUMN",
-    "DEFAULT_TIME_RTOL",
-    "file_prefix",
-    "positive_seconds",
-    "check_unique_names",
-    "check_finite",
-    "time_axis",
-    "time_column_grid",
-    "assemble_table",
-    "stack_columns",
-]
+__all__ = ["Table", "assemble_table", *columns.__all__]
 
 
 @dataclass(frozen=True, eq=False)
