@@ -172,3 +172,11 @@ def test_event_driven_cp_sum_equals_reference(seed):
     y, z = kernels.cp_sum_events(x, r, rc, ra, rb, w, z0, x0)
     np.testing.assert_allclose(y, Zr @ w, rtol=0, atol=1e-12 * np.abs(Zr @ w).max())
     np.testing.assert_allclose(z, zr, rtol=0, atol=1e-12 * 300)
+
+
+def test_operator_input_errors_name_the_parameter_and_the_row():
+    # the operators check their input with the models' one input check
+    with pytest.raises(ModelError, match=r"input `x` must be finite; got nan at row 1"):
+        play([0.0, float("nan")], [1.0])
+    with pytest.raises(ModelError, match=r"input `x` must have shape"):
+        coupled_play(np.zeros((3, 2)), [1.0], [0.5], [2.0], [1.0])

@@ -34,6 +34,15 @@ def _pair(a: object, b: object, what: str) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
+def _pair_with_range(measured: object, predicted: object, name: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """The checked pair and the measured output's range, which the errors in % are relative to."""
+    y, yh = _pair(measured, predicted, name)
+    rng = float(np.ptp(y))
+    if rng <= 0:
+        raise DataError("the measured output is constant; the error in % of range is undefined.")
+    return y, yh, rng
+
+
 def max_error_percent(measured: object, predicted: object) -> float:
     """Largest absolute error in % of the measured output range.
 
@@ -56,19 +65,13 @@ def max_error_percent(measured: object, predicted: object) -> float:
     >>> max_error_percent([0.0, 1.0, 2.0], [0.0, 1.1, 2.0])
     5.000000000000004
     """
-    y, yh = _pair(measured, predicted, "max_error_percent")
-    rng = float(np.ptp(y))
-    if rng <= 0:
-        raise DataError("the measured output is constant; the error in % of range is undefined.")
+    y, yh, rng = _pair_with_range(measured, predicted, "max_error_percent")
     return float(100.0 * np.max(np.abs(y - yh)) / rng)
 
 
 def rms_error_percent(measured: object, predicted: object) -> float:
     """RMS error in % of the measured output range (see :func:`max_error_percent`)."""
-    y, yh = _pair(measured, predicted, "rms_error_percent")
-    rng = float(np.ptp(y))
-    if rng <= 0:
-        raise DataError("the measured output is constant; the error in % of range is undefined.")
+    y, yh, rng = _pair_with_range(measured, predicted, "rms_error_percent")
     return float(100.0 * np.sqrt(np.mean((y - yh) ** 2)) / rng)
 
 

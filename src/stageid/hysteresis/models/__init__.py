@@ -16,7 +16,7 @@ module                what it holds
                       output (``residual_bound``) that the inversion kernels take
 ====================  ==================================================================
 
-Layers: ``common`` and ``operators`` -> ``creep`` -> ``pi_base`` -> ``modified_pi`` -> ``pi`` ->
+Layers: ``common`` -> ``operators`` -> ``creep`` -> ``pi_base`` -> ``modified_pi`` -> ``pi`` ->
 ``serialization`` (``preisach``
 calls its number helpers when it writes itself).  The compiled loops are
 :mod:`stageid.hysteresis.kernels`.

@@ -1,7 +1,7 @@
 """Helpers shared by the hysteresis models, their inverse and the compensator.
 
-The lowest module of :mod:`stageid.hysteresis` besides :mod:`.operators`: it imports no other
-module of the package, so models (:mod:`.pi`), inversion (:mod:`stageid.hysteresis.inverse`)
+The lowest module of :mod:`stageid.hysteresis`: it imports no other module of the package,
+so the operators (:mod:`.operators`), models (:mod:`.pi`), inversion (:mod:`stageid.hysteresis.inverse`)
 and compensation (:mod:`stageid.hysteresis.inverse.compensator`) can all use it without
 importing each other.  Besides the checks: a model's operator parameters as the inversion
 kernels take them (:func:`packed`) and the rounding bound of its computed output at which

@@ -65,11 +65,13 @@ M. A. Krasnosel'skii and A. V. Pokrovskii, *Systems with Hysteresis*, Springer 1
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..._errors import ModelError
+from .common import as_input
 
 __all__ = [
     "OperatorState",
@@ -131,17 +133,6 @@ def gamma_down(x: np.ndarray | float, ra: np.ndarray, rb: np.ndarray) -> np.ndar
     return np.minimum(x + ra, np.maximum(x + rb, 0.0))
 
 
-def _input(x: object) -> np.ndarray:
-    arr = np.asarray(x, dtype=float)
-    if arr.ndim == 2 and arr.shape[1] == 1:
-        arr = arr[:, 0]
-    if arr.ndim != 1:
-        raise ModelError(f"operator input must have shape (n_samples,) or (n_samples, 1); got {np.shape(x)}.")
-    if not np.all(np.isfinite(arr)):
-        raise ModelError("operator input must be finite; got NaN or inf.")
-    return np.ascontiguousarray(arr)
-
-
 def _thresholds(name: str, value: object, n: int | None = None) -> np.ndarray:
     arr = np.array(value, dtype=float, copy=True).reshape(-1)
     if n is not None and arr.size != n:
@@ -171,37 +162,39 @@ def check_cp_thresholds(r: object, rc: object, ra: object, rb: object) -> tuple[
     return r_, np.minimum(rc_, r_), ra_, np.minimum(rb_, ra_)
 
 
+def _bank_reference(
+    x: np.ndarray, m: int, z0: np.ndarray, update: Callable[[float, int, float], float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run ``m`` operators sample by sample: ``z_i <- update(x_k, i, z_i)``; outputs and final outputs."""
+    out = np.empty((x.shape[0], m))
+    z = [float(v) for v in z0]
+    for k in range(x.shape[0]):
+        xk = float(x[k])
+        for i in range(m):
+            z[i] = update(xk, i, z[i])
+            out[k, i] = z[i]
+    return out, np.array(z)
+
+
 def play_reference(x: np.ndarray, r: np.ndarray, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Plain-Python play bank, eq. 1-2, sample by sample (the reference the kernels are tested against).
 
     Returns the outputs of shape (n_samples, n_operators) and the final outputs.
     """
-    n, m = x.shape[0], r.shape[0]
-    out = np.empty((n, m))
-    z = [float(v) for v in z0]
-    for k in range(n):
-        xk = float(x[k])
-        for i in range(m):
-            z[i] = max(xk - r[i], min(xk + r[i], z[i]))
-            out[k, i] = z[i]
-    return out, np.array(z)
+    return _bank_reference(x, r.shape[0], z0, lambda xk, i, zi: max(xk - r[i], min(xk + r[i], zi)))
 
 
 def coupled_play_reference(
     x: np.ndarray, r: np.ndarray, rc: np.ndarray, ra: np.ndarray, rb: np.ndarray, z0: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain-Python CP bank, eq. 3 in the consistent reading of the module notes."""
-    n, m = x.shape[0], r.shape[0]
-    out = np.empty((n, m))
-    z = [float(v) for v in z0]
-    for k in range(n):
-        xk = float(x[k])
-        for i in range(m):
-            up = max(xk - r[i], min(xk - rc[i], 0.0))
-            down = min(xk + ra[i], max(xk + rb[i], 0.0))
-            z[i] = max(up, min(down, z[i]))
-            out[k, i] = z[i]
-    return out, np.array(z)
+
+    def update(xk: float, i: int, zi: float) -> float:
+        up = max(xk - r[i], min(xk - rc[i], 0.0))
+        down = min(xk + ra[i], max(xk + rb[i], 0.0))
+        return max(up, min(down, zi))
+
+    return _bank_reference(x, r.shape[0], z0, update)
 
 
 def play(x: object, r: object, state: OperatorState | None = None) -> tuple[np.ndarray, OperatorState]:
@@ -237,7 +230,7 @@ def play(x: object, r: object, state: OperatorState | None = None) -> tuple[np.n
     """
     from .. import kernels
 
-    xx = _input(x)
+    xx = np.ascontiguousarray(as_input(x, "x"))
     rr = _thresholds("r", r)
     st = state if state is not None else OperatorState.zeros(rr.size)
     if st.z.size != rr.size:
@@ -280,7 +273,7 @@ def coupled_play(
     """
     from .. import kernels
 
-    xx = _input(x)
+    xx = np.ascontiguousarray(as_input(x, "x"))
     r_, rc_, ra_, rb_ = check_cp_thresholds(r, rc, ra, rb)
     st = state if state is not None else OperatorState.zeros(r_.size)
     if st.z.size != r_.size:
