@@ -23,6 +23,9 @@ __all__ = [
     "read_experiments",
     "read_table_checked",
     "trim_options",
+    "channel_options",
+    "MODEL_CHANNELS_HELP",
+    "TS_HELP",
     "current_trim",
     "say",
     "flush_messages",
@@ -149,6 +152,27 @@ def trim_options(command):
             help=_TRIM_HELP[name],
         )(command)
     return command
+
+
+#: ``--ts`` where a record's sample time comes only from its file or the flag
+TS_HELP = "Sample time [s] when the files have no `t` column."
+#: ``--inputs`` / ``--outputs`` of the commands that read records against a saved model
+MODEL_CHANNELS_HELP = (
+    "Input columns (default: the model's input names).",
+    "Output columns (default: the model's output names).",
+)
+
+
+def channel_options(inputs_help: str, outputs_help: str, ts_help: str = TS_HELP, required: bool = False):
+    """``--inputs``/``--outputs`` (column names, comma-separated) and ``--ts``: which columns of the
+    records a command reads, and their sample time when the files carry none."""
+
+    def decorate(command):
+        command = click.option("--ts", type=float, default=None, help=ts_help)(command)
+        command = click.option("--outputs", required=required, default=None, help=outputs_help)(command)
+        return click.option("--inputs", required=required, default=None, help=inputs_help)(command)
+
+    return decorate
 
 
 def current_trim() -> tuple[float | None, float | None]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import read_experiments, say, split_names, trim_options
+from ._common import channel_options, read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, scheduler_option, statistics_client
 from .outputs import check_output, output_option, write_table_output
 
@@ -22,9 +22,7 @@ Examples:
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path())
-@click.option("--inputs", required=True, help="Input columns, comma-separated.")
-@click.option("--outputs", required=True, help="Output columns, comma-separated.")
-@click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
+@channel_options("Input columns, comma-separated.", "Output columns, comma-separated.", required=True)
 @click.option(
     "--method",
     type=click.Choice(["welch", "lpm", "periodic", "bla"]),

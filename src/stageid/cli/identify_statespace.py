@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import parse_band, read_experiments, say, split_names, trim_options
+from ._common import channel_options, parse_band, read_experiments, say, split_names, trim_options
 from .chunked_input import chunked_record, fit_on_chunks, scheduler_option
 from .outputs import check_output, check_output_folder, output_option, write_model_output
 from .uncertainty import UncertaintyRequest, uncertainty_options
@@ -39,9 +39,12 @@ Examples:
 """,
 )
 @click.argument("data", nargs=-1, required=True, type=click.Path())
-@click.option("--inputs", required=True, help="Input columns A,B,C.")
-@click.option("--outputs", required=True, help="Output columns X,Y,Z.")
-@click.option("--ts", type=float, default=None, help="Sample time in s when the files have no 't' column.")
+@channel_options(
+    "Input columns A,B,C.",
+    "Output columns X,Y,Z.",
+    "Sample time in s when the files have no 't' column.",
+    required=True,
+)
 @click.option(
     "--order",
     "order_text",

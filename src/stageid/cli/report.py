@@ -6,7 +6,16 @@ from pathlib import Path
 
 import click
 
-from ._common import command_line, command_settings, read_experiments, say, split_names, trim_options
+from ._common import (
+    MODEL_CHANNELS_HELP,
+    channel_options,
+    command_line,
+    command_settings,
+    read_experiments,
+    say,
+    split_names,
+    trim_options,
+)
 from .outputs import check_output_folder
 
 
@@ -42,9 +51,7 @@ Examples:
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("data", nargs=-1, type=click.Path(dir_okay=False))
-@click.option("--inputs", default=None, help="Input columns (default: the model's input names).")
-@click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
-@click.option("--ts", type=float, default=None, help="Sample time [s] when the files have no `t` column.")
+@channel_options(*MODEL_CHANNELS_HELP)
 @click.option("--title", default=None, help="Report title.")
 @click.option(
     "--frf",

@@ -6,7 +6,7 @@ import click
 
 from .._errors import DataError
 from ..validation.residuals import ALPHA, MAX_LAG
-from ._common import read_experiments, say, split_names, trim_options
+from ._common import MODEL_CHANNELS_HELP, channel_options, read_experiments, say, split_names, trim_options
 from .outputs import check_output, check_output_folder
 
 
@@ -23,13 +23,8 @@ Examples:
 )
 @click.argument("model_path", metavar="MODEL.json", type=click.Path(dir_okay=False))
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--inputs", default=None, help="Input columns (default: the model's input names).")
-@click.option("--outputs", default=None, help="Output columns (default: the model's output names).")
-@click.option(
-    "--ts",
-    type=float,
-    default=None,
-    help="Sample time [s] when the files have no `t` column (default: a discrete model's).",
+@channel_options(
+    *MODEL_CHANNELS_HELP, "Sample time [s] when the files have no `t` column (default: a discrete model's)."
 )
 @click.option(
     "--initial",
