@@ -32,39 +32,30 @@ def simulate_discrete(
         import numba
 
         _compiled = numba.njit(cache=True, nogil=True)(_simulate_loop)
-    y, x = _compiled(
-        np.ascontiguousarray(A),
-        np.ascontiguousarray(B),
-        np.ascontiguousarray(C),
-        np.ascontiguousarray(D),
-        np.ascontiguousarray(u),
-        x0.copy(),
-    )
-    return y, x
+    S = np.block([[C, D], [A, B]])
+    return _compiled(S, C.shape[0], np.ascontiguousarray(u), x0.astype(float, copy=True))
 
 
-def _simulate_loop(A, B, C, D, u, x):  # pragma: no cover - compiled
+def _simulate_loop(S, n_outputs, u, x):  # pragma: no cover - compiled
+    """``[y(k); x(k+1)] = S [x(k); u(k)]`` with ``S = [[C, D], [A, B]]``: both equations in one product."""
     n_samples = u.shape[0]
-    n = A.shape[0]
-    m = B.shape[1]
-    p = C.shape[0]
-    y = np.empty((n_samples, p))
-    xn = np.empty(n)
+    n = x.shape[0]
+    m = u.shape[1]
+    y = np.empty((n_samples, n_outputs))
+    v = np.empty(n + m)  # [x(k); u(k)]
+    w = np.empty(S.shape[0])  # [y(k); x(k+1)]
     for k in range(n_samples):
-        for i in range(p):
+        for j in range(n):
+            v[j] = x[j]
+        for j in range(m):
+            v[n + j] = u[k, j]
+        for i in range(S.shape[0]):
             acc = 0.0
-            for j in range(n):
-                acc += C[i, j] * x[j]
-            for j in range(m):
-                acc += D[i, j] * u[k, j]
-            y[k, i] = acc
+            for j in range(n + m):
+                acc += S[i, j] * v[j]
+            w[i] = acc
+        for i in range(n_outputs):
+            y[k, i] = w[i]
         for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += A[i, j] * x[j]
-            for j in range(m):
-                acc += B[i, j] * u[k, j]
-            xn[i] = acc
-        for i in range(n):
-            x[i] = xn[i]
+            x[i] = w[n_outputs + i]
     return y, x
