@@ -30,7 +30,7 @@ import numpy as np
 
 from ._errors import StageIdError
 
-__all__ = ["facts", "short_repr", "html_repr", "figure_svg"]
+__all__ = ["facts", "short_repr", "html_repr", "figure_svg", "HtmlRepr"]
 
 MAX_PANELS = 3  # a Bode figure shows at most 3 x 3 entries: a notebook cell, not a report
 N_POINTS = 60  # frequencies of a curve: enough for a thumbnail, and the SVG grows with them
@@ -325,3 +325,10 @@ def _loop(model: Any) -> Any:
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+class HtmlRepr:
+    """Base of the objects that show in a notebook as :func:`html_repr` (``_repr_html_``)."""
+
+    def _repr_html_(self) -> str:
+        return html_repr(self)

@@ -20,13 +20,13 @@ import numpy as np
 
 from .._errors import DataError
 from ..data.mat_responses import mat_responses
-from ..display import html_repr
+from ..display import HtmlRepr
 
 __all__ = ["FrequencyResponse", "read_frd", "frd_columns"]
 
 
 @dataclasses.dataclass(frozen=True, repr=False)
-class FrequencyResponse:
+class FrequencyResponse(HtmlRepr):
     """A measured (or computed) MIMO frequency response.
 
     Parameters
@@ -70,9 +70,6 @@ class FrequencyResponse:
     outputs: tuple[str, ...] = ()
     total_std: np.ndarray | None = None
     copy: dataclasses.InitVar[bool] = True
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
 
     def __post_init__(self, copy: bool) -> None:
         own = True if copy else None  # None: no copy unless the dtype differs

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelError
-from ..display import html_repr
+from ..display import HtmlRepr
 from . import control_bridge as bridge
 from . import conversions as cv
 from ._validate import as_sample_time, frequency_variable, statespace_fields, transfer_fields
@@ -31,7 +31,7 @@ __all__ = ["StateSpaceModel", "TransferMatrix"]
 
 
 @dataclass(frozen=True, eq=False)
-class StateSpaceModel:
+class StateSpaceModel(HtmlRepr):
     """A linear time-invariant state-space model with named inputs and outputs.
 
     Parameters
@@ -66,9 +66,6 @@ class StateSpaceModel:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
 
     def __post_init__(self) -> None:
         fields = statespace_fields(self.A, self.B, self.C, self.D, self.dt, self.inputs, self.outputs)
@@ -230,7 +227,7 @@ class StateSpaceModel:
 
 
 @dataclass(frozen=True, eq=False)
-class TransferMatrix:
+class TransferMatrix(HtmlRepr):
     """A MIMO transfer matrix ``G[i][j](v) = num[i][j](v) / den[i][j](v)``.
 
     Coefficients are in descending powers of ``s`` (continuous, ``dt`` is None) or ``z``
@@ -261,9 +258,6 @@ class TransferMatrix:
     dt: float | None = None
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
-
-    def _repr_html_(self) -> str:
-        return html_repr(self)
 
     def __post_init__(self) -> None:
         for name, value in transfer_fields(self.num, self.den, self.dt, self.inputs, self.outputs).items():
