@@ -22,9 +22,17 @@ and keeps a stable model stable; the refinement stops when a step lowers the cos
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
-__all__ = ["refine_output_error", "output_error_cost", "output_error_bytes", "OE_TOL", "OE_MAX_ITER", "OE_BLOCK"]
+__all__ = [
+    "refine_output_error",
+    "output_error_bytes",
+    "Modal",
+    "weighted_pass",
+    "moved_starts",
+    "OE_TOL",
+    "OE_MAX_ITER",
+    "OE_BLOCK",
+]
 
 #: Relative cost decrease below which the refinement stops.
 OE_TOL = 1e-6
@@ -37,7 +45,7 @@ OE_BLOCK = 4096
 MAX_MODAL_CONDITION = 1e8
 
 
-class _Modal:
+class Modal:
     """A real model in modal form: poles ``lam`` (complex, one per pair with Im > 0, then the
     real ones), complex ``b`` (n_modes, m), ``c`` (q, n_modes) and real ``d`` (q, m); a pair's
     output is ``2 Re(c x)``."""
@@ -46,7 +54,7 @@ class _Modal:
         self.lam, self.b, self.c, self.d, self.n_pairs = lam, b, c, d, n_pairs
 
     @classmethod
-    def from_abcd(cls, A, B, C, D) -> _Modal | None:
+    def from_abcd(cls, A, B, C, D) -> Modal | None:
         lam, V = np.linalg.eig(A)
         if not np.all(np.isfinite(lam)) or np.linalg.cond(V) > MAX_MODAL_CONDITION:
             return None
@@ -88,7 +96,7 @@ class _Modal:
             parts.append(self.d.ravel())
         return np.concatenate(parts)
 
-    def moved(self, step: np.ndarray, feedthrough: bool) -> _Modal:
+    def moved(self, step: np.ndarray, feedthrough: bool) -> Modal:
         """The model with ``step`` added to :meth:`vector`."""
         v = self.vector(feedthrough) + step
         h, k = self.n_pairs, self.lam.size
@@ -98,14 +106,16 @@ class _Modal:
         lam = np.concatenate([lr + 1j * li, lre.astype(complex)])
         b = np.vstack([(br + 1j * bi).reshape(h, m), bre.reshape(r, m).astype(complex)])
         c = np.hstack([(cr + 1j * ci).reshape(q, h), cre.reshape(q, r).astype(complex)])
-        return _Modal(lam, b, c, d.reshape(q, m) if feedthrough else self.d, self.n_pairs)
+        return Modal(lam, b, c, d.reshape(q, m) if feedthrough else self.d, self.n_pairs)
 
 
-def _block_parts(model: _Modal, u: np.ndarray, t0: int, start: np.ndarray, carry: list, jacobian: bool):
+def _block_parts(model: Modal, u: np.ndarray, t0: int, start: np.ndarray, carry: list, jacobian: bool):
     """Output of one block of samples from time ``t0`` on, and (``jacobian``) its derivatives by
     the model's parameters ``(L, q, P)`` and by the record's own ``(L, q, n + q)`` (initial
-    modal state as :meth:`_Modal.state_vector` orders it, output offsets); ``start`` is the
+    modal state as :meth:`Modal.state_vector` orders it, output offsets); ``start`` is the
     record's ``(z0, offsets)`` and ``carry`` holds the filter states across blocks."""
+    from scipy.signal import lfilter  # on first use: importing scipy.signal at import costs the CLI's start
+
     L, m = u.shape
     q, k, h = model.c.shape[0], model.lam.size, model.n_pairs
     z0, offset = start
@@ -162,7 +172,7 @@ def output_error_bytes(order: int, n_inputs: int, n_outputs: int) -> float:
     return 8.0 * OE_BLOCK * (2.0 * n * m + 4.0 * q * P + 2.0 * q * q * n) + 8.0 * 3.0 * P * P
 
 
-def _carry(model: _Modal, m: int) -> list:
+def _carry(model: Modal, m: int) -> list:
     return [[np.zeros((1, m), dtype=complex), np.zeros(1, dtype=complex)] for _ in range(model.lam.size)]
 
 
@@ -175,7 +185,9 @@ def _feedthrough_columns(u: np.ndarray, q: int) -> np.ndarray:
     return Jd
 
 
-def _pass(model: _Modal, starts: list, records, w: np.ndarray, feedthrough: bool, jacobian: bool):
+def weighted_pass(
+    model: Modal, starts: list, records, w: np.ndarray, feedthrough: bool, jacobian: bool = True, block: int = OE_BLOCK
+):
     """Weighted cost over the records and (``jacobian``) the normal equations ``J^T J``, ``J^T r``
     over the model's parameters followed by each record's ``(z0, offsets)``."""
     n_shared = model.vector(feedthrough).size
@@ -185,8 +197,8 @@ def _pass(model: _Modal, starts: list, records, w: np.ndarray, feedthrough: bool
     for r_idx, ((u, y), start) in enumerate(zip(records, starts)):
         carry = _carry(model, u.shape[1])
         idx = np.concatenate([np.arange(n_shared), n_shared + r_idx * n_own + np.arange(n_own)])
-        for a in range(0, u.shape[0], OE_BLOCK):
-            ub, yb = u[a : a + OE_BLOCK], y[a : a + OE_BLOCK]
+        for a in range(0, u.shape[0], block):
+            ub, yb = u[a : a + block], y[a : a + block]
             yh, J, Jo = _block_parts(model, ub, a, start, carry, jacobian)
             r = (yb - yh) * w[None, :]
             cost += float(np.sum(r**2))
@@ -199,7 +211,7 @@ def _pass(model: _Modal, starts: list, records, w: np.ndarray, feedthrough: bool
     return cost, JtJ, Jtr
 
 
-def _moved_starts(model: _Modal, starts: list, step: np.ndarray) -> list:
+def moved_starts(model: Modal, starts: list, step: np.ndarray) -> list:
     """Each record's ``(z0, offsets)`` moved by its part of ``step``."""
     h, k, q = model.n_pairs, model.lam.size, model.c.shape[0]
     n_own = k + h + q
@@ -209,16 +221,6 @@ def _moved_starts(model: _Modal, starts: list, step: np.ndarray) -> list:
         dz = np.concatenate([s[:h] + 1j * s[h : 2 * h], s[2 * h : k + h].astype(complex)])
         out.append((z0 + dz, offset + s[k + h :]))
     return out
-
-
-def output_error_cost(abcd, records, weights: np.ndarray | None = None) -> float:
-    """``sum ||W (y - y_sim)||^2`` of the model ``abcd = (A, B, C, D)`` simulated from rest on the records."""
-    from ...models.statespace import StateSpaceModel
-
-    model = StateSpaceModel(*abcd, 1.0)
-    q = np.asarray(abcd[2]).shape[0]
-    w = np.ones(q) if weights is None else np.asarray(weights, dtype=float)
-    return float(sum(np.sum(((y - model.simulate(u)) * w[None, :]) ** 2) for u, y in records))
 
 
 def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = False, max_iter: int = OE_MAX_ITER):
@@ -246,13 +248,13 @@ def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = F
     """
     q = np.asarray(C).shape[0]
     w = np.ones(q) if weights is None else np.asarray(weights, dtype=float)
-    model = _Modal.from_abcd(np.asarray(A), np.asarray(B), np.asarray(C), np.asarray(D))
+    model = Modal.from_abcd(np.asarray(A), np.asarray(B), np.asarray(C), np.asarray(D))
     if model is None:
         return A, B, C, D, {"cost0": np.nan, "cost": np.nan, "iterations": 0}
     stable = bool(np.all(np.abs(model.lam) < 1.0))
     starts = [(np.zeros(model.lam.size, dtype=complex), np.zeros(q)) for _ in records]
     n_shared = model.vector(feedthrough).size
-    cost, JtJ, g = _pass(model, starts, records, w, feedthrough, True)
+    cost, JtJ, g = weighted_pass(model, starts, records, w, feedthrough, True)
     cost0, mu, nu, it = cost, 1e-3, 2.0, 0
     while it < max_iter:
         it += 1
@@ -266,9 +268,9 @@ def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = F
                 mu, nu = mu * nu, nu * 2.0
                 continue
             trial = model.moved(step[:n_shared], feedthrough)
-            trial_starts = _moved_starts(model, starts, step[n_shared:])
+            trial_starts = moved_starts(model, starts, step[n_shared:])
             if not (stable and np.any(np.abs(trial.lam) >= 1.0)):
-                c1 = _pass(trial, trial_starts, records, w, feedthrough, False)[0]
+                c1 = weighted_pass(trial, trial_starts, records, w, feedthrough, False)[0]
                 if np.isfinite(c1) and c1 < cost:
                     predicted = float(2.0 * step @ g - step @ (JtJ @ step))
                     rho = (cost - c1) / predicted if predicted > 0 else 0.0
@@ -279,6 +281,6 @@ def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = F
             mu, nu = mu * nu, nu * 2.0
         if not step_taken or rel < OE_TOL:
             break
-        cost, JtJ, g = _pass(model, starts, records, w, feedthrough, True)
+        cost, JtJ, g = weighted_pass(model, starts, records, w, feedthrough, True)
     A1, B1, C1, D1 = model.to_abcd()
     return A1, B1, C1, D1, {"cost0": cost0, "cost": cost, "iterations": it}
