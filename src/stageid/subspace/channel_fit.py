@@ -133,14 +133,22 @@ def channel_statistics(settings: Any, recs: list, horizon: int, split: HeldOutSp
 def held_out_order(
     settings: Any, split: HeldOutSplit, horizon: int, freqs: np.ndarray, dt: float, recs: list, su, sy
 ) -> tuple[int, SelectionTable]:
-    """Section 3.2: the order whose model, realised from the training segments' posterior,
-    simulates the held-out segments best."""
+    """Section 3.2: the order whose model, realised from the training segments' posterior (and
+    refined on their output error when the final model will be), simulates the held-out
+    segments best."""
     if horizon not in split.train:
         raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
     train = split.train[horizon]
     post_train = map_posterior(train, _prior_of(settings, su, sy)(train))
     return select_order(
-        post_train, settings.max_order, freqs, dt, recs, settings.validation_fraction, **realize_settings(settings)
+        post_train,
+        settings.max_order,
+        freqs,
+        dt,
+        recs,
+        settings.validation_fraction,
+        settings.output_error and settings.forgetting == 1.0,
+        **realize_settings(settings),
     )
 
 

@@ -21,12 +21,17 @@ and keeps a stable model stable; the refinement stops when a step lowers the cos
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = [
     "refine_output_error",
     "output_error_bytes",
     "Modal",
+    "OutputErrorProblem",
+    "OutputErrorFit",
+    "fit_output_error",
     "weighted_pass",
     "moved_starts",
     "OE_TOL",
@@ -109,58 +114,53 @@ class Modal:
         return Modal(lam, b, c, d.reshape(q, m) if feedthrough else self.d, self.n_pairs)
 
 
-def _block_parts(model: Modal, u: np.ndarray, t0: int, start: np.ndarray, carry: list, jacobian: bool):
-    """Output of one block of samples from time ``t0`` on, and (``jacobian``) its derivatives by
-    the model's parameters ``(L, q, P)`` and by the record's own ``(L, q, n + q)`` (initial
-    modal state as :meth:`Modal.state_vector` orders it, output offsets); ``start`` is the
-    record's ``(z0, offsets)`` and ``carry`` holds the filter states across blocks."""
+def _block_parts(model: Modal, u: np.ndarray, start: tuple, carry: list, jacobian: bool):
+    """Output of one block of samples, and (``jacobian``) its derivatives by the model's
+    parameters ``(L, q, P)`` and by the record's own ``(L, q, n + q)`` (initial modal state as
+    :func:`moved_starts` orders it, output offsets); ``start`` is the record's ``(z0, offsets)``
+    and ``carry`` holds each mode's filter states across blocks (the first block starts them
+    from ``z0``)."""
     from scipy.signal import lfilter  # on first use: importing scipy.signal at import costs the CLI's start
 
     L, m = u.shape
-    q, k, h = model.c.shape[0], model.lam.size, model.n_pairs
-    z0, offset = start
-    y = u @ model.d.T + offset[None, :]
-    t = np.arange(t0, t0 + L)
-    cols = {"lam": [], "b": [], "c": [], "z": []}
+    k = model.lam.size
+    uc = u.astype(complex)
+    X = np.empty((L, k), dtype=complex)
+    F = np.empty((L, k, m), dtype=complex) if jacobian else None
+    G, Pw = (np.empty((L, k), dtype=complex), np.empty((L, k), dtype=complex)) if jacobian else (None, None)
     for j in range(k):
-        lam, pair = model.lam[j], j < h
-        den, scale = [1.0, -lam], (2.0 if pair else 1.0)
-        f, carry[j][0] = lfilter([0.0, 1.0], den, u.astype(complex), axis=0, zi=carry[j][0])  # x of unit b's
-        power = lam**t
-        x = f @ model.b[j] + z0[j] * power
-        y = y + scale * np.real(x[:, None] * model.c[None, :, j])
-        if not jacobian:
+        den, state = [1.0, -model.lam[j]], carry[j]
+        if not jacobian:  # x alone: the input through b, the free response in the filter's state
+            X[:, j], state[0] = lfilter([0.0, 1.0], den, uc @ model.b[j], zi=state[0])
             continue
-        g, carry[j][1] = lfilter([0.0, 1.0], den, x, zi=carry[j][1])  # dx / d lam
-        xe = np.zeros((L, q, q), dtype=complex)
-        xe[:, np.arange(q), np.arange(q)] = x[:, None]
-        parts = {
-            "lam": model.c[None, :, j] * g[:, None],
-            "b": model.c[None, :, j, None] * f[:, None, :],
-            "c": xe,
-            "z": model.c[None, :, j] * power[:, None],
-        }
-        for key, v in parts.items():  # d/d Re and d/d Im of a complex parameter
-            cols[key].append((scale * v.real, -scale * v.imag) if pair else (v.real,))
+        F[:, j], state[1] = lfilter([0.0, 1.0], den, uc, axis=0, zi=state[1])  # x of unit b's
+        Pw[:, j], state[2] = lfilter([0.0, 1.0], den, np.zeros(L), zi=state[2])  # lam^t: x of a unit z0
+        X[:, j] = F[:, j] @ model.b[j] + start[0][j] * Pw[:, j]
+        G[:, j], state[3] = lfilter([0.0, 1.0], den, X[:, j], zi=state[3])  # dx / d lam
+    scale = np.where(np.arange(k) < model.n_pairs, 2.0, 1.0)
+    y = u @ model.d.T + start[1][None, :] + np.real(X * scale) @ model.c.T.real - np.imag(X * scale) @ model.c.T.imag
     if not jacobian:
         return y, None, None
-    shared = [_ordered(cols["lam"], h), _ordered(cols["b"], h)]
-    shared += [np.concatenate([np.stack(c, axis=-1).reshape(L, q, -1) for c in _split_c(cols["c"], h)], axis=-1)]
-    own = [_ordered(cols["z"], h), np.broadcast_to(np.eye(q), (L, q, q))]
-    return y, np.concatenate(shared, axis=-1), np.concatenate(own, axis=-1)
+    q = model.c.shape[0]
+    eye = np.eye(q)
+    d_lam = _re_im(G[:, None, :] * model.c[None], model.n_pairs)
+    d_b = _re_im(F[:, None] * model.c[None, :, :, None], model.n_pairs)
+    h = model.n_pairs
+    groups = (2.0 * X[:, :h].real, -2.0 * X[:, :h].imag, X[:, h:].real)  # c's Re, Im over the pairs, then real
+    d_c = np.concatenate([np.einsum("ij,lk->lijk", eye, g).reshape(L, q, -1) for g in groups], axis=-1)
+    d_z = _re_im(Pw[:, None, :] * model.c[None], model.n_pairs)
+    own = np.concatenate([d_z, np.broadcast_to(eye, (L, q, q))], axis=-1)
+    return y, np.concatenate([d_lam, d_b, d_c], axis=-1), own
 
 
-def _ordered(cols: list, h: int) -> np.ndarray:
-    """Per-mode derivative blocks in the order Re of the pairs, Im of the pairs, the real modes."""
-    parts = [c[0] for c in cols[:h]] + [c[1] for c in cols[:h]] + [c[0] for c in cols[h:]]
-    return np.concatenate([p if p.ndim == 3 else p[..., None] for p in parts], axis=-1)
-
-
-def _split_c(cols: list, h: int) -> list:
-    """``c``'s derivative blocks (one ``(L, q, q)`` per mode) as Re of the pairs, Im of the pairs,
-    the real modes; stacked on a last (mode) axis they run over (output, mode) as ``c`` ravels."""
-    groups = [[c[0] for c in cols[:h]], [c[1] for c in cols[:h]], [c[0] for c in cols[h:]]]
-    return [g for g in groups if g]
+def _re_im(v: np.ndarray, h: int) -> np.ndarray:
+    """Derivatives by the real and imaginary parts of complex parameters from ``v = c dx``-type
+    products ``(L, q, ..., k, ...)`` whose mode axis is axis 2: ``2 Re`` and ``-2 Im`` over the
+    pairs, ``Re`` over the real modes, each flattened over the axes from 2 on (row-major)."""
+    L, q = v.shape[:2]
+    pairs, real = v[:, :, :h], v[:, :, h:]
+    blocks = [2.0 * pairs.real, -2.0 * pairs.imag, real.real]
+    return np.concatenate([b.reshape(L, q, -1) for b in blocks], axis=-1)
 
 
 def output_error_bytes(order: int, n_inputs: int, n_outputs: int) -> float:
@@ -172,8 +172,13 @@ def output_error_bytes(order: int, n_inputs: int, n_outputs: int) -> float:
     return 8.0 * OE_BLOCK * (2.0 * n * m + 4.0 * q * P + 2.0 * q * q * n) + 8.0 * 3.0 * P * P
 
 
-def _carry(model: Modal, m: int) -> list:
-    return [[np.zeros((1, m), dtype=complex), np.zeros(1, dtype=complex)] for _ in range(model.lam.size)]
+def _carry(model: Modal, m: int, z0: np.ndarray) -> list:
+    """Each mode's filter states at the record's start: ``x`` (from ``z0``), the unit-``b``
+    responses (rest), ``lam^t`` (from 1) and ``dx / d lam`` (rest)."""
+    zero = np.zeros(1, dtype=complex)
+    return [
+        [z0[j : j + 1].astype(complex), np.zeros((1, m), complex), np.ones(1, complex), zero] for j in range(z0.size)
+    ]
 
 
 def _feedthrough_columns(u: np.ndarray, q: int) -> np.ndarray:
@@ -185,27 +190,50 @@ def _feedthrough_columns(u: np.ndarray, q: int) -> np.ndarray:
     return Jd
 
 
+@dataclass(frozen=True)
+class OutputErrorProblem:
+    """What the refinement fits: the records ``(u, y)``, the outputs' ``weights``, whether ``D``
+    is fitted, and per record the ``(start, stop)`` sample ranges that count (None: all; the
+    records are simulated over their whole length either way)."""
+
+    records: tuple
+    weights: np.ndarray
+    feedthrough: bool = False
+    ranges: tuple | None = None
+
+    def mask(self, r_idx: int, a: int, length: int) -> np.ndarray | None:
+        """1 on the samples ``a .. a + length`` of record ``r_idx`` that count, else 0 (None: all count)."""
+        if self.ranges is None:
+            return None
+        out = np.zeros(length)
+        for lo, hi in self.ranges[r_idx]:
+            out[max(lo - a, 0) : max(min(hi - a, length), 0)] = 1.0
+        return out
+
+
 def weighted_pass(
-    model: Modal, starts: list, records, w: np.ndarray, feedthrough: bool, jacobian: bool = True, block: int = OE_BLOCK
+    model: Modal, starts: list, problem: OutputErrorProblem, jacobian: bool = True, block: int = OE_BLOCK
 ):
     """Weighted cost over the records and (``jacobian``) the normal equations ``J^T J``, ``J^T r``
     over the model's parameters followed by each record's ``(z0, offsets)``."""
+    w, feedthrough = problem.weights, problem.feedthrough
     n_shared = model.vector(feedthrough).size
     n_own = model.lam.size + model.n_pairs + model.c.shape[0]
-    P = n_shared + len(records) * n_own
+    P = n_shared + len(problem.records) * n_own
     cost, JtJ, Jtr = 0.0, np.zeros((P, P)), np.zeros(P)
-    for r_idx, ((u, y), start) in enumerate(zip(records, starts)):
-        carry = _carry(model, u.shape[1])
+    for r_idx, ((u, y), start) in enumerate(zip(problem.records, starts)):
+        carry = _carry(model, u.shape[1], start[0])
         idx = np.concatenate([np.arange(n_shared), n_shared + r_idx * n_own + np.arange(n_own)])
         for a in range(0, u.shape[0], block):
             ub, yb = u[a : a + block], y[a : a + block]
-            yh, J, Jo = _block_parts(model, ub, a, start, carry, jacobian)
-            r = (yb - yh) * w[None, :]
+            yh, J, Jo = _block_parts(model, ub, start, carry, jacobian)
+            weight = w[None, :] if (mask := problem.mask(r_idx, a, ub.shape[0])) is None else mask[:, None] * w
+            r = (yb - yh) * weight
             cost += float(np.sum(r**2))
             if not jacobian:
                 continue
             parts = [J, _feedthrough_columns(ub, w.size), Jo] if feedthrough else [J, Jo]
-            Jw = (np.concatenate(parts, axis=-1) * w[None, :, None]).reshape(-1, idx.size)
+            Jw = (np.concatenate(parts, axis=-1) * weight[:, :, None]).reshape(-1, idx.size)
             JtJ[np.ix_(idx, idx)] += Jw.T @ Jw
             Jtr[idx] += Jw.T @ r.ravel()
     return cost, JtJ, Jtr
@@ -221,6 +249,67 @@ def moved_starts(model: Modal, starts: list, step: np.ndarray) -> list:
         dz = np.concatenate([s[:h] + 1j * s[h : 2 * h], s[2 * h : k + h].astype(complex)])
         out.append((z0 + dz, offset + s[k + h :]))
     return out
+
+
+@dataclass(frozen=True)
+class OutputErrorFit:
+    """A refined model in modal form, each record's ``(z0, offsets)``, and the weighted cost
+    before and after (over the problem's ranges, with the records' starts fitted)."""
+
+    model: Modal
+    starts: list
+    cost0: float
+    cost: float
+    iterations: int
+
+    def cost_on(self, problem: OutputErrorProblem) -> float:
+        """The weighted squared error of this fit (its records' starts) on ``problem``'s ranges."""
+        return weighted_pass(self.model, self.starts, problem, jacobian=False)[0]
+
+
+def fit_output_error(
+    A, B, C, D, problem: OutputErrorProblem, max_iter: int = OE_MAX_ITER, tol: float = OE_TOL
+) -> OutputErrorFit | None:
+    """Levenberg-Marquardt on the weighted simulated output error of ``(A, B, C, D)`` (any
+    coordinates) on ``problem``, each record with its own initial state and output offsets,
+    until a step lowers the cost by less than ``tol`` of it; None when the poles are not
+    distinct (no modal form)."""
+    q = np.asarray(C).shape[0]
+    model = Modal.from_abcd(np.asarray(A), np.asarray(B), np.asarray(C), np.asarray(D))
+    if model is None:
+        return None
+    stable = bool(np.all(np.abs(model.lam) < 1.0))
+    starts = [(np.zeros(model.lam.size, dtype=complex), np.zeros(q)) for _ in problem.records]
+    n_shared = model.vector(problem.feedthrough).size
+    cost, JtJ, g = weighted_pass(model, starts, problem)
+    cost0, mu, nu, it = cost, 1e-3, 2.0, 0
+    while it < max_iter:
+        it += 1
+        dg = np.diag(JtJ).copy()
+        dg[dg <= 0] = max(float(dg.max(initial=0.0)), 1.0) * 1e-12
+        step_taken, rel = False, 0.0
+        for _ in range(12):
+            try:
+                step = np.linalg.solve(JtJ + np.diag(mu * dg), g)
+            except np.linalg.LinAlgError:
+                mu, nu = mu * nu, nu * 2.0
+                continue
+            trial = model.moved(step[:n_shared], problem.feedthrough)
+            trial_starts = moved_starts(model, starts, step[n_shared:])
+            if not (stable and np.any(np.abs(trial.lam) >= 1.0)):
+                c1 = weighted_pass(trial, trial_starts, problem, jacobian=False)[0]
+                if np.isfinite(c1) and c1 < cost:
+                    predicted = float(2.0 * step @ g - step @ (JtJ @ step))
+                    rho = (cost - c1) / predicted if predicted > 0 else 0.0
+                    rel = (cost - c1) / max(cost, 1e-300)
+                    model, starts, cost, step_taken = trial, trial_starts, c1, True
+                    mu, nu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12), 2.0
+                    break
+            mu, nu = mu * nu, nu * 2.0
+        if not step_taken or rel < tol:
+            break
+        cost, JtJ, g = weighted_pass(model, starts, problem)
+    return OutputErrorFit(model, starts, cost0, cost, it)
 
 
 def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = False, max_iter: int = OE_MAX_ITER):
@@ -248,39 +337,7 @@ def refine_output_error(A, B, C, D, records, weights=None, feedthrough: bool = F
     """
     q = np.asarray(C).shape[0]
     w = np.ones(q) if weights is None else np.asarray(weights, dtype=float)
-    model = Modal.from_abcd(np.asarray(A), np.asarray(B), np.asarray(C), np.asarray(D))
-    if model is None:
+    fit = fit_output_error(A, B, C, D, OutputErrorProblem(tuple(records), w, feedthrough), max_iter)
+    if fit is None:
         return A, B, C, D, {"cost0": np.nan, "cost": np.nan, "iterations": 0}
-    stable = bool(np.all(np.abs(model.lam) < 1.0))
-    starts = [(np.zeros(model.lam.size, dtype=complex), np.zeros(q)) for _ in records]
-    n_shared = model.vector(feedthrough).size
-    cost, JtJ, g = weighted_pass(model, starts, records, w, feedthrough, True)
-    cost0, mu, nu, it = cost, 1e-3, 2.0, 0
-    while it < max_iter:
-        it += 1
-        dg = np.diag(JtJ).copy()
-        dg[dg <= 0] = max(float(dg.max(initial=0.0)), 1.0) * 1e-12
-        step_taken, rel = False, 0.0
-        for _ in range(12):
-            try:
-                step = np.linalg.solve(JtJ + np.diag(mu * dg), g)
-            except np.linalg.LinAlgError:
-                mu, nu = mu * nu, nu * 2.0
-                continue
-            trial = model.moved(step[:n_shared], feedthrough)
-            trial_starts = moved_starts(model, starts, step[n_shared:])
-            if not (stable and np.any(np.abs(trial.lam) >= 1.0)):
-                c1 = weighted_pass(trial, trial_starts, records, w, feedthrough, False)[0]
-                if np.isfinite(c1) and c1 < cost:
-                    predicted = float(2.0 * step @ g - step @ (JtJ @ step))
-                    rho = (cost - c1) / predicted if predicted > 0 else 0.0
-                    rel = (cost - c1) / max(cost, 1e-300)
-                    model, starts, cost, step_taken = trial, trial_starts, c1, True
-                    mu, nu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12), 2.0
-                    break
-            mu, nu = mu * nu, nu * 2.0
-        if not step_taken or rel < OE_TOL:
-            break
-        cost, JtJ, g = weighted_pass(model, starts, records, w, feedthrough, True)
-    A1, B1, C1, D1 = model.to_abcd()
-    return A1, B1, C1, D1, {"cost0": cost0, "cost": cost, "iterations": it}
+    return (*fit.model.to_abcd(), {"cost0": fit.cost0, "cost": fit.cost, "iterations": fit.iterations})
