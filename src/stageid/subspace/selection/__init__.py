@@ -259,21 +259,22 @@ def select_order(
     IdentificationError
         When no candidate order gives a stable model.
     """
+    weights = output_weights(post)
+
+    def realised(n: int):
+        return realize(post, n, freqs, dt, max_iter=8, **realize_settings)[0]
+
     if output_error:
-        cands, errors = select_refined_order(
-            post, max_order, freqs, dt, records, validation_fraction, **realize_settings
-        )
+        feedthrough = bool(realize_settings.get("feedthrough", False))
+        cands, errors = select_refined_order(realised, max_order, records, validation_fraction, weights, feedthrough)
     else:
         cands, errors = list(range(1, max_order + 1)), []
-        weights = output_weights(post)
         scored = [held_out_segments(u.shape[0], validation_fraction)[1] for u, _ in records]
         for n in cands:
             try:
-                mdl, _ = realize(post, n, freqs, dt, max_iter=8, **realize_settings)
+                errors.append(simulation_error(realised(n), records, scored, weights))
             except (IdentificationError, np.linalg.LinAlgError):
                 errors.append(float("inf"))
-                continue
-            errors.append(simulation_error(mdl, records, scored, weights))
     chosen = order_by_rule(cands, errors)
     return chosen, SelectionTable("order", tuple(cands), tuple(errors), chosen)
 

@@ -18,16 +18,14 @@ cent as they fit noise, which the shared scan (any gain) would follow to ``max_o
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ..._errors import IdentificationError
+from ...models.statespace import StateSpaceModel
 from ...validation.order_choice import ORDER_TOLERANCE, PATIENCE, ROUNDING
-from ..map.posterior import Posterior
-from ..realisation.era import realize
 from ..realisation.output_error import OutputErrorProblem, fit_output_error
-from ..realisation.weighting import output_weights
 from .split import held_out_segments
 
 __all__ = ["select_refined_order", "SELECTION_MAX_ITER", "SELECTION_TOL"]
@@ -40,27 +38,26 @@ SELECTION_TOL = 1e-4
 
 
 def select_refined_order(
-    post: Posterior,
+    realised: Callable[[int], StateSpaceModel],
     max_order: int,
-    freqs: np.ndarray,
-    dt: float,
     records: Sequence[tuple[np.ndarray, np.ndarray]],
     validation_fraction: float,
-    **realize_settings,
+    weights: np.ndarray,
+    feedthrough: bool,
 ) -> tuple[list[int], list[float]]:
-    """Orders ``1, 2, ...`` as far as the scan goes, and their held-out errors (the weighted
-    error energy over the held-out segments' weighted variation energy; ``inf`` for a candidate
-    that cannot be realised or refines to an unstable model)."""
-    w = output_weights(post)
+    """Orders ``1, 2, ...`` as far as the scan goes, and their held-out errors: each candidate
+    ``realised(n)`` (from the training posterior), refined on the training segments' output error
+    with the outputs weighted by ``weights``; its weighted error energy over the held-out segments
+    over their weighted variation energy (``inf`` when it cannot be realised or refines to an
+    unstable model)."""
     segments = [held_out_segments(u.shape[0], validation_fraction) for u, _ in records]
-    feedthrough = bool(realize_settings.get("feedthrough", False))
-    train = OutputErrorProblem(tuple(records), w, feedthrough, tuple(s[0] for s in segments))
-    held = OutputErrorProblem(tuple(records), w, feedthrough, tuple(s[1] for s in segments))
-    energy = _held_out_energy(records, held.ranges, w)
+    train = OutputErrorProblem(tuple(records), weights, feedthrough, tuple(s[0] for s in segments))
+    held = OutputErrorProblem(tuple(records), weights, feedthrough, tuple(s[1] for s in segments))
+    energy = _held_out_energy(records, held.ranges, weights)
 
     def score(n: int) -> float:
         try:
-            mdl, _ = realize(post, n, freqs, dt, max_iter=8, **realize_settings)
+            mdl = realised(n)
         except (IdentificationError, np.linalg.LinAlgError):
             return float("inf")
         fit = fit_output_error(mdl.A, mdl.B, mdl.C, mdl.D, train, SELECTION_MAX_ITER, SELECTION_TOL)
