@@ -30,7 +30,7 @@ from ..runtime.resources import require_memory
 from ..validation.order_choice import poor_order_message
 from .map.posterior import LS_RIDGE_STRENGTH, LS_SINGULAR_PIVOT, METHODS, Posterior, map_posterior, singular_pivot
 from .realisation.era import realize
-from .realisation.output_error import output_error_bytes, refine_output_error
+from .realisation.output_error import OE_MAX_WORK, output_error_bytes, output_error_work, refine_output_error
 from .realisation.refinement import refinement_bytes
 from .realisation.weighting import output_weights
 from .records import excited_band, excited_lines
@@ -88,7 +88,7 @@ def fit_channel(
         order, order_table = held_out_order(settings, split, horizon, freqs, dt, recs, su, sy)
     _warn_held_out(horizon_table, order_table, in_names, notes)
     records = recs if prev is None and settings.forgetting == 1.0 else None  # see `realised_model`
-    model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy, records)  # eq. 10-15
+    model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy, records, notes)  # eq. 10-15
     if model.n_states and excited_lines(stats) * m < int(order) / 2:
         msg = (
             f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
@@ -133,22 +133,14 @@ def channel_statistics(settings: Any, recs: list, horizon: int, split: HeldOutSp
 def held_out_order(
     settings: Any, split: HeldOutSplit, horizon: int, freqs: np.ndarray, dt: float, recs: list, su, sy
 ) -> tuple[int, SelectionTable]:
-    """Section 3.2: the order whose model, realised from the training segments' posterior (and
-    refined on their output error when the final model will be), simulates the held-out
-    segments best."""
+    """Section 3.2: the order whose model, realised from the training segments' posterior,
+    simulates the held-out segments best."""
     if horizon not in split.train:
         raise DataError("the records are too short to hold out data for choosing the order; give `order` explicitly.")
     train = split.train[horizon]
     post_train = map_posterior(train, _prior_of(settings, su, sy)(train))
     return select_order(
-        post_train,
-        settings.max_order,
-        freqs,
-        dt,
-        recs,
-        settings.validation_fraction,
-        settings.output_error and settings.forgetting == 1.0,
-        **realize_settings(settings),
+        post_train, settings.max_order, freqs, dt, recs, settings.validation_fraction, **realize_settings(settings)
     )
 
 
@@ -161,16 +153,26 @@ def realised_model(
     su: np.ndarray,
     sy: np.ndarray,
     records: list | None = None,
+    notes: list[str] | None = None,
 ) -> tuple[StateSpaceModel, Any]:
     """Eq. 10-15 or the frequency route (``realization``), refined on the simulated output error
     of the (scaled) ``records`` with the outputs weighted by their noise when ``output_error`` is
     set and records are given, then back to the data's units (``u_s = u / su``, ``y_s = y / sy``);
-    the model and the realisation's cost.  An update or a fit with forgetting passes no records:
+    the model and the realisation's cost.  A refinement whose steps would exceed ``OE_MAX_WORK``
+    operations is not run, and ``notes`` says so.  An update or a fit with forgetting passes no records:
     its model is the posterior's, which weighs the records unlike a refinement over all of them."""
     model, cost = realize(post, order, freqs, dt, **realize_settings(settings))
     A, B, C, D = model.A, model.B, model.C, model.D
     if settings.output_error and records is not None and model.n_states:
-        A, B, C, D, _ = refine_output_error(A, B, C, D, records, output_weights(post), settings.feedthrough)
+        n_samples = sum(u.shape[0] for u, _ in records)
+        work = output_error_work(order, B.shape[1], C.shape[0], n_samples, len(records))
+        if work <= OE_MAX_WORK:
+            A, B, C, D, _ = refine_output_error(A, B, C, D, records, output_weights(post), settings.feedthrough)
+        elif notes is not None:
+            notes.append(
+                f"the output-error refinement was not run: a step would take {work:.1e} operations "
+                f"(at most {OE_MAX_WORK:.0e}) with {C.shape[0]} outputs at order {order}; the model is the realisation's."
+            )
     A, B, C, D = A, B / su[None, :], C * sy[:, None], D * sy[:, None] / su[None, :]
     return StateSpaceModel(A, B, C, D, dt), cost
 

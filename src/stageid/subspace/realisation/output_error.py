@@ -28,6 +28,8 @@ import numpy as np
 __all__ = [
     "refine_output_error",
     "output_error_bytes",
+    "output_error_work",
+    "OE_MAX_WORK",
     "Modal",
     "OutputErrorProblem",
     "OutputErrorFit",
@@ -46,6 +48,10 @@ OE_TOL = 1e-6
 OE_MAX_ITER = 100
 #: Samples per block when the normal equations are accumulated (bounds the memory).
 OE_BLOCK = 4096
+#: Floating-point operations one step may take (its normal equations, about ``N q P^2`` for ``N``
+#: samples, ``q`` outputs, ``P`` parameters) for the refinement to run: past it (e.g. 28 outputs
+#: at order 12 on 6k samples: 3e10, minutes a fit) the realisation is kept, and the fit says so.
+OE_MAX_WORK = 5e9
 #: Condition number of the eigenvector matrix above which the modal form is not used.
 MAX_MODAL_CONDITION = 1e8
 
@@ -172,6 +178,13 @@ def output_error_bytes(order: int, n_inputs: int, n_outputs: int) -> float:
     return 8.0 * OE_BLOCK * (2.0 * n * m + 4.0 * q * P + 2.0 * q * q * n) + 8.0 * 3.0 * P * P
 
 
+def output_error_work(order: int, n_inputs: int, n_outputs: int, n_samples: int, n_records: int) -> float:
+    """Floating-point operations of one refinement step's normal equations (compare ``OE_MAX_WORK``)."""
+    n, m, q = float(order), float(n_inputs), float(n_outputs)
+    P = n + n * m + q * n + q * m + n_records * (n + q)
+    return float(n_samples) * q * P * P
+
+
 def _carry(model: Modal, m: int, z0: np.ndarray) -> list:
     """Each mode's filter states at the record's start: ``x`` (from ``z0``), the unit-``b``
     responses (rest), ``lam^t`` (from 1) and ``dx / d lam`` (rest)."""
@@ -192,23 +205,12 @@ def _feedthrough_columns(u: np.ndarray, q: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class OutputErrorProblem:
-    """What the refinement fits: the records ``(u, y)``, the outputs' ``weights``, whether ``D``
-    is fitted, and per record the ``(start, stop)`` sample ranges that count (None: all; the
-    records are simulated over their whole length either way)."""
+    """What the refinement fits: the records ``(u, y)``, the outputs' ``weights`` and whether
+    ``D`` is fitted."""
 
     records: tuple
     weights: np.ndarray
     feedthrough: bool = False
-    ranges: tuple | None = None
-
-    def mask(self, r_idx: int, a: int, length: int) -> np.ndarray | None:
-        """1 on the samples ``a .. a + length`` of record ``r_idx`` that count, else 0 (None: all count)."""
-        if self.ranges is None:
-            return None
-        out = np.zeros(length)
-        for lo, hi in self.ranges[r_idx]:
-            out[max(lo - a, 0) : max(min(hi - a, length), 0)] = 1.0
-        return out
 
 
 def weighted_pass(
@@ -227,13 +229,12 @@ def weighted_pass(
         for a in range(0, u.shape[0], block):
             ub, yb = u[a : a + block], y[a : a + block]
             yh, J, Jo = _block_parts(model, ub, start, carry, jacobian)
-            weight = w[None, :] if (mask := problem.mask(r_idx, a, ub.shape[0])) is None else mask[:, None] * w
-            r = (yb - yh) * weight
+            r = (yb - yh) * w[None, :]
             cost += float(np.sum(r**2))
             if not jacobian:
                 continue
             parts = [J, _feedthrough_columns(ub, w.size), Jo] if feedthrough else [J, Jo]
-            Jw = (np.concatenate(parts, axis=-1) * weight[:, :, None]).reshape(-1, idx.size)
+            Jw = (np.concatenate(parts, axis=-1) * w[None, :, None]).reshape(-1, idx.size)
             JtJ[np.ix_(idx, idx)] += Jw.T @ Jw
             Jtr[idx] += Jw.T @ r.ravel()
     return cost, JtJ, Jtr
@@ -254,17 +255,13 @@ def moved_starts(model: Modal, starts: list, step: np.ndarray) -> list:
 @dataclass(frozen=True)
 class OutputErrorFit:
     """A refined model in modal form, each record's ``(z0, offsets)``, and the weighted cost
-    before and after (over the problem's ranges, with the records' starts fitted)."""
+    before and after (with the records' starts fitted)."""
 
     model: Modal
     starts: list
     cost0: float
     cost: float
     iterations: int
-
-    def cost_on(self, problem: OutputErrorProblem) -> float:
-        """The weighted squared error of this fit (its records' starts) on ``problem``'s ranges."""
-        return weighted_pass(self.model, self.starts, problem, jacobian=False)[0]
 
 
 def fit_output_error(

@@ -13,8 +13,7 @@ on data not used for the fit.  Here:
   candidate); every candidate predicts the same samples from the same point, so one Cholesky
   factor serves all (:mod:`.nested_horizons`);
 * the order is chosen by the simulation error on the held-out segments of each candidate
-  model realised from the training segments (and refined on their output error with
-  ``output_error``, :mod:`.refined_order`), by the rule every ``order="auto"`` shares
+  model realised from the training segments, by the rule every ``order="auto"`` shares
   (:mod:`stageid.validation.order_choice`: the smallest order within 1 % of the best RMS
   on these long records);
 * both scores weigh the outputs by the ``weights`` ``HankelMAP`` passes (the inverse noise
@@ -30,7 +29,6 @@ module                       what it holds
                              eq. 9 statistics of each (``split_statistics``, ``pooled_split``)
 :mod:`.nested_horizons`      held-out scores of every candidate horizon from one Cholesky
                              factor
-:mod:`.refined_order`        the order among output-error-refined candidates
 :mod:`.chunked_order`        ``order="auto"`` on a record larger than memory
 ===========================  ================================================================
 """
@@ -49,7 +47,6 @@ from ..realisation.era import realize
 from ..realisation.weighting import noise_weights, output_weights
 from ..statistics.hankel_toeplitz import WindowStatistics, row_residuals
 from .nested_horizons import lead_parts, nested_lead_parts
-from .refined_order import select_refined_order
 from .split import MIN_SEGMENT, central_statistics, held_out_segments, pooled_split, split_statistics
 
 __all__ = [
@@ -246,35 +243,28 @@ def select_order(
     dt: float,
     records: Sequence[tuple[np.ndarray, np.ndarray]],
     validation_fraction: float,
-    output_error: bool = False,
     **realize_settings,
 ) -> tuple[int, SelectionTable]:
     """The order by held-out simulation error (:func:`order_by_rule`), over orders
     ``1 .. max_order`` realised from the training posterior ``post`` with
-    ``realize_settings`` (at most 8 refinement steps each); with ``output_error``, each refined
-    on the training segments' output error first and scored as :mod:`.refined_order` says.
+    ``realize_settings`` (at most 8 refinement steps each).
 
     Raises
     ------
     IdentificationError
         When no candidate order gives a stable model.
     """
+    cands = list(range(1, max_order + 1))
     weights = output_weights(post)
-
-    def realised(n: int):
-        return realize(post, n, freqs, dt, max_iter=8, **realize_settings)[0]
-
-    if output_error:
-        feedthrough = bool(realize_settings.get("feedthrough", False))
-        cands, errors = select_refined_order(realised, max_order, records, validation_fraction, weights, feedthrough)
-    else:
-        cands, errors = list(range(1, max_order + 1)), []
-        scored = [held_out_segments(u.shape[0], validation_fraction)[1] for u, _ in records]
-        for n in cands:
-            try:
-                errors.append(simulation_error(realised(n), records, scored, weights))
-            except (IdentificationError, np.linalg.LinAlgError):
-                errors.append(float("inf"))
+    scored = [held_out_segments(u.shape[0], validation_fraction)[1] for u, _ in records]
+    errors = []
+    for n in cands:
+        try:
+            mdl, _ = realize(post, n, freqs, dt, max_iter=8, **realize_settings)
+        except (IdentificationError, np.linalg.LinAlgError):
+            errors.append(float("inf"))
+            continue
+        errors.append(simulation_error(mdl, records, scored, weights))
     chosen = order_by_rule(cands, errors)
     return chosen, SelectionTable("order", tuple(cands), tuple(errors), chosen)
 
