@@ -24,6 +24,8 @@ def _runner():
 
 
 run = _runner()
+import draw_order  # noqa: E402 - beside run.py, on the path run.py sets
+
 MODULES = sorted(p.stem for p in RECOVERY.glob("rec_*.py"))
 # Estimators that miss the benchmark's target (benchmarks/RESULTS-recovery.md gives the draws and
 # the causes). Strict: when one recovers its small draw, the mark fails and must go.
@@ -100,15 +102,15 @@ def test_draw_seconds_read_back_from_the_draw_tables(tmp_path):
     outs[1].seconds = 42.5
     run.write_summary(out, run.format_draws(outs), heading="## rec_a: draws")
     run.write_summary(out, "| 9 | 0.10 | yes | 1 | - | - | 7.0 | a table of another section |", heading="## Notes")
-    assert run.previous_seconds(out) == {("rec_a", 0): 1.0, ("rec_a", 3): 42.5}
-    assert run.previous_seconds(tmp_path / "absent.md") == {}
+    assert draw_order.previous_seconds(out) == {("rec_a", 0): 1.0, ("rec_a", 3): 42.5}
+    assert draw_order.previous_seconds(tmp_path / "absent.md") == {}
 
 
 def test_draws_start_longest_first_and_come_back_in_order():
     labels = {"rec_a": "A", "rec_b": "B", "rec_new": "New"}
     seconds = {("A", 0): 5.0, ("A", 1): 50.0, ("B", 0): 20.0}
     tasks = [(m, s, 0.0) for s in (0, 1) for m in labels]
-    order = run.longest_first(tasks, labels, seconds)
+    order = draw_order.longest_first(tasks, labels, seconds)
     # never timed first (it may be the longest), then by the last run's seconds; B's seed 1 at B's median
     assert [t[:2] for t in order] == [
         ("rec_new", 0), ("rec_new", 1), ("rec_a", 1), ("rec_b", 0), ("rec_b", 1), ("rec_a", 0),

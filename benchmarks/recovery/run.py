@@ -4,15 +4,11 @@
     python benchmarks/recovery/run.py --estimators pem,frd --draws 5 --noise 0.005 --report-only
 
 Each draw runs in a fresh temporary folder in one of ``--jobs`` worker processes, with a noise
-level drawn from the seed in 0-2 % (or ``--noise``).  The draws start longest first (their
-seconds in the draw tables of the last run, ``--timings``, default the ``--out`` file or
-``benchmarks/RESULTS-recovery.md``; a draw not listed there counts as its estimator's median,
-an estimator not listed at all starts first), so that no long draw starts when the other
-workers are about to run out of work. One progress line per draw; when the time
-budget is spent the draws not yet started are dropped and the table says how many. The table
-(estimator, draws, recovery rate over all draws and over draws at noise <= 1 %, median and worst
-error, median reference error, cost ratio median and 95th percentile, failures, seconds) is
-printed and written as the section "Summary" of ``--out``, other sections left as they are.
+level drawn from the seed in 0-2 % (or ``--noise``), longest first by the last run's draw tables
+(``--timings``, default ``--out`` or ``benchmarks/RESULTS-recovery.md``; :mod:`draw_order`). One
+progress line per draw; when the time budget is spent the draws not yet started are dropped and
+the table says how many. The table recovery rate over all draws and over draws at noise <= 1 %, median and worst error, median
+reference error, cost ratio median and 95th percentile, failures, seconds) is printed and written as the section "Summary" of ``--out``, other sections left as they are.
 
 Exit status 1 when a target is missed (unless ``--report-only``): recovery >= 95 % at noise
 <= 1 %; for estimators that declare them (``TARGETS`` in the module, the FRD fit by default), the
@@ -48,6 +44,8 @@ for _p in (HERE, HERE.parent):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
+from draw_order import longest_first, previous_seconds  # noqa: E402
+
 NOISE_MAX = 0.02  # noise drawn per seed in [0, 2 %] of the output's RMS
 LOW_NOISE = 0.01  # the recovery target holds at noise <= 1 %
 RECOVERY_TARGET = 0.95
@@ -60,8 +58,6 @@ __all__ = [
     "Summary",
     "discover",
     "draw_noise",
-    "previous_seconds",
-    "longest_first",
     "run_one",
     "run_all",
     "summarise",
@@ -132,40 +128,6 @@ def _load(module: str):
 def draw_noise(seed: int) -> float:
     """The noise level of draw ``seed``: uniform in [0, NOISE_MAX], the same for every estimator."""
     return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, NOISE_MAX))
-
-
-def previous_seconds(path: pathlib.Path | None) -> dict[tuple[str, int], float]:
-    """``{(estimator label, seed): seconds}`` from the draw tables (``## <label>: draws``, as
-    :func:`format_draws` writes them) of ``path``; empty when it is absent."""
-    if path is None or not path.exists():
-        return {}
-    found, label = {}, None
-    for line in path.read_text().splitlines():
-        if line.startswith("## "):
-            label = line[3:].removesuffix(": draws") if line.endswith(": draws") else None
-            continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if label and len(cells) >= 7 and cells[0].isdigit():
-            try:
-                found[(label, int(cells[0]))] = float(cells[6])
-            except ValueError:
-                continue
-    return found
-
-
-def longest_first(tasks: list[tuple], labels: dict[str, str], seconds: dict[tuple[str, int], float]) -> list[tuple]:
-    """``tasks`` (module, seed, ...) ordered by their expected seconds, longest first: a draw's own
-    from ``seconds`` (keyed by estimator label and seed), else its estimator's median there,
-    else first of all (an estimator never timed may be the longest)."""
-    medians = {}
-    for module, label in labels.items():
-        known = [v for (lab, _), v in seconds.items() if lab == label]
-        medians[module] = float(np.median(known)) if known else math.inf
-
-    def expected(task):
-        return seconds.get((labels.get(task[0], ""), task[1]), medians.get(task[0], math.inf))
-
-    return sorted(tasks, key=expected, reverse=True)  # stable: ties keep the given order
 
 
 def _on_alarm(signum, frame):  # noqa: ARG001
@@ -397,13 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--budget", type=float, default=570.0, help="seconds after which no draw starts (0: none)")
     p.add_argument("--case-timeout", type=float, default=120.0, help="seconds one draw may take (0: none)")
     p.add_argument("--out", type=pathlib.Path, default=None, help="Markdown file whose 'Summary' section is rewritten")
-    p.add_argument(
-        "--timings",
-        type=pathlib.Path,
-        default=None,
-        help="Markdown file whose draw tables give each draw's seconds for the order (default: --out, "
-        "else benchmarks/RESULTS-recovery.md)",
-    )
+    p.add_argument("--timings", type=pathlib.Path, default=None, help="draw tables ordering the draws (draw_order)")
     p.add_argument("--report-only", action="store_true", help="exit 0 even when a target is missed")
     p.add_argument(
         "--draw-tables",
@@ -419,10 +375,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     t0 = time.perf_counter()
     seeds = list(range(a.first_seed, a.first_seed + a.draws))
-    timings = a.timings or a.out or HERE.parent / "RESULTS-recovery.md"
-    outcomes, dropped = run_all(
-        modules, seeds, a.noise, a.jobs, a.budget, a.case_timeout, seconds=previous_seconds(timings)
-    )
+    seconds = previous_seconds(a.timings or a.out or HERE.parent / "RESULTS-recovery.md")
+    outcomes, dropped = run_all(modules, seeds, a.noise, a.jobs, a.budget, a.case_timeout, seconds=seconds)
     rows = summarise(outcomes, dropped)
     noise = "drawn per seed in 0-2 %" if a.noise is None else f"{100 * a.noise:g} %"
     text = (
