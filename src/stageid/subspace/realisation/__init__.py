@@ -8,6 +8,8 @@ module                       what it holds
 :mod:`.frequency_domain`     the frequency route: that response over the excited band,
                              realised (frequency counterpart of Lemma 1), two starts
 :mod:`.refinement`           output-error refinement of a realisation on that response
+:mod:`.output_error`         the realised model refined on the records' simulated output
+                             error (time domain, modal form)
 :mod:`.weighting`            noise weighting of the outputs in the realisation and selection
 ===========================  ================================================================
 """
