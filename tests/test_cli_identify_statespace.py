@@ -192,13 +192,19 @@ def test_no_moving_input_is_a_one_line_error(chirp_z_file, tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "at least one input must move" in err
 
 
-def test_model_worse_than_zero_warns_in_one_line(chirp_z_file, tmp_path, capsys):
-    # `head -61 z.csv`: 60 samples, auto horizon and order; before: held-out error 3.97 without a word
-    short = tmp_path / "short.csv"
-    short.write_text("".join(chirp_z_file.read_text().splitlines(keepends=True)[:61]))
+def test_model_worse_than_zero_warns_in_one_line(tmp_path, capsys):
+    # an output that no input explains (white noise beside a white input): every model predicts
+    # the held-out samples worse than zero.  (The 60 first samples of the Z chirp, the case this
+    # test first held, are now predicted to 0.06 by the model refined on the records.)
+    rng = np.random.default_rng(3)
+    noise = tmp_path / "noise.csv"
+    rows = [f"{k * 1e-3!r},{u!r},{y!r}" for k, (u, y) in enumerate(rng.standard_normal((400, 2)).tolist())]
+    noise.write_text("t,u,y\n" + "\n".join(rows) + "\n")
     out = tmp_path / "o.json"
-    rc = main(["identify", "statespace", str(short), "--inputs", "Z,Rx,Ry", "--outputs", "z,rx,ry", "-o", str(out)])
+    rc = main(["identify", "statespace", str(noise), "--inputs", "u", "--outputs", "y", "-o", str(out)])
     err = capsys.readouterr().err
     assert rc == 0
-    lines = [ln for ln in err.splitlines() if ln.startswith("stageid: warning:") and "held-out error" in ln]
-    assert len(lines) == 1 and "(expected < 1)" in lines[0] and "worse than zero" in lines[0]
+    lines = [ln for ln in err.splitlines() if "held-out error" in ln]
+    assert lines and all(ln.startswith("stageid: warning:") for ln in lines)  # each warning one line
+    order = [ln for ln in lines if "order-" in ln]
+    assert len(order) == 1 and "(expected < 1)" in order[0] and "worse than zero" in order[0]

@@ -24,6 +24,8 @@ def _runner():
 
 
 run = _runner()
+import draw_order  # noqa: E402 - beside run.py, on the path run.py sets
+
 MODULES = sorted(p.stem for p in RECOVERY.glob("rec_*.py"))
 # Estimators that miss the benchmark's target (benchmarks/RESULTS-recovery.md gives the draws and
 # the causes). Strict: when one recovers its small draw, the mark fails and must go.
@@ -92,3 +94,40 @@ def test_summary_section_replaced_in_place(tmp_path):
     fresh = tmp_path / "fresh.md"
     run.write_summary(fresh, "t")
     assert "## Summary\n\nt\n" in fresh.read_text()
+
+
+def test_draw_seconds_read_back_from_the_draw_tables(tmp_path):
+    out = tmp_path / "RESULTS.md"
+    outs = [_outcome("rec_a", 0, 0.005, True, 1.0), _outcome("rec_a", 3, 0.005, False, 2.0, failed="x | y")]
+    outs[1].seconds = 42.5
+    run.write_summary(out, run.format_draws(outs), heading="## rec_a: draws")
+    run.write_summary(out, "| 9 | 0.10 | yes | 1 | - | - | 7.0 | a table of another section |", heading="## Notes")
+    assert draw_order.previous_seconds(out) == {("rec_a", 0): 1.0, ("rec_a", 3): 42.5}
+    assert draw_order.previous_seconds(tmp_path / "absent.md") == {}
+
+
+def test_draws_start_longest_first_and_come_back_in_order():
+    labels = {"rec_a": "A", "rec_b": "B", "rec_new": "New"}
+    seconds = {("A", 0): 5.0, ("A", 1): 50.0, ("B", 0): 20.0}
+    tasks = [(m, s, 0.0) for s in (0, 1) for m in labels]
+    order = draw_order.longest_first(tasks, labels, seconds)
+    # never timed first (it may be the longest), then by the last run's seconds; B's seed 1 at B's median
+    assert [t[:2] for t in order] == [
+        ("rec_new", 0), ("rec_new", 1), ("rec_a", 1), ("rec_b", 0), ("rec_b", 1), ("rec_a", 0),
+    ]  # fmt: skip
+
+
+def test_run_all_returns_outcomes_in_module_and_seed_order(monkeypatch):
+    started = []
+
+    def fake_run_one(module, seed, noise, case_timeout=0.0):
+        started.append((module, seed))
+        return _outcome(module, seed, noise, True, 1.0)
+
+    monkeypatch.setattr(run, "run_one", fake_run_one)
+    monkeypatch.setattr(run, "_load", lambda m: type("M", (), {"ESTIMATOR": m.upper()}))
+    seconds = {("REC_B", 1): 9.0, ("REC_A", 0): 3.0, ("REC_A", 1): 1.0, ("REC_B", 0): 2.0}
+    outs, dropped = run.run_all(["rec_a", "rec_b"], [0, 1], 0.005, jobs=1, stream=sys.stderr, seconds=seconds)
+    assert started == [("rec_b", 1), ("rec_a", 0), ("rec_b", 0), ("rec_a", 1)]
+    assert [(o.module, o.seed) for o in outs] == [("rec_a", 0), ("rec_a", 1), ("rec_b", 0), ("rec_b", 1)]
+    assert dropped == {"rec_a": 0, "rec_b": 0}

@@ -294,12 +294,13 @@ def test_records_without_any_moving_input_are_rejected():
 
 
 def test_held_out_error_above_one_warns():
-    # 60 samples of the Z chirp: the auto horizon/order model predicts worse than zero
+    # 60 samples of the Z chirp: the auto horizon/order realisation predicts worse than zero (refined
+    # on the records' output error, the order-8 model predicts the held-out samples to 0.06)
     from stageid._errors import ExcitationWarning
 
     exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
     with pytest.warns(ExcitationWarning, match=r"held-out error .* \(expected < 1\)"):
-        res = HankelMAP().fit(exp)
+        res = HankelMAP(output_error=False).fit(exp)
     assert any("held-out error" in w for w in res.diagnostics["warnings"])
 
 
@@ -402,5 +403,5 @@ def test_warnings_point_at_the_callers_line():
 
     exp = ps.EXPERIMENTS["chirp-z"](0).slice(0, 60)
     with pytest.warns(ExcitationWarning) as record:
-        HankelMAP().fit(exp)
+        HankelMAP(output_error=False).fit(exp)  # the poor held-out error of the test above
     assert {w.filename for w in record} == {__file__}

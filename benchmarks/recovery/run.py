@@ -4,11 +4,11 @@
     python benchmarks/recovery/run.py --estimators pem,frd --draws 5 --noise 0.005 --report-only
 
 Each draw runs in a fresh temporary folder in one of ``--jobs`` worker processes, with a noise
-level drawn from the seed in 0-2 % (or ``--noise``). One progress line per draw; when the time
-budget is spent the draws not yet started are dropped and the table says how many. The table
-(estimator, draws, recovery rate over all draws and over draws at noise <= 1 %, median and worst
-error, median reference error, cost ratio median and 95th percentile, failures, seconds) is
-printed and written as the section "Summary" of ``--out``, other sections left as they are.
+level drawn from the seed in 0-2 % (or ``--noise``), longest first by the last run's draw tables
+(``--timings``, default ``--out`` or ``benchmarks/RESULTS-recovery.md``; :mod:`draw_order`). One
+progress line per draw; when the time budget is spent the draws not yet started are dropped and
+the table says how many. The table recovery rate over all draws and over draws at noise <= 1 %, median and worst error, median
+reference error, cost ratio median and 95th percentile, failures, seconds) is printed and written as the section "Summary" of ``--out``, other sections left as they are.
 
 Exit status 1 when a target is missed (unless ``--report-only``): recovery >= 95 % at noise
 <= 1 %; for estimators that declare them (``TARGETS`` in the module, the FRD fit by default), the
@@ -43,6 +43,8 @@ HERE = pathlib.Path(__file__).resolve().parent
 for _p in (HERE, HERE.parent):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
+
+from draw_order import longest_first, previous_seconds  # noqa: E402
 
 NOISE_MAX = 0.02  # noise drawn per seed in [0, 2 %] of the output's RMS
 LOW_NOISE = 0.01  # the recovery target holds at noise <= 1 %
@@ -183,10 +185,14 @@ def run_all(
     budget: float = 0.0,
     case_timeout: float = 0.0,
     stream=sys.stdout,
+    seconds: dict[tuple[str, int], float] | None = None,
 ) -> tuple[list[Outcome], dict[str, int]]:
-    """Every (module, seed) draw; returns the outcomes and, per module, how many draws the time
-    ``budget`` (seconds, 0 = none) dropped before they started."""
+    """Every (module, seed) draw, longest first by ``seconds`` (:func:`longest_first`; in the given
+    order without); returns the outcomes in module then seed order and, per module, how many
+    draws the time ``budget`` (seconds, 0 = none) dropped before they started."""
     tasks = [(m, s, draw_noise(s) if noise is None else float(noise)) for s in seeds for m in modules]
+    if seconds is not None:
+        tasks = longest_first(tasks, {m: _load(m).ESTIMATOR for m in modules}, seconds)
     out: list[Outcome] = []
     t0 = time.perf_counter()
     over = lambda: budget > 0 and time.perf_counter() - t0 > budget  # noqa: E731
@@ -211,6 +217,7 @@ def run_all(
                     _progress(out[-1], len(out), len(tasks), stream)
     ran = {(o.module, o.seed) for o in out}
     dropped = {m: sum((m, s) not in ran for s in seeds) for m in modules}
+    out.sort(key=lambda o: (modules.index(o.module), o.seed))
     return out, dropped
 
 
@@ -352,6 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--budget", type=float, default=570.0, help="seconds after which no draw starts (0: none)")
     p.add_argument("--case-timeout", type=float, default=120.0, help="seconds one draw may take (0: none)")
     p.add_argument("--out", type=pathlib.Path, default=None, help="Markdown file whose 'Summary' section is rewritten")
+    p.add_argument("--timings", type=pathlib.Path, default=None, help="draw tables ordering the draws (draw_order)")
     p.add_argument("--report-only", action="store_true", help="exit 0 even when a target is missed")
     p.add_argument(
         "--draw-tables",
@@ -367,7 +375,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     t0 = time.perf_counter()
     seeds = list(range(a.first_seed, a.first_seed + a.draws))
-    outcomes, dropped = run_all(modules, seeds, a.noise, a.jobs, a.budget, a.case_timeout)
+    seconds = previous_seconds(a.timings or a.out or HERE.parent / "RESULTS-recovery.md")
+    outcomes, dropped = run_all(modules, seeds, a.noise, a.jobs, a.budget, a.case_timeout, seconds=seconds)
     rows = summarise(outcomes, dropped)
     noise = "drawn per seed in 0-2 %" if a.noise is None else f"{100 * a.noise:g} %"
     text = (

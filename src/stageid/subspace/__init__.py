@@ -17,7 +17,8 @@ named function:
                          ``recursion`` (sample by sample), ``kernels`` (compiled)
 ``realisation``          2.1-2.2 eq. 10-15: ``era`` (H0, H_i, Lemma 1, ``realize`` with its
                          routes), ``frequency_domain`` (the frequency route), ``route``
-                         (what a route is given), ``refinement``, ``weighting``
+                         (what a route is given), ``refinement``, ``weighting``,
+                         ``output_error`` (the realised model refined on the records)
 ``selection``            3.2 choice of p and of the order by held-out prediction error;
                          ``split`` (training / held-out statistics), ``nested_horizons``,
                          ``chunked_order``

@@ -10,8 +10,9 @@ eq. 19, through
    the split when there is no forgetting;
 3. the MAP posterior (eq. 16-18, :mod:`.map`), continuing the previous one for an update;
 4. the order by held-out simulation error (section 3.2), when ``"auto"``;
-5. the realisation (eq. 10-15 or the frequency route, :mod:`.realisation`), back in the data's
-   units,
+5. the realisation (eq. 10-15 or the frequency route, :mod:`.realisation`), refined on the
+   records' simulated output error (``output_error``, :mod:`.realisation.output_error`), back in
+   the data's units,
 
 and returns the frozen :class:`~.result.ChannelFit`; its warnings go to ``notes`` (the result's
 diagnostics) as well.  ``settings`` is the estimator whose parameters the steps read
@@ -31,7 +32,9 @@ from ..runtime.resources import require_memory
 from ..validation.order_choice import poor_order_message
 from .map.posterior import LS_RIDGE_STRENGTH, LS_SINGULAR_PIVOT, METHODS, Posterior, map_posterior, singular_pivot
 from .realisation.era import realize
+from .realisation.output_error import OE_MAX_WORK, output_error_bytes, output_error_work, refine_output_error
 from .realisation.refinement import refinement_bytes
+from .realisation.weighting import output_weights
 from .records import excited_band, excited_lines
 from .result import ChannelFit
 from .selection import SelectionTable, horizon_candidates, select_horizon
@@ -79,7 +82,8 @@ def fit_channel(
     if order == "auto":  # section 3.2: the order by held-out simulation error
         order, order_table = held_out_order(settings, source, split, horizon, freqs, su, sy)
     _warn_held_out(horizon_table, order_table, in_names, notes)
-    model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy)  # eq. 10-15
+    records = source.arrays() if prev is None and settings.forgetting == 1.0 else None  # see `realised_model`
+    model, cost = realised_model(settings, post, int(order), freqs, dt, su, sy, records, notes)  # eq. 10-15
     if model.n_states and excited_lines(stats) * m < int(order) / 2:
         msg = (
             f"the records excite too few frequencies for order {order} (inputs {list(in_names)}); "
@@ -105,12 +109,35 @@ def held_out_order(
 
 
 def realised_model(
-    settings: Any, post: Posterior, order: int, freqs: np.ndarray, dt: float, su: np.ndarray, sy: np.ndarray
+    settings: Any,
+    post: Posterior,
+    order: int,
+    freqs: np.ndarray,
+    dt: float,
+    su: np.ndarray,
+    sy: np.ndarray,
+    records: list | None = None,
+    notes: list[str] | None = None,
 ) -> tuple[StateSpaceModel, Any]:
-    """Eq. 10-15 or the frequency route (``realization``), then back to the data's units
-    (``u_s = u / su``, ``y_s = y / sy``); the model and the realisation's cost."""
+    """Eq. 10-15 or the frequency route (``realization``), refined on the simulated output error
+    of the (scaled) ``records`` with the outputs weighted by their noise when ``output_error`` is
+    set and records are given, then back to the data's units (``u_s = u / su``, ``y_s = y / sy``);
+    the model and the realisation's cost.  A refinement whose steps would exceed ``OE_MAX_WORK``
+    operations is not run, and ``notes`` says so.  An update or a fit with forgetting passes no records:
+    its model is the posterior's, which weighs the records unlike a refinement over all of them."""
     model, cost = realize(post, order, freqs, dt, **realize_settings(settings))
-    A, B, C, D = model.A, model.B / su[None, :], model.C * sy[:, None], model.D * sy[:, None] / su[None, :]
+    A, B, C, D = model.A, model.B, model.C, model.D
+    if settings.output_error and records is not None and model.n_states:
+        n_samples = sum(u.shape[0] for u, _ in records)
+        work = output_error_work(order, B.shape[1], C.shape[0], n_samples, len(records))
+        if work <= OE_MAX_WORK:
+            A, B, C, D, _ = refine_output_error(A, B, C, D, records, output_weights(post), settings.feedthrough)
+        elif notes is not None:
+            notes.append(
+                f"the output-error refinement was not run: a step would take {work:.1e} operations "
+                f"(at most {OE_MAX_WORK:.0e}) with {C.shape[0]} outputs at order {order}; the model is the realisation's."
+            )
+    A, B, C, D = A, B / su[None, :], C * sy[:, None], D * sy[:, None] / su[None, :]
     return StateSpaceModel(A, B, C, D, dt), cost
 
 
@@ -127,6 +154,8 @@ def require_channel_memory(settings: Any, lengths: list[int], m: int, q: int, ho
     need = statistics_bytes(p, m, q) + response_bytes(p, m, q, nz)
     if settings.realization == "frequency" and settings.refine:
         need += refinement_bytes(n, m, q, nz)
+    if settings.output_error:
+        need += output_error_bytes(n, m, q)
     require_memory(need, f"HankelMAP with horizon {p}, order {n} and {nz} frequencies on {m} inputs and {q} outputs")
 
 

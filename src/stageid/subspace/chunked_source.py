@@ -150,6 +150,10 @@ class ChunkedSource:
         power, freqs = split.input_power
         return WindowStatistics(s.W, s.n_windows, horizon, s.n_inputs, s.n_outputs, power, freqs, s.count)
 
+    def arrays(self) -> None:
+        """No records in memory: the output-error refinement, which simulates every record, is not run."""
+        return None
+
     def kept_lags(self, horizon: int, split: HeldOutSplit) -> WindowLags | None:
         return kept_window_lags(split, horizon, lambda p: self.whole_lags(p)[0])
 

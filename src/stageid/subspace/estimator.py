@@ -98,7 +98,16 @@ class HankelMAP(Estimator):
     n_frequencies : int, default 200
         Frequency points in the band.
     refine : bool, default True
-        Output-error refinement of the frequency realisation.
+        Output-error refinement of the frequency realisation (on the eq. 9 response).
+    output_error : bool, default True
+        Refine the realised model on the records themselves: Levenberg-Marquardt on the
+        simulated output error from rest, the outputs weighted by their noise, from the
+        realisation (:mod:`stageid.subspace.realisation.output_error`).  The eq. 9 model's
+        horizon truncates the past, and a lightly damped mode that rings longer than the
+        horizon is placed where the truncated model puts it; the records place it better.
+        Not applied by :meth:`HankelMAPResult.update` or with ``forgetting < 1``, whose model is
+        the posterior's, nor where one step would exceed ``OE_MAX_WORK`` operations (records
+        with tens of outputs), which the diagnostics' warnings then say.
     feedthrough : bool, default False
         Estimate a direct feedthrough ``D`` (the paper's stage has ``D = 0``).
     detrend : bool, default True
@@ -145,6 +154,7 @@ class HankelMAP(Estimator):
         "band": [None, Band()],
         "n_frequencies": [Interval(int, 8, None)],
         "refine": [Boolean()],
+        "output_error": [Boolean()],
         "feedthrough": [Boolean()],
         "detrend": [Boolean()],
         "validation_fraction": [Interval(float, 0.0, 0.9, closed="neither")],
@@ -163,6 +173,7 @@ class HankelMAP(Estimator):
         band: tuple[float, float] | None = None,
         n_frequencies: int = 200,
         refine: bool = True,
+        output_error: bool = True,
         feedthrough: bool = False,
         detrend: bool = True,
         validation_fraction: float = 0.25,
@@ -178,6 +189,7 @@ class HankelMAP(Estimator):
         self.band = band
         self.n_frequencies = n_frequencies
         self.refine = refine
+        self.output_error = output_error
         self.feedthrough = feedthrough
         self.detrend = detrend
         self.validation_fraction = validation_fraction

@@ -93,6 +93,10 @@ class RecordArrays:
     def lengths(self) -> list[int]:
         return [u.shape[0] for u, _ in self.records]
 
+    def arrays(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The scaled records, which the output-error refinement simulates."""
+        return self.records
+
     def groups(self, per_channel: bool) -> list[tuple[list[int], RecordArrays]]:
         """Eq. 19: every sub-model's input columns and records (:func:`~.channels.channel_groups`)."""
         groups = channel_groups(self.records, self.input_names, per_channel)

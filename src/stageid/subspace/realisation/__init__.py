@@ -9,6 +9,8 @@ module                       what it holds
                              realised (frequency counterpart of Lemma 1), two starts
 :mod:`.route`                ``RouteTask``: what every route is given
 :mod:`.refinement`           output-error refinement of a realisation on that response
+:mod:`.output_error`         the realised model refined on the records' simulated output
+                             error (time domain, modal form)
 :mod:`.weighting`            noise weighting of the outputs in the realisation and selection
                              (``weighted_parts``: theta and its covariance in those outputs)
 ===========================  ================================================================
