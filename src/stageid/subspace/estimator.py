@@ -106,8 +106,9 @@ class HankelMAP(Estimator):
         horizon truncates the past, and a lightly damped mode that rings longer than the
         horizon is placed where the truncated model puts it; the records place it better.
         Not applied by :meth:`HankelMAPResult.update` or with ``forgetting < 1``, whose model is
-        the posterior's, nor where one step would exceed ``OE_MAX_WORK`` operations (records
-        with tens of outputs), which the diagnostics' warnings then say.
+        the posterior's, nor on a chunked record (read chunk by chunk, never whole in memory),
+        nor where one step would exceed ``OE_MAX_WORK`` operations (records with tens of
+        outputs), which the diagnostics' warnings then say.
     feedthrough : bool, default False
         Estimate a direct feedthrough ``D`` (the paper's stage has ``D = 0``).
     detrend : bool, default True
