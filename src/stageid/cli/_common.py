@@ -167,10 +167,13 @@ def channel_options(inputs_help: str, outputs_help: str, ts_help: str = TS_HELP,
     """``--inputs``/``--outputs`` (column names, comma-separated) and ``--ts``: which columns of the
     records a command reads, and their sample time when the files carry none."""
 
+    # no explicit ``default`` beside ``required``: click (8.3 on) then takes None as given and skips the check
+    names = {"required": True} if required else {"default": None}
+
     def decorate(command):
         command = click.option("--ts", type=float, default=None, help=ts_help)(command)
-        command = click.option("--outputs", required=required, default=None, help=outputs_help)(command)
-        return click.option("--inputs", required=required, default=None, help=inputs_help)(command)
+        command = click.option("--outputs", help=outputs_help, **names)(command)
+        return click.option("--inputs", help=inputs_help, **names)(command)
 
     return decorate
 
