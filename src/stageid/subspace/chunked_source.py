@@ -36,6 +36,7 @@ from .records import note_still_inputs
 from .result import HankelMAPResult
 from .selection import SelectionTable, held_out_segments
 from .selection.chunked_order import select_order_chunked
+from .selection.split import add_leading, by_largest_horizon
 from .sources import HeldOutSplit, kept_window_lags
 from .statistics.chunked_statistics import column_moments, range_lag_sums, ranged_statistics
 from .statistics.hankel_toeplitz import WindowStatistics
@@ -180,19 +181,10 @@ def chunked_split_statistics(
     ranges = tr + va
     lags, _ = source.lag_sums(ranges, 2 * max(cands) - 1)
     out: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
-    for part, acc in ((range(len(tr)), out[0]), (range(len(tr), len(ranges)), out[1])):
-        groups: dict[int, list[int]] = {}
-        for i in part:
-            usable = [p for p in cands if 2 * p + 1 <= ranges[i][1] - ranges[i][0]]
-            if usable:
-                groups.setdefault(usable[-1], []).append(i)
-        for ph, idx in groups.items():
-            top = ranged_statistics(
-                record, [ranges[i] for i in idx], [lags[i] for i in idx], ph, source.shift, source.scale
-            )
-            for p in (p for p in cands if p <= ph):
-                sp = top.leading(p)
-                acc[p] = sp if p not in acc else acc[p] + sp
+    for first, part, acc in ((0, tr, out[0]), (len(tr), va, out[1])):
+        for ph, idx in by_largest_horizon(part, cands).items():
+            rngs, rlags = [part[i] for i in idx], [lags[first + i] for i in idx]
+            add_leading(acc, ranged_statistics(record, rngs, rlags, ph, source.shift, source.scale), cands)
     return out[0], out[1]
 
 

@@ -46,14 +46,23 @@ def held_out_segments(n: int, validation_fraction: float) -> tuple[list[tuple[in
     return train, val
 
 
-def _leading(stats: WindowStatistics, horizon: int) -> WindowStatistics:
-    """Statistics of horizon ``horizon`` from those of a larger one (windows of the larger one)."""
-    if horizon == stats.horizon:
-        return stats
-    k = 2 * horizon * (stats.n_inputs + stats.n_outputs)
-    return WindowStatistics(
-        stats.W[:k, :k], stats.n_windows, horizon, stats.n_inputs, stats.n_outputs, None, None, stats.count
-    )
+def by_largest_horizon(ranges: Sequence[tuple[int, int]], cands: list[int]) -> dict[int, list[int]]:
+    """The ranges (their indices) grouped by the largest candidate horizon each holds
+    (``2 p + 1`` samples); a range too short for every candidate is in no group."""
+    groups: dict[int, list[int]] = {}
+    for i, (a, b) in enumerate(ranges):
+        usable = [p for p in cands if 2 * p + 1 <= b - a]
+        if usable:
+            groups.setdefault(usable[-1], []).append(i)
+    return groups
+
+
+def add_leading(target: dict[int, WindowStatistics], top: WindowStatistics, cands: list[int]) -> None:
+    """Add ``top``'s statistics to ``target`` at every candidate up to its horizon: smaller
+    horizons use its leading block (exact statistics over a slightly smaller window set)."""
+    for p in (p for p in cands if p <= top.horizon):
+        sp = top if p == top.horizon else top.leading(p)
+        target[p] = sp if p not in target else target[p] + sp
 
 
 def central_statistics(stats: WindowStatistics, horizon: int) -> WindowStatistics:
@@ -98,11 +107,8 @@ def split_statistics(
     else:
         tops = _split_tops(records, splits, cands, forgetting)
     for acc, target in zip(tops, (train, val)):
-        for p in cands:
-            for ph, stats in acc.items():
-                if ph >= p:
-                    sp = _leading(stats, p)
-                    target[p] = sp if p not in target else target[p] + sp
+        for stats in acc.values():
+            add_leading(target, stats, cands)
     return train, val
 
 
@@ -152,12 +158,8 @@ def _split_tops(
     tops: tuple[dict[int, WindowStatistics], dict[int, WindowStatistics]] = ({}, {})
     for (u, y), (tr, va) in zip(records, splits):
         for ranges, acc, weight in ((tr, tops[0], forgetting), (va, tops[1], 1.0)):
-            groups: dict[int, list[tuple[int, int]]] = {}
-            for a, b in ranges:
-                usable = [p for p in cands if 2 * p + 1 <= b - a]
-                if usable:
-                    groups.setdefault(usable[-1], []).append((a, b))
-            for ph, rngs in groups.items():
+            for ph, idx in by_largest_horizon(ranges, cands).items():
+                rngs = [ranges[i] for i in idx]
                 if weight == 1.0:
                     tops_ = [segments_statistics(u, y, rngs, ph)]
                 else:  # forgetting: each range weighted on its own, as a record of its own
