@@ -27,6 +27,8 @@ __all__ = [
     "SCREEN_OWN_ITERATIONS",
     "START_ITERATIONS",
     "loop_order_bound",
+    "continuation_orders",
+    "CONTINUATION_STEP",
 ]
 
 #: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
@@ -35,6 +37,8 @@ SCREEN_ITERATIONS = 6
 SCREEN_OWN_ITERATIONS = 1
 #: own passes the selected order's PEM start adds to the screen's estimate
 START_ITERATIONS = 2
+#: order step of the continuation from the screen's winner up to the largest order
+CONTINUATION_STEP = 2
 
 
 def criterion_value(criterion: str, n_samples: int, loss: float, n_parameters: int) -> float:
@@ -97,8 +101,12 @@ def select_order(
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
         the winner; otherwise every order is optimised.
     refine_largest : bool
-        With the screen, optimise the largest order too, the criterion deciding after: the
-        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.
+        With the screen, optimise the larger orders too, the criterion deciding after: the
+        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.  The
+        orders above the screen's winner are climbed in steps of :data:`CONTINUATION_STEP`,
+        each optimised from the optimum below it padded with zeros (the same model, so the
+        loss never rises on the way); the largest is also optimised from its own
+        Steiglitz-McBride start, the lower loss kept.
 
     Returns
     -------
@@ -135,7 +143,9 @@ def select_order(
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
             winner = min(screen_scores, key=screen_scores.get)
-            orders = [winner] + ([max(orders)] if refine_largest and max(orders) != winner else [])
+            if refine_largest and max(orders) > winner:
+                return _climb(u, y, structure, winner, orders, nk, dt, criterion, max_nfev, states)
+            orders = [winner]
     return _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states)
 
 
@@ -158,6 +168,55 @@ def _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, sta
     if best is None:
         raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}: {last_error}")
     return best, scores
+
+
+def continuation_orders(winner: int, orders: Sequence[int]) -> list[int]:
+    """The orders the continuation climbs after ``winner``: every :data:`CONTINUATION_STEP`-th
+    candidate above it, ending at the largest."""
+    above = sorted(n for n in set(orders) if n > winner)
+    ladder = above[CONTINUATION_STEP - 1 :: CONTINUATION_STEP]
+    return ladder if ladder and ladder[-1] == above[-1] else [*ladder, above[-1]]
+
+
+def _climb(u, y, structure, winner, orders, nk, dt, criterion, max_nfev, states):
+    """The screen's winner optimised, then the orders above it, each started from the optimum
+    below it (zero-padded: the same model) and the largest from its own start too; the best of
+    all by the criterion.
+
+    At the orders a coupled loop needs (about 30), an optimisation from a linear start stops in
+    local minima whose loss is not even monotone in the order, while the padded optimum of the
+    order below is a start the loss can only improve on (``benchmarks/RESULTS-recovery.md``, PEM).
+    """
+    top = max(orders)
+    try:
+        best, scores = _best_by_criterion(u, y, structure, [winner], nk, dt, criterion, max_nfev, states)
+    except IdentificationError:  # the winner could not be fitted: the largest from its own start
+        return _best_by_criterion(u, y, structure, [top], nk, dt, criterion, max_nfev, states)
+    current = best
+    for n in continuation_orders(winner, orders):
+        candidates = [_fit_or_none(u, y, structure, n, nk, dt, max_nfev, current, None)]
+        if n == top:
+            candidates.append(_fit_or_none(u, y, structure, n, nk, dt, max_nfev, None, states.get(n)))
+        fitted = [m for m in candidates if m is not None]
+        if not fitted:
+            continue
+        current = min(fitted, key=lambda m: m.loss)
+        scores[n] = _score(current, criterion)
+        if scores[n] < _score(best, criterion):
+            best = current
+    return best, scores
+
+
+def _score(model: PolynomialModel, criterion: str) -> float:
+    return float(criterion_value(criterion, model.n_samples, model.loss, model.n_parameters))
+
+
+def _fit_or_none(u, y, structure, n, nk, dt, max_nfev, initial, sm_start) -> PolynomialModel | None:
+    """The prediction-error fit of order ``n`` from ``initial`` (or the linear start), None when it fails."""
+    try:
+        return fit_pem(u, y, structure, structure_orders(structure, n), nk, dt, max_nfev, initial, sm_start)
+    except (IdentificationError, DataError):
+        return None
 
 
 def loop_order_bound(entry_orders: dict[tuple[int, int], tuple[int, int]], controller_states: int) -> int:
