@@ -130,19 +130,36 @@ def _pair_cost(model, records, y_true, i: int, j: int) -> tuple[float, float]:
     return cost, floor
 
 
+def _benchmark_noise(seed: int) -> float:
+    """The noise level the benchmark's runner draws for ``seed`` (``run.draw_noise``)."""
+    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, 0.02))
+
+
 @pytest.mark.study
-def test_coupling_order_selected_on_level_corrected_outputs_reaches_the_noise_floor(tmp_path):
-    # PEM seed 4 (3x3, chirp, 0.38 % noise): the coupling T_10, its order selected on outputs still
-    # carrying the first sample's noise as an offset, stayed at 2.0x the noise floor (order 30)
-    # after the level pass; selected again on the corrected outputs it reaches 0.95x (order 25)
+@pytest.mark.parametrize(
+    ("seed", "salt", "pair"),
+    [
+        # PEM seed 4 (3x3, chirp, 0.38 %): the coupling T_10, its order selected on outputs still
+        # carrying the first sample's noise as an offset, stayed at 2.0x the noise floor (order 30);
+        # selected again on the level-corrected outputs 0.95x
+        (4, 303, (1, 0)),
+        # PEM seed 9 (3x3, chirp, 1.03 %): T_00 at 1.23x from the linear starts and the climb, two
+        # lightly damped coupling modes left out (residual peaks at 195 and 88 Hz); with both added 0.97x
+        (9, 303, (0, 0)),
+        # closed-loop seed 2 (3x3, chirp, 0.65 %): T_22 at 1.26x, the mode at 102 Hz left out (1.9 %
+        # off there), which put the axis's unstable pole 5.5 % off; restarted with it added 0.99x
+        (2, 202, (2, 2)),
+    ],
+)
+def test_pair_of_a_3x3_loop_reaches_the_noise_floor(tmp_path, seed, salt, pair):
     from stageid.closedloop import select_order
     from stageid.closedloop.loop_model import at_rest, fit_with_levels, group_by_reference, remembered
     from stageid.closedloop.validation import simulate_closed_loop
     from stageid.data import as_experiments, read_table
 
-    rng = np.random.default_rng([4, 303])
+    rng = np.random.default_rng([seed, salt])
     plant, K, _ = loop_draws.draw_loop(rng)
-    paths, records, *_ = loop_draws.write_experiments(rng, plant, K, 0.0038, tmp_path)
+    paths, records, *_ = loop_draws.write_experiments(rng, plant, K, _benchmark_noise(seed), tmp_path)
     names = {"inputs": ["r1", "r2", "r3"], "outputs": ["y1", "y2", "y3"]}
     exps = as_experiments([read_table(p).experiment(**names, name=str(p)) for p in paths])
 
@@ -150,9 +167,9 @@ def test_coupling_order_selected_on_level_corrected_outputs_reaches_the_noise_fl
         return select_order(r, y, "oe", range(2, 33), 1, dt, refine_largest=True)[0]
 
     fit_pair = remembered(fit_pair)
-    groups = group_by_reference(exps)
-    group = at_rest({0: groups[0]}, fit_pair)[0]
-    m, _ = fit_with_levels([e.u[:, 0] for e in group], [e.y[:, 1] for e in group], exps[0].dt, fit_pair)
+    i, j = pair
+    group = at_rest({j: group_by_reference(exps)[j]}, fit_pair)[j]
+    m, _ = fit_with_levels([e.u[:, j] for e in group], [e.y[:, i] for e in group], exps[0].dt, fit_pair)
     y_true = [simulate_closed_loop(plant, K, R, loop_draws.DT)[0] for R, _ in records]
-    cost, floor = _pair_cost(m, records, y_true, 1, 0)
-    assert cost < 1.05 * floor  # measured 0.95 (2.0 before); the benchmark bounds the loop's at 1.1
+    cost, floor = _pair_cost(m, records, y_true, i, j)
+    assert cost < 1.05 * floor  # the benchmark bounds the loop's at 1.1
