@@ -36,8 +36,9 @@ Without a controller model (``direct``, ``two_stage``, ``joint``; shared steps i
 
 Modules, in the order of the method: ``loop_model`` (the pairs of T, eq. 11-17) built on
 ``polynomial`` (model structures), ``regression`` (lagged regressors, least squares),
-``initial`` (ARX / Steiglitz-McBride / Hannan-Rissanen starts), ``pem`` (eq. 13-14) and
-``order_selection`` (BIC/AIC); ``deduction`` (eq. 18) and ``reliability`` (its first-order
+``initial`` (ARX / Steiglitz-McBride / Hannan-Rissanen starts), ``pem`` (eq. 13-14),
+``order_selection`` (BIC/AIC, a climb in order) and ``mode_injection`` (a lightly damped mode
+added where a fit's residual still follows the input); ``deduction`` (eq. 18) and ``reliability`` (its first-order
 error gain, weighing the reduction's lines); ``cancellation`` (sec. 3.2.3); ``reduction``
 (sec. 3.3, one entry) and ``plant_reduction`` (every entry, or the full order kept);
 ``estimator`` and ``result`` (the whole method); ``validation`` (simulation, re-closed loop
