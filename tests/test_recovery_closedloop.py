@@ -118,3 +118,61 @@ def test_diagonal_pairs_reach_the_noise_floor(tmp_path):
     for j, (R, y) in enumerate(records):
         floor = np.sum((y - simulate_closed_loop(plant, K, R, loop_draws.DT)[0])[:, j] ** 2)
         assert np.sum((y - T.simulate(R))[:, j] ** 2) < 1.05 * floor  # the benchmark bounds the loop's at 1.1
+
+
+def _pair_cost(model, records, y_true, i: int, j: int) -> tuple[float, float]:
+    """(the pair's summed squared output error on the records exciting ``j``, the truth's)."""
+    cost = floor = 0.0
+    for (R, y), yt in zip(records, y_true):
+        if np.any(R[:, j]):
+            cost += float(np.sum((y[:, i] - model.simulate(R[:, j])) ** 2))
+            floor += float(np.sum((y[:, i] - yt[:, i]) ** 2))
+    return cost, floor
+
+
+def _benchmark_noise(seed: int) -> float:
+    """The noise level the benchmark's runner draws for ``seed`` (``run.draw_noise``)."""
+    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, 0.02))
+
+
+@pytest.mark.study
+@pytest.mark.parametrize(
+    ("seed", "salt", "pair", "bound"),
+    [
+        # PEM seed 4 (3x3, chirp, 0.38 %): the coupling T_10, its order selected on outputs still
+        # carrying the first sample's noise as an offset, stayed at 2.0x the noise floor (order 30);
+        # selected again on the level-corrected outputs 0.95x
+        (4, 303, (1, 0), 1.05),
+        # PEM seed 9 (3x3, chirp, 1.03 %): T_00 at 1.23x from the linear starts and the climb, two
+        # lightly damped coupling modes left out (residual peaks at 195 and 88 Hz); with both added 0.97x
+        (9, 303, (0, 0), 1.05),
+        # closed-loop seed 2 (3x3, chirp, 0.65 %): T_22 at 1.26x, the mode at 102 Hz left out (1.9 %
+        # off there), which put the axis's unstable pole 5.5 % off; restarted with it added 0.99x
+        (2, 202, (2, 2), 1.05),
+        # PEM seed 12 (3x3, multisine, 0.13 %): T_00 1.08x after its first fit, 1.46x after the order
+        # selected again and the refit, which was kept; the fit with the lowest level loss is kept now
+        (12, 303, (0, 0), 1.1),  # the benchmark's bound on the loop's
+    ],
+)
+def test_pair_of_a_3x3_loop_reaches_the_noise_floor(tmp_path, seed, salt, pair, bound):
+    from stageid.closedloop import select_order
+    from stageid.closedloop.loop_model import at_rest, fit_with_levels, group_by_reference, remembered
+    from stageid.closedloop.validation import simulate_closed_loop
+    from stageid.data import as_experiments, read_table
+
+    rng = np.random.default_rng([seed, salt])
+    plant, K, _ = loop_draws.draw_loop(rng)
+    paths, records, *_ = loop_draws.write_experiments(rng, plant, K, _benchmark_noise(seed), tmp_path)
+    names = {"inputs": ["r1", "r2", "r3"], "outputs": ["y1", "y2", "y3"]}
+    exps = as_experiments([read_table(p).experiment(**names, name=str(p)) for p in paths])
+
+    def fit_pair(r, y, dt):  # the estimator's default for a 3x3 loop: orders 2 to its bound 30, plus 2
+        return select_order(r, y, "oe", range(2, 33), 1, dt, refine_largest=True)[0]
+
+    fit_pair = remembered(fit_pair)
+    i, j = pair
+    group = at_rest({j: group_by_reference(exps)[j]}, fit_pair)[j]
+    m, _ = fit_with_levels([e.u[:, j] for e in group], [e.y[:, i] for e in group], exps[0].dt, fit_pair)
+    y_true = [simulate_closed_loop(plant, K, R, loop_draws.DT)[0] for R, _ in records]
+    cost, floor = _pair_cost(m, records, y_true, i, j)
+    assert cost < bound * floor  # measured 0.95, 0.97, 0.99 and 1.08

@@ -28,7 +28,7 @@ from .cancellation import cancel_entries, z_to_s
 from .controller import check_controller, check_grid, discrete_controllers, resolved_grid
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import check_deduction, deduce_plant, plant_response, unstable_plant_poles, wide_response
-from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
+from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs, remembered
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .plant_reduction import keep_full_order, reduce_plant
@@ -267,7 +267,7 @@ class ClosedLoopIdentification(Estimator):
         dt, p = exps[0].dt, exps[0].n_outputs
         M, Mr = discrete_controllers(self.controller, self.reference_filter, dt, self.controller_discretization, p)
         check_controller(M if Mr is None else Mr, check_grid(lo, dt))
-        fit_pair = self._pair_fitter(self._candidate_orders(p, M.n_states))
+        fit_pair = remembered(self._pair_fitter(self._candidate_orders(p, M.n_states)))
         groups = at_rest(group_by_reference(exps), fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)

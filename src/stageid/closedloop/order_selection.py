@@ -15,6 +15,7 @@ import scipy.signal as ss
 
 from .._errors import DataError, IdentificationError
 from .initial import SM_ITERATIONS, steiglitz_mcbride, steiglitz_mcbride_orders
+from .mode_injection import explained_residual_peaks, with_modes
 from .pem import fit_pem
 from .polynomial import STRUCTURES, PolynomialModel, structure_orders
 from .regression import check_dt, check_moving, records
@@ -27,6 +28,9 @@ __all__ = [
     "SCREEN_OWN_ITERATIONS",
     "START_ITERATIONS",
     "loop_order_bound",
+    "continuation_orders",
+    "CONTINUATION_STEP",
+    "MODES_ADDED",
 ]
 
 #: Steiglitz-McBride passes of the screen pre-filtered by the largest order's ``F``, all orders at once
@@ -35,6 +39,10 @@ SCREEN_ITERATIONS = 6
 SCREEN_OWN_ITERATIONS = 1
 #: own passes the selected order's PEM start adds to the screen's estimate
 START_ITERATIONS = 2
+#: order step of the continuation up to the largest order
+CONTINUATION_STEP = 2
+#: lightly damped modes added at most to a lower order's optimum to restart the largest order
+MODES_ADDED = 2
 
 
 def criterion_value(criterion: str, n_samples: int, loss: float, n_parameters: int) -> float:
@@ -97,8 +105,13 @@ def select_order(
         cheap Steiglitz-McBride estimates and run the prediction-error optimisation only for
         the winner; otherwise every order is optimised.
     refine_largest : bool
-        With the screen, optimise the largest order too, the criterion deciding after: the
-        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.
+        With the screen, optimise the larger orders too, the criterion deciding after: the
+        screen's estimates degrade at high orders, where a coupled loop's weak modes sit.  The
+        orders from the winner (or four below the largest, if lower) are climbed in steps of
+        :data:`CONTINUATION_STEP`, each optimised from the optimum below it padded with zeros
+        (the same model, so the loss never rises on the way) and the largest once more from
+        the optimum two and four orders below with one and two lightly damped modes added where
+        the residual still follows the input (:mod:`~stageid.closedloop.mode_injection`).
 
     Returns
     -------
@@ -135,7 +148,9 @@ def select_order(
         screen_scores, states = screen_orders(segs, orders, nk, criterion)
         if screen_scores:
             winner = min(screen_scores, key=screen_scores.get)
-            orders = [winner] + ([max(orders)] if refine_largest and max(orders) != winner else [])
+            if refine_largest:
+                return _climb(u, y, structure, winner, orders, nk, dt, criterion, max_nfev, states)
+            orders = [winner]
     return _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, states)
 
 
@@ -158,6 +173,80 @@ def _best_by_criterion(u, y, structure, orders, nk, dt, criterion, max_nfev, sta
     if best is None:
         raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}: {last_error}")
     return best, scores
+
+
+def continuation_orders(low: int, orders: Sequence[int]) -> list[int]:
+    """The orders a continuation from ``low`` climbs: ``low``, and the largest candidate and every
+    :data:`CONTINUATION_STEP`-th order below it down to ``low`` (those among the candidates)."""
+    candidates = set(orders)
+    top = max(candidates)
+    return sorted({n for n in range(top, low, -CONTINUATION_STEP) if n in candidates} | {low})
+
+
+def _climb(u, y, structure, winner, orders, nk, dt, criterion, max_nfev, states):
+    """The orders from ``min(winner, top - 2 MODES_ADDED)`` up to the largest, each optimised from
+    the optimum below it (zero-padded: the same model), the lowest, the screen's winner and the
+    largest from their own starts too; then the largest order again from the optimum
+    ``2 k`` below it with ``k`` lightly damped modes added (:func:`_with_missing_modes`); the best
+    of all by the criterion.
+
+    At the orders a coupled loop needs (about 30), an optimisation from a linear start stops in
+    local minima whose loss is not even monotone in the order, while the padded optimum of the
+    order below is a start the loss can only improve on (``benchmarks/RESULTS-recovery.md``, PEM).
+    """
+    top = max(orders)
+    low = min(winner, max(min(orders), top - 2 * MODES_ADDED))
+    rungs: dict[int, PolynomialModel] = {}
+    current = None
+    for n in sorted({winner, *continuation_orders(low, orders)}):
+        own = n in (low, winner, top) or current is None
+        fitted = [
+            m
+            for m in (
+                None if current is None else _fit_or_none(u, y, structure, n, nk, dt, max_nfev, current, None),
+                _fit_or_none(u, y, structure, n, nk, dt, max_nfev, None, states.get(n)) if own else None,
+            )
+            if m is not None
+        ]
+        if fitted:
+            current = rungs[n] = min(fitted, key=lambda m: m.loss)
+    if not rungs:
+        raise IdentificationError(f"no {structure} model could be fitted for orders {list(orders)}.")
+    for m in _with_missing_modes(u, y, structure, rungs, top, nk, dt, max_nfev):
+        n = m.F.size - 1
+        if n not in rungs or m.loss < rungs[n].loss:
+            rungs[n] = m
+    scores = {n: _score(m, criterion) for n, m in rungs.items()}
+    return rungs[min(scores, key=scores.get)], scores
+
+
+def _with_missing_modes(u, y, structure, rungs, top, nk, dt, max_nfev) -> list[PolynomialModel]:
+    """For ``k = 1 .. MODES_ADDED``: the optimum of order ``top - 2 k`` with its residual's ``k``
+    strongest input-explained lines added as lightly damped modes
+    (:mod:`~stageid.closedloop.mode_injection`), optimised at order ``top``."""
+    segs = records(u, y)
+    out = []
+    for k in range(1, MODES_ADDED + 1):
+        base = rungs.get(top - 2 * k)
+        if base is None:
+            continue
+        start = with_modes(base, explained_residual_peaks(base, segs, k))
+        m = _fit_or_none(u, y, structure, top, nk, dt, max_nfev, start, None)
+        if m is not None:
+            out.append(m)
+    return out
+
+
+def _score(model: PolynomialModel, criterion: str) -> float:
+    return float(criterion_value(criterion, model.n_samples, model.loss, model.n_parameters))
+
+
+def _fit_or_none(u, y, structure, n, nk, dt, max_nfev, initial, sm_start) -> PolynomialModel | None:
+    """The prediction-error fit of order ``n`` from ``initial`` (or the linear start), None when it fails."""
+    try:
+        return fit_pem(u, y, structure, structure_orders(structure, n), nk, dt, max_nfev, initial, sm_start)
+    except (IdentificationError, DataError):
+        return None
 
 
 def loop_order_bound(entry_orders: dict[tuple[int, int], tuple[int, int]], controller_states: int) -> int:
