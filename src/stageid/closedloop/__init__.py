@@ -36,7 +36,34 @@ Without a controller model (``direct``, ``two_stage``, ``joint``; shared steps i
 
 Modules, in the order of the method (Fig. 2):
 
-==============================  ====================================================="""
+==============================  ============================================================
+``loop_model``                  the pairs of ``T`` from the experiments (eq. 11-17)
+``polynomial``                  the model structures (ARX, ARMAX, OE, BJ; eq. 12)
+``regression``                  lagged regressors and least squares
+``initial``                     ARX / Steiglitz-McBride / Hannan-Rissanen starts
+``pem``                         the prediction-error fit (eq. 13-14)
+``reduced_lsq``                 SciPy's least squares on the QR-reduced problem
+``covariance``                  the PEM parameters' covariance (eq. 13-14)
+``order_selection``             BIC / AIC over a climb in order
+``mode_injection``              a lightly damped mode where a residual follows the input
+``controller``                  the known controller, discrete at the data's sample time, checked
+``deduction``                   eq. 18 (state space, frequency by frequency, SISO polynomials)
+``reliability``                 eq. 18's first-order error gain, weighing the reduction's lines
+``cancellation``                spurious pole-zero pairs (sec. 3.2.3)
+``zoh``                         the ZOH equivalent of a continuous entry and its derivatives
+``reduction``                   fixed-structure fit of one entry over a band (sec. 3.3)
+``plant_reduction``             every entry, or the full order kept
+``uncertainty``                 the PEM covariance carried through eq. 18 and the reduction
+``estimator``, ``result``       the whole method and its frozen result
+``validation``                  simulation, the re-closed loop, the direct baseline
+``feedback_simulation``         sampled loops with saturation and a feedback delay
+==============================  ============================================================
+
+The routes without a controller model: ``unknown_estimator`` (their common base),
+``unknown_result`` (their result), ``unknown_checks`` (the assumptions they check),
+``direct``, ``two_stage``, ``joint``, and their shared steps ``predictor_subspace``,
+``innovation_pem``, ``innovation_jacobian``, ``innovation_fit``.
+"""
 
 from .cancellation import CancelledPair, EntryPoleZero, cancel_entries, cancel_pairs
 from .deduction import deduce_plant, deduce_response, deduce_siso, unstable_plant_poles
