@@ -146,6 +146,14 @@ def test_a_former_keyword_still_works_with_a_warning():
     with pytest.raises(ParameterError, match="former name of `sample_time`"):
         Renamed(dt=0.1, sample_time=0.2)
 
+    class Subclassed(Renamed):  # its own __init__ inherits the former names
+        def __init__(self, sample_time=None, band=None, extra=1):
+            super().__init__(sample_time, band)
+            self.extra = extra
+
+    with pytest.warns(DeprecationWarning, match="`dt` of Subclassed is now `sample_time`"):
+        assert Subclassed(dt=0.3).sample_time == 0.3
+
 
 @pytest.mark.parametrize("name", sorted(estimators()))
 def test_former_keywords_name_declared_parameters(name):

@@ -192,8 +192,8 @@ class Estimator:
         if not cls.__dict__.get("abstract", False):
             cls.abstract = False
             _REGISTRY[f"{cls.__module__}.{cls.__qualname__}"] = cls
-        if cls.__dict__.get("renamed_parameters") and "__init__" in cls.__dict__:
-            cls.__init__ = _accepting_former_names(cls.__init__, cls.__dict__["renamed_parameters"])
+        if cls.renamed_parameters and "__init__" in cls.__dict__:  # a subclass's own __init__ too
+            cls.__init__ = _accepting_former_names(cls.__init__, cls.renamed_parameters)
 
     @classmethod
     def parameter_names(cls) -> tuple[str, ...]:

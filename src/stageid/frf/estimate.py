@@ -39,7 +39,7 @@ class FRFResult:
     diagnostics: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "diagnostics", FrozenMapping(dict(self.diagnostics)))
+        object.__setattr__(self, "diagnostics", FrozenMapping(self.diagnostics))
 
     def summary(self) -> str:
         """One line per fact: the estimator, the frequencies and the diagnostics."""
