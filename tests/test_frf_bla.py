@@ -13,6 +13,7 @@ from stageid import DataError, ParameterError
 from stageid.data import Experiment
 from stageid.frf import FRDIdentification, FrequencyResponse, read_frd
 from stageid.frf.bla import BLAAccumulator, bla_frf, detect_periods, detect_transient_periods
+from stageid.frf.records import ChannelRecord
 from stageid.signals import multisine
 
 DT, L, P = 1e-3, 1024, 4
@@ -184,6 +185,33 @@ def test_a_nan_sample_is_named_by_column_and_row_and_npz_channels_read_alike(tmp
     assert all(isinstance(c, np.memmap) for r in recs for c in r.channels)
     a, b = bla_frf(recs, transient_periods=1), bla_frf(exps, transient_periods=1)
     np.testing.assert_array_equal(a.frd.response, b.frd.response)
+
+
+def test_channels_transformed_in_threads_give_the_single_thread_result_and_its_first_error(tmp_path):
+    exps = list(realisations(lambda u: u + 0.2 * u**2, 6, 0.01, seed=4))
+    one = BLAAccumulator(transient_periods=1, n_threads=1)
+    many = BLAAccumulator(transient_periods=1, n_threads=4)
+    for e in exps:
+        one.add(e)
+        many.add(e)
+    a, b = one.result(), many.result()
+    for x, y in ((a.frd.response, b.frd.response), (a.frd.std, b.frd.std), (a.frd.total_std, b.frd.total_std)):
+        np.testing.assert_array_equal(x, y)  # the same operations on the same numbers: bit for bit
+    np.testing.assert_array_equal(a.even.power, b.even.power)
+    # both experiments of a realisation spoilt (records as channels: an Experiment refuses them itself):
+    # the error names the first in record order, as one thread does
+    spoilt = [exps[0].y[:, 0].copy(), exps[1].y[:, 0].copy()]
+    spoilt[1][L + 3], spoilt[0][2 * L + 9] = np.inf, np.nan
+    ins = (exps[0].u[:, 0], exps[1].u[:, 0])
+    bad = [ChannelRecord((*ins, y), 2, DT, ("u1", "u2"), ("y",), f"e{k}") for k, y in enumerate(spoilt)]
+    messages = []
+    for n_threads in (1, 4):
+        with pytest.raises(DataError) as caught:
+            BLAAccumulator(transient_periods=1, n_threads=n_threads, excited=np.arange(1, 200, 2)).add(bad)
+        messages.append(str(caught.value))
+    assert messages[0] == messages[1] == f"e0: column 'y' has NaN at row {2 * L + 9}; every sample must be finite."
+    with pytest.raises(ParameterError, match="`n_threads` of BLAAccumulator must be a positive integer"):
+        BLAAccumulator(n_threads=0)
 
 
 def test_lpm_variant_removes_the_transient_of_two_period_records_from_rest():

@@ -176,3 +176,25 @@ def test_frf_bla_refuses_a_cut_npz_record_in_one_line(measured):
     assert rc == 2 and len(err.strip().splitlines()) == 1, err
     assert f"{paths[1].name}: cannot read the archive" in err, err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_frf_bla_in_threads_writes_what_one_thread_writes_and_names_a_bad_sample_in_one_line(measured, monkeypatch):
+    import stageid.runtime.threads as threads
+
+    tmp_path, files = measured
+    paths, design = as_npz(files), tmp_path / "ms.multisine.json"
+    written = {}
+    for cpus in (1, 4):  # the channels of a realisation transformed by one thread, then by four
+        monkeypatch.setattr(threads, "available_cpus", lambda cpus=cpus: cpus)
+        rc, out, err = run("frf", *paths, *BLA, "--design", design, "-o", tmp_path / f"b{cpus}.npz")
+        assert rc == 0, err
+        written[cpus] = (tmp_path / f"b{cpus}.npz").read_bytes()
+    assert written[1] == written[4]
+    with np.load(paths[2]) as z:
+        y = z["y"].copy()
+        y[3 * 1024 + 5] = np.nan
+        np.savez(paths[2], t=z["t"], u=z["u"], y=y)
+    rc, out, err = run("frf", *paths, *BLA, "--design", design, "-o", tmp_path / "x.npz")
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{paths[2].name}: column 'y' has NaN at row {3 * 1024 + 5}" in err, err
+    assert not (tmp_path / "x.npz").exists()

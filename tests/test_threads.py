@@ -79,3 +79,28 @@ def test_the_controller_is_rebuilt_when_scipy_arrives(monkeypatch):
     monkeypatch.setitem(sys.modules, "scipy.linalg", sys.modules.get("scipy.linalg", object()))
     monkeypatch.setattr(_threads, "_controller", (False, first))
     assert _threads._blas_controller() is not first  # scipy arrived: scanned again
+
+
+def test_map_in_threads_keeps_item_order_and_raises_the_first_failing_item_after_all_ran():
+    import threading
+
+    from stageid.runtime.threads import map_in_threads
+
+    seen, names = [], set()
+
+    def fn(i):
+        seen.append(i)
+        names.add(threading.current_thread().name)
+        if i in (5, 3):
+            raise ValueError(f"item {i}")
+        return i * i
+
+    assert map_in_threads(lambda i: i * i, 20, 3) == [i * i for i in range(20)]
+    with pytest.raises(ValueError, match="item 3"):
+        map_in_threads(fn, 12, 3)
+    assert sorted(seen) == list(range(12))  # every item ran, the failing ones included
+    assert map_in_threads(fn, 0, 4) == []
+    names.clear()
+    with pytest.raises(ValueError, match="item 3"):
+        map_in_threads(fn, 6, 1)
+    assert names == {threading.current_thread().name}  # one thread: the caller's own

@@ -36,6 +36,7 @@ from .._errors import DataError, ParameterError
 from ..data import Experiment
 from ..models.frequency_response import FrequencyResponse
 from ..runtime.heap import prime_heap
+from ..runtime.threads import map_in_threads
 from .bla_result import DETECTION_DB, BLAResult, DetectionLevels
 from .periodic import excited_lines, period_average
 from .periods import detect_periods, detect_transient_periods
@@ -72,6 +73,9 @@ class BLAAccumulator:
         Line indices on the grid of one period (``k / (L dt)``); taken from the first
         realisation's input (excited) and the unexcited odd / even lines between the first
         and last excited one (detection) when None.
+    n_threads : int, optional
+        Threads that transform a realisation's channels (``transient="drop"``); None uses
+        every CPU the process may run on, 1 this thread alone.  The result does not depend on it.
 
     Examples
     --------
@@ -95,6 +99,7 @@ class BLAAccumulator:
         detection_odd: Sequence[int] | None = None,
         detection_even: Sequence[int] | None = None,
         transient: str = "drop",
+        n_threads: int | None = None,
     ) -> None:
         if transient not in ("drop", "lpm"):
             raise ParameterError(f"`transient` of BLAAccumulator must be 'drop' or 'lpm'; got {transient!r}.")
@@ -102,8 +107,13 @@ class BLAAccumulator:
             raise ParameterError(
                 f"`transient_periods` applies to transient='drop'; got {transient_periods!r} with 'lpm'."
             )
+        if n_threads is not None and (not isinstance(n_threads, int) or isinstance(n_threads, bool) or n_threads < 1):
+            raise ParameterError(
+                f"`n_threads` of BLAAccumulator must be a positive integer or None; got {n_threads!r}."
+            )
         self.periods = periods
         self.transient = transient
+        self.n_threads = n_threads
         self.transient_periods = 0 if transient == "lpm" else transient_periods
         self._lines = None if excited is None else _lines_of(excited, detection_odd, detection_even)
         self._first: ChannelRecord | None = None
@@ -259,22 +269,7 @@ class BLAAccumulator:
         keep = None if self._lines is None else np.concatenate(self._lines)
         if keep is not None and keep.max() > L // 2:
             raise DataError(f"line {int(keep.max())} lies above Nyquist of a {L}-sample period.")
-        n_lines = L // 2 + 1 if keep is None else keep.size
-        # one contiguous (periods, lines) block per record and channel, returned as a
-        # (periods, lines, channels, records) view: writing that order directly strides the cache
-        blocks = np.empty((len(recs), len(first.channels), kept, n_lines), complex)
-        for e, rec in enumerate(recs):
-            for c, x in enumerate(rec.channels):
-                periods_of = np.asarray(x[dropped * L :]).reshape(kept, L)
-                spectrum = np.fft.rfft(periods_of, axis=1)
-                if keep is None:
-                    blocks[e, c] = spectrum
-                else:
-                    np.take(spectrum, keep, axis=1, out=blocks[e, c])
-                # a NaN or inf sample spreads over every line of its period's DFT: checking the
-                # kept lines finds it; the samples are searched only to name the row
-                if not np.isfinite(blocks[e, c]).all():
-                    check_finite_batch(rec, periods_of, c, dropped * L, L)
+        blocks = _channel_spectra(recs, L, dropped, keep, self.n_threads)
         X = blocks.transpose(2, 3, 1, 0)
         if keep is None:  # the design is inferred from this first realisation's full spectrum
             self._lines = _infer_lines(X[:, :, : first.n_inputs].mean(axis=0))
@@ -336,8 +331,50 @@ def _lines_of(excited, detection_odd, detection_even) -> tuple[np.ndarray, np.nd
 def _infer_lines(Um: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Excited lines from the input; the unexcited ones between the first and last, by parity."""
     exc = excited_lines(Um)
-    rest = np.setdiff1d(np.arange(exc[0], exc[-1] + 1), exc)
+    unexcited = np.ones(exc[-1] - exc[0] + 1, bool)  # not np.setdiff1d: it imports numpy.ma
+    unexcited[exc - exc[0]] = False
+    rest = exc[0] + np.flatnonzero(unexcited)
     return exc, rest[rest % 2 == 1], rest[rest % 2 == 0]
+
+
+def _channel_spectra(
+    recs: Sequence[ChannelRecord], L: int, dropped: int, keep: np.ndarray | None, n_threads: int | None
+) -> np.ndarray:
+    """The DFT of every period after the first ``dropped`` of every record's channels, at the
+    lines ``keep`` (all when None): shape (records, channels, periods, lines).
+
+    One contiguous (periods, lines) block per record and channel (the caller's (periods, lines,
+    channels, records) view of it; writing that order directly strides the cache).  The channels
+    are transformed on ``n_threads`` threads: numpy's FFT and the first touch of mapped records
+    run without the GIL.
+
+    Raises
+    ------
+    DataError
+        Naming the first non-finite sample of the first channel (in record order) that has one.
+    """
+    n_channels, kept = len(recs[0].channels), recs[0].n_samples // L - dropped
+    blocks = np.empty((len(recs), n_channels, kept, L // 2 + 1 if keep is None else keep.size), complex)
+
+    def periods_of(e: int, c: int) -> np.ndarray:
+        return np.asarray(recs[e].channels[c][dropped * L :]).reshape(kept, L)  # a view of the record
+
+    def transform(item: int) -> bool:
+        e, c = divmod(item, n_channels)
+        spectrum = np.fft.rfft(periods_of(e, c), axis=1)
+        if keep is None:
+            blocks[e, c] = spectrum
+        else:
+            np.take(spectrum, keep, axis=1, out=blocks[e, c])
+        # a NaN or inf sample spreads over every line of its period's DFT: checking the kept
+        # lines finds it; the samples are searched only to name the row
+        return bool(np.isfinite(blocks[e, c]).all())
+
+    finite = map_in_threads(transform, len(recs) * n_channels, n_threads)
+    for item in (i for i, ok in enumerate(finite) if not ok):
+        e, c = divmod(item, n_channels)  # the first bad channel in record order, as one thread finds it
+        check_finite_batch(recs[e], periods_of(e, c), c, dropped * L, L)
+    return blocks
 
 
 def _check_like(recs: Sequence[ChannelRecord], first: ChannelRecord, n_records: int, n: int, period: int) -> None:

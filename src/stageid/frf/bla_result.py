@@ -141,7 +141,7 @@ class BLAResult:
             f"{f.n_freqs} excited lines {f.freqs[0]:g}-{f.freqs[-1]:g} Hz"
         ]
         if f.total_std is not None:
-            ratio = np.median(f.total_std**2 / np.maximum(f.std**2, 1e-300), axis=0)
+            ratio = _band_median(f.total_std**2 / np.maximum(f.std**2, 1e-300))
             for i, out in enumerate(f.outputs):
                 parts = ", ".join(f"{inp} {10 * np.log10(ratio[i, j]):+.1f} dB" for j, inp in enumerate(f.inputs))
                 lines.append(f"bla: {out}: total variance over noise variance (median over the band): {parts}")
@@ -165,3 +165,11 @@ class BLAResult:
         from .bla_figure import bla_figure
 
         return bla_figure(self.model, self.odd_std, self.even_std)
+
+
+def _band_median(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=0)``, NaN where a column holds one, without ``np.median``'s import of ``numpy.ma``."""
+    s = np.sort(x, axis=0)  # NaNs sort last
+    n = s.shape[0]
+    mid = s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2
+    return np.where(np.isnan(s[-1]), np.nan, mid)

@@ -1,4 +1,4 @@
-"""One BLAS thread inside the estimators' fits.
+"""One BLAS thread inside the estimators' fits; independent pieces of work spread over the CPUs.
 
 The fits solve many small and medium linear problems (a few hundred unknowns at most).
 OpenBLAS's thread pool does not pay for itself there, and on a loaded machine its waiting
@@ -8,17 +8,23 @@ while it runs and the caller's setting is restored afterwards.
 
 Set the environment variable ``STAGEID_BLAS_THREADS`` to a positive number to use that
 many threads instead, or to ``0`` to leave the pool as it is.
+
+:func:`map_in_threads` runs independent pieces of work (e.g. the FFTs of a record's channels,
+which numpy runs without the GIL) on as many threads as the process may use CPUs.
 """
 
 from __future__ import annotations
 
 import functools
+import itertools
 import os
 import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 from .heap import prime_heap
+
+__all__ = ["single_blas_thread", "map_in_threads", "available_cpus"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -64,3 +70,46 @@ def single_blas_thread(fn: F) -> F:
             return fn(*args, **kwargs)
 
     return wrapper  # type: ignore[return-value]
+
+
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the system has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def map_in_threads(fn: Callable[[int], Any], n_items: int, n_threads: int | None = None) -> list[Any]:
+    """``[fn(i) for i in range(n_items)]`` on up to ``n_threads`` threads (this one included).
+
+    ``n_threads`` None means :func:`available_cpus`; 1 (or a single item) runs in this thread
+    alone.  Items are handed out one at a time, so a thread the machine holds back takes fewer.
+    Every item runs even when one fails; the exception of the first failing item (in item
+    order) is raised after all threads have finished, so the caller sees what one thread would.
+    """
+    import threading
+
+    n = min(n_items, available_cpus() if n_threads is None else max(1, n_threads))
+    results: list[Any] = [None] * n_items
+    errors: dict[int, BaseException] = {}
+    counter = itertools.count()  # next() on a count is atomic under the GIL: a lock-free queue
+
+    def work() -> None:
+        for i in iter(counter.__next__, None):
+            if i >= n_items:
+                return
+            try:
+                results[i] = fn(i)
+            except BaseException as exc:  # re-raised in the caller's thread, in item order
+                errors[i] = exc
+
+    helpers = [threading.Thread(target=work, daemon=True) for _ in range(n - 1)]
+    for t in helpers:
+        t.start()
+    work()
+    for t in helpers:
+        t.join()
+    if errors:
+        raise errors[min(errors)]
+    return results
