@@ -11,7 +11,8 @@ levels (Pintelon & Schoukens' robust method):
   period-to-period scatter, mean and scatter over realisations, the detection lines' power;
 * **stageid**: ``stageid frf --method bla --design`` as a subprocess (Python start, imports,
   reading the files realisation by realisation, writing the result all counted), and
-  :func:`stageid.cli.bla.estimate_bla` in-process.
+  :func:`stageid.cli.bla.estimate_bla` in-process.  A realisation's channels are transformed
+  on as many threads as the process has CPUs; the CLI is also timed with ``STAGEID_THREADS=1``.
 
 Both subprocesses import byte-compiled modules (a cache of the benchmark's own, filled by one
 untimed run of each), as an installed package does.
@@ -192,7 +193,7 @@ def processes(folder: Path, files: list[Path], compare_src: str | None) -> dict:
     # of their own (so the source tree is left alone), filled by one untimed run of each
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
-    commands = {"np_cli": (np_cli, env), "cli": (cli, env)}
+    commands = {"np_cli": (np_cli, env), "cli": (cli, env), "cli_1": (cli, env | {"STAGEID_THREADS": "1"})}
     if compare_src:
         other = env | {"PYTHONPATH": os.pathsep.join([compare_src, *filter(None, [env.get("PYTHONPATH")])])}
         commands["cli_other"] = (cli, other)
@@ -235,7 +236,8 @@ def report(runs, repeat: int, loadavg: list[float], agree: float, memory: dict[s
         "# BLA estimation speed (benchmarks/bench_bla.py)",
         "",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}, "
-        f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; median of {repeat} runs; "
+        f"{len(os.sched_getaffinity(0))} CPUs, OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; "
+        f"median of {repeat} runs; "
         f"load average {loadavg[0]:.1f} before, {loadavg[1]:.1f} after.",
         "",
         f"3x3, orthogonal random-odd design: {M} realisations x 3 experiments x {P} periods x {L} samples "
@@ -249,6 +251,7 @@ def report(runs, repeat: int, loadavg: list[float], agree: float, memory: dict[s
         "api": ("stageid BLA in-process (`stageid.cli.bla.estimate_bla`)", "np"),
         "np_cli": ("plain numpy composition as a script (start, import, read)", "np_cli"),
         "cli": ("`stageid frf --method bla` whole process (start, read, write)", "np_cli"),
+        "cli_1": ("the same on one thread (`STAGEID_THREADS=1`)", "np_cli"),
         "cli_other": (f"the same, stageid from `{compare_src}`", "np_cli"),
     }
     for key, (name, base) in names.items():

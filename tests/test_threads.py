@@ -104,3 +104,13 @@ def test_map_in_threads_keeps_item_order_and_raises_the_first_failing_item_after
     with pytest.raises(ValueError, match="item 3"):
         map_in_threads(fn, 6, 1)
     assert names == {threading.current_thread().name}  # one thread: the caller's own
+
+
+def test_stageid_threads_sets_the_default_thread_count(monkeypatch):
+    from stageid.runtime.threads import available_cpus
+
+    monkeypatch.setenv("STAGEID_THREADS", "3")
+    assert available_cpus() == 3
+    for raw in ("0", "-2", "many", ""):
+        monkeypatch.setenv("STAGEID_THREADS", raw)
+        assert available_cpus() == len(os.sched_getaffinity(0))

@@ -75,7 +75,9 @@ class BLAAccumulator:
         and last excited one (detection) when None.
     n_threads : int, optional
         Threads that transform a realisation's channels (``transient="drop"``); None uses
-        every CPU the process may run on, 1 this thread alone.  The result does not depend on it.
+        ``STAGEID_THREADS`` or else every CPU the process may run on
+        (:func:`~stageid.runtime.threads.available_cpus`), 1 this thread alone.  The result
+        does not depend on it.
 
     Examples
     --------

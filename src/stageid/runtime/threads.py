@@ -10,7 +10,8 @@ Set the environment variable ``STAGEID_BLAS_THREADS`` to a positive number to us
 many threads instead, or to ``0`` to leave the pool as it is.
 
 :func:`map_in_threads` runs independent pieces of work (e.g. the FFTs of a record's channels,
-which numpy runs without the GIL) on as many threads as the process may use CPUs.
+which numpy runs without the GIL) on as many threads as the process may use CPUs, or on
+``STAGEID_THREADS`` threads when that environment variable is a positive number.
 """
 
 from __future__ import annotations
@@ -73,7 +74,11 @@ def single_blas_thread(fn: F) -> F:
 
 
 def available_cpus() -> int:
-    """The CPUs this process may run on (its affinity mask where the system has one)."""
+    """``STAGEID_THREADS`` when a positive number, else the CPUs this process may run on (its
+    affinity mask where the system has one)."""
+    raw = os.environ.get("STAGEID_THREADS", "").strip()
+    if raw.isdigit() and int(raw) > 0:
+        return int(raw)
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
