@@ -107,10 +107,12 @@ def test_map_in_threads_keeps_item_order_and_raises_the_first_failing_item_after
 
 
 def test_stageid_threads_sets_the_default_thread_count(monkeypatch):
-    from stageid.runtime.threads import available_cpus
+    from stageid.runtime.threads import default_threads
 
     monkeypatch.setenv("STAGEID_THREADS", "3")
-    assert available_cpus() == 3
+    assert default_threads() == 3
     for raw in ("0", "-2", "many", ""):
         monkeypatch.setenv("STAGEID_THREADS", raw)
-        assert available_cpus() == len(os.sched_getaffinity(0))
+        assert default_threads() == 1
+    monkeypatch.delenv("STAGEID_THREADS")
+    assert default_threads() == 1

@@ -75,9 +75,8 @@ class BLAAccumulator:
         and last excited one (detection) when None.
     n_threads : int, optional
         Threads that transform a realisation's channels (``transient="drop"``); None uses
-        ``STAGEID_THREADS`` or else every CPU the process may run on
-        (:func:`~stageid.runtime.threads.available_cpus`), 1 this thread alone.  The result
-        does not depend on it.
+        :func:`~stageid.runtime.threads.default_threads` (``STAGEID_THREADS``, else 1).  They
+        pay only where CPUs are idle; the result does not depend on them.
 
     Examples
     --------

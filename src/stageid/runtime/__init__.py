@@ -9,7 +9,7 @@ module                 what it holds
 :mod:`.unroll`         one mechanism to write a kernel's short loops out (``written_out``)
 :mod:`.numba_cache`    where compiled kernels are cached (a read-only install still runs)
 :mod:`.threads`        ``single_blas_thread``: one BLAS thread inside the fits;
-                       ``map_in_threads``: independent work spread over the CPUs
+                       ``map_in_threads``: independent work on several threads
 :mod:`.heap`           ``prime_heap``: malloc's thresholds raised once per process
 :mod:`.lazy`           ``lazy_names``: a package's names imported on first use (PEP 562)
 :mod:`.resources`      ``require_memory`` / ``require_work``: guards before large work

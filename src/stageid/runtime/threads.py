@@ -10,8 +10,11 @@ Set the environment variable ``STAGEID_BLAS_THREADS`` to a positive number to us
 many threads instead, or to ``0`` to leave the pool as it is.
 
 :func:`map_in_threads` runs independent pieces of work (e.g. the FFTs of a record's channels,
-which numpy runs without the GIL) on as many threads as the process may use CPUs, or on
-``STAGEID_THREADS`` threads when that environment variable is a positive number.
+which numpy runs without the GIL) on several threads.  By default on one: the threads hand the
+GIL back and forth between the pieces, and on a machine whose CPUs are busy with other work a
+thread descheduled while holding it stalls the others, so two threads measured slower than one
+there (``benchmarks/RESULTS-bla.md``).  Set ``STAGEID_THREADS`` to a positive number to use that
+many where CPUs are idle.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from typing import Any, TypeVar
 
 from .heap import prime_heap
 
-__all__ = ["single_blas_thread", "map_in_threads", "available_cpus"]
+__all__ = ["single_blas_thread", "map_in_threads", "default_threads"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -73,29 +76,23 @@ def single_blas_thread(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-def available_cpus() -> int:
-    """``STAGEID_THREADS`` when a positive number, else the CPUs this process may run on (its
-    affinity mask where the system has one)."""
+def default_threads() -> int:
+    """``STAGEID_THREADS`` when it is a positive number, else 1 (see the module docstring)."""
     raw = os.environ.get("STAGEID_THREADS", "").strip()
-    if raw.isdigit() and int(raw) > 0:
-        return int(raw)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
+    return int(raw) if raw.isdigit() and int(raw) > 0 else 1
 
 
 def map_in_threads(fn: Callable[[int], Any], n_items: int, n_threads: int | None = None) -> list[Any]:
     """``[fn(i) for i in range(n_items)]`` on up to ``n_threads`` threads (this one included).
 
-    ``n_threads`` None means :func:`available_cpus`; 1 (or a single item) runs in this thread
+    ``n_threads`` None means :func:`default_threads`; 1 (or a single item) runs in this thread
     alone.  Items are handed out one at a time, so a thread the machine holds back takes fewer.
     Every item runs even when one fails; the exception of the first failing item (in item
     order) is raised after all threads have finished, so the caller sees what one thread would.
     """
     import threading
 
-    n = min(n_items, available_cpus() if n_threads is None else max(1, n_threads))
+    n = min(n_items, default_threads() if n_threads is None else max(1, n_threads))
     results: list[Any] = [None] * n_items
     errors: dict[int, BaseException] = {}
     counter = itertools.count()  # next() on a count is atomic under the GIL: a lock-free queue
