@@ -272,6 +272,10 @@ def test_result_has_the_model_a_text_summary_and_read_only_diagnostics():
     assert res.frd is res.model  # the former name still reads the BLA
     text = res.summary()
     assert isinstance(text, str) and text.splitlines()[0].startswith("bla: 3 realisation(s)")
+    ratio = np.median(res.model.total_std**2 / res.model.std**2, axis=0)[0, 0]  # the band's median, as numpy's
+    assert (
+        f"bla: y: total variance over noise variance (median over the band): u {10 * np.log10(ratio):+.1f} dB" in text
+    )
     assert dict(res.diagnostics) == {"n_realisations": 3, "n_periods": P, "transient_periods": 1, "transient": "drop"}
     with pytest.raises(TypeError):
         res.diagnostics["n_periods"] = 1

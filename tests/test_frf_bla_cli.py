@@ -179,8 +179,18 @@ def test_frf_bla_refuses_a_cut_npz_record_in_one_line(measured):
 
 
 def test_frf_bla_in_threads_writes_what_one_thread_writes_and_names_a_bad_sample_in_one_line(measured, monkeypatch):
+    import stageid.frf.bla as bla
+    from stageid.runtime.threads import default_threads, map_in_threads
+
     tmp_path, files = measured
     paths, design = as_npz(files), tmp_path / "ms.multisine.json"
+    threads_asked = []
+
+    def counted(fn, n_items, n_threads=None):
+        threads_asked.append(default_threads() if n_threads is None else n_threads)
+        return map_in_threads(fn, n_items, n_threads)
+
+    monkeypatch.setattr(bla, "map_in_threads", counted)
     written = {}
     for n in (1, 4):  # the channels of a realisation transformed by one thread, then by four
         monkeypatch.setenv("STAGEID_THREADS", str(n))
@@ -188,6 +198,7 @@ def test_frf_bla_in_threads_writes_what_one_thread_writes_and_names_a_bad_sample
         assert rc == 0, err
         written[n] = (tmp_path / f"b{n}.npz").read_bytes()
     assert written[1] == written[4]
+    assert threads_asked == [1] * 4 + [4] * 4  # one call per realisation
     with np.load(paths[2]) as z:
         y = z["y"].copy()
         y[3 * 1024 + 5] = np.nan
