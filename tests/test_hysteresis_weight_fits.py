@@ -42,6 +42,29 @@ def test_cp_rows_are_the_bank_rows(stride, q):
     np.testing.assert_array_equal(high, rows.max(axis=0))
 
 
+@pytest.mark.parametrize("stride", [1, 3])
+@pytest.mark.parametrize("q", [0.0, 0.15, -0.3])
+def test_cp_gram_is_the_normal_equations_of_the_cp_rows(stride, q):
+    u, y = _record(3)
+    R = float(np.ptp(u)) / 2
+    r = np.linspace(0.0, R, 13)[:12]
+    rc, ra = 0.5 * r, 1.2 * r
+    rb = 0.6 * ra
+    z0 = np.zeros(12)
+    Z, s, low, high = kernels.cp_rows(u, -1.0, q, R, r, rc, ra, rb, z0, stride)
+    G, g, s2, rows, ysum, low2, high2 = kernels.cp_gram(u, y, -1.0, q, R, r, rc, ra, rb, z0, stride)
+    yb = y[::stride]
+    assert rows == Z.shape[0]
+    # sums over a few thousand rows in another order than BLAS: rounding only
+    np.testing.assert_allclose(G, Z.T @ Z, rtol=1e-12, atol=1e-12 * np.abs(Z.T @ Z).max())
+    np.testing.assert_array_equal(G, G.T)
+    np.testing.assert_allclose(g, Z.T @ yb, rtol=1e-12, atol=1e-12 * np.abs(Z.T @ yb).max())
+    np.testing.assert_allclose(s2, s, rtol=1e-12, atol=1e-9)
+    assert ysum == pytest.approx(float(yb.sum()), rel=1e-12, abs=1e-9)
+    np.testing.assert_array_equal(low2, low)
+    np.testing.assert_array_equal(high2, high)
+
+
 @pytest.mark.parametrize("classical", [True, False])
 def test_gram_blocks_equal_the_operator_matrix_path(classical):
     recs = [_record(1), _record(2, 2000)]

@@ -10,7 +10,7 @@ record (sensor zeros differ between records) and, optionally, the creep lags of
   ``w_i = p_i - q_i``, ``w_0 = eps + s + sum q_i`` with ``s, p, q >= 0``;
 * creep weights ``c_j >= 0``.
 
-The fit works on the normal equations (``kernels.cp_rows`` and BLAS, or ``kernels.gram``)
+The fit works on the normal equations (``kernels.cp_gram``, or ``kernels.gram`` on the creep columns)
 and a non-negative least-squares problem on the Cholesky factor of their reduced form.
 """
 
@@ -42,7 +42,8 @@ class WeightProblem:
             self.lags = [np.ascontiguousarray(term.lags(u)[np.arange(0, u.size, stride)]) for u, _ in recs]
         self.ridge = ridge
         self.R = R
-        self.recs = recs
+        # contiguous float64: one compiled variant of the kernels for every caller
+        self.recs = [(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)) for u, y in recs]
         self.r = r
         self.eps = eps
         self.stride = stride
@@ -101,22 +102,20 @@ class WeightProblem:
 
     def gram_blocks(self, theta, kinds, classical):
         """Per record ``(Z'Z, Z'y, column sums, rows, sum y)`` of the operator outputs ``Z`` at
-        the strided rows, and the largest motion of each operator over the records: the
-        operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, input warp included,
-        only the rows kept) and ``Z'Z`` is one BLAS product (one thread inside a fit): the
-        cost of every step of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
+        the strided rows, and the largest motion of each operator over the records: accumulated
+        as the operators run (:func:`~stageid.hysteresis.kernels.cp_gram`, input warp included),
+        no row matrix formed: the cost of every step of the threshold search
+        (benchmarks/RESULTS-hysteresis.md, benchmarks/RESULTS-recovery.md)."""
         from .. import kernels  # numba: imported on first use
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
-        stats, motion, start = [], np.zeros(r.size), 0
-        for (u, _), kind in zip(self.recs, kinds):
+        stats, motion = [], np.zeros(r.size)
+        for (u, y), kind in zip(self.recs, kinds):
             z0 = self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
-            Z, s, low, high = kernels.cp_rows(u, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
-            yb = self.y[start : start + Z.shape[0]]
-            stats.append((Z.T @ Z, Z.T @ yb, s, Z.shape[0], float(yb.sum())))
-            motion = np.maximum(motion, high - low)
-            start += Z.shape[0]
+            G, g, s, rows, ysum, low, high = kernels.cp_gram(u, y, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
+            stats.append((G, g, s, rows, ysum))
+            np.maximum(motion, high - low, out=motion)
         return stats, motion
 
     def _live(self, blocks=None, motion=None) -> np.ndarray:
