@@ -31,6 +31,11 @@ SETTLE_LIMIT = 20000
 #: Grid points (after the best) that are settled too: the residual over the thresholds has
 #: several valleys, and the best grid point was not in the deepest on some random plants.
 SETTLE_STARTS = 3
+#: A simplex of the settling stops on the cost: when its best residual fell by less than
+#: ``STALL_TOLERANCE`` (relative) over its last ``STALL_EVALUATIONS`` weight fits, it is
+#: shuffling at the bottom of its valley (the round's Powell step goes on from there).
+STALL_EVALUATIONS = 100
+STALL_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,24 @@ def _grid(objective: _Objective, centre: float, input_warp: bool) -> list[tuple[
     return grid
 
 
+class _StallStop:
+    """Nelder-Mead callback: StopIteration when the best residual fell by less than
+    ``STALL_TOLERANCE`` (relative) over the last ``STALL_EVALUATIONS`` weight fits."""
+
+    def __init__(self, objective: _Objective) -> None:
+        self.objective = objective
+        self.history: list[tuple[int, float]] = []
+
+    def __call__(self, intermediate_result) -> None:
+        count, f = self.objective.count, float(intermediate_result.fun)
+        self.history.append((count, f))
+        while len(self.history) > 1 and self.history[1][0] <= count - STALL_EVALUATIONS:
+            self.history.pop(0)
+        start_count, start_f = self.history[0]
+        if count - start_count >= STALL_EVALUATIONS and f > start_f * (1.0 - STALL_TOLERANCE):
+            raise StopIteration
+
+
 def _descend(
     objective: _Objective,
     th_start: np.ndarray,
@@ -89,8 +112,11 @@ def _descend(
     free: np.ndarray,
     maxfev: int,
     method: str = "Nelder-Mead",
+    stall: bool = False,
 ) -> tuple[float, np.ndarray, bool]:
-    """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from ``th_start``."""
+    """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from
+    ``th_start``; with ``stall``, a simplex that stops lowering the residual ends early
+    (:class:`_StallStop`)."""
     from scipy.optimize import minimize
 
     scale, lower, upper = objective.scale, objective.lower, objective.upper
@@ -111,7 +137,8 @@ def _descend(
             [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
         )
         options = {"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start}
-    res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options)
+    callback = _StallStop(objective) if stall and method == "Nelder-Mead" else None
+    res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options, callback=callback)
     th = base.copy()
     th[free] = res.x * scale[free]
     return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
@@ -125,7 +152,7 @@ def _settle(objective: _Objective, th: np.ndarray, f: float, free: np.ndarray) -
         f_round = f
         for method in ("Powell", "Nelder-Mead"):
             budget = min(SETTLE_CHUNK, SETTLE_LIMIT - objective.count)
-            f_new, th_new, _ = _descend(objective, th, f, free, budget, method)
+            f_new, th_new, _ = _descend(objective, th, f, free, budget, method, stall=True)
             if f_new < f:
                 f, th = f_new, th_new
         if not f < f_round * (1.0 - SETTLE_TOLERANCE):
