@@ -78,3 +78,34 @@ def test_the_search_settles_at_the_optimum_of_its_own_class():
     budgeted = PIIdentifier("modified-pi", n_operators=6, max_evaluations=1000).fit((u, y))
     assert fit.rms_error_percent[0] < 0.2 * budgeted.rms_error_percent[0]
     assert fit.rms_error_percent[0] < 0.05  # % of range: the true thresholds give 0
+
+
+class _Counter:
+    """Stands in for the search's objective: only its count of weight fits is read."""
+
+    count = 0
+
+
+class _Step:
+    def __init__(self, fun):
+        self.fun = fun
+
+
+def test_a_settling_simplex_stops_when_its_residual_stalls():
+    from stageid.hysteresis.identify.threshold_search import STALL_EVALUATIONS, STALL_TOLERANCE, StallStop
+
+    objective = _Counter()
+    stop = StallStop(objective)
+    # falling by 10x the tolerance every 10 fits: never stopped
+    f = 1.0
+    for _ in range(100):
+        objective.count += 10
+        f *= 1.0 - 10 * STALL_TOLERANCE
+        stop(_Step(f))
+    # then flat: stopped once STALL_EVALUATIONS fits have brought no improvement, not before
+    flat_from = objective.count
+    with pytest.raises(StopIteration):
+        for _ in range(2 * STALL_EVALUATIONS):
+            objective.count += 5
+            stop(_Step(f * (1.0 - 0.1 * STALL_TOLERANCE)))
+    assert flat_from + STALL_EVALUATIONS <= objective.count <= flat_from + STALL_EVALUATIONS + 10

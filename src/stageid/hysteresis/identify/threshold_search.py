@@ -17,7 +17,7 @@ import numpy as np
 
 from .weights import WeightProblem
 
-__all__ = ["search_thresholds", "SearchResult"]
+__all__ = ["search_thresholds", "SearchResult", "StallStop"]
 
 #: Initial simplex steps of the eight parameters (in their scaled units).
 _STEPS = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
@@ -87,7 +87,7 @@ def _grid(objective: _Objective, centre: float, input_warp: bool) -> list[tuple[
     return grid
 
 
-class _StallStop:
+class StallStop:
     """Nelder-Mead callback: StopIteration when the best residual fell by less than
     ``STALL_TOLERANCE`` (relative) over the last ``STALL_EVALUATIONS`` weight fits."""
 
@@ -116,7 +116,7 @@ def _descend(
 ) -> tuple[float, np.ndarray, bool]:
     """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from
     ``th_start``; with ``stall``, a simplex that stops lowering the residual ends early
-    (:class:`_StallStop`)."""
+    (:class:`StallStop`)."""
     from scipy.optimize import minimize
 
     scale, lower, upper = objective.scale, objective.lower, objective.upper
@@ -137,7 +137,7 @@ def _descend(
             [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
         )
         options = {"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start}
-    callback = _StallStop(objective) if stall and method == "Nelder-Mead" else None
+    callback = StallStop(objective) if stall and method == "Nelder-Mead" else None
     res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options, callback=callback)
     th = base.copy()
     th[free] = res.x * scale[free]
