@@ -109,3 +109,19 @@ def test_a_settling_simplex_stops_when_its_residual_stalls():
             objective.count += 5
             stop(_Step(f * (1.0 - 0.1 * STALL_TOLERANCE)))
     assert flat_from + STALL_EVALUATIONS <= objective.count <= flat_from + STALL_EVALUATIONS + 10
+
+
+def test_a_start_that_meets_an_earlier_path_takes_its_result():
+    from stageid.hysteresis.identify.threshold_search import MERGE_DISTANCE, merged_result
+
+    scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 200.0, 1.0])  # the centre in volts
+    passed = np.array([0.5, 0.1, 1.3, 0.0, 0.7, 0.0, 10.0, 0.05])
+    result = (0.9, passed + 0.01, True)
+    paths = [([(np.array([0.4, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 3.0), (passed, 1.0)], result)]
+    near = passed + 0.5 * MERGE_DISTANCE * scale
+    assert merged_result(paths, near, 1.0, scale) is result
+    assert merged_result(paths, near, 1.2, scale) is result
+    # a lower residual than the earlier start had there: another way down, settled on its own
+    assert merged_result(paths, near, 0.99, scale) is None
+    assert merged_result(paths, passed + 2 * MERGE_DISTANCE * scale, 1.0, scale) is None
+    assert merged_result([], near, 1.0, scale) is None

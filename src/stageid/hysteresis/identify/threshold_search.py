@@ -17,7 +17,7 @@ import numpy as np
 
 from .weights import WeightProblem
 
-__all__ = ["search_thresholds", "SearchResult", "StallStop"]
+__all__ = ["search_thresholds", "SearchResult", "StallStop", "merged_result"]
 
 #: Initial simplex steps of the eight parameters (in their scaled units).
 _STEPS = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
@@ -36,6 +36,10 @@ SETTLE_STARTS = 3
 #: shuffling at the bottom of its valley (the round's Powell step goes on from there).
 STALL_EVALUATIONS = 100
 STALL_TOLERANCE = 1e-6
+#: A start whose path comes within this distance (max over the scaled parameters) of a point an
+#: earlier start passed, at no lower residual, follows that start and takes its result: grid
+#: points one line search apart often meet after their first Powell step.
+MERGE_DISTANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -144,20 +148,45 @@ def _descend(
     return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
 
 
-def _settle(objective: _Objective, th: np.ndarray, f: float, free: np.ndarray) -> tuple[float, np.ndarray, bool]:
+def _settle(
+    objective: _Objective, th: np.ndarray, f: float, free: np.ndarray, paths: list
+) -> tuple[float, np.ndarray, bool]:
     """Powell's method and a fresh simplex in turn from the best point until a round lowers
     the residual by less than ``SETTLE_TOLERANCE``; False when ``SETTLE_LIMIT`` weight fits ran
-    out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls."""
-    while objective.count < SETTLE_LIMIT:
+    out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls.
+
+    ``paths`` holds ``(points passed, result)`` of the starts settled before (this one's is
+    appended): a start that meets an earlier path (:func:`merged_result`) ends with that path's result.
+    """
+    passed: list[tuple[np.ndarray, float]] = []
+    result = None
+    while result is None and objective.count < SETTLE_LIMIT:
         f_round = f
         for method in ("Powell", "Nelder-Mead"):
             budget = min(SETTLE_CHUNK, SETTLE_LIMIT - objective.count)
             f_new, th_new, _ = _descend(objective, th, f, free, budget, method, stall=True)
             if f_new < f:
                 f, th = f_new, th_new
-        if not f < f_round * (1.0 - SETTLE_TOLERANCE):
-            return f, th, True
-    return f, th, False
+            result = merged_result(paths, th, f, objective.scale)
+            if result is not None:
+                break
+            passed.append((th.copy(), f))
+        if result is None and not f < f_round * (1.0 - SETTLE_TOLERANCE):
+            result = (f, th, True)
+    result = (f, th, False) if result is None else result
+    paths.append((passed, result))
+    return result
+
+
+def merged_result(paths: list, th: np.ndarray, f: float, scale: np.ndarray) -> tuple | None:
+    """The result of an earlier start (``paths``: ``(points passed, result)``, a point being
+    ``(theta, residual)``) that passed within ``MERGE_DISTANCE`` of ``th`` (in units of
+    ``scale``) at a residual no higher than ``f``; None when no path was met."""
+    for passed, result in paths:
+        for th_passed, f_passed in passed:
+            if f_passed <= f and np.max(np.abs((th - th_passed) / scale)) < MERGE_DISTANCE:
+                return result
+    return None
 
 
 def search_thresholds(
@@ -217,7 +246,9 @@ def search_thresholds(
         else:
             success = False
     if settle:  # the residual has several valleys: the best point and the next grid points settled
-        settled = [_settle(objective, th, f, active) for f, th in [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]]
+        paths: list = []
+        starts = [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]
+        settled = [_settle(objective, th, f, active, paths) for f, th in starts]
         best_f, best_th, success = min(settled, key=lambda item: item[0])
     message = (
         f"modified PI: {objective.count} weight fits in the threshold search; RMS residual "
