@@ -19,6 +19,12 @@ def _record(seed, n=3000):
     return u, np.tanh(u / 50.0) + 0.01 * rng.standard_normal(n)
 
 
+def _cp_thresholds(R, n, c, a, b):
+    """``r, rc, ra, rb`` of ``n`` operators over the half range ``R`` with constant ratios."""
+    r = np.linspace(0.0, R, n + 1)[:n]
+    return r, c * r, a * r, b * a * r
+
+
 @pytest.mark.parametrize("stride", [1, 3])
 @pytest.mark.parametrize("q", [0.0, 0.15, -0.3])
 def test_cp_rows_are_the_bank_rows(stride, q):
@@ -46,13 +52,10 @@ def test_cp_rows_are_the_bank_rows(stride, q):
 @pytest.mark.parametrize("q", [0.0, 0.15, -0.3])
 def test_cp_gram_is_the_normal_equations_of_the_cp_rows(stride, q):
     u, y = _record(3)
-    R = float(np.ptp(u)) / 2
-    r = np.linspace(0.0, R, 13)[:12]
-    rc, ra = 0.5 * r, 1.2 * r
-    rb = 0.6 * ra
-    z0 = np.zeros(12)
-    Z, s, low, high = kernels.cp_rows(u, -1.0, q, R, r, rc, ra, rb, z0, stride)
-    G, g, s2, rows, ysum, low2, high2 = kernels.cp_gram(u, y, -1.0, q, R, r, rc, ra, rb, z0, stride)
+    # twelve operators, thresholds ratios 0.5 / 1.2 / 0.6, centre -1, the warp q, from rest
+    args = (-1.0, q, float(np.ptp(u)) / 2, *_cp_thresholds(float(np.ptp(u)) / 2, 12, 0.5, 1.2, 0.6), np.zeros(12))
+    Z, s, low, high = kernels.cp_rows(u, *args, stride)
+    G, g, s2, rows, ysum, low2, high2 = kernels.cp_gram(u, y, *args, stride)
     yb = y[::stride]
     assert rows == Z.shape[0]
     # sums over a few thousand rows in another order than BLAS: rounding only
