@@ -122,12 +122,17 @@ class WeightProblem:
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
-        stats, motion = [], np.zeros(r.size)
-        for (u, y), kind in zip(self.recs, kinds):
+        stats, motion, start = [], np.zeros(r.size), 0
+        y = np.ascontiguousarray(self.y, dtype=float)  # the rows' outputs (a bootstrap replaces them)
+        for (u, _), kind, kept in zip(self.recs, kinds, self.rows):
             z0 = self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
-            G, g, s, rows, ysum, low, high = kernels.cp_gram(u, y, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
+            yb = y[start : start + kept.size]
+            G, g, s, rows, ysum, low, high = kernels.cp_gram(
+                u, yb, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride
+            )
             stats.append((G, g, s, rows, ysum))
             np.maximum(motion, high - low, out=motion)
+            start += kept.size
         return stats, motion
 
     def _live(self, blocks=None, motion=None) -> np.ndarray:

@@ -188,10 +188,11 @@ def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compi
 
 @jit
 def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
-    """The normal equations of the rows of :func:`cp_rows` against ``y`` at the same samples,
-    accumulated as the operators run, without the rows: ``Z'Z``, ``Z'y``, the column sums, the
-    number of rows, the sum of ``y`` there, and each column's least and largest value.  One
-    pass and no row matrix: the weight fits of the threshold search are this kernel's calls."""
+    """The normal equations of the rows of :func:`cp_rows` against ``y`` (one value per row,
+    the samples ``0, stride, ...``), accumulated as the operators run, without the rows:
+    ``Z'Z``, ``Z'y``, the column sums, the number of rows, the sum of ``y``, and each column's
+    least and largest value.  One pass and no row matrix: the weight fits of the threshold
+    search are this kernel's calls."""
     n = u.shape[0]
     m = r.shape[0]
     G = np.zeros((m, m))
@@ -208,7 +209,7 @@ def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - co
             cp_advance(u[k], xc, q, R, r, rc, ra, rb, z)
         if k == next_kept:
             next_kept += stride
-            yk = y[k]
+            yk = y[rows]
             ysum += yk
             rows += 1
             for i in range(m):
