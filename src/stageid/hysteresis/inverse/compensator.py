@@ -154,7 +154,7 @@ class Compensator:
             )
             self._x = x
             if self.model.input_warp != 0.0:
-                return self._clip(float(self.model.from_operator_input(x)))
+                return float(self._unwarped_drive(np.array([x]))[0])
         return x + self.model.input_offset
 
     def run(self, y_ref: object) -> np.ndarray:
@@ -176,12 +176,18 @@ class Compensator:
             self._z = z
             self._x = float(xf)
             if self.model.input_warp != 0.0:
-                u = self.model.from_operator_input(x)
-                return (u if self.limits is None else np.clip(u, *self.limits))[:, None]
+                return self._unwarped_drive(x)[:, None]
         return (x + self.model.input_offset)[:, None]
 
-    def _clip(self, u: float) -> float:
-        return u if self.limits is None else min(max(u, self.limits[0]), self.limits[1])
+    def _unwarped_drive(self, x: np.ndarray) -> np.ndarray:
+        """Drives for the operator inputs ``x`` of a warped model, within the limits; an input
+        clipped at an operator-side limit is the drive limit itself (the warp's round trip would
+        leave it a rounding error inside, where it reads as a drive that hit no limit)."""
+        u = self.model.from_operator_input(x)
+        if self.limits is None:
+            return u
+        u = np.clip(u, *self.limits)
+        return np.where(x >= self._hi, self.limits[1], np.where(x <= self._lo, self.limits[0], u))
 
     @property
     def solves_per_sample(self) -> bool:
