@@ -322,3 +322,4 @@ def test_a_warped_drive_at_its_limit_is_the_limit_itself():
     comp = Compensator(model)
     assert [comp.step(v) for v in (0.0, 5.0, 10.0)][-1] == hi
     assert Compensator(model).run([0.0, -5.0, -10.0])[-1, 0] == lo
+    assert invert(model, [0.0, 5.0, 10.0])[0][-1, 0] == hi

@@ -32,7 +32,7 @@ from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
 
-__all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound"]
+__all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound", "limited_drive"]
 
 _isfinite = math.isfinite
 
@@ -180,14 +180,7 @@ class Compensator:
         return (x + self.model.input_offset)[:, None]
 
     def _unwarped_drive(self, x: np.ndarray) -> np.ndarray:
-        """Drives for the operator inputs ``x`` of a warped model, within the limits; an input
-        clipped at an operator-side limit is the drive limit itself (the warp's round trip would
-        leave it a rounding error inside, where it reads as a drive that hit no limit)."""
-        u = self.model.from_operator_input(x)
-        if self.limits is None:
-            return u
-        u = np.clip(u, *self.limits)
-        return np.where(x >= self._hi, self.limits[1], np.where(x <= self._lo, self.limits[0], u))
+        return limited_drive(self.model, x, self.limits, (self._lo, self._hi))
 
     @property
     def solves_per_sample(self) -> bool:
@@ -227,6 +220,26 @@ class Compensator:
         )
         self._z, self._x = z, float(x)
         return u, s
+
+
+def limited_drive(
+    model: PIModel | ModifiedPIModel,
+    x: np.ndarray,
+    limits: tuple[float, float] | None,
+    operator_limits: tuple[float, float],
+) -> np.ndarray:
+    """Drives for the operator inputs ``x`` (clipped to ``operator_limits``, the drive
+    ``limits`` on the operator side), within ``limits``.  With an input warp, an input clipped
+    at an operator-side limit is the drive limit itself: the warp's round trip would leave it a
+    rounding error inside, where it reads as a drive that hit no limit."""
+    u = model.from_operator_input(x)
+    if limits is None:
+        return u
+    u = np.clip(u, float(limits[0]), float(limits[1]))
+    if getattr(model, "input_warp", 0.0) == 0.0:  # the classical model has no warp
+        return u
+    lo, hi = operator_limits
+    return np.where(x >= hi, float(limits[1]), np.where(x <= lo, float(limits[0]), u))
 
 
 def compensate(
