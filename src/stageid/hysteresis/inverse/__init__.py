@@ -48,11 +48,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed, residual_bound
+from ..models.common import as_input, check_limits, limited_drive, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
-from .compensator import CreepInverse, limited_drive
+from .compensator import CreepInverse
 
 __all__ = ["pi_inverse", "inverse_state", "forward_state", "invert"]
 

@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed, residual_bound
+from ..models.common import as_input, check_limits, limited_drive, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
 
-__all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound", "limited_drive"]
+__all__ = ["Compensator", "compensate", "CreepInverse", "residual_bound"]
 
 _isfinite = math.isfinite
 
@@ -220,26 +220,6 @@ class Compensator:
         )
         self._z, self._x = z, float(x)
         return u, s
-
-
-def limited_drive(
-    model: PIModel | ModifiedPIModel,
-    x: np.ndarray,
-    limits: tuple[float, float] | None,
-    operator_limits: tuple[float, float],
-) -> np.ndarray:
-    """Drives for the operator inputs ``x`` (clipped to ``operator_limits``, the drive
-    ``limits`` on the operator side), within ``limits``.  With an input warp, an input clipped
-    at an operator-side limit is the drive limit itself: the warp's round trip would leave it a
-    rounding error inside, where it reads as a drive that hit no limit."""
-    u = model.from_operator_input(x)
-    if limits is None:
-        return u
-    u = np.clip(u, float(limits[0]), float(limits[1]))
-    if getattr(model, "input_warp", 0.0) == 0.0:  # the classical model has no warp
-        return u
-    lo, hi = operator_limits
-    return np.where(x >= hi, float(limits[1]), np.where(x <= lo, float(limits[0]), u))
 
 
 def compensate(
