@@ -78,3 +78,50 @@ def test_the_search_settles_at_the_optimum_of_its_own_class():
     budgeted = PIIdentifier("modified-pi", n_operators=6, max_evaluations=1000).fit((u, y))
     assert fit.rms_error_percent[0] < 0.2 * budgeted.rms_error_percent[0]
     assert fit.rms_error_percent[0] < 0.05  # % of range: the true thresholds give 0
+
+
+class _Counter:
+    """Stands in for the search's objective: only its count of weight fits is read."""
+
+    count = 0
+
+
+class _Step:
+    def __init__(self, fun):
+        self.fun = fun
+
+
+def test_a_settling_simplex_stops_when_its_residual_stalls():
+    from stageid.hysteresis.identify.threshold_search import STALL_EVALUATIONS, STALL_TOLERANCE, StallStop
+
+    objective = _Counter()
+    stop = StallStop(objective)
+    # falling by 10x the tolerance every 10 fits: never stopped
+    f = 1.0
+    for _ in range(100):
+        objective.count += 10
+        f *= 1.0 - 10 * STALL_TOLERANCE
+        stop(_Step(f))
+    # then flat: stopped once STALL_EVALUATIONS fits have brought no improvement, not before
+    flat_from = objective.count
+    with pytest.raises(StopIteration):
+        for _ in range(2 * STALL_EVALUATIONS):
+            objective.count += 5
+            stop(_Step(f * (1.0 - 0.1 * STALL_TOLERANCE)))
+    assert flat_from + STALL_EVALUATIONS <= objective.count <= flat_from + STALL_EVALUATIONS + 10
+
+
+def test_a_start_that_meets_an_earlier_path_takes_its_result():
+    from stageid.hysteresis.identify.threshold_search import MERGE_DISTANCE, merged_result
+
+    scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 200.0, 1.0])  # the centre in volts
+    passed = np.array([0.5, 0.1, 1.3, 0.0, 0.7, 0.0, 10.0, 0.05])
+    result = (0.9, passed + 0.01, True)
+    paths = [([(np.array([0.4, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 3.0), (passed, 1.0)], result)]
+    near = passed + 0.5 * MERGE_DISTANCE * scale
+    assert merged_result(paths, near, 1.0, scale) is result
+    assert merged_result(paths, near, 1.2, scale) is result
+    # a lower residual than the earlier start had there: another way down, settled on its own
+    assert merged_result(paths, near, 0.99, scale) is None
+    assert merged_result(paths, passed + 2 * MERGE_DISTANCE * scale, 1.0, scale) is None
+    assert merged_result([], near, 1.0, scale) is None

@@ -19,6 +19,12 @@ def _record(seed, n=3000):
     return u, np.tanh(u / 50.0) + 0.01 * rng.standard_normal(n)
 
 
+def _cp_thresholds(R, n, c, a, b):
+    """``r, rc, ra, rb`` of ``n`` operators over the half range ``R`` with constant ratios."""
+    r = np.linspace(0.0, R, n + 1)[:n]
+    return r, c * r, a * r, b * a * r
+
+
 @pytest.mark.parametrize("stride", [1, 3])
 @pytest.mark.parametrize("q", [0.0, 0.15, -0.3])
 def test_cp_rows_are_the_bank_rows(stride, q):
@@ -40,6 +46,26 @@ def test_cp_rows_are_the_bank_rows(stride, q):
     np.testing.assert_allclose(s, rows.sum(axis=0), rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(low, rows.min(axis=0))
     np.testing.assert_array_equal(high, rows.max(axis=0))
+
+
+@pytest.mark.parametrize("stride", [1, 3])
+@pytest.mark.parametrize("q", [0.0, 0.15, -0.3])
+def test_cp_gram_is_the_normal_equations_of_the_cp_rows(stride, q):
+    u, y = _record(3)
+    # twelve operators, thresholds ratios 0.5 / 1.2 / 0.6, centre -1, the warp q, from rest
+    args = (-1.0, q, float(np.ptp(u)) / 2, *_cp_thresholds(float(np.ptp(u)) / 2, 12, 0.5, 1.2, 0.6), np.zeros(12))
+    Z, s, low, high = kernels.cp_rows(u, *args, stride)
+    yb = y[::stride]
+    G, g, s2, rows, ysum, low2, high2 = kernels.cp_gram(u, yb, *args, stride)
+    assert rows == Z.shape[0]
+    # sums over a few thousand rows in another order than BLAS: rounding only
+    np.testing.assert_allclose(G, Z.T @ Z, rtol=1e-12, atol=1e-12 * np.abs(Z.T @ Z).max())
+    np.testing.assert_array_equal(G, G.T)
+    np.testing.assert_allclose(g, Z.T @ yb, rtol=1e-12, atol=1e-12 * np.abs(Z.T @ yb).max())
+    np.testing.assert_allclose(s2, s, rtol=1e-12, atol=1e-9)
+    assert ysum == pytest.approx(float(yb.sum()), rel=1e-12, abs=1e-9)
+    np.testing.assert_array_equal(low2, low)
+    np.testing.assert_array_equal(high2, high)
 
 
 @pytest.mark.parametrize("classical", [True, False])
@@ -78,3 +104,16 @@ def test_nnls_on_the_reduced_factor_is_the_bvls_optimum(seed):
     assert np.any(np.isclose(v1[:k], lb[:k], atol=1e-9))  # some bounds are active: a real test
     # one strictly convex problem: the same minimiser, to the solvers' tolerances
     np.testing.assert_allclose(v1, v2, rtol=1e-6, atol=1e-8 * np.abs(v2).max())
+
+
+def test_the_weight_fit_reads_the_rows_outputs_the_problem_holds():
+    # the bootstrap of the weight uncertainty refits with new outputs written into ``y``
+    recs = [_record(4), _record(5, 2000)]
+    R = float(np.ptp(np.concatenate([u for u, _ in recs]))) / 2
+    r = np.linspace(0.0, R, 9)[:8]
+    theta = np.array([0.6, 0.2, 1.3, -0.1, 0.5, 0.1, 2.0, 0.1])
+    prob = WeightProblem(recs, r, 1e-3, 2, "modified-pi", 1e-6, R)
+    prob.y = 2.0 * prob.y + 1.0
+    rewritten = WeightProblem([(u, 2.0 * y + 1.0) for u, y in recs], r, 1e-3, 2, "modified-pi", 1e-6, R)
+    for a, b in zip(prob.solve(theta, ["zero", "zero"], False), rewritten.solve(theta, ["zero", "zero"], False)):
+        np.testing.assert_array_equal(a, b)

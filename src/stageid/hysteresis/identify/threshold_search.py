@@ -17,7 +17,7 @@ import numpy as np
 
 from .weights import WeightProblem
 
-__all__ = ["search_thresholds", "SearchResult"]
+__all__ = ["search_thresholds", "SearchResult", "StallStop", "merged_result"]
 
 #: Initial simplex steps of the eight parameters (in their scaled units).
 _STEPS = np.array([0.1, 0.2, 0.15, 0.3, 0.1, 0.2, 0.05, 0.05])
@@ -31,6 +31,15 @@ SETTLE_LIMIT = 20000
 #: Grid points (after the best) that are settled too: the residual over the thresholds has
 #: several valleys, and the best grid point was not in the deepest on some random plants.
 SETTLE_STARTS = 3
+#: A simplex of the settling stops on the cost: when its best residual fell by less than
+#: ``STALL_TOLERANCE`` (relative) over its last ``STALL_EVALUATIONS`` weight fits, it is
+#: shuffling at the bottom of its valley (the round's Powell step goes on from there).
+STALL_EVALUATIONS = 100
+STALL_TOLERANCE = 1e-6
+#: A start whose path comes within this distance (max over the scaled parameters) of a point an
+#: earlier start passed, at no lower residual, follows that start and takes its result: grid
+#: points one line search apart often meet after their first Powell step.
+MERGE_DISTANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -82,6 +91,24 @@ def _grid(objective: _Objective, centre: float, input_warp: bool) -> list[tuple[
     return grid
 
 
+class StallStop:
+    """Nelder-Mead callback: StopIteration when the best residual fell by less than
+    ``STALL_TOLERANCE`` (relative) over the last ``STALL_EVALUATIONS`` weight fits."""
+
+    def __init__(self, objective: _Objective) -> None:
+        self.objective = objective
+        self.history: list[tuple[int, float]] = []
+
+    def __call__(self, intermediate_result) -> None:
+        count, f = self.objective.count, float(intermediate_result.fun)
+        self.history.append((count, f))
+        while len(self.history) > 1 and self.history[1][0] <= count - STALL_EVALUATIONS:
+            self.history.pop(0)
+        start_count, start_f = self.history[0]
+        if count - start_count >= STALL_EVALUATIONS and f > start_f * (1.0 - STALL_TOLERANCE):
+            raise StopIteration
+
+
 def _descend(
     objective: _Objective,
     th_start: np.ndarray,
@@ -89,8 +116,11 @@ def _descend(
     free: np.ndarray,
     maxfev: int,
     method: str = "Nelder-Mead",
+    stall: bool = False,
 ) -> tuple[float, np.ndarray, bool]:
-    """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from ``th_start``."""
+    """Bounded Nelder-Mead (or Powell) over the parameters ``free`` (indices into theta) from
+    ``th_start``; with ``stall``, a simplex that stops lowering the residual ends early
+    (:class:`StallStop`)."""
     from scipy.optimize import minimize
 
     scale, lower, upper = objective.scale, objective.lower, objective.upper
@@ -111,26 +141,52 @@ def _descend(
             [x0] + [x0 + np.eye(k)[i] * steps[i] * (1 if x0[i] + steps[i] <= ub[i] else -1) for i in range(k)]
         )
         options = {"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-10 * f_start}
-    res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options)
+    callback = StallStop(objective) if stall and method == "Nelder-Mead" else None
+    res = minimize(sub, x0, method=method, bounds=list(zip(lb, ub)), options=options, callback=callback)
     th = base.copy()
     th[free] = res.x * scale[free]
     return float(res.fun), np.clip(th, lower, upper), res.nfev < maxfev
 
 
-def _settle(objective: _Objective, th: np.ndarray, f: float, free: np.ndarray) -> tuple[float, np.ndarray, bool]:
+def _settle(
+    objective: _Objective, th: np.ndarray, f: float, free: np.ndarray, paths: list
+) -> tuple[float, np.ndarray, bool]:
     """Powell's method and a fresh simplex in turn from the best point until a round lowers
     the residual by less than ``SETTLE_TOLERANCE``; False when ``SETTLE_LIMIT`` weight fits ran
-    out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls."""
-    while objective.count < SETTLE_LIMIT:
+    out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls.
+
+    ``paths`` holds ``(points passed, result)`` of the starts settled before (this one's is
+    appended): a start that meets an earlier path (:func:`merged_result`) ends with that path's result.
+    """
+    passed: list[tuple[np.ndarray, float]] = []
+    result = None
+    while result is None and objective.count < SETTLE_LIMIT:
         f_round = f
         for method in ("Powell", "Nelder-Mead"):
             budget = min(SETTLE_CHUNK, SETTLE_LIMIT - objective.count)
-            f_new, th_new, _ = _descend(objective, th, f, free, budget, method)
+            f_new, th_new, _ = _descend(objective, th, f, free, budget, method, stall=True)
             if f_new < f:
                 f, th = f_new, th_new
-        if not f < f_round * (1.0 - SETTLE_TOLERANCE):
-            return f, th, True
-    return f, th, False
+            result = merged_result(paths, th, f, objective.scale)
+            if result is not None:
+                break
+            passed.append((th.copy(), f))
+        if result is None and not f < f_round * (1.0 - SETTLE_TOLERANCE):
+            result = (f, th, True)
+    result = (f, th, False) if result is None else result
+    paths.append((passed, result))
+    return result
+
+
+def merged_result(paths: list, th: np.ndarray, f: float, scale: np.ndarray) -> tuple | None:
+    """The result of an earlier start (``paths``: ``(points passed, result)``, a point being
+    ``(theta, residual)``) that passed within ``MERGE_DISTANCE`` of ``th`` (in units of
+    ``scale``) at a residual no higher than ``f``; None when no path was met."""
+    for passed, result in paths:
+        for th_passed, f_passed in passed:
+            if f_passed <= f and np.max(np.abs((th - th_passed) / scale)) < MERGE_DISTANCE:
+                return result
+    return None
 
 
 def search_thresholds(
@@ -190,7 +246,9 @@ def search_thresholds(
         else:
             success = False
     if settle:  # the residual has several valleys: the best point and the next grid points settled
-        settled = [_settle(objective, th, f, active) for f, th in [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]]
+        paths: list = []
+        starts = [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]
+        settled = [_settle(objective, th, f, active, paths) for f, th in starts]
         best_f, best_th, success = min(settled, key=lambda item: item[0])
     message = (
         f"modified PI: {objective.count} weight fits in the threshold search; RMS residual "

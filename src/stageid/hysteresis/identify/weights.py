@@ -10,7 +10,7 @@ record (sensor zeros differ between records) and, optionally, the creep lags of
   ``w_i = p_i - q_i``, ``w_0 = eps + s + sum q_i`` with ``s, p, q >= 0``;
 * creep weights ``c_j >= 0``.
 
-The fit works on the normal equations (``kernels.cp_rows`` and BLAS, or ``kernels.gram``)
+The fit works on the normal equations (``kernels.cp_gram``, or ``kernels.gram`` on the creep columns)
 and a non-negative least-squares problem on the Cholesky factor of their reduced form.
 """
 
@@ -42,7 +42,8 @@ class WeightProblem:
             self.lags = [np.ascontiguousarray(term.lags(u)[np.arange(0, u.size, stride)]) for u, _ in recs]
         self.ridge = ridge
         self.R = R
-        self.recs = recs
+        # contiguous float64: one compiled variant of the kernels for every caller
+        self.recs = [(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(y, dtype=float)) for u, y in recs]
         self.r = r
         self.eps = eps
         self.stride = stride
@@ -54,12 +55,21 @@ class WeightProblem:
         r = self.r
         if classical:
             return r, r, r, r, float(theta[6])
-        t = np.arange(r.size) / max(r.size - 1, 1) - 0.5
-        c = np.clip(theta[0] + theta[1] * t, 0.0, 1.0)
-        a = np.clip(theta[2] + theta[3] * t, 0.0, None)
-        b = np.clip(theta[4] + theta[5] * t, 0.0, 1.0)
+        t = self.operator_positions(r.size)
+        # minimum/maximum, not clip: the same values at a fraction of the call cost, once per weight fit
+        c = np.minimum(np.maximum(theta[0] + theta[1] * t, 0.0), 1.0)
+        a = np.maximum(theta[2] + theta[3] * t, 0.0)
+        b = np.minimum(np.maximum(theta[4] + theta[5] * t, 0.0), 1.0)
         ra = a * r
         return r, c * r, ra, b * ra, float(theta[6])
+
+    @staticmethod
+    @functools.lru_cache(maxsize=16)
+    def operator_positions(n: int) -> np.ndarray:
+        """``t_i = i/(n-1) - 1/2``, the operator index the ratio laws of ``theta`` are linear in."""
+        t = np.arange(n) / max(n - 1, 1) - 0.5
+        t.setflags(write=False)  # cached: shared by every fit
+        return t
 
     def warp(self, theta, classical):
         return 0.0 if classical or len(theta) < 8 else float(theta[7])
@@ -67,7 +77,10 @@ class WeightProblem:
     def start_outputs(self, u0, xc, q, thresholds, kind):
         """Operator outputs at the first sample ``u0`` (shape (1,)) for the starting-state ``kind``."""
         r, rc, ra, rb = thresholds
-        x = self.warped(u0 - xc, q)[0]
+        x = float(u0[0]) - xc
+        if q != 0.0:  # the warp of :meth:`warped` on one number, without array calls
+            t = abs(x) / self.R
+            x += q * self.R * (t * t if t <= 1.0 else 2.0 * t - 1.0)
         up = np.maximum(x - r, np.minimum(x - rc, 0.0))
         down = np.minimum(x + ra, np.maximum(x + rb, 0.0))
         z0 = up if kind == "ascending" else down if kind == "descending" else np.maximum(up, np.minimum(down, 0.0))
@@ -101,22 +114,25 @@ class WeightProblem:
 
     def gram_blocks(self, theta, kinds, classical):
         """Per record ``(Z'Z, Z'y, column sums, rows, sum y)`` of the operator outputs ``Z`` at
-        the strided rows, and the largest motion of each operator over the records: the
-        operators run once (:func:`~stageid.hysteresis.kernels.cp_rows`, input warp included,
-        only the rows kept) and ``Z'Z`` is one BLAS product (one thread inside a fit): the
-        cost of every step of the threshold search (benchmarks/RESULTS-hysteresis.md)."""
+        the strided rows, and the largest motion of each operator over the records: accumulated
+        as the operators run (:func:`~stageid.hysteresis.kernels.cp_gram`, input warp included),
+        no row matrix formed: the cost of every step of the threshold search
+        (benchmarks/RESULTS-hysteresis.md, benchmarks/RESULTS-recovery.md)."""
         from .. import kernels  # numba: imported on first use
 
         r, rc, ra, rb, xc = self.thresholds(theta, classical)
         q = self.warp(theta, classical)
         stats, motion, start = [], np.zeros(r.size), 0
-        for (u, _), kind in zip(self.recs, kinds):
+        y = np.ascontiguousarray(self.y, dtype=float)  # the rows' outputs (a bootstrap replaces them)
+        for (u, _), kind, kept in zip(self.recs, kinds, self.rows):
             z0 = self.start_outputs(u[:1], xc, q, (r, rc, ra, rb), kind)
-            Z, s, low, high = kernels.cp_rows(u, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride)
-            yb = self.y[start : start + Z.shape[0]]
-            stats.append((Z.T @ Z, Z.T @ yb, s, Z.shape[0], float(yb.sum())))
-            motion = np.maximum(motion, high - low)
-            start += Z.shape[0]
+            yb = y[start : start + kept.size]
+            G, g, s, rows, ysum, low, high = kernels.cp_gram(
+                u, yb, xc, q, float(self.R), r, rc, ra, rb, z0, self.stride
+            )
+            stats.append((G, g, s, rows, ysum))
+            np.maximum(motion, high - low, out=motion)
+            start += kept.size
         return stats, motion
 
     def _live(self, blocks=None, motion=None) -> np.ndarray:
@@ -177,7 +193,7 @@ class WeightProblem:
         J = len(stats)
         idx = self._live(motion=motion)
         m = idx.size
-        live = [(G[np.ix_(idx, idx)], g[idx], s[idx], rows, ys) for G, g, s, rows, ys in stats]
+        live = stats if m == n else [(G[np.ix_(idx, idx)], g[idx], s[idx], rows, ys) for G, g, s, rows, ys in stats]
         G, Gfit, g, yy = self._assemble(live, m, classical)
         if classical:
             # w = D W with W the cumulative sums (over the live operators), bounds W >= eps

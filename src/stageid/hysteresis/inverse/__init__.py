@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed, residual_bound
+from ..models.common import as_input, check_limits, limited_drive, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
@@ -117,7 +117,4 @@ def invert(
     x, zf, xf = kernels.cp_invert(
         target, packed(model), np.array(model.state.z), float(model.state.x), lo, hi, smin, *residual_bound(model)
     )
-    u = model.from_operator_input(x)
-    if lim is not None:  # the warp's inverse may round a clipped value a hair outside
-        u = np.clip(u, float(lim[0]), float(lim[1]))
-    return u[:, None], OperatorState(float(xf), zf)
+    return limited_drive(model, x, lim, (lo, hi))[:, None], OperatorState(float(xf), zf)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..._errors import ModelError
-from ..models.common import as_input, check_limits, packed, residual_bound
+from ..models.common import as_input, check_limits, limited_drive, packed, residual_bound
 from ..models.operators import OperatorState
 from ..models.pi import ModifiedPIModel, PIModel
 from .closed_form import forward_state, inverse_state, pi_inverse
@@ -154,7 +154,7 @@ class Compensator:
             )
             self._x = x
             if self.model.input_warp != 0.0:
-                return self._clip(float(self.model.from_operator_input(x)))
+                return float(self._unwarped_drive(np.array([x]))[0])
         return x + self.model.input_offset
 
     def run(self, y_ref: object) -> np.ndarray:
@@ -176,12 +176,11 @@ class Compensator:
             self._z = z
             self._x = float(xf)
             if self.model.input_warp != 0.0:
-                u = self.model.from_operator_input(x)
-                return (u if self.limits is None else np.clip(u, *self.limits))[:, None]
+                return self._unwarped_drive(x)[:, None]
         return (x + self.model.input_offset)[:, None]
 
-    def _clip(self, u: float) -> float:
-        return u if self.limits is None else min(max(u, self.limits[0]), self.limits[1])
+    def _unwarped_drive(self, x: np.ndarray) -> np.ndarray:
+        return limited_drive(self.model, x, self.limits, (self._lo, self._hi))
 
     @property
     def solves_per_sample(self) -> bool:

@@ -9,7 +9,8 @@ checked by the round trip ``model(inverse(y)) = y``.  Speeds: ``benchmarks/RESUL
 ======================  ==========================================================================
 :mod:`.loops`           every operator at every sample: ``play_bank``, ``cp_bank`` (eq. 1, 3),
                         ``play_sum``, ``cp_sum`` (eq. 4); ``gram`` (normal equations),
-                        ``cp_rows`` (the least-squares rows and their statistics)
+                        ``cp_rows`` (the least-squares rows and their statistics), ``cp_gram``
+                        (the normal equations of those rows, without the rows)
 :mod:`.events`          event-driven sums for smooth records: ``play_sum_events``,
                         ``cp_sum_events``, ``count_reversals``, ``lipschitz_state``
 :mod:`.banded`          banded sums (only the operator blocks the input can move):
@@ -28,7 +29,7 @@ from .banded import cp_sum_banded, play_sum_banded
 from .choice import cp_sum_auto, is_smooth, play_sum_auto, turn_fraction, turns_and_stills
 from .events import count_reversals, cp_sum_events, lipschitz_state, play_sum_events
 from .inversion import cp_eval, cp_invert, cp_invert_creep, cp_invert_step, play_step, play_stream
-from .loops import cp_bank, cp_rows, cp_sum, gram, play_bank, play_sum
+from .loops import cp_bank, cp_gram, cp_rows, cp_sum, gram, play_bank, play_sum
 
 __all__ = [
     "play_bank",
@@ -37,6 +38,7 @@ __all__ = [
     "cp_sum",
     "gram",
     "cp_rows",
+    "cp_gram",
     "play_sum_events",
     "cp_sum_events",
     "count_reversals",

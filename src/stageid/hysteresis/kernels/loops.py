@@ -3,8 +3,9 @@
 The plain-Python twins are :func:`stageid.hysteresis.operators.play_reference` and
 :func:`~stageid.hysteresis.operators.coupled_play_reference`.  The loops over operators have
 no branches (``min``/``max`` only), so LLVM vectorises them.  Also :func:`gram`, the normal
-equations of the weight least squares, and :func:`cp_rows`, the operator outputs of the
-least-squares rows only with their column statistics.
+equations of the weight least squares, :func:`cp_rows`, the operator outputs of the
+least-squares rows only with their column statistics, and :func:`cp_gram`, the normal equations
+of those rows without the rows.
 """
 
 from __future__ import annotations
@@ -140,6 +141,21 @@ def gram(Z, y):  # pragma: no cover - compiled
 
 
 @jit
+def cp_advance(uk, xc, q, R, r, rc, ra, rb, z):  # pragma: no cover - compiled
+    """Every coupled-play output ``z`` (updated in place) one sample on, at the input ``uk``
+    centred and warped: ``x = uk - xc + q R w(|uk - xc| / R)``, ``w(t) = t^2`` (t <= 1) else
+    ``2t - 1``; the step of :func:`cp_rows` and :func:`cp_gram`."""
+    xk = uk - xc
+    if q != 0.0:
+        t = abs(xk) / R
+        xk = xk + q * R * (t * t if t <= 1.0 else 2.0 * t - 1.0)
+    for i in range(r.shape[0]):
+        up = max(xk - r[i], min(xk - rc[i], 0.0))
+        down = min(xk + ra[i], max(xk + rb[i], 0.0))
+        z[i] = max(up, min(down, z[i]))
+
+
+@jit
 def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
     """Coupled-play outputs at the samples ``0, stride, 2 stride, ...`` only, shape
     (n_rows, n_operators), with each column's sum, least and largest value there; the
@@ -157,14 +173,7 @@ def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compi
     next_kept = 0  # a counter, not k % stride: an integer division per sample costs more
     for k in range(n):
         if k == 0 or u[k] != u[k - 1]:  # a standing input leaves every operator as it is
-            xk = u[k] - xc
-            if q != 0.0:
-                t = abs(xk) / R
-                xk = xk + q * R * (t * t if t <= 1.0 else 2.0 * t - 1.0)
-            for i in range(m):
-                up = max(xk - r[i], min(xk - rc[i], 0.0))
-                down = min(xk + ra[i], max(xk + rb[i], 0.0))
-                z[i] = max(up, min(down, z[i]))
+            cp_advance(u[k], xc, q, R, r, rc, ra, rb, z)
         if k == next_kept:
             next_kept += stride
             for i in range(m):
@@ -175,3 +184,43 @@ def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compi
                 high[i] = max(high[i], zi)
             row += 1
     return out, s, low, high
+
+
+@jit
+def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
+    """The normal equations of the rows of :func:`cp_rows` against ``y`` (one value per row,
+    the samples ``0, stride, ...``), accumulated as the operators run, without the rows:
+    ``Z'Z``, ``Z'y``, the column sums, the number of rows, the sum of ``y``, and each column's
+    least and largest value.  One pass and no row matrix: the weight fits of the threshold
+    search are this kernel's calls."""
+    n = u.shape[0]
+    m = r.shape[0]
+    G = np.zeros((m, m))
+    g = np.zeros(m)
+    s = np.zeros(m)
+    low = np.full(m, np.inf)
+    high = np.full(m, -np.inf)
+    z = z0.copy()
+    rows = 0
+    ysum = 0.0
+    next_kept = 0
+    for k in range(n):
+        if k == 0 or u[k] != u[k - 1]:
+            cp_advance(u[k], xc, q, R, r, rc, ra, rb, z)
+        if k == next_kept:
+            next_kept += stride
+            yk = y[rows]
+            ysum += yk
+            rows += 1
+            for i in range(m):
+                zi = z[i]
+                s[i] += zi
+                g[i] += zi * yk
+                low[i] = min(low[i], zi)
+                high[i] = max(high[i], zi)
+                for j in range(i + 1):  # the lower triangle; mirrored below
+                    G[i, j] += zi * z[j]
+    for i in range(m):
+        for j in range(i):
+            G[j, i] = G[i, j]
+    return G, g, s, rows, ysum, low, high

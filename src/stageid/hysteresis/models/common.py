@@ -5,7 +5,8 @@ so the operators (:mod:`.operators`), models (:mod:`.pi`), inversion (:mod:`stag
 and compensation (:mod:`stageid.hysteresis.inverse.compensator`) can all use it without
 importing each other.  Besides the checks: a model's operator parameters as the inversion
 kernels take them (:func:`packed`) and the rounding bound of its computed output at which
-the per-sample inversion stops (:func:`residual_bound`).
+the per-sample inversion stops (:func:`residual_bound`), and the drive an inversion gives for
+operator inputs within drive limits (:func:`limited_drive`).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..._errors import ModelError
 
-__all__ = ["as_input", "check_limits", "packed", "residual_bound"]
+__all__ = ["as_input", "check_limits", "limited_drive", "packed", "residual_bound"]
 
 
 def as_input(u: object, name: str) -> np.ndarray:
@@ -47,6 +48,26 @@ def check_limits(lim: object) -> tuple[float, float] | None:
     if not lo < hi:  # also refuses NaN
         raise ModelError(f"`limits` must be (low, high) with low < high; got {lim!r:.60}.")
     return lo, hi
+
+
+def limited_drive(
+    model: Any,
+    x: np.ndarray,
+    limits: tuple[float, float] | None,
+    operator_limits: tuple[float, float],
+) -> np.ndarray:
+    """Drives for the operator inputs ``x`` (clipped to ``operator_limits``, the drive
+    ``limits`` on the operator side), within ``limits``.  With an input warp, an input clipped
+    at an operator-side limit is the drive limit itself: the warp's round trip would leave it a
+    rounding error inside, where it reads as a drive that hit no limit."""
+    u = model.from_operator_input(x)
+    if limits is None:
+        return u
+    u = np.clip(u, float(limits[0]), float(limits[1]))
+    if getattr(model, "input_warp", 0.0) == 0.0:  # the classical model has no warp
+        return u
+    lo, hi = operator_limits
+    return np.where(x >= hi, float(limits[1]), np.where(x <= lo, float(limits[0]), u))
 
 
 def packed(model: Any) -> np.ndarray:
