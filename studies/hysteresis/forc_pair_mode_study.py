@@ -19,7 +19,8 @@ the default ``disturbance_modes="auto"`` keeps.
    order 8 times the modes' denominator); each record left out in turn.
 3. **The order-1 part at its output-error optimum**: the training residual of the alternation's
    order-1 part, and of that part refined by output error with the mode fixed and the weights
-   projected out (Gauss-Newton on the two free coefficients, the weight fit of step 2 inside).
+   projected out (Gauss-Newton on the two free coefficients, the weight fit of step 2 inside);
+   the part's gain and phase at the mode's frequency beside them.
 """
 
 from __future__ import annotations
@@ -163,12 +164,17 @@ def part_rows(problem, mode, big) -> list[str]:
     problem.prefilter = zoh_resonance(mode.frequency_hz, mode.damping, DT)
     _, _, _, part = problem.solve(1, TAUS, [np.ones(u.size, bool) for u, _ in problem.recs])
     part = part if part is not None else (np.array([1.0, 0.0]), np.array([1.0, 0.0]))
+    z_mode = np.exp(2j * np.pi * mode.frequency_hz * DT)  # the part's response at the mode
     rows = []
     for label, p in (("alternation", part), ("output-error optimum", refined_part(problem, part))):
         sse, model = refit(problem, problem.with_prefilter(p))
         pole, gain = -p[1][1], p[0][0]
+        at_mode = np.polyval(p[0][::-1], 1 / z_mode) / np.polyval(p[1][::-1], 1 / z_mode)
         big_rms = validate_record(model, *big, "estimate").rms_error_percent
-        rows.append(f"| {label} | {pole:.4f} | {gain:.3f} | {sse:.3f} | {big_rms:.3f} |")
+        rows.append(
+            f"| {label} | {pole:.4f} | {gain:.3f} | {abs(at_mode):.3f} / {np.degrees(np.angle(at_mode)):.1f} deg | "
+            f"{sse:.3f} | {big_rms:.3f} |"
+        )
     problem.prefilter = None
     return rows
 
@@ -192,8 +198,10 @@ def study_pair(pair: str, records: dict) -> None:
     print(f"| mode Hz / damping | held-out simulation | one-step (best AR) | {steps} | big sine RMS % (validation) |")
     print("|---" * (len(STEPS) + 4) + "|")
     print("\n".join(frequency_rows(problem, mode, big)) + "\n")
-    print("| order-1 part | pole | gain at high frequency | training SSE | big sine RMS % (validation) |")
-    print("|---" * 5 + "|\n" + "\n".join(part_rows(problem, mode, big)), flush=True)
+    print("| order-1 part | pole | gain at high frequency | gain / phase at the mode | training SSE |", end="")
+    print(
+        " big sine RMS % (validation) |\n" + "|---" * 6 + "|\n" + "\n".join(part_rows(problem, mode, big)), flush=True
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
