@@ -209,7 +209,8 @@ def test_the_40_and_100_hz_records_propose_the_mode_from_a_held_out_fit():
     fold of the selection) shows it; proposed from there, it lowers the held-out one-step
     prediction error and is kept.  Measured: every tracking record but the big sine within 1 %
     RMS (0.44-0.59 %), the big sine 1.35 % against 2.53 % without the mode (the target's 1 % is
-    missed there: its error sits at the mode, whose frequency it is sensitive to)."""
+    missed there: its error sits at the mode, and it depends on the mode's frequency and on the
+    phase of the rest of the dynamics there, which the FORC records do not pin: section 4k)."""
     from _dspace_records import dspace_record
     from stageid.hysteresis.stage.validation import validate_record
 
