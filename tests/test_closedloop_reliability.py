@@ -121,7 +121,7 @@ def test_the_deduced_pole_stands_where_the_band_cannot_place_it(seed) -> None:
     P = zoh_response([3e5], np.poly([35.6, -61.2]), DT, f)
     P = P * (1 + 0.005 * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)))
     kept = 35.6 * 1.003
-    best = reduce_best(P, f, DT, 0, 2, [np.array([kept])], True)
+    best = reduce_best(P, f, DT, 0, 2, np.array([kept]), True)
     assert best.unstable_poles.tolist() == [kept]
 
 

@@ -46,7 +46,6 @@ Modules, in the order of the method (Fig. 2):
 ``covariance``                  the PEM parameters' covariance (eq. 13-14)
 ``order_selection``             BIC / AIC over a climb in order
 ``mode_injection``              a lightly damped mode where a residual follows the input
-``loop_noise``                  the output-error pairs refined with a noise model (sensitivity-shaped)
 ``controller``                  the known controller, discrete at the data's sample time, checked
 ``deduction``                   eq. 18 (state space, frequency by frequency, SISO polynomials)
 ``reliability``                 eq. 18's first-order error gain, weighing the reduction's lines

@@ -4,8 +4,7 @@ Steps (Fig. 2 of the paper), each a function of the module that owns it:
 
 1. every reference-to-output pair ``T_ij`` of the closed loop by prediction error, one
    reference excited per experiment (eq. 11-17; :mod:`~stageid.closedloop.loop_model`,
-   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`), output-error
-   pairs refined with a noise model wherever they are fitted (:mod:`~stageid.closedloop.loop_noise`);
+   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`);
 2. the plant deduced in discrete time, ``G = T (M - M T)^-1`` (eq. 18), and its unstable
    poles, the zeros of ``M (I - T)`` outside the unit circle (:mod:`~stageid.closedloop.deduction`);
 3. the spurious pole-zero pairs cancelled entry by entry, distances reported (sec. 3.2.3;
@@ -30,7 +29,6 @@ from .controller import check_controller, check_grid, discrete_controllers, reso
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import check_deduction, deduce_plant, plant_response, unstable_plant_poles, wide_response
 from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs, remembered
-from .loop_noise import with_noise_model
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .plant_reduction import keep_full_order, reduce_plant
@@ -80,9 +78,7 @@ class ClosedLoopIdentification(Estimator):
         ``M_r`` of a two-degree-of-freedom law ``u = M_r r - M y`` (default: ``M``).
     method : {"oe", "armax", "bj", "arx"}
         Closed-loop model structure of eq. 12 for every pair (default output error, the
-        paper's noise-free reading at 80 dB SNR).  Output-error pairs, their orders selected,
-        are refined as Box-Jenkins with a second-order noise model
-        (:func:`~stageid.closedloop.loop_noise.with_noise_model`).
+        paper's noise-free reading at 80 dB SNR).
     orders : "auto", int or dict
         "auto": BIC over ``order_range``; an int ``n``: ``nb = nf = n`` (OE) or
         ``na = nb = n`` (ARX/ARMAX); a dict: the orders for :func:`~stageid.closedloop.pem.pem`.
@@ -214,20 +210,15 @@ class ClosedLoopIdentification(Estimator):
         return range(2, max(MIN_ORDER_TOP, loop_order_bound(entries, controller_states) + ORDER_MARGIN) + 1)
 
     def _pair_fitter(self, orders: Sequence[int]):
-        """One closed-loop pair (eq. 12-14): BIC over ``orders`` or the given orders, an output-error
-        pair then refined with a noise model (:func:`~stageid.closedloop.loop_noise.with_noise_model`)."""
+        """One closed-loop pair (eq. 12-14): BIC over ``orders`` or the given orders."""
 
         def fit_pair(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
             if self.orders == "auto":
                 kw = {"max_nfev": self.max_nfev, "refine_largest": True}
-                model = select_order(r, y, self.method, orders, self.nk, dt, **kw)[0]
-            else:
-                o = self.orders
-                o = dict(o) if isinstance(o, Mapping) else structure_orders(self.method, int(o))
-                model = pem(r, y, self.method, o, self.nk, dt, max_nfev=self.max_nfev)
-            # the sensor's noise reaches the outputs through the sensitivity, small below the
-            # crossover where eq. 18 needs T most: an output-error pair is refined with a noise model
-            return with_noise_model(model, r, y, self.max_nfev) if self.method == "oe" else model
+                return select_order(r, y, self.method, orders, self.nk, dt, **kw)[0]
+            o = self.orders
+            o = dict(o) if isinstance(o, Mapping) else structure_orders(self.method, int(o))
+            return pem(r, y, self.method, o, self.nk, dt, max_nfev=self.max_nfev)
 
         return fit_pair
 

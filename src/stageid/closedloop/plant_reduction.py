@@ -1,8 +1,8 @@
 """The deduced plant reduced entry by entry to a fixed structure (sec. 3.3), or kept at full order.
 
 Each entry keeps the unstable poles its cancellation left, snapped to the plant's deduced values
-(:func:`entry_unstable_poles`), or one of the plant's real unstable poles (:func:`kept_pole_sets`), and is fitted by :func:`~stageid.closedloop.reduction.reduce_best`
-over the band with the lines weighed by the deduction's reliability
+(:func:`entry_unstable_poles`), or one of the plant's real unstable poles (:func:`kept_pole_sets`),
+or none, as :func:`~stageid.closedloop.reduction.reduce_best` decides, fitted over the band with the lines weighed by the deduction's reliability
 (:mod:`~stageid.closedloop.reliability`); with the ``"full"`` structure the cancelled deduction
 is returned as it is, checked against the deduced response over the band (:func:`keep_full_order`).
 """
@@ -41,10 +41,16 @@ def kept_pole_sets(entry_poles: np.ndarray, unstable_poles: np.ndarray) -> list[
     left, and each real unstable pole of the plant alone.
 
     Every entry of ``G = T U^-1`` has its poles among the zeros of ``U``, so any of the plant's
-    unstable poles may be the entry's; the cancellation's leftovers can pair a real pole with a
-    spurious zero of ``M (I - T)`` into a complex pair that no entry has (measured: an axis whose
-    deduced pole was 0.4 % from the truth got a pair at 35 +- 31j rad/s), so each real pole is
-    offered on its own too, and the reduction's criterion decides (:func:`reduce_best`).
+    unstable poles may be the entry's.  The cancellation's leftovers can give an entry another
+    axis's deduced pole, or pair a real pole with a spurious zero of ``M (I - T)`` into a complex
+    pair that no entry has (benchmarks/RESULTS-recovery.md, closed loop), so each real pole is
+    offered on its own too, and the reduction's criterion decides.
+
+    Examples
+    --------
+    >>> sets = kept_pole_sets(np.array([45.7]), np.array([36.1, 45.7, 40.0 + 30.0j, 40.0 - 30.0j]))
+    >>> [s.tolist() for s in sets]
+    [[45.7], [36.1]]
     """
     sets = [entry_poles]
     for s in np.asarray(unstable_poles, dtype=complex).reshape(-1):
