@@ -115,7 +115,7 @@ def test_reduce_entry_recovers_a_known_entry() -> None:
 
 def _reference_best(P, f, dt, nz, n_p, keep, diagonal):
     """``reduce_best`` as written with separate fits: the kept-pole fit, the free fit from Levy's
-    start and from the kept fit (the lower cost), and its reflected-stable refit."""
+    start and from the kept fit (the lower cost), and its reflected-stable refit, chosen by BIC."""
     from stageid.closedloop.reduction import free_fit, minimise
 
     cands = []
@@ -130,7 +130,9 @@ def _reference_best(P, f, dt, nz, n_p, keep, diagonal):
     stable_ok = not np.any(stable.poles.real > 0)
     if stable_ok:
         cands.append(stable)
-    best = min(cands, key=lambda r: r.eps_weighted)
+    # BIC over the band: 2 n real residuals, the coefficients each fit frees (kept poles are fixed)
+    n = 2 * f.size
+    best = min(cands, key=lambda r: n * np.log(r.eps_weighted**2) + np.log(n) * (nz + 1 + n_p - r.unstable_poles.size))
     if not diagonal and stable_ok and stable.eps_weighted <= 1.5 * best.eps_weighted:
         return stable
     return best

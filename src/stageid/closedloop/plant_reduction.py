@@ -1,8 +1,8 @@
 """The deduced plant reduced entry by entry to a fixed structure (sec. 3.3), or kept at full order.
 
 Each entry keeps the unstable poles its cancellation left, snapped to the plant's deduced values
-(:func:`entry_unstable_poles`), and is fitted by :func:`~stageid.closedloop.reduction.reduce_best`
-over the band with the lines weighed by the deduction's reliability
+(:func:`entry_unstable_poles`), or one of the plant's real unstable poles (:func:`kept_pole_sets`),
+or none, as :func:`~stageid.closedloop.reduction.reduce_best` decides, fitted over the band with the lines weighed by the deduction's reliability
 (:mod:`~stageid.closedloop.reliability`); with the ``"full"`` structure the cancelled deduction
 is returned as it is, checked against the deduced response over the band (:func:`keep_full_order`).
 """
@@ -16,7 +16,7 @@ from ..models import TransferMatrix
 from .cancellation import EntryPoleZero, z_to_s
 from .reduction import ReducedEntry, reduce_best
 
-__all__ = ["entry_unstable_poles", "reduce_plant", "keep_full_order"]
+__all__ = ["entry_unstable_poles", "kept_pole_sets", "reduce_plant", "keep_full_order"]
 
 
 def entry_unstable_poles(ent: EntryPoleZero, s_unstable: np.ndarray, dt: float, rel: float = 0.05) -> np.ndarray:
@@ -34,6 +34,29 @@ def entry_unstable_poles(ent: EntryPoleZero, s_unstable: np.ndarray, dt: float, 
     arr = np.array(out, dtype=complex)
     # real poles as real
     return np.where(np.abs(arr.imag) < 1e-9 * np.maximum(1, np.abs(arr)), arr.real, arr)
+
+
+def kept_pole_sets(entry_poles: np.ndarray, unstable_poles: np.ndarray) -> list[np.ndarray]:
+    """The sets of unstable poles (rad/s) an entry's reduction may keep fixed: those its cancellation
+    left, and each real unstable pole of the plant alone.
+
+    Every entry of ``G = T U^-1`` has its poles among the zeros of ``U``, so any of the plant's
+    unstable poles may be the entry's.  The cancellation's leftovers can give an entry another
+    axis's deduced pole, or pair a real pole with a spurious zero of ``M (I - T)`` into a complex
+    pair that no entry has (benchmarks/RESULTS-recovery.md, closed loop), so each real pole is
+    offered on its own too, and the reduction's criterion decides.
+
+    Examples
+    --------
+    >>> sets = kept_pole_sets(np.array([45.7]), np.array([36.1, 45.7, 40.0 + 30.0j, 40.0 - 30.0j]))
+    >>> [s.tolist() for s in sets]
+    [[45.7], [36.1]]
+    """
+    sets = [entry_poles]
+    for s in np.asarray(unstable_poles, dtype=complex).reshape(-1):
+        if abs(s.imag) <= 1e-9 * max(1.0, abs(s)) and not (entry_poles.size == 1 and np.isclose(entry_poles[0], s)):
+            sets.append(np.array([s.real]))
+    return sets
 
 
 def reduce_plant(
@@ -62,7 +85,7 @@ def reduce_plant(
         for j in range(p):
             nz, n_p = orders[(i, j)]
             ent = next(e for e in entries if e.output == i and e.input == j)
-            keep = entry_unstable_poles(ent, unstable_poles, dt)
+            keep = kept_pole_sets(entry_unstable_poles(ent, unstable_poles, dt), unstable_poles)
             w = None if weights is None else weights[:, i, j]
             red = reduce_best(response[:, i, j], freqs_hz, dt, nz, n_p, keep, i == j, w)
             reduced[(i, j)] = red

@@ -17,6 +17,7 @@ section 3.3 defines it) together with the complex relative error.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,7 @@ __all__ = [
     "ReducedEntry",
     "reduce_entry",
     "reduce_best",
+    "information_criterion",
     "free_fit",
     "finish_entry",
     "minimise",
@@ -341,34 +343,51 @@ class _RationalFit:
         return np.vstack([dH.real, dH.imag])
 
 
+def information_criterion(entry: ReducedEntry, n_zeros: int, n_poles: int) -> float:
+    """BIC of a candidate fit over its band: ``n ln(eps_weighted^2) + ln(n) k`` with ``n`` the real and
+    imaginary parts of its lines and ``k`` its free coefficients (its kept poles are not free), the
+    criterion the pairs' orders are selected by (:mod:`~stageid.closedloop.order_selection`)."""
+    n = 2 * entry.weights.size if entry.weights is not None else 2
+    k = n_zeros + 1 + n_poles - np.size(entry.unstable_poles)
+    return float(n * np.log(max(entry.eps_weighted, 1e-300) ** 2) + np.log(n) * k)
+
+
 def reduce_best(
     P: np.ndarray,
     f: np.ndarray,
     dt: float,
     nz: int,
     n_p: int,
-    keep: np.ndarray,
+    keep: np.ndarray | Sequence[np.ndarray],
     diagonal: bool,
     weights: np.ndarray | None = None,
 ) -> ReducedEntry:
-    """Fit one entry three ways and keep the best by the cost the fits minimise (``eps_weighted``).
+    """Fit one entry three ways and keep the best by the cost the fits minimise (``eps_weighted``),
+    counted against the coefficients each fit frees (:func:`information_criterion`).
 
-    * unstable poles fixed at the values the deduction gives (when they fit the structure);
+    * unstable poles fixed at the values the deduction gives (when they fit the structure),
+      one candidate per set of ``keep`` (an array is one set);
     * all poles free over the band (the zeros of ``M (I - T)`` that place the unstable poles
       are fixed by data below the band, where a chirp spends little time, so in MIMO they are
       often less accurate than the in-band response itself);
     * all poles stable: preferred for a coupling when within 1.5 x of the best band error,
       because an unstable pole that only one coupling carries is no feedback loop's to
       stabilise (see the +9.74 rad/s pole of eq. 22c) and usually a displaced spurious doublet.
+
+    The free fit's space holds the kept one, so its cost is never higher; a pole below the band
+    moves the band's response little, and where freeing it buys less than its coefficient is worth
+    the deduction's value stands: it comes from the records down to their resolution, the band fit
+    only from the band.
     """
     cands = []
     # the all-free and the all-stable candidates start with the same fit: done once
     fit, theta, up = free_fit(P, f, dt, nz, n_p, np.zeros(0), weights=weights)
-    if keep.size and keep.size <= n_p:
-        cands.append(reduce_entry(P, f, dt, nz, n_p, keep, weights=weights))
+    sets = [keep] if isinstance(keep, np.ndarray) else list(keep)
+    for kept in (k for k in sets if 0 < k.size <= n_p):
+        cands.append(reduce_entry(P, f, dt, nz, n_p, kept, weights=weights))
         # the free fit started from the kept one too: the kept poles are one point of its space,
         # so the free candidate is never worse than the kept one by the cost both minimise
-        other = minimise(fit, fit.parameters(cands[0].num, cands[0].den))
+        other = minimise(fit, fit.parameters(cands[-1].num, cands[-1].den))
         if np.sum(fit.residual(other) ** 2) < np.sum(fit.residual(theta) ** 2):
             theta = other
     free = (fit, theta, up)
@@ -377,7 +396,7 @@ def reduce_best(
     stable_ok = not np.any(stable.poles.real > 0)
     if stable_ok:
         cands.append(stable)
-    best = min(cands, key=lambda r: r.eps_weighted)
+    best = min(cands, key=lambda r: information_criterion(r, nz, n_p))
     if not diagonal and stable_ok and stable.eps_weighted <= 1.5 * best.eps_weighted:
         return stable
     return best
