@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import scipy.signal as ss
 
-from .._errors import DataError
+from .._errors import DataError, IdentificationError
 from ..data import Experiment, as_experiments
 from ..models import TransferMatrix
 from .covariance import model_orders
@@ -133,20 +133,22 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
     value would add a step the loop never saw. So the level search starts from whichever of the
     first sample and the record's mean the diagonal pair ``T_jj`` fits better (:func:`start_levels`);
     from there the step offset ``c`` that best explains the fit's residual (linear least squares
-    on the pair's poles, :func:`level_shift`) is added and the pair refitted until the shift is below
-    :data:`REST_TOL` of the reference's RMS or no longer lowers the loss; the level is kept only when the last fit's loss is
-    below :data:`REST_KEEP` times the first sample's, else the first sample stays the rest level.
+    on the pair's poles, :func:`level_shift`) is added and the pair refitted from the last fit
+    (:func:`refit`) until the shift is below :data:`REST_TOL` of the reference's RMS or no longer
+    lowers the loss; the level is kept only when the last fit's loss is below :data:`REST_KEEP`
+    times the first sample's, else the first sample stays the rest level.
+
+    The search only ranks levels, so ``fit_pair`` may be a cheaper fit than the pairs' own
+    (the estimator passes the order screen's winner, not the climb in order).
     """
     out = {}
     for j, group in groups.items():
         r = [e.u[:, j].astype(float) for e in group]
         y = [e.y[:, j] - e.y[0, j] for e in group]
         first = np.array([rk[0] for rk in r])
-        dt = group[0].dt
-        levels, loss0 = start_levels(r, y, dt, fit_pair)
+        levels, loss0, m = start_levels(r, y, group[0].dt, fit_pair)
         best, best_loss = levels, np.inf
         for _ in range(REST_PASSES):
-            m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
             loss = _loss(m, r, y, levels)
             if not loss < best_loss:  # a shift that does not lower the loss ends the search
                 break
@@ -155,14 +157,26 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
             if all(abs(c) <= REST_TOL * rk.std() for c, rk in zip(shift, r)):
                 break
             levels = levels + shift
+            m = _refit_or_keep(m, [rk - lk for rk, lk in zip(r, levels)], y)
         levels = best if best_loss < REST_KEEP * loss0 else first
         out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
 
 
-def start_levels(r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit) -> tuple[np.ndarray, float]:
+def _refit_or_keep(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> PolynomialModel:
+    """:func:`refit` from ``model``; ``model`` itself when that fails (its loss then ends the search)."""
+    try:
+        return refit(model, r, y)
+    except (IdentificationError, DataError):
+        return model
+
+
+def start_levels(
+    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit
+) -> tuple[np.ndarray, float, PolynomialModel]:
     """The better start of the rest-level search, first samples or record means, by the pair's
-    loss, and the loss with the first samples (the level every other estimate must beat).
+    loss; the loss with the first samples (the level every other estimate must beat); and the
+    pair fitted at the better start.
 
     A level search started at the first sample of a multisine stays near it (measured: pair
     fits 72-76 % and 13-256 % errors on records whose loop rested at the mean, against 0.02-2 %
@@ -170,11 +184,12 @@ def start_levels(r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: 
     """
     first = np.array([rk[0] for rk in r])
     mean = np.array([rk.mean() for rk in r])
-    losses = []
+    fitted = []
     for levels in (first, mean):
         m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
-        losses.append(_loss(m, r, y, levels))
-    return (first if losses[0] <= losses[1] else mean), losses[0]
+        fitted.append((_loss(m, r, y, levels), levels, m))
+    better = fitted[0] if fitted[0][0] <= fitted[1][0] else fitted[1]
+    return better[1], fitted[0][0], better[2]
 
 
 def level_and_numerator(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
@@ -243,25 +258,29 @@ def refit(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> P
 
 
 def fit_with_levels(
-    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit
+    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit, level_fit: PairFit | None = None
 ) -> tuple[PolynomialModel, np.ndarray]:
     """One pair ``T_ij`` and each record's output level ``d`` (``y = T_ij r + d``).
 
-    A first fit to ``y`` gives the levels (:func:`level_and_numerator`); the order is selected
-    again on ``y - d`` (a pair whose order was selected on outputs still carrying the offset
-    stays in a higher minimum: PEM seed 4's coupling (1, 0) at 2.0x the noise floor, 0.95x
-    selected again), and the levels are solved again and the pair refitted from where it was
-    until :data:`LEVEL_PASSES` fits to corrected outputs are done.  Of all these fits the one
-    with the lowest loss under its own best levels (:func:`level_loss`) is kept: a later stage
-    can end in a worse minimum than an earlier one (PEM seed 12's T_00: 1.08x the floor after the
-    first fit, 1.46x after the refit).
+    A first fit to ``y`` gives the levels (:func:`level_and_numerator`), and the pair is fitted
+    to ``y - d``, the levels solved again and the pair refitted from where it was until
+    :data:`LEVEL_PASSES` fits to corrected outputs are done.  Of all these fits the one with the
+    lowest loss under its own best levels (:func:`level_loss`) is kept: a later stage can end in
+    a worse minimum than an earlier one (PEM seed 12's T_00: 1.08x the floor after the first
+    fit, 1.46x after the refit).
+
+    Without ``level_fit`` (a diagonal pair) the first fit is ``fit_pair``'s and every later one
+    a refit: the offset ``d`` (one noise sample) is small beside the pair's output.  With it (a
+    coupling, whose output can be as small as that offset) the first fit is ``level_fit``'s,
+    a cheaper one that only has to give the levels, and the order is selected again on ``y - d``
+    by ``fit_pair``: a coupling whose order was selected on outputs still carrying the offset
+    stays in a higher minimum (PEM seed 4's T_10 at 2.0x the noise floor, 0.95x selected again).
     """
-    fits = [fit_pair(r, y, dt)]
-    d = level_and_numerator(fits[0], r, y)
-    fits.append(fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt))
-    for _ in range(LEVEL_PASSES - 1):
+    fits = [(level_fit or fit_pair)(r, y, dt)]
+    for k in range(LEVEL_PASSES):
         d = level_and_numerator(fits[-1], r, y)
-        fits.append(refit(fits[-1], r, [yk - dk for yk, dk in zip(y, d)]))
+        corrected = [yk - dk for yk, dk in zip(y, d)]
+        fits.append(fit_pair(r, corrected, dt) if k == 0 and level_fit else refit(fits[-1], r, corrected))
     best = min(fits, key=lambda m: level_loss(m, r, y))
     return best, np.array([float(np.mean(yk - best.simulate(rk))) for rk, yk in zip(r, y)])
 
@@ -277,7 +296,7 @@ def level_loss(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray])
 
 
 def identify_pairs(
-    groups: dict[int, list[Experiment]], fit_pair: PairFit
+    groups: dict[int, list[Experiment]], fit_pair: PairFit, level_fit: PairFit | None = None
 ) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray, dict[int, list[Experiment]]]:
     """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14),
     each output's rest level estimated with it.
@@ -290,7 +309,9 @@ def identify_pairs(
     ``y = T r + d``, solved jointly with a numerator under the loop's poles
     (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
     them one after the other would not move them), the order selected again on ``y - d`` and the
-    pair refitted from where it was (:func:`fit_with_levels`).
+    pair refitted from where it was (:func:`fit_with_levels`): a diagonal pair's order selected
+    once on ``y``, a coupling's on ``y - d`` with the levels from ``level_fit`` (default
+    ``fit_pair``), a cheaper fit.
 
     Returns
     -------
@@ -310,7 +331,9 @@ def identify_pairs(
         r = [e.u[:, j] for e in group]
         shifted = [e.y.copy() for e in group]
         for i in range(p):
-            m, d = fit_with_levels(r, [e.y[:, i] for e in group], dt, fit_pair)
+            m, d = fit_with_levels(
+                r, [e.y[:, i] for e in group], dt, fit_pair, None if i == j else level_fit or fit_pair
+            )
             y = [e.y[:, i] - dk for e, dk in zip(group, d)]
             for yk, dk in zip(shifted, d):
                 yk[:, i] -= dk
