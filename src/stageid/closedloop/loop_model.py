@@ -7,7 +7,6 @@ a SISO prediction-error fit of output ``i`` on reference ``j`` over the experime
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -22,7 +21,6 @@ from .pem import pem
 from .polynomial import FREE_ORDERS, PolynomialModel
 
 __all__ = [
-    "remembered",
     "excited_reference",
     "closed_loop_experiments",
     "group_by_reference",
@@ -48,23 +46,6 @@ LEVEL_PASSES = 2
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
-
-
-def remembered(fit_pair: PairFit) -> PairFit:
-    """``fit_pair`` fitting each set of records once: the rest-level search fits the diagonal
-    pair at the levels it keeps, and :func:`identify_pairs` starts from the same records."""
-    cache: dict[bytes, PolynomialModel] = {}
-
-    def fit(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
-        digest = hashlib.blake2b(np.float64(dt).tobytes())
-        for a in (*r, *y):
-            digest.update(np.ascontiguousarray(a, dtype=float).tobytes())
-        key = digest.digest()
-        if key not in cache:
-            cache[key] = fit_pair(r, y, dt)
-        return cache[key]
-
-    return fit
 
 
 def excited_reference(exp: Experiment, rel_threshold: float = 1e-3) -> int:
