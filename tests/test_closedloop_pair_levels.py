@@ -1,14 +1,13 @@
 """The work the closed-loop pairs take: the rest-level search ranks levels with the cheaper fit and
-refits from its last fit, a diagonal pair's order is selected once, a coupling's on its
-level-corrected outputs after a first fit by the cheaper one."""
+refits from its last fit; a coupling's first fit, which only gives its levels, is the cheaper one."""
 
 from __future__ import annotations
 
 from collections import Counter
 
 import numpy as np
-from _closedloop_plant2x2 import chirp_experiments
 
+from _closedloop_plant2x2 import chirp_experiments
 from stageid.closedloop import pem
 from stageid.closedloop.loop_model import at_rest, group_by_reference, identify_pairs
 
@@ -21,7 +20,7 @@ def _counted(calls: Counter, name: str):
     return fit
 
 
-def test_pairs_select_the_order_once_each_and_the_levels_come_from_the_cheaper_fit():
+def test_levels_and_a_couplings_first_fit_come_from_the_cheaper_fit():
     exps = chirp_experiments((1, 2), duration=0.25)
     calls: Counter = Counter()
     full, cheap = _counted(calls, "full"), _counted(calls, "cheap")
@@ -29,7 +28,7 @@ def test_pairs_select_the_order_once_each_and_the_levels_come_from_the_cheaper_f
     assert calls == {"cheap": 4}  # first sample and mean per reference; the passes refit from there
     calls.clear()
     _, models, fits, _ = identify_pairs(groups, full, cheap)
-    # diagonals: one order selection on y; couplings: the cheaper first fit, one selection on y - d
-    assert calls == {"full": 4, "cheap": 2}
+    # every pair's order selected on y - d; a diagonal's on y too, a coupling's first fit the cheaper
+    assert calls == {"full": 6, "cheap": 2}
     assert np.diag(fits).min() > 99.0
     assert set(models) == {(0, 0), (0, 1), (1, 0), (1, 1)}

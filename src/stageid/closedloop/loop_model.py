@@ -243,25 +243,24 @@ def fit_with_levels(
 ) -> tuple[PolynomialModel, np.ndarray]:
     """One pair ``T_ij`` and each record's output level ``d`` (``y = T_ij r + d``).
 
-    A first fit to ``y`` gives the levels (:func:`level_and_numerator`), and the pair is fitted
-    to ``y - d``, the levels solved again and the pair refitted from where it was until
-    :data:`LEVEL_PASSES` fits to corrected outputs are done.  Of all these fits the one with the
-    lowest loss under its own best levels (:func:`level_loss`) is kept: a later stage can end in
-    a worse minimum than an earlier one (PEM seed 12's T_00: 1.08x the floor after the first
-    fit, 1.46x after the refit).
+    A first fit to ``y`` gives the levels (:func:`level_and_numerator`); the order is selected
+    again on ``y - d`` (a pair whose order was selected on outputs still carrying the offset
+    stays in a higher minimum: PEM seed 4's coupling (1, 0) at 2.0x the noise floor, 0.95x
+    selected again), and the levels are solved again and the pair refitted from where it was
+    until :data:`LEVEL_PASSES` fits to corrected outputs are done.  Of all these fits the one
+    with the lowest loss under its own best levels (:func:`level_loss`) is kept: a later stage
+    can end in a worse minimum than an earlier one (PEM seed 12's T_00: 1.08x the floor after the
+    first fit, 1.46x after the refit).
 
-    Without ``level_fit`` (a diagonal pair) the first fit is ``fit_pair``'s and every later one
-    a refit: the offset ``d`` (one noise sample) is small beside the pair's output.  With it (a
-    coupling, whose output can be as small as that offset) the first fit is ``level_fit``'s,
-    a cheaper one that only has to give the levels, and the order is selected again on ``y - d``
-    by ``fit_pair``: a coupling whose order was selected on outputs still carrying the offset
-    stays in a higher minimum (PEM seed 4's T_10 at 2.0x the noise floor, 0.95x selected again).
+    ``level_fit`` (default ``fit_pair``) makes the first fit: a cheaper one where that fit only
+    has to give the levels (a coupling's; a diagonal's first fit can be its best).
     """
     fits = [(level_fit or fit_pair)(r, y, dt)]
-    for k in range(LEVEL_PASSES):
+    d = level_and_numerator(fits[0], r, y)
+    fits.append(fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt))
+    for _ in range(LEVEL_PASSES - 1):
         d = level_and_numerator(fits[-1], r, y)
-        corrected = [yk - dk for yk, dk in zip(y, d)]
-        fits.append(fit_pair(r, corrected, dt) if k == 0 and level_fit else refit(fits[-1], r, corrected))
+        fits.append(refit(fits[-1], r, [yk - dk for yk, dk in zip(y, d)]))
     best = min(fits, key=lambda m: level_loss(m, r, y))
     return best, np.array([float(np.mean(yk - best.simulate(rk))) for rk, yk in zip(r, y)])
 
@@ -290,9 +289,9 @@ def identify_pairs(
     ``y = T r + d``, solved jointly with a numerator under the loop's poles
     (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
     them one after the other would not move them), the order selected again on ``y - d`` and the
-    pair refitted from where it was (:func:`fit_with_levels`): a diagonal pair's order selected
-    once on ``y``, a coupling's on ``y - d`` with the levels from ``level_fit`` (default
-    ``fit_pair``), a cheaper fit.
+    pair refitted from where it was (:func:`fit_with_levels`).  A coupling's first fit only gives
+    its levels, so ``level_fit`` (default ``fit_pair``), a cheaper fit, makes it; a diagonal's
+    first fit is ``fit_pair``'s, which can be the best of its stages (PEM seed 12's T_00).
 
     Returns
     -------
