@@ -145,7 +145,7 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
 
 
 def _refit_or_keep(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> PolynomialModel:
-    """:func:`refit` from ``model``; ``model`` itself when that fails (its loss then ends the search)."""
+    """:func:`refit` from ``model``; ``model`` itself when that fails (the search goes on with it)."""
     try:
         return refit(model, r, y)
     except (IdentificationError, DataError):
