@@ -28,7 +28,7 @@ from .cancellation import cancel_entries, z_to_s
 from .controller import check_controller, check_grid, discrete_controllers, resolved_grid
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import check_deduction, deduce_plant, plant_response, unstable_plant_poles, wide_response
-from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs
+from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs, remembered
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .plant_reduction import keep_full_order, reduce_plant
@@ -209,13 +209,12 @@ class ClosedLoopIdentification(Estimator):
         entries = dict(self.structure) if isinstance(self.structure, Mapping) else paper_orders(p)
         return range(2, max(MIN_ORDER_TOP, loop_order_bound(entries, controller_states) + ORDER_MARGIN) + 1)
 
-    def _pair_fitter(self, orders: Sequence[int], refine_largest: bool = True):
-        """One closed-loop pair (eq. 12-14): BIC over ``orders`` (with the climb in order, or
-        without it: the screen's winner only, enough to rank rest levels) or the given orders."""
+    def _pair_fitter(self, orders: Sequence[int]):
+        """One closed-loop pair (eq. 12-14): BIC over ``orders`` or the given orders."""
 
         def fit_pair(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
             if self.orders == "auto":
-                kw = {"max_nfev": self.max_nfev, "refine_largest": refine_largest}
+                kw = {"max_nfev": self.max_nfev, "refine_largest": True}
                 return select_order(r, y, self.method, orders, self.nk, dt, **kw)[0]
             o = self.orders
             o = dict(o) if isinstance(o, Mapping) else structure_orders(self.method, int(o))
@@ -268,12 +267,11 @@ class ClosedLoopIdentification(Estimator):
         dt, p = exps[0].dt, exps[0].n_outputs
         M, Mr = discrete_controllers(self.controller, self.reference_filter, dt, self.controller_discretization, p)
         check_controller(M if Mr is None else Mr, check_grid(lo, dt))
-        orders = self._candidate_orders(p, M.n_states)
-        level_fit = self._pair_fitter(orders, refine_largest=False)
-        groups = at_rest(group_by_reference(exps), level_fit)
+        fit_pair = remembered(self._pair_fitter(self._candidate_orders(p, M.n_states)))
+        groups = at_rest(group_by_reference(exps), fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits, groups = identify_pairs(groups, self._pair_fitter(orders), level_fit)
+        T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
         check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / max(e.n_samples * e.dt for e in exps)))

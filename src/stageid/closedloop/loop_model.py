@@ -7,13 +7,14 @@ a SISO prediction-error fit of output ``i`` on reference ``j`` over the experime
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
 import scipy.signal as ss
 
-from .._errors import DataError, IdentificationError
+from .._errors import DataError
 from ..data import Experiment, as_experiments
 from ..models import TransferMatrix
 from .covariance import model_orders
@@ -21,6 +22,7 @@ from .pem import pem
 from .polynomial import FREE_ORDERS, PolynomialModel
 
 __all__ = [
+    "remembered",
     "excited_reference",
     "closed_loop_experiments",
     "group_by_reference",
@@ -46,6 +48,23 @@ LEVEL_PASSES = 2
 
 #: fit of one pair: (reference records, output records, dt) -> model
 PairFit = Callable[[list[np.ndarray], list[np.ndarray], float], PolynomialModel]
+
+
+def remembered(fit_pair: PairFit) -> PairFit:
+    """``fit_pair`` fitting each set of records once: the rest-level search fits the diagonal
+    pair at the levels it keeps, and :func:`identify_pairs` starts from the same records."""
+    cache: dict[bytes, PolynomialModel] = {}
+
+    def fit(r: list[np.ndarray], y: list[np.ndarray], dt: float) -> PolynomialModel:
+        digest = hashlib.blake2b(np.float64(dt).tobytes())
+        for a in (*r, *y):
+            digest.update(np.ascontiguousarray(a, dtype=float).tobytes())
+        key = digest.digest()
+        if key not in cache:
+            cache[key] = fit_pair(r, y, dt)
+        return cache[key]
+
+    return fit
 
 
 def excited_reference(exp: Experiment, rel_threshold: float = 1e-3) -> int:
@@ -114,22 +133,20 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
     value would add a step the loop never saw. So the level search starts from whichever of the
     first sample and the record's mean the diagonal pair ``T_jj`` fits better (:func:`start_levels`);
     from there the step offset ``c`` that best explains the fit's residual (linear least squares
-    on the pair's poles, :func:`level_shift`) is added and the pair refitted from the last fit
-    (:func:`refit`) until the shift is below :data:`REST_TOL` of the reference's RMS or no longer
-    lowers the loss; the level is kept only when the last fit's loss is below :data:`REST_KEEP`
-    times the first sample's, else the first sample stays the rest level.
-
-    The search only ranks levels, so ``fit_pair`` may be a cheaper fit than the pairs' own
-    (the estimator passes the order screen's winner, not the climb in order).
+    on the pair's poles, :func:`level_shift`) is added and the pair refitted until the shift is below
+    :data:`REST_TOL` of the reference's RMS or no longer lowers the loss; the level is kept only when the last fit's loss is
+    below :data:`REST_KEEP` times the first sample's, else the first sample stays the rest level.
     """
     out = {}
     for j, group in groups.items():
         r = [e.u[:, j].astype(float) for e in group]
         y = [e.y[:, j] - e.y[0, j] for e in group]
         first = np.array([rk[0] for rk in r])
-        levels, loss0, m = start_levels(r, y, group[0].dt, fit_pair)
+        dt = group[0].dt
+        levels, loss0 = start_levels(r, y, dt, fit_pair)
         best, best_loss = levels, np.inf
         for _ in range(REST_PASSES):
+            m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
             loss = _loss(m, r, y, levels)
             if not loss < best_loss:  # a shift that does not lower the loss ends the search
                 break
@@ -138,26 +155,14 @@ def at_rest(groups: dict[int, list[Experiment]], fit_pair: PairFit) -> dict[int,
             if all(abs(c) <= REST_TOL * rk.std() for c, rk in zip(shift, r)):
                 break
             levels = levels + shift
-            m = _refit_or_keep(m, [rk - lk for rk, lk in zip(r, levels)], y)
         levels = best if best_loss < REST_KEEP * loss0 else first
         out[j] = [_deviations(e, j, lk) for e, lk in zip(group, levels)]
     return out
 
 
-def _refit_or_keep(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> PolynomialModel:
-    """:func:`refit` from ``model``; ``model`` itself when that fails (the search goes on with it)."""
-    try:
-        return refit(model, r, y)
-    except (IdentificationError, DataError):
-        return model
-
-
-def start_levels(
-    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit
-) -> tuple[np.ndarray, float, PolynomialModel]:
+def start_levels(r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit) -> tuple[np.ndarray, float]:
     """The better start of the rest-level search, first samples or record means, by the pair's
-    loss; the loss with the first samples (the level every other estimate must beat); and the
-    pair fitted at the better start.
+    loss, and the loss with the first samples (the level every other estimate must beat).
 
     A level search started at the first sample of a multisine stays near it (measured: pair
     fits 72-76 % and 13-256 % errors on records whose loop rested at the mean, against 0.02-2 %
@@ -165,12 +170,11 @@ def start_levels(
     """
     first = np.array([rk[0] for rk in r])
     mean = np.array([rk.mean() for rk in r])
-    fitted = []
+    losses = []
     for levels in (first, mean):
         m = fit_pair([rk - lk for rk, lk in zip(r, levels)], y, dt)
-        fitted.append((_loss(m, r, y, levels), levels, m))
-    better = fitted[0] if fitted[0][0] <= fitted[1][0] else fitted[1]
-    return better[1], fitted[0][0], better[2]
+        losses.append(_loss(m, r, y, levels))
+    return (first if losses[0] <= losses[1] else mean), losses[0]
 
 
 def level_and_numerator(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> np.ndarray:
@@ -239,7 +243,7 @@ def refit(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray]) -> P
 
 
 def fit_with_levels(
-    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit, level_fit: PairFit | None = None
+    r: list[np.ndarray], y: list[np.ndarray], dt: float, fit_pair: PairFit
 ) -> tuple[PolynomialModel, np.ndarray]:
     """One pair ``T_ij`` and each record's output level ``d`` (``y = T_ij r + d``).
 
@@ -251,11 +255,8 @@ def fit_with_levels(
     with the lowest loss under its own best levels (:func:`level_loss`) is kept: a later stage
     can end in a worse minimum than an earlier one (PEM seed 12's T_00: 1.08x the floor after the
     first fit, 1.46x after the refit).
-
-    ``level_fit`` (default ``fit_pair``) makes the first fit: a cheaper one where that fit only
-    has to give the levels (a coupling's; a diagonal's first fit can be its best).
     """
-    fits = [(level_fit or fit_pair)(r, y, dt)]
+    fits = [fit_pair(r, y, dt)]
     d = level_and_numerator(fits[0], r, y)
     fits.append(fit_pair(r, [yk - dk for yk, dk in zip(y, d)], dt))
     for _ in range(LEVEL_PASSES - 1):
@@ -276,7 +277,7 @@ def level_loss(model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray])
 
 
 def identify_pairs(
-    groups: dict[int, list[Experiment]], fit_pair: PairFit, level_fit: PairFit | None = None
+    groups: dict[int, list[Experiment]], fit_pair: PairFit
 ) -> tuple[TransferMatrix, dict[tuple[int, int], PolynomialModel], np.ndarray, dict[int, list[Experiment]]]:
     """Every pair ``T_ij`` fitted by ``fit_pair`` on the records that excite ``j`` (eq. 11-14),
     each output's rest level estimated with it.
@@ -289,9 +290,7 @@ def identify_pairs(
     ``y = T r + d``, solved jointly with a numerator under the loop's poles
     (:func:`level_and_numerator`; the DC gain and ``d`` are nearly interchangeable, so solving
     them one after the other would not move them), the order selected again on ``y - d`` and the
-    pair refitted from where it was (:func:`fit_with_levels`).  A coupling's first fit only gives
-    its levels, so ``level_fit`` (default ``fit_pair``), a cheaper fit, makes it; a diagonal's
-    first fit is ``fit_pair``'s, which can be the best of its stages (PEM seed 12's T_00).
+    pair refitted from where it was (:func:`fit_with_levels`).
 
     Returns
     -------
@@ -311,9 +310,7 @@ def identify_pairs(
         r = [e.u[:, j] for e in group]
         shifted = [e.y.copy() for e in group]
         for i in range(p):
-            m, d = fit_with_levels(
-                r, [e.y[:, i] for e in group], dt, fit_pair, None if i == j else level_fit or fit_pair
-            )
+            m, d = fit_with_levels(r, [e.y[:, i] for e in group], dt, fit_pair)
             y = [e.y[:, i] - dk for e, dk in zip(group, d)]
             for yk, dk in zip(shifted, d):
                 yk[:, i] -= dk
