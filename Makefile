@@ -17,10 +17,13 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/stageid demo --out demo-out
 
+# pytest-xdist: two worker processes; an idle worker takes tests from the busy one's queue (worksteal
+# ended the suite sooner than one file per worker, tests/TIMING.md). Tests that start servers, clusters
+# or a browser take free ports and temporary folders.
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks studies
 	$(VENV)/bin/ruff format --check src tests benchmarks studies
-	$(PY) -m pytest -q -p no:cacheprovider -m "not study"
+	$(PY) -m pytest -q -p no:cacheprovider -m "not study" -n 2 --dist worksteal
 
 # The long checks on measured records and randomised draws (marked `study`): CI runs them after
 # `make test`, so that the everyday suite stays within a few minutes.

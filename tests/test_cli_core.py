@@ -6,10 +6,16 @@ import numpy as np
 import pytest
 
 import conftest
-from conftest import assert_one_line_error, run_cli
+from conftest import assert_one_line_error
 from stageid.cli.main import main
 from stageid.data.io import read_table, write_csv
 from stageid.models import StateSpaceModel, TransferMatrix, save_model
+
+
+def run_main(*args):
+    """Run `stageid` in this process with warnings as errors: a RuntimeWarning leaking before
+    the error fails the contract (test_failure_contract.py holds it for the real process)."""
+    return conftest.run_main(*args, warnings_as_errors=True)
 
 
 @pytest.fixture
@@ -112,7 +118,7 @@ def test_nan_in_csv_is_one_line_error_and_no_output(tmp_path, discrete_model):
     lines = ["t,Z,Rx"] + [f"{k * 0.002},{k},{-k}" for k in range(20)]
     lines[8] = "0.014,nan,1"  # data row 7 (header is lines[0])
     (tmp_path / "u.csv").write_text("\n".join(lines) + "\n")
-    rc, out, err = run_cli("simulate", model_path, tmp_path / "u.csv", "-o", tmp_path / "y.csv")
+    rc, out, err = run_main("simulate", model_path, tmp_path / "u.csv", "-o", tmp_path / "y.csv")
     assert_one_line_error(rc, err)
     assert rc == 2
     assert "'Z'" in err and "NaN" in err and "row 7" in err
@@ -132,12 +138,12 @@ def test_wrong_b_rows_is_one_line_error_and_no_output(tmp_path):
         "outputs": ["y"],
     }
     (tmp_path / "bad.json").write_text(json.dumps(d))
-    rc, out, err = run_cli("freqresp", tmp_path / "bad.json", "--fmin", "1", "--fmax", "10", "-o", tmp_path / "fr.csv")
+    rc, out, err = run_main("freqresp", tmp_path / "bad.json", "--fmin", "1", "--fmax", "10", "-o", tmp_path / "fr.csv")
     assert_one_line_error(rc, err)
     assert rc == 2 and "`B` must have shape (3, 1); got (2, 1)" in err
     assert not (tmp_path / "fr.csv").exists()
     write_csv(tmp_path / "u.csv", {"u": np.ones(10)}, dt=0.1)
-    rc, out, err = run_cli("simulate", tmp_path / "bad.json", tmp_path / "u.csv", "-o", tmp_path / "y.csv")
+    rc, out, err = run_main("simulate", tmp_path / "bad.json", tmp_path / "u.csv", "-o", tmp_path / "y.csv")
     assert_one_line_error(rc, err)
     assert not (tmp_path / "y.csv").exists()
 
@@ -180,7 +186,7 @@ def test_bad_input_contract(tmp_path, discrete_model, args, fragment):
         "out": tmp_path / "out.csv",
         "u_wrong": tmp_path / "u_wrong.csv",
     }
-    rc, out, err = run_cli(*[a.format(**subst) for a in args])
+    rc, out, err = run_main(*[a.format(**subst) for a in args])
     assert_one_line_error(rc, err)
     assert rc == 2
     assert fragment in err
@@ -221,7 +227,7 @@ def test_signal_writes_chirp_of_the_paper(tmp_path):
 
 
 def test_help_shows_examples():
-    rc, out, err = run_cli("--help")
+    rc, out, err = run_main("--help")
     assert rc == 0 and "Examples:" in out and "identify" in out
 
 
@@ -237,18 +243,12 @@ def test_logger_time_jitter_is_accepted_but_a_missing_sample_is_not(tmp_path, di
     np.testing.assert_allclose(read_table(tmp_path / "y.csv").values, g.simulate(u), atol=1e-12)
     del rows[51]  # drop data row 50
     (tmp_path / "gap.csv").write_text("\n".join(rows) + "\n")
-    rc, out, err = run_cli("simulate", model_path, tmp_path / "gap.csv", "-o", tmp_path / "y2.csv")
+    rc, out, err = run_main("simulate", model_path, tmp_path / "gap.csv", "-o", tmp_path / "y2.csv")
     assert_one_line_error(rc, err)
     assert not (tmp_path / "y2.csv").exists()
 
 
 # ----------------------------------------------------------------- regressions of the bug hunt
-def run_main(*args):
-    """Run `stageid` in this process with warnings as errors: a RuntimeWarning leaking before
-    the error fails the contract."""
-    return conftest.run_main(*args, warnings_as_errors=True)
-
-
 _CHIRP = ["signal", "chirp", "--f0", "1", "--f1", "10", "--duration", "1", "--dt", "0.01"]
 
 
