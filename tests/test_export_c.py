@@ -211,6 +211,25 @@ def test_compensator_uses_the_model_input_limits(run_c):
     assert drive.min() == -3.0 and drive.max() == 4.0
 
 
+def test_a_warped_compensators_drive_at_its_limit_is_the_limit_itself(run_c):
+    # a warped model identified on a measured record: mapped back through the warp, the
+    # operator-side limit comes out a rounding error inside the drive limit, where the drive
+    # would read as one that hit no limit; the C, like the package, drives the limit itself
+    R = 84.77249999999965
+    r = np.arange(5) * R / 5
+    model = ModifiedPIModel(
+        r=r, rc=r, ra=1.08 * r, rb=1.05 * r, weights=np.array([0.02, 0.01, -0.002, 0.004, 0.002]),
+        input_warp=-0.023127473106766404, warp_scale=R, input_offset=-13.147300615777679,
+        input_limits=(-100.1249999999992, 69.4200000000001),
+    )  # fmt: skip
+    model = model.with_state(model.consistent_state(0.0, "zero"))
+    lo, hi = model.input_limits
+    for target, limit in (([0.0, 5.0, 10.0], hi), ([0.0, -5.0, -10.0], lo)):
+        drive = run_c(model, target, inverse=True)[:, 0]
+        assert drive[-1] == limit
+        assert drive[-1] == Compensator(model).run(target)[-1, 0]
+
+
 # ------------------------------------------------------------------ the C itself
 def _all_codes():
     rng = np.random.default_rng(11)

@@ -291,7 +291,9 @@ def _drive(model: Any, limits: tuple[float, float] | None, ctype: CType, p: str)
     if limits is not None:  # the warp's inverse may round a clipped value a hair outside
         consts += [define(p, "DRIVE_LOW", limits[0], ctype), define(p, "DRIVE_HIGH", limits[1], ctype)]
         drive += f"    out[0] = {p}_min({p}_max(out[0], {p}_DRIVE_LOW), {p}_DRIVE_HIGH);\n"
-        drive += fs.pinned(limits, ctype, p, defined=True)[1]
+        # as the package's compensator: an input clipped at an operator-side limit drives the limit
+        # itself, in double as in float (the unwarp would leave it a rounding error inside)
+        drive += f"    if (x >= {p}_HIGH) out[0] = {p}_DRIVE_HIGH;\n    if (x <= {p}_LOW) out[0] = {p}_DRIVE_LOW;\n"
     return consts, drive
 
 
