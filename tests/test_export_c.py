@@ -212,17 +212,11 @@ def test_compensator_uses_the_model_input_limits(run_c):
 
 
 def test_a_warped_compensators_drive_at_its_limit_is_the_limit_itself(run_c):
-    # a warped model identified on a measured record: mapped back through the warp, the
-    # operator-side limit comes out a rounding error inside the drive limit, where the drive
-    # would read as one that hit no limit; the C, like the package, drives the limit itself
-    R = 84.77249999999965
-    r = np.arange(5) * R / 5
-    model = ModifiedPIModel(
-        r=r, rc=r, ra=1.08 * r, rb=1.05 * r, weights=np.array([0.02, 0.01, -0.002, 0.004, 0.002]),
-        input_warp=-0.023127473106766404, warp_scale=R, input_offset=-13.147300615777679,
-        input_limits=(-100.1249999999992, 69.4200000000001),
-    )  # fmt: skip
-    model = model.with_state(model.consistent_state(0.0, "zero"))
+    # the C, like the package, drives the limit itself where the warp's round trip would
+    # leave it a rounding error inside
+    from test_hysteresis_inverse import warped_model_of_a_measured_record
+
+    model = warped_model_of_a_measured_record()
     lo, hi = model.input_limits
     for target, limit in (([0.0, 5.0, 10.0], hi), ([0.0, -5.0, -10.0], lo)):
         drive = run_c(model, target, inverse=True)[:, 0]

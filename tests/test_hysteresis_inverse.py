@@ -305,10 +305,10 @@ def test_closed_form_inverse_needs_every_loading_slope_positive():
     assert pi_inverse(PIModel(r=[0.0, 1.0, 2.0], weights=[1.0, -0.9, 0.5])).weights[0] == 1.0
 
 
-def test_a_warped_drive_at_its_limit_is_the_limit_itself():
-    # limits and warp of a model identified on a measured record: mapped back through the
-    # warp, the operator-side limit came out 1e-13 inside the drive limit, where the drive
-    # reads as one that hit no limit while the model's output falls short of the target
+def warped_model_of_a_measured_record() -> ModifiedPIModel:
+    """Limits and warp of a model identified on a measured record: mapped back through the
+    warp, the operator-side limit comes out 1e-13 inside the drive limit, where a drive would
+    read as one that hit no limit while the model's output falls short of the target."""
     R = 84.77249999999965
     r = np.arange(5) * R / 5
     model = ModifiedPIModel(
@@ -316,7 +316,11 @@ def test_a_warped_drive_at_its_limit_is_the_limit_itself():
         input_warp=-0.023127473106766404, warp_scale=R, input_offset=-13.147300615777679,
         input_limits=(-100.1249999999992, 69.4200000000001),
     )  # fmt: skip
-    model = model.with_state(model.consistent_state(0.0, "zero"))
+    return model.with_state(model.consistent_state(0.0, "zero"))
+
+
+def test_a_warped_drive_at_its_limit_is_the_limit_itself():
+    model = warped_model_of_a_measured_record()
     lo, hi = model.input_limits
     assert Compensator(model).run([0.0, 5.0, 10.0])[-1, 0] == hi
     comp = Compensator(model)
