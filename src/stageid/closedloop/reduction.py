@@ -24,6 +24,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .._errors import IdentificationError
+from .order_selection import criterion_value
 from .zoh import zoh_at, zoh_derivatives
 
 #: Sanathanan-Koerner passes after Levy's estimate in the reduction's linear start
@@ -349,7 +350,7 @@ def information_criterion(entry: ReducedEntry, n_zeros: int, n_poles: int) -> fl
     criterion the pairs' orders are selected by (:mod:`~stageid.closedloop.order_selection`)."""
     n = 2 * entry.weights.size if entry.weights is not None else 2
     k = n_zeros + 1 + n_poles - np.size(entry.unstable_poles)
-    return float(n * np.log(max(entry.eps_weighted, 1e-300) ** 2) + np.log(n) * k)
+    return float(criterion_value("bic", n, entry.eps_weighted**2, k))
 
 
 def reduce_best(
