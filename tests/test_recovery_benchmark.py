@@ -131,3 +131,60 @@ def test_run_all_returns_outcomes_in_module_and_seed_order(monkeypatch):
     assert started == [("rec_b", 1), ("rec_a", 0), ("rec_b", 0), ("rec_a", 1)]
     assert [(o.module, o.seed) for o in outs] == [("rec_a", 0), ("rec_a", 1), ("rec_b", 0), ("rec_b", 1)]
     assert dropped == {"rec_a": 0, "rec_b": 0}
+
+
+def _fake_modules(monkeypatch, shared: dict[str, str]):
+    """Case modules rec_* whose ``SHARED_DRAW`` is ``shared[module]`` (absent: their own draw)."""
+
+    def load(m):
+        attrs = {"ESTIMATOR": m.upper()}
+        if m in shared:
+            attrs["SHARED_DRAW"] = shared[m]
+        return type("M", (), attrs)
+
+    monkeypatch.setattr(run, "_load", load)
+
+
+def test_cases_that_share_a_draw_run_as_one_task_per_seed(monkeypatch):
+    _fake_modules(monkeypatch, {"rec_pem": "loop", "rec_closedloop": "loop"})
+    tasks = run.group_tasks(["rec_closedloop", "rec_frd", "rec_pem"], [0, 1], 0.005)
+    assert [t[:2] for t in tasks] == [
+        (("rec_closedloop", "rec_pem"), 0), (("rec_frd",), 0), (("rec_closedloop", "rec_pem"), 1), (("rec_frd",), 1),
+    ]  # fmt: skip
+    labels = {"rec_closedloop": "CL", "rec_pem": "PEM", "rec_frd": "FRD"}
+    seconds = {("CL", 0): 1.0, ("PEM", 0): 30.0, ("FRD", 0): 20.0, ("CL", 1): 1.0, ("PEM", 1): 10.0, ("FRD", 1): 12.0}
+    # a shared draw is as long as its cases together
+    order = draw_order.longest_first(tasks, labels, seconds)
+    assert [t[:2] for t in order] == [
+        (("rec_closedloop", "rec_pem"), 0), (("rec_frd",), 0), (("rec_frd",), 1), (("rec_closedloop", "rec_pem"), 1),
+    ]  # fmt: skip
+
+
+def test_a_shared_draw_runs_its_cases_in_one_folder_and_reports_each(monkeypatch):
+    _fake_modules(monkeypatch, {"rec_pem": "loop", "rec_closedloop": "loop"})
+    folders = []
+
+    def fake_run_one(module, seed, noise, case_timeout=0.0, workdir=None):
+        folders.append(workdir)
+        return _outcome(module, seed, noise, True, 1.0)
+
+    monkeypatch.setattr(run, "run_one", fake_run_one)
+    outs, dropped = run.run_all(["rec_closedloop", "rec_pem"], [0, 1], 0.005, jobs=1, stream=sys.stderr)
+    assert [(o.module, o.seed) for o in outs] == [
+        ("rec_closedloop", 0), ("rec_closedloop", 1), ("rec_pem", 0), ("rec_pem", 1),
+    ]  # fmt: skip
+    assert folders[0] is not None and folders[0] == folders[1] and folders[2] == folders[3] != folders[0]
+    assert dropped == {"rec_closedloop": 0, "rec_pem": 0}
+
+
+def test_the_loop_cases_fit_each_truth_once(monkeypatch, tmp_path):
+    import loop_draws
+
+    calls = []
+    monkeypatch.setattr(loop_draws, "run_cli", lambda argv: calls.append(argv))
+    first = loop_draws.draw_and_fit(3, tmp_path, 0.004)
+    again = loop_draws.draw_and_fit(3, tmp_path, 0.004)
+    assert len(calls) == 1 and again.detail == first.detail and again.unstable.tolist() == first.unstable.tolist()
+    assert {"--closed-loop-output", "-o"} <= {str(a) for a in calls[0]}
+    loop_draws.draw_and_fit(3, tmp_path, 0.008)  # another noise level is another draw
+    assert len(calls) == 2

@@ -36,7 +36,7 @@ def previous_seconds(path: pathlib.Path | None) -> dict[tuple[str, int], float]:
 
 
 def longest_first(tasks: list[tuple], labels: dict[str, str], seconds: dict[tuple[str, int], float]) -> list[tuple]:
-    """``tasks`` (module, seed, ...) ordered by their expected seconds, longest first: a draw's own
+    """``tasks`` (module or tuple of modules, seed, ...) ordered by their expected seconds, longest first: a draw's own
     from ``seconds`` (keyed by estimator label and seed), else its estimator's median there,
     else first of all (an estimator never timed may be the longest)."""
     medians = {}
@@ -44,7 +44,11 @@ def longest_first(tasks: list[tuple], labels: dict[str, str], seconds: dict[tupl
         known = [v for (lab, _), v in seconds.items() if lab == label]
         medians[module] = float(np.median(known)) if known else math.inf
 
-    def expected(task):
-        return seconds.get((labels.get(task[0], ""), task[1]), medians.get(task[0], math.inf))
+    def one(module, seed):
+        return seconds.get((labels.get(module, ""), seed), medians.get(module, math.inf))
+
+    def expected(task):  # a shared draw (a tuple of modules) takes its cases' sum
+        modules = task[0] if isinstance(task[0], tuple) else (task[0],)
+        return sum(one(m, task[1]) for m in modules)
 
     return sorted(tasks, key=expected, reverse=True)  # stable: ties keep the given order

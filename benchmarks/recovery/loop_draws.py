@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import pathlib
+import pickle
 
 import numpy as np
 from common import TIME_STYLES, CliFailure, run_cli, write_record
@@ -125,14 +126,33 @@ class LoopDraw:
     records: list  # [(references, measured outputs)] per experiment
     detail: str
     failed: str  # the command's one-line message, "" when it ran
+    key: tuple = ()  # (seed, noise) it was drawn for
 
 
-def draw_and_fit(seed: int, salt: int, workdir: pathlib.Path, noise: float, extra: tuple = ()) -> LoopDraw:
-    """Draw a loop from ``(seed, salt)``, write its records and controller into ``workdir`` and run
-    ``stageid identify closed-loop`` on them (plant to ``G.json``, ``extra`` options appended)."""
+SALT = 202  # the draws' stream: the PEM and closed-loop cases score the same truths
+
+
+def draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
+    """Draw a loop from ``seed``, write its records and controller into ``workdir`` and run
+    ``stageid identify closed-loop`` on them (plant to ``G.json``, closed loop to ``T.json``).
+
+    One run serves both cases: the prediction-error loop ``T`` is the command's first step and
+    the plant ``G`` its last, so a case run after the other in the same folder (the runner's
+    shared draw) takes the draw kept there instead of fitting again."""
+    kept = workdir / "loop-draw.pkl"
+    if kept.exists():
+        draw = pickle.loads(kept.read_bytes())
+        if draw.key == (seed, noise):
+            return draw
+    draw = _draw_and_fit(seed, workdir, noise)
+    kept.write_bytes(pickle.dumps(draw))
+    return draw
+
+
+def _draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
     from stageid.models import save_model
 
-    rng = np.random.default_rng([seed, salt])
+    rng = np.random.default_rng([seed, SALT])
     plant, K, unstable = draw_loop(rng)
     save_model(K, workdir / "K.json")
     paths, records, style, kind = write_experiments(rng, plant, K, noise, workdir)
@@ -142,8 +162,8 @@ def draw_and_fit(seed: int, salt: int, workdir: pathlib.Path, noise: float, extr
         run_cli([
             "identify", "closed-loop", *paths, "--references", ",".join(f"r{i + 1}" for i in range(n)),
             "--outputs", ",".join(f"y{i + 1}" for i in range(n)), "--controller", workdir / "K.json",
-            "-o", workdir / "G.json", *extra,
+            "-o", workdir / "G.json", "--closed-loop-output", workdir / "T.json",
         ])  # fmt: skip
     except CliFailure as exc:
         failed = str(exc)
-    return LoopDraw(plant, K, unstable, records, f"{n}x{n}, {kind}, t {style}", failed)
+    return LoopDraw(plant, K, unstable, records, f"{n}x{n}, {kind}, t {style}", failed, (seed, noise))

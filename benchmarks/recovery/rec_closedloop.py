@@ -22,6 +22,7 @@ from common import Row
 from loop_draws import BAND, draw_and_fit
 
 ESTIMATOR = "Closed loop"
+SHARED_DRAW = "loop"  # one command run per truth gives T (the PEM case) and G (this case)
 
 
 def unstable_entry_poles(fit) -> np.ndarray:
@@ -53,7 +54,7 @@ def band_error(fit, truth, f: np.ndarray) -> float:
 def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     from stageid.models import load_model
 
-    draw = draw_and_fit(seed, 202, workdir, noise)
+    draw = draw_and_fit(seed, workdir, noise)
     if draw.failed:
         return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     fit = load_model(workdir / "G.json")

@@ -28,12 +28,13 @@ from common import Row
 from loop_draws import closed_loop_response, draw_and_fit, loop_cost
 
 ESTIMATOR = "PEM"
+SHARED_DRAW = "loop"  # one command run per truth gives T (this case) and G (the closed-loop case)
 
 
 def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
     from stageid.models import load_model
 
-    draw = draw_and_fit(seed, 303, workdir, noise, ("--closed-loop-output", workdir / "T.json"))
+    draw = draw_and_fit(seed, workdir, noise)
     if draw.failed:
         return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     T_fit = load_model(workdir / "T.json")

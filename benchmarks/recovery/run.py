@@ -59,6 +59,8 @@ __all__ = [
     "discover",
     "draw_noise",
     "run_one",
+    "run_group",
+    "group_tasks",
     "run_all",
     "summarise",
     "missed_targets",
@@ -134,9 +136,12 @@ def _on_alarm(signum, frame):  # noqa: ARG001
     raise TimeoutError("draw stopped by the per-draw time limit")
 
 
-def run_one(module: str, seed: int, noise: float, case_timeout: float = 0.0) -> Outcome:
-    """One draw of ``module`` in a fresh temporary folder; a case that raises or overruns
-    ``case_timeout`` seconds is a failed draw with its message."""
+def run_one(
+    module: str, seed: int, noise: float, case_timeout: float = 0.0, workdir: pathlib.Path | None = None
+) -> Outcome:
+    """One draw of ``module`` in a fresh temporary folder (or in ``workdir``, shared with the other
+    cases of its draw); a case that raises or overruns ``case_timeout`` seconds is a failed draw
+    with its message."""
     mod = _load(module)
     t0 = time.perf_counter()
     use_alarm = case_timeout > 0 and hasattr(signal, "SIGALRM")
@@ -144,8 +149,11 @@ def run_one(module: str, seed: int, noise: float, case_timeout: float = 0.0) -> 
         old = signal.signal(signal.SIGALRM, _on_alarm)
         signal.setitimer(signal.ITIMER_REAL, case_timeout)
     try:
-        with tempfile.TemporaryDirectory(prefix=f"{module}-{seed}-") as tmp:
-            row = mod.case(seed, pathlib.Path(tmp), noise)
+        if workdir is not None:
+            row = mod.case(seed, workdir, noise)
+        else:
+            with tempfile.TemporaryDirectory(prefix=f"{module}-{seed}-") as tmp:
+                row = mod.case(seed, pathlib.Path(tmp), noise)
         fields = {k: getattr(row, k) for k in ("recovered", "error", "unit", "reference_error", "cost_ratio")}
         fields.update(failed=str(getattr(row, "failed", "") or ""), detail=str(getattr(row, "detail", "") or ""))
     except Exception as exc:  # a crashing case is a failed draw, reported with its message
@@ -164,6 +172,25 @@ def run_one(module: str, seed: int, noise: float, case_timeout: float = 0.0) -> 
         unit=fields["unit"], reference_error=float(fields["reference_error"]),
         cost_ratio=float(fields["cost_ratio"]), failed=fields["failed"], detail=fields["detail"],
     )  # fmt: skip
+
+
+def run_group(modules: tuple[str, ...], seed: int, noise: float, case_timeout: float = 0.0) -> list[Outcome]:
+    """The draws of ``modules`` at one seed that share their fit (``SHARED_DRAW``), in one folder and
+    in order: the first case runs the command, the others score what it left there, so its seconds
+    are counted in the first case's row."""
+    if len(modules) == 1:
+        return [run_one(modules[0], seed, noise, case_timeout)]
+    with tempfile.TemporaryDirectory(prefix=f"{'+'.join(modules)}-{seed}-") as tmp:
+        return [run_one(m, seed, noise, case_timeout, workdir=pathlib.Path(tmp)) for m in modules]
+
+
+def group_tasks(modules: list[str], seeds: list[int], noise: float | None) -> list[tuple]:
+    """``(modules, seed, noise)`` per seed and draw: the modules that declare the same
+    ``SHARED_DRAW`` run together, the others alone."""
+    groups: dict[str, list[str]] = {}
+    for m in modules:
+        groups.setdefault(getattr(_load(m), "SHARED_DRAW", m), []).append(m)
+    return [(tuple(g), s, draw_noise(s) if noise is None else float(noise)) for s in seeds for g in groups.values()]
 
 
 def _progress(o: Outcome, done: int, total: int, stream) -> None:
@@ -190,31 +217,33 @@ def run_all(
     """Every (module, seed) draw, longest first by ``seconds`` (:func:`longest_first`; in the given
     order without); returns the outcomes in module then seed order and, per module, how many
     draws the time ``budget`` (seconds, 0 = none) dropped before they started."""
-    tasks = [(m, s, draw_noise(s) if noise is None else float(noise)) for s in seeds for m in modules]
+    tasks = group_tasks(modules, seeds, noise)
     if seconds is not None:
         tasks = longest_first(tasks, {m: _load(m).ESTIMATOR for m in modules}, seconds)
     out: list[Outcome] = []
+    total = len(modules) * len(seeds)
     t0 = time.perf_counter()
     over = lambda: budget > 0 and time.perf_counter() - t0 > budget  # noqa: E731
     if jobs <= 1:
-        for k, task in enumerate(tasks):
+        for task in tasks:
             if over():
                 break
-            out.append(run_one(*task, case_timeout))
-            _progress(out[-1], k + 1, len(tasks), stream)
+            for o in run_group(*task, case_timeout):
+                out.append(o)
+                _progress(o, len(out), total, stream)
     else:
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
         with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
             pending, queue = set(), list(tasks)
             while queue or pending:
                 while queue and len(pending) < jobs and not over():
-                    pending.add(pool.submit(run_one, *queue.pop(0), case_timeout))
+                    pending.add(pool.submit(run_group, *queue.pop(0), case_timeout))
                 if not pending:
                     break
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    out.append(f.result())
-                    _progress(out[-1], len(out), len(tasks), stream)
+                for o in (o for f in finished for o in f.result()):
+                    out.append(o)
+                    _progress(o, len(out), total, stream)
     ran = {(o.module, o.seed) for o in out}
     dropped = {m: sum((m, s) not in ran for s in seeds) for m in modules}
     out.sort(key=lambda o: (modules.index(o.module), o.seed))
