@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .threshold_polish import polish_thresholds
 from .weights import WeightProblem
 
 __all__ = ["search_thresholds", "SearchResult", "StallStop", "merged_result"]
@@ -30,7 +31,7 @@ SETTLE_TOLERANCE = 1e-4
 SETTLE_LIMIT = 20000
 #: Grid points (after the best) that are settled too: the residual over the thresholds has
 #: several valleys, and the best grid point was not in the deepest on some random plants.
-SETTLE_STARTS = 3
+SETTLE_STARTS = 7
 #: A simplex of the settling stops on the cost: when its best residual fell by less than
 #: ``STALL_TOLERANCE`` (relative) over its last ``STALL_EVALUATIONS`` weight fits, it is
 #: shuffling at the bottom of its valley (the round's Powell step goes on from there).
@@ -40,6 +41,9 @@ STALL_TOLERANCE = 1e-6
 #: earlier start passed, at no lower residual, follows that start and takes its result: grid
 #: points one line search apart often meet after their first Powell step.
 MERGE_DISTANCE = 1e-3
+#: A start that Gauss-Newton leaves more than this (relative) above the best residual of the
+#: starts settled before is at the bottom of a worse valley: it is not settled further.
+SETTLE_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -149,7 +153,7 @@ def _descend(
 
 
 def _settle(
-    objective: _Objective, th: np.ndarray, f: float, free: np.ndarray, paths: list
+    objective: _Objective, th: np.ndarray, f: float, free: np.ndarray, paths: list, bound: float = np.inf
 ) -> tuple[float, np.ndarray, bool]:
     """Powell's method and a fresh simplex in turn from the best point until a round lowers
     the residual by less than ``SETTLE_TOLERANCE``; False when ``SETTLE_LIMIT`` weight fits ran
@@ -159,7 +163,18 @@ def _settle(
     appended): a start that meets an earlier path (:func:`merged_result`) ends with that path's result.
     """
     passed: list[tuple[np.ndarray, float]] = []
-    result = None
+    th_gn, n_fits = polish_thresholds(
+        objective.problem, objective.kinds, th, free, (objective.lower, objective.upper, objective.scale)
+    )
+    objective.count += n_fits
+    f_gn = objective.at(th_gn)
+    if f_gn < f:
+        f, th = f_gn, th_gn
+    result = merged_result(paths, th, f, objective.scale)
+    if result is None and f > bound * (1.0 + SETTLE_MARGIN):
+        result = (f, th, True)  # the bottom of a valley above one already settled
+    if result is None:
+        passed.append((th.copy(), f))
     while result is None and objective.count < SETTLE_LIMIT:
         f_round = f
         for method in ("Powell", "Nelder-Mead"):
@@ -248,7 +263,10 @@ def search_thresholds(
     if settle:  # the residual has several valleys: the best point and the next grid points settled
         paths: list = []
         starts = [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]
-        settled = [_settle(objective, th, f, active, paths) for f, th in starts]
+        settled: list[tuple[float, np.ndarray, bool]] = []
+        for f, th in starts:
+            bound = min((item[0] for item in settled), default=np.inf)
+            settled.append(_settle(objective, th, f, active, paths, bound))
         best_f, best_th, success = min(settled, key=lambda item: item[0])
     message = (
         f"modified PI: {objective.count} weight fits in the threshold search; RMS residual "
