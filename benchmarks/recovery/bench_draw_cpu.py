@@ -49,7 +49,9 @@ def _worker(src: str, module: str, jobs, results) -> None:
             row = mod.case(seed, pathlib.Path(tmp), runner.draw_noise(seed))
         cpu1 = resource.getrusage(resource.RUSAGE_SELF)
         cpu = cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime
-        results.put((seed, cpu, time.perf_counter() - t0, row.recovered, row.error, row.reference_error, row.cost_ratio))
+        results.put(
+            (seed, cpu, time.perf_counter() - t0, row.recovered, row.error, row.reference_error, row.cost_ratio)
+        )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -70,7 +72,9 @@ def main(argv: list[str] | None = None) -> None:
         results.get()
         workers[name] = (proc, jobs, results)
     totals = {"before": [0.0, 0.0], "after": [0.0, 0.0]}
-    print("| seed | CPU s before | CPU s after | wall s before / after | cost ratio before / after | error before / after |")
+    print(
+        "| seed | CPU s before | CPU s after | wall s before / after | cost ratio before / after | error before / after |"
+    )
     print("|---|---|---|---|---|---|")
     for seed in _seeds(args.seeds):
         rows = {}
