@@ -34,13 +34,18 @@ def projected_residuals(problem: WeightProblem, theta: np.ndarray, kinds: list[s
         creep = None
     else:
         _, w, offsets, creep = problem.solve_creep(theta, kinds, classical=False)
+    from .. import kernels  # numba: imported on first use
+
+    r, rc, ra, rb, _ = problem.thresholds(theta, False)
     parts, start = [], 0
-    for j, (Z, offset) in enumerate(zip(problem.matrix(theta, kinds, False), offsets)):
-        fit = Z @ w + offset
+    for j, ((x, z0), rows, offset) in enumerate(
+        zip(problem.operator_inputs(theta, kinds, False), problem.rows, offsets)
+    ):
+        fit = kernels.cp_sum(x, r, rc, ra, rb, w, z0)[0][rows] + offset
         if creep is not None:
             fit = fit + problem.lags[j] @ creep
-        parts.append(problem.y[start : start + Z.shape[0]] - fit)
-        start += Z.shape[0]
+        parts.append(problem.y[start : start + rows.size] - fit)
+        start += rows.size
     return np.concatenate(parts)
 
 

@@ -204,6 +204,44 @@ def merged_result(paths: list, th: np.ndarray, f: float, scale: np.ndarray) -> t
     return None
 
 
+def _settle_starts(objective: _Objective, starts: list[tuple[float, np.ndarray]]) -> tuple[float, np.ndarray, bool]:
+    """Every start settled (:func:`_settle`), each bounded by the best of those before; the best."""
+    paths: list = []
+    settled: list[tuple[float, np.ndarray, bool]] = []
+    for f, th in starts:
+        bound = min((item[0] for item in settled), default=np.inf)
+        settled.append(_settle(objective, th, f, objective.active, paths, bound))
+    return min(settled, key=lambda item: item[0])
+
+
+def _budgeted(
+    objective: _Objective, grid: list, best: tuple[float, np.ndarray], budget: int, input_warp: bool
+) -> tuple[float, np.ndarray, bool]:
+    """Steps 1-2 of :func:`search_thresholds` from the best start: the simplexes within ``budget``."""
+    best_f, best_th = best
+    active = objective.active
+    remaining = budget - objective.count
+    success = remaining > 20
+    if success:
+        f_new, th_new, success = _descend(
+            objective, best_th, best_f, active, remaining // 2 if input_warp else remaining
+        )
+        if f_new < best_f:
+            best_f, best_th = f_new, th_new
+    if input_warp:
+        f0, th0 = min(((f, th) for f, th in grid if th[7] == 0.0), key=lambda item: item[0])
+        if budget - objective.count > 40:
+            f0, th0, _ = _descend(objective, th0, f0, active[active != 7], (budget - objective.count) // 2)
+            f_new, th_new, converged = _descend(objective, th0, f0, active, budget - objective.count)
+            success = success and converged
+            for f_c, th_c in ((f0, th0), (f_new, th_new)):
+                if f_c < best_f:
+                    best_f, best_th = f_c, th_c
+        else:
+            success = False
+    return best_f, best_th, success
+
+
 def search_thresholds(
     problem: WeightProblem,
     theta0: np.ndarray,
@@ -241,33 +279,10 @@ def search_thresholds(
     best_f, best_th = grid[0]
     if f_classical < best_f:
         best_f, best_th = f_classical, classical
-    remaining = budget - objective.count
-    success = remaining > 20
-    if success:
-        f_new, th_new, success = _descend(
-            objective, best_th, best_f, active, remaining // 2 if input_warp else remaining
-        )
-        if f_new < best_f:
-            best_f, best_th = f_new, th_new
-    if input_warp:
-        f0, th0 = min(((f, th) for f, th in grid if th[7] == 0.0), key=lambda item: item[0])
-        if budget - objective.count > 40:
-            f0, th0, _ = _descend(objective, th0, f0, active[active != 7], (budget - objective.count) // 2)
-            f_new, th_new, converged = _descend(objective, th0, f0, active, budget - objective.count)
-            success = success and converged
-            for f_c, th_c in ((f0, th0), (f_new, th_new)):
-                if f_c < best_f:
-                    best_f, best_th = f_c, th_c
-        else:
-            success = False
     if settle:  # the residual has several valleys: the best point and the next grid points settled
-        paths: list = []
-        starts = [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]]
-        settled: list[tuple[float, np.ndarray, bool]] = []
-        for f, th in starts:
-            bound = min((item[0] for item in settled), default=np.inf)
-            settled.append(_settle(objective, th, f, active, paths, bound))
-        best_f, best_th, success = min(settled, key=lambda item: item[0])
+        best_f, best_th, success = _settle_starts(objective, [(best_f, best_th), *grid[1 : 1 + SETTLE_STARTS]])
+    else:
+        best_f, best_th, success = _budgeted(objective, grid, (best_f, best_th), budget, input_warp)
     message = (
         f"modified PI: {objective.count} weight fits in the threshold search; RMS residual "
         f"{np.sqrt(best_f / max(f_classical, 1e-300)):.3g} of the classical start's."
