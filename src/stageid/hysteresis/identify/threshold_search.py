@@ -5,8 +5,11 @@ index (``c_i = c0 + c1 t_i``, ``t_i = i/(n-1) - 1/2``, likewise ``a_i``, ``b_i``
 the orderings eq. 3 needs, the centre ``xc`` and (our extension) the monotone quadratic input
 warp ``q``: eight parameters ``theta``.  Every evaluation is one weight fit of :mod:`.weights`
 (the residual with the best weights for those thresholds).  A coarse grid of the mean ratios
-and the warp, then bounded Nelder-Mead from the best grid point; the classical model (all
-ratios 1, no warp) is among the candidates, so the result is never worse than it.
+and the warp; then either bounded Nelder-Mead from the best grid point within a budget, or
+(no budget given) the best grid points settled one by one: Gauss-Newton on the projected
+residual (:mod:`.threshold_polish`) to the bottom of the start's valley, then rounds of Powell's
+method and a simplex until the residual stops falling.  The classical model (all ratios 1, no
+warp) is among the candidates, so the result is never worse than it.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ SETTLE_CHUNK = 400
 SETTLE_TOLERANCE = 1e-4
 SETTLE_LIMIT = 20000
 #: Grid points (after the best) that are settled too: the residual over the thresholds has
-#: several valleys, and the best grid point was not in the deepest on some random plants.
+#: several valleys, and the best grid point was not in the deepest on some random plants (one
+#: recovery draw's deepest valley is reached from the eighth only: benchmarks/RESULTS-recovery.md).
 SETTLE_STARTS = 7
 #: A simplex of the settling stops on the cost: when its best residual fell by less than
 #: ``STALL_TOLERANCE`` (relative) over its last ``STALL_EVALUATIONS`` weight fits, it is
@@ -155,9 +159,11 @@ def _descend(
 def _settle(
     objective: _Objective, th: np.ndarray, f: float, free: np.ndarray, paths: list, bound: float = np.inf
 ) -> tuple[float, np.ndarray, bool]:
-    """Powell's method and a fresh simplex in turn from the best point until a round lowers
-    the residual by less than ``SETTLE_TOLERANCE``; False when ``SETTLE_LIMIT`` weight fits ran
-    out first.  Powell's line searches get past ridges where a simplex of fixed shape stalls.
+    """Gauss-Newton on the projected residual from ``th`` (:func:`.polish_thresholds`), then
+    Powell's method and a fresh simplex in turn until a round lowers the residual by less than
+    ``SETTLE_TOLERANCE``; False when ``SETTLE_LIMIT`` weight fits ran out first.  Powell's line
+    searches get past ridges where a simplex of fixed shape stalls.  A start that Gauss-Newton
+    leaves more than ``SETTLE_MARGIN`` above ``bound`` (the best start settled before) ends there.
 
     ``paths`` holds ``(points passed, result)`` of the starts settled before (this one's is
     appended): a start that meets an earlier path (:func:`merged_result`) ends with that path's result.
@@ -258,13 +264,16 @@ def search_thresholds(
     ``theta0`` is the classical model; ``R`` the half range of the thresholds; ``(lo, hi)``
     the input range (the centre moves within its middle half).
 
+    Without ``settle`` (a budget given):
+
     1. the simplex on every parameter from the best grid point, with half the budget left;
     2. with the warp, the other half chains two simplexes: the best unwarped grid point
        searched without the warp, then the warp released from there, so a warped fit cannot
        end above the unwarped optimum the search finds (a plain 8-parameter simplex from
-       warped grid points stalled above it on asymmetric Bouc-Wen data);
-    3. with ``settle``, beyond the budget: restarts from the best point until the residual
-       settles (:func:`_settle`).
+       warped grid points stalled above it on asymmetric Bouc-Wen data).
+
+    With ``settle`` (no budget): the best point and the next ``SETTLE_STARTS`` grid points,
+    each settled (:func:`_settle`: Gauss-Newton, then rounds until the residual settles).
     """
     centre = 0.5 * (lo + hi)
     qmax = 0.4 if input_warp else 0.0
