@@ -48,6 +48,9 @@ MERGE_DISTANCE = 1e-3
 #: A start that Gauss-Newton leaves more than this (relative) above the best residual of the
 #: starts settled before is at the bottom of a worse valley: it is not settled further.
 SETTLE_MARGIN = 0.01
+#: The first starts are settled whatever Gauss-Newton left: on measured records (not of the
+#: class) it can stop on a kink far above the bottom that Powell and the simplex reach.
+SETTLE_ALWAYS = 4
 
 
 @dataclass(frozen=True)
@@ -211,11 +214,12 @@ def merged_result(paths: list, th: np.ndarray, f: float, scale: np.ndarray) -> t
 
 
 def _settle_starts(objective: _Objective, starts: list[tuple[float, np.ndarray]]) -> tuple[float, np.ndarray, bool]:
-    """Every start settled (:func:`_settle`), each bounded by the best of those before; the best."""
+    """Every start settled (:func:`_settle`), each after the first ``SETTLE_ALWAYS`` bounded by
+    the best of those before; the best."""
     paths: list = []
     settled: list[tuple[float, np.ndarray, bool]] = []
-    for f, th in starts:
-        bound = min((item[0] for item in settled), default=np.inf)
+    for k, (f, th) in enumerate(starts):
+        bound = min((item[0] for item in settled), default=np.inf) if k >= SETTLE_ALWAYS else np.inf
         settled.append(_settle(objective, th, f, objective.active, paths, bound))
     return min(settled, key=lambda item: item[0])
 
