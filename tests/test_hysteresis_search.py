@@ -125,3 +125,32 @@ def test_a_start_that_meets_an_earlier_path_takes_its_result():
     assert merged_result(paths, near, 0.99, scale) is None
     assert merged_result(paths, passed + 2 * MERGE_DISTANCE * scale, 1.0, scale) is None
     assert merged_result([], near, 1.0, scale) is None
+
+
+@pytest.mark.parametrize(("seed", "n"), [(1, 6), (2, 10)])
+def test_the_settled_search_reaches_the_optimum_in_a_few_thousand_weight_fits(seed, n):
+    # Gauss-Newton on the projected residual takes each start to the bottom of its valley: the
+    # simplex and Powell rounds alone needed 7680 and 10914 weight fits on these two plants
+    u, y, _ = _coupled_play_plant(seed, n, 200.0)
+    fit = PIIdentifier("modified-pi", n_operators=n).fit((u, y))
+    assert fit.rms_error_percent[0] < 1e-3  # % of range: the true thresholds give 0
+    assert fit.n_evaluations <= 4000
+
+
+def test_gauss_newton_takes_a_start_to_the_bottom_of_its_valley():
+    from stageid.hysteresis.identify.threshold_polish import polish_thresholds, projected_residuals
+    from stageid.hysteresis.identify.weights import WeightProblem
+
+    u, y, theta = _coupled_play_plant(3, 8, 200.0)
+    problem = WeightProblem([(u, y)], np.arange(8) * 200.0 / 8, 1e-9, 1, "modified-pi", 1e-6, 200.0)
+    lower = np.array([0.0, -1.0, 0.05, -2.0, 0.0, -1.0, -50.0, -0.4])
+    upper = np.array([1.0, 1.0, 3.0, 2.0, 1.0, 1.0, 50.0, 0.4])
+    scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 200.0, 1.0])
+    start = theta + np.array([0.05, -0.05, 0.1, 0.05, -0.05, 0.05, 2.0, 0.03])
+    e0 = projected_residuals(problem, start, ["zero"])
+    found, n_fits = polish_thresholds(problem, ["zero"], start, np.arange(8), (lower, upper, scale))
+    e1 = projected_residuals(problem, found, ["zero"])
+    # noise-free records of the class: the bottom is the truth, residual at rounding level
+    assert e1 @ e1 < 1e-8 * (e0 @ e0)
+    assert np.max(np.abs(found - theta) / scale) < 1e-4  # the ratios, and the centre in units of R
+    assert n_fits <= 400

@@ -9,7 +9,10 @@ module                         what it holds
                                thresholds, is a line there)
 :mod:`.weights`                step 2: operator weights by constrained least squares
                                (invertibility bounds)
-:mod:`.threshold_search`       step 3: CP thresholds of the modified PI (grid, Nelder-Mead)
+:mod:`.threshold_search`       step 3: CP thresholds of the modified PI (grid, Nelder-Mead,
+                               settling of several starts)
+:mod:`.threshold_polish`       step 3: Gauss-Newton on the projected residual (a start to the
+                               bottom of its valley)
 :mod:`.records`                the records read once (``Records``), step 4: starting
                                states, per-record errors, ``align_record``
 :mod:`.weight_uncertainty`     covariance of the weights (block-robust least squares)

@@ -25,9 +25,10 @@ Procedure (the letter's, made explicit):
    clipped to ``0 <= c_i <= 1``, ``a_i >= 0``, ``0 <= b_i <= 1`` (the orderings eq. 3 needs),
    the centre ``xc`` and (our extension, ``input_warp=True``) the monotone quadratic input
    warp ``q`` of :class:`ModifiedPIModel`: eight parameters, searched on a coarse grid of the
-   mean ratios and the warp and refined by Nelder-Mead, then (unless ``max_evaluations`` is
-   given) settled from the best point and the next grid points by rounds of Powell's method and
-   the simplex until the residual stops falling (the residual has several valleys); the
+   mean ratios and the warp; with ``max_evaluations`` given, refined by Nelder-Mead within it;
+   otherwise the best eight grid points are each taken to the bottom of their valley by
+   Gauss-Newton on the projected residual and settled by rounds of Powell's method and the
+   simplex until the residual stops falling (the residual has several valleys); the
    classical model (all ratios 1, no warp) is among the candidates, so the modified fit is never
    worse than the classical one under the same constraint.
 4. **Starting state** of every record: ``"zero"`` (the letter's ``x0 = z0 = 0``, then the
@@ -127,11 +128,12 @@ class PIIdentifier(Estimator):
         The least-squares problems use at most this many (evenly strided) samples, >= 10; the
         operators always run over every sample.
     max_evaluations : int, optional
-        Limit of the nonlinear search (modified PI: weight fits), >= 1.  Default: a first search
-        of 1000 weight fits with the input warp (its search runs a second, chained simplex) and
-        500 without, then the best point and the next three grid points settled by rounds of
-        Powell's method and a simplex until a round lowers the residual by less than 1e-4
-        (relative; at most 20000 weight fits in all).
+        Limit of the nonlinear search (modified PI: weight fits), >= 1: the grid, then
+        Nelder-Mead (with the input warp, a second, chained simplex) within the limit.  Default:
+        no limit; the best point of the grid and the next seven settled, each by Gauss-Newton
+        on the projected residual and then rounds of Powell's method and a simplex until a round
+        lowers the residual by less than 1e-4 (relative; at most 20000 weight fits in all); a
+        start that Gauss-Newton leaves more than 1 % above a start settled before is dropped.
     input_warp : bool, default True
         Also search the monotone quadratic input warp ``q`` of :class:`ModifiedPIModel` (our
         extension; ``False`` gives the letter's model exactly).

@@ -186,13 +186,41 @@ def cp_rows(u, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compi
     return out, s, low, high
 
 
+#: Rows of :func:`cp_gram` held per operator before they join the normal equations: ``Z'Z``
+#: of a block is one contiguous dot product per pair of operators, which vectorises, where a
+#: rank-one update per row does not (benchmarks/RESULTS-recovery.md, Modified PI).
+GRAM_BLOCK = 32
+
+
+@jit
+def fold_rows(block, yb, nb, G, g, s):  # pragma: no cover - compiled
+    """The first ``nb`` rows of ``block`` (shape (n_operators, GRAM_BLOCK): one operator's
+    outputs contiguous) and their outputs ``yb`` into the lower triangle of ``G``, ``g`` and
+    the column sums ``s``."""
+    for i in range(block.shape[0]):
+        bi = block[i]
+        acc_s = 0.0
+        acc_g = 0.0
+        for k in range(nb):
+            acc_s += bi[k]
+            acc_g += bi[k] * yb[k]
+        s[i] += acc_s
+        g[i] += acc_g
+        for j in range(i + 1):
+            bj = block[j]
+            acc = 0.0
+            for k in range(nb):
+                acc += bi[k] * bj[k]
+            G[i, j] += acc
+
+
 @jit
 def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - compiled
     """The normal equations of the rows of :func:`cp_rows` against ``y`` (one value per row,
     the samples ``0, stride, ...``), accumulated as the operators run, without the rows:
     ``Z'Z``, ``Z'y``, the column sums, the number of rows, the sum of ``y``, and each column's
-    least and largest value.  One pass and no row matrix: the weight fits of the threshold
-    search are this kernel's calls."""
+    least and largest value.  One pass, rows folded in blocks of ``GRAM_BLOCK`` (:func:`fold_rows`),
+    no row matrix: the weight fits of the threshold search are this kernel's calls."""
     n = u.shape[0]
     m = r.shape[0]
     G = np.zeros((m, m))
@@ -200,10 +228,13 @@ def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - co
     s = np.zeros(m)
     low = np.full(m, np.inf)
     high = np.full(m, -np.inf)
+    block = np.empty((m, GRAM_BLOCK))
+    yb = np.empty(GRAM_BLOCK)
     z = z0.copy()
     rows = 0
     ysum = 0.0
     next_kept = 0
+    nb = 0
     for k in range(n):
         if k == 0 or u[k] != u[k - 1]:
             cp_advance(u[k], xc, q, R, r, rc, ra, rb, z)
@@ -212,14 +243,17 @@ def cp_gram(u, y, xc, q, R, r, rc, ra, rb, z0, stride):  # pragma: no cover - co
             yk = y[rows]
             ysum += yk
             rows += 1
+            yb[nb] = yk
             for i in range(m):
                 zi = z[i]
-                s[i] += zi
-                g[i] += zi * yk
+                block[i, nb] = zi
                 low[i] = min(low[i], zi)
                 high[i] = max(high[i], zi)
-                for j in range(i + 1):  # the lower triangle; mirrored below
-                    G[i, j] += zi * z[j]
+            nb += 1
+            if nb == GRAM_BLOCK:
+                fold_rows(block, yb, nb, G, g, s)
+                nb = 0
+    fold_rows(block, yb, nb, G, g, s)
     for i in range(m):
         for j in range(i):
             G[j, i] = G[i, j]
