@@ -82,8 +82,8 @@ Examples:
     type=click.Choice(["sensitivity", "none"]),
     default="sensitivity",
     show_default=True,
-    help="Known controller, oe: refit the pairs through each output's noise model 1 - T_ii where the "
-    "residuals support it (sensitivity), or output error alone (none).",
+    help="Known controller, oe: refit the diagonal pairs through their outputs' noise model 1 - T_ii "
+    "(sensitivity), or output error alone (none).",
 )
 @output_option("Plant file (stageid.lti/1).")
 @click.option(

@@ -4,8 +4,8 @@ Steps (Fig. 2 of the paper), each a function of the module that owns it:
 
 1. every reference-to-output pair ``T_ij`` of the closed loop by prediction error, one
    reference excited per experiment (eq. 11-17; :mod:`~stageid.closedloop.loop_model`,
-   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`), output-error pairs
-   refitted through each output's sensitivity-shaped noise model (:mod:`~stageid.closedloop.prefilter`);
+   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`), the output-error
+   diagonal pairs refitted through their outputs' sensitivity-shaped noise (:mod:`~stageid.closedloop.prefilter`);
 2. the plant deduced in discrete time, ``G = T (M - M T)^-1`` (eq. 18), and its unstable
    poles, the zeros of ``M (I - T)`` outside the unit circle (:mod:`~stageid.closedloop.deduction`);
 3. the spurious pole-zero pairs cancelled entry by entry, distances reported (sec. 3.2.3;
@@ -111,10 +111,10 @@ class ClosedLoopIdentification(Estimator):
         Parameter covariance of each pair for :meth:`ClosedLoopResult.response_uncertainty`
         (:mod:`~stageid.closedloop.covariance`; "none" skips it).
     noise_model : {"sensitivity", "none"}
-        "sensitivity": output-error pairs are fitted again through a fixed noise model of each
-        output, the first estimate's sensitivity ``1 - T_ii`` (the loop shapes the outputs'
-        noise by it), where the first fit's residuals support that model
-        (:func:`~stageid.closedloop.prefilter.whiten_pairs`); "none": output error alone.
+        "sensitivity": the output-error diagonal pairs are fitted again through a fixed noise
+        model of their output, the sensitivity ``1 - T_ii`` of the estimate (the loop shapes the
+        outputs' noise by it; :func:`~stageid.closedloop.prefilter.whiten_pairs`), which places
+        the unstable poles; "none": output error alone.
 
     Examples
     --------
@@ -284,7 +284,7 @@ class ClosedLoopIdentification(Estimator):
         T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         duration = max(e.n_samples * e.dt for e in exps)
         if self.noise_model == "sensitivity":  # below the records' resolution the noise spectrum is unknown
-            pem_models, groups, _ = whiten_pairs(groups, pem_models, np.exp(-2 * np.pi * dt / duration), self.max_nfev)
+            pem_models, groups = whiten_pairs(groups, pem_models, np.exp(-2 * np.pi * dt / duration), self.max_nfev)
             T, fits = assemble_loop(pem_models, groups)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
