@@ -232,6 +232,15 @@ class ClosedLoopIdentification(Estimator):
 
         return fit_pair
 
+    def _loop_pairs(self, groups, fit_pair, dt: float, duration: float):
+        """Step 1: the pairs by output error, the diagonal ones refitted through their outputs'
+        sensitivity noise model (:func:`~stageid.closedloop.prefilter.whiten_pairs`)."""
+        T, models, fits, groups = identify_pairs(groups, fit_pair)
+        if self.noise_model == "sensitivity":  # below the records' resolution the noise spectrum is unknown
+            models, groups = whiten_pairs(groups, models, np.exp(-2 * np.pi * dt / duration), self.max_nfev)
+            T, fits = assemble_loop(models, groups)
+        return T, models, fits, groups
+
     def _reduce(self, T, M, Mr, P_band, f_band, entries, s_unstable):
         """Step 4 with a fixed structure: every entry reduced over the band, its lines weighed by
         how far an error of T reaches it there (:mod:`~stageid.closedloop.reliability`)."""
@@ -281,11 +290,8 @@ class ClosedLoopIdentification(Estimator):
         groups = at_rest(group_by_reference(exps), fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
         duration = max(e.n_samples * e.dt for e in exps)
-        if self.noise_model == "sensitivity":  # below the records' resolution the noise spectrum is unknown
-            pem_models, groups = whiten_pairs(groups, pem_models, np.exp(-2 * np.pi * dt / duration), self.max_nfev)
-            T, fits = assemble_loop(pem_models, groups)
+        T, pem_models, fits, groups = self._loop_pairs(groups, fit_pair, dt, duration)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
         check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / duration))
