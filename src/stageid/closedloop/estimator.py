@@ -237,7 +237,7 @@ class ClosedLoopIdentification(Estimator):
         sensitivity noise model (:func:`~stageid.closedloop.prefilter.whiten_pairs`)."""
         T, models, fits, groups = identify_pairs(groups, fit_pair)
         if self.noise_model == "sensitivity":  # below the records' resolution the noise spectrum is unknown
-            models, groups = whiten_pairs(groups, models, np.exp(-2 * np.pi * dt / duration), self.max_nfev)
+            models, groups = whiten_pairs(groups, models, np.exp(-2 * np.pi * dt / duration), self.max_nfev, fit_pair)
             T, fits = assemble_loop(models, groups)
         return T, models, fits, groups
 

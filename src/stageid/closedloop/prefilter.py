@@ -31,6 +31,8 @@ import scipy.signal as ss
 from .._errors import IdentificationError
 from ..data import Experiment
 from .covariance import model_orders
+from .loop_model import PairFit
+from .order_selection import criterion_value
 from .pem import decrement_tol, pem
 from .polynomial import FREE_ORDERS, PolynomialModel
 
@@ -78,14 +80,21 @@ def _levels(model: PolynomialModel, rf, yf, steps) -> np.ndarray:
 
 
 def prefiltered_refit(
-    model: PolynomialModel, r: list[np.ndarray], y: list[np.ndarray], filt, max_nfev: int
+    model: PolynomialModel,
+    r: list[np.ndarray],
+    y: list[np.ndarray],
+    filt,
+    max_nfev: int,
+    starts: tuple[PolynomialModel, ...] = (),
+    select: PairFit | None = None,
 ) -> tuple[PolynomialModel, np.ndarray]:
     """``model``'s structure and orders fitted again to the records filtered by ``filt``, and each
     record's output level, both minimising the filtered output error.
 
-    The level is solved under ``model`` first, then the pair is fitted from ``model`` and from the
-    linear start on the filtered records, and the lower filtered loss kept; its levels are solved
-    again.  From an output-error optimum alone the search can stay near its low-frequency drift
+    The level is solved under ``model`` first, then the pair is fitted from ``model``, from each
+    of ``starts`` and from the linear start on the filtered records, and with ``select`` (the
+    estimator's order selection) at the order it selects on them; the lowest BIC on the filtered
+    records is kept (at one order: the lowest filtered loss) and its levels are solved again.  From an output-error optimum alone the search can stay near its low-frequency drift
     (a 2x2 loop's diagonal pair: ``|dT|`` 4.1e-3 at 1 Hz from there, 3.6e-4 from the linear start).
     Returns the model and the levels; a pair whose refits all fail comes back as it was, level 0.
     """
@@ -96,14 +105,19 @@ def prefiltered_refit(
     target = [yk - dk * s for yk, dk, s in zip(yf, d, steps)]
     orders = {k: v for k, v in model_orders(model).items() if k in FREE_ORDERS[model.structure]}
     fits = []
-    for initial in (model, None):
+    for initial in (model, *starts, None):
         try:
             fits.append(pem(rf, target, model.structure, orders, model.nk, model.dt, max_nfev, initial))
         except IdentificationError:  # a start that fails leaves the other
             continue
+    if select is not None:
+        try:
+            fits.append(select(rf, target, model.dt))
+        except IdentificationError:
+            pass
     if not fits:
         return model, np.zeros(len(r))
-    best = min(fits, key=lambda m: m.loss)
+    best = min(fits, key=lambda m: criterion_value("bic", m.n_samples, m.loss, m.n_parameters))
     return best, _levels(best, rf, yf, steps)
 
 
@@ -112,6 +126,7 @@ def whiten_pairs(
     models: dict[tuple[int, int], PolynomialModel],
     max_radius: float,
     max_nfev: int,
+    select: PairFit | None = None,
 ) -> tuple[dict[tuple[int, int], PolynomialModel], dict[int, list[Experiment]]]:
     """Every output-error diagonal pair ``T_ii`` refitted through its output's sensitivity filter.
 
@@ -126,6 +141,11 @@ def whiten_pairs(
         Largest radius of a noise-model zero (:func:`sensitivity_filter`).
     max_nfev : int
         Evaluation limit of each refit.
+    select : callable, optional
+        The estimator's fit of one pair, ``(r, y, dt) -> PolynomialModel`` with its order
+        selection: run on the first filtered records, since an order selected where the output
+        error weighs the low frequencies little can be too low once they count (a 2x2 loop's
+        diagonal at order 3 put its unstable pole 14.7 % off through the filter).
 
     Returns
     -------
@@ -135,11 +155,14 @@ def whiten_pairs(
     models = dict(models)
     shifted = {j: [e.y.copy() for e in group] for j, group in groups.items()}
     for i in [i for i in groups if models[(i, i)].structure == "oe"]:
-        r = [e.u[:, i] for e in groups[i]]
-        for _ in range(MAX_PASSES):
+        r, first = [e.u[:, i] for e in groups[i]], models[(i, i)]
+        for n_pass in range(MAX_PASSES):
             y = [yk[:, i] for yk in shifted[i]]
             filt = sensitivity_filter(models[(i, i)], max_radius)
-            m, d = prefiltered_refit(models[(i, i)], r, y, filt, max_nfev)
+            # the output-error pair stays a start: a filter from a drifting pair can lead the first
+            # refit away from the band the output error fitted well
+            starts = (first,) if n_pass else ()
+            m, d = prefiltered_refit(models[(i, i)], r, y, filt, max_nfev, starts, None if n_pass else select)
             before, after = _error(filt, models[(i, i)], r, y, np.zeros(len(r))), _error(filt, m, r, y, d)
             if not after < before:  # the pair is replaced only when the refit lowers the cost it minimises
                 break
