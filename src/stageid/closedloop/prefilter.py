@@ -37,8 +37,8 @@ from .pem import decrement_tol, pem
 from .polynomial import FREE_ORDERS, PolynomialModel
 
 #: most prefilters built from the last estimate and refits through them: each filter comes from a
-#: pair that drifts less below the crossover (a 3x3 draw's pole 3.7 % off after one pass, 2.0 % after
-#: two, 0.4 % after three)
+#: pair that drifts less below the crossover (a 3x3 draw's pole 2.0 % off after two passes, 0.4 %
+#: after three)
 MAX_PASSES = 6
 
 __all__ = ["MAX_PASSES", "sensitivity_filter", "apply_filter", "prefiltered_refit", "whiten_pairs"]
