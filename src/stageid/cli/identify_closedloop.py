@@ -77,6 +77,14 @@ Examples:
     show_default=True,
     help="Controller unknown: states of the plant (and noise) model, or auto.",
 )
+@click.option(
+    "--noise-model",
+    type=click.Choice(["sensitivity", "none"]),
+    default="sensitivity",
+    show_default=True,
+    help="Known controller, oe: refit the diagonal pairs through their outputs' noise model 1 - T_ii "
+    "(sensitivity), or output error alone (none).",
+)
 @output_option("Plant file (stageid.lti/1).")
 @click.option(
     "--closed-loop-output",
@@ -106,6 +114,7 @@ def closedloop_command(
     discrete: bool,
     method: str | None,
     order_text: str,
+    noise_model: str,
     output: str,
     loop_output: str | None,
     report_dir: str | None,
@@ -141,8 +150,9 @@ def closedloop_command(
     u_names = _plant_input_names(plant_inputs, K, tables)
     disc = "tustin" if u_names is None else _check_loop_closed_by(K, u_names, tables, exps, experiments)
     est = ClosedLoopIdentification(
-        K, method=method, structure=structure, band=band, continuous=not discrete, controller_discretization=disc
-    )
+        K, method=method, structure=structure, band=band, continuous=not discrete, controller_discretization=disc,
+        noise_model=noise_model,
+    )  # fmt: skip
     result = est.fit(exps)
     if structure == "paper":
         _check_paper_structure(result, band)

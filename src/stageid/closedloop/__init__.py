@@ -38,6 +38,7 @@ Modules, in the order of the method (Fig. 2):
 
 ==============================  ============================================================
 ``loop_model``                  the pairs of ``T`` from the experiments (eq. 11-17)
+``prefilter``                   the diagonal pairs again through the outputs' sensitivity noise model
 ``polynomial``                  the model structures (ARX, ARMAX, OE, BJ; eq. 12)
 ``regression``                  lagged regressors and least squares
 ``initial``                     ARX / Steiglitz-McBride / Hannan-Rissanen starts

@@ -4,7 +4,8 @@ Steps (Fig. 2 of the paper), each a function of the module that owns it:
 
 1. every reference-to-output pair ``T_ij`` of the closed loop by prediction error, one
    reference excited per experiment (eq. 11-17; :mod:`~stageid.closedloop.loop_model`,
-   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`);
+   :mod:`~stageid.closedloop.pem`, :mod:`~stageid.closedloop.order_selection`), the output-error
+   diagonal pairs refitted through their outputs' sensitivity-shaped noise (:mod:`~stageid.closedloop.prefilter`);
 2. the plant deduced in discrete time, ``G = T (M - M T)^-1`` (eq. 18), and its unstable
    poles, the zeros of ``M (I - T)`` outside the unit circle (:mod:`~stageid.closedloop.deduction`);
 3. the spurious pole-zero pairs cancelled entry by entry, distances reported (sec. 3.2.3;
@@ -28,11 +29,12 @@ from .cancellation import cancel_entries, z_to_s
 from .controller import check_controller, check_grid, discrete_controllers, resolved_grid
 from .covariance import COVARIANCE_METHODS, closed_loop_covariance
 from .deduction import check_deduction, deduce_plant, plant_response, unstable_plant_poles, wide_response
-from .loop_model import at_rest, closed_loop_experiments, group_by_reference, identify_pairs, remembered
+from .loop_model import assemble_loop, at_rest, closed_loop_experiments, group_by_reference, identify_pairs, remembered
 from .order_selection import loop_order_bound, select_order
 from .pem import pem
 from .plant_reduction import keep_full_order, reduce_plant
 from .polynomial import FREE_ORDERS, STRUCTURES, PolynomialModel, structure_orders
+from .prefilter import whiten_pairs
 from .reduction import paper_orders
 from .reliability import deduction_gain, reliability_weights
 from .result import ClosedLoopResult
@@ -108,6 +110,11 @@ class ClosedLoopIdentification(Estimator):
     covariance : {"sandwich", "white", "none"}
         Parameter covariance of each pair for :meth:`ClosedLoopResult.response_uncertainty`
         (:mod:`~stageid.closedloop.covariance`; "none" skips it).
+    noise_model : {"sensitivity", "none"}
+        "sensitivity": the output-error diagonal pairs are fitted again through a fixed noise
+        model of their output, the sensitivity ``1 - T_ii`` of the estimate (the loop shapes the
+        outputs' noise by it; :func:`~stageid.closedloop.prefilter.whiten_pairs`), which places
+        the unstable poles; "none": output error alone.
 
     Examples
     --------
@@ -134,6 +141,7 @@ class ClosedLoopIdentification(Estimator):
         controller_discretization: str = "tustin",
         max_nfev: int = 200,
         covariance: str = "sandwich",
+        noise_model: str = "sensitivity",
     ) -> None:
         self.controller = controller
         self.reference_filter = reference_filter
@@ -148,6 +156,7 @@ class ClosedLoopIdentification(Estimator):
         self.controller_discretization = controller_discretization
         self.max_nfev = max_nfev
         self.covariance = covariance
+        self.noise_model = noise_model
 
     parameter_constraints = {
         "controller": [InstanceOf(_MODEL, "a StateSpaceModel or TransferMatrix")],
@@ -166,6 +175,7 @@ class ClosedLoopIdentification(Estimator):
         "controller_discretization": [Options("tustin", "zoh")],
         "max_nfev": [Interval(int, 1, None)],
         "covariance": [Options(*COVARIANCE_METHODS, "none")],
+        "noise_model": [Options("sensitivity", "none")],
     }
 
     def check_together(self) -> None:
@@ -222,6 +232,15 @@ class ClosedLoopIdentification(Estimator):
 
         return fit_pair
 
+    def _loop_pairs(self, groups, fit_pair, dt: float, duration: float):
+        """Step 1: the pairs by output error, the diagonal ones refitted through their outputs'
+        sensitivity noise model (:func:`~stageid.closedloop.prefilter.whiten_pairs`)."""
+        T, models, fits, groups = identify_pairs(groups, fit_pair)
+        if self.noise_model == "sensitivity":  # below the records' resolution the noise spectrum is unknown
+            models, groups = whiten_pairs(groups, models, np.exp(-2 * np.pi * dt / duration), self.max_nfev, fit_pair)
+            T, fits = assemble_loop(models, groups)
+        return T, models, fits, groups
+
     def _reduce(self, T, M, Mr, P_band, f_band, entries, s_unstable):
         """Step 4 with a fixed structure: every entry reduced over the band, its lines weighed by
         how far an error of T reaches it there (:mod:`~stageid.closedloop.reliability`)."""
@@ -271,10 +290,11 @@ class ClosedLoopIdentification(Estimator):
         groups = at_rest(group_by_reference(exps), fit_pair)
 
         # 1. the closed loop pair by pair (eq. 11-17)
-        T, pem_models, fits, groups = identify_pairs(groups, fit_pair)
+        duration = max(e.n_samples * e.dt for e in exps)
+        T, pem_models, fits, groups = self._loop_pairs(groups, fit_pair, dt, duration)
         # 2. the plant G = T (M - M T)^-1 (eq. 18) and its unstable poles
         G_full = deduce_plant(T, M, Mr)
-        check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / max(e.n_samples * e.dt for e in exps)))
+        check_deduction(T, M, Mr, resolved_grid(lo, dt, 1.0 / duration))
         s_unstable = z_to_s(unstable_plant_poles(T, M, Mr), dt)
         # 3. spurious pole-zero pairs cancelled entry by entry (sec. 3.2.3)
         G_cancel, entries = cancel_entries(

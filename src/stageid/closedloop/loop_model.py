@@ -33,6 +33,7 @@ __all__ = [
     "fit_with_levels",
     "level_loss",
     "identify_pairs",
+    "assemble_loop",
 ]
 
 #: passes of the rest-level estimate; the shift, as a share of the reference's RMS, below which it
@@ -299,26 +300,37 @@ def identify_pairs(
         simulation fit in percent of each pair on its records, shape (p, p), and the records
         with the estimated output levels removed (those the pairs were fitted to).
     """
-    first = next(iter(groups.values()))[0]
-    p, dt = first.n_outputs, first.dt
+    p = next(iter(groups.values()))[0].n_outputs
     models: dict[tuple[int, int], PolynomialModel] = {}
-    fits = np.zeros((p, p))
-    num = [[None] * p for _ in range(p)]
-    den = [[None] * p for _ in range(p)]
     shifted_groups = {}
     for j, group in groups.items():
         r = [e.u[:, j] for e in group]
         shifted = [e.y.copy() for e in group]
         for i in range(p):
-            m, d = fit_with_levels(r, [e.y[:, i] for e in group], dt, fit_pair)
-            y = [e.y[:, i] - dk for e, dk in zip(group, d)]
+            models[(i, j)], d = fit_with_levels(r, [e.y[:, i] for e in group], group[0].dt, fit_pair)
             for yk, dk in zip(shifted, d):
                 yk[:, i] -= dk
-            models[(i, j)] = m
-            sim = np.concatenate([m.simulate(rk) for rk in r])
-            yy = np.concatenate(y)
+        shifted_groups[j] = [replace(e, y=yk) for e, yk in zip(group, shifted)]
+    T, fits = assemble_loop(models, shifted_groups)
+    return T, models, fits, shifted_groups
+
+
+def assemble_loop(
+    models: dict[tuple[int, int], PolynomialModel], groups: dict[int, list[Experiment]]
+) -> tuple[TransferMatrix, np.ndarray]:
+    """The discrete closed loop ``T`` of the pairs ``models`` and each pair's simulation fit in
+    percent on ``groups`` (records with the output levels removed), shape (p, p)."""
+    first = next(iter(groups.values()))[0]
+    p = first.n_outputs
+    fits = np.zeros((p, p))
+    num = [[None] * p for _ in range(p)]
+    den = [[None] * p for _ in range(p)]
+    for j, group in groups.items():
+        for i in range(p):
+            m = models[(i, j)]
+            sim = np.concatenate([m.simulate(e.u[:, j]) for e in group])
+            yy = np.concatenate([e.y[:, i] for e in group])
             fits[i, j] = 100.0 * (1.0 - np.linalg.norm(yy - sim) / max(np.linalg.norm(yy - yy.mean()), 1e-300))
             num[i][j], den[i][j] = m.plant_polynomials()
-        shifted_groups[j] = [replace(e, y=yk) for e, yk in zip(group, shifted)]
-    T = TransferMatrix(num, den, dt, first.input_names, first.output_names)
-    return T, models, fits, shifted_groups
+    T = TransferMatrix(num, den, first.dt, first.input_names, first.output_names)
+    return T, fits
