@@ -4,10 +4,12 @@
 Which estimator is "PEM": ``identify statespace`` offers no prediction-error route (its methods
 are MAP and batch least squares on the Hankel-Toeplitz statistics), so the CLI's prediction-error
 estimator is the first step of the closed-loop route: every reference-to-output pair ``T_ij``
-fitted by output-error minimisation. Its estimate, the discrete closed loop ``T`` the command
+fitted by output-error minimisation, the diagonal pairs then refitted through their outputs'
+sensitivity noise model (prefiltered output error). Its estimate, the discrete closed loop ``T`` the command
 writes with ``--closed-loop-output``, is compared here; the plant deduction and reduction that
 follow are the closed-loop case's (:mod:`rec_closedloop`), but a refusal there fails the
-command and so this draw too. The draws are described in :mod:`loop_draws`.
+command and so this draw too. The draws are described in :mod:`loop_draws`; they are the
+closed-loop case's truths, and run together (``SHARED_DRAW``) one command run serves both.
 
 Error: the largest error of the closed-loop response ``T`` over 5 Hz - 1 kHz as a percentage of
 its peak there. Reference: the true loop; its output-error cost on the records is the noise
