@@ -126,14 +126,14 @@ class LoopDraw:
     records: list  # [(references, measured outputs)] per experiment
     detail: str
     failed: str  # the command's one-line message, "" when it ran
-    key: tuple = ()  # (seed, noise) it was drawn for
+    key: tuple = ()  # (seed, salt, noise) it was drawn for
 
 
-SALT = 202  # the draws' stream: the PEM and closed-loop cases score the same truths
+SALT = 202  # the draws' stream, one for the PEM and closed-loop cases (tests of older PEM draws pass 303)
 
 
-def draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
-    """Draw a loop from ``seed``, write its records and controller into ``workdir`` and run
+def draw_and_fit(seed: int, workdir: pathlib.Path, noise: float, salt: int = SALT) -> LoopDraw:
+    """Draw a loop from ``(seed, salt)``, write its records and controller into ``workdir`` and run
     ``stageid identify closed-loop`` on them (plant to ``G.json``, closed loop to ``T.json``).
 
     One run serves both cases: the prediction-error loop ``T`` is the command's first step and
@@ -142,17 +142,17 @@ def draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
     kept = workdir / "loop-draw.pkl"
     if kept.exists():
         draw = pickle.loads(kept.read_bytes())
-        if draw.key == (seed, noise):
+        if draw.key == (seed, salt, noise):
             return draw
-    draw = _draw_and_fit(seed, workdir, noise)
+    draw = _draw_and_fit(seed, workdir, noise, salt)
     kept.write_bytes(pickle.dumps(draw))
     return draw
 
 
-def _draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
+def _draw_and_fit(seed: int, workdir: pathlib.Path, noise: float, salt: int) -> LoopDraw:
     from stageid.models import save_model
 
-    rng = np.random.default_rng([seed, SALT])
+    rng = np.random.default_rng([seed, salt])
     plant, K, unstable = draw_loop(rng)
     save_model(K, workdir / "K.json")
     paths, records, style, kind = write_experiments(rng, plant, K, noise, workdir)
@@ -166,4 +166,4 @@ def _draw_and_fit(seed: int, workdir: pathlib.Path, noise: float) -> LoopDraw:
         ])  # fmt: skip
     except CliFailure as exc:
         failed = str(exc)
-    return LoopDraw(plant, K, unstable, records, f"{n}x{n}, {kind}, t {style}", failed, (seed, noise))
+    return LoopDraw(plant, K, unstable, records, f"{n}x{n}, {kind}, t {style}", failed, (seed, salt, noise))

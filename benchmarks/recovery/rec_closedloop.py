@@ -19,7 +19,7 @@ import pathlib
 
 import numpy as np
 from common import Row
-from loop_draws import BAND, draw_and_fit
+from loop_draws import BAND, SALT, draw_and_fit
 
 ESTIMATOR = "Closed loop"
 SHARED_DRAW = "loop"  # one command run per truth gives T (the PEM case) and G (this case)
@@ -51,10 +51,10 @@ def band_error(fit, truth, f: np.ndarray) -> float:
     return float((100 * np.abs(g_fit - g_true).max(0) / np.abs(g_true).max(0)).max())
 
 
-def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
+def case(seed: int, workdir: pathlib.Path, noise: float, salt: int = SALT) -> Row:
     from stageid.models import load_model
 
-    draw = draw_and_fit(seed, workdir, noise)
+    draw = draw_and_fit(seed, workdir, noise, salt)
     if draw.failed:
         return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     fit = load_model(workdir / "G.json")

@@ -27,16 +27,16 @@ import pathlib
 
 import numpy as np
 from common import Row
-from loop_draws import closed_loop_response, draw_and_fit, loop_cost
+from loop_draws import SALT, closed_loop_response, draw_and_fit, loop_cost
 
 ESTIMATOR = "PEM"
 SHARED_DRAW = "loop"  # one command run per truth gives T (this case) and G (the closed-loop case)
 
 
-def case(seed: int, workdir: pathlib.Path, noise: float) -> Row:
+def case(seed: int, workdir: pathlib.Path, noise: float, salt: int = SALT) -> Row:
     from stageid.models import load_model
 
-    draw = draw_and_fit(seed, workdir, noise)
+    draw = draw_and_fit(seed, workdir, noise, salt)
     if draw.failed:
         return Row(seed, False, float("nan"), noise=noise, detail=draw.detail, failed=draw.failed)
     T_fit = load_model(workdir / "T.json")
