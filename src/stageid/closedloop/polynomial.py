@@ -160,16 +160,23 @@ def check_orders(structure: str, orders: Mapping[str, int], nk: int) -> dict[str
     return full
 
 
-def stabilize(poly: np.ndarray) -> np.ndarray:
-    """Reflect roots of a monic polynomial in ``q^-1`` that lie outside the unit circle (Ljung, sec. 10.5)."""
+def stabilize(poly: np.ndarray, max_radius: float | None = None) -> np.ndarray:
+    """Reflect roots of a monic polynomial in ``q^-1`` that lie outside the unit circle (Ljung, sec. 10.5).
+
+    Without ``max_radius`` a polynomial with no root outside comes back as it is, and reflected
+    roots are held within 0.9999; with it, every root is held within ``max_radius`` and the
+    result is monic (a noise model's zeros, which the records resolve only so close to the circle).
+    """
     if poly.size <= 1:
         return poly
     roots = np.roots(poly)  # roots in z of z^n + p1 z^(n-1) + ...
     bad = np.abs(roots) >= 1.0
-    if not bad.any():
+    if not bad.any() and max_radius is None:
         return poly
     roots[bad] = 1.0 / np.conj(roots[bad])
-    roots[np.abs(roots) > 0.9999] *= 0.9999 / np.abs(roots[np.abs(roots) > 0.9999])
+    cap = 0.9999 if max_radius is None else max_radius
+    big = np.abs(roots) > cap
+    roots[big] *= cap / np.abs(roots[big])
     return np.real(np.poly(roots))
 
 

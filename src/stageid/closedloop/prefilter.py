@@ -34,7 +34,7 @@ from .covariance import model_orders
 from .loop_model import PairFit
 from .order_selection import criterion_value
 from .pem import decrement_tol, pem
-from .polynomial import FREE_ORDERS, PolynomialModel
+from .polynomial import FREE_ORDERS, PolynomialModel, stabilize
 
 #: most prefilters built from the last estimate and refits through them: each filter comes from a
 #: pair that drifts less below the crossover (a 3x3 draw's pole 2.0 % off after two passes, 0.4 %
@@ -57,14 +57,7 @@ def sensitivity_filter(model: PolynomialModel, max_radius: float) -> tuple[np.nd
     num = np.concatenate([np.zeros(model.nk), model.B])
     n = max(den.size, num.size)
     diff = np.pad(den, (0, n - den.size)) - np.pad(num, (0, n - num.size))
-    diff = np.trim_zeros(diff, "b")
-    roots = np.roots(diff)
-    radius = np.abs(roots)
-    outside = radius > 1.0
-    roots[outside] = 1.0 / np.conj(roots[outside])
-    radius = np.abs(roots)
-    roots = np.where(radius > max_radius, roots * (max_radius / np.maximum(radius, 1e-300)), roots)
-    return den, np.real(np.poly(roots))
+    return den, stabilize(np.trim_zeros(diff, "b"), max_radius)
 
 
 def apply_filter(filt: tuple[np.ndarray, np.ndarray], x: np.ndarray) -> np.ndarray:
