@@ -13,6 +13,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks" / "recovery"))
 
 import loop_draws  # noqa: E402
+from common import draw_noise  # noqa: E402
 
 
 def _draw(tmp_path, seed: int, salt: int, noise: float):
@@ -81,7 +82,7 @@ def test_pem_draw_is_recovered_through_the_command(tmp_path, seed, noise):
 def test_pem_draw_keeps_its_output_error_cost_under_the_noise_model(tmp_path):
     import rec_pem
 
-    row = rec_pem.case(24, tmp_path, _benchmark_noise(24))
+    row = rec_pem.case(24, tmp_path, draw_noise(24))
     assert row.failed == "" and row.recovered, row
 
 
@@ -144,11 +145,6 @@ def _pair_cost(model, records, y_true, i: int, j: int) -> tuple[float, float]:
     return cost, floor
 
 
-def _benchmark_noise(seed: int) -> float:
-    """The noise level the benchmark's runner draws for ``seed`` (``run.draw_noise``)."""
-    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, 0.02))
-
-
 @pytest.mark.study
 @pytest.mark.parametrize(
     ("seed", "salt", "pair", "bound"),
@@ -176,7 +172,7 @@ def test_pair_of_a_3x3_loop_reaches_the_noise_floor(tmp_path, seed, salt, pair, 
 
     rng = np.random.default_rng([seed, salt])
     plant, K, _ = loop_draws.draw_loop(rng)
-    paths, records, *_ = loop_draws.write_experiments(rng, plant, K, _benchmark_noise(seed), tmp_path)
+    paths, records, *_ = loop_draws.write_experiments(rng, plant, K, draw_noise(seed), tmp_path)
     names = {"inputs": ["r1", "r2", "r3"], "outputs": ["y1", "y2", "y3"]}
     exps = as_experiments([read_table(p).experiment(**names, name=str(p)) for p in paths])
 
@@ -208,5 +204,5 @@ def test_pair_of_a_3x3_loop_reaches_the_noise_floor(tmp_path, seed, salt, pair, 
 def test_unstable_pole_is_placed_by_the_pairs_below_the_crossover(tmp_path, seed):
     import rec_closedloop
 
-    row = rec_closedloop.case(seed, tmp_path, _benchmark_noise(seed))
+    row = rec_closedloop.case(seed, tmp_path, draw_noise(seed))
     assert row.failed == "" and row.recovered, row  # unstable poles within 2 %, band error <= 10 %

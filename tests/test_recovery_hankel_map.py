@@ -14,11 +14,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks" / "recovery"))
 
 import rec_hankel_map  # noqa: E402
-
-
-def _noise(seed: int) -> float:
-    # the runner's noise of a seed (run.draw_noise), without importing the runner's pool machinery
-    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, 0.02))
+from common import draw_noise  # noqa: E402
 
 
 @pytest.mark.parametrize(
@@ -31,7 +27,7 @@ def _noise(seed: int) -> float:
     ],
 )
 def test_draw_reaches_the_output_error_optimum(tmp_path, seed, error_before, ratio_before):
-    row = rec_hankel_map.case(seed, tmp_path, _noise(seed))
+    row = rec_hankel_map.case(seed, tmp_path, draw_noise(seed))
     assert not row.failed
     assert row.recovered, f"error {row.error:.3g} % of peak (before the refinement {error_before} %)"
     # the reference minimises the same cost over C, D from the truth: within 2 % of it (before: ratio_before)
@@ -128,5 +124,5 @@ def test_refinement_too_costly_is_not_run_and_the_result_says_so(monkeypatch):
     "(benchmarks/RESULTS-recovery.md, Hankel-MAP: seed 54 of 60)",
 )
 def test_modes_two_percent_apart_are_separated(tmp_path):
-    row = rec_hankel_map.case(54, tmp_path, _noise(54))  # 2 inputs x 1 output, order 8, three records
+    row = rec_hankel_map.case(54, tmp_path, draw_noise(54))  # 2 inputs x 1 output, order 8, three records
     assert row.recovered, f"error {row.error:.3g} % of peak, {row.detail}"

@@ -12,7 +12,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks" / "recovery"))
 
 import rec_modified_pi  # noqa: E402
-from run import draw_noise  # noqa: E402
+from common import draw_noise  # noqa: E402
 
 
 @pytest.mark.parametrize(

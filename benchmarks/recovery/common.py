@@ -21,7 +21,15 @@ import shlex
 
 import numpy as np
 
-__all__ = ["TIME_STYLES", "Row", "time_column", "write_record", "run_cli", "CliFailure"]
+__all__ = ["TIME_STYLES", "NOISE_MAX", "Row", "draw_noise", "time_column", "write_record", "run_cli", "CliFailure"]
+
+NOISE_MAX = 0.02  # noise drawn per seed in [0, 2 %] of the output's RMS
+
+
+def draw_noise(seed: int) -> float:
+    """The noise level of draw ``seed``: uniform in [0, NOISE_MAX], the same for every estimator."""
+    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, NOISE_MAX))
+
 
 # How data loggers write a time column in practice (each a way the period comes out an ulp
 # or a rounding away from 1/fs):

@@ -44,9 +44,9 @@ for _p in (HERE, HERE.parent):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
+from common import draw_noise  # noqa: E402 - the runner's, in __all__
 from draw_order import longest_first, previous_seconds  # noqa: E402
 
-NOISE_MAX = 0.02  # noise drawn per seed in [0, 2 %] of the output's RMS
 LOW_NOISE = 0.01  # the recovery target holds at noise <= 1 %
 RECOVERY_TARGET = 0.95
 # The FRD fit's targets: median max error within 1.3x of the reference fit's, cost ratio <= 1.01
@@ -125,11 +125,6 @@ def discover(names: list[str] | None = None) -> dict[str, str]:
 
 def _load(module: str):
     return importlib.import_module(f"recovery.{module}")
-
-
-def draw_noise(seed: int) -> float:
-    """The noise level of draw ``seed``: uniform in [0, NOISE_MAX], the same for every estimator."""
-    return float(np.random.default_rng([seed, 0x5EED]).uniform(0.0, NOISE_MAX))
 
 
 def _on_alarm(signum, frame):  # noqa: ARG001
